@@ -1,0 +1,322 @@
+"""Arrow schemas of every table ropeload writes: one source of truth.
+
+Ingest writes the lake tables (Parquet, Hive-partitioned), transforms produce the
+result tables, and the warehouse creates its DuckDB tables from these same schemas
+(see :func:`duckdb_columns`). Units are SI and named in the column names.
+
+Lake tables (Parquet under ``<data>/lake/<table>/site=../hoist=../date=../``):
+    FIELD_SAMPLES, RIG_SAMPLES, QUARANTINE
+Warehouse tables (DuckDB):
+    MANIFEST, RUNS, ROPE_TENSIONS (also Parquet), POSITION_SUMMARY, TRIP_SUMMARY, ALARMS,
+    FRICTION_PARAMETER_SETS, SANITY_CHECKS, DISCOVERY_FINDINGS
+"""
+
+from __future__ import annotations
+
+import pyarrow as pa
+
+__all__ = [
+    "ALARMS",
+    "DISCOVERY_FINDINGS",
+    "FIELD_SAMPLES",
+    "FRICTION_PARAMETER_SETS",
+    "LAKE_PARTITIONS",
+    "MANIFEST",
+    "POSITION_SUMMARY",
+    "QUARANTINE",
+    "RIG_SAMPLES",
+    "ROPES",
+    "ROPE_TENSIONS",
+    "RUNS",
+    "SANITY_CHECKS",
+    "TABLES",
+    "TRIP_SUMMARY",
+    "duckdb_columns",
+]
+
+#: Head ropes per hoist handled by the wide per-rope columns (contract: 4).
+ROPES = (1, 2, 3, 4)
+
+#: Hive partition keys of the lake tables, in path order.
+LAKE_PARTITIONS = ("site", "hoist", "date")
+
+TIME = pa.timestamp("us", tz="UTC")
+
+
+def _per_rope(template: str, dtype: pa.DataType, *, nullable: bool = True) -> list[pa.Field]:
+    return [pa.field(template.format(i=i), dtype, nullable=nullable) for i in ROPES]
+
+
+def _schema(fields: list[pa.Field], doc: str) -> pa.Schema:
+    return pa.schema(fields, metadata={"doc": doc})
+
+
+#: One row per landed sample of a field log (contract 1a/1b), SI units.
+#: Sensor pressures are as logged (converted to Pa), before sensor calibration.
+FIELD_SAMPLES = _schema(
+    [
+        pa.field("time_utc", TIME, nullable=False),
+        *_per_rope("p{i}_pa", pa.float64()),
+        *_per_rope("x{i}_m", pa.float64()),
+        pa.field("depth_m", pa.float64()),
+        pa.field("speed_m_s", pa.float64()),
+        pa.field("oil_temp_c", pa.float64()),
+        pa.field("source_sha256", pa.string(), nullable=False),
+        pa.field("source_line", pa.int64(), nullable=False),
+    ],
+    "one row per field-log sample; partitioned by site/hoist/date (UTC date)",
+)
+
+#: One row per rig sample on the pressure timeline, other topics joined as-of.
+RIG_SAMPLES = _schema(
+    [
+        pa.field("time_utc", TIME, nullable=False),
+        pa.field("rig_id", pa.string(), nullable=False),
+        pa.field("step", pa.int32()),
+        pa.field("pressure_setpoint_pa", pa.float64()),
+        pa.field("velocity_setpoint_m_s", pa.float64()),
+        pa.field("p_rodless_pa", pa.float64()),
+        pa.field("p_rod_pa", pa.float64()),
+        pa.field("x_m", pa.float64()),
+        pa.field("oil_temp_c", pa.float64()),
+        pa.field("source_sha256", pa.string(), nullable=False),
+    ],
+    "one row per /rig/pressure message; partitioned by site=rig/hoist=<rig_id>/date",
+)
+
+#: One row per rejected raw row (or unreadable file), with where and why.
+QUARANTINE = _schema(
+    [
+        pa.field("source_sha256", pa.string(), nullable=False),
+        pa.field("source_path", pa.string(), nullable=False),
+        pa.field("line", pa.int64()),
+        pa.field("topic", pa.string()),
+        pa.field("reason", pa.string(), nullable=False),
+        pa.field("raw", pa.string()),
+    ],
+    "one row per quarantined raw row; line is 1-based in the file (null for binary formats)",
+)
+
+#: One row per source file content seen by ingest.
+MANIFEST = _schema(
+    [
+        pa.field("source_sha256", pa.string(), nullable=False),
+        pa.field("source_path", pa.string(), nullable=False),
+        pa.field("format", pa.string(), nullable=False),
+        pa.field("size_bytes", pa.int64(), nullable=False),
+        pa.field("bytes_consumed", pa.int64()),
+        pa.field("site", pa.string()),
+        pa.field("hoist", pa.string()),
+        pa.field("rows_read", pa.int64(), nullable=False),
+        pa.field("rows_landed", pa.int64(), nullable=False),
+        pa.field("rows_quarantined", pa.int64(), nullable=False),
+        pa.field("rows_duplicate", pa.int64(), nullable=False),
+        pa.field("quarantined_by_reason", pa.map_(pa.string(), pa.int64())),
+        pa.field("time_start_utc", TIME),
+        pa.field("time_end_utc", TIME),
+        pa.field("status", pa.string(), nullable=False),
+        pa.field("message", pa.string()),
+        pa.field("ingested_at_utc", TIME, nullable=False),
+    ],
+    "one row per distinct source content (sha256); status landed | partial | refused",
+)
+
+#: One row per pipeline run (ingest, calibrate, run, backfill, discover, demo).
+RUNS = _schema(
+    [
+        pa.field("run_id", pa.string(), nullable=False),
+        pa.field("command", pa.string(), nullable=False),
+        pa.field("code_version", pa.string(), nullable=False),
+        pa.field("hoist_sha256", pa.string()),
+        pa.field("parameter_set", pa.string()),
+        pa.field("site", pa.string()),
+        pa.field("hoist", pa.string()),
+        pa.field("period_start_utc", TIME),
+        pa.field("period_end_utc", TIME),
+        pa.field("inputs", pa.list_(pa.string())),
+        pa.field("started_at_utc", TIME, nullable=False),
+        pa.field("finished_at_utc", TIME),
+        pa.field("status", pa.string(), nullable=False),
+        pa.field("message", pa.string()),
+    ],
+    "one row per run; inputs are source_sha256 of the files it read",
+)
+
+#: One row per compensated sample (wide over the four ropes).
+ROPE_TENSIONS = _schema(
+    [
+        pa.field("time_utc", TIME, nullable=False),
+        pa.field("depth_m", pa.float64()),
+        pa.field("speed_m_s", pa.float64()),
+        pa.field("acceleration_up_m_s2", pa.float64()),
+        pa.field("trip_id", pa.int64()),
+        pa.field("phase", pa.string()),
+        pa.field("direction", pa.string()),
+        pa.field("position", pa.string()),
+        *_per_rope("p{i}_pa", pa.float64()),
+        *_per_rope("p_chamber{i}_pa", pa.float64()),
+        *_per_rope("friction{i}_n", pa.float64()),
+        *_per_rope("tension_raw{i}_n", pa.float64()),
+        *_per_rope("tension{i}_n", pa.float64()),
+        pa.field("load_raw_n", pa.float64()),
+        pa.field("load_n", pa.float64()),
+    ],
+    "one row per sample after filtering and compensation; raw = p x A_bore (paper eq 2 "
+    "without corrections)",
+)
+
+#: Paper Table 2 shape: one row per trip and hoist position.
+POSITION_SUMMARY = _schema(
+    [
+        pa.field("run_id", pa.string(), nullable=False),
+        pa.field("site", pa.string(), nullable=False),
+        pa.field("hoist", pa.string(), nullable=False),
+        pa.field("trip_id", pa.int64()),
+        pa.field("position", pa.string(), nullable=False),
+        pa.field("time_start_utc", TIME),
+        pa.field("time_end_utc", TIME),
+        pa.field("depth_m", pa.float64()),
+        pa.field("tail_rope_length_m", pa.float64()),
+        *_per_rope("tension_before{i}_n", pa.float64()),
+        *_per_rope("tension_after{i}_n", pa.float64()),
+        pa.field("load_before_n", pa.float64()),
+        pa.field("load_after_n", pa.float64()),
+        pa.field("expected_load_n", pa.float64()),
+        pa.field("payload_kg", pa.float64()),
+        pa.field("error_before_fraction", pa.float64()),
+        pa.field("error_after_fraction", pa.float64()),
+        pa.field("imbalance_after_fraction", pa.float64()),
+        pa.field("samples", pa.int64()),
+    ],
+    "one row per trip and named position (Table 2 of the paper); loads in N",
+)
+
+#: One row per hoist trip.
+TRIP_SUMMARY = _schema(
+    [
+        pa.field("run_id", pa.string(), nullable=False),
+        pa.field("site", pa.string(), nullable=False),
+        pa.field("hoist", pa.string(), nullable=False),
+        pa.field("trip_id", pa.int64(), nullable=False),
+        pa.field("direction", pa.string()),
+        pa.field("time_start_utc", TIME),
+        pa.field("time_end_utc", TIME),
+        pa.field("depth_start_m", pa.float64()),
+        pa.field("depth_end_m", pa.float64()),
+        pa.field("payload_kg", pa.float64()),
+        pa.field("payload_spread_kg", pa.float64()),
+        pa.field("max_load_n", pa.float64()),
+        pa.field("max_imbalance_fraction", pa.float64()),
+    ],
+    "one row per trip; payload inferred from the compensated load at each position",
+)
+
+#: One row per alarm event (debounced).
+ALARMS = _schema(
+    [
+        pa.field("alarm_id", pa.string(), nullable=False),
+        pa.field("run_id", pa.string(), nullable=False),
+        pa.field("site", pa.string(), nullable=False),
+        pa.field("hoist", pa.string(), nullable=False),
+        pa.field("rule", pa.string(), nullable=False),
+        pa.field("rope", pa.int32()),
+        pa.field("start_utc", TIME, nullable=False),
+        pa.field("end_utc", TIME, nullable=False),
+        pa.field("peak_time_utc", TIME),
+        pa.field("peak_value", pa.float64()),
+        pa.field("threshold", pa.float64()),
+        pa.field("unit", pa.string()),
+        pa.field("message", pa.string()),
+    ],
+    "one row per alarm event; rule names the regulation or check that fired",
+)
+
+#: One row per friction parameter set (eq 17 form, SI) from calibration or a description.
+FRICTION_PARAMETER_SETS = _schema(
+    [
+        pa.field("parameter_set", pa.string(), nullable=False),
+        pa.field("created_at_utc", TIME, nullable=False),
+        pa.field("source", pa.string()),
+        pa.field("bore_m", pa.float64()),
+        pa.field("coulomb_n", pa.float64()),
+        pa.field("coulomb_n_per_pa", pa.float64()),
+        pa.field("static_n", pa.float64()),
+        pa.field("static_n_per_pa", pa.float64()),
+        pa.field("stribeck_speed_m_s", pa.float64()),
+        pa.field("stribeck_speed_m_s_per_pa", pa.float64()),
+        pa.field("viscous_n_s_m", pa.float64()),
+        pa.field("viscous_n_s_m_per_pa", pa.float64()),
+        pa.field("residual_rms", pa.map_(pa.string(), pa.float64())),
+        pa.field("inputs", pa.list_(pa.string())),
+    ],
+    "one row per friction parameter set; value(p) = intercept + slope * p[Pa]",
+)
+
+#: One row per trip checked against the simulation.
+SANITY_CHECKS = _schema(
+    [
+        pa.field("run_id", pa.string(), nullable=False),
+        pa.field("site", pa.string(), nullable=False),
+        pa.field("hoist", pa.string(), nullable=False),
+        pa.field("trip_id", pa.int64(), nullable=False),
+        pa.field("rms_gap_pa", pa.float64()),
+        pa.field("noise_pa", pa.float64()),
+        pa.field("passed", pa.bool_(), nullable=False),
+        pa.field("message", pa.string()),
+    ],
+    "one row per trip: RMS of measured minus simulated sensor pressure",
+)
+
+#: One row per discrepancy report (contract section 5), the JSON kept whole.
+DISCOVERY_FINDINGS = _schema(
+    [
+        pa.field("run_id", pa.string(), nullable=False),
+        pa.field("site", pa.string(), nullable=False),
+        pa.field("hoist", pa.string(), nullable=False),
+        pa.field("iteration", pa.int32(), nullable=False),
+        pa.field("period_start_utc", TIME),
+        pa.field("period_end_utc", TIME),
+        pa.field("effect", pa.string(), nullable=False),
+        pa.field("confidence", pa.float64()),
+        pa.field("gap_before_pa", pa.float64()),
+        pa.field("gap_after_pa", pa.float64()),
+        pa.field("report_json", pa.string(), nullable=False),
+    ],
+    "one row per effect found (or 'none') by the discovery workflow",
+)
+
+TABLES: dict[str, pa.Schema] = {
+    "field_samples": FIELD_SAMPLES,
+    "rig_samples": RIG_SAMPLES,
+    "quarantine": QUARANTINE,
+    "manifest": MANIFEST,
+    "runs": RUNS,
+    "rope_tensions": ROPE_TENSIONS,
+    "position_summary": POSITION_SUMMARY,
+    "trip_summary": TRIP_SUMMARY,
+    "alarms": ALARMS,
+    "friction_parameter_sets": FRICTION_PARAMETER_SETS,
+    "sanity_checks": SANITY_CHECKS,
+    "discovery_findings": DISCOVERY_FINDINGS,
+}
+
+_DUCKDB_TYPES = {
+    pa.float64(): "DOUBLE",
+    pa.int64(): "BIGINT",
+    pa.int32(): "INTEGER",
+    pa.string(): "VARCHAR",
+    pa.bool_(): "BOOLEAN",
+    TIME: "TIMESTAMPTZ",
+    pa.list_(pa.string()): "VARCHAR[]",
+    pa.map_(pa.string(), pa.int64()): "MAP(VARCHAR, BIGINT)",
+    pa.map_(pa.string(), pa.float64()): "MAP(VARCHAR, DOUBLE)",
+}
+
+
+def duckdb_columns(schema: pa.Schema) -> str:
+    """Column list for ``CREATE TABLE`` from an Arrow schema (``NOT NULL`` kept)."""
+    parts = []
+    for field in schema:
+        sql_type = _DUCKDB_TYPES[field.type]
+        parts.append(f"{field.name} {sql_type}{'' if field.nullable else ' NOT NULL'}")
+    return ",\n    ".join(parts)

@@ -184,6 +184,7 @@ def parse_quantity(text: str | float | int, dimension: str) -> float:
         return value
     if not unit:
         raise QuantityError(
-            f"{text!r} has no unit; expected a {dimension} such as '{value} {DIMENSIONS[dimension]}'"
+            f"{text!r} has no unit; expected a {dimension} "
+            f"such as '{value} {DIMENSIONS[dimension]}'"
         )
     return value * unit_factor(unit, dimension)

@@ -90,7 +90,7 @@ def open_writer(root: DataRoot) -> Iterator[duckdb.DuckDBPyConnection]:
             con.close()
             with staging.open("rb") as handle:
                 os.fsync(handle.fileno())
-            os.replace(staging, root.warehouse)
+            staging.replace(root.warehouse)
             directory = os.open(root.path, os.O_RDONLY)
             try:
                 os.fsync(directory)

@@ -1,0 +1,68 @@
+"""Reading the Parquet lake: one hoist's samples over a period, lazily.
+
+The lake is Hive-partitioned ``site=/hoist=/date=`` (UTC date), so a period read prunes
+to the partitions it needs before any file is opened.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+
+import polars as pl
+
+from schemas.tables import TABLES
+from warehouse.store import DataRoot
+
+__all__ = ["lake_partitions", "scan_lake"]
+
+
+def _utc(value: dt.datetime) -> dt.datetime:
+    return value.replace(tzinfo=dt.UTC) if value.tzinfo is None else value.astimezone(dt.UTC)
+
+
+def scan_lake(
+    data: DataRoot,
+    table: str,
+    *,
+    site: str,
+    hoist: str,
+    start: dt.datetime | None = None,
+    end: dt.datetime | None = None,
+) -> pl.LazyFrame:
+    """Lazy scan of ``table`` for one site and hoist, ``start <= time_utc < end``.
+
+    Returns an empty frame with the table's schema when nothing is landed. Naive
+    datetimes are taken as UTC.
+    """
+    schema = TABLES[table]
+    root = data.table_dir(table) / f"site={site}" / f"hoist={hoist}"
+    files = sorted(root.glob("date=*/*.parquet"))
+    if start is not None or end is not None:
+        first = _utc(start).date().isoformat() if start is not None else ""
+        last = _utc(end).date().isoformat() if end is not None else "9999-12-31"
+        files = [f for f in files if first <= f.parent.name.removeprefix("date=") <= last]
+    if not files:
+        return pl.LazyFrame(schema=pl.Schema(pl.from_arrow(schema.empty_table()).schema))
+    frame = pl.scan_parquet(files, hive_partitioning=False)
+    if start is not None:
+        frame = frame.filter(pl.col("time_utc") >= _utc(start))
+    if end is not None:
+        frame = frame.filter(pl.col("time_utc") < _utc(end))
+    return frame.sort("time_utc")
+
+
+def lake_partitions(data: DataRoot, table: str) -> pl.DataFrame:
+    """All (site, hoist, date) partitions of ``table`` with their file counts."""
+    rows = []
+    for path in sorted(data.table_dir(table).glob("site=*/hoist=*/date=*")):
+        rows.append(
+            {
+                "site": path.parent.parent.name.removeprefix("site="),
+                "hoist": path.parent.name.removeprefix("hoist="),
+                "date": path.name.removeprefix("date="),
+                "files": len(list(path.glob("*.parquet"))),
+            }
+        )
+    return pl.DataFrame(
+        rows, schema={"site": pl.String, "hoist": pl.String, "date": pl.String, "files": pl.Int64}
+    )

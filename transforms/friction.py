@@ -230,7 +230,10 @@ def lugre_z_step(z: float, v: float, dt: float, sigma0: float, g: float) -> floa
     if g <= 0.0:
         return 0.0
     z_ss = g / sigma0 if v > 0.0 else -g / sigma0
-    return z_ss + (z - z_ss) * math.exp(-sigma0 * abs(v) * dt / g)
+    rate = sigma0 * abs(v) * dt / g
+    if rate > 745.0:  # exp underflows to 0: already at the steady state
+        return z_ss
+    return z_ss + (z - z_ss) * math.exp(-rate)
 
 
 @njit(cache=True)
@@ -261,6 +264,10 @@ def lugre_force(
 def _lugre_kernel(v, dt, fc, fs, vs, kv, sigma0, sigma1, z0, force_out, z_out):  # pragma: no cover
     z = z0
     for i in range(v.shape[0]):
+        if v[i] != v[i]:  # NaN velocity (logger gap): hold the state, no force
+            force_out[i] = np.nan
+            z_out[i] = z
+            continue
         g = stribeck_g(v[i], fc[i], fs[i], vs[i])
         z_new = lugre_z_step(z, v[i], dt[i], sigma0, g)
         force_out[i] = lugre_force(z, z_new, v[i], dt[i], sigma0, sigma1, kv[i])
@@ -319,8 +326,9 @@ def lugre_friction(
 
     Notes
     -----
-    At standstill (v = 0) z is held, so the friction carried over from the last
-    motion persists (sigma0 z) instead of dropping to zero. With v constant for long
+    A NaN velocity (a gap in the record) gives NaN force and holds z, so the state
+    is not poisoned. At standstill (v = 0) z is held, so the friction carried over from
+    the last motion persists (sigma0 z) instead of dropping to zero. With v constant for long
     enough the force converges to the Stribeck curve, eq 16.
 
     Examples
@@ -441,9 +449,14 @@ def maxwell_slip_elements(n: int, stiffness_n_m: float) -> tuple[np.ndarray, np.
 
 
 @njit(cache=True)
-def _maxwell_slip_kernel(v, dt, fc, fs, vs, kv, stiffness, weights, deltas, force_out):  # pragma: no cover
+def _maxwell_slip_kernel(
+    v, dt, fc, fs, vs, kv, stiffness, weights, deltas, force_out
+):  # pragma: no cover
     capacity = np.empty(weights.shape[0])
     for i in range(v.shape[0]):
+        if v[i] != v[i]:  # NaN velocity: hold the elements, no force
+            force_out[i] = np.nan
+            continue
         g = stribeck_g(v[i], fc[i], fs[i], vs[i])
         for j in range(weights.shape[0]):
             capacity[j] = weights[j] * g

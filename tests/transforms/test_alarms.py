@@ -1,0 +1,334 @@
+"""Alarms on synthetic 100 Hz hoist data with injected events of known start and end."""
+
+from __future__ import annotations
+
+import datetime as dt
+
+import numpy as np
+import polars as pl
+import pytest
+
+from schemas.hoist import EXAMPLE_HOIST, G_STANDARD, load_hoist
+from schemas.tables import ALARMS
+from transforms.alarms import ALARM_RULES, alarm_id, evaluate_alarms, rule_thresholds
+
+FS_HZ = 100.0
+T0 = dt.datetime(2026, 3, 2, 6, 0, tzinfo=dt.UTC)
+ROPE_SHARE = np.array([1.02, 0.99, 1.01, 0.98]) / 4.0  # static share of the load per rope
+
+
+@pytest.fixture(scope="module")
+def hoist():
+    return load_hoist(EXAMPLE_HOIST)
+
+
+def _trapezoid(distance_m: float, t: np.ndarray, v_max: float, acc: float):
+    """Distance, speed and signed acceleration of a trapezoidal move over ``t``."""
+    t_acc = v_max / acc
+    t_cruise = (distance_m - v_max * t_acc) / v_max
+    t_end = 2 * t_acc + t_cruise
+    t = np.clip(t, 0.0, t_end)
+    accel = np.where(t < t_acc, acc, np.where(t < t_acc + t_cruise, 0.0, -acc))
+    speed = np.where(
+        t < t_acc,
+        acc * t,
+        np.where(t < t_acc + t_cruise, v_max, v_max - acc * (t - t_acc - t_cruise)),
+    )
+    dist = np.where(
+        t < t_acc,
+        0.5 * acc * t**2,
+        np.where(
+            t < t_acc + t_cruise,
+            0.5 * acc * t_acc**2 + v_max * (t - t_acc),
+            distance_m - 0.5 * acc * (t_end - t) ** 2,
+        ),
+    )
+    return dist, np.maximum(speed, 0.0), accel, t_end
+
+
+def synthetic_day(hoist, payloads_kg, *, seed=0, standstill_s=20.0):
+    """A ROPE_TENSIONS frame: cycles of load at bottom, trip up, unload, trip down.
+
+    Returns the frame and a list of segments (kind, trip_id, start_s, end_s, payload).
+    Payload changes as a step in the middle of each standstill (trip_id null there).
+    """
+    top, bottom = hoist.shaft.positions_m["pithead"], hoist.shaft.positions_m["bottom"]
+    distance = bottom - top
+    pieces, segments, t_now, trip = [], [], 0.0, 0
+    for payload in payloads_kg:
+        for kind in ("load", "up", "unload", "down"):
+            if kind in ("load", "unload"):
+                n = int(standstill_s * FS_HZ)
+                t = np.arange(n) / FS_HZ
+                before, after = (0.0, payload) if kind == "load" else (payload, 0.0)
+                pieces.append(
+                    {
+                        "t": t_now + t,
+                        "depth": np.full(n, bottom if kind == "load" else top),
+                        "speed": np.zeros(n),
+                        "a_up": np.zeros(n),
+                        "payload": np.where(t < standstill_s / 2, before, after),
+                        "trip": np.full(n, -1),
+                    }
+                )
+                segments.append((kind, None, t_now, t_now + n / FS_HZ, payload))
+                t_now += n / FS_HZ
+                continue
+            trip += 1
+            _, _, _, t_end = _trapezoid(distance, np.zeros(1), 10.0, 0.75)
+            n = int(np.ceil(t_end * FS_HZ)) + 1
+            t = np.arange(n) / FS_HZ
+            dist, v, acc, _ = _trapezoid(distance, t, 10.0, 0.75)
+            up = kind == "up"
+            pieces.append(
+                {
+                    "t": t_now + t,
+                    "depth": bottom - dist if up else top + dist,
+                    "speed": -v if up else v,  # positive downwards
+                    "a_up": acc if up else -acc,
+                    "payload": np.full(n, payload if up else 0.0),
+                    "trip": np.full(n, trip),
+                }
+            )
+            segments.append((kind, trip, t_now, t_now + n / FS_HZ, payload if up else 0.0))
+            t_now += n / FS_HZ
+    cat = {k: np.concatenate([p[k] for p in pieces]) for k in pieces[0]}
+    rng = np.random.default_rng(seed)
+    n = cat["t"].size
+    tail_kg = (
+        hoist.conveyance.tail_ropes
+        * hoist.ropes.tail_rope_mass_per_length_kg_m
+        * (hoist.shaft.depth_m - cat["depth"])
+    )
+    load = (hoist.conveyance.mass_kg + cat["payload"]) * (G_STANDARD + cat["a_up"]) + tail_kg * (
+        G_STANDARD
+    )
+    moving = np.abs(cat["speed"]) > 0
+    tensions = []
+    for i in range(4):
+        ringing = 0.004 * np.sin(2 * np.pi * 1.7 * cat["t"] + i) * moving
+        noise = rng.normal(0.0, 0.004, n)
+        tensions.append(load * ROPE_SHARE[i] * (1.0 + ringing + noise))
+    jitter_s = rng.uniform(-0.001, 0.001, n)
+    frame = pl.DataFrame(
+        {
+            "time_utc": pl.Series(
+                np.datetime64(T0.replace(tzinfo=None), "us")
+                + ((cat["t"] + jitter_s) * 1e6).astype("timedelta64[us]")
+            ).dt.replace_time_zone("UTC"),
+            "depth_m": cat["depth"],
+            "speed_m_s": cat["speed"],
+            "acceleration_up_m_s2": cat["a_up"],
+            "trip_id": pl.Series(cat["trip"], dtype=pl.Int64).set(pl.Series(cat["trip"] < 0), None),
+            **{f"tension{i + 1}_n": tensions[i] for i in range(4)},
+        }
+    )
+    return frame, segments
+
+
+def finish(frame: pl.DataFrame, hoist) -> pl.DataFrame:
+    """Derive the remaining ROPE_TENSIONS columns from tension{i}_n."""
+    area = hoist.cylinders.bore_area_m2
+    return frame.with_columns(
+        *[(pl.col(f"tension{i}_n") * 0.95).alias(f"tension_raw{i}_n") for i in range(1, 5)],
+        *[(pl.col(f"tension{i}_n") * 0.95 / area).alias(f"p{i}_pa") for i in range(1, 5)],
+        load_n=pl.sum_horizontal(f"tension{i}_n" for i in range(1, 5)),
+        load_raw_n=pl.sum_horizontal(f"tension{i}_n" for i in range(1, 5)) * 0.95,
+    )
+
+
+def _at(frame: pl.DataFrame, start_s: float, end_s: float) -> pl.Expr:
+    t = (pl.col("time_utc") - pl.lit(T0)).dt.total_microseconds() / 1e6
+    return (t >= start_s) & (t < end_s)
+
+
+def _seconds(value: dt.datetime) -> float:
+    return (value - T0).total_seconds()
+
+
+def _events(alarms: pl.DataFrame, rule: str) -> list[tuple[int | None, float, float]]:
+    rows = alarms.filter(pl.col("rule") == rule).sort("rope", "start_utc")
+    return [
+        (r["rope"], _seconds(r["start_utc"]), _seconds(r["end_utc"]))
+        for r in rows.iter_rows(named=True)
+    ]
+
+
+def _assert_events(found, expected, *, tol_s=1.0):
+    assert len(found) == len(expected), (found, expected)
+    for (rope, s, e), (rope_x, s_x, e_x) in zip(
+        sorted(found, key=str), sorted(expected, key=str), strict=True
+    ):
+        assert rope == rope_x
+        assert abs(s - s_x) <= tol_s, (rope, s, s_x)
+        assert abs(e - e_x) <= tol_s, (rope, e, e_x)
+
+
+def test_thresholds_follow_the_regulations(hoist):
+    th = rule_thresholds(hoist)
+    # Quebec s.253.2 read per rope: 60 % of 8.2 t x g / 4, and max static + 10 % of 900 kN
+    assert th.slack_n == pytest.approx(0.6 * 8200 * 9.80665 / 4)
+    assert th.tight_n == pytest.approx((8200 + 6000 + 2 * 6.2 * 620) * 9.80665 / 4 + 90e3)
+    assert th.imbalance_fraction == 0.10
+    assert {r.name for r in ALARM_RULES.values()} >= {"rope_imbalance", "slack_rope", "overload"}
+
+
+def test_clean_day_raises_no_alarm(hoist):
+    payloads = [4000.0, 5500.0, 3000.0, 6000.0, 0.0, 5000.0, 4500.0, 2500.0]
+    frame, segments = synthetic_day(hoist, payloads, seed=1)
+    frame = finish(frame, hoist)
+    trips = pl.DataFrame(
+        {
+            "trip_id": [s[1] for s in segments if s[1]],
+            "payload_kg": [s[4] for s in segments if s[1]],
+        }
+    )
+    alarms = evaluate_alarms(frame, hoist, run_id="r-clean", trip_payloads=trips)
+    assert frame.height > 100_000
+    assert alarms.height == 0, alarms
+
+
+def test_injected_events_found_once_with_start_and_end(hoist):
+    payloads = [4000.0, 7000.0, 5000.0]  # trip 3 (second up trip) carries 7 t: overload
+    frame, segments = synthetic_day(hoist, payloads, seed=2)
+    # Overload: from the load step in the 2nd cycle's loading to the unload step.
+    load2 = next(s for s in segments if s[0] == "load" and s[4] == 7000.0)
+    unload2 = next(s for s in segments if s[0] == "unload" and s[4] == 7000.0)
+    overload = (None, (load2[2] + load2[3]) / 2, (unload2[2] + unload2[3]) / 2)
+    # Imbalance on rope 2 during the first up trip's cruise (sum kept): 20 % up, others down.
+    up1 = next(s for s in segments if s[0] == "up")
+    imb = (up1[2] + 30.0, up1[2] + 38.0)
+    # Slack rope 3 during the first down trip's cruise: 25 % of its share, others take it.
+    down1 = next(s for s in segments if s[0] == "down")
+    slack = (down1[2] + 25.0, down1[2] + 30.0)
+    # Short blip (0.2 s, below min_duration): no alarm.
+    blip = (down1[2] + 50.0, down1[2] + 50.2)
+    # Imbalance of rope 1 oscillating around the threshold (11 % +- 2 % at 0.5 Hz) for
+    # 10 s: it drops below the release level every 2 s, yet it is one alarm, not five.
+    down2 = [s for s in segments if s[0] == "down"][1]
+    flicker = (down2[2] + 20.0, down2[2] + 30.0)
+    t = np.arange(frame.height) / FS_HZ
+    flick = np.where(
+        (t >= blip[0]) & (t < blip[1]), 1.3, 1.122 + 0.028 * np.sin(2 * np.pi * 0.5 * t)
+    )
+
+    frame = (
+        frame.with_columns(
+            pl.when(_at(frame, *imb))
+            .then(pl.col("tension2_n") * 1.2)
+            .otherwise(pl.col("tension2_n")),
+            *[
+                pl.when(_at(frame, *imb))
+                .then(pl.col(c) - 0.2 * pl.col("tension2_n") / 3)
+                .otherwise(pl.col(c))
+                for c in ("tension1_n", "tension3_n", "tension4_n")
+            ],
+        )
+        .with_columns(
+            pl.when(_at(frame, *slack))
+            .then(pl.col("tension3_n") * 0.25)
+            .otherwise(pl.col("tension3_n")),
+            *[
+                pl.when(_at(frame, *slack))
+                .then(pl.col(c) + 0.75 * pl.col("tension3_n") / 3)
+                .otherwise(pl.col(c))
+                for c in ("tension1_n", "tension2_n", "tension4_n")
+            ],
+        )
+        .with_columns(
+            pl.when(_at(frame, *blip) | _at(frame, *flicker))
+            .then(pl.col("tension1_n") * pl.Series(flick))
+            .otherwise(pl.col("tension1_n")),
+        )
+    )
+    frame = finish(frame, hoist)
+    trips = pl.DataFrame(
+        {
+            "trip_id": [s[1] for s in segments if s[1]],
+            "payload_kg": [s[4] for s in segments if s[1]],
+        }
+    )
+    alarms = evaluate_alarms(frame, hoist, run_id="r-inj", trip_payloads=trips)
+
+    assert alarms.schema == pl.from_arrow(ALARMS.empty_table()).schema
+    _assert_events(_events(alarms, "overload"), [overload])
+    _assert_events(_events(alarms, "slack_rope"), [(3, *slack)])
+    # imbalance: rope 2 in its window; in the slack window every rope is > 10 % off the mean
+    # (rope 3 at 25 %, the others carrying 1.25x); the flicker on rope 1 is one event.
+    expected_imbalance = [(2, *imb), *[(i, *slack) for i in (1, 2, 3, 4)], (1, *flicker)]
+    found = _events(alarms, "rope_imbalance")
+    # the flicker holds the hysteresis band with gaps < merge gap: one alarm within ~1 s
+    _assert_events(found, expected_imbalance)
+    assert set(alarms["rule"]) == {"overload", "slack_rope", "rope_imbalance"}
+    # peaks and thresholds
+    slack_row = alarms.filter(pl.col("rule") == "slack_rope").row(0, named=True)
+    assert (
+        slack_row["peak_value"]
+        < slack_row["threshold"]
+        == pytest.approx(rule_thresholds(hoist).slack_n)
+    )
+    assert slack_row["unit"] == "N"
+    assert "253.2" in slack_row["message"]
+    over = alarms.filter(pl.col("rule") == "overload").row(0, named=True)
+    assert over["peak_value"] / G_STANDARD == pytest.approx(8200 + 7000 + 2 * 6.2 * 620, rel=0.02)
+    # deterministic ids: the same run again gives the same ids
+    again = evaluate_alarms(frame, hoist, run_id="r-inj-2", trip_payloads=trips)
+    assert sorted(again["alarm_id"]) == sorted(alarms["alarm_id"])
+    assert alarms["alarm_id"].n_unique() == alarms.height
+    row = alarms.row(0, named=True)
+    assert row["alarm_id"] == alarm_id(
+        row["site"], row["hoist"], row["rule"], row["rope"], row["start_utc"]
+    )
+
+
+def test_reconciliation_residual_at_standstill(hoist):
+    frame, segments = synthetic_day(hoist, [4000.0, 4000.0], seed=3)
+    # The 2nd unload standstill: the 4 t payload stays on for its first 10 s. Give those
+    # samples a trip id whose payload is known, and let the sensors read 6 % low for 6 s.
+    unload = [s for s in segments if s[0] == "unload"][1]
+    loaded = (unload[2], unload[2] + 10.0)
+    drift = (unload[2] + 2.0, unload[2] + 8.0)
+    frame = frame.with_columns(
+        *[
+            pl.when(_at(frame, *drift))
+            .then(pl.col(f"tension{i}_n") * 0.94)
+            .otherwise(pl.col(f"tension{i}_n"))
+            for i in range(1, 5)
+        ],
+        trip_id=pl.when(_at(frame, *loaded)).then(99).otherwise(pl.col("trip_id")),
+    )
+    frame = finish(frame, hoist)
+    unknown = evaluate_alarms(frame, hoist, run_id="r")
+    assert unknown.filter(pl.col("rule") == "reconciliation_residual").height == 0
+    known = pl.DataFrame({"trip_id": [99], "payload_kg": [4000.0]})
+    alarms = evaluate_alarms(frame, hoist, run_id="r", trip_payloads=known)
+    _assert_events(_events(alarms, "reconciliation_residual"), [(None, *drift)])
+    row = alarms.filter(pl.col("rule") == "reconciliation_residual").row(0, named=True)
+    assert row["peak_value"] == pytest.approx(0.06, abs=0.01)
+
+
+def test_sensor_faults(hoist):
+    frame, _ = synthetic_day(hoist, [3000.0, 3000.0], seed=4)
+    frame = finish(frame, hoist)
+    n = frame.height
+    t = np.arange(n) / FS_HZ
+    p4 = frame["p4_pa"].to_numpy().copy()
+    flat = (t >= 100.0) & (t < 140.0)  # 40 s flat-line on sensor 4 while the others move
+    p4[flat] = p4[np.argmax(flat)]
+    p2 = frame["p2_pa"].to_numpy().copy()
+    over = (t >= 200.0) & (t < 203.0)
+    p2[over] = 26e6  # above the 25 MPa full scale
+    p1 = frame["p1_pa"].to_numpy().copy()
+    p1[(t >= 250.0) & (t < 252.0)] = np.nan  # sensor 1 missing 2 s
+    frame = frame.with_columns(
+        p4_pa=pl.Series(p4), p2_pa=pl.Series(p2), p1_pa=pl.Series(p1).fill_nan(None)
+    )
+    # logger gap: 3 s without rows
+    times = (frame["time_utc"] - pl.lit(T0)).dt.total_microseconds() / 1e6
+    frame = frame.filter((times < 300.0) | (times >= 303.0))
+    alarms = evaluate_alarms(frame, hoist, run_id="r")
+    _assert_events(_events(alarms, "sensor_flatline"), [(4, 100.0, 140.0)])
+    _assert_events(_events(alarms, "sensor_out_of_range"), [(2, 200.0, 203.0)])
+    _assert_events(_events(alarms, "sensor_dropout"), [(None, 300.0, 303.0), (1, 250.0, 252.0)])
+    assert alarms.filter(pl.col("rule") == "sensor_out_of_range")["peak_value"][0] == 26e6
+    assert _events(alarms, "sensor_stuck") == []

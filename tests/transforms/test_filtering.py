@@ -1,0 +1,123 @@
+"""Tests for transforms.filtering: segments, spikes, zero-phase low-pass."""
+
+from __future__ import annotations
+
+from datetime import datetime, timedelta
+
+import numpy as np
+import polars as pl
+import pytest
+
+from transforms.filtering import (
+    hampel,
+    lowpass,
+    lowpass_columns,
+    remove_spikes,
+    segment_ids,
+    with_segment_id,
+)
+
+FS_HZ = 100.0
+
+
+def _gapped_step():
+    t = np.concatenate([np.arange(0, 5, 0.01), 8.0 + np.arange(0, 5, 0.01)])
+    x = np.where(t < 6, 0.0, 1.0)  # a step hidden in the gap
+    return t, x
+
+
+def test_segment_ids_numpy_and_frame_agree():
+    t, _ = _gapped_step()
+    seg = segment_ids(t)
+    assert seg[499] == 0
+    assert seg[500] == 1
+    assert seg.max() == 1
+    start = datetime(2026, 3, 2, 6)
+    df = pl.DataFrame({"timestamp": [start + timedelta(seconds=float(s)) for s in t]})
+    out = with_segment_id(df.lazy(), "timestamp", nominal_dt_s=0.01).collect()
+    np.testing.assert_array_equal(out["segment_id"].to_numpy(), seg)
+    jitter = np.arange(10) * 0.01 + np.array([0, 0.002, -0.001, 0, 0, 0.003, 0, 0, 0, 0])
+    assert segment_ids(jitter).max() == 0  # jitter is not a gap
+
+
+def test_lowpass_does_not_smear_across_gap():
+    t, x = _gapped_step()
+    y = lowpass(x, segment_ids(t), sample_rate_hz=FS_HZ, cutoff_hz=2.0)
+    np.testing.assert_allclose(y[:500], 0.0, atol=1e-12)
+    np.testing.assert_allclose(y[500:], 1.0, atol=1e-12)
+    smeared = lowpass(x, None, sample_rate_hz=FS_HZ, cutoff_hz=2.0)
+    assert np.abs(smeared[490:510] - x[490:510]).max() > 0.1  # what the segments avoid
+
+
+def test_lowpass_passes_sine_below_cutoff_and_stops_above():
+    t = np.arange(0, 10, 0.01)
+    slow = np.sin(2 * np.pi * 1.0 * t)
+    y = lowpass(slow, None, sample_rate_hz=FS_HZ, cutoff_hz=5.0)
+    assert np.max(np.abs(y - slow)) < 0.01  # within 1 % of the amplitude, no phase lag
+    fast = 0.5 * np.sin(2 * np.pi * 30.0 * t)
+    y = lowpass(slow + fast, None, sample_rate_hz=FS_HZ, cutoff_hz=5.0)
+    # 30 Hz is 6x the cut-off: |H|^2 = 1 / (1 + 6^8) (edges excluded: odd-extension)
+    assert np.max(np.abs(y[100:-100] - slow[100:-100])) < 0.001
+
+
+def test_lowpass_nan_and_short_segments():
+    x = np.sin(np.linspace(0, 3, 300))
+    x[100] = np.nan
+    seg = np.zeros(300, dtype=np.int64)
+    seg[-5:] = 1  # too short to filter: left as is
+    y = lowpass(x, seg, sample_rate_hz=FS_HZ, cutoff_hz=5.0)
+    assert np.isnan(y[100])
+    assert np.isfinite(y[99])
+    assert np.isfinite(y[101])
+    np.testing.assert_array_equal(y[-5:], x[-5:])
+
+
+def test_hampel_removes_spikes_only():
+    rng = np.random.default_rng(2)
+    t = np.arange(0, 10, 0.01)
+    clean = 5e6 + 1e5 * np.sin(2 * np.pi * 0.5 * t) + rng.normal(0, 2e3, t.size)
+    x = clean.copy()
+    idx = rng.choice(np.arange(10, t.size - 10), 15, replace=False)
+    x[idx] += rng.choice([-1, 1], 15) * 3e5
+    y, spikes = hampel(x, window=9, n_sigmas=4.0)
+    assert set(np.flatnonzero(spikes)) >= set(idx)
+    assert spikes.sum() <= 15 + 5  # few false positives
+    assert np.max(np.abs(y - clean)) < 2e4
+    assert np.max(np.abs(y[~spikes] - x[~spikes])) == 0.0
+
+
+def test_remove_spikes_respects_segments_and_lowpass_columns():
+    t, x = _gapped_step()
+    df = pl.DataFrame({"t_s": t, "p_pa": x * 1e6}).pipe(with_segment_id, "t_s", nominal_dt_s=0.01)
+    out = remove_spikes(df.lazy(), ["p_pa"]).collect()
+    assert not out["p_pa_spike"].any()  # the step across the gap is not a spike
+    np.testing.assert_array_equal(out["p_pa"].to_numpy(), x * 1e6)
+    lp = lowpass_columns(df, ["p_pa"], sample_rate_hz=FS_HZ, cutoff_hz=2.0)
+    np.testing.assert_allclose(lp["p_pa"].to_numpy(), x * 1e6, atol=1e-6)
+
+
+def test_time_column_type_checked():
+    with pytest.raises(TypeError):
+        with_segment_id(pl.DataFrame({"t": ["a"]}), "t", nominal_dt_s=0.01)
+
+
+# -- play operator (added with the compensation) ----------------------------------------
+def test_play_operator_ignores_jitter_and_passes_motion():
+    from transforms.filtering import play_operator
+
+    rng = np.random.default_rng(3)
+    rest = 1e-3 + rng.uniform(-4e-5, 4e-5, 500)  # +-0.04 mm jitter at 1 mm
+    ramp = np.linspace(1e-3, 3e-3, 200)
+    y = play_operator(np.r_[rest, ramp, np.full(300, 3e-3)], half_width=5e-5)
+    # jitter narrower than the band moves it at most ptp - w while it settles, then never
+    assert np.ptp(y[:500]) <= np.ptp(rest) - 5e-5 + 1e-12
+    assert np.count_nonzero(np.diff(y[:500])) <= 10  # the raw jitter changes every sample
+    assert y[-1] == pytest.approx(3e-3 - 5e-5)  # the real 2 mm motion passes, lagged by w
+
+
+def test_play_operator_restarts_per_segment_and_holds_nan():
+    from transforms.filtering import play_operator
+
+    x = np.array([0.0, 1.0, np.nan, 2.0, 5.0, 5.1])
+    y = play_operator(x, np.array([0, 0, 0, 0, 1, 1]), half_width=0.5)
+    assert y.tolist() == [0.0, 0.5, 0.5, 1.5, 5.0, 5.0]

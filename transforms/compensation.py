@@ -1,0 +1,326 @@
+"""From logged sensor pressures to compensated rope tensions (paper sections 4-5).
+
+For each cylinder i of a hoist, per sample:
+
+1. sensor calibration: p_i = (reading_i - offset_i) / gain_i (hoist ``[[sensors]]``);
+2. spikes removed (Hampel) and a zero-phase low-pass, per gap-free segment;
+3. piston motion from the logged displacement x_i, or, when x is not logged, the
+   common-mode motion implied by oil compressibility (all pistons move together by
+   V dp / (n A beta); NOTES.md). The friction state is driven by the increments of a
+   play (deadband) operator on x, so sensor jitter and quantisation do not move it and
+   a smoothed derivative's overshoot at a stop cannot flip it; the branch flow uses
+   the Savitzky-Golay velocity of the same signal;
+4. chamber pressure: the sensor sits after the globe valve and the first branch part,
+   so p_chamber = p_sensor - (p_sensor - p_chamber)(v, T) (paper eq 12-14, contract 1a);
+5. seal friction F_i: LuGre (paper eq 15, which the paper calls "Leuven") driven by v_i,
+   with parameters linear in chamber pressure (eq 17 form); with
+   ``presliding_hysteresis`` in the hoist's model, the Maxwell-slip elements (the
+   Leuven / GMS idea) replace the single bristle. The state is carried through
+   standstill, so the friction left by the last motion is kept, not zeroed;
+6. tension T_i = p_chamber,i A_bore + F_i (paper eq 2, F positive while the rod moves
+   out), and the uncompensated T_raw,i = p_sensor,i A_bore (the paper's "before").
+
+Which corrections apply follows the hoist's ``[model] effects``: ``seal_friction``,
+``presliding_hysteresis``, ``pipe_laminar_loss`` / ``local_loss`` (both are in the branch
+loss), ``viscosity_temperature`` (viscosity from the logged oil temperature instead of
+the reference temperature).
+
+The friction state is sequential over the whole record, so :func:`compensate` takes a
+collected frame of one hoist, sorted by time, and returns a ``ROPE_TENSIONS`` frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import polars as pl
+
+from schemas.hoist import HoistDescription
+from schemas.tables import ROPE_TENSIONS, ROPES
+from transforms.filtering import lowpass_columns, play_operator, remove_spikes, with_segment_id
+from transforms.friction import (
+    friction_parameters,
+    lugre_friction,
+    maxwell_slip_elements,
+    maxwell_slip_friction,
+)
+from transforms.kinematics import (
+    with_acceleration,
+    with_piston_velocity,
+    with_position,
+    with_trip_phases,
+)
+from transforms.oil import effective_bulk_modulus
+from transforms.pressure_loss import sensor_minus_chamber_pa
+
+__all__ = ["CompensationSettings", "common_mode_displacement", "compensate"]
+
+_OUTPUT_SCHEMA = pl.Schema(pl.from_arrow(ROPE_TENSIONS.empty_table()).schema)
+
+
+@dataclass(frozen=True)
+class CompensationSettings:
+    """Signal-processing choices of :func:`compensate` (documented defaults).
+
+    Attributes
+    ----------
+    sample_rate_hz : float
+        Nominal logger rate [Hz]; spacing above ``gap_factor`` / rate starts a segment.
+    pressure_cutoff_hz : float
+        Zero-phase low-pass on the pressures [Hz] (4th-order Butterworth, filtfilt).
+    spike_window : int
+        Hampel window [samples] for pressure and displacement spikes.
+    velocity_window_s : float
+        Savitzky-Golay window for the piston velocity [s].
+    acceleration_window_s : float
+        Savitzky-Golay window for the conveyance acceleration [s].
+    displacement_deadband_m : float
+        Half-width of the play operator on logged piston displacement [m]; about the
+        displacement sensor's noise plus half its print resolution (contract CSV: 0.1 mm).
+    common_mode_deadband_pa : float
+        Without logged displacement: the play half-width expressed as a change of the
+        common pressure [Pa] (pressure noise after the low-pass must stay inside it).
+    """
+
+    sample_rate_hz: float = 100.0
+    gap_factor: float = 3.0
+    pressure_cutoff_hz: float = 10.0
+    spike_window: int = 7
+    spike_sigmas: float = 5.0
+    velocity_window_s: float = 0.2
+    acceleration_window_s: float = 0.5
+    displacement_deadband_m: float = 1e-4
+    common_mode_deadband_pa: float = 20e3
+
+
+def _rope_cols(template: str) -> list[str]:
+    return [template.format(i=i) for i in ROPES]
+
+
+def _common_mode_compliance_m_pa(hoist: HoistDescription, p_pa: np.ndarray) -> float:
+    """dx/dp of every piston when the closed oil volume is compressed [m/Pa]."""
+    p_typical = float(np.nanmedian(p_pa)) if np.isfinite(p_pa).any() else 1e6
+    beta = float(
+        effective_bulk_modulus(
+            max(p_typical, 1e5), hoist.oil.bulk_modulus_pa, hoist.oil.air_fraction
+        )
+    )
+    return hoist.oil_volume_m3 / (hoist.ropes_n * hoist.cylinders.bore_area_m2 * beta)
+
+
+def common_mode_displacement(
+    p_mean_pa: np.ndarray, segment_id: np.ndarray, hoist: HoistDescription
+) -> np.ndarray:
+    r"""Piston displacement implied by oil compression when x is not logged [m].
+
+    The four chambers, pipes and manifold are one closed oil volume V, so a change of
+    the common pressure dp moves every piston by the same amount (NOTES.md):
+
+    .. math::
+        n A_{bore}\, dx = \frac{V}{\beta_e(p)}\, dp
+
+    with beta_e the effective bulk modulus (entrained air included,
+    :func:`transforms.oil.effective_bulk_modulus`). A rising load squeezes oil out of
+    the chambers, so x grows (rod out) while p rises. Differential piston motion is not
+    observable this way and is taken as zero. Integrated per segment from 0.
+    """
+    p = np.asarray(p_mean_pa, dtype=np.float64)
+    beta = effective_bulk_modulus(
+        np.maximum(np.nan_to_num(p, nan=1e6), 1e5),
+        hoist.oil.bulk_modulus_pa,
+        hoist.oil.air_fraction,
+    )
+    compliance = hoist.oil_volume_m3 / (hoist.ropes_n * hoist.cylinders.bore_area_m2 * beta)
+    dp = np.r_[0.0, np.diff(p)]
+    starts = np.r_[True, segment_id[1:] != segment_id[:-1]]
+    dp[starts | ~np.isfinite(dp)] = 0.0
+    dx = compliance * dp
+    x = np.cumsum(dx)
+    # restart the integral at every segment start
+    offsets = np.maximum.accumulate(np.where(starts, np.arange(x.size), 0))
+    return x - x[offsets] + dx[offsets]
+
+
+def _increment_velocity(x: np.ndarray, dt: np.ndarray, segment_id: np.ndarray) -> np.ndarray:
+    """(x[i] - x[i-1]) / dt[i], 0 at segment starts: the friction state sees exact steps."""
+    v = np.zeros_like(x)
+    v[1:] = np.diff(x) / dt[1:]
+    starts = np.r_[True, segment_id[1:] != segment_id[:-1]]
+    v[starts | ~np.isfinite(v)] = 0.0
+    return v
+
+
+def _step_lengths(time_s: np.ndarray, segment_id: np.ndarray, nominal_dt_s: float) -> np.ndarray:
+    """dt[i] = t[i] - t[i-1]; a segment's first sample gets the nominal step."""
+    dt = np.empty_like(time_s)
+    dt[0] = nominal_dt_s
+    dt[1:] = np.diff(time_s)
+    starts = np.r_[True, segment_id[1:] != segment_id[:-1]]
+    dt[starts] = nominal_dt_s
+    return dt
+
+
+def _seal_friction(
+    v: np.ndarray,
+    dt: np.ndarray,
+    p_chamber_pa: np.ndarray,
+    hoist: HoistDescription,
+    *,
+    presliding: bool,
+) -> np.ndarray:
+    law = hoist.friction_law
+    fc, fs, vs, kv = friction_parameters(p_chamber_pa, law)
+    v = np.where(np.isfinite(v), v, 0.0)  # no velocity information: hold the state
+    if presliding:
+        stiffness, weights = maxwell_slip_elements(
+            law.presliding_elements, law.bristle_stiffness_n_m
+        )
+        force, _ = maxwell_slip_friction(v, dt, fc, fs, vs, kv, stiffness, weights)
+    else:
+        force, _ = lugre_friction(
+            v, dt, fc, fs, vs, kv, law.bristle_stiffness_n_m, law.bristle_damping_n_s_m
+        )
+    return force
+
+
+def compensate(
+    samples: pl.DataFrame | pl.LazyFrame,
+    hoist: HoistDescription,
+    *,
+    settings: CompensationSettings | None = None,
+    effects: set[str] | None = None,
+) -> pl.DataFrame:
+    """Compensated rope tensions for one hoist's samples (a ``FIELD_SAMPLES`` frame).
+
+    Parameters
+    ----------
+    samples : polars.DataFrame or LazyFrame
+        Landed samples of one hoist (columns of ``schemas.tables.FIELD_SAMPLES``).
+    hoist : HoistDescription
+        Geometry, oil, sensors, friction law and ``[model] effects``.
+    settings : CompensationSettings, optional
+        Filtering and differentiation choices.
+    effects : set of str, optional
+        Effects to compensate; default ``hoist.model.effects``.
+
+    Returns
+    -------
+    polars.DataFrame
+        One row per sample with the columns of ``schemas.tables.ROPE_TENSIONS``.
+    """
+    settings = settings or CompensationSettings()
+    effects = set(hoist.model.effects if effects is None else effects)
+    dt_nominal = 1.0 / settings.sample_rate_hz
+    frame = samples.lazy().sort("time_utc").collect()
+    if frame.height == 0:
+        return pl.DataFrame(schema=_OUTPUT_SCHEMA)
+
+    p_cols, x_cols = _rope_cols("p{i}_pa"), _rope_cols("x{i}_m")
+    calibration = [
+        ((pl.col(f"p{s.cylinder}_pa") - s.offset_pa) / s.gain).alias(f"p{s.cylinder}_pa")
+        for s in hoist.sensors
+    ]
+    frame = (
+        frame.with_columns(calibration)
+        .pipe(
+            with_segment_id,
+            "time_utc",
+            gap_factor=settings.gap_factor,
+            nominal_dt_s=dt_nominal,
+        )
+        .pipe(
+            remove_spikes,
+            [*p_cols, *x_cols],
+            window=settings.spike_window,
+            n_sigmas=settings.spike_sigmas,
+            flag_suffix=None,
+        )
+        .pipe(
+            lowpass_columns,
+            p_cols,
+            sample_rate_hz=settings.sample_rate_hz,
+            cutoff_hz=settings.pressure_cutoff_hz,
+        )
+        .with_columns(pl.col("speed_m_s").fill_null(0.0).alias("_speed"))
+        .pipe(
+            with_acceleration,
+            dt_s=dt_nominal,
+            speed_col="_speed",
+            window_s=settings.acceleration_window_s,
+        )
+        .pipe(with_trip_phases, hoist, speed_col="_speed")
+        .pipe(with_position, hoist)
+    )
+
+    has_x = all(frame[c].null_count() < frame.height for c in x_cols)
+    segment = frame["segment_id"].to_numpy()
+    if has_x:
+        played = {
+            f"x{i}_m": play_operator(
+                frame[f"x{i}_m"].to_numpy().astype(np.float64),
+                segment,
+                half_width=settings.displacement_deadband_m,
+            )
+            for i in ROPES
+        }
+    else:
+        p_mean = frame.select(pl.mean_horizontal(p_cols)).to_series().to_numpy()
+        x_common = common_mode_displacement(p_mean, segment, hoist)
+        half_width = settings.common_mode_deadband_pa * _common_mode_compliance_m_pa(hoist, p_mean)
+        x_common = play_operator(x_common, segment, half_width=half_width)
+        played = {f"x{i}_m": x_common for i in ROPES}
+    motion = frame.select("segment_id").with_columns(
+        pl.Series(name, values) for name, values in played.items()
+    )
+    motion = with_piston_velocity(
+        motion,
+        x_cols,
+        bore_area_m2=hoist.cylinders.bore_area_m2,
+        dt_s=dt_nominal,
+        window_s=settings.velocity_window_s,
+    )
+    flow_velocities = [motion[f"v{i}_m_s"].to_numpy().astype(np.float64) for i in ROPES]
+
+    time_s = frame["time_utc"].dt.epoch("us").to_numpy().astype(np.float64) * 1e-6
+    dt = _step_lengths(time_s, segment, dt_nominal)
+    area = hoist.cylinders.bore_area_m2
+    t_oil = None
+    if "viscosity_temperature" in effects and frame["oil_temp_c"].null_count() < frame.height:
+        t_oil = (
+            frame["oil_temp_c"]
+            .fill_null(strategy="forward")
+            .fill_null(strategy="backward")
+            .to_numpy()
+        )
+    with_branch_loss = bool({"pipe_laminar_loss", "local_loss"} & effects)
+    with_friction = "seal_friction" in effects
+    presliding = "presliding_hysteresis" in effects
+
+    columns: dict[str, np.ndarray] = {}
+    for i, v_flow in zip(ROPES, flow_velocities, strict=True):
+        p_sensor = frame[f"p{i}_pa"].to_numpy().astype(np.float64)
+        v_known = np.where(np.isfinite(v_flow), v_flow, 0.0)
+        v = _increment_velocity(played[f"x{i}_m"], dt, segment)
+        if with_branch_loss:
+            p_chamber = p_sensor - sensor_minus_chamber_pa(v_known, hoist, t_oil)
+        else:
+            p_chamber = p_sensor.copy()
+        if with_friction:
+            p_for_law = np.where(np.isfinite(p_chamber), p_chamber, 0.0)
+            friction = _seal_friction(v, dt, p_for_law, hoist, presliding=presliding)
+        else:
+            friction = np.zeros_like(p_chamber)
+        columns[f"p_chamber{i}_pa"] = p_chamber
+        columns[f"friction{i}_n"] = friction
+        columns[f"tension_raw{i}_n"] = p_sensor * area
+        columns[f"tension{i}_n"] = p_chamber * area + friction
+
+    result = frame.with_columns(
+        pl.Series(name, values, dtype=pl.Float64) for name, values in columns.items()
+    ).with_columns(
+        (-pl.col("acceleration_m_s2")).alias("acceleration_up_m_s2"),
+        pl.sum_horizontal(_rope_cols("tension_raw{i}_n")).alias("load_raw_n"),
+        pl.sum_horizontal(_rope_cols("tension{i}_n")).alias("load_n"),
+    )
+    return result.select(pl.col(name).cast(dtype) for name, dtype in _OUTPUT_SCHEMA.items())

@@ -1,0 +1,403 @@
+"""Gap-aware signal conditioning for logged pressures, displacements and speeds.
+
+Segments
+    :func:`segment_ids` -- contiguous-segment numbers from sample times (numpy).
+    :func:`with_segment_id` -- the same as a column of a LazyFrame/DataFrame.
+
+Spikes
+    :func:`hampel` -- Hampel identifier per segment (numpy in, numpy out; numba).
+    :func:`remove_spikes` -- the same on frame columns.
+
+Low-pass
+    :func:`lowpass` -- zero-phase Butterworth (``scipy.signal.sosfiltfilt``) per segment.
+    :func:`lowpass_columns` -- the same on frame columns.
+
+A *gap* is a sample spacing larger than ``gap_factor`` times the nominal spacing (the
+median spacing unless given). Every filter runs on each contiguous segment on its own,
+so nothing is smeared across a gap (the logger drops samples, files overlap, a hoist
+may be off for hours).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+from typing import TypeVar
+
+import numpy as np
+import polars as pl
+from numba import njit
+from scipy import signal
+
+__all__ = [
+    "MAD_TO_SIGMA",
+    "hampel",
+    "lowpass",
+    "lowpass_columns",
+    "play_operator",
+    "remove_spikes",
+    "segment_ids",
+    "with_segment_id",
+]
+
+Frame = TypeVar("Frame", pl.DataFrame, pl.LazyFrame)
+
+#: Scale from median absolute deviation to standard deviation for Gaussian noise.
+MAD_TO_SIGMA = 1.4826
+
+
+def segment_ids(
+    t_s: np.ndarray, *, gap_factor: float = 3.0, nominal_dt_s: float | None = None
+) -> np.ndarray:
+    """Number contiguous segments: a new segment starts after each gap.
+
+    Parameters
+    ----------
+    t_s : numpy.ndarray
+        Sample times [s], increasing.
+    gap_factor : float
+        A spacing above ``gap_factor * nominal_dt_s`` is a gap [-].
+    nominal_dt_s : float, optional
+        Nominal sample spacing [s]; default the median spacing.
+
+    Returns
+    -------
+    numpy.ndarray
+        int64 segment id per sample, starting at 0.
+
+    >>> segment_ids(np.array([0.0, 0.01, 0.02, 0.5, 0.51])).tolist()
+    [0, 0, 0, 1, 1]
+    """
+    t = np.asarray(t_s, dtype=np.float64)
+    if t.size < 2:
+        return np.zeros(t.size, dtype=np.int64)
+    dt = np.diff(t)
+    nominal = float(np.median(dt)) if nominal_dt_s is None else nominal_dt_s
+    breaks = np.concatenate([[False], dt > gap_factor * nominal])
+    return np.cumsum(breaks, dtype=np.int64)
+
+
+def _seconds(frame_schema: pl.Schema, time_col: str) -> pl.Expr:
+    dtype = frame_schema[time_col]
+    if dtype.is_temporal():
+        return pl.col(time_col).dt.epoch("us").cast(pl.Float64) * 1e-6
+    if dtype.is_numeric():
+        return pl.col(time_col).cast(pl.Float64)
+    raise TypeError(f"{time_col}: expected a datetime or seconds column, got {dtype}")
+
+
+def with_segment_id(
+    frame: Frame,
+    time_col: str,
+    *,
+    gap_factor: float = 3.0,
+    nominal_dt_s: float,
+    name: str = "segment_id",
+) -> Frame:
+    """Add a contiguous-segment id column (Int64) to a frame sorted by ``time_col``.
+
+    ``time_col`` is a Datetime or float seconds column; a spacing above
+    ``gap_factor * nominal_dt_s`` [s] starts a new segment. (Unlike
+    :func:`segment_ids` the nominal spacing is required: a lazy frame has no cheap
+    median; take it from the log's ``sample_rate_hz``.)
+
+    >>> df = pl.DataFrame({"t_s": [0.0, 0.01, 0.02, 0.5, 0.51]})
+    >>> with_segment_id(df, "t_s", nominal_dt_s=0.01)["segment_id"].to_list()
+    [0, 0, 0, 1, 1]
+    """
+    t = _seconds(frame.collect_schema(), time_col)
+    gap = (t.diff() > gap_factor * nominal_dt_s).fill_null(False)
+    return frame.with_columns(gap.cast(pl.Int64).cum_sum().alias(name))
+
+
+@njit(cache=True)
+def _hampel_kernel(x, seg, half, threshold):  # pragma: no cover
+    n = x.shape[0]
+    out = x.copy()
+    buf = np.empty(2 * half + 1)
+    dev = np.empty(2 * half + 1)
+    for i in range(n):
+        if not np.isfinite(x[i]):
+            continue
+        m = 0
+        for j in range(max(0, i - half), min(n, i + half + 1)):
+            if seg[j] == seg[i] and np.isfinite(x[j]):
+                buf[m] = x[j]
+                m += 1
+        med = np.median(buf[:m])
+        for k in range(m):
+            dev[k] = abs(buf[k] - med)
+        mad = np.median(dev[:m])
+        if abs(x[i] - med) > threshold * mad:
+            out[i] = med
+    return out
+
+
+def hampel(
+    x: np.ndarray,
+    segment_id: np.ndarray | None = None,
+    *,
+    window: int = 7,
+    n_sigmas: float = 4.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    r"""Hampel identifier per segment: replace spikes by the local median.
+
+    Sample i is a spike when
+
+    .. math::
+        |x_i - m_i| > n_\sigma \cdot 1.4826 \cdot
+        \operatorname{median}_{j \in W_i} |x_j - m_i|,
+        \qquad m_i = \operatorname{median}_{j \in W_i} x_j
+
+    with W_i the centred window of ``window`` samples, cut at segment boundaries (so a
+    window never reaches across a gap). NaN samples are ignored and stay NaN.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Signal.
+    segment_id : numpy.ndarray or None
+        Segment id per sample (:func:`segment_ids`); None: one segment.
+    window : int
+        Odd window length [samples].
+    n_sigmas : float
+        Threshold in robust standard deviations [-].
+
+    Returns
+    -------
+    cleaned, is_spike : numpy.ndarray
+        Cleaned signal and a Boolean spike mask.
+
+    Notes
+    -----
+    Where the window is flat (MAD 0, e.g. a quantised signal at rest) any deviation
+    from the median counts as a spike.
+
+    References
+    ----------
+    Pearson, R. K. (2002), Outliers in process modeling and identification, IEEE
+    Trans. Control Syst. Technol. 10(1), 55-63, doi:10.1109/87.974338.
+
+    >>> y, spikes = hampel(np.array([1.0, 1.1, 0.9, 50.0, 1.0, 1.1, 0.9]))
+    >>> float(y[3]), spikes.tolist()
+    (1.0, [False, False, False, True, False, False, False])
+    """
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    seg = (
+        np.zeros(x.size, dtype=np.int64)
+        if segment_id is None
+        else np.ascontiguousarray(segment_id, dtype=np.int64)
+    )
+    cleaned = _hampel_kernel(x, seg, window // 2, n_sigmas * MAD_TO_SIGMA)
+    return cleaned, cleaned != x
+
+
+def remove_spikes(
+    frame: Frame,
+    columns: Sequence[str],
+    *,
+    segment_col: str = "segment_id",
+    window: int = 7,
+    n_sigmas: float = 4.0,
+    flag_suffix: str | None = "_spike",
+) -> Frame:
+    """Apply :func:`hampel` to frame columns (replaced in place), per segment.
+
+    Sequential, so it runs in ``map_batches`` over the whole column with the segment
+    ids beside it. If ``flag_suffix`` is given, a Boolean column
+    ``<column><flag_suffix>`` marks the replaced samples. Nulls stay null.
+    """
+
+    def make(column: str) -> pl.Expr:
+        def _batch(s: pl.Series) -> pl.Series:
+            parts = s.struct.unnest()
+            y, _ = hampel(
+                parts["x"].cast(pl.Float64).to_numpy(),
+                parts["seg"].to_numpy(),
+                window=window,
+                n_sigmas=n_sigmas,
+            )
+            return pl.Series(y, dtype=pl.Float64).fill_nan(None)
+
+        return pl.struct(x=pl.col(column), seg=pl.col(segment_col)).map_batches(
+            _batch, return_dtype=pl.Float64
+        )
+
+    if flag_suffix is None:
+        return frame.with_columns(make(c).alias(c) for c in columns)
+    tmp = {c: f"__{c}_hampel" for c in columns}
+    frame = frame.with_columns(make(c).alias(tmp[c]) for c in columns)
+    frame = frame.with_columns(
+        [(pl.col(tmp[c]) != pl.col(c)).fill_null(False).alias(c + flag_suffix) for c in columns]
+        + [pl.col(tmp[c]).alias(c) for c in columns]
+    )
+    return frame.drop(list(tmp.values()))
+
+
+def _fill_nan_linear(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    bad = ~np.isfinite(x)
+    if bad.any() and (~bad).any():
+        idx = np.arange(x.size)
+        x = x.copy()
+        x[bad] = np.interp(idx[bad], idx[~bad], x[~bad])
+    return x, bad
+
+
+def lowpass(
+    x: np.ndarray,
+    segment_id: np.ndarray | None,
+    *,
+    sample_rate_hz: float,
+    cutoff_hz: float,
+    order: int = 4,
+) -> np.ndarray:
+    r"""Zero-phase Butterworth low-pass, each segment filtered on its own.
+
+    Forward-backward filtering (``scipy.signal.sosfiltfilt``) of an order-``order``
+    Butterworth section cascade: magnitude response
+
+    .. math:: |H(f)|^2 = \frac{1}{1 + (f/f_c)^{2N}}
+
+    applied twice (squared), no phase lag. Each segment is padded by odd extension of
+    three cut-off periods (scipy's default pad is shorter and leaves ~3 % edge error
+    on a sine at a fifth of the cut-off). NaN samples inside a segment are bridged
+    linearly for the filter and returned as NaN. Segments too short for the
+    edge padding use a shorter pad; segments of fewer than ``3 * order`` samples are
+    returned unfiltered.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Signal, uniformly sampled within each segment.
+    segment_id : numpy.ndarray or None
+        Segment id per sample (:func:`segment_ids`); None: one segment.
+    sample_rate_hz, cutoff_hz : float
+        Nominal sampling rate and -3 dB (one pass) cut-off [Hz].
+    order : int
+        Butterworth order (per pass).
+
+    Returns
+    -------
+    numpy.ndarray
+        Filtered signal, same shape.
+
+    >>> t = np.arange(0, 2, 0.01)
+    >>> y = lowpass(np.sin(2 * np.pi * t), None, sample_rate_hz=100, cutoff_hz=10)
+    >>> bool(np.max(np.abs(y - np.sin(2 * np.pi * t))) < 0.01)
+    True
+    """
+    x = np.asarray(x, dtype=np.float64)
+    seg = np.zeros(x.size, dtype=np.int64) if segment_id is None else np.asarray(segment_id)
+    sos = signal.butter(order, cutoff_hz, btype="low", fs=sample_rate_hz, output="sos")
+    # scipy's default pad (3 (2 sections + 1) samples) leaves a start-up transient of
+    # a few % at the edges; pad by three cut-off periods instead
+    default_pad = max(3 * (2 * sos.shape[0] + 1), int(3 * sample_rate_hz / cutoff_hz))
+    out = x.copy()
+    starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]])) if x.size else []
+    bounds = [*list(starts), x.size]
+    for a, b in itertools.pairwise(bounds):
+        part, bad = _fill_nan_linear(x[a:b])
+        if b - a < 3 * order or bad.all():
+            continue
+        filtered = signal.sosfiltfilt(sos, part, padlen=min(default_pad, b - a - 1))
+        filtered[bad] = np.nan
+        out[a:b] = filtered
+    return out
+
+
+def lowpass_columns(
+    frame: Frame,
+    columns: Sequence[str],
+    *,
+    segment_col: str = "segment_id",
+    sample_rate_hz: float,
+    cutoff_hz: float,
+    order: int = 4,
+) -> Frame:
+    """Apply :func:`lowpass` to frame columns (replaced in place), per segment.
+
+    The filter is sequential, so it runs in ``map_batches`` over the whole column
+    (with the segment ids beside it), once per column. Nulls stay null.
+    """
+
+    def make(column: str) -> pl.Expr:
+        def _batch(s: pl.Series) -> pl.Series:
+            parts = s.struct.unnest()
+            y = lowpass(
+                parts["x"].cast(pl.Float64).to_numpy(),
+                parts["seg"].to_numpy(),
+                sample_rate_hz=sample_rate_hz,
+                cutoff_hz=cutoff_hz,
+                order=order,
+            )
+            return pl.Series(y, dtype=pl.Float64).fill_nan(None)
+
+        return (
+            pl.struct(x=pl.col(column), seg=pl.col(segment_col))
+            .map_batches(_batch, return_dtype=pl.Float64)
+            .alias(column)
+        )
+
+    return frame.with_columns([make(c) for c in columns])
+
+
+@njit(cache=True)
+def _play_kernel(x, seg, half_width, out):  # pragma: no cover - numba
+    y = np.nan
+    for i in range(x.shape[0]):
+        if i == 0 or seg[i] != seg[i - 1]:
+            y = np.nan
+        xi = x[i]
+        if np.isfinite(xi):
+            if not np.isfinite(y):
+                y = xi
+            elif xi > y + half_width:
+                y = xi - half_width
+            elif xi < y - half_width:
+                y = xi + half_width
+        out[i] = y
+
+
+def play_operator(
+    x: np.ndarray, segment_id: np.ndarray | None = None, *, half_width: float
+) -> np.ndarray:
+    r"""Play (backlash) operator: follows ``x`` only once it leaves a band of +-``half_width``.
+
+    .. math::
+        y_i = \min\bigl(\max(y_{i-1},\; x_i - w),\; x_i + w\bigr)
+
+    A monotone motion larger than w passes through (lagging by w); jitter and
+    quantisation flicker smaller than w do not move the output. Used to drive
+    rate-independent friction state (LuGre bristles, Maxwell-slip elements) from a noisy
+    displacement record, where the *increments* of the input matter: a smoothed
+    derivative overshoots at a stop and noise moves the state by its own amplitude.
+    The state restarts at each segment (``segment_id`` change); NaN inputs hold it.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Input, e.g. piston displacement [m].
+    segment_id : numpy.ndarray, optional
+        Contiguous-segment ids (see :func:`segment_ids`); default one segment.
+    half_width : float
+        w, half the band width, in the unit of ``x`` (>= 0).
+
+    References
+    ----------
+    Krasnosel'skii, M. A., Pokrovskii, A. V. (1989), Systems with Hysteresis, Springer,
+    ch. 1 (the play operator); Visintin, A. (1994), Differential Models of Hysteresis.
+
+    >>> play_operator(np.array([0.0, 0.05, -0.05, 0.3, 0.25, 0.0]), half_width=0.1).round(2)
+    array([0. , 0. , 0. , 0.2, 0.2, 0.1])
+    """
+    if half_width < 0:
+        raise ValueError(f"half_width must be >= 0, got {half_width}")
+    values = np.ascontiguousarray(x, dtype=np.float64)
+    seg = (
+        np.zeros(values.shape[0], dtype=np.int64)
+        if segment_id is None
+        else np.ascontiguousarray(segment_id, dtype=np.int64)
+    )
+    out = np.empty_like(values)
+    _play_kernel(values, seg, float(half_width), out)
+    return out

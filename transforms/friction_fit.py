@@ -1,0 +1,352 @@
+"""Fitting seal-friction parameters: Stribeck curves per pressure, lines in pressure.
+
+Straight lines (paper eq 17 form)
+    :func:`fit_line` -- (weighted) least squares value = a + b p with standard errors.
+    :func:`fit_table1` -- OLS lines for every column of paper Table 1.
+    :func:`compare_with_eq17` -- OLS lines against the paper's printed eq 17.
+    :data:`EQ17` -- eq 17 as printed (strings: the printed precision matters).
+
+Stribeck curve at one pressure (paper eq 16/18)
+    :func:`fit_stribeck` -- Fc, Fs, vs, Kv by ``scipy.optimize.least_squares`` with
+    1-sigma uncertainties from the Jacobian.
+
+Calibration
+    :func:`fit_friction_law` -- per-pressure Stribeck fits -> weighted lines in
+    pressure -> a :class:`~schemas.hoist.FrictionLaw` and the line fits (residuals).
+
+No file reads here: callers pass frames and arrays in.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from decimal import Decimal
+
+import numpy as np
+import polars as pl
+from scipy import optimize
+
+from schemas.hoist import FrictionLaw
+from transforms.friction import stribeck_friction
+
+__all__ = [
+    "EQ17",
+    "TABLE1_COLUMNS",
+    "LinearFit",
+    "StribeckFit",
+    "compare_with_eq17",
+    "fit_friction_law",
+    "fit_line",
+    "fit_stribeck",
+    "fit_table1",
+]
+
+#: Table 1 columns (pressure first) as in ``table1_leuven_parameters.csv``.
+TABLE1_COLUMNS = (
+    "oil_pressure_mpa",
+    "coulomb_friction",
+    "max_static_friction",
+    "stribeck_speed",
+    "viscous_coefficient",
+)
+
+#: Paper eq 17 as printed: column -> (intercept, slope per MPa), in Table 1's units.
+EQ17: dict[str, tuple[str, str]] = {
+    "coulomb_friction": ("0.0357", "0.0254"),
+    "max_static_friction": ("0.1276", "0.0253"),
+    "stribeck_speed": ("8.3503", "-0.3966"),
+    "viscous_coefficient": ("0.001208", "0.00006"),
+}
+
+
+@dataclass(frozen=True)
+class LinearFit:
+    """A straight line y = intercept + slope * x fitted by (weighted) least squares.
+
+    ``se_*`` are 1-sigma standard errors; ``residuals`` are y - fit per point;
+    ``r_squared`` the (weighted) coefficient of determination; ``n`` the points.
+    """
+
+    intercept: float
+    slope: float
+    se_intercept: float
+    se_slope: float
+    residuals: np.ndarray
+    r_squared: float
+    n: int
+
+    def __call__(self, x: np.ndarray | float) -> np.ndarray:
+        return self.intercept + self.slope * np.asarray(x, dtype=np.float64)
+
+
+def fit_line(
+    x: np.ndarray,
+    y: np.ndarray,
+    sigma: np.ndarray | None = None,
+    *,
+    absolute_sigma: bool = False,
+) -> LinearFit:
+    r"""Least-squares straight line with standard errors.
+
+    Minimises :math:`\sum_i w_i (y_i - a - b x_i)^2`, w_i = 1/sigma_i^2 (1 without
+    ``sigma``). The covariance is :math:`(X^T W X)^{-1}`, scaled by the reduced
+    chi-square s^2 = sum w r^2 / (n - 2) unless ``absolute_sigma`` (then the sigmas
+    are taken as the true 1-sigma errors), as in ``scipy.optimize.curve_fit``.
+
+    Parameters
+    ----------
+    x, y : numpy.ndarray
+        Abscissa and values, at least 3 points.
+    sigma : numpy.ndarray, optional
+        1-sigma uncertainty of each y.
+    absolute_sigma : bool
+        Use ``sigma`` as absolute (do not rescale by the residual scatter).
+
+    Returns
+    -------
+    LinearFit
+
+    >>> f = fit_line(np.array([0.0, 1.0, 2.0, 3.0]), np.array([1.0, 3.1, 4.9, 7.0]))
+    >>> round(f.intercept, 3), round(f.slope, 3)
+    (1.03, 1.98)
+    """
+    x = np.asarray(x, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    if x.shape != y.shape or x.ndim != 1 or x.size < 3:
+        raise ValueError("fit_line: need 1-d x and y of equal length >= 3")
+    w = np.ones_like(y) if sigma is None else 1.0 / np.asarray(sigma, dtype=np.float64) ** 2
+    design = np.column_stack([np.ones_like(x), x])
+    normal = design.T @ (design * w[:, None])
+    coef = np.linalg.solve(normal, design.T @ (w * y))
+    residuals = y - design @ coef
+    cov = np.linalg.inv(normal)
+    chi2 = float(np.sum(w * residuals**2))
+    if not (absolute_sigma and sigma is not None):
+        cov = cov * chi2 / (x.size - 2)
+    y_mean = np.sum(w * y) / np.sum(w)
+    total = float(np.sum(w * (y - y_mean) ** 2))
+    return LinearFit(
+        intercept=float(coef[0]),
+        slope=float(coef[1]),
+        se_intercept=float(np.sqrt(cov[0, 0])),
+        se_slope=float(np.sqrt(cov[1, 1])),
+        residuals=residuals,
+        r_squared=1.0 - chi2 / total if total > 0 else 1.0,
+        n=int(x.size),
+    )
+
+
+def fit_table1(table1: pl.DataFrame) -> dict[str, LinearFit]:
+    """OLS line in pressure for each parameter column of paper Table 1.
+
+    ``table1`` has the columns of :data:`TABLE1_COLUMNS`; the lines are in Table 1's
+    own units (pressure in MPa; forces and speed as printed, unitless in the paper:
+    see NOTES.md and ``[friction] force_unit``).
+    """
+    missing = set(TABLE1_COLUMNS) - set(table1.columns)
+    if missing:
+        raise ValueError(f"fit_table1: missing columns {sorted(missing)}")
+    p = table1["oil_pressure_mpa"].cast(pl.Float64).to_numpy()
+    return {c: fit_line(p, table1[c].cast(pl.Float64).to_numpy()) for c in TABLE1_COLUMNS[1:]}
+
+
+def _last_place(text: str) -> float:
+    exponent = Decimal(text).as_tuple().exponent
+    return 10.0 ** int(exponent)  # type: ignore[arg-type]
+
+
+def compare_with_eq17(fits: dict[str, LinearFit]) -> pl.DataFrame:
+    """Compare OLS lines with the paper's eq 17, one row per parameter and coefficient.
+
+    Columns: ``parameter``, ``coefficient`` (intercept / slope), ``ols``, ``se``,
+    ``eq17``, ``difference`` (eq17 - ols), ``z`` (difference / se) and
+    ``reproduced``: True when eq 17 equals the OLS value to within one unit of the
+    last decimal eq 17 prints (so a rounded or truncated OLS value counts as
+    reproduced). A difference can be "not reproduced" and still be within the
+    statistical uncertainty (|z| < 2) of 11 points.
+    """
+    rows = []
+    for name, (a_txt, b_txt) in EQ17.items():
+        fit = fits[name]
+        for coefficient, printed, ols, se in (
+            ("intercept", a_txt, fit.intercept, fit.se_intercept),
+            ("slope", b_txt, fit.slope, fit.se_slope),
+        ):
+            paper = float(printed)
+            rows.append(
+                {
+                    "parameter": name,
+                    "coefficient": coefficient,
+                    "ols": ols,
+                    "se": se,
+                    "eq17": paper,
+                    "difference": paper - ols,
+                    "z": (paper - ols) / se,
+                    "reproduced": abs(paper - ols) < _last_place(printed),
+                }
+            )
+    return pl.DataFrame(rows)
+
+
+@dataclass(frozen=True)
+class StribeckFit:
+    """Stribeck-curve parameters at one pressure with 1-sigma uncertainties.
+
+    ``fc``, ``fs`` [force unit of the data], ``vs`` [speed unit], ``kv`` [force /
+    speed]; ``sigma`` the matching standard errors (fc, fs, vs, kv); ``residuals``
+    per point; ``rms`` the residual RMS; ``success`` and ``message`` from the solver.
+    """
+
+    fc: float
+    fs: float
+    vs: float
+    kv: float
+    sigma: tuple[float, float, float, float]
+    residuals: np.ndarray
+    rms: float
+    success: bool
+    message: str
+
+
+def _initial_guess(speed: np.ndarray, force: np.ndarray) -> np.ndarray:
+    order = np.argsort(speed)
+    s, f = speed[order], force[order]
+    upper = slice(s.size // 2, None)
+    kv0, fc0 = np.polyfit(s[upper], f[upper], 1) if s.size >= 4 else (0.0, np.median(f))
+    kv0, fc0 = max(kv0, 0.0), max(fc0, 1e-3)
+    fs0 = max(float(np.max(f[: max(s.size // 5, 1)])), fc0 * 1.01)
+    vs0 = float(np.median(s[: max(s.size // 3, 1)]))
+    return np.array([fc0, fs0, max(vs0, 1e-3), kv0])
+
+
+def fit_stribeck(v: np.ndarray, friction: np.ndarray) -> StribeckFit:
+    r"""Fit the Stribeck curve (paper eq 16/18) to steady (velocity, friction) points.
+
+    .. math::
+        F(v) = \left[F_c + (F_s - F_c) e^{-(v/v_s)^2}\right]\operatorname{sgn}(v)
+        + K_v v
+
+    Points of both directions are used together (friction is taken as odd in v).
+    Data are scaled by max|v| and max|F| for conditioning; ``least_squares``
+    (trust-region reflective, bounds Fc, Fs, Kv >= 0, vs > 0). Covariance
+    s^2 (J^T J)^-1 at the solution, s^2 the residual variance with 4 parameters.
+
+    Parameters
+    ----------
+    v : numpy.ndarray
+        Steady sliding velocities (both signs, no zeros) [any speed unit, e.g. m/s].
+    friction : numpy.ndarray
+        Friction force at each velocity [any force unit, e.g. N].
+
+    Returns
+    -------
+    StribeckFit
+
+    Notes
+    -----
+    vs is only identifiable if there are points around and below vs (the curve's
+    drop); without them its uncertainty is large, which the fit reports.
+    """
+    v = np.asarray(v, dtype=np.float64)
+    f = np.asarray(friction, dtype=np.float64)
+    keep = (v != 0.0) & np.isfinite(v) & np.isfinite(f)
+    v, f = v[keep], f[keep]
+    if v.size < 5:
+        raise ValueError(f"fit_stribeck: need at least 5 points with v != 0, got {v.size}")
+    v_scale = float(np.max(np.abs(v)))
+    f_scale = float(np.max(np.abs(f)))
+    vn, fn = v / v_scale, f / f_scale
+    x0 = _initial_guess(np.abs(vn), fn * np.sign(vn))
+
+    def residual(params: np.ndarray) -> np.ndarray:
+        fc, fs, vs, kv = params
+        return stribeck_friction(vn, fc, fs, vs, kv) - fn
+
+    result = optimize.least_squares(
+        residual,
+        x0,
+        bounds=([0.0, 0.0, 1e-9, 0.0], [np.inf, np.inf, np.inf, np.inf]),
+        x_scale="jac",
+        xtol=1e-12,
+        ftol=1e-12,
+        gtol=1e-12,
+    )
+    dof = max(v.size - 4, 1)
+    s2 = float(np.sum(result.fun**2)) / dof
+    jac = result.jac
+    try:
+        cov = np.linalg.inv(jac.T @ jac) * s2
+        sig = np.sqrt(np.abs(np.diag(cov)))
+    except np.linalg.LinAlgError:
+        sig = np.full(4, np.inf)
+    scale = np.array([f_scale, f_scale, v_scale, f_scale / v_scale])
+    fc, fs, vs, kv = (result.x * scale).tolist()
+    sigma = tuple((sig * scale).tolist())
+    residuals = result.fun * f_scale
+    return StribeckFit(
+        fc=fc,
+        fs=fs,
+        vs=vs,
+        kv=kv,
+        sigma=sigma,  # type: ignore[arg-type]
+        residuals=residuals,
+        rms=float(np.sqrt(np.mean(residuals**2))),
+        success=bool(result.success),
+        message=str(result.message),
+    )
+
+
+def fit_friction_law(
+    p_pa: Sequence[float] | np.ndarray,
+    fits: Sequence[StribeckFit],
+    *,
+    bristle_stiffness_n_m: float,
+    bristle_damping_n_s_m: float,
+    presliding_elements: int,
+) -> tuple[FrictionLaw, dict[str, LinearFit]]:
+    """Weighted straight lines in pressure through per-pressure Stribeck fits (eq 17).
+
+    Each of Fc, Fs, vs, Kv is fitted as a + b p by :func:`fit_line` with weights
+    1/sigma^2 from the per-pressure fits (uncertainties rescaled by the scatter about
+    the line, so an over-optimistic Jacobian sigma cannot hide misfit).
+
+    Parameters
+    ----------
+    p_pa : sequence of float
+        Chamber pressure of each fit [Pa].
+    fits : sequence of StribeckFit
+        Per-pressure fits in SI (N, m/s, N s/m).
+    bristle_stiffness_n_m, bristle_damping_n_s_m, presliding_elements
+        Passed through into the :class:`FrictionLaw` (not fitted here).
+
+    Returns
+    -------
+    law : FrictionLaw
+        SI intercepts and slopes per Pa.
+    lines : dict of str to LinearFit
+        Keys ``coulomb_n``, ``static_n``, ``stribeck_speed_m_s``, ``viscous_n_s_m``,
+        with residuals per pressure.
+    """
+    p = np.asarray(p_pa, dtype=np.float64)
+    if p.size != len(fits):
+        raise ValueError("fit_friction_law: one pressure per fit")
+    lines: dict[str, LinearFit] = {}
+    for k, name in enumerate(("coulomb_n", "static_n", "stribeck_speed_m_s", "viscous_n_s_m")):
+        values = np.array([(f.fc, f.fs, f.vs, f.kv)[k] for f in fits])
+        sigma = np.array([f.sigma[k] for f in fits])
+        usable = np.isfinite(sigma) & (sigma > 0)
+        lines[name] = fit_line(p, values, sigma if usable.all() else None)
+    law = FrictionLaw(
+        coulomb_n=(lines["coulomb_n"].intercept, lines["coulomb_n"].slope),
+        static_n=(lines["static_n"].intercept, lines["static_n"].slope),
+        stribeck_speed_m_s=(
+            lines["stribeck_speed_m_s"].intercept,
+            lines["stribeck_speed_m_s"].slope,
+        ),
+        viscous_n_s_m=(lines["viscous_n_s_m"].intercept, lines["viscous_n_s_m"].slope),
+        bristle_stiffness_n_m=bristle_stiffness_n_m,
+        bristle_damping_n_s_m=bristle_damping_n_s_m,
+        presliding_elements=presliding_elements,
+    )
+    return law, lines

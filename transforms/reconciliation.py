@@ -1,0 +1,379 @@
+"""Reconciliation: measured rope tensions against the load the hoist must carry.
+
+Contents
+--------
+Expected load
+    :func:`expected_load_expr` -- polars expression of the expected head-rope load.
+Per position and per trip (paper Table 2 shape)
+    :func:`reconcile` -- POSITION_SUMMARY and TRIP_SUMMARY frames from compensated samples.
+    :func:`summarise_positions`, :func:`summarise_trips` -- the two halves.
+Paper check
+    :func:`table2_check` -- the field test of Song et al., section 5, Table 2.
+
+The load on the four rope attachments of a Koepe conveyance is
+
+.. math::
+
+    F_\\mathrm{expected} = (m_c + m_p)\\,(g + a_\\uparrow) + m_t(z)\\,g,
+    \\qquad m_t(z) = n_t\\,\\mu_t\\,(L_\\mathrm{shaft} - z + L_\\mathrm{loop})
+
+with :math:`m_c` the conveyance mass [kg], :math:`m_p` the payload [kg], :math:`a_\\uparrow`
+the upward acceleration of the conveyance [m/s2], :math:`m_t(z)` the mass of the tail
+ropes hanging below the conveyance at depth :math:`z` [m] (:math:`n_t` ropes of
+:math:`\\mu_t` kg/m), and :math:`g` = 9.80665 m/s2. The tail rope is counted by its weight
+only (as issue 6 states the model): its inertia, and the tension from the loop at the
+shaft bottom, are left out; at the named positions the conveyance is at rest or at
+constant speed, where both vanish.
+
+Inverting the same relation per sample gives the payload the measured (compensated) sum
+of rope tensions implies:
+
+.. math::
+
+    m_p = \\frac{F_\\mathrm{measured} - m_t(z)\\,g}{g + a_\\uparrow} - m_c
+
+A trip carries one payload, so the payloads inferred at its positions must agree; their
+spread (max - min) is reported per trip.
+
+References
+----------
+Song et al., "Hydraulic connection device ... wire rope tension and load", section 5 and
+Table 2 (field test; NOTES.md lists the figures and the 145.2 / 141.8 kN erratum).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import polars as pl
+import pyarrow as pa
+
+from schemas.hoist import G_STANDARD, HoistDescription
+from schemas.tables import POSITION_SUMMARY, ROPES, TRIP_SUMMARY
+
+__all__ = [
+    "G_STANDARD",
+    "PAPER_TEXT_PITHEAD_BEFORE_N",
+    "Reconciliation",
+    "conform",
+    "expected_load_expr",
+    "reconcile",
+    "summarise_positions",
+    "summarise_trips",
+    "table2_check",
+    "tail_rope_weight_expr",
+]
+
+#: The pithead sum before compensation as printed in the paper's text (section 5.2).
+#: Table 2's four ropes sum to 141.8 kN, and the text's own 9.7 % gain matches 141.8 kN,
+#: so 145.2 kN is an erratum (NOTES.md); :func:`table2_check` uses the table.
+PAPER_TEXT_PITHEAD_BEFORE_N = 145.2e3
+
+PayloadSource = float | pl.DataFrame | None
+
+
+class Reconciliation(NamedTuple):
+    """Result of :func:`reconcile`: two frames with the Arrow schemas of schemas.tables."""
+
+    position_summary: pl.DataFrame
+    trip_summary: pl.DataFrame
+
+
+def conform(frame: pl.DataFrame, schema: pa.Schema) -> pl.DataFrame:
+    """Select and cast ``frame``'s columns to ``schema`` (missing columns become null)."""
+    empty = pl.from_arrow(schema.empty_table())
+    if frame.width == 0:
+        return empty
+    target = empty.schema
+    return frame.select(
+        (pl.col(name) if name in frame.columns else pl.lit(None)).cast(dtype).alias(name)
+        for name, dtype in target.items()
+    )
+
+
+def _tail_rope_length_expr(hoist: HoistDescription, depth: pl.Expr) -> pl.Expr:
+    """Hanging tail-rope length below the conveyance [m] (as HoistDescription's)."""
+    return hoist.shaft.depth_m - depth + hoist.shaft.tail_rope_loop_m
+
+
+def _tail_rope_mass_expr(hoist: HoistDescription, depth: pl.Expr) -> pl.Expr:
+    """Tail-rope mass below the conveyance [kg] (as HoistDescription.tail_rope_mass_kg)."""
+    per_length_kg_m = hoist.conveyance.tail_ropes * hoist.ropes.tail_rope_mass_per_length_kg_m
+    return per_length_kg_m * _tail_rope_length_expr(hoist, depth)
+
+
+def tail_rope_weight_expr(hoist: HoistDescription, depth_m: pl.Expr | None = None) -> pl.Expr:
+    """Weight of the tail ropes hanging below the conveyance [N], m_t(z) g."""
+    depth = pl.col("depth_m") if depth_m is None else depth_m
+    return _tail_rope_mass_expr(hoist, depth) * G_STANDARD
+
+
+def expected_load_expr(
+    hoist: HoistDescription,
+    *,
+    payload_kg: pl.Expr | float = 0.0,
+    depth_m: pl.Expr | None = None,
+    acceleration_up_m_s2: pl.Expr | None = None,
+) -> pl.Expr:
+    """Expected head-rope load [N]: (m_c + m_p)(g + a) + m_t(z) g (module docstring).
+
+    ``depth_m`` and ``acceleration_up_m_s2`` default to the columns of that name; a null
+    acceleration counts as zero.
+    """
+    depth = pl.col("depth_m") if depth_m is None else depth_m
+    accel = pl.col("acceleration_up_m_s2") if acceleration_up_m_s2 is None else acceleration_up_m_s2
+    payload = payload_kg if isinstance(payload_kg, pl.Expr) else pl.lit(float(payload_kg))
+    return (hoist.conveyance.mass_kg + payload) * (G_STANDARD + accel.fill_null(0.0)) + (
+        _tail_rope_mass_expr(hoist, depth) * G_STANDARD
+    )
+
+
+def _inferred_payload_expr(hoist: HoistDescription) -> pl.Expr:
+    """Per-sample payload [kg] implied by the compensated load ``load_n``."""
+    accel = pl.col("acceleration_up_m_s2").fill_null(0.0)
+    tail_weight_n = tail_rope_weight_expr(hoist)
+    return (pl.col("load_n") - tail_weight_n) / (G_STANDARD + accel) - hoist.conveyance.mass_kg
+
+
+def _imbalance_expr(prefix: str) -> pl.Expr:
+    """Largest |T_i - mean(T)| / mean(T) over the ropes, per row."""
+    cols = [pl.col(f"{prefix}{i}_n") for i in ROPES]
+    mean = pl.mean_horizontal(cols)
+    return pl.max_horizontal([(c - mean).abs() for c in cols]) / mean
+
+
+_OPTIONAL = {"direction": pl.String, "acceleration_up_m_s2": pl.Float64}
+
+
+def _lazy(frame: pl.LazyFrame | pl.DataFrame) -> pl.LazyFrame:
+    """Lazy, ``trip_id`` as Int64; optional columns (direction, acceleration) null if absent."""
+    lazy = frame.lazy() if isinstance(frame, pl.DataFrame) else frame
+    names = lazy.collect_schema().names()
+    missing = [pl.lit(None, dtype=t).alias(n) for n, t in _OPTIONAL.items() if n not in names]
+    return lazy.with_columns(pl.col("trip_id").cast(pl.Int64), *missing)
+
+
+def _with_reference_payload(frame: pl.DataFrame, payload_kg: PayloadSource) -> pl.DataFrame:
+    """Add ``reference_payload_kg``: the known payload if given, else the trip's inferred one.
+
+    Stints outside a trip (``trip_id`` null: standstill, where loading happens) have no
+    inferred reference; they get the known payload when it is a float, else null.
+    """
+    inferred = pl.when(pl.col("trip_id").is_not_null()).then(
+        pl.col("payload_kg").mean().over("trip_id")
+    )
+    if payload_kg is None:
+        return frame.with_columns(reference_payload_kg=inferred)
+    if isinstance(payload_kg, pl.DataFrame):
+        known = payload_kg.select(
+            pl.col("trip_id").cast(pl.Int64), pl.col("payload_kg").alias("_known_payload_kg")
+        )
+        return (
+            frame.join(known, on="trip_id", how="left")
+            .with_columns(reference_payload_kg=pl.coalesce("_known_payload_kg", inferred))
+            .drop("_known_payload_kg")
+        )
+    return frame.with_columns(reference_payload_kg=pl.lit(float(payload_kg)))
+
+
+def summarise_positions(
+    rope_tensions: pl.LazyFrame | pl.DataFrame,
+    hoist: HoistDescription,
+    *,
+    run_id: str,
+    site: str | None = None,
+    hoist_name: str | None = None,
+    payload_kg: PayloadSource = None,
+) -> pl.DataFrame:
+    """One row per trip and named position: the paper's Table 2 for every trip.
+
+    Samples count for a position where the ``position`` column names it (trip
+    segmentation marks samples within the hoist's ``position_window`` of a named depth).
+    One row per stint: a run of consecutive samples with the same ``trip_id`` and
+    ``position`` (a trip passes each position once; standstill samples carry no trip id
+    and give one row per stay). Tensions are averaged over the stint; ``payload_kg`` is
+    the payload inferred there. ``expected_load_n`` uses the reference payload: ``payload_kg`` when
+    known (a float for every trip, or a frame with ``trip_id`` and ``payload_kg``),
+    otherwise the mean of the trip's inferred payloads, so the error then measures how
+    far the positions disagree.
+
+    Returns a frame with the POSITION_SUMMARY schema.
+    """
+    lazy = _lazy(rope_tensions)
+    means = [pl.col(f"tension_raw{i}_n").mean().alias(f"tension_before{i}_n") for i in ROPES]
+    means += [pl.col(f"tension{i}_n").mean().alias(f"tension_after{i}_n") for i in ROPES]
+    changed = pl.col("position").ne_missing(pl.col("position").shift(1)) | pl.col(
+        "trip_id"
+    ).ne_missing(pl.col("trip_id").shift(1))
+    grouped = (
+        lazy.sort("time_utc")
+        .with_columns(_stint=changed.fill_null(True).cum_sum())
+        .filter(pl.col("position").is_not_null())
+        .with_columns(_payload_sample_kg=_inferred_payload_expr(hoist))
+        .group_by("_stint")
+        .agg(
+            pl.col("trip_id").first(),
+            pl.col("position").first(),
+            pl.col("time_utc").min().alias("time_start_utc"),
+            pl.col("time_utc").max().alias("time_end_utc"),
+            pl.col("depth_m").mean(),
+            pl.col("acceleration_up_m_s2").fill_null(0.0).mean().alias("_accel_m_s2"),
+            *means,
+            pl.col("load_raw_n").mean().alias("load_before_n"),
+            pl.col("load_n").mean().alias("load_after_n"),
+            pl.col("_payload_sample_kg").mean().alias("payload_kg"),
+            pl.len().cast(pl.Int64).alias("samples"),
+        )
+        .collect()
+    )
+    expected = expected_load_expr(
+        hoist,
+        payload_kg=pl.col("reference_payload_kg"),
+        acceleration_up_m_s2=pl.col("_accel_m_s2"),
+    )
+    result = (
+        _with_reference_payload(grouped, payload_kg)
+        .with_columns(
+            run_id=pl.lit(run_id),
+            site=pl.lit(site or hoist.hoist.site),
+            hoist=pl.lit(hoist_name or hoist.hoist.name),
+            tail_rope_length_m=_tail_rope_length_expr(hoist, pl.col("depth_m")),
+            expected_load_n=expected,
+            imbalance_after_fraction=_imbalance_expr("tension_after"),
+        )
+        .with_columns(
+            error_before_fraction=pl.col("load_before_n") / pl.col("expected_load_n") - 1.0,
+            error_after_fraction=pl.col("load_after_n") / pl.col("expected_load_n") - 1.0,
+        )
+        .sort("time_start_utc")
+    )
+    return conform(result, POSITION_SUMMARY)
+
+
+def summarise_trips(
+    rope_tensions: pl.LazyFrame | pl.DataFrame,
+    position_summary: pl.DataFrame,
+    *,
+    run_id: str,
+    site: str,
+    hoist_name: str,
+) -> pl.DataFrame:
+    """One row per trip: extent, payload (mean over positions) and its spread, peaks.
+
+    ``max_imbalance_fraction`` is the largest per-sample rope-to-mean imbalance of the
+    compensated tensions over the whole trip. Returns the TRIP_SUMMARY schema.
+    """
+    lazy = _lazy(rope_tensions)
+    trips = (
+        lazy.filter(pl.col("trip_id").is_not_null())
+        .sort("time_utc")
+        .group_by("trip_id")
+        .agg(
+            pl.col("direction").drop_nulls().first(),
+            pl.col("time_utc").first().alias("time_start_utc"),
+            pl.col("time_utc").last().alias("time_end_utc"),
+            pl.col("depth_m").drop_nulls().first().alias("depth_start_m"),
+            pl.col("depth_m").drop_nulls().last().alias("depth_end_m"),
+            pl.col("load_n").max().alias("max_load_n"),
+            _imbalance_expr("tension").max().alias("max_imbalance_fraction"),
+        )
+        .collect()
+    )
+    payloads = (
+        position_summary.filter(pl.col("trip_id").is_not_null())
+        .with_columns(pl.col("trip_id").cast(pl.Int64))
+        .group_by("trip_id")
+        .agg(
+            pl.col("payload_kg").mean(),
+            (pl.col("payload_kg").max() - pl.col("payload_kg").min()).alias("payload_spread_kg"),
+        )
+    )
+    result = (
+        trips.join(payloads, on="trip_id", how="left")
+        .with_columns(run_id=pl.lit(run_id), site=pl.lit(site), hoist=pl.lit(hoist_name))
+        .sort("trip_id")
+    )
+    return conform(result, TRIP_SUMMARY)
+
+
+def reconcile(
+    rope_tensions: pl.LazyFrame | pl.DataFrame,
+    hoist: HoistDescription,
+    *,
+    run_id: str,
+    site: str | None = None,
+    hoist_name: str | None = None,
+    payload_kg: PayloadSource = None,
+) -> Reconciliation:
+    """Per-position and per-trip reconciliation of compensated rope tensions.
+
+    ``rope_tensions`` has the ROPE_TENSIONS columns (``time_utc``, ``depth_m``,
+    ``acceleration_up_m_s2``, ``trip_id``, ``direction``, ``position``,
+    ``tension_raw{i}_n``, ``tension{i}_n``, ``load_raw_n``, ``load_n``). ``payload_kg``:
+    see :func:`summarise_positions`. ``site``/``hoist_name`` default to the description's.
+    """
+    site = site or hoist.hoist.site
+    hoist_name = hoist_name or hoist.hoist.name
+    positions = summarise_positions(
+        rope_tensions, hoist, run_id=run_id, site=site, hoist_name=hoist_name, payload_kg=payload_kg
+    )
+    trips = summarise_trips(
+        rope_tensions, positions, run_id=run_id, site=site, hoist_name=hoist_name
+    )
+    return Reconciliation(positions, trips)
+
+
+def table2_check(table2: pl.DataFrame, hoist: HoistDescription) -> pl.DataFrame:
+    """Reproduce the paper's Table 2 check: tension sums against the hoist's weight.
+
+    ``table2`` holds the columns of ``table2_field_test.csv`` (kN and t as printed).
+    The expected load is the printed total mass times g (the cage is at rest and empty:
+    total = 8.2 t cage + tail rope). Returned per position, in SI:
+
+    - ``sum_before_n``/``sum_after_n``: the four ropes summed here (the printed sums are
+      kept as ``table_sum_*_n`` to show they agree);
+    - ``expected_load_n`` = total_mass_t x 1000 x g; ``expected_from_hoist_n`` =
+      ``hoist.static_load_n`` at the position's depth (cage + tail rope from the
+      description), an independent route to the same number;
+    - ``error_before_fraction``/``error_after_fraction`` = sum / expected - 1;
+    - ``gain_fraction`` = after / before - 1 (the paper's "compensation rate");
+    - ``imbalance_before_fraction``/``imbalance_after_fraction``: largest
+      |T_i - mean| / mean;
+    - ``tail_rope_mass_kg`` = n_t x mu_t x length from the description, beside the
+      printed ``table_tail_rope_mass_kg``.
+
+    Erratum: the text's pithead "145.2 kN" before compensation
+    (:data:`PAPER_TEXT_PITHEAD_BEFORE_N`) is not what Table 2 sums to (141.8 kN); only
+    141.8 kN gives the stated 9.7 % gain. The table is used here.
+    """
+    kn = 1e3
+    before = [pl.col(f"before_kn_{i}") * kn for i in ROPES]
+    after = [pl.col(f"after_kn_{i}") * kn for i in ROPES]
+
+    def imbalance(cols: list[pl.Expr]) -> pl.Expr:
+        mean = pl.mean_horizontal(cols)
+        return pl.max_horizontal([(c - mean).abs() for c in cols]) / mean
+
+    depth = hoist.shaft.depth_m + hoist.shaft.tail_rope_loop_m - pl.col("tail_rope_length_m")
+    tail_mass = hoist.conveyance.tail_ropes * hoist.ropes.tail_rope_mass_per_length_kg_m
+    return table2.select(
+        pl.col("position"),
+        pl.col("tail_rope_length_m").cast(pl.Float64),
+        depth.alias("depth_m"),
+        pl.sum_horizontal(before).alias("sum_before_n"),
+        pl.sum_horizontal(after).alias("sum_after_n"),
+        (pl.col("sum_before_kn") * kn).alias("table_sum_before_n"),
+        (pl.col("sum_after_kn") * kn).alias("table_sum_after_n"),
+        (pl.col("total_mass_t") * 1e3 * G_STANDARD).alias("expected_load_n"),
+        expected_load_expr(
+            hoist, depth_m=depth, acceleration_up_m_s2=pl.lit(0.0), payload_kg=0.0
+        ).alias("expected_from_hoist_n"),
+        imbalance(before).alias("imbalance_before_fraction"),
+        imbalance(after).alias("imbalance_after_fraction"),
+        (tail_mass * pl.col("tail_rope_length_m")).alias("tail_rope_mass_kg"),
+        (pl.col("tail_rope_mass_t") * 1e3).alias("table_tail_rope_mass_kg"),
+    ).with_columns(
+        error_before_fraction=pl.col("sum_before_n") / pl.col("expected_load_n") - 1.0,
+        error_after_fraction=pl.col("sum_after_n") / pl.col("expected_load_n") - 1.0,
+        gain_fraction=pl.col("sum_after_n") / pl.col("sum_before_n") - 1.0,
+    )

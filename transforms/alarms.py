@@ -392,6 +392,8 @@ def evaluate_alarms(
 
     tensions = [_column(frame, f"tension{i}_n") for i in ROPES]
     mean = np.mean(np.vstack(tensions), axis=0)
+    # imbalance is judged only while the ropes carry at least the slack threshold on
+    # average (a hoist off its ropes has no meaningful balance); peak value is signed
     for i, tension in zip(ROPES, tensions, strict=True):
         with np.errstate(invalid="ignore", divide="ignore"):
             deviation = np.where(mean > thresholds.slack_n, (tension - mean) / mean, np.nan)
@@ -400,7 +402,7 @@ def evaluate_alarms(
         )
         rows += _rows(
             ctx, "rope_imbalance", i, s, e, peak_of=np.abs(deviation), peak_max=True,
-            threshold=thresholds.imbalance_fraction,
+            report=deviation, threshold=thresholds.imbalance_fraction,
             message=f"rope {i} tension differs from the mean of the ropes by more than "
             f"{thresholds.imbalance_fraction:.0%}",
         )  # fmt: skip
@@ -409,14 +411,14 @@ def evaluate_alarms(
             ctx, "slack_rope", i, s, e, peak_of=tension, peak_max=False,
             threshold=thresholds.slack_n,
             message=f"rope {i} tension below {thresholds.slack_n / 1e3:.1f} kN "
-            "(60 % of the empty conveyance's per-rope weight)",
+            f"({alarms.slack_fraction_of_empty:.0%} of the empty conveyance's per-rope weight)",
         )  # fmt: skip
         s, e = _threshold_events(t_s, tension, thresholds.tight_n, above=True, **common)
         rows += _rows(
             ctx, "tight_rope", i, s, e, peak_of=tension, peak_max=True,
             threshold=thresholds.tight_n,
             message=f"rope {i} tension above {thresholds.tight_n / 1e3:.1f} kN "
-            "(max static load + 10 % of breaking strength)",
+            f"(max static load + {alarms.tight_fraction_of_breaking:.0%} of breaking strength)",
         )  # fmt: skip
 
     static = _column(frame, "_static_load_n")

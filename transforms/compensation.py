@@ -4,12 +4,16 @@ For each cylinder i of a hoist, per sample:
 
 1. sensor calibration: p_i = (reading_i - offset_i) / gain_i (hoist ``[[sensors]]``);
 2. spikes removed (Hampel) and a zero-phase low-pass, per gap-free segment;
-3. piston motion from the logged displacement x_i, or, when x is not logged, the
-   common-mode motion implied by oil compressibility (all pistons move together by
-   V dp / (n A beta); NOTES.md). The friction state is driven by the increments of a
-   play (deadband) operator on x, so sensor jitter and quantisation do not move it and
-   a smoothed derivative's overshoot at a stop cannot flip it; the branch flow uses
-   the Savitzky-Golay velocity of the same signal;
+3. piston motion: the common mode (all four pistons together) from the pressure,
+   because the chambers, pipes and manifold are one closed oil volume and a change dp
+   of the common pressure moves every piston by V dp / (n A beta) (NOTES.md) -- with a
+   5 kPa pressure noise that is a nanometre-class displacement sensor, against the
+   ~0.05 mm noise of a displacement transducer and common-mode motions of a few tenths
+   of a millimetre per trip; plus, where x_i is logged, the differential part
+   x_i - mean(x), low-passed. The friction state is driven by the increments of a play
+   (deadband) operator on that estimate, so residual noise does not move it and a
+   smoothed derivative's overshoot at a stop cannot flip it; the branch flow uses the
+   Savitzky-Golay velocity of the same estimate;
 4. chamber pressure: the sensor sits after the globe valve and the first branch part,
    so p_chamber = p_sensor - (p_sensor - p_chamber)(v, T) (paper eq 12-14, contract 1a);
 5. seal friction F_i: LuGre (paper eq 15, which the paper calls "Leuven") driven by v_i,
@@ -54,7 +58,12 @@ from transforms.kinematics import (
 from transforms.oil import effective_bulk_modulus
 from transforms.pressure_loss import sensor_minus_chamber_pa
 
-__all__ = ["CompensationSettings", "common_mode_displacement", "compensate"]
+__all__ = [
+    "CompensationSettings",
+    "common_mode_displacement",
+    "compensate",
+    "displacement_noise_sigma",
+]
 
 _OUTPUT_SCHEMA = pl.Schema(pl.from_arrow(ROPE_TENSIONS.empty_table()).schema)
 
@@ -75,12 +84,13 @@ class CompensationSettings:
         Savitzky-Golay window for the piston velocity [s].
     acceleration_window_s : float
         Savitzky-Golay window for the conveyance acceleration [s].
+    differential_cutoff_hz : float
+        Zero-phase low-pass on the differential part of the logged displacement
+        (x_i minus the mean of the four) [Hz]. Differential motion (ropes stretching
+        differently, groove wear) is slow; the displacement transducer's noise is not.
     displacement_deadband_m : float
-        Half-width of the play operator on logged piston displacement [m]; about the
-        displacement sensor's noise plus half its print resolution (contract CSV: 0.1 mm).
-    common_mode_deadband_pa : float
-        Without logged displacement: the play half-width expressed as a change of the
-        common pressure [Pa] (pressure noise after the low-pass must stay inside it).
+        Half-width of the play operator on the estimated piston displacement [m]: the
+        residual noise of the estimate, well inside the seal's presliding range.
     """
 
     sample_rate_hz: float = 100.0
@@ -90,23 +100,12 @@ class CompensationSettings:
     spike_sigmas: float = 5.0
     velocity_window_s: float = 0.2
     acceleration_window_s: float = 0.5
-    displacement_deadband_m: float = 1e-4
-    common_mode_deadband_pa: float = 20e3
+    differential_cutoff_hz: float = 0.1
+    displacement_deadband_m: float = 5e-6
 
 
 def _rope_cols(template: str) -> list[str]:
     return [template.format(i=i) for i in ROPES]
-
-
-def _common_mode_compliance_m_pa(hoist: HoistDescription, p_pa: np.ndarray) -> float:
-    """dx/dp of every piston when the closed oil volume is compressed [m/Pa]."""
-    p_typical = float(np.nanmedian(p_pa)) if np.isfinite(p_pa).any() else 1e6
-    beta = float(
-        effective_bulk_modulus(
-            max(p_typical, 1e5), hoist.oil.bulk_modulus_pa, hoist.oil.air_fraction
-        )
-    )
-    return hoist.oil_volume_m3 / (hoist.ropes_n * hoist.cylinders.bore_area_m2 * beta)
 
 
 def common_mode_displacement(
@@ -140,6 +139,52 @@ def common_mode_displacement(
     # restart the integral at every segment start
     offsets = np.maximum.accumulate(np.where(starts, np.arange(x.size), 0))
     return x - x[offsets] + dx[offsets]
+
+
+def displacement_noise_sigma(x: np.ndarray) -> float:
+    """Robust white-noise sigma of a sampled signal from its second differences [unit of x].
+
+    For white noise of variance s^2, the second difference has variance 6 s^2; the
+    median absolute deviation (x 1.4826) makes the estimate ignore real motion and steps.
+    """
+    d2 = np.diff(np.asarray(x, dtype=np.float64), 2)
+    d2 = d2[np.isfinite(d2)]
+    if d2.size == 0:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
+
+
+def _differential_displacement(
+    frame: pl.DataFrame, x_cols: list[str], segment: np.ndarray, settings: CompensationSettings
+) -> list[np.ndarray]:
+    """x_i - mean_j x_j per rope: low-passed, then a play operator of 3 sigma of its noise.
+
+    The transducer noise left after a zero-phase Butterworth low-pass of order n and
+    cut-off f_c at rate f_s is sigma sqrt(2 ENBW / f_s), with ENBW = f_c (pi / 2n) /
+    sin(pi / 2n) the equivalent noise bandwidth of |H|^4 (filtfilt squares |H|); a play
+    of half-width 3 times that keeps the slow wander of the filtered noise from moving
+    the friction state.
+    """
+    mean = pl.mean_horizontal(x_cols)
+    differential = frame.select(
+        "segment_id", *[(pl.col(c) - mean).fill_null(0.0).alias(c) for c in x_cols]
+    )
+    sigmas = [displacement_noise_sigma(differential[c].to_numpy()) for c in x_cols]
+    filtered = differential.pipe(
+        lowpass_columns,
+        x_cols,
+        sample_rate_hz=settings.sample_rate_hz,
+        cutoff_hz=settings.differential_cutoff_hz,
+    )
+    order = 4
+    enbw = settings.differential_cutoff_hz * (np.pi / (2 * order)) / np.sin(np.pi / (2 * order))
+    shrink = np.sqrt(2.0 * enbw / settings.sample_rate_hz)
+    return [
+        play_operator(
+            filtered[c].to_numpy().astype(np.float64), segment, half_width=3.0 * sigma * shrink
+        )
+        for c, sigma in zip(x_cols, sigmas, strict=True)
+    ]
 
 
 def _increment_velocity(x: np.ndarray, dt: np.ndarray, segment_id: np.ndarray) -> np.ndarray:
@@ -255,21 +300,17 @@ def compensate(
 
     has_x = all(frame[c].null_count() < frame.height for c in x_cols)
     segment = frame["segment_id"].to_numpy()
+    p_mean = frame.select(pl.mean_horizontal(p_cols)).to_series().to_numpy()
+    x_common = common_mode_displacement(p_mean, segment, hoist)
     if has_x:
-        played = {
-            f"x{i}_m": play_operator(
-                frame[f"x{i}_m"].to_numpy().astype(np.float64),
-                segment,
-                half_width=settings.displacement_deadband_m,
-            )
-            for i in ROPES
-        }
+        differential = _differential_displacement(frame, x_cols, segment, settings)
+        estimates = {f"x{i}_m": x_common + differential[k] for k, i in enumerate(ROPES)}
     else:
-        p_mean = frame.select(pl.mean_horizontal(p_cols)).to_series().to_numpy()
-        x_common = common_mode_displacement(p_mean, segment, hoist)
-        half_width = settings.common_mode_deadband_pa * _common_mode_compliance_m_pa(hoist, p_mean)
-        x_common = play_operator(x_common, segment, half_width=half_width)
-        played = {f"x{i}_m": x_common for i in ROPES}
+        estimates = {f"x{i}_m": x_common for i in ROPES}
+    played = {
+        name: play_operator(values, segment, half_width=settings.displacement_deadband_m)
+        for name, values in estimates.items()
+    }
     motion = frame.select("segment_id").with_columns(
         pl.Series(name, values) for name, values in played.items()
     )

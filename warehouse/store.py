@@ -65,9 +65,12 @@ def open_writer(root: DataRoot) -> Iterator[duckdb.DuckDBPyConnection]:
     """Open the warehouse for writing; publish atomically when the block succeeds.
 
     Writers are serialised by an exclusive ``flock``; migrations are applied first, so
-    every writer sees the current schema. On an exception nothing is published.
+    every writer sees the current schema. The views (:mod:`warehouse.views`) are
+    refreshed on the way in and again before publishing, so they point at this data
+    root and at lake tables landed in the block. On an exception nothing is published.
     """
     from warehouse.migrate import apply_migrations  # here: migrate imports store's types
+    from warehouse.views import refresh_views
 
     root.path.mkdir(parents=True, exist_ok=True)
     with root.lock_file.open("a+") as lock:
@@ -81,7 +84,9 @@ def open_writer(root: DataRoot) -> Iterator[duckdb.DuckDBPyConnection]:
             con = duckdb.connect(str(staging))
             try:
                 apply_migrations(con)
+                refresh_views(con, root)  # usable inside the block ...
                 yield con
+                refresh_views(con, root)  # ... and following lake tables landed in it
                 con.execute("CHECKPOINT")
             except BaseException:
                 con.close()

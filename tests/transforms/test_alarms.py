@@ -332,3 +332,26 @@ def test_sensor_faults(hoist):
     _assert_events(_events(alarms, "sensor_dropout"), [(None, 300.0, 303.0), (1, 250.0, 252.0)])
     assert alarms.filter(pl.col("rule") == "sensor_out_of_range")["peak_value"][0] == 26e6
     assert _events(alarms, "sensor_stuck") == []
+
+
+def test_tight_rope(hoist):
+    frame, segments = synthetic_day(hoist, [3000.0], seed=6)
+    threshold = rule_thresholds(hoist).tight_n
+    up = next(s for s in segments if s[0] == "up")
+    window = (up[2] + 40.0, up[2] + 42.0)  # rope 1 jammed: 1.2 x the tight threshold
+    frame = finish(
+        frame.with_columns(
+            pl.when(_at(frame, *window)).then(1.2 * threshold).otherwise(pl.col("tension1_n"))
+            .alias("tension1_n")
+        ),
+        hoist,
+    )  # fmt: skip
+    alarms = evaluate_alarms(frame, hoist, run_id="r")
+    _assert_events(_events(alarms, "tight_rope"), [(1, *window)])
+    tight = alarms.filter(pl.col("rule") == "tight_rope").row(0, named=True)
+    assert tight["peak_value"] == pytest.approx(1.2 * threshold)
+    # the same spike puts every rope > 10 % off the mean; the sign says which way
+    imbalance = alarms.filter(pl.col("rule") == "rope_imbalance").sort("rope")
+    _assert_events(_events(alarms, "rope_imbalance"), [(i, *window) for i in (1, 2, 3, 4)])
+    assert imbalance["peak_value"][0] > 0.1
+    assert (imbalance["peak_value"][1:] < -0.1).all()

@@ -1,0 +1,22 @@
+"""Ingest: field logs (CSV, TDMS) and rig recordings (MCAP) into the Parquet lake.
+
+Public API::
+
+    report = ingest_paths(["logs/", "rig/run-12.mcap"], data=DataRoot.resolve(None))
+    print(report)          # a short table, one line per file
+    report.ok              # False when a file was refused
+
+Modules: :mod:`.sources` (what and which format), :mod:`.field_csv`,
+:mod:`.field_tdms`, :mod:`.rig_mcap` (readers), :mod:`.local_time` (timestamps, DST),
+:mod:`.field_checks` (channels, SI, impossible values), :mod:`.landing` (partitions,
+dedup, atomic Parquet), :mod:`.manifest`, :mod:`.quarantine`, :mod:`.report`,
+:mod:`.pipeline` (``ingest_paths``).
+"""
+
+from __future__ import annotations
+
+from pipelines.ingest.batch import RefusedFile
+from pipelines.ingest.pipeline import ingest_paths
+from pipelines.ingest.report import FileResult, IngestReport
+
+__all__ = ["FileResult", "IngestReport", "RefusedFile", "ingest_paths"]

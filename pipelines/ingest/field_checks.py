@@ -1,0 +1,121 @@
+"""Field-log channels and the checks every field sample passes, for CSV and TDMS alike.
+
+Channels (contract 1a/1b) map to SI columns of :data:`schemas.tables.FIELD_SAMPLES`:
+
+========== ============== ===========================================
+raw        landed column  unit in the raw file
+========== ============== ===========================================
+p1..p4     p{i}_pa        pressure (MPa, bar, kPa, Pa) - required
+x1..x4     x{i}_m         length (mm, m) - optional
+depth      depth_m        length, default m - optional
+speed      speed_m_s      velocity, default m/s - optional
+oil_temp   oil_temp_c     degC - optional
+========== ============== ===========================================
+
+Missing values (empty field, ``NaN``/``nan``, ``-9999``/``-9999.0``) become null.
+A sample is quarantined with the first reason that applies, in this order:
+unparsable timestamp, local time in a daylight-saving gap, unparsable value (per
+channel), negative absolute pressure, pressure above 60 MPa, depth outside the shaft.
+
+Depth outside the shaft: with a hoist description the landed range is
+``[-DEPTH_MARGIN_M, shaft depth + DEPTH_MARGIN_M]`` (overtravel and encoder slack);
+without one only ``depth < -DEPTH_MARGIN_M`` is impossible, since the shaft depth is
+unknown.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import polars as pl
+
+from schemas.hoist import HoistDescription
+
+__all__ = [
+    "CHANNELS",
+    "DEPTH_MARGIN_M",
+    "MAX_PRESSURE_PA",
+    "REASON_CONFLICT",
+    "REASON_DST_GAP",
+    "REASON_FIELD_COUNT",
+    "REASON_NON_UTF8",
+    "REASON_TIMESTAMP",
+    "Channel",
+    "HoistLookup",
+    "depth_limits_m",
+    "physical_reason",
+    "to_si",
+]
+
+#: Pressure above which a sensor reading is impossible (contract 1a) [Pa].
+MAX_PRESSURE_PA = 60e6
+#: Tolerance around the shaft for the depth check [m].
+DEPTH_MARGIN_M = 10.0
+
+REASON_FIELD_COUNT = "wrong field count"
+REASON_NON_UTF8 = "non-UTF-8 bytes"
+REASON_TIMESTAMP = "unparsable timestamp"
+REASON_DST_GAP = "local time in daylight-saving gap"
+REASON_CONFLICT = "conflicts with landed sample"
+
+HoistLookup = Callable[[str, str], HoistDescription | None]
+
+
+@dataclass(frozen=True)
+class Channel:
+    """One raw channel: its landed SI column, the unit key of the ``units`` line, dimension."""
+
+    raw: str
+    column: str
+    unit_key: str
+    dimension: str
+    default_unit: str | None
+
+    @property
+    def required(self) -> bool:
+        return self.unit_key == "p"
+
+
+CHANNELS: dict[str, Channel] = {
+    **{f"p{i}": Channel(f"p{i}", f"p{i}_pa", "p", "pressure", None) for i in range(1, 5)},
+    **{f"x{i}": Channel(f"x{i}", f"x{i}_m", "x", "length", None) for i in range(1, 5)},
+    "depth": Channel("depth", "depth_m", "depth", "length", "m"),
+    "speed": Channel("speed", "speed_m_s", "speed", "velocity", "m/s"),
+    "oil_temp": Channel("oil_temp", "oil_temp_c", "oil_temp", "temperature", "degC"),
+}
+
+_SENTINEL = -9999.0
+
+
+def to_si(value: pl.Expr, factor: float, offset: float = 0.0) -> pl.Expr:
+    """Float values with sentinels (NaN, -9999) as null, scaled to SI."""
+    cleaned = pl.when(value.is_nan() | (value == _SENTINEL)).then(None).otherwise(value)
+    scaled = cleaned * factor if factor != 1.0 else cleaned
+    return scaled + offset if offset else scaled
+
+
+def depth_limits_m(hoist: HoistDescription | None) -> tuple[float, float]:
+    """Landed depth range [m] for a hoist (see the module docstring)."""
+    if hoist is None:
+        return -DEPTH_MARGIN_M, float("inf")
+    return -DEPTH_MARGIN_M, hoist.shaft.depth_m + DEPTH_MARGIN_M
+
+
+def physical_reason(columns: list[str], depth_limits: tuple[float, float]) -> list[pl.Expr]:
+    """Reason expressions (null when fine) for impossible SI values, in priority order."""
+    reasons: list[pl.Expr] = []
+    pressures = [c for c in columns if c.startswith("p") and c.endswith("_pa")]
+    for c in pressures:
+        raw = c.removesuffix("_pa")
+        reasons.append(pl.when(pl.col(c) < 0).then(pl.lit(f"negative absolute pressure ({raw})")))
+    for c in pressures:
+        raw = c.removesuffix("_pa")
+        reasons.append(
+            pl.when(pl.col(c) > MAX_PRESSURE_PA).then(pl.lit(f"pressure above 60 MPa ({raw})"))
+        )
+    if "depth_m" in columns:
+        low, high = depth_limits
+        outside = (pl.col("depth_m") < low) | (pl.col("depth_m") > high)
+        reasons.append(pl.when(outside).then(pl.lit("depth outside the shaft")))
+    return reasons

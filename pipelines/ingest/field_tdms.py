@@ -1,0 +1,186 @@
+"""Field logs as TDMS (contract 1b), streamed with ``TdmsFile.open`` + ``data_chunks``.
+
+Group ``hoist``; channels named as the CSV columns (``p1..p4`` required); per-channel
+``unit_string`` (the same units as the CSV ``units`` line); waveform properties
+``wf_start_time``, ``wf_increment`` (+ ``wf_start_offset``, default 0) on every value
+channel; file properties ``site``, ``hoist`` (required) and ``timezone``.
+
+Sample times: a ``timestamp`` channel (datetime64), when present, holds the real sample
+times (LabVIEW logs jitter and drop samples) and is used; otherwise
+``wf_start_time + wf_start_offset + i * wf_increment``. TDMS timestamps are absolute
+(UTC), so ``timezone`` is informational here. A value channel without ``wf_increment``
+or ``wf_start_time`` refuses the file, naming the channel.
+
+Quarantine rows of TDMS files have no line; ``raw`` starts with the 0-based sample index
+(the samples' ``_row``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+from nptdms import TdmsFile
+
+from pipelines.ingest.batch import REJECTED_SCHEMA, Batch, Reading, RefusedFile, rejected_frame
+from pipelines.ingest.field_checks import (
+    CHANNELS,
+    REASON_TIMESTAMP,
+    HoistLookup,
+    depth_limits_m,
+    physical_reason,
+    to_si,
+)
+from schemas.quantities import QuantityError, unit_factor
+from schemas.tables import FIELD_SAMPLES
+
+__all__ = ["open_tdms"]
+
+_GROUP = "hoist"
+
+
+def open_tdms(path: Path, *, hoist_lookup: HoistLookup | None = None) -> Reading:
+    """Open a TDMS field log; refuse it (naming the property or channel) if unusable."""
+    try:
+        tdms = TdmsFile.open(path)
+    except Exception as exc:  # npTDMS raises ValueError, KeyError, struct.error ...
+        raise RefusedFile(f"{path}: not a readable TDMS file ({exc})") from None
+    try:
+        site, hoist_name, units, timebase = _metadata(path, tdms)
+    except BaseException:
+        tdms.close()
+        raise
+    hoist = hoist_lookup(site, hoist_name) if hoist_lookup is not None else None
+    limits = depth_limits_m(hoist)
+    notes = []
+    unknown = [
+        c.name for c in tdms[_GROUP].channels() if c.name not in CHANNELS and c.name != "timestamp"
+    ]
+    if unknown:
+        notes.append(f"unknown channel(s) {', '.join(unknown)} ignored")
+    return Reading(
+        table="field_samples",
+        site=site,
+        hoist=hoist_name,
+        batches=_batches(tdms, units, timebase, limits),
+        notes=notes,
+    )
+
+
+def _metadata(path: Path, tdms: TdmsFile):
+    props = tdms.properties
+    for key in ("site", "hoist"):
+        if not str(props.get(key, "")).strip():
+            raise RefusedFile(f"{path}: file property {key!r} is missing")
+    groups = {g.name: g for g in tdms.groups()}
+    if _GROUP not in groups:
+        raise RefusedFile(f"{path}: no group {_GROUP!r} (groups: {', '.join(groups) or 'none'})")
+    channels = {c.name: c for c in groups[_GROUP].channels()}
+    lacking = [c for c in ("p1", "p2", "p3", "p4") if c not in channels]
+    if lacking:
+        raise RefusedFile(f"{path}: group 'hoist' lacks required channel(s) {', '.join(lacking)}")
+    units: dict[str, tuple[float, float]] = {}
+    timebase = None
+    for name, channel in channels.items():
+        spec = CHANNELS.get(name)
+        if spec is None:
+            continue
+        for key in ("wf_increment", "wf_start_time"):
+            if key not in channel.properties:
+                raise RefusedFile(
+                    f"{path}: channel hoist/{name}: waveform property {key!r} is missing "
+                    "(no time base)"
+                )
+        base = (
+            np.datetime64(channel.properties["wf_start_time"], "us"),
+            float(channel.properties.get("wf_start_offset", 0.0)),
+            float(channel.properties["wf_increment"]),
+        )
+        if not base[2] > 0:
+            raise RefusedFile(f"{path}: channel hoist/{name}: wf_increment {base[2]} is not > 0")
+        if timebase is None:
+            timebase = base
+        elif base != timebase:
+            raise RefusedFile(
+                f"{path}: channel hoist/{name}: waveform time base differs from the other channels"
+            )
+        unit = str(channel.properties.get("unit_string", "")).strip() or spec.default_unit
+        if unit is None:
+            raise RefusedFile(f"{path}: channel hoist/{name}: no unit_string property")
+        try:
+            units[name] = (unit_factor(unit, spec.dimension), 0.0)
+        except QuantityError as exc:
+            raise RefusedFile(f"{path}: channel hoist/{name}: unit_string: {exc}") from None
+    return str(props["site"]).strip(), str(props["hoist"]).strip(), units, timebase
+
+
+def _batches(
+    tdms: TdmsFile, units: dict[str, tuple[float, float]], timebase, limits: tuple[float, float]
+) -> Iterator[Batch]:
+    start, offset_s, increment_s = timebase
+    try:
+        for chunk in tdms.data_chunks():
+            group = chunk[_GROUP]
+            arrays = {c.name: (c.offset, c[:]) for c in group.channels()}
+            if "p1" not in arrays:
+                continue
+            first, p1 = arrays["p1"]
+            n = len(p1)
+            index = np.arange(first, first + n, dtype=np.int64)
+            if "timestamp" in arrays and len(arrays["timestamp"][1]) == n:
+                times = pl.Series("time_utc", arrays["timestamp"][1].astype("datetime64[us]"))
+            else:
+                step_us = np.rint((offset_s + index * increment_s) * 1e6).astype(np.int64)
+                times = pl.Series("time_utc", start + step_us.astype("timedelta64[us]"))
+            columns = {"time_utc": times.dt.replace_time_zone("UTC"), "_row": index}
+            values = []
+            for name, spec in CHANNELS.items():
+                if name in arrays and len(arrays[name][1]) == n and arrays[name][0] == first:
+                    columns[name] = np.asarray(arrays[name][1], dtype=np.float64)
+                    factor, offset = units[name]
+                    values.append(to_si(pl.col(name), factor, offset).alias(spec.column))
+                else:
+                    values.append(pl.lit(None, pl.Float64).alias(spec.column))
+            frame = pl.DataFrame(columns).with_columns(
+                pl.col(name).fill_nan(None) for name in units if name in columns
+            )
+            si = frame.select("time_utc", "_row", *values)
+            present = [CHANNELS[n].column for n in units if n in columns]
+            reasons = [
+                pl.when(pl.col("time_utc").is_null()).then(pl.lit(REASON_TIMESTAMP)),
+                *physical_reason(present, limits),
+            ]
+            si = si.with_columns(pl.coalesce(*reasons).alias("_reason"))
+            good = si.filter(pl.col("_reason").is_null())
+            bad = si.filter(pl.col("_reason").is_not_null())
+            names = [f.name for f in FIELD_SAMPLES if f.name != "source_sha256"]
+            samples = good.with_columns(pl.col("_row").alias("source_line")).select(*names, "_row")
+
+            def raw_of(rows: list[int], si: pl.DataFrame = si) -> list[str | None]:
+                picked = si.filter(pl.col("_row").is_in(rows)).drop("_reason")
+                texts = {r["_row"]: _raw_text(r) for r in picked.iter_rows(named=True)}
+                return [texts.get(r) for r in rows]
+
+            rejected = (
+                pl.DataFrame(
+                    {
+                        "row": bad["_row"],
+                        "topic": None,
+                        "reason": bad["_reason"],
+                        "raw": raw_of(bad["_row"].to_list()),
+                    },
+                    schema=REJECTED_SCHEMA,
+                )
+                if bad.height
+                else rejected_frame([])
+            )
+            yield Batch(samples=samples, rejected=rejected, raw_of=raw_of)
+    finally:
+        tdms.close()
+
+
+def _raw_text(row: dict) -> str:
+    values = ", ".join(f"{k}={v}" for k, v in row.items() if k not in ("_row",) and v is not None)
+    return f"sample {row['_row']}: {values}"

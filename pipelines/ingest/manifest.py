@@ -1,0 +1,108 @@
+"""The ingest manifest in the warehouse: one row per distinct source content (sha256).
+
+Content, not names, is the key: a file re-exported under a new name has the same
+sha256 and is skipped. A CSV that was still growing (``status = 'partial'``,
+``bytes_consumed < size_bytes``) is resumed when a longer file arrives whose first
+``size_bytes`` bytes hash to that row's ``source_sha256``: appending keeps the old
+content as a prefix, so the prefix hash identifies it without storing anything extra.
+Ingest then starts at the old ``bytes_consumed`` (the first line not yet landed).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import duckdb
+
+from pipelines.ingest.report import FileResult
+
+__all__ = ["Earlier", "Resume", "file_digests", "find_earlier", "record", "resume_candidates"]
+
+_BLOCK = 8 << 20
+
+
+@dataclass(frozen=True)
+class Earlier:
+    """A manifest row for the same content."""
+
+    path: str
+    status: str
+    message: str | None
+
+
+@dataclass(frozen=True)
+class Resume:
+    """A partial, growing earlier version of a file: where to pick up."""
+
+    sha256: str
+    size_bytes: int
+    bytes_consumed: int
+
+
+def find_earlier(con: duckdb.DuckDBPyConnection, sha256: str) -> Earlier | None:
+    rows = con.execute(
+        "SELECT source_path, status, message FROM manifest WHERE source_sha256 = ?", [sha256]
+    ).fetchall()
+    return Earlier(*rows[0]) if rows else None
+
+
+def resume_candidates(con: duckdb.DuckDBPyConnection, *, max_size: int) -> list[Resume]:
+    """Partial CSV manifest rows that a file of ``max_size`` bytes could extend."""
+    rows = con.execute(
+        "SELECT source_sha256, size_bytes, bytes_consumed FROM manifest "
+        "WHERE format = 'csv' AND status = 'partial' AND bytes_consumed IS NOT NULL "
+        "AND bytes_consumed < size_bytes AND size_bytes < ? ORDER BY size_bytes",
+        [max_size],
+    ).fetchall()
+    return [Resume(*row) for row in rows]
+
+
+def file_digests(path: Path, prefixes: list[int]) -> tuple[str, dict[int, str]]:
+    """sha256 of the whole file and of its first ``n`` bytes for each ``n`` in ``prefixes``."""
+    digest = hashlib.sha256()
+    wanted = sorted(set(prefixes))
+    found: dict[int, str] = {}
+    position = 0
+    with path.open("rb") as handle:
+        while block := handle.read(_BLOCK):
+            start = 0
+            while wanted and wanted[0] <= position + len(block):
+                cut = wanted.pop(0) - position
+                digest.update(block[start:cut])
+                found[position + cut] = digest.copy().hexdigest()
+                start = cut
+            digest.update(block[start:])
+            position += len(block)
+    return digest.hexdigest(), found
+
+
+def record(con: duckdb.DuckDBPyConnection, result: FileResult) -> None:
+    """Insert the manifest row of ``result`` (not for ``skipped``)."""
+    reasons = result.quarantined_by_reason
+    con.execute(
+        "INSERT INTO manifest VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
+        "MAP(?::VARCHAR[], ?::BIGINT[]), ?, ?, ?, ?, ?)",
+        [
+            result.sha256,
+            str(result.path),
+            result.format,
+            result.size_bytes,
+            result.bytes_consumed,
+            result.site,
+            result.hoist,
+            result.rows_read,
+            result.rows_landed,
+            result.rows_quarantined,
+            result.rows_duplicate,
+            list(reasons),
+            list(reasons.values()),
+            result.time_start_utc,
+            result.time_end_utc,
+            result.status,
+            result.message or None,
+            dt.datetime.now(dt.UTC),
+        ],
+    )

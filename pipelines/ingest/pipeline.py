@@ -1,0 +1,216 @@
+"""``ingest_paths``: files in, lake partitions + manifest + quarantine out.
+
+For each file, in one serialised warehouse writer (:func:`warehouse.store.open_writer`,
+published every ``commit_every`` files):
+
+1. sha256 of the content; already in the manifest -> ``skipped`` (no-op, even renamed).
+2. A partial earlier version that this file extends -> resume after its
+   ``bytes_consumed`` (:mod:`.manifest`).
+3. The format's reader yields batches (:mod:`.field_csv`, :mod:`.field_tdms`,
+   :mod:`.rig_mcap`); rejected rows go to ``quarantine``, samples are landed with dedup
+   (:mod:`.landing`), conflicts quarantined.
+4. One manifest row with the accounting; the lake parts of the file are on disk before
+   its manifest row is published.
+
+Crash in the middle: the lake may hold part of a file whose manifest row was never
+published. Re-ingesting it lands nothing twice: those rows are exact duplicates now.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from collections import Counter
+from collections.abc import Sequence
+from pathlib import Path
+
+import duckdb
+import polars as pl
+
+from pipelines.ingest.batch import Reading, RefusedFile
+from pipelines.ingest.field_checks import REASON_CONFLICT, HoistLookup
+from pipelines.ingest.field_csv import DEFAULT_BATCH_BYTES, open_csv
+from pipelines.ingest.landing import LakeTable
+from pipelines.ingest.manifest import (
+    file_digests,
+    find_earlier,
+    record,
+    resume_candidates,
+)
+from pipelines.ingest.quarantine import insert_quarantine
+from pipelines.ingest.report import FileResult, IngestReport
+from pipelines.ingest.sources import detect_format, expand_paths
+from warehouse.store import DataRoot, open_writer
+
+__all__ = ["ingest_paths"]
+
+
+def ingest_paths(
+    paths: Sequence[str | Path],
+    *,
+    data: DataRoot,
+    hoist_lookup: HoistLookup | None = None,
+    batch_bytes: int = DEFAULT_BATCH_BYTES,
+    commit_every: int = 20,
+) -> IngestReport:
+    """Ingest files and folders (CSV, TDMS, MCAP in any mix) into ``data``.
+
+    ``hoist_lookup(site, hoist)`` may return the hoist description of a field log, used
+    for the depth-in-shaft check. Refused files are reported (and recorded in the
+    manifest), not raised; check ``report.ok``.
+    """
+    files = expand_paths(paths)
+    report = IngestReport()
+    for start in range(0, len(files), max(commit_every, 1)):
+        with open_writer(data) as con:
+            lakes: dict[str, LakeTable] = {}
+            for path in files[start : start + max(commit_every, 1)]:
+                result = _ingest_file(path, con, data, lakes, hoist_lookup, batch_bytes)
+                if result.status != "skipped" and result.sha256:
+                    record(con, result)
+                report.files.append(result)
+    return report
+
+
+def _ingest_file(
+    path: Path,
+    con: duckdb.DuckDBPyConnection,
+    data: DataRoot,
+    lakes: dict[str, LakeTable],
+    hoist_lookup: HoistLookup | None,
+    batch_bytes: int,
+) -> FileResult:
+    if not path.is_file():
+        return FileResult(path, "", "unknown", "refused", message=f"{path}: no such file")
+    size = path.stat().st_size
+    fmt = detect_format(path)
+    candidates = resume_candidates(con, max_size=size) if fmt == "csv" else []
+    sha256, prefixes = file_digests(path, [c.size_bytes for c in candidates])
+    result = FileResult(path, sha256, fmt, "landed", size_bytes=size)
+    earlier = find_earlier(con, sha256)
+    if earlier is not None:
+        result.status = "skipped"
+        same = "this name" if earlier.path == str(path) else earlier.path
+        result.message = f"already ingested ({earlier.status}) as {same}; nothing to do"
+        return result
+    resume = None
+    for candidate in reversed(candidates):  # the longest prefix first
+        if prefixes.get(candidate.size_bytes) == candidate.sha256:
+            resume = candidate
+            break
+    notes: list[str] = []
+    try:
+        reading = _open(path, fmt, hoist_lookup, batch_bytes, resume, notes)
+        result.site, result.hoist = reading.site, reading.hoist
+        _land_all(reading, result, con, data, lakes)
+    except RefusedFile as exc:
+        result.status = "refused"
+        result.message = str(exc)
+        return result
+    notes.extend(reading.notes)
+    result.bytes_consumed = reading.bytes_consumed
+    if reading.partial:
+        result.status = "partial"
+        notes.append(f"partial: {reading.partial}")
+    elif result.rows_read == 0 and resume is None and fmt == "csv":
+        result.status = "refused"
+        notes.insert(0, f"{path}: header only, no data rows")
+    result.message = "; ".join(notes)
+    return result
+
+
+def _open(
+    path: Path,
+    fmt: str,
+    hoist_lookup: HoistLookup | None,
+    batch_bytes: int,
+    resume,
+    notes: list[str],
+) -> Reading:
+    if fmt == "csv":
+        if resume is not None:
+            with path.open("rb") as handle:
+                line = 1 + _count_newlines(handle, resume.bytes_consumed)
+            notes.append(
+                f"resumed at byte {resume.bytes_consumed} (line {line}) after the earlier "
+                f"partial version {resume.sha256[:12]}"
+            )
+            return open_csv(
+                path,
+                hoist_lookup=hoist_lookup,
+                start_offset=resume.bytes_consumed,
+                start_line=line,
+                batch_bytes=batch_bytes,
+            )
+        return open_csv(path, hoist_lookup=hoist_lookup, batch_bytes=batch_bytes)
+    if fmt == "tdms":
+        from pipelines.ingest.field_tdms import open_tdms
+
+        return open_tdms(path, hoist_lookup=hoist_lookup)
+    from pipelines.ingest.rig_mcap import open_mcap
+
+    return open_mcap(path)
+
+
+def _count_newlines(handle, limit: int) -> int:
+    count, remaining = 0, limit
+    while remaining > 0:
+        block = handle.read(min(remaining, 8 << 20))
+        if not block:
+            break
+        count += block.count(b"\n")
+        remaining -= len(block)
+    return count
+
+
+def _land_all(
+    reading: Reading,
+    result: FileResult,
+    con: duckdb.DuckDBPyConnection,
+    data: DataRoot,
+    lakes: dict[str, LakeTable],
+) -> None:
+    lake = lakes.get(reading.table)
+    if lake is None:
+        lake = lakes[reading.table] = LakeTable(data, reading.table)
+    reasons: Counter[str] = Counter()
+    has_lines = result.format == "csv"
+    for batch in reading.batches:
+        result.rows_read += batch.rows_read
+        rejected = batch.rejected
+        landed = lake.land(
+            batch.samples, site=reading.site, hoist=reading.hoist, source_sha256=result.sha256
+        )
+        if landed.conflicts:
+            conflicts = pl.DataFrame(
+                {
+                    "row": landed.conflicts,
+                    "topic": None,
+                    "reason": REASON_CONFLICT,
+                    "raw": batch.raw_of(landed.conflicts),
+                },
+                schema=rejected.schema,
+            )
+            rejected = pl.concat([rejected, conflicts])
+        insert_quarantine(
+            con, rejected, source_sha256=result.sha256, source_path=result.path, has_lines=has_lines
+        )
+        reasons.update(dict(rejected.group_by("reason").len().iter_rows()))
+        result.rows_landed += landed.landed
+        result.rows_duplicate += landed.duplicate
+        result.rows_quarantined += rejected.height - _auxiliary(rejected)
+        if batch.samples.height:
+            low, high = batch.samples["time_utc"].min(), batch.samples["time_utc"].max()
+            assert isinstance(low, dt.datetime)
+            assert isinstance(high, dt.datetime)
+            result.time_start_utc = min(low, result.time_start_utc or low)
+            result.time_end_utc = max(high, result.time_end_utc or high)
+    result.quarantined_by_reason = dict(sorted(reasons.items()))
+
+
+def _auxiliary(rejected: pl.DataFrame) -> int:
+    """Rejected MCAP messages of topics other than /rig/pressure: quarantined, not rows."""
+    if rejected.height == 0:
+        return 0
+    return rejected.filter(
+        pl.col("topic").is_not_null() & (pl.col("topic") != "/rig/pressure")
+    ).height

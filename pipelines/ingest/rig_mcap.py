@@ -1,0 +1,304 @@
+"""Friction-rig recordings (contract 3, MCAP) onto the ``/rig/pressure`` timeline.
+
+Reading: ``mcap.reader.make_reader`` with :class:`JsonDecoderFactory`;
+``iter_messages(log_time_order=False)`` (twice as fast as ordered), then each topic
+sorted by log time. The high-rate topics are decoded in bulk (the JSON payloads joined
+as NDJSON and read by polars against the topic's schema); a message that does not fit
+its schema is decoded alone and quarantined with its topic and reason.
+
+Alignment: one landed row per ``/rig/pressure`` message (``rig_samples``, partition
+``site=rig/hoist=<rig_id>/date=<UTC date>``). Other topics are joined as-of, backward
+(the latest value at or before the pressure sample): ``/rig/displacement`` within
+``DISPLACEMENT_TOLERANCE_S``, ``/rig/temperature`` within ``TEMPERATURE_TOLERANCE_S``
+(older values give null, not a stale number), ``/rig/step`` without limit (a step lasts
+until the next one; samples before the first step have a null step). Units to SI.
+
+Refusals: a channel whose schema encoding is not ``jsonschema`` (or whose message
+encoding is not ``json``) refuses the file, naming the topic; no ``/rig/info``
+message refuses it (no rig_id). Unknown topics are ignored and named in the report.
+A truncated recording (the rig stopped mid-write) lands the messages read before the
+damage and is reported ``partial`` with the reason.
+
+Row accounting counts ``/rig/pressure`` messages: read = landed + quarantined +
+duplicates. Bad messages of the other topics are quarantined too (with their topic)
+but are not rows of ``rig_samples``; the report message counts them.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import polars as pl
+from mcap.decoder import DecoderFactory
+from mcap.reader import NonSeekingReader, make_reader
+from mcap.records import Schema
+
+from pipelines.ingest.batch import REJECTED_SCHEMA, Batch, Reading, RefusedFile
+from pipelines.ingest.field_checks import MAX_PRESSURE_PA
+from schemas.tables import RIG_SAMPLES
+
+__all__ = [
+    "DISPLACEMENT_TOLERANCE_S",
+    "KNOWN_TOPICS",
+    "TEMPERATURE_TOLERANCE_S",
+    "JsonDecoderFactory",
+    "open_mcap",
+]
+
+DISPLACEMENT_TOLERANCE_S = 0.02
+TEMPERATURE_TOLERANCE_S = 10.0
+
+#: Topic -> polars schema of the fields ingest uses.
+KNOWN_TOPICS: dict[str, dict[str, pl.DataType]] = {
+    "/rig/info": {
+        "rig_id": pl.String(),
+        "bore_mm": pl.Float64(),
+        "rod_mm": pl.Float64(),
+        "stroke_mm": pl.Float64(),
+        "moving_mass_kg": pl.Float64(),
+        "oil": pl.String(),
+    },
+    "/rig/pressure": {"p_rodless_mpa": pl.Float64(), "p_rod_mpa": pl.Float64()},
+    "/rig/displacement": {"x_mm": pl.Float64()},
+    "/rig/temperature": {"oil_temp_c": pl.Float64()},
+    "/rig/step": {
+        "step": pl.Int64(),
+        "pressure_setpoint_mpa": pl.Float64(),
+        "velocity_setpoint_mm_s": pl.Float64(),
+    },
+}
+
+
+class JsonDecoderFactory(DecoderFactory):
+    """Decodes ``json`` messages (contract 3) to Python objects."""
+
+    def decoder_for(
+        self, message_encoding: str, schema: Schema | None
+    ) -> Callable[[bytes], Any] | None:
+        if message_encoding != "json":
+            return None
+        return json.loads
+
+
+class _Collected:
+    def __init__(self) -> None:
+        self.times: dict[str, list[int]] = {t: [] for t in KNOWN_TOPICS}
+        self.payloads: dict[str, list[bytes]] = {t: [] for t in KNOWN_TOPICS}
+        self.unknown: Counter[str] = Counter()
+
+
+def open_mcap(path: Path) -> Reading:
+    """Read a rig recording; all of it is decoded before anything is landed."""
+    collected = _Collected()
+    partial = None
+    try:
+        with path.open("rb") as handle:
+            reader = make_reader(handle, decoder_factories=[JsonDecoderFactory()])
+            _collect(path, reader.iter_messages(log_time_order=False), collected)
+    except RefusedFile:
+        raise
+    except Exception as exc:  # truncated / corrupt: salvage the complete prefix
+        collected = _Collected()
+        try:
+            with path.open("rb") as handle:
+                reader = NonSeekingReader(handle, decoder_factories=[JsonDecoderFactory()])
+                _collect(path, reader.iter_messages(log_time_order=False), collected)
+        except RefusedFile:
+            raise
+        except Exception as salvage:
+            partial = (
+                f"recording truncated or damaged ({type(salvage).__name__}: {salvage}); "
+                "landed the messages before it"
+            )
+        if partial is None:
+            partial = f"summary unreadable ({type(exc).__name__}: {exc}); read sequentially"
+        if not any(collected.times.values()):
+            raise RefusedFile(f"{path}: no readable MCAP messages ({partial})") from None
+    return _reading(path, collected, partial)
+
+
+def _collect(path: Path, messages, collected: _Collected) -> None:
+    checked: set[int] = set()
+    for schema, channel, message in messages:
+        topic = channel.topic
+        if channel.id not in checked:
+            encoding = schema.encoding if schema is not None else "(no schema)"
+            if encoding != "jsonschema":
+                raise RefusedFile(
+                    f"{path}: topic {topic}: schema encoding {encoding!r}, expected 'jsonschema'"
+                )
+            if channel.message_encoding != "json":
+                raise RefusedFile(
+                    f"{path}: topic {topic}: message encoding {channel.message_encoding!r}, "
+                    "expected 'json'"
+                )
+            checked.add(channel.id)
+        if topic not in KNOWN_TOPICS:
+            collected.unknown[topic] += 1
+            continue
+        collected.times[topic].append(message.log_time)
+        collected.payloads[topic].append(message.data)
+
+
+def _decode(
+    topic: str, times: list[int], payloads: list[bytes]
+) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """Decoded messages of one topic (sorted by time, ``_row`` = file order) and rejects."""
+    schema = KNOWN_TOPICS[topic]
+    base = pl.DataFrame(
+        {"_row": range(len(times)), "_ns": times}, schema={"_row": pl.Int64, "_ns": pl.Int64}
+    )
+    fields = None
+    joined = b"\n".join(payloads)
+    if payloads and joined.count(b"\n") == len(payloads) - 1:
+        try:
+            fields = pl.read_ndjson(joined, schema=schema)
+        except Exception:
+            fields = None
+    if fields is None:
+        rows = []
+        for data in payloads:
+            try:
+                value = json.loads(data)
+            except ValueError:
+                value = None
+            rows.append(value if isinstance(value, dict) else {})
+        fields = pl.DataFrame(
+            [{k: _typed(r.get(k), dtype) for k, dtype in schema.items()} for r in rows],
+            schema=schema,
+            orient="row",
+        )
+    frame = pl.concat([base, fields], how="horizontal")
+    missing = pl.concat_str(
+        [pl.when(pl.col(k).is_null()).then(pl.lit(k)) for k in schema],
+        separator=", ",
+        ignore_nulls=True,
+    )
+    frame = frame.with_columns(
+        pl.when(missing != "")
+        .then(pl.lit(f"message does not match the {topic} schema: missing or invalid ") + missing)
+        .alias("_reason")
+    )
+    bad = frame.filter(pl.col("_reason").is_not_null())
+    rejected = pl.DataFrame(
+        {
+            "row": bad["_row"],
+            "topic": topic,
+            "reason": bad["_reason"],
+            "raw": [payloads[i].decode("utf-8", errors="replace") for i in bad["_row"]],
+        },
+        schema=REJECTED_SCHEMA,
+    )
+    good = frame.filter(pl.col("_reason").is_null()).drop("_reason")
+    good = good.with_columns(
+        pl.from_epoch("_ns", time_unit="ns")
+        .dt.cast_time_unit("us")
+        .dt.replace_time_zone("UTC")
+        .alias("time_utc")
+    ).sort("_ns", "_row")
+    return good, rejected
+
+
+def _typed(value: Any, dtype: pl.DataType) -> Any:
+    """``value`` if it has the JSON type the topic schema asks for, else None."""
+    if isinstance(value, bool):
+        return None
+    if dtype == pl.String:
+        return value if isinstance(value, str) else None
+    if dtype == pl.Int64:
+        return value if isinstance(value, int) else None
+    return float(value) if isinstance(value, int | float) else None
+
+
+def _reading(path: Path, collected: _Collected, partial: str | None) -> Reading:
+    decoded = {t: _decode(t, collected.times[t], collected.payloads[t]) for t in KNOWN_TOPICS}
+    info = decoded["/rig/info"][0]
+    if info.height == 0:
+        raise RefusedFile(f"{path}: topic /rig/info: no valid message, so no rig_id")
+    rig_id = str(info["rig_id"][0])
+    pressure, rejected_p = decoded["/rig/pressure"]
+    samples = pressure.select(
+        "time_utc",
+        "_row",
+        (pl.col("p_rodless_mpa") * 1e6).alias("p_rodless_pa"),
+        (pl.col("p_rod_mpa") * 1e6).alias("p_rod_pa"),
+    )
+    reasons = []
+    for column in ("p_rodless_pa", "p_rod_pa"):
+        name = column.removesuffix("_pa")
+        reasons.append(
+            pl.when(pl.col(column) < 0).then(pl.lit(f"negative absolute pressure ({name})"))
+        )
+        reasons.append(
+            pl.when(pl.col(column) > MAX_PRESSURE_PA).then(
+                pl.lit(f"pressure above 60 MPa ({name})")
+            )
+        )
+    samples = samples.with_columns(pl.coalesce(*reasons).alias("_reason"))
+    displacement = decoded["/rig/displacement"][0].select(
+        "time_utc", (pl.col("x_mm") * 1e-3).alias("x_m")
+    )
+    temperature = decoded["/rig/temperature"][0].select("time_utc", "oil_temp_c")
+    steps = decoded["/rig/step"][0].select(
+        "time_utc",
+        pl.col("step").cast(pl.Int32),
+        (pl.col("pressure_setpoint_mpa") * 1e6).alias("pressure_setpoint_pa"),
+        (pl.col("velocity_setpoint_mm_s") * 1e-3).alias("velocity_setpoint_m_s"),
+    )
+    aligned = (
+        samples.sort("time_utc")
+        .join_asof(steps.unique("time_utc", keep="last", maintain_order=True), on="time_utc")
+        .join_asof(
+            displacement.unique("time_utc", keep="last", maintain_order=True),
+            on="time_utc",
+            tolerance=f"{round(DISPLACEMENT_TOLERANCE_S * 1e6)}us",
+        )
+        .join_asof(
+            temperature.unique("time_utc", keep="last", maintain_order=True),
+            on="time_utc",
+            tolerance=f"{round(TEMPERATURE_TOLERANCE_S * 1e6)}us",
+        )
+        .with_columns(pl.lit(rig_id).alias("rig_id"))
+    )
+    bad = aligned.filter(pl.col("_reason").is_not_null())
+    payloads = collected.payloads["/rig/pressure"]
+
+    def raw_of(rows: list[int]) -> list[str | None]:
+        return [payloads[r].decode("utf-8", errors="replace") for r in rows]
+
+    rejected = pl.concat(
+        [
+            rejected_p,
+            pl.DataFrame(
+                {
+                    "row": bad["_row"],
+                    "topic": "/rig/pressure",
+                    "reason": bad["_reason"],
+                    "raw": raw_of(bad["_row"].to_list()),
+                },
+                schema=REJECTED_SCHEMA,
+            ),
+            *(decoded[t][1] for t in KNOWN_TOPICS if t != "/rig/pressure"),
+        ]
+    )
+    names = [f.name for f in RIG_SAMPLES if f.name != "source_sha256"]
+    good = aligned.filter(pl.col("_reason").is_null()).select(*names, "_row")
+    notes = []
+    if collected.unknown:
+        listed = ", ".join(f"{t} ({n} messages)" for t, n in sorted(collected.unknown.items()))
+        notes.append(f"ignored unknown topic(s): {listed}")
+    auxiliary = rejected.filter(pl.col("topic") != "/rig/pressure").height
+    if auxiliary:
+        notes.append(f"{auxiliary} invalid message(s) of other topics quarantined (not rows)")
+    return Reading(
+        table="rig_samples",
+        site="rig",
+        hoist=rig_id,
+        batches=iter([Batch(samples=good, rejected=rejected, raw_of=raw_of)]),
+        notes=notes,
+        partial=partial,
+    )

@@ -1,0 +1,159 @@
+"""``ropeload run``: compensate, reconcile and alarm one hoist over a period, then land it.
+
+The plain function behind the CLI command and the Prefect ``run`` flow. Reads the
+landed samples from the lake, computes rope tensions (:mod:`transforms.compensation`),
+per-position / per-trip reconciliation (:mod:`transforms.reconciliation`) and alarms
+(:mod:`transforms.alarms`), and lands them with a ``runs`` row that names the hoist
+description's hash, the friction parameter set and every source file read. Re-running
+the same period replaces what it landed before: no duplicates.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass
+from pathlib import Path
+
+import polars as pl
+
+from pipelines.lake import scan_lake
+from pipelines.provenance import code_version, new_run_id, utc_now
+from schemas.hoist import HoistDescription, hoist_sha256, load_hoist
+from transforms.alarms import evaluate_alarms
+from transforms.compensation import CompensationSettings, compensate
+from transforms.reconciliation import reconcile
+from warehouse.landing import RunRecord, land_results, land_rope_tensions
+from warehouse.store import DataRoot, open_writer
+
+__all__ = ["NoSamplesError", "RunResult", "run_period"]
+
+
+class NoSamplesError(LookupError):
+    """Nothing landed for the hoist in the period asked for."""
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """What one run computed and landed."""
+
+    run_id: str
+    site: str
+    hoist: str
+    period_start_utc: dt.datetime
+    period_end_utc: dt.datetime
+    samples: int
+    rope_tensions: pl.DataFrame
+    position_summary: pl.DataFrame
+    trip_summary: pl.DataFrame
+    alarms: pl.DataFrame
+    inputs: tuple[str, ...]
+
+
+def _period(
+    samples: pl.DataFrame, start: dt.datetime | None, end: dt.datetime | None
+) -> tuple[dt.datetime, dt.datetime]:
+    first = start or samples["time_utc"].min()
+    last = end or samples["time_utc"].max() + dt.timedelta(microseconds=1)
+    return first.astimezone(dt.UTC), last.astimezone(dt.UTC)
+
+
+def run_period(
+    *,
+    hoist_path: str | Path,
+    data: DataRoot,
+    start: dt.datetime | None = None,
+    end: dt.datetime | None = None,
+    payload_kg: float | None = None,
+    hoist: HoistDescription | None = None,
+    settings: CompensationSettings | None = None,
+    command: str = "run",
+) -> RunResult:
+    """Compensate, reconcile and alarm ``start <= t < end`` of one hoist; land the results.
+
+    Parameters
+    ----------
+    hoist_path : path
+        The hoist description (its content hash goes into the ``runs`` row).
+    data : DataRoot
+        Lake and warehouse.
+    start, end : datetime, optional
+        Period (UTC if naive); default everything landed for the hoist.
+    payload_kg : float, optional
+        Known payload at standstill for the reconciliation check (e.g. 0 for an
+        empty conveyance); default: inferred per trip only.
+    hoist : HoistDescription, optional
+        Already loaded description (must be the content of ``hoist_path``).
+    settings : CompensationSettings, optional
+        Signal-processing choices.
+    command : str
+        Recorded in ``runs.command``.
+
+    Raises
+    ------
+    NoSamplesError
+        When no samples are landed for the hoist in the period.
+    """
+    started = utc_now()
+    hoist = hoist or load_hoist(hoist_path)
+    site, name = hoist.hoist.site, hoist.hoist.name
+    samples = scan_lake(
+        data, "field_samples", site=site, hoist=name, start=start, end=end
+    ).collect()
+    if samples.height == 0:
+        raise NoSamplesError(
+            f"no landed samples for site {site!r}, hoist {name!r} in the period "
+            f"[{start or '-inf'}, {end or '+inf'}): ingest its logs first"
+        )
+    period_start, period_end = _period(samples, start, end)
+    run_id = new_run_id(command)
+    tensions = compensate(samples, hoist, settings=settings)
+    reconciled = reconcile(tensions, hoist, run_id=run_id, payload_kg=payload_kg)
+    alarms = evaluate_alarms(
+        tensions, hoist, run_id=run_id, trip_payloads=reconciled.trip_summary, payload_kg=payload_kg
+    )
+    inputs = tuple(sorted(samples["source_sha256"].unique().to_list()))
+    run = RunRecord(
+        run_id=run_id,
+        command=command,
+        code_version=code_version(),
+        started_at_utc=started,
+        hoist_sha256=hoist_sha256(hoist_path),
+        parameter_set=hoist.friction.parameter_set,
+        site=site,
+        hoist=name,
+        period_start_utc=period_start,
+        period_end_utc=period_end,
+        inputs=inputs,
+        finished_at_utc=utc_now(),
+        status="succeeded",
+        message=f"{samples.height} samples, {alarms.height} alarms",
+    )
+    with open_writer(data) as con:
+        land_rope_tensions(
+            data,
+            tensions,
+            site=site,
+            hoist=name,
+            period_start_utc=period_start,
+            period_end_utc=period_end,
+        )
+        land_results(
+            con,
+            run,
+            position_summary=reconciled.position_summary,
+            trip_summary=reconciled.trip_summary,
+            alarms=alarms,
+        )
+    return RunResult(
+        run_id=run_id,
+        site=site,
+        hoist=name,
+        period_start_utc=period_start,
+        period_end_utc=period_end,
+        samples=samples.height,
+        rope_tensions=tensions,
+        position_summary=reconciled.position_summary,
+        trip_summary=reconciled.trip_summary,
+        alarms=alarms,
+        inputs=inputs,
+    )

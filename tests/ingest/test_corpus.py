@@ -1,0 +1,420 @@
+"""The corpus: every bad or awkward input has a clear outcome and balanced row accounting.
+
+Each case builds its file(s) in ``tmp_path``, ingests them into a fresh data root (real
+Parquet, real DuckDB) and checks status, counts, reasons and message, plus
+``rows_read = landed + quarantined + duplicates`` and that the lake holds exactly the
+landed rows.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import polars as pl
+import pytest
+
+from pipelines.ingest import ingest_paths
+from schemas.hoist import EXAMPLE_HOIST, load_hoist
+from warehouse.store import DataRoot, open_reader
+
+UTC = dt.UTC
+
+
+@dataclass
+class Expect:
+    status: str
+    read: int
+    landed: int
+    quarantined: int = 0
+    duplicate: int = 0
+    reasons: dict[str, int] = field(default_factory=dict)
+    message: str = ""
+
+
+def _lake(root: DataRoot, table: str = "field_samples") -> pl.DataFrame:
+    files = sorted(root.table_dir(table).glob("site=*/hoist=*/date=*/*.parquet"))
+    if not files:
+        return pl.DataFrame()
+    return pl.read_parquet(files, hive_partitioning=False)
+
+
+def _check(report, root: DataRoot, expect: Expect, table: str = "field_samples") -> None:
+    (result,) = report.files[-1:]
+    assert result.status == expect.status, result.message
+    assert result.balanced
+    got = (result.rows_read, result.rows_landed, result.rows_quarantined, result.rows_duplicate)
+    assert got == (expect.read, expect.landed, expect.quarantined, expect.duplicate), result
+    for reason, count in expect.reasons.items():
+        assert result.quarantined_by_reason.get(reason) == count, result.quarantined_by_reason
+    assert expect.message in result.message
+    assert sum(result.quarantined_by_reason.values()) >= result.rows_quarantined
+    if result.status != "refused":
+        assert _lake(root, table).height == sum(f.rows_landed for f in report.files)
+    with open_reader(root) as con:
+        status = con.execute(
+            "SELECT status FROM manifest WHERE source_sha256 = ?", [result.sha256]
+        ).fetchall()
+    assert status == [(expect.status,)]
+
+
+# ------------------------------------------------------------------------------ CSV cases
+def _bad_rows(corpus, tmp: Path, name: str, replace: dict[int, str]) -> Path:
+    rows: list = corpus.data_rows(10)
+    for index, text in replace.items():
+        rows[index] = text
+    return corpus.csv_file(tmp / name, rows)
+
+
+def case_clean(corpus, tmp):
+    return corpus.csv_file(tmp / "clean.csv", corpus.data_rows(50)), Expect("landed", 50, 50)
+
+
+def case_wrong_field_count(corpus, tmp):
+    good = corpus.data_rows(10)
+    short, long = ",".join(good[2][:-1]), ",".join([*good[5], "9"])
+    path = _bad_rows(corpus, tmp, "fields.csv", {2: short, 5: long})
+    return path, Expect("landed", 10, 8, 2, reasons={"wrong field count": 2})
+
+
+def case_unparsable_number(corpus, tmp):
+    row = corpus.data_rows(10)[3]
+    row[2] = "4.8x"
+    path = _bad_rows(corpus, tmp, "number.csv", {3: ",".join(row)})
+    return path, Expect("landed", 10, 9, 1, reasons={"unparsable value (p2)": 1})
+
+
+def case_negative_pressure(corpus, tmp):
+    row = corpus.data_rows(10)[4]
+    row[1] = "-0.200"
+    path = _bad_rows(corpus, tmp, "negative.csv", {4: ",".join(row)})
+    return path, Expect("landed", 10, 9, 1, reasons={"negative absolute pressure (p1)": 1})
+
+
+def case_pressure_above_60_mpa(corpus, tmp):
+    row = corpus.data_rows(10)[6]
+    row[4] = "61.000"
+    path = _bad_rows(corpus, tmp, "high.csv", {6: ",".join(row)})
+    return path, Expect("landed", 10, 9, 1, reasons={"pressure above 60 MPa (p4)": 1})
+
+
+def case_unparsable_timestamp(corpus, tmp):
+    row = corpus.data_rows(10)[1]
+    row[0] = "2026-02-30 06:00:00.010"
+    path = _bad_rows(corpus, tmp, "stamp.csv", {1: ",".join(row)})
+    return path, Expect("landed", 10, 9, 1, reasons={"unparsable timestamp": 1})
+
+
+def case_bar_units(corpus, tmp):
+    rows = [[r[0], "48.12", "47.90", "48.36", "48.01", *r[5:]] for r in corpus.data_rows(5)]
+    header = {**corpus.HEADER, "units": "p=bar, x=m"}
+    rows = [[*r[:5], "0.0121", "-0.0034", "0.0002", "0.0079", *r[9:]] for r in rows]
+    return corpus.csv_file(tmp / "bar.csv", rows, header=header), Expect("landed", 5, 5)
+
+
+def case_kpa_units(corpus, tmp):
+    rows = [[r[0], "4812", "4790", "4836", "4801", *r[5:]] for r in corpus.data_rows(5)]
+    header = {**corpus.HEADER, "units": "p=kPa, x=mm"}
+    return corpus.csv_file(tmp / "kpa.csv", rows, header=header), Expect("landed", 5, 5)
+
+
+def case_semicolon_decimal_comma(corpus, tmp):
+    rows = [[v.replace(".", ",") if i else v for i, v in enumerate(r)] for r in corpus.data_rows(8)]
+    path = corpus.csv_file(tmp / "semicolon.csv", rows, sep=";")
+    return path, Expect("landed", 8, 8)
+
+
+def case_tab_delimiter(corpus, tmp):
+    return corpus.csv_file(tmp / "tab.tsv", corpus.data_rows(8), sep="\t"), Expect("landed", 8, 8)
+
+
+def case_crlf_and_bom(corpus, tmp):
+    path = corpus.csv_file(tmp / "crlf.csv", corpus.data_rows(8), newline="\r\n", bom=True)
+    return path, Expect("landed", 8, 8)
+
+
+def case_iso_with_offsets(corpus, tmp):
+    rows = corpus.data_rows(4)
+    rows[0][0] = "2026-03-02T14:00:00.000+08:00"
+    rows[1][0] = "2026-03-02T06:00:00.010Z"
+    rows[2][0] = "2026-03-02T01:00:00.020-05:00"
+    rows[3][0] = "2026-03-02T06:00:00.030+00:00"
+    return corpus.csv_file(tmp / "offsets.csv", rows), Expect("landed", 4, 4)
+
+
+def case_sentinels(corpus, tmp):
+    rows = corpus.data_rows(5)
+    for i, token in enumerate(["", "NaN", "nan", "-9999", "-9999.0"]):
+        rows[i][2] = token
+        rows[i][10] = token
+    return corpus.csv_file(tmp / "sentinels.csv", rows), Expect("landed", 5, 5)
+
+
+def case_missing_optional_channels(corpus, tmp):
+    rows = [r[:5] for r in corpus.data_rows(6)]
+    header = {**corpus.HEADER, "units": "p=MPa"}
+    path = corpus.csv_file(tmp / "ponly.csv", rows, header=header, columns=corpus.COLUMNS[:5])
+    return path, Expect("landed", 6, 6)
+
+
+def case_no_timezone_defaults_to_utc(corpus, tmp):
+    header = {k: v for k, v in corpus.HEADER.items() if k != "timezone"}
+    return corpus.csv_file(tmp / "notz.csv", corpus.data_rows(3), header=header), Expect(
+        "landed", 3, 3
+    )
+
+
+def case_depth_above_pithead_without_hoist(corpus, tmp):
+    rows = corpus.data_rows(6)
+    rows[2][9] = "-25.00"  # impossible anywhere
+    rows[3][9] = "900.00"  # unknown shaft: allowed
+    path = corpus.csv_file(tmp / "depth.csv", rows)
+    return path, Expect("landed", 6, 5, 1, reasons={"depth outside the shaft": 1})
+
+
+def case_out_of_order_rows(corpus, tmp):
+    rows = corpus.data_rows(10)
+    rows[2], rows[7] = rows[7], rows[2]
+    return corpus.csv_file(tmp / "order.csv", rows), Expect("landed", 10, 10)
+
+
+def case_exact_duplicate_row_in_file(corpus, tmp):
+    rows = corpus.data_rows(6)
+    rows.insert(3, list(rows[2]))
+    return corpus.csv_file(tmp / "duprow.csv", rows), Expect("landed", 7, 6, duplicate=1)
+
+
+def case_conflicting_row_in_file(corpus, tmp):
+    rows = corpus.data_rows(6)
+    twin = list(rows[2])
+    twin[1] = "5.000"
+    rows.insert(3, twin)
+    return corpus.csv_file(tmp / "conflict.csv", rows), Expect(
+        "landed", 7, 6, 1, reasons={"conflicts with landed sample": 1}
+    )
+
+
+def case_blank_lines_are_not_rows(corpus, tmp):
+    rows: list = corpus.data_rows(6)
+    rows.insert(2, "")
+    rows.insert(5, "")
+    return corpus.csv_file(tmp / "blank.csv", rows), Expect("landed", 6, 6)
+
+
+def case_non_utf8_line(corpus, tmp):
+    path = corpus.csv_file(tmp / "latin1.csv", corpus.data_rows(6))
+    data = path.read_bytes().replace(
+        b"31.2\n2026-03-02 06:00:00.020", b"31.2\xe9\n2026-03-02 06:00:00.020"
+    )
+    path.write_bytes(data)
+    return path, Expect("landed", 6, 5, 1, reasons={"non-UTF-8 bytes": 1})
+
+
+def case_truncated_last_line(corpus, tmp):
+    path = corpus.csv_file(tmp / "cut.csv", corpus.data_rows(6))
+    path.write_bytes(path.read_bytes()[:-20])
+    return path, Expect("partial", 5, 5, message="cut off")
+
+
+def case_unknown_column(corpus, tmp):
+    rows = [[*r, "7"] for r in corpus.data_rows(3)]
+    path = corpus.csv_file(tmp / "extra.csv", rows, columns=[*corpus.COLUMNS, "vibration"])
+    return path, Expect("landed", 3, 3, message="unknown column(s) vibration ignored")
+
+
+def case_missing_header_key(corpus, tmp):
+    header = {k: v for k, v in corpus.HEADER.items() if k != "hoist"}
+    path = corpus.csv_file(tmp / "nohoist.csv", corpus.data_rows(3), header=header)
+    return path, Expect("refused", 0, 0, message="lacks required key(s) 'hoist'")
+
+
+def case_missing_pressure_column(corpus, tmp):
+    rows = [[*r[:3], *r[4:]] for r in corpus.data_rows(3)]
+    columns = [c for c in corpus.COLUMNS if c != "p3"]
+    path = corpus.csv_file(tmp / "nop3.csv", rows, columns=columns)
+    return path, Expect("refused", 0, 0, message="lacks required channel(s) p3")
+
+
+def case_unknown_unit(corpus, tmp):
+    header = {**corpus.HEADER, "units": "p=psi, x=mm"}
+    path = corpus.csv_file(tmp / "psi.csv", corpus.data_rows(3), header=header)
+    return path, Expect("refused", 0, 0, message="line 5: units: p1: unknown unit 'psi'")
+
+
+def case_empty_file(corpus, tmp):
+    path = tmp / "empty.csv"
+    path.write_bytes(b"")
+    return path, Expect("refused", 0, 0, message="empty file")
+
+
+def case_header_only(corpus, tmp):
+    return corpus.csv_file(tmp / "headonly.csv", []), Expect("refused", 0, 0, message="header only")
+
+
+def case_binary_garbage(corpus, tmp):
+    path = tmp / "garbage.csv"
+    path.write_bytes(bytes(range(256)) * 8)
+    return path, Expect("refused", 0, 0, message="line 1: binary data")
+
+
+def case_tdms(corpus, tmp):
+    return corpus.tdms_file(tmp / "log.tdms"), Expect(
+        "landed", 100, 99, 1, reasons={"pressure above 60 MPa (p1)": 1}
+    )
+
+
+def case_tdms_without_wf_increment(corpus, tmp):
+    path = corpus.tdms_file(tmp / "nowf.tdms", omit=["wf_increment"], omit_in="p2")
+    return path, Expect(
+        "refused", 0, 0, message="channel hoist/p2: waveform property 'wf_increment'"
+    )
+
+
+CASES = {
+    name.removeprefix("case_"): fn
+    for name, fn in list(globals().items())
+    if name.startswith("case_")
+}
+
+
+def test_corpus_has_at_least_25_cases():
+    assert len(CASES) >= 25
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_corpus_case(name, corpus, tmp_path, root):
+    path, expect = CASES[name](corpus, tmp_path)
+    report = ingest_paths([path], data=root)
+    _check(report, root, expect)
+    if expect.status == "refused":
+        assert str(path) in report.files[0].message or path.name in report.files[0].message
+
+
+# ---------------------------------------------------------------- values, not just counts
+def _only(root: DataRoot) -> pl.DataFrame:
+    return _lake(root).sort("time_utc")
+
+
+def test_units_convert_to_si(corpus, tmp_path, root):
+    ingest_paths([case_bar_units(corpus, tmp_path)[0]], data=root)
+    frame = _only(root)
+    assert frame["p1_pa"][0] == pytest.approx(48.12e5)
+    assert frame["x1_m"][0] == pytest.approx(0.0121)
+    root2 = DataRoot.resolve(tmp_path / "data2")
+    ingest_paths([case_kpa_units(corpus, tmp_path)[0]], data=root2)
+    assert _only(root2)["p3_pa"][0] == pytest.approx(4836e3)
+
+
+def test_decimal_comma_and_tab_give_the_same_values(corpus, tmp_path, root):
+    ingest_paths([case_semicolon_decimal_comma(corpus, tmp_path)[0]], data=root)
+    comma = _only(root)
+    root2 = DataRoot.resolve(tmp_path / "data2")
+    ingest_paths([case_tab_delimiter(corpus, tmp_path)[0]], data=root2)
+    tab = _only(root2)
+    cols = [c for c in comma.columns if c not in ("source_sha256", "source_line")]
+    assert comma.select(cols).equals(tab.select(cols))
+    assert comma["p1_pa"][0] == pytest.approx(4.812e6)
+
+
+def test_offsets_give_one_utc_timeline(corpus, tmp_path, root):
+    ingest_paths([case_iso_with_offsets(corpus, tmp_path)[0]], data=root)
+    times = _only(root)["time_utc"].to_list()
+    start = dt.datetime(2026, 3, 2, 6, 0, tzinfo=UTC)
+    assert times == [start + dt.timedelta(milliseconds=10 * i) for i in range(4)]
+
+
+def test_sentinels_become_null(corpus, tmp_path, root):
+    ingest_paths([case_sentinels(corpus, tmp_path)[0]], data=root)
+    frame = _only(root)
+    assert frame["p2_pa"].null_count() == 5
+    assert frame["speed_m_s"].null_count() == 5
+    assert frame["p1_pa"].null_count() == 0
+
+
+def test_missing_optional_channels_are_null_columns(corpus, tmp_path, root):
+    ingest_paths([case_missing_optional_channels(corpus, tmp_path)[0]], data=root)
+    frame = _only(root)
+    for column in ("x1_m", "depth_m", "speed_m_s", "oil_temp_c"):
+        assert frame[column].null_count() == frame.height
+
+
+def test_out_of_order_rows_are_landed_sorted(corpus, tmp_path, root):
+    ingest_paths([case_out_of_order_rows(corpus, tmp_path)[0]], data=root)
+    frame = _lake(root)
+    assert frame["time_utc"].is_sorted()
+    assert frame.height == 10
+
+
+def test_quarantine_rows_are_queryable_with_line_and_raw(corpus, tmp_path, root):
+    path, _ = case_wrong_field_count(corpus, tmp_path)
+    ingest_paths([path], data=root)
+    with open_reader(root) as con:
+        rows = con.sql(
+            "SELECT line, reason, raw, source_path FROM quarantine ORDER BY line"
+        ).fetchall()
+    assert [r[0] for r in rows] == [9, 12]  # 5 header lines + column line; rows 3 and 6
+    assert all(r[1] == "wrong field count" and r[2].startswith("2026-03-02") for r in rows)
+    assert rows[0][3] == str(path)
+
+
+def test_depth_outside_the_shaft_with_a_hoist_description(corpus, tmp_path, root):
+    hoist = load_hoist(EXAMPLE_HOIST)  # shaft 620 m
+    rows = corpus.data_rows(6)
+    rows[1][9] = "700.00"
+    rows[2][9] = "625.00"  # within the margin
+    path = corpus.csv_file(tmp_path / "deep.csv", rows)
+    report = ingest_paths([path], data=root, hoist_lookup=lambda site, name: hoist)
+    _check(report, root, Expect("landed", 6, 5, 1, reasons={"depth outside the shaft": 1}))
+
+
+# --------------------------------------------------------------------- daylight saving
+def _berlin(corpus, tmp, name: str, stamps: list[str]) -> Path:
+    rows = corpus.data_rows(len(stamps))
+    for row, stamp in zip(rows, stamps, strict=True):
+        row[0] = stamp
+    header = {**corpus.HEADER, "timezone": "Europe/Berlin"}
+    return corpus.csv_file(tmp / name, rows, header=header)
+
+
+def test_dst_repeated_hour_resolved_by_file_order(corpus, tmp_path, root):
+    # 2026-10-25: 03:00 CEST -> 02:00 CET, local 02:00-02:59 happens twice
+    stamps = [
+        "2026-10-25 01:59:00.000",
+        "2026-10-25 02:00:00.000",
+        "2026-10-25 02:30:00.000",
+        "2026-10-25 02:59:00.000",
+        "2026-10-25 02:00:00.000",
+        "2026-10-25 02:30:00.000",
+        "2026-10-25 03:00:00.000",
+    ]
+    report = ingest_paths([_berlin(corpus, tmp_path, "fallback.csv", stamps)], data=root)
+    _check(report, root, Expect("landed", 7, 7))
+    times = _only(root)["time_utc"].to_list()
+    expected = [dt.datetime(2026, 10, 24, 23, 59, tzinfo=UTC)] + [
+        dt.datetime(2026, 10, 25, h, m, tzinfo=UTC)
+        for h, m in [(0, 0), (0, 30), (0, 59), (1, 0), (1, 30), (2, 0)]
+    ]
+    assert times == expected
+
+
+def test_dst_repeated_hour_across_batches(corpus, tmp_path, root):
+    stamps = [f"2026-10-25 02:{m:02d}:00.000" for m in range(0, 60, 5)] * 2
+    path = _berlin(corpus, tmp_path, "fallback2.csv", stamps)
+    report = ingest_paths([path], data=root, batch_bytes=300)  # a few lines per batch
+    _check(report, root, Expect("landed", 24, 24))
+    assert _only(root)["time_utc"].n_unique() == 24
+
+
+def test_dst_skipped_hour_is_quarantined(corpus, tmp_path, root):
+    # 2026-03-29: 02:00 CET -> 03:00 CEST, local 02:xx never happens
+    stamps = [
+        "2026-03-29 01:59:00.000",
+        "2026-03-29 02:15:00.000",
+        "2026-03-29 02:45:00.000",
+        "2026-03-29 03:00:00.000",
+    ]
+    report = ingest_paths([_berlin(corpus, tmp_path, "spring.csv", stamps)], data=root)
+    _check(
+        report, root, Expect("landed", 4, 2, 2, reasons={"local time in daylight-saving gap": 2})
+    )

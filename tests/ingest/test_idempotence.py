@@ -1,0 +1,184 @@
+"""Re-ingest, renamed copies, overlapping files, growing files; rig recordings (MCAP)."""
+
+from __future__ import annotations
+
+import hashlib
+import shutil
+
+import polars as pl
+
+from pipelines.ingest import ingest_paths
+from warehouse.store import DataRoot, open_reader
+
+
+def _lake_checksum(root: DataRoot) -> tuple[int, str]:
+    files = sorted(root.lake.glob("*/site=*/hoist=*/date=*/*.parquet"))
+    frame = pl.concat([pl.read_parquet(f, hive_partitioning=False) for f in files], how="diagonal")
+    digest = hashlib.sha256(frame.sort("time_utc").write_ipc(None).getvalue()).hexdigest()
+    return frame.height, digest
+
+
+def _counts(root: DataRoot) -> tuple[int, int]:
+    with open_reader(root) as con:
+        manifest = con.sql("SELECT count(*) FROM manifest").fetchall()[0][0]
+        quarantine = con.sql("SELECT count(*) FROM quarantine").fetchall()[0][0]
+    return manifest, quarantine
+
+
+def test_reingest_is_a_no_op(corpus, tmp_path, root):
+    rows = corpus.data_rows(40)
+    rows[3][1] = "oops"
+    path = corpus.csv_file(tmp_path / "day.csv", rows)
+    first = ingest_paths([path, corpus.tdms_file(tmp_path / "log.tdms")], data=root)
+    before = (_lake_checksum(root), _counts(root))
+    again = ingest_paths([path, tmp_path / "log.tdms"], data=root)
+    assert [f.status for f in again] == ["skipped", "skipped"]
+    assert all(f.rows_read == 0 for f in again)
+    assert (_lake_checksum(root), _counts(root)) == before
+    assert first.files[0].rows_landed == 39
+
+
+def test_same_content_under_a_new_name_is_skipped(corpus, tmp_path, root):
+    path = corpus.csv_file(tmp_path / "day.csv", corpus.data_rows(20))
+    ingest_paths([path], data=root)
+    copy = tmp_path / "export-again.csv"
+    shutil.copy(path, copy)
+    report = ingest_paths([copy], data=root)
+    assert report.files[0].status == "skipped"
+    assert str(path) in report.files[0].message
+    assert _lake_checksum(root)[0] == 20
+
+
+def test_overlapping_files_land_each_sample_once(corpus, tmp_path, root):
+    rows = corpus.data_rows(30)
+    first = corpus.csv_file(tmp_path / "a.csv", rows[:20])
+    second = corpus.csv_file(tmp_path / "b.csv", rows[10:])
+    report = ingest_paths([first, second], data=root)
+    b = report.files[1]
+    assert (b.rows_read, b.rows_landed, b.rows_duplicate, b.rows_quarantined) == (20, 10, 10, 0)
+    lake = pl.read_parquet(sorted(root.table_dir("field_samples").rglob("*.parquet")))
+    assert lake.height == 30
+    assert lake["time_utc"].n_unique() == 30
+
+
+def test_overlap_with_other_values_is_quarantined_as_conflict(corpus, tmp_path, root):
+    rows = corpus.data_rows(10)
+    ingest_paths([corpus.csv_file(tmp_path / "a.csv", rows)], data=root)
+    changed = [list(r) for r in rows[5:]]
+    changed[0][1] = "9.999"
+    report = ingest_paths([corpus.csv_file(tmp_path / "b.csv", changed)], data=root)
+    b = report.files[0]
+    assert (b.rows_read, b.rows_landed, b.rows_duplicate, b.rows_quarantined) == (5, 0, 4, 1)
+    assert b.quarantined_by_reason == {"conflicts with landed sample": 1}
+    with open_reader(root) as con:
+        raw = con.sql("SELECT raw FROM quarantine").fetchall()[0][0]
+    assert "9.999" in raw
+
+
+def test_growing_file_is_picked_up_where_it_stopped(corpus, tmp_path, root):
+    rows = corpus.data_rows(30)
+    full = corpus.csv_file(tmp_path / "full.csv", rows).read_bytes()
+    live = tmp_path / "live.csv"
+    cut = full.index(b"2026-03-02 06:00:00.120")
+    live.write_bytes(full[: cut + 10])  # 12 complete rows, the 13th cut
+    first = ingest_paths([live], data=root).files[0]
+    assert first.status == "partial"
+    assert (first.rows_read, first.rows_landed) == (12, 12)
+    assert first.bytes_consumed == cut
+    live.write_bytes(full)  # it grew and is complete now
+    second = ingest_paths([live], data=root).files[0]
+    assert second.status == "landed"
+    assert "resumed at byte" in second.message
+    assert (second.rows_read, second.rows_landed, second.rows_duplicate) == (18, 18, 0)
+    assert second.bytes_consumed == len(full)
+    assert _lake_checksum(root)[0] == 30
+    lake = pl.read_parquet(sorted(root.table_dir("field_samples").rglob("*.parquet")))
+    assert sorted(lake["source_line"].to_list()) == list(range(7, 37))
+    # small appends merge into the partition's newest part: one part, not one per pickup
+    assert len(list(root.table_dir("field_samples").rglob("*.parquet"))) == 1
+
+
+def test_large_file_streams_in_batches_and_lands_every_row(corpus, tmp_path, root):
+    rows = corpus.data_rows(3000)
+    rows[1500][1] = "bad"
+    path = corpus.csv_file(tmp_path / "big.csv", rows)
+    report = ingest_paths([path], data=root, batch_bytes=16 * 1024)
+    result = report.files[0]
+    assert (result.rows_read, result.rows_landed, result.rows_quarantined) == (3000, 2999, 1)
+    lake = pl.read_parquet(sorted(root.table_dir("field_samples").rglob("*.parquet")))
+    assert lake.height == 2999
+    assert lake["time_utc"].n_unique() == 2999
+
+
+def test_day_boundary_splits_partitions(corpus, tmp_path, root):
+    import datetime as dt
+
+    rows = corpus.data_rows(20, start=dt.datetime(2026, 3, 2, 23, 59, 59, 900000))
+    ingest_paths([corpus.csv_file(tmp_path / "midnight.csv", rows)], data=root)
+    dates = sorted(p.name for p in root.table_dir("field_samples").glob("site=*/hoist=*/date=*"))
+    assert dates == ["date=2026-03-02", "date=2026-03-03"]
+
+
+def test_report_prints_a_table(corpus, tmp_path, root):
+    report = ingest_paths(
+        [corpus.csv_file(tmp_path / "a.csv", corpus.data_rows(3)), tmp_path / "missing.csv"],
+        data=root,
+    )
+    text = str(report)
+    assert "a.csv" in text
+    assert "refused" in text
+    assert "no such file" in text
+    assert not report.ok
+
+
+# ------------------------------------------------------------------------------ MCAP
+def test_rig_recording_is_aligned_on_the_pressure_timeline(corpus, tmp_path, root):
+    report = ingest_paths([corpus.mcap_file(tmp_path / "rig.mcap")], data=root)
+    result = report.files[0]
+    assert (result.status, result.rows_read, result.rows_landed) == ("landed", 2000, 2000)
+    assert (result.site, result.hoist) == ("rig", "rig-a")
+    files = sorted(root.table_dir("rig_samples").glob("site=rig/hoist=rig-a/date=*/*.parquet"))
+    frame = pl.read_parquet(files, hive_partitioning=False).sort("time_utc")
+    assert frame["step"].to_list()[::500] == [0, 1, 2, 3]
+    assert frame["pressure_setpoint_pa"][600] == 3e6
+    assert frame["velocity_setpoint_m_s"][0] == 5e-3
+    # pressure at t+0.1 ms sees displacement logged at t (even i) or t-1 ms (odd i)
+    assert frame["x_m"][10] == 0.005 * 10 * 1e-3
+    assert frame["x_m"][11] == 0.005 * 10 * 1e-3
+    assert frame["oil_temp_c"][1500] == 36.0
+    assert frame["p_rod_pa"][0] == 0.5e6
+
+
+def test_truncated_recording_lands_what_is_complete(corpus, tmp_path, root):
+    path = corpus.mcap_file(tmp_path / "cut.mcap", truncate_fraction=0.6)
+    result = ingest_paths([path], data=root).files[0]
+    assert result.status == "partial"
+    assert "truncated" in result.message
+    assert 0 < result.rows_landed < 2000
+    assert result.balanced
+
+
+def test_unknown_topic_is_ignored_and_named(corpus, tmp_path, root):
+    result = ingest_paths([corpus.mcap_file(tmp_path / "cam.mcap", unknown_topic=True)], data=root)
+    (file,) = result.files
+    assert file.status == "landed"
+    assert "/rig/camera" in file.message
+    assert file.rows_landed == 2000
+
+
+def test_non_jsonschema_topic_refuses_the_file(corpus, tmp_path, root):
+    path = corpus.mcap_file(tmp_path / "proto.mcap", bad_encoding_topic="/rig/displacement")
+    (file,) = ingest_paths([path], data=root).files
+    assert file.status == "refused"
+    assert "topic /rig/displacement" in file.message
+    assert "jsonschema" in file.message
+    assert not root.table_dir("rig_samples").exists()
+
+
+def test_invalid_pressure_messages_are_quarantined_with_topic(corpus, tmp_path, root):
+    path = corpus.mcap_file(tmp_path / "bad.mcap", bad_messages=3)
+    (file,) = ingest_paths([path], data=root).files
+    assert (file.rows_read, file.rows_landed, file.rows_quarantined) == (2000, 1997, 3)
+    with open_reader(root) as con:
+        topics = con.sql("SELECT DISTINCT topic, line FROM quarantine").fetchall()
+    assert topics == [("/rig/pressure", None)]

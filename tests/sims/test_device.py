@@ -1,0 +1,209 @@
+"""The four-cylinder connection device: effects, sanity against Table 2, paper 3.2."""
+
+from __future__ import annotations
+
+import numpy as np
+import polars as pl
+import pytest
+
+from schemas.effects import EFFECT_NAMES
+from schemas.hoist import EXAMPLE_HOIST, G_STANDARD, load_hoist
+from sims.device import (
+    OUTPUT_COLUMNS,
+    SCENARIO_3_2_LOAD_N,
+    friction_law_at,
+    paper_scenario_3_2,
+    simulate,
+)
+from sims.effects import EFFECT_REGISTRY, resolve_effects
+from sims.trips import hold, trip
+from transforms.friction import friction_parameters
+
+ALL = set(EFFECT_NAMES)
+
+
+@pytest.fixture(scope="module")
+def hoist():
+    return load_hoist(EXAMPLE_HOIST)
+
+
+@pytest.fixture(scope="module")
+def down_trip(hoist):
+    """Pithead -> middle (320 m), then 40 s at rest, every effect on."""
+    profile = trip(hoist, start_depth_m=0.0, end_depth_m=320.0, rest_after_s=40.0)
+    result = simulate(hoist, profile, effects=ALL)
+    assert result.status == "success", result.message
+    return result
+
+
+# --- effects by name -------------------------------------------------------------------
+def test_registry_covers_contract_names():
+    assert tuple(EFFECT_REGISTRY) == EFFECT_NAMES
+
+
+def test_unknown_effect_name_lists_valid_ones(hoist):
+    with pytest.raises(ValueError, match=r"unknown effect name 'seal_fricton'.*seal_friction"):
+        simulate(hoist, hold(depth_m=0, duration_s=0.1), effects={"seal_fricton"})
+    with pytest.raises(ValueError, match=r"unknown parameter 'offset'.*offset_pa"):
+        resolve_effects(hoist, {"sensor_offset"}, {"sensor_offset": {"offset": 1.0}})
+    with pytest.raises(ValueError, match="not switched on"):
+        resolve_effects(hoist, {"seal_friction"}, {"sensor_gain": {"gains": [1, 1, 1, 1]}})
+    with pytest.raises(ValueError, match="needs 'seal_friction'"):
+        simulate(hoist, hold(depth_m=0, duration_s=0.1), effects={"presliding_hysteresis"})
+
+
+def test_default_effects_are_the_hoists(hoist):
+    assert resolve_effects(hoist).enabled == frozenset(hoist.model.effects)
+
+
+def test_friction_law_kernel_agrees_with_transforms(hoist):
+    from sims.device import _build_par
+
+    eff = resolve_effects(hoist, {"seal_friction"})
+    par, _, _ = _build_par(hoist, eff, oil_temp_c=40.0, p_static_pa=4e6)
+    for p in (0.0, 2e6, 7e6, 12e6, 30e6):
+        ours = friction_law_at(p, par)
+        theirs = [float(a) for a in friction_parameters(p, hoist.friction_law)]
+        assert ours == pytest.approx(theirs, rel=1e-12)
+
+
+# --- outputs and conservation ----------------------------------------------------------
+def test_columns_and_rate(down_trip):
+    frame = down_trip.frame
+    assert tuple(frame.columns) == OUTPUT_COLUMNS
+    assert np.allclose(np.diff(frame["time_s"].to_numpy()), 0.01)
+
+
+def test_oil_volume_conserved(down_trip, hoist):
+    vol = down_trip.frame["oil_volume_m3"].to_numpy()
+    # the pistons move oil between chambers, pipes and manifold and compress it by
+    # several 1e-5 m3 (Delta p V / beta); the reference-pressure volume stays put
+    compressed = hoist.oil_volume_m3 * 5e6 / hoist.oil.bulk_modulus_pa
+    assert vol[0] == pytest.approx(hoist.oil_volume_m3 + compressed, rel=1e-3)
+    assert np.abs(vol - vol[0]).max() / vol[0] < 1e-8
+
+
+def test_static_hang_matches_table2_total_mass(down_trip):
+    # paper Table 2, middle of the pit: total mass 11.92 t (8.2 t cage + 300 m x 2 x 6.2 kg/m)
+    rest = down_trip.frame.filter(pl.col("time_s") > down_trip.frame["time_s"].max() - 20.0)
+    assert rest["load_n"].mean() / G_STANDARD == pytest.approx(11_920.0, rel=0.005)
+    assert rest["speed_m_s"].abs().max() == 0.0
+
+
+# --- friction shows in the sum (NOTES.md) -----------------------------------------------
+def _loading(hoist, effects, payload_kg):
+    profile = hold(depth_m=320.0, duration_s=20.0, payload_time_s=[1.0, 6.0], payload_kg=payload_kg)
+    r = simulate(hoist, profile, effects=effects)
+    assert r.status == "success", r.message
+    last = r.frame.filter(pl.col("time_s") > 15.0)
+    area = hoist.cylinders.bore_area_m2
+    sensed = sum(last[f"p_sensor{i}_pa"] for i in range(1, 5)) * area
+    return float((sensed - last["load_n"]).mean()), last, r.frame
+
+
+@pytest.mark.parametrize("payload", [[0.0, 6000.0], [6000.0, 0.0]])
+def test_sensor_reads_low_while_oil_flows_out_high_while_in(hoist, payload):
+    fx = {"tail_rope_weight", "oil_compressibility", "pipe_laminar_loss", "local_loss"}
+    *_, frame = _loading(hoist, fx, payload)
+    ramp = frame.filter((pl.col("time_s") > 2.0) & (pl.col("time_s") < 5.0))
+    for i in range(1, 5):
+        q = ramp[f"q{i}_m3_s"].to_numpy()
+        drop = (ramp[f"p_sensor{i}_pa"] - ramp[f"p_chamber{i}_pa"]).to_numpy()
+        # load rising: oil compressed, flows out of the chambers (q > 0), sensor low
+        assert np.all(np.sign(q) == (1 if payload[1] > payload[0] else -1))
+        assert np.all(np.sign(drop) == -np.sign(q))
+    at_rest = frame.filter(pl.col("time_s") < 0.9)
+    assert (at_rest["p_sensor1_pa"] - at_rest["p_chamber1_pa"]).abs().max() == 0.0
+
+
+def test_seal_friction_sensors_low_after_load_increase_high_after_decrease(hoist):
+    fx = {"seal_friction", "tail_rope_weight", "oil_compressibility", "pipe_laminar_loss"}
+    gap_up, last, _ = _loading(hoist, fx, [0.0, 6000.0])
+    gap_down, _, _ = _loading(hoist, fx, [6000.0, 0.0])
+    p = float(last["p_chamber1_pa"].mean())
+    fc, fs, _, _ = (float(a) for a in friction_parameters(p, hoist.friction_law))
+    # the pistons slid out as the oil compressed (~0.3 mm, far past presliding) and
+    # stuck: every seal holds friction in the same direction, at most Fs each; the rope
+    # bounce afterwards lets the LuGre bristles creep back somewhat, not to zero
+    assert -4 * 1.05 * fs < gap_up < -4 * 0.3 * fc
+    assert 4 * 0.3 * fc < gap_down < 4 * 1.05 * fs
+    no_friction, _, _ = _loading(hoist, fx - {"seal_friction"}, [0.0, 6000.0])
+    assert abs(no_friction) < 0.01 * abs(gap_up)
+
+
+def test_sensor_offset_override_by_name(hoist):
+    r = simulate(
+        hoist,
+        hold(depth_m=0.0, duration_s=0.5),
+        effects={"sensor_offset", "tail_rope_weight"},
+        parameters={"sensor_offset": {"sensor": 2, "offset_pa": 5e4}},
+    )
+    f = r.frame
+    diff = [float((f[f"p_sensor{i}_pa"] - f[f"p_chamber{i}_pa"]).abs().max()) for i in range(1, 5)]
+    assert diff[1] == pytest.approx(5e4, rel=1e-9)
+    assert max(diff[0], diff[2], diff[3]) < 1e-6
+    # Table 2 pithead total mass 15.888 t
+    assert f["load_n"].mean() / G_STANDARD == pytest.approx(15_888.0, rel=1e-6)
+
+
+def test_groove_wear_spreads_pistons_with_travel(hoist):
+    dev = [0.0, 2e-4, 0.0, -2e-4]
+    profile = trip(hoist, start_depth_m=0.0, end_depth_m=320.0, rest_after_s=10.0)
+    r = simulate(
+        hoist,
+        profile,
+        effects={"groove_wear", "tail_rope_weight", "oil_compressibility", "pipe_laminar_loss"},
+        parameters={"groove_wear": {"groove_radius_deviation_m": dev}},
+    )
+    end = r.frame.tail(1)
+    # rope i pays out 320 m x dr_i / R more; its piston takes that up (pulled in)
+    expected = -320.0 * 2e-4 / hoist.drum.radius_m
+    assert float((end["x2_m"] - end["x1_m"]).item()) == pytest.approx(expected, rel=0.02)
+    assert float((end["x4_m"] - end["x1_m"]).item()) == pytest.approx(-expected, rel=0.02)
+
+
+# --- paper section 3.2 ------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def scenario():
+    r = paper_scenario_3_2()
+    assert r.status == "success", r.message
+    return r
+
+
+def _spread(frame, t0, t1):
+    w = frame.filter((pl.col("time_s") >= t0) & (pl.col("time_s") <= t1))
+    p = np.column_stack([w[f"p_chamber{i}_pa"].to_numpy() for i in range(1, 5)])
+    return p.max(axis=1) - p.min(axis=1), p.mean(axis=1)
+
+
+def test_scenario_pressures_equalise(scenario):
+    area = np.pi * 0.08**2 / 4
+    # during the ramps oil flows between the cylinders (pistons at ~5 mm/s) and the
+    # pressures differ by the branches' laminar drop, 128 mu l q / (pi d^4) ~ 35 kPa each
+    ramp, mean = _spread(scenario.frame, 1.0, 2.95)
+    assert np.all(ramp < 0.12 * mean)
+    # after the load change the balancing flow relaxes with R A^2 / k ~ 0.7 s per branch
+    spread, mean = _spread(scenario.frame, 5.9, 5.95)
+    assert spread.max() < 0.01 * mean.min()
+    # at rest the pressure carries the mean load, the pistons take up the spread (k = 5e4 N/m)
+    _, mean = _spread(scenario.frame, 5.9, 5.95)
+    assert mean.mean() * area == pytest.approx(SCENARIO_3_2_LOAD_N[-1].mean(), rel=0.01)
+    end = scenario.frame.tail(1)
+    expected = (SCENARIO_3_2_LOAD_N[-1] - SCENARIO_3_2_LOAD_N[-1].mean()) / 5e4
+    got = [float(end[f"x{i}_m"].item()) for i in range(1, 5)]
+    assert got == pytest.approx(list(expected), abs=1e-3)
+
+
+def test_scenario_pressure_shock_after_step_decays(scenario):
+    shock, mean = _spread(scenario.frame, 3.0, 3.3)
+    before, _ = _spread(scenario.frame, 2.5, 2.95)
+    late, _ = _spread(scenario.frame, 4.0, 6.0)
+    assert shock.max() > 0.05 * mean.mean()  # visible
+    assert shock.max() > 10 * before.max()
+    assert late.max() < 0.1 * shock.max()  # decays
+
+
+def test_scenario_without_pipe_characteristics_also_equalises():
+    r = paper_scenario_3_2(pipe_characteristics=False, duration_s=3.0)
+    spread, mean = _spread(r.frame, 2.5, 2.95)
+    assert spread.max() < 0.01 * mean.min()

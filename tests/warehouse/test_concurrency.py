@@ -1,0 +1,123 @@
+"""Readers keep querying while a writer lands: no failure, never half a landing.
+
+The reader is a separate process (DuckDB's file lock is per process). Each landing puts
+rows into two tables, with pauses between the two inserts and before publishing, so a
+reader that could see a half-landed day would see position rows without their trips.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import polars as pl
+
+from schemas.tables import POSITION_SUMMARY, TRIP_SUMMARY
+from transforms.reconciliation import conform
+from warehouse.landing import RunRecord, insert_frame, land_run
+from warehouse.store import DataRoot, open_writer
+
+REPO = Path(__file__).resolve().parents[2]
+DAYS = 4
+TRIPS_PER_DAY = 50
+
+READER = textwrap.dedent(
+    """
+    import json, sys, time
+    from pathlib import Path
+    sys.path.insert(0, sys.argv[1])
+    from warehouse.store import DataRoot, open_reader
+
+    root, stop = DataRoot(Path(sys.argv[2])), Path(sys.argv[3])
+    checks, errors, states, inconsistent = 0, [], set(), []
+    while not stop.exists():
+        try:
+            con = open_reader(root)
+            try:
+                positions = dict(con.sql(
+                    "SELECT run_id, count(*) FROM position_summary GROUP BY 1").fetchall())
+                trips = dict(con.sql(
+                    "SELECT run_id, count(*) FROM trip_summary GROUP BY 1").fetchall())
+                audit = dict(con.sql(
+                    "SELECT run_id, position_rows FROM audit_runs").fetchall())
+            finally:
+                con.close()
+        except Exception as exc:  # the test asserts there are none
+            errors.append(f"{type(exc).__name__}: {exc}")
+            continue
+        checks += 1
+        states.add(len(positions))
+        ok = (set(positions) == set(trips) == set(audit)
+              and all(positions[r] == 3 * trips[r] == audit[r] for r in positions))
+        if not ok:
+            inconsistent.append([positions, trips, audit])
+    print(json.dumps({"checks": checks, "errors": errors[:5], "n_errors": len(errors),
+                      "states": sorted(states), "inconsistent": inconsistent[:3]}))
+    """
+)
+
+
+def _frame(schema, rows):
+    return conform(pl.DataFrame(rows), schema)
+
+
+def _land_day(root: DataRoot, day: int) -> None:
+    start = dt.datetime(2026, 3, 1, tzinfo=dt.UTC) + dt.timedelta(days=day)
+    run = RunRecord(run_id=f"day-{day}", command="run", code_version="t", started_at_utc=start,
+                    site="s", hoist="h", period_start_utc=start,
+                    period_end_utc=start + dt.timedelta(days=1))  # fmt: skip
+    base = {"run_id": run.run_id, "site": "s", "hoist": "h"}
+    with open_writer(root) as con:
+        land_run(con, run)
+        insert_frame(
+            con,
+            "position_summary",
+            _frame(POSITION_SUMMARY, [
+                {**base, "trip_id": t, "position": p, "time_start_utc": start}
+                for t in range(TRIPS_PER_DAY) for p in ("bottom", "middle", "pithead")
+            ]),
+        )  # fmt: skip
+        time.sleep(0.3)  # half a day landed, in the writer's copy only
+        insert_frame(
+            con,
+            "trip_summary",
+            _frame(TRIP_SUMMARY, [{**base, "trip_id": t, "time_start_utc": start}
+                                  for t in range(TRIPS_PER_DAY)]),
+        )  # fmt: skip
+        time.sleep(0.2)
+
+
+def test_reader_process_never_fails_nor_sees_half_a_landing(tmp_path):
+    root = DataRoot(tmp_path / "data")
+    with open_writer(root):  # an empty, migrated warehouse to start from
+        pass
+    stop = tmp_path / "stop"
+    reader = subprocess.Popen(
+        [sys.executable, "-c", READER, str(REPO), str(root.path), str(stop)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        time.sleep(1.0)  # let the reader start and run on the empty warehouse
+        for day in range(DAYS):
+            _land_day(root, day)
+            time.sleep(0.2)
+        time.sleep(0.5)
+    finally:
+        stop.touch()
+        out, err = reader.communicate(timeout=60)
+    assert reader.returncode == 0, err
+    result = json.loads(out)
+    assert result["n_errors"] == 0, result["errors"]
+    assert result["inconsistent"] == []
+    assert result["checks"] > 20
+    # it saw the empty warehouse, intermediate days and the last one
+    assert result["states"][0] == 0
+    assert result["states"][-1] == DAYS
+    assert len(result["states"]) >= 3

@@ -1,0 +1,222 @@
+"""Idempotent landing: same run or same period replaces, never duplicates; lake views."""
+
+from __future__ import annotations
+
+import datetime as dt
+
+import duckdb
+import polars as pl
+import pytest
+
+from schemas.tables import ALARMS, POSITION_SUMMARY, TRIP_SUMMARY
+from warehouse.landing import RunRecord, land_results, land_rope_tensions
+from warehouse.store import DataRoot, open_reader, open_writer
+from warehouse.views import refresh_views
+
+DAY = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
+
+
+def _run(run_id: str, *, day: dt.datetime = DAY) -> RunRecord:
+    return RunRecord(
+        run_id=run_id,
+        command="run",
+        code_version="test",
+        started_at_utc=day,
+        site="s",
+        hoist="h",
+        period_start_utc=day,
+        period_end_utc=day + dt.timedelta(days=1),
+        parameter_set="p",
+    )
+
+
+def _positions(run_id: str, n_trips: int, *, day: dt.datetime = DAY) -> pl.DataFrame:
+    rows = [
+        {
+            "run_id": run_id,
+            "site": "s",
+            "hoist": "h",
+            "trip_id": trip,
+            "position": position,
+            "time_start_utc": day + dt.timedelta(minutes=10 * trip + k),
+            "load_after_n": 1.0e5,
+        }
+        for trip in range(n_trips)
+        for k, position in enumerate(("bottom", "middle", "pithead"))
+    ]
+    return pl.DataFrame(rows).pipe(_conform, POSITION_SUMMARY)
+
+
+def _trips(run_id: str, n_trips: int, *, day: dt.datetime = DAY) -> pl.DataFrame:
+    rows = [
+        {"run_id": run_id, "site": "s", "hoist": "h", "trip_id": trip,
+         "time_start_utc": day + dt.timedelta(minutes=10 * trip), "payload_kg": 1000.0 * trip}
+        for trip in range(n_trips)
+    ]  # fmt: skip
+    return pl.DataFrame(rows).pipe(_conform, TRIP_SUMMARY)
+
+
+def _alarms(run_id: str, starts_min: list[int]) -> pl.DataFrame:
+    rows = [
+        {"alarm_id": f"a{m}", "run_id": run_id, "site": "s", "hoist": "h", "rule": "slack_rope",
+         "rope": 1, "start_utc": DAY + dt.timedelta(minutes=m),
+         "end_utc": DAY + dt.timedelta(minutes=m, seconds=5)}
+        for m in starts_min
+    ]  # fmt: skip
+    return pl.DataFrame(rows).pipe(_conform, ALARMS)
+
+
+def _conform(frame: pl.DataFrame, schema) -> pl.DataFrame:
+    from transforms.reconciliation import conform
+
+    return conform(frame, schema)
+
+
+def _counts(root: DataRoot) -> dict[str, list[tuple]]:
+    con = open_reader(root)
+    try:
+        return {
+            table: con.sql(f"SELECT run_id, count(*) FROM {table} GROUP BY 1 ORDER BY 1").fetchall()
+            for table in ("runs", "position_summary", "trip_summary", "alarms")
+        }
+    finally:
+        con.close()
+
+
+def test_relanding_the_same_run_replaces(tmp_path):
+    root = DataRoot(tmp_path)
+    for _ in range(2):
+        with open_writer(root) as con:
+            land_results(
+                con, _run("r1"), position_summary=_positions("r1", 4),
+                trip_summary=_trips("r1", 4), alarms=_alarms("r1", [5, 50]),
+            )  # fmt: skip
+    assert _counts(root) == {
+        "runs": [("r1", 1)],
+        "position_summary": [("r1", 12)],
+        "trip_summary": [("r1", 4)],
+        "alarms": [("r1", 2)],
+    }
+
+
+def test_a_new_run_over_the_same_period_replaces_the_old_rows(tmp_path):
+    root = DataRoot(tmp_path)
+    next_day = DAY + dt.timedelta(days=1)
+    with open_writer(root) as con:
+        land_results(con, _run("old"), position_summary=_positions("old", 4),
+                     trip_summary=_trips("old", 4), alarms=_alarms("old", [5]))  # fmt: skip
+        land_results(
+            con, _run("other-day", day=next_day),
+            position_summary=_positions("other-day", 2, day=next_day),
+        )  # fmt: skip
+    with open_writer(root) as con:
+        # the re-run finds 3 trips and no alarm: the old day's rows all go
+        land_results(con, _run("new"), position_summary=_positions("new", 3),
+                     trip_summary=_trips("new", 3), alarms=_alarms("new", []))  # fmt: skip
+    counts = _counts(root)
+    assert counts["position_summary"] == [("new", 9), ("other-day", 6)]
+    assert counts["trip_summary"] == [("new", 3)]
+    assert counts["alarms"] == []
+    # runs are kept: the old run is still documented, it just owns no rows any more
+    assert [r for r, _ in counts["runs"]] == ["new", "old", "other-day"]
+
+
+def test_frames_must_belong_to_the_run(tmp_path):
+    root = DataRoot(tmp_path)
+    with pytest.raises(ValueError, match="run_id"), open_writer(root) as con:
+        land_results(con, _run("r1"), position_summary=_positions("someone-else", 1))
+    assert not root.warehouse.exists()  # nothing published
+
+
+def test_rope_tensions_lake_view_and_partial_relanding(tmp_path):
+    root = DataRoot(tmp_path / "data")
+    times = [DAY + dt.timedelta(hours=h) for h in range(24)]
+    frame = pl.DataFrame(
+        {"time_utc": times, "load_n": [1.0] * 24},
+        schema={"time_utc": pl.Datetime("us", "UTC"), "load_n": pl.Float64},
+    )
+    with open_writer(root) as con:
+        assert con.sql("SELECT count(*) FROM rope_tensions").fetchall() == [(0,)]  # no files yet
+        land_rope_tensions(root, frame, site="s", hoist="h", period_start_utc=DAY,
+                           period_end_utc=DAY + dt.timedelta(days=1))  # fmt: skip
+    # re-land the hours 06:00-12:00 with new values: 6 rows replaced, 18 kept
+    with open_writer(root) as con:
+        land_rope_tensions(
+            root, frame.with_columns(load_n=pl.lit(2.0)), site="s", hoist="h",
+            period_start_utc=DAY + dt.timedelta(hours=6),
+            period_end_utc=DAY + dt.timedelta(hours=12),
+        )  # fmt: skip
+    con = open_reader(root)
+    try:
+        rows = con.sql(
+            "SELECT load_n, count(*), min(site), min(hoist), min(date_utc) FROM rope_tensions "
+            "GROUP BY 1 ORDER BY 1"
+        ).fetchall()
+    finally:
+        con.close()
+    assert rows == [(1.0, 18, "s", "h", DAY.date()), (2.0, 6, "s", "h", DAY.date())]
+    files = sorted(p.name for p in root.table_dir("rope_tensions").rglob("*") if p.is_file())
+    assert files == ["data.parquet"]
+
+
+def test_views_follow_a_moved_data_root(tmp_path):
+    root = DataRoot(tmp_path / "a")
+    frame = pl.DataFrame(
+        {"time_utc": [DAY], "load_n": [3.0]},
+        schema={"time_utc": pl.Datetime("us", "UTC"), "load_n": pl.Float64},
+    )
+    with open_writer(root) as con:
+        land_rope_tensions(root, frame, site="s", hoist="h", period_start_utc=DAY,
+                           period_end_utc=DAY + dt.timedelta(days=1))  # fmt: skip
+    moved = DataRoot(tmp_path / "b")
+    root.path.rename(moved.path)
+    con = open_reader(moved)
+    try:
+        with pytest.raises(duckdb.Error, match=r"No files found|does not exist"):
+            con.sql("SELECT count(*) FROM rope_tensions").fetchall()
+        # a reader can rebuild the views for the new place on its read-only connection
+        refresh_views(con, moved, temporary=True)
+        assert con.sql("SELECT load_n FROM rope_tensions").fetchall() == [(3.0,)]
+    finally:
+        con.close()
+    with open_writer(moved):  # the next writer stores views for the new place
+        pass
+    con = open_reader(moved)
+    try:
+        assert con.sql("SELECT load_n FROM rope_tensions").fetchall() == [(3.0,)]
+    finally:
+        con.close()
+
+
+def test_sanity_checks_and_findings_are_replaced_not_duplicated(tmp_path):
+    from schemas.tables import DISCOVERY_FINDINGS, SANITY_CHECKS
+    from warehouse.landing import land_discovery_findings
+
+    root = DataRoot(tmp_path)
+
+    def checks(run_id: str, trips: int) -> pl.DataFrame:
+        rows = [{"run_id": run_id, "site": "s", "hoist": "h", "trip_id": t, "passed": True}
+                for t in range(trips)]  # fmt: skip
+        return _conform(pl.DataFrame(rows), SANITY_CHECKS)
+
+    def finding(run_id: str) -> pl.DataFrame:
+        row = {"run_id": run_id, "site": "s", "hoist": "h", "iteration": 0,
+               "period_start_utc": DAY, "period_end_utc": DAY + dt.timedelta(days=1),
+               "effect": "none", "report_json": "{}"}  # fmt: skip
+        return _conform(pl.DataFrame([row]), DISCOVERY_FINDINGS)
+
+    with open_writer(root) as con:
+        land_results(con, _run("a"), trip_summary=_trips("a", 4), sanity_checks=checks("a", 4))
+        land_discovery_findings(con, _run("a"), finding("a"))
+    with open_writer(root) as con:  # same period, new run: its 2 trips replace the 4
+        land_results(con, _run("b"), trip_summary=_trips("b", 2), sanity_checks=checks("b", 2))
+        land_discovery_findings(con, _run("b"), finding("b"))
+        land_discovery_findings(con, _run("b"), finding("b"))
+    con = open_reader(root)
+    try:
+        sanity = con.sql("SELECT run_id, count(*) FROM sanity_checks GROUP BY 1").fetchall()
+        findings = con.sql("SELECT run_id, count(*) FROM discovery_findings GROUP BY 1").fetchall()
+    finally:
+        con.close()
+    assert sanity == [("b", 2)]
+    assert findings == [("b", 1)]

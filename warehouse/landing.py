@@ -1,0 +1,238 @@
+"""Landing result frames in the warehouse, idempotently.
+
+Contents
+--------
+:class:`RunRecord`, :func:`land_run`
+    The lineage root: one ``runs`` row per run (upsert by ``run_id``).
+:func:`land_results`
+    A run's marts in one go: ``position_summary``, ``trip_summary``, ``alarms``,
+    ``sanity_checks``.
+:func:`land_friction_parameter_sets`, :func:`land_discovery_findings`
+    Calibration and discovery results.
+:func:`land_rope_tensions`
+    The compensated samples, as Parquet in the lake.
+:func:`insert_frame`
+    The shared step: conform a frame to its Arrow schema and ``INSERT ... BY NAME``.
+
+Idempotence. Landing the same run again, or another run over the same period, replaces
+rows, never duplicates them. For each mart passed to :func:`land_results` the rows
+deleted before the insert are those of the same ``run_id`` and those of the same site and
+hoist whose time falls in the run's period (``period_start_utc <= t < period_end_utc``;
+t is ``time_start_utc``, alarms' ``start_utc``); alarms also by ``alarm_id``, and
+sanity checks by the (run, trip) of the trip rows replaced. A mart passed as an empty
+frame clears the period (a re-run that finds no alarms removes the old ones); a mart
+left out (``None``) is not touched.
+
+All functions take the connection of :func:`warehouse.store.open_writer`, so a landing
+is published whole or not at all, and readers keep their snapshot meanwhile.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import uuid
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import duckdb
+import polars as pl
+import pyarrow as pa
+
+from pipelines.ingest.landing import write_parquet_atomic
+from schemas.tables import ROPE_TENSIONS, RUNS, TABLES
+from transforms.reconciliation import conform
+from warehouse.store import DataRoot
+
+__all__ = [
+    "RunRecord",
+    "insert_frame",
+    "land_discovery_findings",
+    "land_friction_parameter_sets",
+    "land_results",
+    "land_rope_tensions",
+    "land_run",
+]
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """One ``runs`` row (schema RUNS); ``inputs`` are the source_sha256 the run read."""
+
+    run_id: str
+    command: str
+    code_version: str
+    started_at_utc: dt.datetime
+    status: str = "succeeded"
+    hoist_sha256: str | None = None
+    parameter_set: str | None = None
+    site: str | None = None
+    hoist: str | None = None
+    period_start_utc: dt.datetime | None = None
+    period_end_utc: dt.datetime | None = None
+    inputs: Sequence[str] = field(default_factory=tuple)
+    finished_at_utc: dt.datetime | None = None
+    message: str | None = None
+
+    def to_frame(self) -> pl.DataFrame:
+        row = asdict(self)
+        row["inputs"] = list(self.inputs)
+        return conform(pl.DataFrame([row], schema_overrides={"inputs": pl.List(pl.String)}), RUNS)
+
+
+def insert_frame(con: duckdb.DuckDBPyConnection, table: str, frame: pl.DataFrame | pa.Table) -> int:
+    """Insert ``frame`` into ``table`` after casting it to the table's Arrow schema."""
+    schema = TABLES[table]
+    if isinstance(frame, pl.DataFrame):
+        frame = conform(frame, schema).to_arrow()
+    arrow = frame.select(schema.names).cast(schema)
+    if arrow.num_rows == 0:
+        return 0
+    name = f"_landing_{uuid.uuid4().hex}"
+    con.register(name, arrow)
+    try:
+        con.execute(f"INSERT INTO {table} BY NAME SELECT * FROM {name}")
+    finally:
+        con.unregister(name)
+    return arrow.num_rows
+
+
+def land_run(con: duckdb.DuckDBPyConnection, run: RunRecord) -> None:
+    """Insert or replace the ``runs`` row of ``run.run_id``."""
+    con.execute("DELETE FROM runs WHERE run_id = ?", [run.run_id])
+    insert_frame(con, "runs", run.to_frame())
+
+
+def _period_clause(run: RunRecord, time_column: str) -> tuple[str, list[object]]:
+    """SQL predicate (and parameters) for rows this run replaces."""
+    clause, params = "run_id = ?", [run.run_id]
+    if run.period_start_utc is not None and run.period_end_utc is not None:
+        clause += f" OR (site = ? AND hoist = ? AND {time_column} >= ? AND {time_column} < ?)"
+        params += [run.site, run.hoist, run.period_start_utc, run.period_end_utc]
+    return clause, params
+
+
+def _own(frame: pl.DataFrame, run: RunRecord, table: str) -> pl.DataFrame:
+    """Check the frame belongs to ``run`` (run_id; site/hoist when the run names them)."""
+    if frame.height and set(frame["run_id"].unique().to_list()) != {run.run_id}:
+        raise ValueError(f"{table}: rows must all have run_id {run.run_id!r}")
+    for key in ("site", "hoist"):
+        expected = getattr(run, key)
+        if frame.height and expected is not None and set(frame[key].unique()) != {expected}:
+            raise ValueError(f"{table}: rows must all have {key} {expected!r}")
+    return frame
+
+
+def land_results(
+    con: duckdb.DuckDBPyConnection,
+    run: RunRecord,
+    *,
+    position_summary: pl.DataFrame | None = None,
+    trip_summary: pl.DataFrame | None = None,
+    alarms: pl.DataFrame | None = None,
+    sanity_checks: pl.DataFrame | None = None,
+) -> dict[str, int]:
+    """Land a run and its marts, replacing what the run (or its period) landed before.
+
+    Returns rows inserted per table. Raises ValueError when a frame's ``run_id`` (or
+    site / hoist) is not the run's.
+    """
+    inserted: dict[str, int] = {}
+    con.execute("BEGIN TRANSACTION")
+    try:
+        land_run(con, run)
+        if sanity_checks is not None:
+            _own(sanity_checks, run, "sanity_checks")
+            clause, params = _period_clause(run, "time_start_utc")
+            con.execute(
+                "DELETE FROM sanity_checks WHERE run_id = ? OR (run_id, trip_id) IN "
+                f"(SELECT run_id, trip_id FROM trip_summary WHERE {clause})",
+                [run.run_id, *params],
+            )
+            inserted["sanity_checks"] = insert_frame(con, "sanity_checks", sanity_checks)
+        for table, frame, time_column in (
+            ("position_summary", position_summary, "time_start_utc"),
+            ("trip_summary", trip_summary, "time_start_utc"),
+            ("alarms", alarms, "start_utc"),
+        ):
+            if frame is None:
+                continue
+            _own(frame, run, table)
+            clause, params = _period_clause(run, time_column)
+            if table == "alarms" and frame.height:
+                ids = frame["alarm_id"].to_list()
+                clause += " OR list_contains(?, alarm_id)"
+                params.append(ids)
+            con.execute(f"DELETE FROM {table} WHERE {clause}", params)
+            inserted[table] = insert_frame(con, table, frame)
+        con.execute("COMMIT")
+    except BaseException:
+        con.execute("ROLLBACK")
+        raise
+    return inserted
+
+
+def land_friction_parameter_sets(con: duckdb.DuckDBPyConnection, frame: pl.DataFrame) -> int:
+    """Insert or replace friction parameter sets by ``parameter_set``."""
+    names = frame["parameter_set"].to_list()
+    con.execute(
+        "DELETE FROM friction_parameter_sets WHERE list_contains(?, parameter_set)", [names]
+    )
+    return insert_frame(con, "friction_parameter_sets", frame)
+
+
+def land_discovery_findings(
+    con: duckdb.DuckDBPyConnection, run: RunRecord, frame: pl.DataFrame
+) -> int:
+    """Replace the run's findings, and those of the same site/hoist and period."""
+    _own(frame, run, "discovery_findings")
+    clause, params = "run_id = ?", [run.run_id]
+    if run.period_start_utc is not None and run.period_end_utc is not None:
+        clause += " OR (site = ? AND hoist = ? AND period_start_utc = ? AND period_end_utc = ?)"
+        params += [run.site, run.hoist, run.period_start_utc, run.period_end_utc]
+    con.execute(f"DELETE FROM discovery_findings WHERE {clause}", params)
+    return insert_frame(con, "discovery_findings", frame)
+
+
+def land_rope_tensions(
+    root: DataRoot,
+    frame: pl.DataFrame,
+    *,
+    site: str,
+    hoist: str,
+    period_start_utc: dt.datetime,
+    period_end_utc: dt.datetime,
+) -> list[Path]:
+    """Write compensated samples to ``<lake>/rope_tensions/site=/hoist=/date=/data.parquet``.
+
+    One file per UTC day. Rows of an existing file inside the period are replaced by the
+    new ones, the rest kept; each file is written to a hidden temporary name, fsynced
+    and renamed over the old one (ingest's ``write_parquet_atomic``), so a reader sees
+    the old day or the new, never half.
+    Call inside :func:`warehouse.store.open_writer` (writers are serialised there).
+    Returns the files written.
+    """
+    frame = conform(frame, ROPE_TENSIONS).filter(
+        (pl.col("time_utc") >= period_start_utc) & (pl.col("time_utc") < period_end_utc)
+    )
+    base = root.table_dir("rope_tensions") / f"site={site}" / f"hoist={hoist}"
+    first = period_start_utc.astimezone(dt.UTC).date()
+    last = (period_end_utc.astimezone(dt.UTC) - dt.timedelta(microseconds=1)).date()
+    days = [first + dt.timedelta(days=k) for k in range((last - first).days + 1)]
+    by_day = frame.with_columns(_day=pl.col("time_utc").dt.date())
+    written = []
+    for day in days:
+        directory = base / f"date={day.isoformat()}"
+        target = directory / "data.parquet"
+        new = by_day.filter(pl.col("_day") == day).drop("_day")
+        if target.exists():
+            old = conform(pl.read_parquet(target, hive_partitioning=False), ROPE_TENSIONS)
+            keep = old.filter(
+                (pl.col("time_utc") < period_start_utc) | (pl.col("time_utc") >= period_end_utc)
+            )
+            new = pl.concat([keep, new])
+        if new.height == 0 and not target.exists():
+            continue
+        write_parquet_atomic(new.sort("time_utc"), target, ROPE_TENSIONS)
+        written.append(target)
+    return written

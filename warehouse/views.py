@@ -1,0 +1,116 @@
+"""Warehouse views: raw (over the lake Parquet), staging, intermediate and marts.
+
+Layers (dbt naming; one model per file under ``warehouse/models/<layer>/``):
+
+``raw_*``
+    Views over the lake Parquet, built here because they hold absolute paths:
+    ``raw_field_samples``, ``raw_rig_samples``, ``raw_rope_tensions``. Columns and types
+    are the Arrow schemas of :mod:`schemas.tables` plus the Hive keys ``site``, ``hoist``,
+    ``date``. With no file landed yet the view is an empty, fully typed relation, so
+    every layer above it can be created and queried.
+``stg_*`` (``models/staging``)
+    One per raw source: rename, cast, units only.
+``int_*`` (``models/intermediate``)
+    Joins the marts share (run inputs joined to the manifest).
+marts (``models/marts``)
+    ``rope_tensions`` (the compensated layer) and the ``audit_*`` lineage views. The
+    landed mart tables (``position_summary``, ``trip_summary``, ``alarms``,
+    ``sanity_checks``, ``friction_parameter_sets``, ``discovery_findings``) are tables
+    made by migrations.
+
+:func:`refresh_views` (re)creates everything; :func:`warehouse.store.open_writer` calls
+it before publishing, so the views follow the data root and pick up the first files of
+a lake table. A reader whose data root moved since the last writer can call it with
+``temporary=True`` on its read-only connection: temporary views shadow the stored ones.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import duckdb
+
+from schemas.tables import LAKE_PARTITIONS, TABLES, duckdb_columns
+
+if TYPE_CHECKING:
+    from warehouse.store import DataRoot
+
+__all__ = [
+    "LAKE_VIEWS",
+    "MODELS_DIR",
+    "MODEL_LAYERS",
+    "model_files",
+    "raw_view_sql",
+    "refresh_views",
+]
+
+MODELS_DIR = Path(__file__).parent / "models"
+MODEL_LAYERS = ("staging", "intermediate", "marts")
+
+#: raw view name -> lake table (``<data>/lake/<table>/site=/hoist=/date=/*.parquet``)
+LAKE_VIEWS = {
+    "raw_field_samples": "field_samples",
+    "raw_rig_samples": "rig_samples",
+    "raw_rope_tensions": "rope_tensions",
+}
+
+_PARTITION_TYPES = {"site": "VARCHAR", "hoist": "VARCHAR", "date": "DATE"}
+
+
+def model_files() -> list[Path]:
+    """Model SQL files in creation order: by layer, then by name."""
+    return [path for layer in MODEL_LAYERS for path in sorted((MODELS_DIR / layer).glob("*.sql"))]
+
+
+def _quote(text: str) -> str:
+    return "'" + text.replace("'", "''") + "'"
+
+
+def _sql_columns(table: str) -> list[tuple[str, str]]:
+    """(name, DuckDB type) of a lake table's columns, from the Arrow schema."""
+    columns = []
+    for part in duckdb_columns(TABLES[table]).split(",\n    "):
+        name, sql_type = part.split(" ", 1)
+        columns.append((name, sql_type.removesuffix(" NOT NULL")))
+    return columns
+
+
+def raw_view_sql(root: DataRoot, table: str) -> str:
+    """``SELECT`` of one lake table: typed columns of its Arrow schema + Hive keys."""
+    columns = _sql_columns(table)
+    columns += [(key, _PARTITION_TYPES[key]) for key in LAKE_PARTITIONS]
+    directory = root.table_dir(table)
+    if not any(directory.glob("site=*/hoist=*/date=*/*.parquet")):
+        select = ", ".join(f"CAST(NULL AS {sql_type}) AS {name}" for name, sql_type in columns)
+        return f"SELECT {select} WHERE false"
+    pattern = str(directory / "site=*" / "hoist=*" / "date=*" / "*.parquet")
+    hive_types = ", ".join(f"{_quote(k)}: {_PARTITION_TYPES[k]}" for k in LAKE_PARTITIONS)
+    select = ", ".join(f"CAST({name} AS {sql_type}) AS {name}" for name, sql_type in columns)
+    return (
+        f"SELECT {select} FROM read_parquet({_quote(pattern)}, hive_partitioning = true, "
+        f"union_by_name = true, hive_types = {{{hive_types}}})"
+    )
+
+
+def refresh_views(
+    con: duckdb.DuckDBPyConnection, root: DataRoot, *, temporary: bool = False
+) -> list[str]:
+    """Create or replace every view for ``root``; return their names in creation order.
+
+    ``temporary=True`` creates connection-local views (allowed on a read-only
+    connection); otherwise the views are stored in the database (inside a writer).
+    """
+    kind = "TEMPORARY VIEW" if temporary else "VIEW"
+    created = []
+    for view, table in LAKE_VIEWS.items():
+        con.execute(f"CREATE OR REPLACE {kind} {view} AS {raw_view_sql(root, table)}")
+        created.append(view)
+    for path in model_files():
+        body = path.read_text(encoding="utf-8").strip().rstrip(";")
+        try:
+            con.execute(f"CREATE OR REPLACE {kind} {path.stem} AS\n{body}")
+        except duckdb.Error as exc:
+            raise RuntimeError(f"{path}: cannot create view {path.stem}: {exc}") from exc
+        created.append(path.stem)
+    return created

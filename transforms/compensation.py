@@ -55,7 +55,7 @@ from transforms.kinematics import (
     with_position,
     with_trip_phases,
 )
-from transforms.oil import effective_bulk_modulus
+from transforms.oil import effective_bulk_modulus, kinematic_viscosity
 from transforms.pressure_loss import sensor_minus_chamber_pa
 
 __all__ = [
@@ -334,6 +334,9 @@ def compensate(
             .fill_null(strategy="backward")
             .to_numpy()
         )
+    nu = kinematic_viscosity(
+        hoist.oil.reference_temperature_c if t_oil is None else t_oil, hoist.oil
+    )
     with_branch_loss = bool({"pipe_laminar_loss", "local_loss"} & effects)
     with_friction = "seal_friction" in effects
     presliding = "presliding_hysteresis" in effects
@@ -344,7 +347,7 @@ def compensate(
         v_known = np.where(np.isfinite(v_flow), v_flow, 0.0)
         v = _increment_velocity(played[f"x{i}_m"], dt, segment)
         if with_branch_loss:
-            p_chamber = p_sensor - sensor_minus_chamber_pa(v_known, hoist, t_oil)
+            p_chamber = p_sensor - sensor_minus_chamber_pa(v_known, hoist, nu_m2_s=nu)
         else:
             p_chamber = p_sensor.copy()
         if with_friction:

@@ -110,7 +110,22 @@ def with_segment_id(
     return frame.with_columns(gap.cast(pl.Int64).cum_sum().alias(name))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
+def _sorted_median(a, m):  # pragma: no cover - numba
+    """Median of a[:m], sorting a[:m] in place (insertion sort: m is a small window)."""
+    for i in range(1, m):
+        key = a[i]
+        j = i - 1
+        while j >= 0 and a[j] > key:
+            a[j + 1] = a[j]
+            j -= 1
+        a[j + 1] = key
+    if m % 2 == 1:
+        return a[m // 2]
+    return 0.5 * (a[m // 2 - 1] + a[m // 2])
+
+
+@njit(cache=True, nogil=True)
 def _hampel_kernel(x, seg, half, threshold):  # pragma: no cover
     n = x.shape[0]
     out = x.copy()
@@ -124,11 +139,14 @@ def _hampel_kernel(x, seg, half, threshold):  # pragma: no cover
             if seg[j] == seg[i] and np.isfinite(x[j]):
                 buf[m] = x[j]
                 m += 1
-        med = np.median(buf[:m])
+        med = _sorted_median(buf, m)
+        distance = abs(x[i] - med)
+        if distance == 0.0:
+            continue
         for k in range(m):
             dev[k] = abs(buf[k] - med)
-        mad = np.median(dev[:m])
-        if abs(x[i] - med) > threshold * mad:
+        mad = _sorted_median(dev, m)
+        if distance > threshold * mad:
             out[i] = med
     return out
 
@@ -341,7 +359,7 @@ def lowpass_columns(
     return frame.with_columns([make(c) for c in columns])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _play_kernel(x, seg, half_width, out):  # pragma: no cover - numba
     y = np.nan
     for i in range(x.shape[0]):

@@ -209,6 +209,8 @@ def sensor_minus_chamber_pa(
     v_piston_m_s: np.ndarray | float,
     hoist: HoistDescription,
     t_oil_c: np.ndarray | float | None = None,
+    *,
+    nu_m2_s: np.ndarray | float | None = None,
 ) -> np.ndarray:
     r"""Sensor minus chamber pressure of a cylinder branch (contract 1a; eq 12-14) [Pa].
 
@@ -233,6 +235,9 @@ def sensor_minus_chamber_pa(
     t_oil_c : array_like, optional
         Oil temperature [degC] for the viscosity (ASTM D341); default the oil's
         ``reference_temperature``.
+    nu_m2_s : array_like, optional
+        Kinematic viscosity [m2/s] already computed for ``t_oil_c`` (saves recomputing
+        it for each of the four cylinders); overrides ``t_oil_c``.
 
     Returns
     -------
@@ -245,8 +250,11 @@ def sensor_minus_chamber_pa(
     [True, False]
     """
     area_ratio, d, length, roughness, k_local = _branch_constants(hoist)
-    t = hoist.oil.reference_temperature_c if t_oil_c is None else t_oil_c
-    nu = kinematic_viscosity(t, hoist.oil)
+    if nu_m2_s is None:
+        t = hoist.oil.reference_temperature_c if t_oil_c is None else t_oil_c
+        nu = kinematic_viscosity(t, hoist.oil)
+    else:
+        nu = nu_m2_s
     u = np.asarray(v_piston_m_s, dtype=np.float64) * area_ratio
     loss = pipe_pressure_loss(
         u, d, length, nu, hoist.oil.density_kg_m3, roughness_m=roughness, k_local=k_local

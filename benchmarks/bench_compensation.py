@@ -1,0 +1,116 @@
+"""Compensation throughput for a 100 Hz hoist-day, next to a bare Parquet read + write.
+
+Usage: ``uv run python benchmarks/bench_compensation.py [--hours 24]``
+
+Prints the wall time of
+  floor:        polars read_parquet + write_parquet of the landed day (same file)
+  compensation: read_parquet + ``transforms.compensation.compensate`` + write_parquet
+and the throughput in samples/s (one sample = one timestamp with four ropes) and
+rope-samples/s, plus the ratio to the floor. Targets (issue 5): >= 10 M samples/s and
+within 3x of the floor. The friction state update alone is measured by
+``benchmarks/bench_friction.py``.
+
+The day is synthetic but shaped like a real one: trapezoidal trips every 12 minutes,
+pressures following the load with sensor noise, displacements with transducer noise.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+
+from schemas.hoist import EXAMPLE_HOIST, load_hoist
+from schemas.tables import FIELD_SAMPLES
+from transforms.compensation import compensate
+
+
+def synthetic_day(hours: float, rate_hz: float = 100.0, seed: int = 1) -> pl.DataFrame:
+    hoist = load_hoist(EXAMPLE_HOIST)
+    rng = np.random.default_rng(seed)
+    n = int(hours * 3600 * rate_hz)
+    t = np.arange(n) / rate_hz
+    period, v_max, depth_max = 720.0, 10.0, hoist.shaft.positions_m["bottom"]
+    phase = np.mod(t, 2 * period)
+    run_time = depth_max / v_max + v_max / 0.75
+    going_down = phase < period
+    tau = np.where(going_down, phase, phase - period)
+    s = np.clip(tau - 60.0, 0.0, run_time)
+    speed = np.minimum.reduce([0.75 * s, np.full(n, v_max), 0.75 * (run_time - s)])
+    speed = np.where((tau > 60.0) & (tau < 60.0 + run_time), np.maximum(speed, 0), 0.0)
+    depth = np.cumsum(np.where(going_down, speed, -speed)) / rate_hz
+    depth = np.clip(depth - depth.min(), 0, depth_max)
+    load = np.array([hoist.static_load_n(d) for d in depth[:: int(rate_hz)]])
+    load = np.repeat(load, int(rate_hz))[:n]
+    p = load / (4 * hoist.cylinders.bore_area_m2)
+    x = (p - p.mean()) * 2e-10
+    start = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
+    frame = pl.DataFrame(
+        {
+            "time_utc": pl.datetime_range(
+                start,
+                start + dt.timedelta(seconds=(n - 1) / rate_hz),
+                dt.timedelta(seconds=1 / rate_hz),
+                eager=True,
+                time_zone="UTC",
+            ),
+            **{f"p{i}_pa": p + rng.normal(0, 5e3, n) for i in range(1, 5)},
+            **{f"x{i}_m": x + rng.normal(0, 5e-5, n) for i in range(1, 5)},
+            "depth_m": depth,
+            "speed_m_s": np.where(going_down, speed, -speed),
+            "oil_temp_c": np.full(n, 32.0),
+            "source_sha256": ["0" * 64] * n,
+            "source_line": np.arange(n),
+        }
+    )
+    schema = pl.Schema(pl.from_arrow(FIELD_SAMPLES.empty_table()).schema)
+    return frame.select(pl.col(k).cast(v) for k, v in schema.items())
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--hours", type=float, default=24.0)
+    args = parser.parse_args()
+    hoist = load_hoist(EXAMPLE_HOIST)
+    with tempfile.TemporaryDirectory() as tmp:
+        source = Path(tmp) / "day.parquet"
+        synthetic_day(args.hours).write_parquet(source, compression="zstd")
+        # warm-up: numba compilation and caches, not part of the measurement
+        compensate(pl.read_parquet(source).head(20_000), hoist)
+
+        t0 = time.perf_counter()
+        frame = pl.read_parquet(source)
+        frame.write_parquet(Path(tmp) / "floor.parquet", compression="zstd")
+        floor = time.perf_counter() - t0
+
+        t0 = time.perf_counter()
+        frame = pl.read_parquet(source)
+        t1 = time.perf_counter()
+        result = compensate(frame, hoist)
+        t2 = time.perf_counter()
+        result.write_parquet(Path(tmp) / "tensions.parquet", compression="zstd")
+        total = time.perf_counter() - t0
+        compute = t2 - t1
+
+    n = frame.height
+    print(f"hoist-day: {args.hours:g} h at 100 Hz = {n:,} samples x 4 ropes")
+    print(
+        f"floor (read + write parquet):        {floor:7.2f} s  {n / floor / 1e6:6.2f} M samples/s"
+    )
+    print(
+        f"compensation (read + compute + write): {total:7.2f} s  {n / total / 1e6:6.2f} M samples/s"
+        f"  ({4 * n / total / 1e6:.2f} M rope-samples/s)"
+    )
+    print(
+        f"  of which compute:                  {compute:7.2f} s  {n / compute / 1e6:6.2f} M samples/s"
+    )
+    print(f"ratio to floor: {total / floor:.2f}x   (targets: >= 10 M samples/s, <= 3x floor)")
+
+
+if __name__ == "__main__":
+    main()

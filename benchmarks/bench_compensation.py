@@ -106,9 +106,8 @@ def main() -> None:
         f"compensation (read + compute + write): {total:7.2f} s  {n / total / 1e6:6.2f} M samples/s"
         f"  ({4 * n / total / 1e6:.2f} M rope-samples/s)"
     )
-    print(
-        f"  of which compute:                  {compute:7.2f} s  {n / compute / 1e6:6.2f} M samples/s"
-    )
+    rate = n / compute / 1e6
+    print(f"  of which compute:                  {compute:7.2f} s  {rate:6.2f} M samples/s")
     print(f"ratio to floor: {total / floor:.2f}x   (targets: >= 10 M samples/s, <= 3x floor)")
 
 

@@ -73,45 +73,60 @@ def test_at_rest_without_history_tension_is_pressure_times_area():
     assert out["load_raw_n"][-1] == pytest.approx(4 * 4.2e6 * AREA, rel=1e-9)
 
 
-def test_steady_outward_motion_adds_branch_loss_and_stribeck_friction():
-    """Rod pulled out at 5 mm/s: sensor reads low by the branch loss; seal resists."""
-    v, p_sensor, n = 5e-3, 5e6, 3000
-    x = v * np.arange(n) / RATE
-    out = compensate(_frame(np.full(n, p_sensor), x), HOIST)
-    late = out.slice(2000, 500)
+def _equalising_flow(v: float, seconds: float = 80.0) -> np.ndarray:
+    """Ropes 1-2 pulled out at v, ropes 3-4 drawn in at v: oil flows 1,2 -> 3,4.
+
+    The only steady piston motion a closed connection device allows at constant
+    pressure: the oil volume, hence the common pressure, stays the same.
+    """
+    t = np.arange(int(seconds * RATE)) / RATE
+    return np.stack([v * t, v * t, -v * t, -v * t])
+
+
+def test_equalising_flow_adds_branch_loss_and_stribeck_friction():
+    """Rod 1 pulled out at 5 mm/s: its sensor reads low by the branch loss; seal resists."""
+    v, p_sensor = 5e-3, 5e6
+    x = _equalising_flow(v)
+    out = compensate(_frame(np.full(x.shape[1], p_sensor), x), HOIST)
+    middle = out.slice(3000, 2000)  # away from the 0.1 Hz differential filter's edges
     loss = _branch_loss_laminar(v)
-    assert late["p_chamber1_pa"].mean() == pytest.approx(p_sensor + loss, rel=1e-4)
+    assert middle["p_chamber1_pa"].mean() == pytest.approx(p_sensor + loss, rel=2e-4)
     expected_friction = _stribeck_eq16(v, p_sensor + loss)
-    assert late["friction1_n"].mean() == pytest.approx(expected_friction, rel=1e-3)
+    assert middle["friction1_n"].mean() == pytest.approx(expected_friction, rel=1e-2)
     expected = (p_sensor + loss) * AREA + expected_friction
-    assert late["tension1_n"].mean() == pytest.approx(expected, rel=1e-4)
-    assert late["tension_raw1_n"].mean() == pytest.approx(p_sensor * AREA, rel=1e-9)
-
-
-def test_inward_motion_reverses_both_corrections():
-    v, p_sensor, n = -5e-3, 5e6, 3000
-    x = v * np.arange(n) / RATE
-    out = compensate(_frame(np.full(n, p_sensor), x), HOIST).slice(2000, 500)
-    loss = _branch_loss_laminar(v)  # negative: the sensor reads high
-    assert out["p_chamber1_pa"].mean() == pytest.approx(p_sensor + loss, rel=1e-4)
-    assert out["friction1_n"].mean() == pytest.approx(_stribeck_eq16(v, p_sensor + loss), rel=1e-3)
+    assert middle["tension1_n"].mean() == pytest.approx(expected, rel=2e-4)
+    assert middle["tension_raw1_n"].mean() == pytest.approx(p_sensor * AREA, rel=1e-9)
+    # rope 3 sees the mirror image: inflow, sensor reads high, friction negative
+    loss_in = _branch_loss_laminar(-v)
+    assert middle["p_chamber3_pa"].mean() == pytest.approx(p_sensor + loss_in, rel=2e-4)
+    assert middle["friction3_n"].mean() == pytest.approx(
+        _stribeck_eq16(-v, p_sensor + loss_in), rel=1e-2
+    )
+    # the sum: branch losses and frictions of opposite motions cancel
+    assert middle["load_n"].mean() == pytest.approx(4 * p_sensor * AREA, rel=2e-4)
 
 
 @pytest.mark.parametrize("direction", [1.0, -1.0])
 def test_friction_from_last_motion_is_kept_at_standstill(direction):
-    """Move 2 mm at 5 mm/s, then stop for 20 s: the friction stays, it does not drop to 0."""
-    moving = direction * 5e-3 * np.arange(401) / RATE
-    x = np.r_[moving, np.full(2000, moving[-1])]
-    out = compensate(_frame(np.full(x.size, 5e6), x), HOIST)
+    """Load rises (falls) 1 MPa, then holds for 20 s: the friction stays, it does not drop to 0.
+
+    The load change squeezes oil out of (lets it into) all four chambers, so all rods move
+    out (in) by V dp / (n A beta); the friction that resists it is held at standstill.
+    """
+    ramp = 5e6 + direction * 1e6 * np.arange(400) / 400
+    p = np.r_[np.full(300, 5e6), ramp, np.full(2000, ramp[-1])]
+    out = compensate(_frame(p, np.zeros_like(p)), HOIST)
     end_friction = out["friction1_n"][-1]
     assert np.sign(end_friction) == direction
-    # held near the static level of the Stribeck curve at low speed
-    assert abs(end_friction) > 0.5 * _stribeck_eq16(1e-4, 5e6)
+    # V dp / (n A beta) ~ 0.19 mm: far past the presliding range, so the full
+    # low-speed (static) friction is reached and then held
+    assert abs(end_friction) > 0.8 * _stribeck_eq16(1e-4, 5e6 + direction * 1e6)
 
 
 def test_sensor_calibration_is_applied():
     text = EXAMPLE_HOIST.read_text().replace(
-        'cylinder = 2\noffset = "0 MPa"\ngain = 1.0', 'cylinder = 2\noffset = "0.1 MPa"\ngain = 1.02'
+        'cylinder = 2\noffset = "0 MPa"\ngain = 1.0',
+        'cylinder = 2\noffset = "0.1 MPa"\ngain = 1.02',
     )
     from schemas.hoist import parse_hoist
 
@@ -138,16 +153,16 @@ def test_without_displacement_velocity_follows_oil_compression():
 
 
 def test_effects_off_means_no_correction():
-    n = 2000
-    x = 5e-3 * np.arange(n) / RATE
-    out = compensate(_frame(np.full(n, 5e6), x), HOIST, effects=set())
+    x = _equalising_flow(5e-3, seconds=20)
+    out = compensate(_frame(np.full(x.shape[1], 5e6), x), HOIST, effects=set())
     np.testing.assert_allclose(out["tension1_n"], out["tension_raw1_n"])
 
 
 def test_gap_is_not_bridged_by_velocity():
-    """A 10 s logger dropout with the piston moved meanwhile: no velocity spike at the gap."""
+    """A 10 s logger dropout with a piston moved meanwhile: no motion is invented at the gap."""
     n = 600
-    frame = _frame(np.full(n, 5e6), np.r_[np.zeros(300), np.full(300, 5e-3)])
+    x1 = np.r_[np.zeros(300), np.full(300, 5e-3)]
+    frame = _frame(np.full(n, 5e6), np.stack([x1, np.zeros(n), -x1, np.zeros(n)]))
     times = frame["time_utc"].to_list()
     shifted = times[:300] + [t + dt.timedelta(seconds=10) for t in times[300:]]
     frame = frame.with_columns(pl.Series("time_utc", shifted))

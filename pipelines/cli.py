@@ -68,6 +68,30 @@ def _cmd_ingest(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from pipelines.calibrate import calibrate_rig, format_calibration, table1_report
+    from warehouse.store import DataRoot
+
+    if args.table1 is not None:
+        if args.recordings or args.rig or args.parameter_set:
+            sys.stderr.write(
+                "ropeload calibrate: --table1 takes no --rig, --parameter-set or MCAP\n"
+            )
+            return 2
+        import polars as pl
+
+        sys.stdout.write(table1_report(pl.read_csv(args.table1)))
+        return 0
+    result = calibrate_rig(
+        data=DataRoot.resolve(args.data),
+        rig_id=args.rig,
+        recordings=args.recordings,
+        parameter_set=args.parameter_set,
+    )
+    sys.stdout.write(format_calibration(result))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="ropeload",
@@ -89,6 +113,22 @@ def build_parser() -> argparse.ArgumentParser:
     _data_option(ingest)
     ingest.add_argument("paths", nargs="+", type=Path, metavar="PATH", help="files or folders")
     ingest.set_defaults(handler=_cmd_ingest)
+
+    calibrate = commands.add_parser(
+        "calibrate", help="friction-rig recordings (MCAP) -> seal-friction parameter set"
+    )
+    _data_option(calibrate)
+    calibrate.add_argument(
+        "--rig", metavar="RIG_ID", help="rig to calibrate (default: the only one)"
+    )
+    calibrate.add_argument("--parameter-set", metavar="NAME", help="name of the parameter set")
+    calibrate.add_argument(
+        "--table1", metavar="FILE", type=Path, help="report OLS lines through paper Table 1 (CSV)"
+    )
+    calibrate.add_argument(
+        "recordings", nargs="*", type=Path, metavar="MCAP", help="recordings to ingest and use"
+    )
+    calibrate.set_defaults(handler=_cmd_calibrate)
 
     query = commands.add_parser("query", help="SQL on the warehouse, read-only")
     _data_option(query)

@@ -25,7 +25,11 @@ from transforms.reconciliation import reconcile
 from warehouse.landing import RunRecord, land_results, land_rope_tensions
 from warehouse.store import DataRoot, open_writer
 
-__all__ = ["NoSamplesError", "RunResult", "run_period"]
+__all__ = ["LEAD_IN", "NoSamplesError", "RunResult", "run_period"]
+
+
+#: Default lead-in before a period (see :func:`run_period`).
+LEAD_IN = dt.timedelta(minutes=30)
 
 
 class NoSamplesError(LookupError):
@@ -67,6 +71,7 @@ def run_period(
     hoist: HoistDescription | None = None,
     settings: CompensationSettings | None = None,
     command: str = "run",
+    lead_in: dt.timedelta = LEAD_IN,
 ) -> RunResult:
     """Compensate, reconcile and alarm ``start <= t < end`` of one hoist; land the results.
 
@@ -87,6 +92,10 @@ def run_period(
         Signal-processing choices.
     command : str
         Recorded in ``runs.command``.
+    lead_in : timedelta
+        Samples this long before ``start`` are compensated too and then dropped: the
+        filters and the seals' friction state start from the hoist's real history, not
+        from rest (the friction left by earlier motion persists for hours).
 
     Raises
     ------
@@ -96,10 +105,12 @@ def run_period(
     started = utc_now()
     hoist = hoist or load_hoist(hoist_path)
     site, name = hoist.hoist.site, hoist.hoist.name
+    scan_start = None if start is None else start - lead_in
     samples = scan_lake(
-        data, "field_samples", site=site, hoist=name, start=start, end=end
+        data, "field_samples", site=site, hoist=name, start=scan_start, end=end
     ).collect()
-    if samples.height == 0:
+    in_period = samples if start is None else samples.filter(pl.col("time_utc") >= start)
+    if in_period.height == 0:
         raise NoSamplesError(
             f"no landed samples for site {site!r}, hoist {name!r} in the period "
             f"[{start or '-inf'}, {end or '+inf'}): ingest its logs first"

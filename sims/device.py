@@ -5,7 +5,9 @@ and 3.2, Figures 1, 2, 9 and 22). Entry points:
 
 :func:`simulate` -- one hoist trip (:mod:`sims.trips`) of a hoist description with
     effects switched by contract name (:mod:`sims.effects`); returns a
-    :class:`SimulationResult` with a status and a polars frame of true states.
+    :class:`SimulationResult` with a status, a polars frame of true states and the
+    final :class:`DeviceState`, from which the next trip continues
+    (``initial_state=``) with the seals' friction memory intact.
 :func:`paper_scenario_3_2` -- the paper's section 3.2 load-source scenario.
 
 Model (SI; x positive when the rope pulls the rod out, contract 1a)
@@ -127,7 +129,9 @@ from transforms.oil import (
 )
 
 __all__ = [
+    "CONTINUATION_DEPTH_TOLERANCE_M",
     "OUTPUT_COLUMNS",
+    "DeviceState",
     "SimulationResult",
     "friction_law_at",
     "paper_scenario_3_2",
@@ -174,6 +178,79 @@ OUTPUT_COLUMNS: tuple[str, ...] = (
 )
 
 
+def _frozen(values: Any, shape: tuple[int, ...] | None = None) -> np.ndarray:
+    arr = np.array(values, dtype=float)
+    if shape is not None:
+        arr = arr.reshape(shape)
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class DeviceState:
+    """Every integrator state of the device at one instant: what a run continues from.
+
+    :attr:`SimulationResult.final_state` holds it at the end of a successful run;
+    :func:`simulate` (``initial_state=``) starts another run from it, so a sequence of
+    runs (the trips of a day) is one continuous history: the seals keep the friction
+    they hold, nothing steps. Arrays are read-only; n = number of ropes.
+
+    Attributes
+    ----------
+    time_s : the state's time on the clock of the run it comes from [s]
+        (informational; the continuing run starts at its profile's first time).
+    depth_m, speed_m_s : commanded conveyance depth [m] and speed [m/s, + down].
+    payload_kg : payload at that instant [kg].
+    eta_m, eta_rate_m_s : conveyance displacement below the commanded depth (the rope
+        stretch; with the piston positions and the depth this is the head ropes' whole
+        state, the ropes being massless spring-dampers) [m] and its rate [m/s].
+    p_manifold_pa : manifold pressure [Pa].
+    p_chamber_pa, x_m, v_m_s, q_m3_s : (n,) chamber pressures [Pa], piston positions [m]
+        and velocities [m/s], branch flows [m3/s, reference volume, out of the chamber].
+    lugre_z_m : (n,) LuGre bristle deflections [m] (zero unless ``seal_friction`` is on
+        without ``presliding_hysteresis``).
+    maxwell_slip_m : (n, elements) Maxwell-slip element deflections [m] (zero unless
+        ``presliding_hysteresis`` is on).
+    bulk_modulus_pa : the (effective) bulk modulus the run integrated with; kept by a
+        continuing run so the oil inventory (``oil_volume_m3``) stays continuous.
+    effects : the resolved effects and parameters of the run (a continuing run must use
+        the same).
+    """
+
+    time_s: float
+    depth_m: float
+    speed_m_s: float
+    payload_kg: float
+    eta_m: float
+    eta_rate_m_s: float
+    p_manifold_pa: float
+    p_chamber_pa: np.ndarray
+    x_m: np.ndarray
+    v_m_s: np.ndarray
+    q_m3_s: np.ndarray
+    lugre_z_m: np.ndarray
+    maxwell_slip_m: np.ndarray
+    bulk_modulus_pa: float
+    effects: ResolvedEffects
+
+    @property
+    def ropes_n(self) -> int:
+        return int(self.p_chamber_pa.shape[0])
+
+    def _vector(self, t_s: float) -> np.ndarray:
+        """The integrator's state vector at time ``t_s``."""
+        n = self.ropes_n
+        y = np.zeros(_CYL0 + _PER * n)
+        y[_T] = t_s
+        y[_ETA] = self.eta_m
+        y[_ETAD] = self.eta_rate_m_s
+        y[_PM] = self.p_manifold_pa
+        for i in range(n):
+            b = _CYL0 + _PER * i
+            y[b : b + _PER] = (self.p_chamber_pa[i], self.x_m[i], self.v_m_s[i], self.q_m3_s[i])
+        return y
+
+
 @dataclass(frozen=True)
 class SimulationResult:
     """Outcome of a device simulation.
@@ -187,6 +264,8 @@ class SimulationResult:
         the samples up to the failure
     effects : the resolved effects and parameters used
     solver : method, step, tolerances, steps taken, error_ratio_max, wall times
+    final_state : every integrator state at the last sample (:class:`DeviceState`),
+        to continue from with ``simulate(..., initial_state=...)``; None when failed
     """
 
     status: str
@@ -194,6 +273,7 @@ class SimulationResult:
     frame: pl.DataFrame
     effects: ResolvedEffects
     solver: dict[str, Any] = field(default_factory=dict)
+    final_state: DeviceState | None = None
 
     @property
     def ok(self) -> bool:
@@ -411,6 +491,8 @@ def _run(
     src_s,
     ms_k,
     ms_w,
+    z0,
+    deltas0,
     dt,
     n_steps,
     record_every,
@@ -426,8 +508,8 @@ def _run(
     rec_aux = np.full((n_rec, n, 4), np.nan)
     rec_vol = np.full(n_rec, np.nan)
     y = y0.copy()
-    z = np.zeros(n)
-    deltas = np.zeros((n, max(n_el, 1)))
+    z = z0.copy()  # friction memory carried in (zero from static equilibrium)
+    deltas = deltas0.copy()
     x_start = np.empty(n)
     for i in range(n):
         x_start[i] = y[_CYL0 + _PER * i + 1]
@@ -576,7 +658,7 @@ def _run(
             rec_y[kr] = y
             rec_aux[kr] = aux
             rec_vol[kr] = _oil_volume(y, par, n)
-    return rec_y, rec_aux, rec_vol, err_max, err_at, code, fail_step, stop_hits
+    return rec_y, rec_aux, rec_vol, err_max, err_at, code, fail_step, stop_hits, y, z, deltas
 
 
 # ---------------------------------------------------------------------------------------
@@ -733,6 +815,8 @@ def _integrate(
     eff: ResolvedEffects,
     profile: TripProfile | None,
     rtol: float = 1e-4,
+    z0: np.ndarray | None = None,
+    deltas0: np.ndarray | None = None,
 ) -> SimulationResult:
     if not dt_s > 0 or not output_rate_hz > 0:
         raise ValueError("dt_s and output_rate_hz must be positive")
@@ -748,9 +832,29 @@ def _integrate(
         raise ValueError("jacobian_every must be at least 1")
     n_steps = record_every * math.ceil(duration_s * output_rate_hz - 1e-9)
     n = setup.groove.shape[0]
+    n_el = max(setup.ms_k.shape[0], 1)
+    z0 = np.zeros(n) if z0 is None else np.array(z0, dtype=float)
+    deltas0 = np.zeros((n, n_el)) if deltas0 is None else np.array(deltas0, dtype=float)
+    if z0.shape != (n,) or deltas0.shape != (n, n_el):
+        raise ValueError(
+            f"friction memory: need z of shape ({n},) and Maxwell-slip deflections of shape "
+            f"({n}, {n_el}), got {z0.shape} and {deltas0.shape}"
+        )
     atol = _atol(n)
     wall0 = time.perf_counter()
-    rec_y, rec_aux, rec_vol, err_max, err_at, code, fail_step, stop_hits = _run(
+    (
+        rec_y,
+        rec_aux,
+        rec_vol,
+        err_max,
+        err_at,
+        code,
+        fail_step,
+        stop_hits,
+        y_end,
+        z_end,
+        deltas_end,
+    ) = _run(
         y0,
         setup.par,
         setup.groove,
@@ -760,6 +864,8 @@ def _integrate(
         setup.src_s,
         setup.ms_k,
         setup.ms_w,
+        np.ascontiguousarray(z0),
+        np.ascontiguousarray(deltas0),
         dt_s,
         n_steps,
         record_every,
@@ -836,7 +942,34 @@ def _integrate(
         "error_ratio_max_at": err_where,
         "wall_s": wall,
     }
-    return SimulationResult(status=status, message=message, frame=frame, effects=eff, solver=solver)
+    final_state = None
+    if code == 0:
+        t_end = float(y_end[_T])
+        final_state = DeviceState(
+            time_s=t_end,
+            depth_m=float(profile.depth(t_end)) if profile is not None else 0.0,
+            speed_m_s=float(profile.speed(t_end)) if profile is not None else 0.0,
+            payload_kg=float(profile.payload(t_end)) if profile is not None else 0.0,
+            eta_m=float(y_end[_ETA]),
+            eta_rate_m_s=float(y_end[_ETAD]),
+            p_manifold_pa=float(y_end[_PM]),
+            p_chamber_pa=_frozen([y_end[_CYL0 + _PER * i] for i in range(n)]),
+            x_m=_frozen([y_end[_CYL0 + _PER * i + 1] for i in range(n)]),
+            v_m_s=_frozen([y_end[_CYL0 + _PER * i + 2] for i in range(n)]),
+            q_m3_s=_frozen([y_end[_CYL0 + _PER * i + 3] for i in range(n)]),
+            lugre_z_m=_frozen(z_end),
+            maxwell_slip_m=_frozen(deltas_end),
+            bulk_modulus_pa=float(setup.par[_BETA]),
+            effects=eff,
+        )
+    return SimulationResult(
+        status=status,
+        message=message,
+        frame=frame,
+        effects=eff,
+        solver=solver,
+        final_state=final_state,
+    )
 
 
 def simulate(
@@ -848,6 +981,7 @@ def simulate(
     output_rate_hz: float = 100.0,
     dt_s: float = 1e-3,
     jacobian_every: int = 10,
+    initial_state: DeviceState | None = None,
 ) -> SimulationResult:
     """Simulate the connection device, ropes and conveyance over one trip profile.
 
@@ -867,19 +1001,33 @@ def simulate(
         Integrator step [s].
     jacobian_every : int
         Refresh the finite-difference Jacobian every this many steps.
+    initial_state : DeviceState, optional
+        Continue from this state (the :attr:`SimulationResult.final_state` of a previous
+        run): pressures, pistons, flows, conveyance and the seals' friction memory
+        (LuGre z, Maxwell-slip deflections) carry over, so nothing steps. The profile
+        must start where the state is: depth within
+        :data:`CONTINUATION_DEPTH_TOLERANCE_M`, the same payload and commanded speed,
+        and the same effects and parameters (the state's bulk modulus is kept).
 
     Returns
     -------
     SimulationResult
         ``status`` "success" or "failed" (with the reason in ``message``); ``frame`` with
-        :data:`OUTPUT_COLUMNS`.
+        :data:`OUTPUT_COLUMNS`; ``final_state`` to continue from.
 
-    The run starts in static equilibrium at the profile's first depth and payload: equal
-    chamber pressures ``W / (n A)``, pistons placed so that the ropes (with any groove
-    offsets) carry equal tensions, no friction stored, oil at rest.
+    Raises
+    ------
+    ValueError
+        ``initial_state`` does not fit the profile's start or the run's effects.
+
+    Without ``initial_state`` the run starts in static equilibrium at the profile's first
+    depth and payload: equal chamber pressures ``W / (n A)``, pistons placed so that the
+    ropes (with any groove offsets) carry equal tensions, no friction stored, oil at rest.
     """
     eff = resolve_effects(hoist, effects, parameters)
     n = hoist.ropes_n
+    if initial_state is not None:
+        _check_continuation(initial_state, profile, eff, n)
     oil_temp = (
         hoist.oil.reference_temperature_c if profile.oil_temp_c is None else profile.oil_temp_c
     )
@@ -931,7 +1079,14 @@ def simulate(
         b = _CYL0 + _PER * i
         y0[b] = p0
         y0[b + 1] = x0[i]
-    if np.any(np.abs(x0) > hoist.cylinders.stroke_m / 2):
+    z0 = deltas0 = None
+    if initial_state is not None:
+        # continue: every state, the friction memory and the oil's bulk modulus carry over
+        y0 = initial_state._vector(t0)
+        par[_BETA] = initial_state.bulk_modulus_pa
+        z0 = initial_state.lugre_z_m
+        deltas0 = initial_state.maxwell_slip_m
+    elif np.any(np.abs(x0) > hoist.cylinders.stroke_m / 2):
         raise ValueError("groove offsets at the start depth exceed the stroke")
     return _integrate(
         setup,
@@ -942,7 +1097,63 @@ def simulate(
         jacobian_every=jacobian_every,
         eff=eff,
         profile=profile,
+        z0=z0,
+        deltas0=deltas0,
     )
+
+
+#: How far [m] a continuing profile's start depth may lie from the state's depth.
+CONTINUATION_DEPTH_TOLERANCE_M = 0.05
+
+
+def _same_parameters(a: Any, b: Any) -> bool:
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_same_parameters(a[k], b[k]) for k in a)
+    if isinstance(a, str) or isinstance(b, str):
+        return a == b
+    try:
+        x, y = np.asarray(a), np.asarray(b)
+        return x.shape == y.shape and bool(np.all(x == y))
+    except (TypeError, ValueError):  # pragma: no cover - exotic parameter values
+        return a == b
+
+
+def _check_continuation(
+    state: DeviceState, profile: TripProfile, eff: ResolvedEffects, n: int
+) -> None:
+    """Raise ValueError unless ``profile`` can start from ``state`` with effects ``eff``."""
+    if not isinstance(state, DeviceState):
+        raise ValueError(
+            f"initial_state: need a DeviceState (SimulationResult.final_state), got "
+            f"{type(state).__name__}"
+        )
+    if state.ropes_n != n:
+        raise ValueError(f"initial_state has {state.ropes_n} ropes, the hoist {n}")
+    if state.effects.enabled != eff.enabled:
+        raise ValueError(
+            "initial_state was simulated with other effects: "
+            f"{sorted(state.effects.enabled)} vs {sorted(eff.enabled)}"
+        )
+    if not _same_parameters(state.effects.parameters, eff.parameters):
+        raise ValueError("initial_state was simulated with other effect parameters")
+    t0 = profile.t0_s
+    depth = float(profile.depth(t0))
+    if abs(depth - state.depth_m) > CONTINUATION_DEPTH_TOLERANCE_M:
+        raise ValueError(
+            f"initial_state is at depth {state.depth_m:.3f} m, the profile starts at "
+            f"{depth:.3f} m (more than {CONTINUATION_DEPTH_TOLERANCE_M:g} m apart)"
+        )
+    payload = float(profile.payload(t0))
+    if abs(payload - state.payload_kg) > 1e-6 * max(1.0, abs(state.payload_kg)):
+        raise ValueError(
+            f"initial_state carries a payload of {state.payload_kg:g} kg, the profile starts "
+            f"with {payload:g} kg (the payload is held between runs; change it in the profile)"
+        )
+    speed = float(profile.speed(t0))
+    if abs(speed - state.speed_m_s) > 1e-6:
+        raise ValueError(
+            f"initial_state moves at {state.speed_m_s:g} m/s, the profile starts at {speed:g} m/s"
+        )
 
 
 # ---------------------------------------------------------------------------------------

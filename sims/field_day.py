@@ -12,11 +12,14 @@ dict (effects on and their parameters, seed, noise model, trips).
 and/or 1b TDMS, one file per day or per local hour, named
 ``<site>_<hoist>_<YYYYMMDD>[_<HH>00].<ext>``) and the truth as Parquet + JSON beside it.
 
-Between trips the conveyance stands still: the last simulated state is held (nothing
-moves, the friction carried over stays). Each trip is simulated from the static
-equilibrium :func:`sims.device.simulate` starts in, so the stored seal friction of the
-previous trip is released at the start of the next trip's loading phase (a step of
-at most the stored friction in the truth and the log, both consistent).
+The day is one continuous history. The first trip starts from the static equilibrium
+:func:`sims.device.simulate` starts in (empty conveyance at the pithead) and begins with
+its loading phase; every later trip continues from the previous trip's final state
+(:attr:`sims.device.SimulationResult.final_state`: pressures, pistons, flows,
+conveyance, and the seals' friction memory -- LuGre bristles or Maxwell-slip
+deflections). Between trips the conveyance stands still and that state is held
+(nothing moves, the friction stays in the seals, as real seals hold it through a
+standstill), so neither friction nor pressures step at a trip start.
 """
 
 from __future__ import annotations
@@ -153,6 +156,7 @@ def generate_field_day(
     trip_rows: list[dict[str, Any]] = []
     resolved = None
     payload_before = 0.0
+    state = None  # the previous trip's final state: the next trip continues from it
     for k in range(trips):
         down = k % 2 == 0
         payload = (
@@ -188,10 +192,12 @@ def generate_field_day(
             parameters=parameters,
             output_rate_hz=sample_rate_hz,
             dt_s=dt_s,
+            initial_state=state,
         )
         if not result.ok:
             raise RuntimeError(f"trip {k}: device simulation failed: {result.message}")
         resolved = result.effects
+        state = result.final_state
         i0 = round(start_s * sample_rate_hz)
         frame = result.frame.with_columns(
             (pl.int_range(pl.len(), dtype=pl.Int64) + i0).alias("sample"),

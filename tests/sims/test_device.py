@@ -11,6 +11,7 @@ from schemas.hoist import EXAMPLE_HOIST, G_STANDARD, load_hoist
 from sims.device import (
     OUTPUT_COLUMNS,
     SCENARIO_3_2_LOAD_N,
+    DeviceState,
     friction_law_at,
     paper_scenario_3_2,
     simulate,
@@ -129,6 +130,105 @@ def test_seal_friction_sensors_low_after_load_increase_high_after_decrease(hoist
     assert 4 * 0.3 * fc < gap_down < 4 * 1.05 * fs
     no_friction, _, _ = _loading(hoist, fx - {"seal_friction"}, [0.0, 6000.0])
     assert abs(no_friction) < 0.01 * abs(gap_up)
+
+
+# --- continuing from a final state (a day is one continuous history) --------------------
+_LOADING = {"payload_time_s": [1.0, 6.0], "payload_kg": [0.0, 6000.0]}
+_BASE_FX = {"tail_rope_weight", "oil_compressibility", "pipe_laminar_loss", "local_loss"}
+
+
+@pytest.mark.parametrize(
+    "friction_fx",
+    [{"seal_friction"}, {"seal_friction", "presliding_hysteresis"}],
+    ids=["lugre", "maxwell-slip"],
+)
+def test_continuing_from_final_state_keeps_friction_and_pressures(hoist, friction_fx):
+    """Loading then standing still: a run continued from the final state is the same
+    history as one long run -- the seals keep their friction, no pressure step."""
+    fx = _BASE_FX | friction_fx
+    full = simulate(hoist, hold(depth_m=320.0, duration_s=25.0, **_LOADING), effects=fx)
+    first = simulate(hoist, hold(depth_m=320.0, duration_s=20.0, **_LOADING), effects=fx)
+    state = first.final_state
+    assert isinstance(state, DeviceState)
+    assert state.payload_kg == 6000.0
+    assert state.depth_m == 320.0
+    memory = state.maxwell_slip_m if "presliding_hysteresis" in fx else state.lugre_z_m
+    assert np.all(memory.any(axis=-1) if memory.ndim > 1 else memory != 0)
+    rest = hold(depth_m=320.0, duration_s=5.0, payload_kg=[6000.0])
+    cont = simulate(hoist, rest, effects=fx, initial_state=state)
+    fresh = simulate(hoist, rest, effects=fx)  # the old behaviour: friction released
+    assert cont.ok
+    assert fresh.ok
+    end, start = first.frame.tail(1), cont.frame.head(1)
+    tail = full.frame.filter(pl.col("time_s") > 20.0 - 1e-6)
+    assert tail.height == cont.frame.height
+    for i in range(1, 5):
+        p = float(end[f"p_chamber{i}_pa"].item())
+        fc, fs, _, _ = (float(a) for a in friction_parameters(p, hoist.friction_law))
+        held = float(end[f"friction{i}_n"].item())
+        assert abs(held) > 0.3 * fc  # the pistons slid as the oil compressed and stuck
+        # no step at the restart: pressures, sensor and pistons exact, friction up to the
+        # last step's viscous / bristle-damping share (the piston is at rest now)
+        for col in (f"p_chamber{i}_pa", f"p_sensor{i}_pa", f"x{i}_m", "p_manifold_pa"):
+            assert float(start[col].item()) == float(end[col].item())
+        assert float(start[f"friction{i}_n"].item()) == pytest.approx(held, abs=1e-4 * fs)
+        # the continued history is the one-run history (same steps, same Jacobians)
+        for col in (f"p_chamber{i}_pa", f"p_sensor{i}_pa", f"tension{i}_n"):
+            assert np.abs(cont.frame[col].to_numpy() - tail[col].to_numpy()).max() < 1.0
+        assert (
+            np.abs(
+                cont.frame[f"friction{i}_n"].to_numpy() - tail[f"friction{i}_n"].to_numpy()
+            ).max()
+            < 1e-4 * fs
+        )
+        # starting afresh instead releases the friction: the pressure steps by ~F / A
+        step = float(fresh.frame[f"p_chamber{i}_pa"][0]) - p
+        assert step == pytest.approx(held / hoist.cylinders.bore_area_m2, rel=0.1)
+    vol = np.concatenate([first.frame["oil_volume_m3"], cont.frame["oil_volume_m3"]])
+    assert np.abs(vol - vol[0]).max() / vol[0] < 1e-8
+
+
+def test_continuation_must_match_the_profile_start(hoist):
+    fx = _BASE_FX | {"seal_friction"}
+    state = simulate(
+        hoist, hold(depth_m=320.0, duration_s=2.0, payload_kg=[3000.0]), effects=fx
+    ).final_state
+    ok = simulate(
+        hoist,
+        hold(depth_m=320.03, duration_s=0.1, payload_kg=[3000.0]),
+        effects=fx,
+        initial_state=state,
+    )
+    assert ok.ok  # a few cm are tolerated
+    with pytest.raises(ValueError, match=r"depth 320\.000 m.*starts at 300\.000 m"):
+        simulate(
+            hoist,
+            hold(depth_m=300.0, duration_s=0.1, payload_kg=[3000.0]),
+            effects=fx,
+            initial_state=state,
+        )
+    with pytest.raises(ValueError, match=r"payload of 3000 kg.*with 2500 kg"):
+        simulate(
+            hoist,
+            hold(depth_m=320.0, duration_s=0.1, payload_kg=[2500.0]),
+            effects=fx,
+            initial_state=state,
+        )
+    with pytest.raises(ValueError, match="other effects"):
+        simulate(
+            hoist,
+            hold(depth_m=320.0, duration_s=0.1, payload_kg=[3000.0]),
+            effects=_BASE_FX,
+            initial_state=state,
+        )
+    with pytest.raises(ValueError, match="other effect parameters"):
+        simulate(
+            hoist,
+            hold(depth_m=320.0, duration_s=0.1, payload_kg=[3000.0]),
+            effects=fx,
+            parameters={"oil_compressibility": {"bulk_modulus_pa": 1.2e9}},
+            initial_state=state,
+        )
 
 
 def test_sensor_offset_override_by_name(hoist):

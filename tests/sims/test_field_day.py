@@ -11,6 +11,7 @@ import pytest
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from sims.field_day import generate_field_day, write_field_day
 from sims.noise import NoiseModel
+from transforms.friction import friction_parameters
 
 HOIST = load_hoist(EXAMPLE_HOIST)
 G = 9.80665
@@ -32,6 +33,42 @@ def test_truth_load_at_standstill_is_the_weight(day):
         G + rest["acceleration_up_m_s2"].to_numpy()
     )
     assert np.abs(rest["load_n"].to_numpy() / expected - 1).max() < 0.002
+
+
+def _trip_starts(truth: pl.DataFrame) -> np.ndarray:
+    trip_id = truth["trip_id"].fill_null(-1).to_numpy()
+    return np.flatnonzero((trip_id[1:] != trip_id[:-1]) & (trip_id[1:] >= 0)) + 1
+
+
+def test_trip_starts_continue_the_friction_state(day):
+    """A day is one history: each trip continues from the held state of the one before,
+    so the seal friction and the pressures do not step when a trip starts."""
+    truth = day.truth
+    starts = _trip_starts(truth)
+    assert len(starts) == 5  # trips 1..5; trip 0 starts from static equilibrium
+    for s in starts:
+        for i in range(1, 5):
+            p = truth[f"p_chamber{i}_pa"].to_numpy()
+            _, fs, _, _ = (float(a) for a in friction_parameters(p[s], HOIST.friction_law))
+            friction = truth[f"friction{i}_n"].to_numpy()
+            x = truth[f"x{i}_m"].to_numpy()
+            assert x[s] == x[s - 1]  # no piston motion in that sample...
+            assert abs(friction[s] - friction[s - 1]) < 0.01 * fs  # ...so no friction jump
+            assert p[s] == p[s - 1]
+            sensor = truth[f"p_sensor{i}_pa"].to_numpy()
+            assert sensor[s] == sensor[s - 1]
+
+
+def test_friction_stays_in_the_seals_at_standstill(day):
+    """Held between trips: the ropes carry the weight (tension sum), the chamber
+    pressures carry it less the friction the seals hold -- which is not zero."""
+    rest = day.truth.filter(pl.col("trip_id").is_null())
+    area = HOIST.cylinders.bore_area_m2
+    pressure = sum(rest[f"p_chamber{i}_pa"] for i in range(1, 5)).to_numpy() * area
+    friction = sum(rest[f"friction{i}_n"] for i in range(1, 5)).to_numpy()
+    load = rest["load_n"].to_numpy()
+    assert np.abs(pressure + friction - load).max() < 1e-4 * load.min()
+    assert np.abs(friction / load).max() > 0.005  # the seals hold friction through rest
 
 
 def test_truth_load_while_moving_includes_inertia(day):

@@ -1,0 +1,778 @@
+"""``ropeload backfill``: many hoist-days, one partition at a time, resumable.
+
+Contents
+--------
+:class:`HoistSource`, :func:`load_hoists`
+    The hoists a mine runs and where their raw logs arrive (convention below).
+:class:`Partition`, :func:`plan_backfill`
+    The partition plan: one hoist x one UTC day, with the raw files to ingest for it.
+:func:`run_partition`
+    The unit of work: ingest the day's new files, then compensate, reconcile and alarm
+    the UTC day (:func:`pipelines.run_period.run_period`) unless the ledger says the
+    day is already done with exactly the inputs now landed.
+:func:`completed_partitions`, :func:`partition_ledger`
+    The completion ledger, read from the ``runs`` table.
+:func:`backfill`
+    Plan + partitions on a bounded thread pool, with retries of transient errors only,
+    a progress callback and a summary of failed partitions (:class:`BackfillReport`).
+
+Hoists and incoming files (``--hoists DIR``, ``--incoming DIR``)::
+
+    <hoists>/<any name>.toml           one hoist description per file (schemas/hoists/README.md)
+    <incoming>/<site>/<hoist>/**       that hoist's raw logs (CSV, TDMS) as the logger writes them
+
+``--incoming`` defaults to ``<data>/incoming``. A raw file belongs to the UTC days its
+name's date stamp covers: ``..._YYYYMMDD.csv`` is that local day (the hoist's
+``timezone``), ``..._YYYYMMDD_HH00.csv`` that local hour; files without a stamp are
+ingested while planning so their time range is known from the manifest.
+
+Ledger and idempotence. A partition is *done* when the latest ``runs`` row for exactly
+its period ``[day 00:00Z, day+1 00:00Z)`` of its site and hoist succeeded, read exactly
+the ``source_sha256`` now landed in the lake for that day, and used the current hoist
+description (``hoist_sha256``). The ``runs`` row is written in the same warehouse
+transaction as the marts (:func:`warehouse.landing.land_results`), so the ledger can
+never say done for a landing that was not published, nor miss one that was: a backfill
+killed at any point and restarted re-runs only unfinished days, and re-running a day
+replaces its marts and rope tensions (run_period's idempotent landing), never adds to
+them. Late files for an old day, or a recalibrated hoist description, make the day
+not-done again. Failed partitions get a ``runs`` row with ``status = 'failed'`` and the
+reason, so ``ropeload query "select * from runs where status = 'failed'"`` lists them.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import re
+import sys
+import threading
+import time
+import zoneinfo
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Literal
+
+import duckdb
+import polars as pl
+
+from pipelines.ingest import ingest_paths
+from pipelines.ingest.sources import expand_paths
+from pipelines.provenance import code_version, new_run_id, utc_now
+from pipelines.run_period import NoSamplesError, run_period
+from schemas.hoist import HoistDescription, hoist_sha256, load_hoist
+from warehouse.landing import RunRecord, land_run
+from warehouse.store import DataRoot, open_reader, open_writer
+
+__all__ = [
+    "BackfillPlan",
+    "BackfillReport",
+    "HoistSource",
+    "Partition",
+    "PartitionOutcome",
+    "StderrProgress",
+    "backfill",
+    "completed_partitions",
+    "failed_outcome",
+    "file_days",
+    "is_transient",
+    "known_files",
+    "lake_inputs",
+    "load_hoists",
+    "partition_ledger",
+    "plan_backfill",
+    "record_failures",
+    "run_partition",
+    "run_partition_with_retries",
+    "run_partitions",
+]
+
+Status = Literal["succeeded", "skipped", "empty", "failed"]
+_STAMP = re.compile(r"(?<!\d)(\d{8})(?:[_T-](\d{2})00)?(?!\d)")
+_RAW_SUFFIXES = {".csv", ".tdms"}
+
+
+# ---------------------------------------------------------------------------- hoists
+
+
+@dataclass(frozen=True)
+class HoistSource:
+    """One hoist: its description file and the folder its raw logs arrive in."""
+
+    path: Path
+    site: str
+    hoist: str
+    timezone: str
+    incoming: Path
+
+    @property
+    def key(self) -> str:
+        return f"{self.site}/{self.hoist}"
+
+    def description(self) -> HoistDescription:
+        return load_hoist(self.path)
+
+
+def _source(path: Path, incoming_root: Path) -> HoistSource:
+    description = load_hoist(path)
+    site, name = description.hoist.site, description.hoist.name
+    return HoistSource(
+        path=path.absolute(),
+        site=site,
+        hoist=name,
+        timezone=description.hoist.timezone,
+        incoming=(incoming_root / site / name).absolute(),
+    )
+
+
+def load_hoists(
+    hoists: str | Path | Sequence[str | Path], *, data: DataRoot, incoming: str | Path | None = None
+) -> list[HoistSource]:
+    """Hoists from a folder of hoist descriptions (``*.toml``) or a list of files.
+
+    ``incoming`` (default ``<data>/incoming``) holds ``<site>/<hoist>/`` per hoist.
+    Raises ValueError for an empty folder or two files describing the same hoist.
+    """
+    root = Path(incoming) if incoming is not None else data.path / "incoming"
+    if isinstance(hoists, str | Path):
+        hoists = [hoists]
+    files: list[Path] = []
+    for entry in map(Path, hoists):
+        if entry.is_dir():
+            found = sorted(entry.glob("*.toml"))
+            if not found:
+                raise ValueError(f"{entry}: no hoist descriptions (*.toml) in this folder")
+            files.extend(found)
+        elif entry.is_file():
+            files.append(entry)
+        else:
+            raise FileNotFoundError(f"{entry}: no such hoist description or folder")
+    sources = [_source(path, root) for path in files]
+    seen: dict[str, Path] = {}
+    for source in sources:
+        if source.key in seen:
+            raise ValueError(
+                f"{source.path}: hoist {source.key} is also described in {seen[source.key]}"
+            )
+        seen[source.key] = source.path
+    return sources
+
+
+# ------------------------------------------------------------------- files and days
+
+
+def _utc_days(first: dt.datetime, last: dt.datetime) -> list[dt.date]:
+    """UTC days touched by ``first <= t < last``."""
+    a = first.astimezone(dt.UTC).date()
+    b = (last.astimezone(dt.UTC) - dt.timedelta(microseconds=1)).date()
+    return [a + dt.timedelta(days=k) for k in range((b - a).days + 1)]
+
+
+def file_days(path: str | Path, timezone: str) -> list[dt.date] | None:
+    """UTC days a raw file covers according to the date stamp in its name, or None.
+
+    >>> file_days("mine_hoist_20260302.csv", "Asia/Shanghai")
+    [datetime.date(2026, 3, 1), datetime.date(2026, 3, 2)]
+    >>> file_days("mine_hoist_20260302_0900.csv", "Asia/Shanghai")
+    [datetime.date(2026, 3, 2)]
+    >>> file_days("export.csv", "UTC") is None
+    True
+    """
+    stamps = list(_STAMP.finditer(Path(path).stem))
+    if not stamps:
+        return None
+    match = stamps[-1]  # the last stamp in the name wins (a site code may contain digits)
+    try:
+        day = dt.datetime.strptime(match.group(1), "%Y%m%d")
+    except ValueError:
+        return None
+    zone = zoneinfo.ZoneInfo(timezone)
+    if match.group(2) is not None:
+        start = day.replace(hour=int(match.group(2)), tzinfo=zone)
+        return _utc_days(start, start + dt.timedelta(hours=1))
+    start = day.replace(tzinfo=zone)
+    end = (day + dt.timedelta(days=1)).replace(tzinfo=zone)
+    return _utc_days(start, end)
+
+
+def _raw_files(source: HoistSource) -> list[Path]:
+    if not source.incoming.is_dir():
+        return []
+    return [p for p in expand_paths([source.incoming]) if p.suffix.lower() in _RAW_SUFFIXES]
+
+
+def known_files(data: DataRoot) -> set[tuple[str, int]]:
+    """(absolute path, size) of every file in the ingest manifest.
+
+    A raw file whose path and size are here has been ingested (or refused) already: the
+    manifest is the watermark. A file that grew since (a logger still writing) is new.
+    """
+    if not data.warehouse.exists():
+        return set()
+    con = open_reader(data)
+    try:
+        rows = con.sql("SELECT source_path, size_bytes FROM manifest").fetchall()
+    finally:
+        con.close()
+    return {(str(path), int(size)) for path, size in rows}
+
+
+def _is_new(path: Path, known: set[tuple[str, int]]) -> bool:
+    return (str(path), path.stat().st_size) not in known
+
+
+def lake_inputs(data: DataRoot, site: str, hoist: str, day: dt.date) -> tuple[str, ...]:
+    """Sorted ``source_sha256`` of the field samples landed for one hoist and UTC day."""
+    directory = data.table_dir("field_samples") / f"site={site}" / f"hoist={hoist}" / f"date={day}"
+    files = sorted(directory.glob("*.parquet"))
+    if not files:
+        return ()
+    shas = (
+        pl.scan_parquet(files, hive_partitioning=False)
+        .select(pl.col("source_sha256").unique())
+        .collect()["source_sha256"]
+    )
+    return tuple(sorted(s for s in shas.to_list() if s is not None))
+
+
+# ---------------------------------------------------------------------- partitions
+
+
+@dataclass(frozen=True)
+class Partition:
+    """One hoist x one UTC day, and the new raw files to ingest for it."""
+
+    source: HoistSource
+    day: dt.date
+    files: tuple[Path, ...] = ()
+
+    @property
+    def key(self) -> str:
+        return f"{self.source.site}/{self.source.hoist}/{self.day.isoformat()}"
+
+    @property
+    def start(self) -> dt.datetime:
+        return dt.datetime.combine(self.day, dt.time(0), tzinfo=dt.UTC)
+
+    @property
+    def end(self) -> dt.datetime:
+        return self.start + dt.timedelta(days=1)
+
+
+@dataclass(frozen=True)
+class PartitionOutcome:
+    """What happened to one partition."""
+
+    key: str
+    site: str
+    hoist: str
+    day: dt.date
+    status: Status
+    message: str = ""
+    run_id: str | None = None
+    samples: int = 0
+    files_ingested: int = 0
+    attempts: int = 1
+    ingest_s: float = 0.0
+    run_s: float = 0.0
+
+    @property
+    def work_s(self) -> float:
+        """Seconds spent in the plain functions (ingest + run)."""
+        return self.ingest_s + self.run_s
+
+    def row(self) -> dict[str, object]:
+        return {
+            "partition": self.key,
+            "status": self.status,
+            "samples": self.samples,
+            "files_ingested": self.files_ingested,
+            "attempts": self.attempts,
+            "seconds": round(self.work_s, 3),
+            "run_id": self.run_id or "",
+            "message": self.message,
+        }
+
+
+def _outcome(partition: Partition, status: Status, **values: object) -> PartitionOutcome:
+    return PartitionOutcome(
+        key=partition.key,
+        site=partition.source.site,
+        hoist=partition.source.hoist,
+        day=partition.day,
+        status=status,
+        **values,  # type: ignore[arg-type]
+    )
+
+
+def _latest_runs(data: DataRoot) -> pl.DataFrame:
+    """Latest ``runs`` row per (site, hoist, UTC day) among runs covering exactly a day."""
+    empty = pl.DataFrame(
+        schema={
+            "site": pl.String,
+            "hoist": pl.String,
+            "day": pl.Date,
+            "status": pl.String,
+            "inputs": pl.List(pl.String),
+            "hoist_sha256": pl.String,
+            "run_id": pl.String,
+        }
+    )
+    if not data.warehouse.exists():
+        return empty
+    con = open_reader(data)
+    try:
+        runs = con.sql(
+            "SELECT run_id, site, hoist, status, inputs, hoist_sha256, "
+            "epoch_us(period_start_utc) AS start_us, epoch_us(period_end_utc) AS end_us, "
+            "epoch_us(coalesce(finished_at_utc, started_at_utc)) AS at_us FROM runs "
+            "WHERE site IS NOT NULL AND period_start_utc IS NOT NULL"
+        ).pl()
+    finally:
+        con.close()
+    day_us = 86_400_000_000
+    return (
+        runs.filter(
+            (pl.col("end_us") - pl.col("start_us") == day_us) & (pl.col("start_us") % day_us == 0)
+        )
+        .with_columns(
+            day=pl.from_epoch(pl.col("start_us") // day_us * 86_400, time_unit="s").dt.date()
+        )
+        .sort("at_us")
+        .group_by("site", "hoist", "day")
+        .last()
+        .select(empty.columns)
+    )
+
+
+def completed_partitions(data: DataRoot, partitions: Iterable[Partition]) -> set[str]:
+    """Keys of the partitions the ledger says are done (see the module docstring)."""
+    latest = {
+        (r["site"], r["hoist"], r["day"]): r for r in _latest_runs(data).iter_rows(named=True)
+    }
+    shas: dict[Path, str] = {}
+    done = set()
+    for partition in partitions:
+        row = latest.get((partition.source.site, partition.source.hoist, partition.day))
+        if row is None or row["status"] != "succeeded":
+            continue
+        sha = shas.get(partition.source.path)
+        if sha is None:
+            sha = shas[partition.source.path] = hoist_sha256(partition.source.path)
+        if row["hoist_sha256"] != sha:
+            continue
+        inputs = tuple(sorted(row["inputs"] or ()))
+        if inputs and inputs == lake_inputs(
+            data, partition.source.site, partition.source.hoist, partition.day
+        ):
+            done.add(partition.key)
+    return done
+
+
+def partition_ledger(data: DataRoot) -> pl.DataFrame:
+    """The latest run per (site, hoist, UTC day): ``status``, ``run_id``, ``inputs``."""
+    return _latest_runs(data).sort("site", "hoist", "day")
+
+
+@dataclass(frozen=True)
+class BackfillPlan:
+    """Partitions to run, and those found done or without data while planning."""
+
+    todo: tuple[Partition, ...]
+    done: tuple[Partition, ...]
+    empty: tuple[Partition, ...]
+    undated_ingested: int = 0
+
+    @property
+    def total(self) -> int:
+        return len(self.todo) + len(self.done) + len(self.empty)
+
+    def settled(self) -> list[PartitionOutcome]:
+        """Outcomes of the partitions that need no work."""
+        return [
+            _outcome(p, "skipped", message="done: same inputs and hoist description")
+            for p in self.done
+        ] + [_outcome(p, "empty", message="no raw files and no landed samples") for p in self.empty]
+
+
+def _days(start: dt.date, end: dt.date) -> list[dt.date]:
+    if end < start:
+        raise ValueError(f"backfill range: end {end} is before start {start}")
+    return [start + dt.timedelta(days=k) for k in range((end - start).days + 1)]
+
+
+def plan_backfill(
+    sources: Sequence[HoistSource],
+    *,
+    data: DataRoot,
+    start: dt.date,
+    end: dt.date,
+    force: bool = False,
+) -> BackfillPlan:
+    """One partition per hoist and UTC day ``start..end`` (both included).
+
+    New raw files (path and size not in the manifest) are attached to the days their
+    name stamps cover; undated new files are ingested here. Partitions the ledger says
+    are done are set apart (unless ``force``), and so are days with neither new files
+    nor landed samples.
+    """
+    days = _days(start, end)
+    known = known_files(data)
+    undated = 0
+    candidates: list[Partition] = []
+    for source in sources:
+        per_day: dict[dt.date, list[Path]] = {day: [] for day in days}
+        loose: list[Path] = []
+        for path in _raw_files(source):
+            if not _is_new(path, known):
+                continue
+            covered = file_days(path, source.timezone)
+            if covered is None:
+                loose.append(path)
+                continue
+            for day in covered:
+                if day in per_day:
+                    per_day[day].append(path)
+        if loose:
+            ingest_paths(loose, data=data, hoist_lookup=_lookup(source))
+            undated += len(loose)
+        candidates += [Partition(source, day, tuple(sorted(per_day[day]))) for day in days]
+    done = set() if force else completed_partitions(data, candidates)
+    todo, finished, empty = [], [], []
+    for partition in candidates:
+        if partition.key in done and not partition.files:
+            finished.append(partition)
+        elif not partition.files and not lake_inputs(
+            data, partition.source.site, partition.source.hoist, partition.day
+        ):
+            empty.append(partition)
+        else:
+            todo.append(partition)
+    return BackfillPlan(tuple(todo), tuple(finished), tuple(empty), undated)
+
+
+def _lookup(source: HoistSource) -> Callable[[str, str], HoistDescription | None]:
+    description = source.description()
+
+    def lookup(site: str, hoist: str) -> HoistDescription | None:
+        return description if (site, hoist) == (source.site, source.hoist) else None
+
+    return lookup
+
+
+def run_partition(
+    partition: Partition, *, data: DataRoot, force: bool = False, command: str = "backfill"
+) -> PartitionOutcome:
+    """Ingest the partition's new files, then run its UTC day unless already done.
+
+    Raises whatever ingest or :func:`~pipelines.run_period.run_period` raise (the
+    callers decide about retries, :func:`is_transient`); a day without samples is an
+    ``empty`` outcome, not an error.
+    """
+    t0 = time.perf_counter()
+    notes: list[str] = []
+    ingested = 0
+    if partition.files:
+        report = ingest_paths(partition.files, data=data, hoist_lookup=_lookup(partition.source))
+        ingested = sum(f.status in ("landed", "partial") for f in report)
+        notes += [f"refused {f.path.name}: {f.message}" for f in report.refused]
+    t1 = time.perf_counter()
+    site, name = partition.source.site, partition.source.hoist
+    inputs = lake_inputs(data, site, name, partition.day)
+    if not inputs:
+        return _outcome(
+            partition,
+            "empty",
+            message="; ".join(["no landed samples", *notes]),
+            files_ingested=ingested,
+            ingest_s=t1 - t0,
+        )
+    if not force and partition.key in completed_partitions(data, [partition]):
+        return _outcome(
+            partition,
+            "skipped",
+            message="; ".join(["done: same inputs and hoist description", *notes]),
+            files_ingested=ingested,
+            ingest_s=t1 - t0,
+        )
+    try:
+        result = run_period(
+            hoist_path=partition.source.path,
+            data=data,
+            start=partition.start,
+            end=partition.end,
+            command=command,
+        )
+    except NoSamplesError as exc:
+        return _outcome(partition, "empty", message=str(exc), ingest_s=t1 - t0)
+    t2 = time.perf_counter()
+    return _outcome(
+        partition,
+        "succeeded",
+        message="; ".join(
+            [f"{result.trip_summary.height} trips, {result.alarms.height} alarms", *notes]
+        ),
+        run_id=result.run_id,
+        samples=result.samples,
+        files_ingested=ingested,
+        ingest_s=t1 - t0,
+        run_s=t2 - t1,
+    )
+
+
+# ---------------------------------------------------------------- errors and retries
+
+
+def is_transient(exc: BaseException) -> bool:
+    """Worth retrying: I/O trouble and lock time-outs; never bad data or code errors.
+
+    Missing files and permission errors are not transient (retrying cannot fix them);
+    other ``OSError`` (NFS hiccups, ``EAGAIN``, a full disk being cleaned) and DuckDB
+    I/O errors ("Could not set lock on file") are.
+    """
+    if isinstance(
+        exc, FileNotFoundError | PermissionError | IsADirectoryError | NotADirectoryError
+    ):
+        return False
+    return isinstance(exc, OSError | TimeoutError | duckdb.IOException)
+
+
+def failed_outcome(partition: Partition, exc: BaseException, *, attempts: int) -> PartitionOutcome:
+    """The outcome of a partition that raised ``exc`` on its last attempt."""
+    reason = " ".join(str(exc).split()) or "(no message)"
+    kind = "transient, retries exhausted" if is_transient(exc) else "not retried"
+    return _outcome(
+        partition,
+        "failed",
+        message=f"{type(exc).__name__}: {reason} ({kind})",
+        attempts=attempts,
+    )
+
+
+def run_partition_with_retries(
+    partition: Partition,
+    *,
+    data: DataRoot,
+    retries: int = 2,
+    retry_delay_s: float = 1.0,
+    force: bool = False,
+) -> PartitionOutcome:
+    """:func:`run_partition`, retrying transient errors; a final error is a failed outcome."""
+    attempt = 0
+    while True:
+        attempt += 1
+        try:
+            outcome = run_partition(partition, data=data, force=force)
+        except Exception as exc:
+            if is_transient(exc) and attempt <= retries:
+                time.sleep(retry_delay_s * attempt)
+                continue
+            return failed_outcome(partition, exc, attempts=attempt)
+        return replace(outcome, attempts=attempt) if attempt > 1 else outcome
+
+
+def record_failures(
+    data: DataRoot, outcomes: Iterable[PartitionOutcome], *, command: str = "backfill"
+) -> int:
+    """One ``runs`` row with ``status = 'failed'`` and the reason per failed partition."""
+    failed = [o for o in outcomes if o.status == "failed"]
+    if not failed:
+        return 0
+    with open_writer(data) as con:
+        for outcome in failed:
+            start = dt.datetime.combine(outcome.day, dt.time(0), tzinfo=dt.UTC)
+            now = utc_now()
+            land_run(
+                con,
+                RunRecord(
+                    run_id=new_run_id(command),
+                    command=command,
+                    code_version=code_version(),
+                    started_at_utc=now,
+                    finished_at_utc=now,
+                    status="failed",
+                    site=outcome.site,
+                    hoist=outcome.hoist,
+                    period_start_utc=start,
+                    period_end_utc=start + dt.timedelta(days=1),
+                    message=outcome.message,
+                ),
+            )
+    return len(failed)
+
+
+# ------------------------------------------------------------------------- reporting
+
+
+@dataclass
+class BackfillReport:
+    """All partition outcomes of one backfill (or night), in completion order."""
+
+    outcomes: list[PartitionOutcome] = field(default_factory=list)
+    wall_s: float = 0.0
+
+    def count(self, status: Status) -> int:
+        return sum(o.status == status for o in self.outcomes)
+
+    @property
+    def failed(self) -> list[PartitionOutcome]:
+        return sorted((o for o in self.outcomes if o.status == "failed"), key=lambda o: o.key)
+
+    @property
+    def ok(self) -> bool:
+        return not self.failed
+
+    @property
+    def samples(self) -> int:
+        return sum(o.samples for o in self.outcomes)
+
+    @property
+    def work_s(self) -> float:
+        return sum(o.work_s for o in self.outcomes)
+
+    def table(self) -> pl.DataFrame:
+        rows = [o.row() for o in sorted(self.outcomes, key=lambda o: o.key)]
+        return pl.DataFrame(
+            rows,
+            schema={
+                "partition": pl.String,
+                "status": pl.String,
+                "samples": pl.Int64,
+                "files_ingested": pl.Int64,
+                "attempts": pl.Int64,
+                "seconds": pl.Float64,
+                "run_id": pl.String,
+                "message": pl.String,
+            },
+        )
+
+    def __str__(self) -> str:
+        head = (
+            f"{len(self.outcomes)} partitions: {self.count('succeeded')} run, "
+            f"{self.count('skipped')} already done, {self.count('empty')} without data, "
+            f"{self.count('failed')} failed; {self.samples} samples in {self.wall_s:.1f} s"
+        )
+        lines = [head]
+        if self.failed:
+            lines.append("failed partitions:")
+            lines += [f"  {o.key}: {o.message}" for o in self.failed]
+        return "\n".join(lines) + "\n"
+
+
+class StderrProgress:
+    """A plain progress bar on stderr (no dependency): ``[####....] 12/60 ...``.
+
+    On a terminal it redraws one line; otherwise it prints a line per ~10 %.
+    """
+
+    def __init__(self, total: int, *, label: str = "partitions", width: int = 30) -> None:
+        self.total, self.label, self.width = total, label, width
+        self.done = 0
+        self.failed = 0
+        self._started = time.perf_counter()
+        self._tty = sys.stderr.isatty()
+        self._last_decile = -1
+        self._lock = threading.Lock()
+
+    def __call__(self, outcome: PartitionOutcome) -> None:
+        with self._lock:
+            self.done += 1
+            self.failed += outcome.status == "failed"
+            self._draw(outcome.key)
+
+    def _draw(self, key: str) -> None:
+        total = max(self.total, 1)
+        filled = round(self.width * self.done / total)
+        elapsed = time.perf_counter() - self._started
+        eta = elapsed / self.done * (self.total - self.done) if self.done else 0.0
+        line = (
+            f"[{'#' * filled}{'.' * (self.width - filled)}] {self.done}/{self.total} "
+            f"{self.label}, {self.failed} failed, {elapsed:.0f} s, eta {eta:.0f} s  {key}"
+        )
+        if self._tty:
+            end = "\n" if self.done >= self.total else ""
+            sys.stderr.write(f"\r\x1b[K{line}{end}")
+        else:
+            decile = self.done * 10 // total
+            if decile == self._last_decile and self.done < self.total:
+                return
+            self._last_decile = decile
+            sys.stderr.write(line + "\n")
+        sys.stderr.flush()
+
+
+def run_partitions(
+    partitions: Sequence[Partition],
+    *,
+    data: DataRoot,
+    max_workers: int = 2,
+    retries: int = 2,
+    retry_delay_s: float = 1.0,
+    force: bool = False,
+    progress: Callable[[PartitionOutcome], None] | None = None,
+) -> list[PartitionOutcome]:
+    """Partitions on a pool of ``max_workers`` threads; outcomes in completion order."""
+    if max_workers < 1:
+        raise ValueError(f"max_workers must be >= 1, got {max_workers}")
+    outcomes: list[PartitionOutcome] = []
+    with ThreadPoolExecutor(max_workers=max_workers, thread_name_prefix="partition") as pool:
+        futures = [
+            pool.submit(
+                run_partition_with_retries,
+                partition,
+                data=data,
+                retries=retries,
+                retry_delay_s=retry_delay_s,
+                force=force,
+            )
+            for partition in partitions
+        ]
+        for future in as_completed(futures):
+            outcome = future.result()
+            outcomes.append(outcome)
+            if progress is not None:
+                progress(outcome)
+    return outcomes
+
+
+def backfill(
+    sources: Sequence[HoistSource],
+    *,
+    data: DataRoot,
+    start: dt.date,
+    end: dt.date,
+    max_workers: int = 2,
+    retries: int = 2,
+    retry_delay_s: float = 1.0,
+    force: bool = False,
+    progress: Callable[[PartitionOutcome], None] | None = None,
+    on_plan: Callable[[BackfillPlan], None] | None = None,
+) -> BackfillReport:
+    """Run every hoist-day of ``start..end`` not yet done, ``max_workers`` at a time.
+
+    Resumable and idempotent (module docstring). Never raises for a failed partition:
+    failures are in ``report.failed`` with their reasons and in ``runs``.
+    ``on_plan(plan)`` is called once before the partitions start (e.g. to size a bar).
+    """
+    if max_workers < 1:
+        raise ValueError(f"max_workers must be >= 1, got {max_workers}")
+    t0 = time.perf_counter()
+    plan = plan_backfill(sources, data=data, start=start, end=end, force=force)
+    if on_plan is not None:
+        on_plan(plan)
+    report = BackfillReport(outcomes=plan.settled())
+    for outcome in report.outcomes:
+        if progress is not None:
+            progress(outcome)
+    report.outcomes += run_partitions(
+        plan.todo,
+        data=data,
+        max_workers=max_workers,
+        retries=retries,
+        retry_delay_s=retry_delay_s,
+        force=force,
+        progress=progress,
+    )
+    record_failures(data, report.outcomes)
+    report.wall_s = time.perf_counter() - t0
+    return report

@@ -1,0 +1,890 @@
+"""``ropeload calibrate``: friction-rig recordings -> a seal-friction parameter set.
+
+The friction test of paper section 4.2.1 drives the tested cylinder at controlled
+speeds against a set back-pressure at oil pressures 2..12 MPa. At a steady speed the
+LuGre state (paper eq 15) is at rest (dz/dt = 0), so the measured friction is the
+steady-state Stribeck curve (eq 16/18)::
+
+    F(v) = [Fc + (Fs - Fc) exp(-(v/vs)^2)] sgn(v) + Kv v
+
+whose four parameters the paper tabulates per pressure (Table 1) and fits as straight
+lines in pressure (eq 17). This module does the same on rig recordings (contract 3):
+
+Steps (plain functions, no I/O except in :func:`calibrate_rig` and :func:`read_rig_info`)
+    :func:`read_rig_info` -- ``/rig/info`` of an MCAP recording (bore, rod, moving mass).
+    :func:`seal_friction_samples` -- piston velocity and acceleration from displacement
+    (Savitzky-Golay derivatives) and the seal friction per sample,
+    ``F = p_rodless A_bore - p_rod (A_bore - A_rod) - m a`` (contract 3).
+    :func:`steady_steps` -- per ``/rig/step``: the steady part (acceleration and
+    bristle transient dropped), its mean speed and mean friction.
+    :func:`fit_pressure_levels` -- a Stribeck fit per pressure level with 1-sigma
+    uncertainties: the analogue of Table 1.
+    :func:`friction_toml` -- the ``[friction]`` section of a hoist description.
+
+Orchestration and reports
+    :func:`calibrate_rig` -- ingest (optional), read the lake, fit, land a
+    ``friction_parameter_sets`` row and a ``runs`` row; returns a
+    :class:`CalibrationResult`.
+    :func:`format_calibration` -- the printed report of ``ropeload calibrate``.
+    :func:`table1_report` -- OLS lines through paper Table 1 with residuals, and where
+    they differ from the printed eq 17 (``ropeload calibrate --table1``).
+
+Everything inside is SI (Pa, m, m/s, N, N s/m); the hoist-description snippet states
+its units (friction as equivalent pressure in MPa, speeds in mm/s; NOTES.md).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+from scipy.ndimage import uniform_filter1d
+from scipy.signal import savgol_filter
+
+from pipelines.lake import lake_partitions, scan_lake
+from pipelines.provenance import code_version, utc_now
+from schemas.hoist import FrictionLaw
+from transforms.friction_fit import (
+    LinearFit,
+    StribeckFit,
+    compare_with_eq17,
+    fit_friction_law,
+    fit_stribeck,
+    fit_table1,
+)
+from warehouse.store import DataRoot
+
+__all__ = [
+    "LINE_NAMES",
+    "CalibrationError",
+    "CalibrationResult",
+    "RigInfo",
+    "calibrate_rig",
+    "fit_pressure_levels",
+    "format_calibration",
+    "friction_toml",
+    "read_rig_info",
+    "seal_friction_samples",
+    "steady_steps",
+    "table1_report",
+]
+
+#: Keys of the eq-17 lines (SI), in the order Fc, Fs, vs, Kv.
+LINE_NAMES = ("coulomb_n", "static_n", "stribeck_speed_m_s", "viscous_n_s_m")
+
+#: Defaults of the dynamic (non-steady) parameters, which a steady-speed test does not
+#: identify: those of the example hoist (``schemas/hoists/paper_field_test.toml``).
+DEFAULT_BRISTLE_STIFFNESS_N_M = 2.5e7
+DEFAULT_BRISTLE_DAMPING_N_S_M = 2e4
+DEFAULT_PRESLIDING_ELEMENTS = 4
+
+_SITE = "rig"
+
+
+class CalibrationError(ValueError):
+    """Calibration refused (no samples, refused recording, too few steps or pressures)."""
+
+
+# ---------------------------------------------------------------------------------------
+# Rig geometry (/rig/info)
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class RigInfo:
+    """The ``/rig/info`` message of a recording, in SI."""
+
+    rig_id: str
+    bore_m: float
+    rod_m: float
+    stroke_m: float
+    moving_mass_kg: float
+    oil: str
+
+    @property
+    def bore_area_m2(self) -> float:
+        return math.pi * self.bore_m**2 / 4.0
+
+    @property
+    def annulus_area_m2(self) -> float:
+        return math.pi * (self.bore_m**2 - self.rod_m**2) / 4.0
+
+
+def read_rig_info(path: str | Path) -> RigInfo:
+    """Read the ``/rig/info`` message (contract 3) of an MCAP rig recording.
+
+    Ingest lands ``/rig/pressure``-timeline samples only, not ``/rig/info``, so the
+    geometry is read from the recording itself. Uses the summary index when the file
+    has one and reads sequentially otherwise (a truncated recording).
+    """
+    from mcap.reader import NonSeekingReader, make_reader
+
+    from pipelines.ingest.rig_mcap import JsonDecoderFactory
+
+    path = Path(path)
+    body = None
+    try:
+        with path.open("rb") as handle:
+            reader = make_reader(handle, decoder_factories=[JsonDecoderFactory()])
+            for _schema, _channel, message in reader.iter_messages(topics=["/rig/info"]):
+                body = json.loads(message.data)
+                break
+    except Exception:  # truncated: no summary; the info message comes first anyway
+        with path.open("rb") as handle:
+            reader = NonSeekingReader(handle, decoder_factories=[JsonDecoderFactory()])
+            try:
+                for _schema, channel, message in reader.iter_messages():
+                    if channel.topic == "/rig/info":
+                        body = json.loads(message.data)
+                        break
+            except Exception:
+                body = None
+    if not isinstance(body, dict):
+        raise CalibrationError(f"{path}: no readable /rig/info message")
+    try:
+        return RigInfo(
+            rig_id=str(body["rig_id"]),
+            bore_m=float(body["bore_mm"]) * 1e-3,
+            rod_m=float(body["rod_mm"]) * 1e-3,
+            stroke_m=float(body["stroke_mm"]) * 1e-3,
+            moving_mass_kg=float(body["moving_mass_kg"]),
+            oil=str(body.get("oil", "")),
+        )
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CalibrationError(f"{path}: /rig/info is missing or has a bad field ({exc})") from None
+
+
+# ---------------------------------------------------------------------------------------
+# Samples -> friction -> steady steps
+# ---------------------------------------------------------------------------------------
+def _odd(n: float) -> int:
+    k = max(round(n), 5)
+    return k if k % 2 else k + 1
+
+
+def seal_friction_samples(
+    samples: pl.DataFrame,
+    *,
+    bore_m: float,
+    rod_m: float,
+    moving_mass_kg: float,
+    smooth_s: float = 0.05,
+    max_gap_s: float = 0.5,
+) -> pl.DataFrame:
+    r"""Piston velocity, acceleration and seal friction per rig sample (contract 3).
+
+    .. math::
+        F = p_{rodless} A_{bore} - p_{rod} (A_{bore} - A_{rod}) - m \ddot x
+
+    Velocity and acceleration are Savitzky-Golay derivatives of ``x_m`` (quadratic,
+    windows ``smooth_s`` and ``2 smooth_s``), computed per contiguous block (a gap
+    longer than ``max_gap_s`` starts a new block: another recording). The sign
+    convention is that of :mod:`transforms.friction`: friction is positive while the
+    rod moves out (v > 0), opposing the motion.
+
+    Parameters
+    ----------
+    samples : polars.DataFrame
+        ``rig_samples`` rows (schema :data:`schemas.tables.RIG_SAMPLES`), any order.
+    bore_m, rod_m : float
+        Piston and rod diameters [m].
+    moving_mass_kg : float
+        Piston, rod and attached mass [kg].
+    smooth_s : float
+        Derivative window [s].
+    max_gap_s : float
+        Longest time gap inside one recording [s].
+
+    Returns
+    -------
+    polars.DataFrame
+        The samples sorted by time plus ``t_s`` (from the first sample), ``block``,
+        ``segment`` (a new one at each step change or gap), ``v_m_s``, ``a_m_s2`` and
+        ``friction_n``.
+    """
+    if samples.height == 0:
+        raise CalibrationError("no rig samples")
+    area_bore = math.pi * bore_m**2 / 4.0
+    area_annulus = math.pi * (bore_m**2 - rod_m**2) / 4.0
+    frame = samples.sort("time_utc").with_columns(
+        t_s=(pl.col("time_utc") - pl.col("time_utc").first()).dt.total_microseconds() / 1e6
+    )
+    gap = (pl.col("t_s").diff() > max_gap_s).fill_null(False)
+    changed = pl.col("step").ne_missing(pl.col("step").shift()).fill_null(False)
+    frame = frame.with_columns(
+        block=gap.cum_sum().cast(pl.Int64),
+        segment=(gap | changed).cum_sum().cast(pl.Int64),
+        x_filled=pl.col("x_m").interpolate().forward_fill().backward_fill(),
+    )
+    velocity = np.full(frame.height, np.nan)
+    acceleration = np.full(frame.height, np.nan)
+    t_all = frame["t_s"].to_numpy()
+    x_all = frame["x_filled"].to_numpy()
+    bounds = np.flatnonzero(np.diff(frame["block"].to_numpy())) + 1
+    for lo, hi in zip(np.r_[0, bounds], np.r_[bounds, frame.height], strict=True):
+        t, x = t_all[lo:hi], x_all[lo:hi]
+        if t.size < 11 or not np.isfinite(x).all():
+            continue
+        dt_s = float(np.median(np.diff(t)))
+        w1 = min(_odd(smooth_s / dt_s), t.size - (1 - t.size % 2))
+        w2 = min(_odd(2 * smooth_s / dt_s), t.size - (1 - t.size % 2))
+        velocity[lo:hi] = savgol_filter(x, w1, 2, deriv=1, delta=dt_s, mode="interp")
+        acceleration[lo:hi] = savgol_filter(x, w2, 2, deriv=2, delta=dt_s, mode="interp")
+    return (
+        frame.drop("x_filled")
+        .with_columns(
+            v_m_s=pl.Series(velocity),
+            a_m_s2=pl.Series(acceleration),
+        )
+        .with_columns(
+            friction_n=pl.col("p_rodless_pa") * area_bore
+            - pl.col("p_rod_pa") * area_annulus
+            - moving_mass_kg * pl.col("a_m_s2")
+        )
+    )
+
+
+_STEP_SCHEMA = {
+    "segment": pl.Int64,
+    "step": pl.Int32,
+    "pressure_setpoint_pa": pl.Float64,
+    "velocity_setpoint_m_s": pl.Float64,
+    "steady_start_s": pl.Float64,
+    "steady_end_s": pl.Float64,
+    "samples": pl.Int64,
+    "p_rodless_pa": pl.Float64,
+    "velocity_m_s": pl.Float64,
+    "friction_n": pl.Float64,
+    "friction_sem_n": pl.Float64,
+}
+
+
+def _steady_start(
+    v: np.ndarray, force: np.ndarray, window: int, velocity_tol: float, force_tol: float
+) -> int:
+    """First index from which speed and friction stay at their end-of-step values."""
+    tail = slice(3 * v.size // 4, None)
+    v_end = float(np.median(v[tail]))
+    f_end = float(np.mean(force[tail]))
+    f_smooth = uniform_filter1d(force, window, mode="nearest")
+    noise = float(np.median(np.abs(np.diff(force)))) / (0.6745 * math.sqrt(2.0))
+    band = max(5.0 * noise / math.sqrt(window), force_tol * abs(f_end))
+    v_noise = 1.4826 * float(np.median(np.abs(v[tail] - v_end)))
+    v_band = max(velocity_tol * abs(v_end), 5.0 * v_noise)
+    unsettled = (np.abs(v - v_end) > v_band) | (np.abs(f_smooth - f_end) > band)
+    bad = np.flatnonzero(unsettled)
+    return int(bad[-1]) + 1 if bad.size else 0
+
+
+def steady_steps(
+    frame: pl.DataFrame,
+    *,
+    smooth_s: float = 0.05,
+    velocity_tol: float = 0.05,
+    force_tol: float = 0.01,
+    min_steady_s: float = 0.1,
+) -> pl.DataFrame:
+    """Mean speed and friction over the steady part of each moving step (paper 4.2.1).
+
+    A step (segment of :func:`seal_friction_samples`) with a non-zero velocity setpoint
+    starts with the speed ramp and the bristle transient of the LuGre state (eq 15: z
+    relaxes over a travel of about F/sigma0). Its steady part is where, from some sample
+    on to the end of the step, the smoothed speed stays within ``velocity_tol`` of the
+    end-of-step speed (median of the last quarter; or within 5 robust standard
+    deviations of the speed there, whichever is wider) and the ``smooth_s`` running mean
+    of the friction within max(5 standard errors, ``force_tol`` relative) of the
+    end-of-step friction (mean of the last quarter). What is left of the transient
+    biases the step mean far less than the band: it decays exponentially with travel.
+    The last ``smooth_s`` of a step is left out (the derivative windows there reach
+    into the next step's speed ramp). Steps with less than ``min_steady_s`` of steady
+    data are
+    dropped. The step's speed is the least-squares slope of x over the steady part
+    (the derivative averaged without the Savitzky-Golay edge effects); its friction
+    the mean of ``friction_n`` there, with its standard error.
+
+    Returns one row per kept step: ``segment, step, pressure_setpoint_pa,
+    velocity_setpoint_m_s, steady_start_s, steady_end_s, samples, p_rodless_pa,
+    velocity_m_s, friction_n, friction_sem_n``.
+    """
+    rows = []
+    moving = frame.filter(
+        pl.col("velocity_setpoint_m_s").is_not_null()
+        & (pl.col("velocity_setpoint_m_s") != 0)
+        & pl.col("v_m_s").is_not_nan()
+        & pl.col("x_m").is_not_null()
+    )
+    for whole in moving.partition_by("segment", maintain_order=True):
+        # the derivative windows reach into the next step's ramp: trim one window
+        part = whole.filter(pl.col("t_s") <= pl.col("t_s").max() - smooth_s)
+        t = part["t_s"].to_numpy()
+        if t.size < 20 or t[-1] - t[0] < min_steady_s:
+            continue
+        dt_s = float(np.median(np.diff(t)))
+        window = max(round(smooth_s / dt_s), 3)
+        force = part["friction_n"].to_numpy()
+        start = _steady_start(part["v_m_s"].to_numpy(), force, window, velocity_tol, force_tol)
+        keep = slice(start, None)
+        if t.size - start < 10 or t[-1] - t[start] < min_steady_s:
+            continue
+        tk, xk, fk = t[keep], part["x_m"].to_numpy()[keep], force[keep]
+        slope = float(np.polyfit(tk - tk.mean(), xk, 1)[0])
+        first = part.row(0, named=True)
+        rows.append(
+            {
+                "segment": int(first["segment"]),
+                "step": first["step"],
+                "pressure_setpoint_pa": first["pressure_setpoint_pa"],
+                "velocity_setpoint_m_s": first["velocity_setpoint_m_s"],
+                "steady_start_s": float(tk[0]),
+                "steady_end_s": float(tk[-1]),
+                "samples": int(tk.size),
+                "p_rodless_pa": float(part["p_rodless_pa"].to_numpy()[keep].mean()),
+                "velocity_m_s": slope,
+                "friction_n": float(fk.mean()),
+                "friction_sem_n": float(fk.std(ddof=1) / math.sqrt(fk.size)),
+            }
+        )
+    return pl.DataFrame(rows, schema=_STEP_SCHEMA)
+
+
+_LEVEL_SCHEMA = {
+    "pressure_setpoint_pa": pl.Float64,
+    "p_rodless_pa": pl.Float64,
+    "steps": pl.Int64,
+    "coulomb_n": pl.Float64,
+    "coulomb_sigma_n": pl.Float64,
+    "static_n": pl.Float64,
+    "static_sigma_n": pl.Float64,
+    "stribeck_speed_m_s": pl.Float64,
+    "stribeck_speed_sigma_m_s": pl.Float64,
+    "viscous_n_s_m": pl.Float64,
+    "viscous_sigma_n_s_m": pl.Float64,
+    "rms_n": pl.Float64,
+    "converged": pl.Boolean,
+}
+
+
+def fit_pressure_levels(
+    steps: pl.DataFrame, *, level_resolution_pa: float = 1e4, min_points: int = 5
+) -> tuple[pl.DataFrame, list[StribeckFit]]:
+    """Stribeck fit (eq 16/18) per pressure level, both directions together.
+
+    Steps are grouped by their pressure setpoint (rounded to ``level_resolution_pa``);
+    each level's fit is assigned to the mean measured rodless pressure of its steps,
+    the pressure the eq-17 lines are functions of. Levels with fewer than
+    ``min_points`` steps are skipped. This is the analogue of paper Table 1, in SI with
+    1-sigma uncertainties (:func:`transforms.friction_fit.fit_stribeck`).
+
+    Returns the per-pressure frame (ascending pressure; columns ``pressure_setpoint_pa,
+    p_rodless_pa, steps``, each parameter with its ``*_sigma_*``, ``rms_n``,
+    ``converged``) and the fits in the same order.
+    """
+    levels = (
+        steps.with_columns(level=(pl.col("pressure_setpoint_pa") / level_resolution_pa).round(0))
+        .filter(pl.col("level").is_not_null())
+        .sort("level", "segment")
+    )
+    rows, fits = [], []
+    for part in levels.partition_by("level", maintain_order=True):
+        if part.height < min_points:
+            continue
+        fit = fit_stribeck(part["velocity_m_s"].to_numpy(), part["friction_n"].to_numpy())
+        fits.append(fit)
+        rows.append(
+            {
+                "pressure_setpoint_pa": float(part["pressure_setpoint_pa"].mean()),  # type: ignore[arg-type]
+                "p_rodless_pa": float(part["p_rodless_pa"].mean()),  # type: ignore[arg-type]
+                "steps": part.height,
+                "coulomb_n": fit.fc,
+                "coulomb_sigma_n": fit.sigma[0],
+                "static_n": fit.fs,
+                "static_sigma_n": fit.sigma[1],
+                "stribeck_speed_m_s": fit.vs,
+                "stribeck_speed_sigma_m_s": fit.sigma[2],
+                "viscous_n_s_m": fit.kv,
+                "viscous_sigma_n_s_m": fit.sigma[3],
+                "rms_n": fit.rms,
+                "converged": fit.success,
+            }
+        )
+    return pl.DataFrame(rows, schema=_LEVEL_SCHEMA), fits
+
+
+# ---------------------------------------------------------------------------------------
+# Hoist-description snippet
+# ---------------------------------------------------------------------------------------
+def _toml_string(text: str) -> str:
+    return json.dumps(text)  # a JSON string is a valid TOML basic string
+
+
+def friction_toml(
+    law: FrictionLaw, *, bore_m: float, parameter_set: str, source: str, comment: str = ""
+) -> str:
+    """The ``[friction]`` section of a hoist description for ``law`` (contract 2).
+
+    Forces are written as the equivalent pressure of a ``bore_m`` piston (force / bore
+    area) in MPa, speeds in mm/s, pressures in MPa: the layout of
+    :class:`schemas.hoist.Friction`, whose :meth:`~schemas.hoist.Friction.law` inverts
+    this conversion. ``comment`` lines go on top, prefixed with ``#``.
+    """
+    area = math.pi * bore_m**2 / 4.0
+    force, speed, pressure = 1e6 * area, 1e-3, 1e6  # N per MPa, m/s per mm/s, Pa per MPa
+
+    def pair(value: tuple[float, float], scale: float) -> str:
+        return f"[{value[0] / scale:.6g}, {value[1] * pressure / scale:.6g}]"
+
+    lines = [f"# {c}" for c in comment.splitlines() if c.strip()]
+    lines += [
+        "[friction]",
+        "# value = intercept + slope * p, p in MPa (paper eq 17 form). Friction forces are",
+        f"# stated as equivalent pressure: force / bore area ({bore_m * 1e3:g} mm bore), MPa.",
+        "# Bristle stiffness / damping and the presliding element count are not identified",
+        "# by a steady-speed test; they are the given values, not fitted.",
+        f"parameter_set = {_toml_string(parameter_set)}",
+        f"source = {_toml_string(source)}",
+        'force_unit = "MPa"',
+        'speed_unit = "mm/s"',
+        'pressure_unit = "MPa"',
+        f"coulomb = {pair(law.coulomb_n, force)}",
+        f"static = {pair(law.static_n, force)}",
+        f"stribeck_speed = {pair(law.stribeck_speed_m_s, speed)}",
+        f"viscous = {pair(law.viscous_n_s_m, force / speed)}",
+        f'bristle_stiffness = "{law.bristle_stiffness_n_m:.6g} N/m"',
+        f'bristle_damping = "{law.bristle_damping_n_s_m:.6g} N*s/m"',
+        f"presliding_elements = {law.presliding_elements}",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------------------------------
+# Orchestration
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class CalibrationResult:
+    """What :func:`calibrate_rig` found and landed.
+
+    ``per_pressure`` is the analogue of paper Table 1 (SI, 1-sigma), ``lines`` the
+    eq-17 lines (keys :data:`LINE_NAMES`, SI per Pa, residuals per pressure), ``law``
+    the :class:`~schemas.hoist.FrictionLaw` (SI), ``toml`` the ``[friction]`` section
+    for a hoist description, ``steps`` the per-step steady means the fits used,
+    ``inputs`` the source sha256 of the rig samples read.
+    """
+
+    rig_id: str
+    parameter_set: str
+    run_id: str
+    rig: RigInfo
+    per_pressure: pl.DataFrame
+    fits: tuple[StribeckFit, ...]
+    lines: dict[str, LinearFit]
+    law: FrictionLaw
+    toml: str
+    steps: pl.DataFrame
+    inputs: tuple[str, ...]
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+
+def _rig_ids(data: DataRoot) -> list[str]:
+    parts = lake_partitions(data, "rig_samples")
+    return sorted(parts.filter(pl.col("site") == _SITE)["hoist"].unique().to_list())
+
+
+def _manifest_rows(data: DataRoot, shas: Sequence[str]) -> pl.DataFrame:
+    from warehouse.store import open_reader
+
+    try:
+        con = open_reader(data)
+    except FileNotFoundError:
+        return pl.DataFrame(
+            schema={
+                "source_sha256": pl.String,
+                "source_path": pl.String,
+                "hoist": pl.String,
+                "time_start_utc": pl.Datetime("us", "UTC"),
+                "time_end_utc": pl.Datetime("us", "UTC"),
+            }
+        )
+    try:
+        return con.sql(
+            "SELECT source_sha256, source_path, hoist, time_start_utc, time_end_utc "
+            "FROM manifest WHERE list_contains(?, source_sha256)",
+            params=[list(shas)],
+        ).pl()
+    finally:
+        con.close()
+
+
+def _ingest(
+    recordings: Sequence[Path], data: DataRoot
+) -> tuple[list[str], list[RigInfo], list[str]]:
+    from pipelines.ingest import ingest_paths
+
+    report = ingest_paths(list(recordings), data=data)
+    refused = [f for f in report.files if f.status == "refused"]
+    if refused:
+        raise CalibrationError("; ".join(f.message or f"{f.path}: refused" for f in refused))
+    notes = [f"{f.path.name}: {f.status} {f.message}".rstrip() for f in report.files]
+    infos = [read_rig_info(f.path) for f in report.files]
+    return [f.sha256 for f in report.files], infos, notes
+
+
+def _geometry(
+    infos: Sequence[RigInfo],
+    rig_id: str,
+    *,
+    bore_m: float | None,
+    rod_m: float | None,
+    moving_mass_kg: float | None,
+) -> RigInfo:
+    explicit = None not in (bore_m, rod_m, moving_mass_kg)
+    if not infos and not explicit:
+        raise CalibrationError(
+            f"rig {rig_id!r}: no /rig/info (ingest does not land it and the recorded files "
+            "are not at their ingested paths); pass the recordings, or bore_m, rod_m and "
+            "moving_mass_kg"
+        )
+    if infos:
+        first = infos[0]
+        for other in infos[1:]:
+            same = (other.bore_m, other.rod_m, other.moving_mass_kg)
+            if not np.allclose(same, (first.bore_m, first.rod_m, first.moving_mass_kg)):
+                raise CalibrationError(
+                    f"rig {rig_id!r}: recordings disagree on bore / rod / moving mass "
+                    f"({first} vs {other}); calibrate them separately"
+                )
+    else:
+        first = RigInfo(rig_id, 0.0, 0.0, float("nan"), 0.0, "")
+    return RigInfo(
+        rig_id=rig_id,
+        bore_m=first.bore_m if bore_m is None else bore_m,
+        rod_m=first.rod_m if rod_m is None else rod_m,
+        stroke_m=first.stroke_m,
+        moving_mass_kg=first.moving_mass_kg if moving_mass_kg is None else moving_mass_kg,
+        oil=first.oil,
+    )
+
+
+def calibrate_rig(
+    *,
+    data: DataRoot,
+    rig_id: str | None = None,
+    recordings: Sequence[str | Path] = (),
+    parameter_set: str | None = None,
+    bore_m: float | None = None,
+    rod_m: float | None = None,
+    moving_mass_kg: float | None = None,
+    bristle_stiffness_n_m: float = DEFAULT_BRISTLE_STIFFNESS_N_M,
+    bristle_damping_n_s_m: float = DEFAULT_BRISTLE_DAMPING_N_S_M,
+    presliding_elements: int = DEFAULT_PRESLIDING_ELEMENTS,
+    smooth_s: float = 0.05,
+) -> CalibrationResult:
+    """Calibrate the seal-friction law from friction-rig recordings (paper 4.2.1, eq 15-18).
+
+    1. ``recordings`` (MCAP, contract 3), if given, are ingested first
+       (:func:`pipelines.ingest.ingest_paths`; already-ingested content is skipped) and
+       only their samples are used; without them, every rig sample of ``rig_id`` in the
+       lake is used. ``rig_id`` defaults to the recordings' (or the lake's only) rig.
+    2. Seal friction per sample (:func:`seal_friction_samples`), with bore, rod and
+       moving mass from ``/rig/info`` of the recordings (read from the files: the lake
+       does not keep it; for lake-only runs, from the manifest's source paths), unless
+       given explicitly.
+    3. Steady part of each step (:func:`steady_steps`), a Stribeck fit per pressure
+       level (:func:`fit_pressure_levels`, Table 1 analogue), weighted lines in pressure
+       (:func:`transforms.friction_fit.fit_friction_law`, eq 17 analogue).
+    4. Lands one ``friction_parameter_sets`` row (replaced by name) and one ``runs``
+       row (command ``calibrate``, inputs = source sha256) in one
+       :func:`warehouse.store.open_writer` block. The default ``parameter_set`` name is
+       ``<rig_id>-<hash of the inputs>`` and the run id ``calibrate-<parameter_set>``,
+       so calibrating the same data again replaces both rows, never duplicates them.
+
+    The bristle parameters (``bristle_*``, ``presliding_elements``) are not identified
+    by steady-speed data; they are carried into the law as given.
+
+    Raises
+    ------
+    CalibrationError
+        A refused recording, no rig samples, missing geometry, or fewer than three
+        pressure levels with at least five steady steps each.
+    """
+    from warehouse.landing import RunRecord, land_friction_parameter_sets, land_run
+    from warehouse.store import open_writer
+
+    started = utc_now()
+    notes: list[str] = []
+    given_shas: list[str] = []
+    infos: list[RigInfo] = []
+    if recordings:
+        given_shas, infos, ingest_notes = _ingest([Path(r) for r in recordings], data)
+        notes += ingest_notes
+        ids = sorted({i.rig_id for i in infos})
+        if rig_id is None and len(ids) > 1:
+            raise CalibrationError(f"recordings of several rigs ({', '.join(ids)}): pass one rig")
+        rig_id = rig_id or ids[0]
+        infos = [i for i in infos if i.rig_id == rig_id]
+        if not infos:
+            raise CalibrationError(
+                f"none of the recordings is of rig {rig_id!r} ({', '.join(ids)})"
+            )
+    elif rig_id is None:
+        ids = _rig_ids(data)
+        if len(ids) != 1:
+            found = ", ".join(ids) if ids else "none"
+            raise CalibrationError(
+                f"no rig samples to calibrate in {data.path} (rigs found: {found}); "
+                "ingest MCAP recordings or pass them, and name the rig when there are several"
+            )
+        rig_id = ids[0]
+
+    if given_shas:
+        manifest = _manifest_rows(data, given_shas).filter(pl.col("hoist") == rig_id)
+        parts = [
+            scan_lake(
+                data,
+                "rig_samples",
+                site=_SITE,
+                hoist=rig_id,
+                start=row["time_start_utc"],
+                end=row["time_end_utc"] + dt.timedelta(microseconds=1),
+            )
+            for row in manifest.iter_rows(named=True)
+            if row["time_start_utc"] is not None
+        ]
+        samples = (
+            pl.concat([p.collect() for p in parts]).unique(maintain_order=True) if parts else None
+        )
+    else:
+        samples = scan_lake(data, "rig_samples", site=_SITE, hoist=rig_id).collect()
+    if samples is None or samples.height == 0:
+        raise CalibrationError(
+            f"no rig samples for rig {rig_id!r} in {data.path}: ingest its MCAP recordings "
+            "first (ropeload ingest FILE.mcap) or pass them to calibrate"
+        )
+    inputs = tuple(sorted(set(samples["source_sha256"].unique().to_list()) | set(given_shas)))
+
+    if not infos and None in (bore_m, rod_m, moving_mass_kg):
+        for row in _manifest_rows(data, inputs).iter_rows(named=True):
+            if Path(row["source_path"]).is_file():
+                info = read_rig_info(row["source_path"])
+                if info.rig_id == rig_id:
+                    infos.append(info)
+    rig = _geometry(infos, rig_id, bore_m=bore_m, rod_m=rod_m, moving_mass_kg=moving_mass_kg)
+
+    frame = seal_friction_samples(
+        samples, bore_m=rig.bore_m, rod_m=rig.rod_m, moving_mass_kg=rig.moving_mass_kg,
+        smooth_s=smooth_s,
+    )  # fmt: skip
+    steps = steady_steps(frame, smooth_s=smooth_s)
+    moving = frame.filter(pl.col("velocity_setpoint_m_s").fill_null(0.0) != 0.0)
+    dropped = moving["segment"].n_unique() - steps.height
+    if dropped:
+        notes.append(f"{dropped} moving step(s) without {0.1:g} s of steady data were left out")
+    per_pressure, fits = fit_pressure_levels(steps)
+    if per_pressure.height < 3:
+        raise CalibrationError(
+            f"rig {rig_id!r}: {per_pressure.height} pressure level(s) with at least 5 steady "
+            f"steps ({steps.height} steady steps in all); need 3 levels for the eq-17 lines"
+        )
+    law, lines = fit_friction_law(
+        per_pressure["p_rodless_pa"].to_numpy(),
+        fits,
+        bristle_stiffness_n_m=bristle_stiffness_n_m,
+        bristle_damping_n_s_m=bristle_damping_n_s_m,
+        presliding_elements=presliding_elements,
+    )
+    if parameter_set is None:
+        digest = hashlib.sha256("\n".join(inputs).encode()).hexdigest()[:12]
+        parameter_set = f"{rig_id}-{digest}"
+    run_id = f"calibrate-{parameter_set}"
+    source = f"ropeload calibrate: rig {rig_id}, {len(inputs)} recording(s), run {run_id}"
+    toml = friction_toml(law, bore_m=rig.bore_m, parameter_set=parameter_set, source=source)
+
+    residual_rms = {
+        name: float(np.sqrt(np.mean(lines[name].residuals ** 2))) for name in LINE_NAMES
+    }
+    residual_rms["stribeck_curve_n"] = float(np.sqrt(np.mean([f.rms**2 for f in fits])))
+    row = pl.DataFrame(
+        [
+            {
+                "parameter_set": parameter_set,
+                "created_at_utc": started,
+                "source": source,
+                "bore_m": rig.bore_m,
+                **{name: getattr(law, name)[0] for name in LINE_NAMES},
+                **{f"{name}_per_pa": getattr(law, name)[1] for name in LINE_NAMES},
+                "residual_rms": [{"key": k, "value": v} for k, v in residual_rms.items()],
+                "inputs": list(inputs),
+            }
+        ]
+    )
+    times = samples["time_utc"]
+    run = RunRecord(
+        run_id=run_id,
+        command="calibrate",
+        code_version=code_version(),
+        started_at_utc=started,
+        parameter_set=parameter_set,
+        site=_SITE,
+        hoist=rig_id,
+        period_start_utc=times.min(),  # type: ignore[arg-type]
+        period_end_utc=times.max(),  # type: ignore[arg-type]
+        inputs=inputs,
+        finished_at_utc=utc_now(),
+        message=f"{per_pressure.height} pressure levels, {steps.height} steady steps",
+    )
+    with open_writer(data) as con:
+        land_friction_parameter_sets(con, row)
+        land_run(con, run)
+    return CalibrationResult(
+        rig_id=rig_id,
+        parameter_set=parameter_set,
+        run_id=run_id,
+        rig=rig,
+        per_pressure=per_pressure,
+        fits=tuple(fits),
+        lines=lines,
+        law=law,
+        toml=toml,
+        steps=steps,
+        inputs=inputs,
+        notes=tuple(notes),
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# Reports
+# ---------------------------------------------------------------------------------------
+#: Table-1 units of each SI line: (label, unit, scale from SI given the bore area [m2]).
+def _table1_units(area_m2: float) -> dict[str, tuple[str, str, float]]:
+    force = 1e6 * area_m2  # N per MPa of equivalent pressure
+    return {
+        "coulomb_n": ("Fc", "MPa", 1.0 / force),
+        "static_n": ("Fs", "MPa", 1.0 / force),
+        "stribeck_speed_m_s": ("vs", "mm/s", 1e3),
+        "viscous_n_s_m": ("Kv", "MPa/(mm/s)", 1e-3 / force),
+    }
+
+
+def format_calibration(result: CalibrationResult) -> str:
+    """The report ``ropeload calibrate`` prints: per-pressure table, lines, TOML.
+
+    Table-1 units: friction as equivalent pressure (force / bore area) in MPa, speed in
+    mm/s, pressure in MPa; SI forces in N beside them. Each value carries its 1-sigma
+    uncertainty (``+-``); each line its standard errors and residual per pressure.
+    """
+    rig = result.rig
+    units = _table1_units(rig.bore_area_m2)
+    out = [
+        f"ropeload calibrate: rig {result.rig_id}, parameter set {result.parameter_set}, "
+        f"run {result.run_id}",
+        f"rig: bore {rig.bore_m * 1e3:g} mm, rod {rig.rod_m * 1e3:g} mm, moving mass "
+        f"{rig.moving_mass_kg:g} kg; {len(result.inputs)} recording(s), "
+        f"{result.steps.height} steady steps",
+        *(f"note: {n}" for n in result.notes),
+        "",
+        "Stribeck fit per pressure (paper eq 16/18; analogue of Table 1), +- 1 sigma.",
+        "Friction as equivalent pressure F / A_bore [MPa] (and [N]), speed [mm/s].",
+    ]
+    header = (
+        f"{'p [MPa]':>8} {'steps':>5} {'Fc [MPa]':>18} {'Fs [MPa]':>18} {'vs [mm/s]':>15} "
+        f"{'Kv [MPa/(mm/s)]':>22} {'Fc [N]':>8} {'Fs [N]':>8} {'rms [N]':>8}"
+    )
+    out += [header, "-" * len(header)]
+    for row in result.per_pressure.iter_rows(named=True):
+        cells = []
+        for name, width, fmt in (
+            ("coulomb_n", 18, ".4f"),
+            ("static_n", 18, ".4f"),
+            ("stribeck_speed_m_s", 15, ".3f"),
+            ("viscous_n_s_m", 22, ".6f"),
+        ):
+            scale = units[name][2]
+            sigma_key = (
+                name.replace("_n", "_sigma_n", 1)
+                if name != "stribeck_speed_m_s"
+                else ("stribeck_speed_sigma_m_s")
+            )
+            text = f"{row[name] * scale:{fmt}} +- {row[sigma_key] * scale:{fmt}}"
+            cells.append(f"{text:>{width}}")
+        out.append(
+            f"{row['p_rodless_pa'] / 1e6:8.3f} {row['steps']:5d} {' '.join(cells)} "
+            f"{row['coulomb_n']:8.1f} {row['static_n']:8.1f} {row['rms_n']:8.2f}"
+        )
+    out += ["", "Lines in pressure, value = a + b p (paper eq 17 form), weighted by 1/sigma^2:"]
+    p_mpa = result.per_pressure["p_rodless_pa"].to_numpy() / 1e6
+    for name in LINE_NAMES:
+        label, unit, scale = units[name]
+        line = result.lines[name]
+        residuals = ", ".join(
+            f"{p:.1f}: {r * scale:+.3g}" for p, r in zip(p_mpa, line.residuals, strict=True)
+        )
+        out.append(
+            f"  {label} [{unit}] = {line.intercept * scale:.5g} "
+            f"(+- {line.se_intercept * scale:.2g}) + {line.slope * scale * 1e6:.5g} "
+            f"(+- {line.se_slope * scale * 1e6:.2g}) p[MPa]"
+            f"   R2 {line.r_squared:.4f}"
+        )
+        out.append(f"      residuals by p [MPa]: {residuals}")
+    out += ["", "Hoist description snippet:", "", result.toml.rstrip()]
+    return "\n".join(out) + "\n"
+
+
+def table1_report(table1: pl.DataFrame) -> str:
+    """Ordinary least squares through paper Table 1, residuals, and the eq-17 comparison.
+
+    Fits every column of Table 1 as a + b p (p in MPa) by OLS
+    (:func:`transforms.friction_fit.fit_table1`), prints each line with standard errors
+    and R^2, the residual at each pressure, and then each coefficient against eq 17 as
+    printed (:func:`transforms.friction_fit.compare_with_eq17`): "differs" when eq 17 is
+    not the OLS value to within one unit of its last printed decimal, with the
+    difference in standard errors (z). Table 1 has no units (NOTES.md): the numbers are
+    Table 1's own (friction read as equivalent pressure in MPa, speed in mm/s).
+
+    ``table1`` has the columns of :data:`transforms.friction_fit.TABLE1_COLUMNS`; the
+    caller reads the file.
+    """
+    fits = fit_table1(table1)
+    compare = compare_with_eq17(fits)
+    p = table1["oil_pressure_mpa"].cast(pl.Float64).to_numpy()
+    out = [
+        f"Paper Table 1: ordinary least squares, value = a + b p (p in MPa), {p.size} points.",
+        "Units as printed (none given; NOTES.md reads friction as equivalent pressure [MPa]",
+        "and speed as [mm/s]). +- is one standard error.",
+        "",
+    ]
+    for name, fit in fits.items():
+        out.append(
+            f"{name:20s} a = {fit.intercept:.6g} +- {fit.se_intercept:.2g}, "
+            f"b = {fit.slope:.6g} +- {fit.se_slope:.2g}, R2 = {fit.r_squared:.4f}, "
+            f"residual rms = {float(np.sqrt(np.mean(fit.residuals**2))):.3g}"
+        )
+    out += ["", "Residuals (Table 1 minus OLS line):"]
+    names = list(fits)
+    out.append(f"{'p [MPa]':>8} " + " ".join(f"{n:>20s}" for n in names))
+    for k, pk in enumerate(p):
+        out.append(f"{pk:8.1f} " + " ".join(f"{fits[n].residuals[k]:+20.5f}" for n in names))
+    out += [
+        "",
+        "Against eq 17 as printed (differs: not the OLS value to one unit of eq 17's last "
+        "decimal; z = (eq17 - OLS) / se):",
+    ]
+    for row in compare.iter_rows(named=True):
+        verdict = "agrees " if row["reproduced"] else "DIFFERS"
+        out.append(
+            f"  {row['parameter']:20s} {row['coefficient']:9s} OLS {row['ols']:+.6g} "
+            f"eq17 {row['eq17']:+.6g}  {verdict} (diff {row['difference']:+.3g}, "
+            f"z {row['z']:+.2f})"
+        )
+    differs = sorted({r["parameter"] for r in compare.iter_rows(named=True) if not r["reproduced"]})
+    agrees = sorted(set(fits) - set(differs))
+    out += [
+        "",
+        f"Summary: eq 17 differs from OLS for {', '.join(differs) or 'nothing'}; "
+        f"it reproduces OLS for {', '.join(agrees) or 'nothing'}.",
+        "Use the OLS lines (with their residuals), not eq 17, as the fit of Table 1.",
+    ]
+    return "\n".join(out) + "\n"

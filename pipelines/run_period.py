@@ -115,9 +115,11 @@ def run_period(
             f"no landed samples for site {site!r}, hoist {name!r} in the period "
             f"[{start or '-inf'}, {end or '+inf'}): ingest its logs first"
         )
-    period_start, period_end = _period(samples, start, end)
+    period_start, period_end = _period(in_period, start, end)
     run_id = new_run_id(command)
-    tensions = compensate(samples, hoist, settings=settings)
+    tensions = compensate(samples, hoist, settings=settings).filter(
+        pl.col("time_utc") >= period_start
+    )
     reconciled = reconcile(tensions, hoist, run_id=run_id, payload_kg=payload_kg)
     alarms = evaluate_alarms(
         tensions, hoist, run_id=run_id, trip_payloads=reconciled.trip_summary, payload_kg=payload_kg
@@ -137,7 +139,7 @@ def run_period(
         inputs=inputs,
         finished_at_utc=utc_now(),
         status="succeeded",
-        message=f"{samples.height} samples, {alarms.height} alarms",
+        message=f"{in_period.height} samples, {alarms.height} alarms",
     )
     with open_writer(data) as con:
         land_rope_tensions(
@@ -161,7 +163,7 @@ def run_period(
         hoist=name,
         period_start_utc=period_start,
         period_end_utc=period_end,
-        samples=samples.height,
+        samples=in_period.height,
         rope_tensions=tensions,
         position_summary=reconciled.position_summary,
         trip_summary=reconciled.trip_summary,

@@ -175,7 +175,7 @@ def test_invalid_toml_names_the_file():
 
 
 def test_missing_file_names_the_path(tmp_path: Path):
-    with pytest.raises(HoistDescriptionError, match="nowhere.toml: hoist description not found"):
+    with pytest.raises(HoistDescriptionError, match=r"nowhere\.toml: hoist description not found"):
         load_hoist(tmp_path / "nowhere.toml")
 
 

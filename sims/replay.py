@@ -1,0 +1,695 @@
+"""Replay measured hoist trips through the device simulation.
+
+The discovery workflow (issue 8) and the nightly sanity check (issue 7) compare what the
+pressure sensors logged with what the device simulation (:func:`sims.device.simulate`)
+predicts for the same trips. The simulation needs its inputs -- commanded motion,
+payload, oil temperature -- and these come from the log itself:
+
+:func:`plan_replay`
+    Segments a landed sample frame (``FIELD_SAMPLES`` columns: ``time_utc``,
+    ``p{i}_pa``, ``depth_m``, ``speed_m_s``, ``oil_temp_c``) into trips and builds, per
+    trip, everything a simulation needs: start and stop depth (median encoder depth at
+    the standstills), motion start (least squares on the encoder speed of the
+    accelerating phase: ``|v| = a (t - t_m)``), top speed, oil temperature (median),
+    the loading ramp before the motion (from the common-mode pressure) and the samples
+    to score (sub-sampled to ``score_rate_hz``, loading ramps masked, spikes masked).
+    The logger's pressure noise is estimated from second differences of the
+    pressures at standstill (robust MAD; white noise of variance s^2 gives second
+    differences of variance 6 s^2).
+:func:`replay`
+    Simulates the planned trips with a given effect set and parameters and returns the
+    simulated sensor pressures at the scored measured timestamps. The trips of a block
+    are one continuous history: each continues from the previous one's final state
+    (``simulate(..., initial_state=...)``), as the field-day generator and a real hoist
+    do; a block starts in static equilibrium, and its first trip is scored only after
+    its loading ramp (the friction stored before it is unknown).
+:func:`replay_fitted`
+    :func:`replay` with the payloads fitted: the payload is the log's free input. It is
+    inferred from the static pressure after loading, then corrected once from the
+    per-trip mean common-mode residual (the pressure is linear in the payload to ~3 %
+    through the pressure dependence of the seal friction, so a second pass leaves
+    < 0.1 % of the first correction) and the trips re-simulated.
+
+Long records are analysed on at most ``max_trips`` trips in ``blocks`` blocks of
+consecutive trips spread evenly over the record (temperature and payload ranges
+covered, simulation cost bounded: ~0.2 s per 2-minute trip at ``dt_s = 2 ms``).
+
+Accuracy note: the device simulation's sensor pressures change by ~13 kPa RMS between
+``dt_s`` = 2 ms and 5 ms (friction stick-slip transitions), so replaying synthetic data
+at another step than it was generated with leaves a systematic gap of that size. The
+default ``dt_s = 2 ms`` is the field-day generator's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import polars as pl
+from scipy import ndimage
+
+from schemas.hoist import G_STANDARD, HoistDescription
+from sims.device import simulate
+from sims.effects import resolve_effects
+from sims.trips import TripProfile, trip
+
+__all__ = [
+    "ReplayPlan",
+    "ReplayResult",
+    "ReplayTrip",
+    "estimate_noise_sigma",
+    "plan_replay",
+    "replay",
+    "replay_fitted",
+    "replay_frame",
+]
+
+_MOVING_M_S = 0.05  # encoder speed above which the conveyance moves
+_MIN_MOTION_S = 3.0
+_RAMP_MARGIN_S = 2.0  # scored samples start this long after a loading ramp ends
+
+
+@dataclass(frozen=True)
+class ReplayTrip:
+    """One measured trip prepared for simulation (times in s after ``ReplayPlan.t_ref``).
+
+    ``time_s``, ``measured_pa`` ((m, n)), ``valid`` ((m, n)), ``phase``, ``direction``,
+    ``depth_m`` are the scored samples; the rest are the simulation inputs.
+    """
+
+    trip_id: int
+    block: int
+    first_in_block: bool
+    window_start_s: float
+    window_end_s: float
+    ramp_start_s: float
+    ramp_end_s: float
+    motion_start_s: float
+    motion_end_s: float
+    start_depth_m: float
+    end_depth_m: float
+    max_speed_m_s: float | None
+    direction: str
+    oil_temp_c: float
+    p_before_pa: float
+    p_after_pa: float
+    time_s: np.ndarray
+    measured_pa: np.ndarray
+    valid: np.ndarray
+    phase: np.ndarray
+    depth_m: np.ndarray
+    profile_fit_m: float = 0.0
+
+
+@dataclass(frozen=True)
+class ReplayPlan:
+    """Trips of one hoist's record prepared for replay; see :func:`plan_replay`."""
+
+    hoist: HoistDescription
+    t_ref: dt.datetime
+    trips: tuple[ReplayTrip, ...]
+    noise_sigma_pa: float
+    score_rate_hz: float
+    dt_s: float
+    trips_found: int
+    notes: tuple[str, ...] = ()
+
+    @property
+    def n_sensors(self) -> int:
+        return self.hoist.ropes_n
+
+    def time_utc(self, seconds: np.ndarray) -> pl.Series:
+        """Absolute UTC timestamps of ``seconds`` after ``t_ref``."""
+        base = int(self.t_ref.timestamp() * 1e6)
+        return pl.Series(
+            "time_utc", base + np.round(np.asarray(seconds) * 1e6).astype(np.int64)
+        ).cast(pl.Datetime("us", "UTC"))
+
+
+@dataclass(frozen=True)
+class ReplayResult:
+    """Simulated sensor pressures at the scored samples of each planned trip.
+
+    ``simulated[k]`` is (m_k, n) [Pa] (NaN where the simulation failed);
+    ``payload_kg[k]`` the payload after trip k's loading, ``payload_before_kg[k]``
+    before it; ``status`` "success" or "failed" with ``message``.
+    """
+
+    simulated: tuple[np.ndarray, ...]
+    payload_kg: np.ndarray
+    payload_before_kg: np.ndarray
+    effects: frozenset[str]
+    parameters: dict[str, dict[str, Any]] = field(default_factory=dict)
+    status: str = "success"
+    message: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "success"
+
+    def residuals(self, plan: ReplayPlan) -> tuple[np.ndarray, ...]:
+        """Measured minus simulated [Pa] per trip, NaN where not valid."""
+        return tuple(
+            np.where(tr.valid, tr.measured_pa - sim, np.nan)
+            for tr, sim in zip(plan.trips, self.simulated, strict=True)
+        )
+
+
+# ---------------------------------------------------------------------------------------
+# planning
+# ---------------------------------------------------------------------------------------
+def estimate_noise_sigma(pressures: np.ndarray, moving: np.ndarray) -> float:
+    """Pressure noise standard deviation [Pa] from second differences at standstill.
+
+    For white noise of standard deviation s, ``p[k+1] - 2 p[k] + p[k-1]`` has standard
+    deviation ``sqrt(6) s``; a slow signal (loading ramp, held state) contributes almost
+    nothing. Robust: MAD / 0.6745 over every sensor's standstill triplets, spikes and
+    transients do not move it.
+
+    >>> rng = np.random.default_rng(0)
+    >>> p = 5e6 + np.linspace(0, 1e5, 20000)[:, None] + rng.normal(0, 5e3, (20000, 4))
+    >>> round(estimate_noise_sigma(p, np.zeros(20000, bool)) / 5e3, 1)
+    1.0
+    """
+    p = np.asarray(pressures, dtype=float)
+    if p.ndim == 1:
+        p = p[:, None]
+    still = ~np.asarray(moving, dtype=bool)
+    ok = still[2:] & still[1:-1] & still[:-2]
+    if ok.sum() < 20:
+        ok = np.ones(p.shape[0] - 2, dtype=bool)
+    d2 = (p[2:] - 2.0 * p[1:-1] + p[:-2])[ok]
+    d2 = d2[np.isfinite(d2)]
+    if d2.size == 0:
+        return float("nan")
+    mad = np.median(np.abs(d2 - np.median(d2)))
+    return float(mad / 0.6745 / np.sqrt(6.0))
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) index of each run of True."""
+    m = np.concatenate([[False], mask, [False]]).astype(np.int8)
+    d = np.diff(m)
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1) - 1, strict=True))
+
+
+def _motions(t: np.ndarray, speed: np.ndarray) -> list[tuple[int, int]]:
+    moving = np.abs(ndimage.median_filter(np.nan_to_num(speed), size=5)) >= _MOVING_M_S
+    runs = _runs(moving)
+    merged: list[tuple[int, int]] = []
+    for a, b in runs:
+        if merged and t[a] - t[merged[-1][1]] < 2.0:
+            merged[-1] = (merged[-1][0], b)
+        else:
+            merged.append((a, b))
+    return [(a, b) for a, b in merged if t[b] - t[a] >= _MIN_MOTION_S]
+
+
+def _median_in(t: np.ndarray, values: np.ndarray, lo: float, hi: float) -> float:
+    sel = (t >= lo) & (t <= hi) & np.isfinite(values)
+    return float(np.median(values[sel])) if sel.any() else float("nan")
+
+
+def _chosen_trips(count: int, max_trips: int, blocks: int) -> list[list[int]]:
+    """Blocks of consecutive trip indices: all when they fit, else spread evenly."""
+    if count <= max_trips:
+        return [list(range(count))] if count else []
+    blocks = max(1, min(blocks, max_trips))
+    size = max(1, max_trips // blocks)
+    starts = np.linspace(0, count - size, blocks).round().astype(int)
+    out: list[list[int]] = []
+    for s in starts:
+        idx = [k for k in range(s, s + size) if not out or k > out[-1][-1]]
+        if idx:
+            out.append(idx)
+    return out
+
+
+def plan_replay(
+    samples: pl.DataFrame,
+    hoist: HoistDescription,
+    *,
+    max_trips: int = 16,
+    blocks: int = 4,
+    score_rate_hz: float = 20.0,
+    settle_s: float = 30.0,
+    dt_s: float = 2e-3,
+) -> ReplayPlan:
+    """Segment ``samples`` of one hoist into trips and prepare their simulation.
+
+    Parameters
+    ----------
+    samples : polars.DataFrame
+        Landed field samples (``time_utc``, ``p{i}_pa``, ``depth_m``, ``speed_m_s``,
+        ``oil_temp_c``; SI), one hoist, any order.
+    hoist : HoistDescription
+        The hoist (winder limits, shaft, cylinders).
+    max_trips, blocks : int
+        Analyse at most ``max_trips`` trips in ``blocks`` runs of consecutive trips.
+    score_rate_hz : float
+        Rate of the scored samples and of the simulation output [Hz].
+    settle_s : float
+        Standstill simulated and scored after each stop [s].
+    dt_s : float
+        Integrator step of the replays [s].
+
+    Raises
+    ------
+    ValueError
+        Required columns missing, or no trip (motion of >= 3 s) in the record.
+    """
+    n = hoist.ropes_n
+    pcols = [f"p{i}_pa" for i in range(1, n + 1)]
+    need = {"time_utc", "depth_m", "speed_m_s", *pcols}
+    missing = need - set(samples.columns)
+    if missing:
+        raise ValueError(f"samples: missing columns {sorted(missing)}")
+    frame = samples.sort("time_utc").unique("time_utc", keep="first", maintain_order=True)
+    t_ref = frame["time_utc"][0]
+    t = (frame["time_utc"].dt.epoch("us").to_numpy() - int(t_ref.timestamp() * 1e6)) / 1e6
+    p = frame.select(pcols).to_numpy().astype(float)
+    depth = frame["depth_m"].to_numpy().astype(float)
+    speed = frame["speed_m_s"].to_numpy().astype(float)
+    temp = (
+        frame["oil_temp_c"].to_numpy().astype(float)
+        if "oil_temp_c" in frame.columns
+        else np.full(t.size, np.nan)
+    )
+    motions = _motions(t, speed)
+    if not motions:
+        raise ValueError("samples: no trip (no encoder motion of at least 3 s) in the record")
+    moving_raw = np.abs(np.nan_to_num(speed)) >= 0.02
+    sigma = estimate_noise_sigma(p, moving_raw)
+    pc = np.nanmean(p, axis=1)
+    rate = 1.0 / max(float(np.median(np.diff(t))), 1e-6)
+    pcs = ndimage.median_filter(
+        np.nan_to_num(pc, nan=float(np.nanmedian(pc))), size=max(3, int(rate) | 1)
+    )
+    w = hoist.winder
+    shaft = hoist.shaft.depth_m
+    # standstill depths between motions: shared by the trip before and after (chaining)
+    stops = []
+    bounds = (
+        [(-np.inf, t[motions[0][0]])]
+        + [(t[motions[k][1]], t[motions[k + 1][0]]) for k in range(len(motions) - 1)]
+        + [(t[motions[-1][1]], np.inf)]
+    )
+    for lo, hi in bounds:
+        d = _median_in(t, depth, lo + 1.0, hi - 0.5)
+        stops.append(float(np.clip(d, 0.0, shaft)))
+    notes: list[str] = []
+    chosen = _chosen_trips(len(motions), max_trips, blocks)
+    if len(motions) > max_trips:
+        notes.append(
+            f"{len(motions)} trips in the record; analysed {sum(map(len, chosen))} in "
+            f"{len(chosen)} blocks of consecutive trips"
+        )
+    end_t = float(t[-1])
+    # pass 1, every motion: start / stop times, top speed, loading ramp before it
+    timing: list[dict[str, Any]] = []
+    for k, (a_i, b_i) in enumerate(motions):
+        prev_end = float(t[motions[k - 1][1]]) if k > 0 else float(t[0]) - 2.0
+        sel = (
+            (t >= t[a_i] - 1.0)
+            & (t <= t[a_i] + 4.0)
+            & (np.abs(speed) > 0.1)
+            & (np.abs(speed) < 0.8 * w.acceleration_m_s2 * 4.0)
+        )
+        t_m = (
+            float(np.median(t[sel] - np.abs(speed[sel]) / w.acceleration_m_s2))
+            if sel.sum() >= 3
+            else float(t[a_i])
+        )
+        sel = (t >= t[b_i] - 0.6) & (t <= t[b_i] + 0.2) & (np.abs(speed) > 0.05)
+        t_e = (
+            float(np.median(t[sel] + np.abs(speed[sel]) / w.deceleration_m_s2))
+            if sel.sum() >= 3
+            else float(t[b_i])
+        )
+        top = np.abs(speed[a_i : b_i + 1])
+        vmax = float(np.median(top[top > 0.9 * np.nanmax(top)]))
+        vmax_arg = None if abs(vmax - w.max_speed_m_s) < 0.05 * w.max_speed_m_s else vmax
+        s_lo = max(prev_end + 2.0, float(t[0]))
+        s_hi = t_m - 0.3
+        p_pre = _median_in(t, pcs, s_lo, s_lo + 2.0)
+        p_post = _median_in(t, pcs, s_hi - 3.0, s_hi)
+        change = p_post - p_pre
+        in_s = (t >= s_lo) & (t <= s_hi)
+        if np.isfinite(change) and abs(change) > max(10.0 * sigma, 2e4) and in_s.sum() > 4:
+            u = (pcs[in_s] - p_pre) / change
+            ts = t[in_s]
+            above = np.flatnonzero(u > 0.1)
+            below = np.flatnonzero(u < 0.9)
+            t10 = float(ts[above[0]]) if above.size else float(ts[0])
+            t90 = float(ts[below[-1]]) if below.size else float(ts[-1])
+            dur = max((t90 - t10) / 0.8, 0.5)
+            r0 = max(s_lo, t10 - 0.1 * dur)
+            r1 = min(r0 + dur, s_hi)
+        else:
+            r0 = max(s_lo, t_m - 6.0)
+            r1 = min(r0 + 0.5, s_hi)
+        timing.append(
+            {
+                "t_m": t_m,
+                "t_e": t_e,
+                "vmax": vmax_arg,
+                "r0": r0,
+                "r1": r1,
+                "p_pre": p_pre,
+                "p_post": p_post,
+            }
+        )
+    # pass 2, the analysed trips: windows, scored samples
+    trips: list[ReplayTrip] = []
+    for b, block in enumerate(chosen):
+        for j, k in enumerate(block):
+            tm = timing[k]
+            t_m, t_e, vmax_arg = tm["t_m"], tm["t_e"], tm["vmax"]
+            r0, r1, p_pre, p_post = tm["r0"], tm["r1"], tm["p_pre"], tm["p_post"]
+            d0, d1 = stops[k], stops[k + 1]
+            next_ramp = timing[k + 1]["r0"] if k + 1 < len(motions) else np.inf
+            win_end = min(t_e + settle_s, next_ramp, end_t)
+            # scored samples: after the ramp, within the window, every 1/score_rate s
+            lo = r1 + _RAMP_MARGIN_S
+            idx = np.flatnonzero((t >= lo) & (t <= win_end))
+            if idx.size:
+                bins = np.floor((t[idx] - lo) * score_rate_hz).astype(np.int64)
+                idx = idx[np.concatenate([[True], bins[1:] != bins[:-1]])]
+            meas = p[idx]
+            valid = np.isfinite(meas)
+            if idx.size >= 5:
+                med = ndimage.median_filter(np.nan_to_num(meas), size=(5, 1), mode="nearest")
+                valid &= np.abs(meas - med) <= max(10.0 * sigma, 2e4)
+            profile = _profile_of(
+                hoist, d0, d1, t_m - r0, max(win_end - r0, 1.0), vmax_arg, 20.0, (0.0, 1.0), 0.0
+            )
+            tau = t[idx] - r0
+            spd = profile.speed(tau)
+            acc = profile.acceleration(tau) * np.sign(spd)
+            phase = np.select(
+                [
+                    np.abs(spd) < 1e-6,
+                    acc > 1e-6,
+                    acc < -1e-6,
+                    np.abs(spd) <= 1.01 * w.creep_speed_m_s,
+                ],
+                ["standstill", "accelerate", "decelerate", "creep"],
+                default="run",
+            )
+            motion = (t >= t_m) & (t <= t_e)
+            fit = float(np.sqrt(np.nanmean((profile.depth(t[motion] - r0) - depth[motion]) ** 2)))
+            if fit > 0.5:
+                notes.append(
+                    f"trip {k}: encoder depth departs {fit:.2f} m RMS from the winder profile"
+                )
+            oil = _median_in(t, temp, r0, win_end)
+            trips.append(
+                ReplayTrip(
+                    trip_id=k,
+                    block=b,
+                    first_in_block=j == 0,
+                    window_start_s=r0,
+                    window_end_s=win_end,
+                    ramp_start_s=r0,
+                    ramp_end_s=r1,
+                    motion_start_s=t_m,
+                    motion_end_s=t_e,
+                    start_depth_m=d0,
+                    end_depth_m=d1,
+                    max_speed_m_s=vmax_arg,
+                    direction="down" if d1 > d0 else "up",
+                    oil_temp_c=oil if np.isfinite(oil) else hoist.oil.reference_temperature_c,
+                    p_before_pa=p_pre if np.isfinite(p_pre) else p_post,
+                    p_after_pa=p_post,
+                    time_s=t[idx],
+                    measured_pa=meas,
+                    valid=valid,
+                    phase=phase,
+                    depth_m=profile.depth(tau),
+                    profile_fit_m=fit,
+                )
+            )
+    return ReplayPlan(
+        hoist=hoist,
+        t_ref=t_ref,
+        trips=tuple(trips),
+        noise_sigma_pa=sigma,
+        score_rate_hz=score_rate_hz,
+        dt_s=dt_s,
+        trips_found=len(motions),
+        notes=tuple(notes),
+    )
+
+
+def _profile_of(
+    hoist: HoistDescription,
+    d0: float,
+    d1: float,
+    rest_before_s: float,
+    duration_s: float,
+    vmax: float | None,
+    oil_temp_c: float,
+    ramp: tuple[float, float],
+    payload_before: float,
+    payload_after: float | None = None,
+) -> TripProfile:
+    base = trip(
+        hoist,
+        start_depth_m=d0,
+        end_depth_m=d1,
+        rest_before_s=max(rest_before_s, 0.0),
+        rest_after_s=0.0,
+        max_speed_m_s=vmax,
+        oil_temp_c=oil_temp_c,
+    )
+    rest_after = max(duration_s - base.duration_s, 0.5)
+    prof = trip(
+        hoist,
+        start_depth_m=d0,
+        end_depth_m=d1,
+        rest_before_s=max(rest_before_s, 0.0),
+        rest_after_s=rest_after,
+        max_speed_m_s=vmax,
+        oil_temp_c=oil_temp_c,
+    )
+    after = payload_before if payload_after is None else payload_after
+    return dataclasses.replace(
+        prof,
+        payload_time_s=np.array([ramp[0], max(ramp[1], ramp[0] + 1e-3)]),
+        payload_kg=np.array([payload_before, after]),
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# simulation
+# ---------------------------------------------------------------------------------------
+def _sensor_calibration(
+    hoist: HoistDescription, effects: Iterable[str], parameters: Mapping[str, Any] | None
+) -> tuple[np.ndarray, np.ndarray]:
+    eff = resolve_effects(hoist, effects, parameters)
+    n = hoist.ropes_n
+    gain = (
+        np.asarray(eff.parameters["sensor_gain"]["gains"], float)
+        if eff.on("sensor_gain")
+        else np.ones(n)
+    )
+    off = (
+        np.asarray(eff.parameters["sensor_offset"]["offsets_pa"], float)
+        if eff.on("sensor_offset")
+        else np.zeros(n)
+    )
+    return gain, off
+
+
+def _payload_from_pressure(
+    hoist: HoistDescription,
+    effects: Iterable[str],
+    parameters: Mapping[str, Any] | None,
+    readings_pa: float,
+    depth_m: float,
+) -> float:
+    eff = resolve_effects(hoist, effects, parameters)
+    gain, off = _sensor_calibration(hoist, effects, parameters)
+    p = (readings_pa - off.mean()) / gain.mean()
+    tail = 0.0
+    if eff.on("tail_rope_weight"):
+        prm = eff.parameters["tail_rope_weight"]
+        tail = prm["tail_ropes"] * prm["mass_per_length_kg_m"] * hoist.tail_rope_length_m(depth_m)
+    area = hoist.cylinders.bore_area_m2
+    return max(p * hoist.ropes_n * area / G_STANDARD - hoist.conveyance.mass_kg - tail, 0.0)
+
+
+def replay(
+    plan: ReplayPlan,
+    *,
+    effects: Iterable[str] | None = None,
+    parameters: Mapping[str, Mapping[str, Any]] | None = None,
+    payload_kg: Sequence[float] | np.ndarray | None = None,
+    payload_before_kg: Sequence[float] | np.ndarray | None = None,
+) -> ReplayResult:
+    """Simulate the planned trips; simulated sensor pressures at the scored samples.
+
+    Parameters
+    ----------
+    plan : ReplayPlan
+        From :func:`plan_replay`.
+    effects, parameters
+        As :func:`sims.device.simulate` (default the hoist's ``[model] effects``).
+    payload_kg : per-trip payload after loading [kg]; default inferred from the static
+        pressure after loading (no friction correction: see :func:`replay_fitted`).
+    payload_before_kg : per-trip payload before loading [kg]; only the first trip of a
+        block uses it (later trips continue with the previous trip's payload).
+
+    Returns
+    -------
+    ReplayResult
+        ``status="failed"`` with the reason when a trip's simulation failed (its and the
+        block's later trips' pressures are NaN).
+    """
+    hoist = plan.hoist
+    names = frozenset(hoist.model.effects if effects is None else effects)
+    prm = {k: dict(v) for k, v in (parameters or {}).items()}
+    if payload_kg is None:
+        payload_kg = [
+            _payload_from_pressure(hoist, names, prm, tr.p_after_pa, tr.start_depth_m)
+            for tr in plan.trips
+        ]
+    if payload_before_kg is None:
+        payload_before_kg = [
+            _payload_from_pressure(hoist, names, prm, tr.p_before_pa, tr.start_depth_m)
+            for tr in plan.trips
+        ]
+    pay = np.asarray(payload_kg, dtype=float)
+    pay_before = np.asarray(payload_before_kg, dtype=float).copy()
+    n = hoist.ropes_n
+    out: list[np.ndarray] = []
+    failures: list[str] = []
+    state = None
+    broken = False
+    for k, tr in enumerate(plan.trips):
+        if tr.first_in_block:
+            state = None
+            broken = False
+        else:
+            pay_before[k] = pay[k - 1]
+        if broken:
+            out.append(np.full((tr.time_s.size, n), np.nan))
+            continue
+        profile = _profile_of(
+            hoist,
+            tr.start_depth_m,
+            tr.end_depth_m,
+            tr.motion_start_s - tr.window_start_s,
+            tr.window_end_s - tr.window_start_s,
+            tr.max_speed_m_s,
+            tr.oil_temp_c,
+            (0.0, tr.ramp_end_s - tr.ramp_start_s),
+            float(pay_before[k]),
+            float(pay[k]),
+        )
+        try:
+            res = simulate(
+                hoist,
+                profile,
+                effects=names,
+                parameters=prm,
+                output_rate_hz=plan.score_rate_hz,
+                dt_s=plan.dt_s,
+                initial_state=state,
+            )
+        except ValueError as exc:
+            failures.append(f"trip {tr.trip_id}: {exc}")
+            broken = True
+            out.append(np.full((tr.time_s.size, n), np.nan))
+            continue
+        if not res.ok:
+            failures.append(f"trip {tr.trip_id}: {res.message}")
+            broken = True
+        state = res.final_state
+        t_sim = tr.window_start_s + res.frame["time_s"].to_numpy()
+        sim = (
+            np.column_stack(
+                [
+                    np.interp(
+                        tr.time_s, t_sim, res.frame[f"p_sensor{i}_pa"].to_numpy(), right=np.nan
+                    )
+                    for i in range(1, n + 1)
+                ]
+            )
+            if t_sim.size
+            else np.full((tr.time_s.size, n), np.nan)
+        )
+        out.append(sim)
+    return ReplayResult(
+        simulated=tuple(out),
+        payload_kg=pay,
+        payload_before_kg=pay_before,
+        effects=names,
+        parameters=prm,
+        status="failed" if failures else "success",
+        message="; ".join(failures),
+    )
+
+
+def replay_fitted(
+    plan: ReplayPlan,
+    *,
+    effects: Iterable[str] | None = None,
+    parameters: Mapping[str, Mapping[str, Any]] | None = None,
+    passes: int = 2,
+    payload_kg: Sequence[float] | np.ndarray | None = None,
+) -> ReplayResult:
+    """:func:`replay` with each trip's payload fitted to the measured pressures.
+
+    Pass 1 uses ``payload_kg`` (default: inferred from the static pressure); each
+    further pass adds ``mean common-mode residual x n A / g`` per trip (least squares
+    for a common offset on every sensor) and re-simulates.
+    """
+    hoist = plan.hoist
+    names = frozenset(hoist.model.effects if effects is None else effects)
+    gain, _ = _sensor_calibration(hoist, names, parameters)
+    scale = hoist.ropes_n * hoist.cylinders.bore_area_m2 / G_STANDARD / float(gain.mean())
+    result = replay(plan, effects=names, parameters=parameters, payload_kg=payload_kg)
+    for _ in range(passes - 1):
+        if not result.ok:
+            break
+        corr = np.array(
+            [
+                float(np.nanmean(r)) * scale if np.isfinite(r).any() else 0.0
+                for r in result.residuals(plan)
+            ]
+        )
+        pay = np.maximum(result.payload_kg + corr, 0.0)
+        result = replay(
+            plan,
+            effects=names,
+            parameters=parameters,
+            payload_kg=pay,
+            payload_before_kg=result.payload_before_kg,
+        )
+    return result
+
+
+def replay_frame(plan: ReplayPlan, result: ReplayResult) -> pl.DataFrame:
+    """Scored samples as a frame: ``time_utc, trip_id, phase, direction, depth_m,
+    oil_temp_c, p{i}_pa`` (measured, NaN where masked) and ``p_sim{i}_pa``."""
+    n = plan.n_sensors
+    parts = []
+    for tr, sim in zip(plan.trips, result.simulated, strict=True):
+        cols: dict[str, Any] = {
+            "time_utc": plan.time_utc(tr.time_s),
+            "trip_id": np.full(tr.time_s.size, tr.trip_id, dtype=np.int64),
+            "phase": tr.phase.astype(str),
+            "direction": np.where(tr.phase == "standstill", "rest", tr.direction),
+            "depth_m": tr.depth_m,
+            "oil_temp_c": np.full(tr.time_s.size, tr.oil_temp_c),
+        }
+        for i in range(n):
+            cols[f"p{i + 1}_pa"] = np.where(tr.valid[:, i], tr.measured_pa[:, i], np.nan)
+            cols[f"p_sim{i + 1}_pa"] = sim[:, i]
+        parts.append(pl.DataFrame(cols))
+    return pl.concat(parts) if parts else pl.DataFrame()

@@ -38,8 +38,12 @@ def root(tmp_path):
 
 def test_scan_period_filters_time(root):
     frame = scan_lake(
-        root, "field_samples", site="s", hoist="h",
-        start=dt.datetime(2026, 3, 2, 0, 0, 1), end=dt.datetime(2026, 3, 3),
+        root,
+        "field_samples",
+        site="s",
+        hoist="h",
+        start=dt.datetime(2026, 3, 2, 0, 0, 1),
+        end=dt.datetime(2026, 3, 3),
     ).collect()
     assert frame.height == 2
     assert frame["time_utc"].dt.second().to_list() == [1, 2]

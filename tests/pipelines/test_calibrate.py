@@ -1,0 +1,264 @@
+"""Tests for pipelines.calibrate: rig MCAP -> Table 1 analogue -> eq 17 lines -> warehouse.
+
+Truth is the simulator's: the rig is simulated with a known friction law (LuGre, eq 15,
+parameters linear in the rodless pressure), written as a real MCAP file, ingested for
+real into a real lake and DuckDB warehouse, and calibrated back.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import math
+import shutil
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+import pytest
+
+from pipelines.calibrate import (
+    LINE_NAMES,
+    CalibrationError,
+    calibrate_rig,
+    table1_report,
+)
+from pipelines.cli import main
+from schemas.hoist import Friction
+from sims.rig import default_friction_law, simulate_rig, small_friction_test_program, write_rig_mcap
+from transforms.friction import friction_parameters
+from warehouse.store import DataRoot, open_reader
+
+TABLE1_CSV = Path("/work/shared/paper/table1_leuven_parameters.csv")
+
+# Paper Table 1 as printed (the same numbers as the CSV), for checkouts without it.
+TABLE1 = {
+    "oil_pressure_mpa": list(range(2, 13)),
+    "coulomb_friction": [0.0799, 0.1095, 0.1331, 0.1557, 0.1813, 0.2116, 0.2368, 0.2584,
+                         0.2963, 0.3356, 0.3192],
+    "max_static_friction": [0.1771, 0.1993, 0.2360, 0.2578, 0.2770, 0.2983, 0.3279, 0.3586,
+                            0.3809, 0.4093, 0.4277],
+    "stribeck_speed": [7.8386, 6.1813, 6.7047, 6.0063, 5.9152, 5.5787, 5.2612, 4.7855,
+                       4.3099, 4.1943, 3.4387],
+    "viscous_coefficient": [0.0013, 0.0014, 0.0015, 0.0015, 0.0017, 0.0017, 0.0017, 0.0018,
+                            0.0019, 0.0019, 0.0020],
+}  # fmt: skip
+
+
+def _true_law():
+    """A law unlike the example hoist's (so nothing can leak from the defaults)."""
+    law = default_friction_law()
+
+    def scaled(pair, a, b):
+        return (pair[0] * a, pair[1] * b)
+
+    return dataclasses.replace(
+        law,
+        coulomb_n=scaled(law.coulomb_n, 1.15, 0.9),
+        static_n=scaled(law.static_n, 1.1, 1.05),
+        stribeck_speed_m_s=scaled(law.stribeck_speed_m_s, 0.9, 0.8),
+        viscous_n_s_m=scaled(law.viscous_n_s_m, 1.2, 1.1),
+    )
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory):
+    """One small friction test (2, 7, 12 MPa; ~50 s), its MCAP, calibrated once."""
+    tmp = tmp_path_factory.mktemp("calibrate")
+    law = _true_law()
+    recording = simulate_rig(small_friction_test_program(friction_law=law), friction_law=law)
+    mcap = write_rig_mcap(tmp / "rig-run-1.mcap", recording, seed=3)
+    data = DataRoot(tmp / "data")
+    result = calibrate_rig(data=data, recordings=[mcap])
+    return recording, mcap, data, result
+
+
+def _table(data: DataRoot, sql: str) -> pl.DataFrame:
+    con = open_reader(data)
+    try:
+        return con.sql(sql).pl()
+    finally:
+        con.close()
+
+
+def test_recovers_true_parameters_at_each_pressure(rig):
+    """Fc, Fs, vs, Kv within 5 % of the simulator's law at each pressure level."""
+    recording, _, _, result = rig
+    table = result.per_pressure
+    assert table.height == 3
+    assert table["pressure_setpoint_pa"].to_list() == [2e6, 7e6, 12e6]
+    # truth per level: the step-wise truth of the simulator (law at each step's own mean
+    # rodless pressure), averaged over the level's steps
+    truth = (
+        recording.true_step_parameters()
+        .group_by("pressure_setpoint_pa")
+        .agg(pl.col(*LINE_NAMES, "p_rodless_mean_pa").mean())
+        .sort("pressure_setpoint_pa")
+    )
+    for k, name in enumerate(LINE_NAMES):
+        got = table[name].to_numpy()
+        np.testing.assert_allclose(got, truth[name].to_numpy(), rtol=0.05, err_msg=name)
+        # and the law evaluated at the measured level pressure
+        at_level = friction_parameters(table["p_rodless_pa"].to_numpy(), recording.friction_law)
+        np.testing.assert_allclose(got, at_level[k], rtol=0.05, err_msg=name)
+    assert table["converged"].all()
+    sigma_cols = ["coulomb_sigma_n", "static_sigma_n", "stribeck_speed_sigma_m_s"]
+    assert (table.select(sigma_cols).to_numpy() > 0).all()
+
+
+def test_recovers_pressure_slopes_and_lines(rig):
+    recording, _, _, result = rig
+    true = recording.friction_law
+    for name in LINE_NAMES:
+        a_true, b_true = getattr(true, name)
+        a, b = getattr(result.law, name)
+        assert b == pytest.approx(b_true, rel=0.10), name
+        assert a + b * 7e6 == pytest.approx(a_true + b_true * 7e6, rel=0.05), name
+        line = result.lines[name]
+        assert line.residuals.shape == (3,)
+        np.testing.assert_allclose(
+            line.residuals,
+            result.per_pressure[name].to_numpy() - line(result.per_pressure["p_rodless_pa"]),
+            rtol=1e-9,
+            atol=1e-12,
+        )
+    assert result.law.bristle_stiffness_n_m == 2.5e7  # given, not fitted
+
+
+def test_toml_snippet_is_a_friction_section_with_units(rig):
+    _, _, _, result = rig
+    section = tomllib.loads(result.toml)["friction"]
+    assert section["force_unit"] == "MPa"
+    assert section["speed_unit"] == "mm/s"
+    assert section["pressure_unit"] == "MPa"
+    assert section["parameter_set"] == result.parameter_set
+    friction = Friction.model_validate(section)
+    law = friction.law(math.pi * result.rig.bore_m**2 / 4)
+    for name in LINE_NAMES:
+        np.testing.assert_allclose(getattr(law, name), getattr(result.law, name), rtol=1e-5)
+    # equivalent-pressure reading by hand: Fc intercept [MPa] = N / A_bore / 1e6
+    area = math.pi * 0.1**2 / 4
+    assert section["coulomb"][0] == pytest.approx(result.law.coulomb_n[0] / area / 1e6, rel=1e-5)
+
+
+def test_lands_parameter_set_and_run_and_rerun_replaces(rig):
+    _, mcap, data, result = rig
+    sha = hashlib.sha256(mcap.read_bytes()).hexdigest()
+    assert result.inputs == (sha,)
+    again = calibrate_rig(data=data, recordings=[mcap])  # already ingested: skipped
+    lake_only = calibrate_rig(data=data)  # the lake's only rig; geometry via the manifest
+    assert again.parameter_set == lake_only.parameter_set == result.parameter_set
+    sets = _table(data, "SELECT * FROM friction_parameter_sets")
+    assert sets.height == 1
+    row = sets.row(0, named=True)
+    assert row["parameter_set"] == result.parameter_set
+    assert row["inputs"] == [sha]
+    assert row["bore_m"] == pytest.approx(0.1)
+    assert row["coulomb_n_per_pa"] == pytest.approx(result.law.coulomb_n[1])
+    assert row["viscous_n_s_m"] == pytest.approx(result.law.viscous_n_s_m[0])
+    runs = _table(data, "SELECT * FROM runs WHERE command = 'calibrate'")
+    assert runs.height == 1
+    assert runs["parameter_set"][0] == result.parameter_set
+    assert runs["inputs"][0].to_list() == [sha]
+    # a named parameter set is another row
+    calibrate_rig(data=data, parameter_set="rig-1-named")
+    names = _table(data, "SELECT parameter_set FROM friction_parameter_sets ORDER BY 1")
+    assert names["parameter_set"].to_list() == sorted([result.parameter_set, "rig-1-named"])
+
+
+def test_geometry_needed_when_the_recording_is_gone(rig, tmp_path):
+    _, mcap, _, result = rig
+    moved = shutil.copy(mcap, tmp_path / "copy.mcap")
+    data = DataRoot(tmp_path / "data")
+    calibrate_rig(data=data, recordings=[moved])
+    Path(moved).unlink()
+    with pytest.raises(CalibrationError, match="bore_m"):
+        calibrate_rig(data=data)
+    explicit = calibrate_rig(data=data, bore_m=0.1, rod_m=0.06, moving_mass_kg=25.0)
+    assert explicit.law.static_n == pytest.approx(result.law.static_n, rel=1e-9)
+
+
+def test_no_rig_samples_is_a_clear_error(tmp_path, capsys):
+    data = DataRoot(tmp_path / "empty")
+    with pytest.raises(CalibrationError, match="no rig samples"):
+        calibrate_rig(data=data)
+    with pytest.raises(CalibrationError, match="no rig samples for rig 'nope'"):
+        calibrate_rig(data=data, rig_id="nope")
+    assert main(["calibrate", "--data", str(data.path)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("ropeload calibrate: no rig samples")
+    assert err.count("\n") == 1
+
+
+def test_refused_recording_is_an_error(tmp_path, capsys):
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(b"not an mcap file")
+    code = main(["calibrate", "--data", str(tmp_path / "d"), str(bad)])
+    assert code == 1
+    assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_cli_prints_table_lines_and_snippet(rig, capsys):
+    _, mcap, data, result = rig
+    assert main(["calibrate", "--data", str(data.path), str(mcap)]) == 0
+    out = capsys.readouterr().out
+    # the same data again: the same parameter set and law, so the same snippet
+    assert result.toml.rstrip() in out
+    assert out.startswith(f"ropeload calibrate: rig {result.rig_id}, parameter set ")
+    assert f"{mcap.name}: skipped" in out
+    assert "Stribeck fit per pressure" in out
+    assert "residuals by p [MPa]" in out
+    assert f'parameter_set = "{result.parameter_set}"' in out
+    assert 'force_unit = "MPa"' in out
+    for p_mpa in ("2.000", "7.000", "12.000"):
+        assert p_mpa in out
+
+
+def _table1() -> pl.DataFrame:
+    return pl.read_csv(TABLE1_CSV) if TABLE1_CSV.exists() else pl.DataFrame(TABLE1)
+
+
+def test_table1_report_against_polyfit_and_notes():
+    table = _table1()
+    report = table1_report(table)
+    p = table["oil_pressure_mpa"].to_numpy().astype(float)
+    for column in TABLE1:
+        if column == "oil_pressure_mpa":
+            continue
+        y = table[column].to_numpy()
+        (slope, intercept), cov = np.polyfit(p, y, 1, cov=True)
+        se_b, se_a = np.sqrt(np.diag(cov))
+        assert f"a = {intercept:.6g} +- {se_a:.2g}, b = {slope:.6g} +- {se_b:.2g}" in report
+        # residual at every pressure, printed per row
+        residuals = y - (intercept + slope * p)
+        for pk, r in zip(p, residuals, strict=True):
+            row = next(line for line in report.splitlines() if line.startswith(f"{pk:8.1f} "))
+            assert f"{r:+20.5f}" in row
+    # NOTES.md: OLS Fc = 0.0292 + 0.0259 p, vs = 8.034 - 0.3657 p (rounded as there)
+    notes = {
+        "coulomb_friction": ("0.0292", "0.0259"),
+        "stribeck_speed": ("8.034", "-0.3657"),
+        "max_static_friction": ("0.1276", "0.0253"),
+    }
+    for column, (a_txt, b_txt) in notes.items():
+        line = next(row for row in report.splitlines() if row.startswith(column))
+        a = float(line.split("a = ")[1].split()[0])
+        b = float(line.split("b = ")[1].split()[0])
+        assert a == pytest.approx(float(a_txt), abs=0.5 * 10 ** -len(a_txt.split(".")[1]))
+        assert b == pytest.approx(float(b_txt), abs=0.5 * 10 ** -len(b_txt.split(".")[1]))
+    summary = next(line for line in report.splitlines() if line.startswith("Summary"))
+    assert "differs from OLS for coulomb_friction, stribeck_speed;" in summary
+    assert "reproduces OLS for max_static_friction, viscous_coefficient" in summary
+    assert report.count("DIFFERS") == 4
+
+
+def test_cli_table1(tmp_path, capsys):
+    csv = tmp_path / "table1.csv"
+    _table1().write_csv(csv)
+    assert main(["calibrate", "--table1", str(csv)]) == 0
+    out = capsys.readouterr().out
+    assert out == table1_report(pl.read_csv(csv))
+    assert main(["calibrate", "--table1", str(tmp_path / "missing.csv")]) == 1
+    assert capsys.readouterr().err.startswith("ropeload calibrate:")
+    assert main(["calibrate", "--table1", str(csv), "x.mcap"]) == 2

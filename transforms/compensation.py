@@ -35,10 +35,12 @@ collected frame of one hoist, sorted by time, and returns a ``ROPE_TENSIONS`` fr
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
 import polars as pl
+from scipy import ndimage
 
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPE_TENSIONS, ROPES
@@ -85,9 +87,12 @@ class CompensationSettings:
     acceleration_window_s : float
         Savitzky-Golay window for the conveyance acceleration [s].
     differential_cutoff_hz : float
-        Zero-phase low-pass on the differential part of the logged displacement
-        (x_i minus the mean of the four) [Hz]. Differential motion (ropes stretching
-        differently, groove wear) is slow; the displacement transducer's noise is not.
+        Half-power frequency of the Gaussian smoothing of the differential part of the
+        logged displacement (x_i minus the mean of the four) [Hz]. Differential motion
+        (ropes stretching differently, groove wear) is slow; the transducer's noise is not.
+    differential_bridge_s : float
+        Logger gaps up to this long [s] are bridged for the differential displacement
+        (pistons do not jump while the logger drops samples); longer gaps restart it.
     displacement_deadband_m : float
         Half-width of the play operator on the estimated piston displacement [m]: the
         residual noise of the estimate, well inside the seal's presliding range.
@@ -101,6 +106,7 @@ class CompensationSettings:
     velocity_window_s: float = 0.2
     acceleration_window_s: float = 0.5
     differential_cutoff_hz: float = 0.1
+    differential_bridge_s: float = 120.0
     displacement_deadband_m: float = 5e-6
 
 
@@ -154,37 +160,58 @@ def displacement_noise_sigma(x: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
 
 
-def _differential_displacement(
-    frame: pl.DataFrame, x_cols: list[str], segment: np.ndarray, settings: CompensationSettings
-) -> list[np.ndarray]:
-    """x_i - mean_j x_j per rope: low-passed, then a play operator of 3 sigma of its noise.
+def _median_padded_smooth(x: np.ndarray, sigma_samples: float, edge_samples: int) -> np.ndarray:
+    """Gaussian smoothing whose ends are pinned to the median of the nearest samples.
 
-    The transducer noise left after a zero-phase Butterworth low-pass of order n and
-    cut-off f_c at rate f_s is sigma sqrt(2 ENBW / f_s), with ENBW = f_c (pi / 2n) /
-    sin(pi / 2n) the equivalent noise bandwidth of |H|^4 (filtfilt squares |H|); a play
-    of half-width 3 times that keeps the slow wander of the filtered noise from moving
-    the friction state.
+    A Gaussian kernel has only positive weights, so a monotone input gives a monotone
+    output: a step in piston position never comes out with an overshoot and a return,
+    which a history-dependent friction state would take for a reversal (a Butterworth
+    filter rings). Padding both ends with the median of the nearest ``edge_samples``
+    samples keeps the ends from being pinned to one noisy raw sample.
     """
-    mean = pl.mean_horizontal(x_cols)
-    differential = frame.select(
-        "segment_id", *[(pl.col(c) - mean).fill_null(0.0).alias(c) for c in x_cols]
-    )
-    sigmas = [displacement_noise_sigma(differential[c].to_numpy()) for c in x_cols]
-    filtered = differential.pipe(
-        lowpass_columns,
-        x_cols,
-        sample_rate_hz=settings.sample_rate_hz,
-        cutoff_hz=settings.differential_cutoff_hz,
-    )
-    order = 4
-    enbw = settings.differential_cutoff_hz * (np.pi / (2 * order)) / np.sin(np.pi / (2 * order))
-    shrink = np.sqrt(2.0 * enbw / settings.sample_rate_hz)
-    return [
-        play_operator(
-            filtered[c].to_numpy().astype(np.float64), segment, half_width=3.0 * sigma * shrink
-        )
-        for c, sigma in zip(x_cols, sigmas, strict=True)
+    finite = np.isfinite(x)
+    if not finite.any():
+        return np.zeros_like(x)
+    if not finite.all():
+        idx = np.arange(x.size)
+        x = np.interp(idx, idx[finite], x[finite])
+    pad = int(4 * sigma_samples) + 1
+    padded = np.r_[
+        np.full(pad, np.median(x[:edge_samples])), x, np.full(pad, np.median(x[-edge_samples:]))
     ]
+    return ndimage.gaussian_filter1d(padded, sigma_samples, mode="nearest", truncate=4.0)[pad:-pad]
+
+
+def _differential_displacement(
+    frame: pl.DataFrame, x_cols: list[str], settings: CompensationSettings
+) -> list[np.ndarray]:
+    """x_i - mean_j x_j per rope: smoothed, then a play operator of 3 sigma of its noise.
+
+    The differential motion is slow and positions are continuous across a short logger
+    dropout, so segments here are split only at gaps longer than
+    ``settings.differential_bridge_s``. The smoother is a Gaussian of standard deviation
+    s = 0.1325 / f_c seconds (half-power frequency f_c); it leaves
+    sigma / sqrt(2 sqrt(pi) s f_s) of the transducer's white noise, and a play of
+    half-width 3 times that keeps the slow wander of the filtered noise from moving the
+    friction state.
+    """
+    time_s = frame["time_utc"].dt.epoch("us").to_numpy().astype(np.float64) * 1e-6
+    long_gap = np.r_[False, np.diff(time_s) > settings.differential_bridge_s]
+    segment = np.cumsum(long_gap)
+    bounds = np.r_[0, np.flatnonzero(long_gap), time_s.size]
+    mean = frame.select(pl.mean_horizontal(x_cols)).to_series().to_numpy()
+    sigma_samples = 0.1325 / settings.differential_cutoff_hz * settings.sample_rate_hz
+    edge = max(int(settings.sample_rate_hz / settings.differential_cutoff_hz), 1)
+    shrink = 1.0 / np.sqrt(2.0 * np.sqrt(np.pi) * sigma_samples)
+    result = []
+    for column in x_cols:
+        raw = frame[column].to_numpy().astype(np.float64) - mean
+        sigma = displacement_noise_sigma(raw)
+        smooth = np.zeros_like(raw)
+        for a, b in itertools.pairwise(bounds):
+            smooth[a:b] = _median_padded_smooth(raw[a:b], sigma_samples, min(edge, b - a))
+        result.append(play_operator(smooth, segment, half_width=3.0 * sigma * shrink))
+    return result
 
 
 def _increment_velocity(x: np.ndarray, dt: np.ndarray, segment_id: np.ndarray) -> np.ndarray:
@@ -303,7 +330,7 @@ def compensate(
     p_mean = frame.select(pl.mean_horizontal(p_cols)).to_series().to_numpy()
     x_common = common_mode_displacement(p_mean, segment, hoist)
     if has_x:
-        differential = _differential_displacement(frame, x_cols, segment, settings)
+        differential = _differential_displacement(frame, x_cols, settings)
         estimates = {f"x{i}_m": x_common + differential[k] for k, i in enumerate(ROPES)}
     else:
         estimates = {f"x{i}_m": x_common for i in ROPES}

@@ -40,11 +40,16 @@ from dataclasses import dataclass
 
 import numpy as np
 import polars as pl
-from scipy import ndimage
 
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPE_TENSIONS, ROPES
-from transforms.filtering import lowpass_columns, play_operator, remove_spikes, with_segment_id
+from transforms.filtering import (
+    box_smooth,
+    lowpass_columns,
+    play_operator,
+    remove_spikes,
+    with_segment_id,
+)
 from transforms.friction import (
     friction_parameters,
     lugre_friction,
@@ -161,11 +166,11 @@ def displacement_noise_sigma(x: np.ndarray) -> float:
 
 
 def _median_padded_smooth(x: np.ndarray, sigma_samples: float, edge_samples: int) -> np.ndarray:
-    """Gaussian smoothing whose ends are pinned to the median of the nearest samples.
+    """Near-Gaussian smoothing whose ends are pinned to the median of the nearest samples.
 
-    A Gaussian kernel has only positive weights, so a monotone input gives a monotone
-    output: a step in piston position never comes out with an overshoot and a return,
-    which a history-dependent friction state would take for a reversal (a Butterworth
+    The kernel (:func:`transforms.filtering.box_smooth`) has only positive weights, so
+    a monotone input gives a monotone output: a step in piston position never comes
+    out with an overshoot and a return, which a history-dependent friction state would take for a reversal (a Butterworth
     filter rings). Padding both ends with the median of the nearest ``edge_samples``
     samples keeps the ends from being pinned to one noisy raw sample.
     """
@@ -179,7 +184,7 @@ def _median_padded_smooth(x: np.ndarray, sigma_samples: float, edge_samples: int
     padded = np.r_[
         np.full(pad, np.median(x[:edge_samples])), x, np.full(pad, np.median(x[-edge_samples:]))
     ]
-    return ndimage.gaussian_filter1d(padded, sigma_samples, mode="nearest", truncate=4.0)[pad:-pad]
+    return box_smooth(padded, sigma_samples=sigma_samples)[pad:-pad]
 
 
 def _differential_displacement(

@@ -171,8 +171,9 @@ def _median_padded_smooth(x: np.ndarray, sigma_samples: float, edge_samples: int
     The kernel (:func:`transforms.filtering.box_smooth`) has only positive weights, so
     a monotone input gives a monotone output: a step in piston position never comes
     out with an overshoot and a return, which a history-dependent friction state would
-    take for a reversal (a Butterworth filter rings). Padding both ends with the median of the nearest ``edge_samples``
-    samples keeps the ends from being pinned to one noisy raw sample.
+    take for a reversal (a Butterworth filter rings). Padding both ends with the median
+    of the nearest ``edge_samples`` samples keeps the ends from being pinned to one
+    noisy raw sample.
     """
     finite = np.isfinite(x)
     if not finite.any():

@@ -3,7 +3,8 @@
 For each cylinder i of a hoist, per sample:
 
 1. sensor calibration: p_i = (reading_i - offset_i) / gain_i (hoist ``[[sensors]]``);
-2. spikes removed (Hampel) and a zero-phase low-pass, per gap-free segment;
+2. single-sample spikes removed (3-point median) and a zero-phase low-pass, per
+   gap-free segment;
 3. piston motion: the common mode (all four pistons together) from the pressure,
    because the chambers, pipes and manifold are one closed oil volume and a change dp
    of the common pressure moves every piston by V dp / (n A beta) (NOTES.md) -- with a
@@ -45,9 +46,9 @@ from schemas.hoist import HoistDescription
 from schemas.tables import ROPE_TENSIONS, ROPES
 from transforms.filtering import (
     box_smooth,
+    despike_median3,
     lowpass_columns,
     play_operator,
-    remove_spikes,
     with_segment_id,
 )
 from transforms.friction import (
@@ -85,8 +86,9 @@ class CompensationSettings:
         Nominal logger rate [Hz]; spacing above ``gap_factor`` / rate starts a segment.
     pressure_cutoff_hz : float
         Zero-phase low-pass on the pressures [Hz] (4th-order Butterworth, filtfilt).
-    spike_window : int
-        Hampel window [samples] for pressure and displacement spikes.
+    spike_sigmas : float
+        A sample further than this many noise sigmas from the median of itself and its
+        neighbours is a spike (:func:`transforms.filtering.despike_median3`).
     velocity_window_s : float
         Savitzky-Golay window for the piston velocity [s].
     acceleration_window_s : float
@@ -106,8 +108,7 @@ class CompensationSettings:
     sample_rate_hz: float = 100.0
     gap_factor: float = 3.0
     pressure_cutoff_hz: float = 10.0
-    spike_window: int = 7
-    spike_sigmas: float = 5.0
+    spike_sigmas: float = 6.0
     velocity_window_s: float = 0.2
     acceleration_window_s: float = 0.5
     differential_cutoff_hz: float = 0.1
@@ -229,6 +230,18 @@ def _increment_velocity(x: np.ndarray, dt: np.ndarray, segment_id: np.ndarray) -
     return v
 
 
+def _despiked(frame: pl.DataFrame, columns: list[str], *, n_sigmas: float) -> pl.DataFrame:
+    """Single-sample spikes removed from ``columns``, per gap-free segment."""
+    segment = frame["segment_id"].to_numpy()
+    cleaned = [
+        pl.Series(c, despike_median3(frame[c].to_numpy(), segment, n_sigmas=n_sigmas)[0])
+        .fill_nan(None)
+        .alias(c)
+        for c in columns
+    ]
+    return frame.with_columns(cleaned)
+
+
 def _step_lengths(time_s: np.ndarray, segment_id: np.ndarray, nominal_dt_s: float) -> np.ndarray:
     """dt[i] = t[i] - t[i-1]; a segment's first sample gets the nominal step."""
     dt = np.empty_like(time_s)
@@ -307,13 +320,7 @@ def compensate(
             gap_factor=settings.gap_factor,
             nominal_dt_s=dt_nominal,
         )
-        .pipe(
-            remove_spikes,
-            [*p_cols, *x_cols],
-            window=settings.spike_window,
-            n_sigmas=settings.spike_sigmas,
-            flag_suffix=None,
-        )
+        .pipe(_despiked, [*p_cols, *x_cols], n_sigmas=settings.spike_sigmas)
         .pipe(
             lowpass_columns,
             p_cols,

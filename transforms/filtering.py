@@ -32,6 +32,7 @@ from scipy import signal
 __all__ = [
     "MAD_TO_SIGMA",
     "box_smooth",
+    "despike_median3",
     "hampel",
     "lowpass",
     "lowpass_columns",
@@ -476,3 +477,50 @@ def box_smooth(x: np.ndarray, *, sigma_samples: float, passes: int = 3) -> np.nd
         _moving_average(current, half, out)
         current, out = out, current
     return current
+
+
+@njit(cache=True, nogil=True)
+def _median3_kernel(x, seg, threshold, out):  # pragma: no cover - numba
+    n = x.shape[0]
+    for i in range(n):
+        out[i] = x[i]
+        if i == 0 or i == n - 1 or seg[i - 1] != seg[i] or seg[i + 1] != seg[i]:
+            continue
+        a, b, c = x[i - 1], x[i], x[i + 1]
+        if not (np.isfinite(a) and np.isfinite(b) and np.isfinite(c)):
+            continue
+        med = max(min(a, b), min(max(a, b), c))
+        if abs(b - med) > threshold:
+            out[i] = med
+
+
+def despike_median3(
+    x: np.ndarray, segment_id: np.ndarray | None = None, *, n_sigmas: float = 6.0
+) -> tuple[np.ndarray, float]:
+    r"""Replace single-sample spikes by the median of the sample and its two neighbours.
+
+    A sample is a spike when it differs from that 3-point median by more than
+    ``n_sigmas`` times the signal's white-noise sigma, estimated once for the whole
+    record from first differences (sigma = 1.4826 MAD(diff x) / sqrt 2). A 3-point
+    median passes every feature at least two samples wide (steps, pressure shocks), so
+    only isolated outliers go; at 100 Hz, peaks of ringing above ~10 Hz may be clipped,
+    which a following 10 Hz low-pass removes anyway. Linear in n, a few ns per sample:
+    the cheap alternative to :func:`hampel` for pressures that are low-passed next.
+
+    Returns the despiked signal and the sigma used.
+
+    >>> despike_median3(np.array([0.0, 0.1, 9.0, 0.0, 0.1, 0.0, 0.1]))[0].tolist()
+    [0.0, 0.1, 0.1, 0.0, 0.1, 0.0, 0.1]
+    """
+    values = np.ascontiguousarray(x, dtype=np.float64)
+    d = np.diff(values)
+    d = d[np.isfinite(d)]
+    sigma = float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0)) if d.size else 0.0
+    seg = (
+        np.zeros(values.shape[0], dtype=np.int64)
+        if segment_id is None
+        else np.ascontiguousarray(segment_id, dtype=np.int64)
+    )
+    out = np.empty_like(values)
+    _median3_kernel(values, seg, n_sigmas * sigma, out)
+    return out, sigma

@@ -121,3 +121,29 @@ def test_play_operator_restarts_per_segment_and_holds_nan():
     x = np.array([0.0, 1.0, np.nan, 2.0, 5.0, 5.1])
     y = play_operator(x, np.array([0, 0, 0, 0, 1, 1]), half_width=0.5)
     assert y.tolist() == [0.0, 0.5, 0.5, 1.5, 5.0, 5.0]
+
+
+# -- 3-point median despike (added with the compensation) --------------------------------
+def test_despike_median3_removes_isolated_spikes_only():
+    from transforms.filtering import despike_median3
+
+    rng = np.random.default_rng(5)
+    x = rng.normal(0.0, 1.0, 2000)
+    x[500:560] += 40.0  # a real 0.6 s step-like event, 40 sigma: must survive
+    spiky = x.copy()
+    spiky[[100, 900, 1500]] += [30.0, -25.0, 50.0]
+    cleaned, sigma = despike_median3(spiky)
+    assert sigma == pytest.approx(1.0, rel=0.1)
+    assert np.abs(cleaned[[100, 900, 1500]] - x[[100, 900, 1500]]).max() < 5.0
+    np.testing.assert_array_equal(cleaned[500:560], spiky[500:560])
+    changed = np.flatnonzero(cleaned != spiky)
+    assert set(changed) == {100, 900, 1500}
+
+
+def test_despike_median3_respects_segments_and_nan():
+    from transforms.filtering import despike_median3
+
+    x = np.array([0.0, 0.0, 100.0, 0.0, 0.0, np.nan, 50.0, 0.0])
+    cleaned, _ = despike_median3(x, np.array([0, 0, 1, 1, 1, 1, 1, 1]))
+    assert cleaned[2] == 100.0  # first sample of a segment: no left neighbour, kept
+    assert cleaned[6] == 50.0  # next to a NaN: kept

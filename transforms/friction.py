@@ -39,7 +39,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from schemas.hoist import FrictionLaw
 
@@ -260,19 +260,46 @@ def lugre_force(
     return f
 
 
-@njit(cache=True)
-def _lugre_kernel(v, dt, fc, fs, vs, kv, sigma0, sigma1, z0, force_out, z_out):  # pragma: no cover
-    z = z0
-    for i in range(v.shape[0]):
-        if v[i] != v[i]:  # NaN velocity (logger gap): hold the state, no force
-            force_out[i] = np.nan
-            z_out[i] = z
+@njit(cache=True, nogil=True, parallel=True)
+def _lugre_decay_target(v, dt, fc, fs, vs, sigma0, decay, target):  # pragma: no cover
+    """Per sample, independent of z: the exact update's decay and steady state."""
+    for i in prange(v.shape[0]):
+        vi = v[i]
+        if vi == 0.0 or vi != vi or dt[i] <= 0.0:  # standstill, NaN or no step: hold z
+            decay[i] = 1.0
+            target[i] = 0.0
             continue
-        g = stribeck_g(v[i], fc[i], fs[i], vs[i])
-        z_new = lugre_z_step(z, v[i], dt[i], sigma0, g)
-        force_out[i] = lugre_force(z, z_new, v[i], dt[i], sigma0, sigma1, kv[i])
-        z_out[i] = z_new
-        z = z_new
+        r = vi / vs[i]
+        g = fc[i] + (fs[i] - fc[i]) * math.exp(-r * r)
+        if g <= 0.0:  # no friction: the bristles relax at once
+            decay[i] = 0.0
+            target[i] = 0.0
+            continue
+        rate = sigma0 * abs(vi) * dt[i] / g
+        decay[i] = math.exp(-rate) if rate < 745.0 else 0.0
+        target[i] = g / sigma0 if vi > 0.0 else -g / sigma0
+
+
+@njit(cache=True, nogil=True)
+def _affine_recurrence(decay, target, z0, z_out):  # pragma: no cover - numba
+    """z[i] = decay[i] z[i-1] + (1 - decay[i]) target[i]: the only sequential part."""
+    z = z0
+    for i in range(decay.shape[0]):
+        z = target[i] + (z - target[i]) * decay[i]
+        z_out[i] = z
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _lugre_forces(v, dt, kv, z, z0, sigma0, sigma1, force):  # pragma: no cover - numba
+    for i in prange(v.shape[0]):
+        if v[i] != v[i]:  # NaN velocity (logger gap): state held, no force
+            force[i] = np.nan
+            continue
+        z_before = z0 if i == 0 else z[i - 1]
+        f = sigma0 * z[i] + kv[i] * v[i]
+        if dt[i] > 0.0:
+            f += sigma1 * (z[i] - z_before) / dt[i]
+        force[i] = f
 
 
 def _per_sample(value: np.ndarray | float, n: int, name: str) -> np.ndarray:
@@ -340,20 +367,23 @@ def lugre_friction(
     """
     v_arr = np.ascontiguousarray(v, dtype=np.float64)
     n = v_arr.shape[0]
-    force = np.empty(n)
-    z = np.empty(n)
-    _lugre_kernel(
+    dt_arr = _per_sample(dt, n, "dt")
+    decay, target, z, force = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    # The exact update's decay and steady state do not depend on z: computed in
+    # parallel; only the affine recurrence z <- target + (z - target) decay is sequential.
+    _lugre_decay_target(
         v_arr,
-        _per_sample(dt, n, "dt"),
+        dt_arr,
         _per_sample(fc, n, "fc"),
         _per_sample(fs, n, "fs"),
         _per_sample(vs, n, "vs"),
-        _per_sample(kv, n, "kv"),
         float(sigma0),
-        float(sigma1),
-        float(z0),
-        force,
-        z,
+        decay,
+        target,
+    )
+    _affine_recurrence(decay, target, float(z0), z)
+    _lugre_forces(
+        v_arr, dt_arr, _per_sample(kv, n, "kv"), z, float(z0), float(sigma0), float(sigma1), force
     )
     return force, z
 

@@ -112,16 +112,22 @@ def darcy_friction_factor(re: np.ndarray | float, relative_roughness: float = 0.
     Chem. Res. 48(7), 3665-3671, doi:10.1021/ie801626g.
     """
     re_arr = np.asarray(re, dtype=np.float64)
-    log_re, log_f = _turbulent_grid(float(relative_roughness))
     with np.errstate(divide="ignore"):
-        laminar = 64.0 / re_arr
+        friction = 64.0 / re_arr
+    beyond = re_arr > RE_LAMINAR
+    if not np.any(beyond):  # the usual case on a hoist: laminar everywhere, 64/Re only
+        return friction
+    log_re, log_f = _turbulent_grid(float(relative_roughness))
+    re_beyond = re_arr[beyond] if friction.ndim else re_arr
     f_turb_start = 10.0 ** log_f[0]
-    weight = np.clip((re_arr - RE_LAMINAR) / (RE_TURBULENT - RE_LAMINAR), 0.0, 1.0)
+    weight = np.clip((re_beyond - RE_LAMINAR) / (RE_TURBULENT - RE_LAMINAR), 0.0, 1.0)
     transitional = (1.0 - weight) * (64.0 / RE_LAMINAR) + weight * f_turb_start
-    turbulent = 10.0 ** np.interp(np.log10(np.maximum(re_arr, RE_TURBULENT)), log_re, log_f)
-    return np.where(
-        re_arr <= RE_LAMINAR, laminar, np.where(re_arr < RE_TURBULENT, transitional, turbulent)
-    )
+    turbulent = 10.0 ** np.interp(np.log10(np.maximum(re_beyond, RE_TURBULENT)), log_re, log_f)
+    value = np.where(re_beyond < RE_TURBULENT, transitional, turbulent)
+    if friction.ndim == 0:
+        return value
+    friction[beyond] = value
+    return friction
 
 
 def pipe_pressure_loss(

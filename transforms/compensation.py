@@ -37,6 +37,8 @@ collected frame of one hoist, sorted by time, and returns a ``ROPE_TENSIONS`` fr
 from __future__ import annotations
 
 import itertools
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -393,8 +395,7 @@ def compensate(
     with_friction = "seal_friction" in effects
     presliding = "presliding_hysteresis" in effects
 
-    columns: dict[str, np.ndarray] = {}
-    for i, v_flow in zip(ROPES, flow_velocities, strict=True):
+    def rope(i: int, v_flow: np.ndarray) -> dict[str, np.ndarray]:
         p_sensor = frame[f"p{i}_pa"].to_numpy().astype(np.float64)
         v_known = np.where(np.isfinite(v_flow), v_flow, 0.0)
         v = _increment_velocity(played[f"x{i}_m"], dt, segment)
@@ -407,10 +408,18 @@ def compensate(
             friction = _seal_friction(v, dt, p_for_law, hoist, presliding=presliding)
         else:
             friction = np.zeros_like(p_chamber)
-        columns[f"p_chamber{i}_pa"] = p_chamber
-        columns[f"friction{i}_n"] = friction
-        columns[f"tension_raw{i}_n"] = p_sensor * area
-        columns[f"tension{i}_n"] = p_chamber * area + friction
+        return {
+            f"p_chamber{i}_pa": p_chamber,
+            f"friction{i}_n": friction,
+            f"tension_raw{i}_n": p_sensor * area,
+            f"tension{i}_n": p_chamber * area + friction,
+        }
+
+    # The ropes are independent and the numba kernels and large numpy operations
+    # release the GIL, so the four run side by side.
+    with ThreadPoolExecutor(max_workers=min(len(ROPES), os.cpu_count() or 1)) as pool:
+        per_rope = list(pool.map(rope, ROPES, flow_velocities))
+    columns = {name: values for part in per_rope for name, values in part.items()}
 
     result = frame.with_columns(
         pl.Series(name, values, dtype=pl.Float64) for name, values in columns.items()

@@ -478,7 +478,7 @@ def maxwell_slip_elements(n: int, stiffness_n_m: float) -> tuple[np.ndarray, np.
     return stiffness_n_m * inv / inv.sum(), np.full(n, 1.0 / n)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _maxwell_slip_kernel(
     v, dt, fc, fs, vs, kv, stiffness, weights, deltas, force_out
 ):  # pragma: no cover

@@ -96,8 +96,9 @@ def run_demo(*, data: DataRoot, seed: int = 7, hours: float = 1.0) -> str:
     if not report.ok:
         refused = "; ".join(f"{f.path.name}: {f.message}" for f in report.refused)
         raise RuntimeError(f"demo logs were refused by ingest: {refused}")
-    start = day.sensors["time_utc"].min()
-    end = day.sensors["time_utc"].max() + dt.timedelta(microseconds=1)
+    # whole seconds around the log: the CSV keeps milliseconds, the simulation microseconds
+    start = day.sensors["time_utc"].min().replace(microsecond=0)
+    end = day.sensors["time_utc"].max().replace(microsecond=0) + dt.timedelta(seconds=1)
     result = run_period(
         hoist_path=EXAMPLE_HOIST, data=data, start=start, end=end, hoist=hoist, command="demo"
     )

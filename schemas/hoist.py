@@ -54,6 +54,7 @@ __all__ = [
     "Sensor",
     "Shaft",
     "Winder",
+    "hoist_sha256",
     "load_hoist",
     "parse_hoist",
 ]

@@ -50,7 +50,7 @@ from typing import Any
 
 import numpy as np
 import polars as pl
-from scipy import ndimage
+from scipy import ndimage, optimize
 
 from schemas.hoist import G_STANDARD, HoistDescription
 from sims.device import simulate
@@ -62,6 +62,7 @@ __all__ = [
     "ReplayResult",
     "ReplayTrip",
     "estimate_noise_sigma",
+    "payload_from_pressure",
     "plan_replay",
     "replay",
     "replay_fitted",
@@ -102,6 +103,8 @@ class ReplayTrip:
     valid: np.ndarray
     phase: np.ndarray
     depth_m: np.ndarray
+    ramp_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    ramp_measured_pa: np.ndarray = field(default_factory=lambda: np.zeros(0))
     profile_fit_m: float = 0.0
 
 
@@ -146,6 +149,8 @@ class ReplayResult:
     parameters: dict[str, dict[str, Any]] = field(default_factory=dict)
     status: str = "success"
     message: str = ""
+    ramp_simulated: tuple[np.ndarray, ...] = ()
+    ramps_s: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
     @property
     def ok(self) -> bool:
@@ -210,8 +215,46 @@ def _motions(t: np.ndarray, speed: np.ndarray) -> list[tuple[int, int]]:
 
 
 def _median_in(t: np.ndarray, values: np.ndarray, lo: float, hi: float) -> float:
-    sel = (t >= lo) & (t <= hi) & np.isfinite(values)
-    return float(np.median(values[sel])) if sel.any() else float("nan")
+    part = values[_span(t, lo, hi)]
+    part = part[np.isfinite(part)]
+    return float(np.median(part)) if part.size else float("nan")
+
+
+def _span(t: np.ndarray, lo: float, hi: float) -> slice:
+    """Index range of sorted ``t`` within [lo, hi] (binary search, no full-array mask)."""
+    return slice(int(np.searchsorted(t, lo, "left")), int(np.searchsorted(t, hi, "right")))
+
+
+def _fit_ramp(
+    t: np.ndarray, pc: np.ndarray, r0: float, r1: float, p_pre: float, p_post: float
+) -> tuple[float, float]:
+    """Least-squares plateau-ramp-plateau fit of the common-mode pressure (loading).
+
+    The rope bounce a ramp excites oscillates about the ramp, so the kinks' times are
+    unbiased; a robust loss (soft L1) ignores spikes. Returns (start, end) [s].
+    """
+    ok = np.isfinite(pc)
+    if ok.sum() < 8:
+        return r0, r1
+    tt, yy = t[ok], pc[ok]
+    scale = max(abs(p_post - p_pre), 1.0)
+
+    def resid(x: np.ndarray) -> np.ndarray:
+        a, b = x[0], max(x[1], x[0] + 1e-3)
+        u = np.clip((tt - a) / (b - a), 0.0, 1.0)
+        return (x[2] + (x[3] - x[2]) * u - yy) / scale
+
+    x0 = np.array([r0, r1, p_pre, p_post])
+    try:
+        sol = optimize.least_squares(
+            resid, x0, loss="soft_l1", f_scale=0.02, x_scale=[1.0, 1.0, scale, scale]
+        )
+    except ValueError:  # pragma: no cover - degenerate data
+        return r0, r1
+    a, b = float(sol.x[0]), float(sol.x[1])
+    if not (np.isfinite(a) and np.isfinite(b)) or b <= a:
+        return r0, r1
+    return a, b
 
 
 def _chosen_trips(count: int, max_trips: int, blocks: int) -> list[list[int]]:
@@ -233,7 +276,7 @@ def plan_replay(
     samples: pl.DataFrame,
     hoist: HoistDescription,
     *,
-    max_trips: int = 16,
+    max_trips: int = 12,
     blocks: int = 4,
     score_rate_hz: float = 20.0,
     settle_s: float = 30.0,
@@ -282,11 +325,18 @@ def plan_replay(
     motions = _motions(t, speed)
     if not motions:
         raise ValueError("samples: no trip (no encoder motion of at least 3 s) in the record")
-    moving_raw = np.abs(np.nan_to_num(speed)) >= 0.02
-    sigma = estimate_noise_sigma(p, moving_raw)
+    # noise from quiet standstill: >= 25 s after a stop (the rope bounce has decayed)
+    quiet = np.ones(t.size, dtype=bool)
+    for a_i, b_i in motions:
+        quiet[_span(t, t[a_i] - 1.0, t[b_i] + 25.0)] = False
+    if quiet.sum() < 50:
+        quiet = np.abs(np.nan_to_num(speed)) < 0.02
+    sigma = estimate_noise_sigma(p, ~quiet)
     pc = np.nanmean(p, axis=1)
     rate = 1.0 / max(float(np.median(np.diff(t))), 1e-6)
-    pcs = ndimage.median_filter(
+    # 1-s moving average of the common-mode pressure (O(n); a median over a day at 100 Hz
+    # costs tens of seconds); spikes are rare and the ramp fit below is robust to them
+    pcs = ndimage.uniform_filter1d(
         np.nan_to_num(pc, nan=float(np.nanmedian(pc))), size=max(3, int(rate) | 1)
     )
     w = hoist.winder
@@ -313,20 +363,19 @@ def plan_replay(
     timing: list[dict[str, Any]] = []
     for k, (a_i, b_i) in enumerate(motions):
         prev_end = float(t[motions[k - 1][1]]) if k > 0 else float(t[0]) - 2.0
-        sel = (
-            (t >= t[a_i] - 1.0)
-            & (t <= t[a_i] + 4.0)
-            & (np.abs(speed) > 0.1)
-            & (np.abs(speed) < 0.8 * w.acceleration_m_s2 * 4.0)
-        )
+        sp = _span(t, t[a_i] - 1.0, t[a_i] + 4.0)
+        tw, vw = t[sp], np.abs(speed[sp])
+        sel = (vw > 0.1) & (vw < 0.8 * w.acceleration_m_s2 * 4.0)
         t_m = (
-            float(np.median(t[sel] - np.abs(speed[sel]) / w.acceleration_m_s2))
+            float(np.median(tw[sel] - vw[sel] / w.acceleration_m_s2))
             if sel.sum() >= 3
             else float(t[a_i])
         )
-        sel = (t >= t[b_i] - 0.6) & (t <= t[b_i] + 0.2) & (np.abs(speed) > 0.05)
+        sp = _span(t, t[b_i] - 0.6, t[b_i] + 0.2)
+        tw, vw = t[sp], np.abs(speed[sp])
+        sel = vw > 0.05
         t_e = (
-            float(np.median(t[sel] + np.abs(speed[sel]) / w.deceleration_m_s2))
+            float(np.median(tw[sel] + vw[sel] / w.deceleration_m_s2))
             if sel.sum() >= 3
             else float(t[b_i])
         )
@@ -338,8 +387,12 @@ def plan_replay(
         p_pre = _median_in(t, pcs, s_lo, s_lo + 2.0)
         p_post = _median_in(t, pcs, s_hi - 3.0, s_hi)
         change = p_post - p_pre
-        in_s = (t >= s_lo) & (t <= s_hi)
-        if np.isfinite(change) and abs(change) > max(10.0 * sigma, 2e4) and in_s.sum() > 4:
+        in_s = _span(t, s_lo, s_hi)
+        if (
+            np.isfinite(change)
+            and abs(change) > max(10.0 * sigma, 2e4)
+            and in_s.stop - in_s.start > 4
+        ):
             u = (pcs[in_s] - p_pre) / change
             ts = t[in_s]
             above = np.flatnonzero(u > 0.1)
@@ -347,8 +400,15 @@ def plan_replay(
             t10 = float(ts[above[0]]) if above.size else float(ts[0])
             t90 = float(ts[below[-1]]) if below.size else float(ts[-1])
             dur = max((t90 - t10) / 0.8, 0.5)
-            r0 = max(s_lo, t10 - 0.1 * dur)
-            r1 = min(r0 + dur, s_hi)
+            r0, r1 = _fit_ramp(
+                ts,
+                pc[in_s],
+                max(s_lo, t10 - 0.1 * dur),
+                min(t10 - 0.1 * dur + dur, s_hi),
+                p_pre,
+                p_post,
+            )
+            r0, r1 = max(s_lo, r0), min(r1, s_hi)
         else:
             r0 = max(s_lo, t_m - 6.0)
             r1 = min(r0 + 0.5, s_hi)
@@ -375,7 +435,8 @@ def plan_replay(
             win_end = min(t_e + settle_s, next_ramp, end_t)
             # scored samples: after the ramp, within the window, every 1/score_rate s
             lo = r1 + _RAMP_MARGIN_S
-            idx = np.flatnonzero((t >= lo) & (t <= win_end))
+            sp = _span(t, lo, win_end)
+            idx = np.arange(sp.start, sp.stop)
             if idx.size:
                 bins = np.floor((t[idx] - lo) * score_rate_hz).astype(np.int64)
                 idx = idx[np.concatenate([[True], bins[1:] != bins[:-1]])]
@@ -384,6 +445,11 @@ def plan_replay(
             if idx.size >= 5:
                 med = ndimage.median_filter(np.nan_to_num(meas), size=(5, 1), mode="nearest")
                 valid &= np.abs(meas - med) <= max(10.0 * sigma, 2e4)
+            sp = _span(t, r0 - 1.0, min(r1 + 3.0, t_m - 0.3))
+            ridx = np.arange(sp.start, sp.stop)
+            if ridx.size:
+                rb = np.floor((t[ridx] - t[ridx[0]]) * score_rate_hz).astype(np.int64)
+                ridx = ridx[np.concatenate([[True], rb[1:] != rb[:-1]])]
             profile = _profile_of(
                 hoist, d0, d1, t_m - r0, max(win_end - r0, 1.0), vmax_arg, 20.0, (0.0, 1.0), 0.0
             )
@@ -400,7 +466,7 @@ def plan_replay(
                 ["standstill", "accelerate", "decelerate", "creep"],
                 default="run",
             )
-            motion = (t >= t_m) & (t <= t_e)
+            motion = _span(t, t_m, t_e)
             fit = float(np.sqrt(np.nanmean((profile.depth(t[motion] - r0) - depth[motion]) ** 2)))
             if fit > 0.5:
                 notes.append(
@@ -430,6 +496,8 @@ def plan_replay(
                     valid=valid,
                     phase=phase,
                     depth_m=profile.depth(tau),
+                    ramp_time_s=t[ridx],
+                    ramp_measured_pa=np.nanmedian(p[ridx], axis=1),
                     profile_fit_m=fit,
                 )
             )
@@ -505,13 +573,20 @@ def _sensor_calibration(
     return gain, off
 
 
-def _payload_from_pressure(
+def payload_from_pressure(
     hoist: HoistDescription,
     effects: Iterable[str],
     parameters: Mapping[str, Any] | None,
     readings_pa: float,
     depth_m: float,
 ) -> float:
+    """Payload [kg] the model needs for the mean sensor reading ``readings_pa`` at rest.
+
+    ``W = n A p`` with ``p = (reading - offset) / gain`` (the model's sensor
+    calibration), minus the conveyance and (with ``tail_rope_weight``) the hanging tail
+    rope at ``depth_m``; seal friction held at rest is ignored (see
+    :func:`replay_fitted`).
+    """
     eff = resolve_effects(hoist, effects, parameters)
     gain, off = _sensor_calibration(hoist, effects, parameters)
     p = (readings_pa - off.mean()) / gain.mean()
@@ -530,6 +605,7 @@ def replay(
     parameters: Mapping[str, Mapping[str, Any]] | None = None,
     payload_kg: Sequence[float] | np.ndarray | None = None,
     payload_before_kg: Sequence[float] | np.ndarray | None = None,
+    ramps_s: np.ndarray | None = None,
 ) -> ReplayResult:
     """Simulate the planned trips; simulated sensor pressures at the scored samples.
 
@@ -543,6 +619,8 @@ def replay(
         pressure after loading (no friction correction: see :func:`replay_fitted`).
     payload_before_kg : per-trip payload before loading [kg]; only the first trip of a
         block uses it (later trips continue with the previous trip's payload).
+    ramps_s : (m, 2) loading ramp start and end per trip [s after ``t_ref``]; default
+        the plan's. A trip's simulation starts at its ramp start.
 
     Returns
     -------
@@ -555,39 +633,49 @@ def replay(
     prm = {k: dict(v) for k, v in (parameters or {}).items()}
     if payload_kg is None:
         payload_kg = [
-            _payload_from_pressure(hoist, names, prm, tr.p_after_pa, tr.start_depth_m)
+            payload_from_pressure(hoist, names, prm, tr.p_after_pa, tr.start_depth_m)
             for tr in plan.trips
         ]
     if payload_before_kg is None:
         payload_before_kg = [
-            _payload_from_pressure(hoist, names, prm, tr.p_before_pa, tr.start_depth_m)
+            payload_from_pressure(hoist, names, prm, tr.p_before_pa, tr.start_depth_m)
             for tr in plan.trips
         ]
+    if ramps_s is None:
+        ramps_s = np.array([[tr.ramp_start_s, tr.ramp_end_s] for tr in plan.trips])
+    ramps = np.asarray(ramps_s, dtype=float).reshape(-1, 2)
     pay = np.asarray(payload_kg, dtype=float)
     pay_before = np.asarray(payload_before_kg, dtype=float).copy()
     n = hoist.ropes_n
     out: list[np.ndarray] = []
+    ramp_out: list[np.ndarray] = []
     failures: list[str] = []
     state = None
     broken = False
+    prev_end = -np.inf
     for k, tr in enumerate(plan.trips):
         if tr.first_in_block:
             state = None
             broken = False
+            prev_end = -np.inf
         else:
             pay_before[k] = pay[k - 1]
+        nan_block = np.full((tr.time_s.size, n), np.nan)
         if broken:
-            out.append(np.full((tr.time_s.size, n), np.nan))
+            out.append(nan_block)
+            ramp_out.append(np.full(tr.ramp_time_s.size, np.nan))
             continue
+        start = float(max(ramps[k, 0], prev_end))
+        ramp_end = float(max(ramps[k, 1], start + 1e-3))
         profile = _profile_of(
             hoist,
             tr.start_depth_m,
             tr.end_depth_m,
-            tr.motion_start_s - tr.window_start_s,
-            tr.window_end_s - tr.window_start_s,
+            tr.motion_start_s - start,
+            tr.window_end_s - start,
             tr.max_speed_m_s,
             tr.oil_temp_c,
-            (0.0, tr.ramp_end_s - tr.ramp_start_s),
+            (0.0, ramp_end - start),
             float(pay_before[k]),
             float(pay[k]),
         )
@@ -604,26 +692,25 @@ def replay(
         except ValueError as exc:
             failures.append(f"trip {tr.trip_id}: {exc}")
             broken = True
-            out.append(np.full((tr.time_s.size, n), np.nan))
+            out.append(nan_block)
+            ramp_out.append(np.full(tr.ramp_time_s.size, np.nan))
             continue
         if not res.ok:
             failures.append(f"trip {tr.trip_id}: {res.message}")
             broken = True
         state = res.final_state
-        t_sim = tr.window_start_s + res.frame["time_s"].to_numpy()
-        sim = (
-            np.column_stack(
-                [
-                    np.interp(
-                        tr.time_s, t_sim, res.frame[f"p_sensor{i}_pa"].to_numpy(), right=np.nan
-                    )
-                    for i in range(1, n + 1)
-                ]
+        t_sim = start + res.frame["time_s"].to_numpy()
+        prev_end = float(t_sim[-1]) if t_sim.size else prev_end
+        if t_sim.size:
+            sims = [res.frame[f"p_sensor{i}_pa"].to_numpy() for i in range(1, n + 1)]
+            out.append(
+                np.column_stack([np.interp(tr.time_s, t_sim, s, right=np.nan) for s in sims])
             )
-            if t_sim.size
-            else np.full((tr.time_s.size, n), np.nan)
-        )
-        out.append(sim)
+            common = np.mean(sims, axis=0)
+            ramp_out.append(np.interp(tr.ramp_time_s, t_sim, common, left=common[0], right=np.nan))
+        else:
+            out.append(nan_block)
+            ramp_out.append(np.full(tr.ramp_time_s.size, np.nan))
     return ReplayResult(
         simulated=tuple(out),
         payload_kg=pay,
@@ -632,7 +719,37 @@ def replay(
         parameters=prm,
         status="failed" if failures else "success",
         message="; ".join(failures),
+        ramp_simulated=tuple(ramp_out),
+        ramps_s=ramps,
     )
+
+
+def _refine_ramp(
+    tr: ReplayTrip, sim_ramp: np.ndarray, ramp: np.ndarray, dp_pay: float
+) -> np.ndarray:
+    """Gauss-Newton step on the loading ramp's start and end from the ramp residual.
+
+    Shifting the ramp start by d0 and its end by d1 changes the simulated common-mode
+    pressure by ``-dp/dt ((1 - u) d0 + u d1)`` (u: fraction of the ramp done); the
+    payload correction ``dp_pay`` enters as ``u dp_pay``.
+    """
+    t = tr.ramp_time_s
+    ok = np.isfinite(sim_ramp) & np.isfinite(tr.ramp_measured_pa)
+    if ok.sum() < 6:
+        return ramp
+    dur = max(ramp[1] - ramp[0], 1e-3)
+    u = np.clip((t - ramp[0]) / dur, 0.0, 1.0)
+    slope = np.gradient(sim_ramp, t) if t.size > 1 else np.zeros_like(t)
+    r = tr.ramp_measured_pa - sim_ramp - u * dp_pay
+    jac = np.column_stack([-slope * (1.0 - u), -slope * u])[ok]
+    if not np.all(np.isfinite(jac)) or np.linalg.norm(jac) == 0:
+        return ramp
+    step, *_ = np.linalg.lstsq(jac, r[ok], rcond=None)
+    step = np.clip(step, -2.0, 2.0)
+    new = ramp + step
+    if new[1] <= new[0]:
+        return ramp
+    return new
 
 
 def replay_fitted(
@@ -642,34 +759,47 @@ def replay_fitted(
     parameters: Mapping[str, Mapping[str, Any]] | None = None,
     passes: int = 2,
     payload_kg: Sequence[float] | np.ndarray | None = None,
+    ramps_s: np.ndarray | None = None,
 ) -> ReplayResult:
-    """:func:`replay` with each trip's payload fitted to the measured pressures.
+    """:func:`replay` with each trip's payload and loading-ramp timing fitted.
 
-    Pass 1 uses ``payload_kg`` (default: inferred from the static pressure); each
-    further pass adds ``mean common-mode residual x n A / g`` per trip (least squares
-    for a common offset on every sensor) and re-simulates.
+    The payload and the moment it was loaded are the log's free inputs. Pass 1 uses
+    ``payload_kg`` (default: inferred from the static pressure) and the plan's ramps;
+    each further pass adds ``mean common-mode residual x n A / g`` per trip to the
+    payload (least squares for a common offset on every sensor), moves the ramp ends by a
+    Gauss-Newton step on the common-mode residual over the ramp (the seal friction and
+    the rope bounce delay the pressure behind the load, so the ramp seen in the pressure
+    is not the load's) and re-simulates.
     """
     hoist = plan.hoist
     names = frozenset(hoist.model.effects if effects is None else effects)
     gain, _ = _sensor_calibration(hoist, names, parameters)
     scale = hoist.ropes_n * hoist.cylinders.bore_area_m2 / G_STANDARD / float(gain.mean())
-    result = replay(plan, effects=names, parameters=parameters, payload_kg=payload_kg)
+    result = replay(
+        plan, effects=names, parameters=parameters, payload_kg=payload_kg, ramps_s=ramps_s
+    )
     for _ in range(passes - 1):
         if not result.ok:
             break
-        corr = np.array(
+        dp = np.array(
+            [float(np.nanmean(r)) if np.isfinite(r).any() else 0.0 for r in result.residuals(plan)]
+        )
+        pay = np.maximum(result.payload_kg + dp * scale, 0.0)
+        ramps = np.array(
             [
-                float(np.nanmean(r)) * scale if np.isfinite(r).any() else 0.0
-                for r in result.residuals(plan)
+                _refine_ramp(tr, sr, rp, d)
+                for tr, sr, rp, d in zip(
+                    plan.trips, result.ramp_simulated, result.ramps_s, dp, strict=True
+                )
             ]
         )
-        pay = np.maximum(result.payload_kg + corr, 0.0)
         result = replay(
             plan,
             effects=names,
             parameters=parameters,
             payload_kg=pay,
             payload_before_kg=result.payload_before_kg,
+            ramps_s=ramps,
         )
     return result
 

@@ -1,0 +1,252 @@
+"""``ropeload discover``: name the effect missing from a hoist's model (contract 5).
+
+The plain function behind the CLI command and the Prefect ``discover`` flow. Reads the
+hoist's landed samples for the period from the lake, replays its trips through the
+device simulation with the hoist's ``[model] effects`` (:mod:`sims.replay`), runs the
+discovery (:func:`sims.discovery.discover_effects`: residual test, candidate scoring
+with re-tuning, BIC + trip bootstrap, iteration) and writes
+
+* the report JSON (``json_path``): one object per hoist and period, the contract
+  section 5 fields for the first iteration's answer plus
+
+  - ``"effects"``: every effect found, in order (empty for ``none``);
+  - ``"gap_after_pa"``: the gap after *all* found effects were added
+    (``gap_before_pa`` is before any);
+  - ``"findings"``: one full contract-5 object per iteration (``effect`` a name,
+    ``none`` or ``ambiguous``), each with its own ``gap_before_pa`` / ``gap_after_pa``,
+    ``where`` (regions with ``gap_pa`` before and ``gap_after_pa`` after), ``ranking``
+    (``score`` = BIC difference against re-tuning only, ``explained_pa``,
+    ``bootstrap_share``), ``retuned`` (what the calibrated parameters moved to while
+    scoring), ``noise_pa``, ``variance_ratio``, and for ``ambiguous``
+    ``ambiguous_between`` (two names) and ``excitation`` (what would separate them);
+  - ``"plot"``: the before / after PNG written beside the JSON;
+
+* the plot (``<json stem>.png``): residual RMS per region before and after, and the
+  residual of the worst trip over time;
+* one ``discovery_findings`` row per iteration, landed in the warehouse with a ``runs``
+  row (command ``discover``).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import polars as pl
+
+from pipelines.lake import scan_lake
+from pipelines.provenance import code_version, new_run_id, utc_now
+from schemas.effects import NO_EFFECT
+from schemas.hoist import HoistDescription, hoist_sha256, load_hoist
+from sims.discovery import DiscoveryResult, Finding, discover_effects
+from sims.replay import plan_replay
+from warehouse.landing import RunRecord, land_discovery_findings, land_run
+from warehouse.store import DataRoot, open_writer
+
+__all__ = ["DiscoveryReport", "discover_period", "report_objects", "write_plot"]
+
+
+@dataclass(frozen=True)
+class DiscoveryReport:
+    """What :func:`discover_period` computed, wrote and landed."""
+
+    run_id: str
+    report: dict[str, Any]
+    result: DiscoveryResult
+    json_path: Path | None
+    plot_path: Path | None
+    landed_rows: int
+
+
+def _finding_object(f: Finding, hoist: HoistDescription, period: tuple[str, str]) -> dict[str, Any]:
+    obj: dict[str, Any] = {
+        "hoist": hoist.hoist.name,
+        "site": hoist.hoist.site,
+        "period": list(period),
+        "iteration": f.iteration,
+        "effect": f.effect,
+        "parameters": f.parameters,
+        "confidence": round(float(f.confidence), 3),
+        "where": f.where,
+        "gap_before_pa": round(float(f.gap_before_pa), 1),
+        "gap_after_pa": round(float(f.gap_after_pa), 1),
+        "ranking": f.ranking,
+        "retuned": f.retuned,
+        "noise_pa": round(float(f.noise_pa), 1),
+        "variance_ratio": round(float(f.variance_ratio), 3),
+        "autocorrelation_time": round(float(f.autocorrelation_time), 2),
+        "message": f.message,
+    }
+    if f.ambiguous_between:
+        obj["ambiguous_between"] = list(f.ambiguous_between)
+        obj["excitation"] = f.excitation
+    return obj
+
+
+def report_objects(
+    result: DiscoveryResult, period: tuple[str, str]
+) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """The report JSON object and the per-iteration objects (see module docstring)."""
+    hoist = result.plan.hoist
+    per = [_finding_object(f, hoist, period) for f in result.findings]
+    first = per[0]
+    found = result.effects_found
+    report = {
+        **{k: first[k] for k in ("hoist", "site", "period", "effect", "parameters", "confidence")},
+        "where": first["where"],
+        "gap_before_pa": first["gap_before_pa"],
+        "gap_after_pa": per[-1]["gap_after_pa"] if found else first["gap_before_pa"],
+        "ranking": first["ranking"],
+        "effects": found,
+        "model_effects_before": list(result.effects_before),
+        "model_effects_after": list(result.effects_after),
+        "noise_pa": first["noise_pa"],
+        "trips_analysed": len(result.plan.trips),
+        "trips_in_period": result.plan.trips_found,
+        "findings": per,
+    }
+    return report, per
+
+
+def write_plot(result: DiscoveryResult, path: str | Path) -> Path:
+    """Before / after plot: residual RMS per region, and the worst trip's residual."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    plan = result.plan
+    before = result.before.residuals(plan)
+    after = result.after.residuals(plan)
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(10, 8))
+    regions = result.findings[0].where if result.findings else []
+    if result.findings and result.effects_found:
+        regions = next(f.where for f in result.findings if f.effect in result.effects_found)
+    labels = [r["regime"] for r in regions]
+    x = np.arange(len(labels))
+    ax1.bar(x - 0.2, [r["gap_pa"] / 1e3 for r in regions], 0.4, label="before")
+    ax1.bar(
+        x + 0.2,
+        [(r["gap_after_pa"] or r["gap_pa"]) / 1e3 for r in regions],
+        0.4,
+        label="after",
+    )
+    ax1.axhline(plan.noise_sigma_pa / 1e3, color="k", ls="--", lw=1, label="sensor noise")
+    ax1.set_xticks(x, labels, rotation=20, ha="right", fontsize=8)
+    ax1.set_ylabel("RMS gap [kPa]")
+    found = ", ".join(result.effects_found) or result.findings[0].effect
+    ax1.set_title(f"{plan.hoist.hoist.name}: measured - simulated sensor pressure ({found})")
+    ax1.legend()
+    worst = int(np.argmax([np.nanmean(r**2) if np.isfinite(r).any() else -1 for r in before]))
+    tr = plan.trips[worst]
+    sensor = int(np.nanargmax(np.nanmean(before[worst] ** 2, axis=0)))
+    ax2.plot(tr.time_s - tr.time_s[0], before[worst][:, sensor] / 1e3, lw=0.7, label="before")
+    ax2.plot(tr.time_s - tr.time_s[0], after[worst][:, sensor] / 1e3, lw=0.7, label="after")
+    ax2.set_xlabel(f"time in trip {tr.trip_id} ({tr.direction}) [s]")
+    ax2.set_ylabel(f"sensor {sensor + 1} residual [kPa]")
+    ax2.legend()
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def discover_period(
+    *,
+    hoist_path: str | Path,
+    data: DataRoot,
+    start: dt.datetime | None = None,
+    end: dt.datetime | None = None,
+    json_path: str | Path | None = None,
+    max_trips: int = 12,
+    max_iterations: int = 3,
+    land: bool = True,
+) -> DiscoveryReport:
+    """Discover the effects missing from a hoist's model over ``start <= t < end``.
+
+    Raises
+    ------
+    LookupError
+        No samples landed for the hoist in the period.
+    ValueError
+        No trip in the period.
+    """
+    started = utc_now()
+    hoist = load_hoist(hoist_path)
+    site, name = hoist.hoist.site, hoist.hoist.name
+    samples = scan_lake(
+        data, "field_samples", site=site, hoist=name, start=start, end=end
+    ).collect()
+    if samples.height == 0:
+        raise LookupError(
+            f"no landed samples for site {site!r}, hoist {name!r} in the period "
+            f"[{start or '-inf'}, {end or '+inf'}): ingest its logs first"
+        )
+    p_start = (start or samples["time_utc"].min()).astimezone(dt.UTC)
+    p_end = (end or samples["time_utc"].max() + dt.timedelta(microseconds=1)).astimezone(dt.UTC)
+    plan = plan_replay(samples, hoist, max_trips=max_trips)
+    result = discover_effects(plan, max_iterations=max_iterations)
+    period = (p_start.isoformat(), p_end.isoformat())
+    report, per = report_objects(result, period)
+    json_out = plot_out = None
+    if json_path is not None:
+        json_out = Path(json_path)
+        json_out.parent.mkdir(parents=True, exist_ok=True)
+        plot_out = write_plot(result, json_out.with_suffix(".png"))
+        report["plot"] = plot_out.name
+        json_out.write_text(json.dumps(report, indent=2, default=str))
+    run_id = new_run_id("discover")
+    landed = 0
+    if land:
+        run = RunRecord(
+            run_id=run_id,
+            command="discover",
+            code_version=code_version(),
+            started_at_utc=started,
+            hoist_sha256=hoist_sha256(hoist_path),
+            parameter_set=hoist.friction.parameter_set,
+            site=site,
+            hoist=name,
+            period_start_utc=p_start,
+            period_end_utc=p_end,
+            inputs=tuple(sorted(samples["source_sha256"].unique().to_list()))
+            if "source_sha256" in samples.columns
+            else (),
+            finished_at_utc=utc_now(),
+            status="succeeded",
+            message=f"effects found: {', '.join(result.effects_found) or NO_EFFECT}",
+        )
+        rows = pl.DataFrame(
+            [
+                {
+                    "run_id": run_id,
+                    "site": site,
+                    "hoist": name,
+                    "iteration": obj["iteration"],
+                    "period_start_utc": p_start,
+                    "period_end_utc": p_end,
+                    "effect": obj["effect"],
+                    "confidence": obj["confidence"],
+                    "gap_before_pa": obj["gap_before_pa"],
+                    "gap_after_pa": obj["gap_after_pa"],
+                    "report_json": json.dumps(obj, default=str),
+                }
+                for obj in per
+            ]
+        )
+        with open_writer(data) as con:
+            land_run(con, run)
+            landed = land_discovery_findings(con, run, rows)
+    return DiscoveryReport(
+        run_id=run_id,
+        report=report,
+        result=result,
+        json_path=json_out,
+        plot_path=plot_out,
+        landed_rows=landed,
+    )

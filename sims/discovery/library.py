@@ -1,0 +1,387 @@
+"""The effect library: one candidate term per named effect of contract section 4.
+
+In the shape of a SINDy candidate library (Brunton, Proctor & Kutz 2016, PNAS 113(15)
+3932-3937, doi:10.1073/pnas.1517384113; the pysindy ``feature_library`` API): a library
+knows its terms (:meth:`EffectLibrary.get_feature_names`), libraries combine with
+``+``, and each term can be evaluated. Here a term is not a column of a function of the
+state but a physical effect of the device simulation (:mod:`sims.device`): it switches
+its effect on (:attr:`EffectTerm.name` in the ``effects`` set) and maps a small vector of
+coordinates to the effect's parameters (:meth:`EffectTerm.parameters`), so the
+selection (:mod:`sims.discovery.selection`) can fit it by Gauss-Newton on finite-
+difference columns of the simulated pressures.
+
+Coordinates are chosen so the simulated pressures are close to linear in them:
+
+================================  ==============================================  =========
+effect                            coordinates                                     step
+================================  ==============================================  =========
+tail_rope_weight                  mass per metre of one tail rope [kg/m]          0.5
+conveyance_inertia                accelerated empty conveyance mass [kg]          500
+seal_friction                     scale of Fc and Fs laws (both coefficients) [-] 0.1
+presliding_hysteresis             ln(total presliding stiffness [N/m])            0.3
+pipe_laminar_loss                 scale of both branch lengths [-]                0.2
+local_loss                        scale of the three loss coefficients [-]        0.2
+oil_compressibility               ln(bulk modulus [Pa])                           0.2
+viscosity_temperature             ln(kinematic viscosity at 100 degC [m2/s])      0.1
+sensor_offset                     offset per sensor [Pa] (analytic columns)       --
+sensor_gain                       gain per sensor [-] (analytic columns)          --
+groove_wear                       groove radius deviation, ropes 2..n [m]         1e-4
+================================  ==============================================  =========
+
+Sensor offset and gain act after the simulation (``reading = gain p + offset``), so
+their columns are analytic (no simulation). Groove deviations are relative to rope 1:
+a deviation common to all ropes only stretches them equally and is not seen in the
+pressures. ``presliding_hysteresis`` needs ``seal_friction`` and
+``viscosity_temperature`` needs ``pipe_laminar_loss`` (it only scales that loss); a
+term whose requirement is not in the model is not a candidate yet.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from schemas.effects import EFFECT_NAMES
+from schemas.hoist import HoistDescription
+from sims.effects import resolve_effects
+
+__all__ = ["EFFECT_LIBRARY", "EffectLibrary", "EffectTerm", "term_parameters"]
+
+Params = dict[str, dict[str, Any]]
+
+
+@dataclass(frozen=True)
+class EffectTerm:
+    """A candidate effect: its coordinates, how they map to parameters, what excites it.
+
+    Attributes
+    ----------
+    name : contract section 4 effect name.
+    coordinate_names : names (with units) of the fitted coordinates.
+    steps : finite-difference step per coordinate.
+    requires : effects that must be in the model for this term to act.
+    excitation : the operating condition that shows this effect most.
+    analytic : columns are computed from the simulated pressures (sensor terms).
+    """
+
+    name: str
+    coordinate_names: tuple[str, ...]
+    steps: tuple[float, ...]
+    requires: tuple[str, ...]
+    excitation: str
+    get: Callable[[HoistDescription, Mapping[str, Any]], np.ndarray]
+    set: Callable[[HoistDescription, np.ndarray], dict[str, Any]]
+    analytic: bool = False
+    prior_sd: float = 0.0
+
+    def prior(self, theta: np.ndarray) -> np.ndarray:
+        """Prior standard deviation of each coordinate when the term is re-tuned.
+
+        A calibrated parameter may move within its calibration uncertainty (a Gaussian
+        prior, i.e. ridge regression toward the calibrated value); relative priors
+        (``prior_sd`` < 0) scale with the coordinate's value.
+        """
+        sd = abs(self.prior_sd)
+        if self.prior_sd < 0:
+            return np.maximum(sd * np.abs(theta), 1e-12)
+        return np.full(theta.shape, sd)
+
+    def coordinates(
+        self, hoist: HoistDescription, parameters: Mapping[str, Any] | None
+    ) -> np.ndarray:
+        """Current coordinates from ``parameters`` overrides (hoist defaults otherwise)."""
+        eff = resolve_effects(hoist, [*EFFECT_NAMES], _only_known(parameters))
+        return np.asarray(self.get(hoist, eff.parameters[self.name]), dtype=float)
+
+    def parameters(self, hoist: HoistDescription, theta: np.ndarray) -> dict[str, Any]:
+        """The effect's parameters (sims.effects names, SI) at coordinates ``theta``."""
+        return self.set(hoist, np.asarray(theta, dtype=float))
+
+    def null_at_default(self, hoist: HoistDescription) -> bool:
+        """Switching the term on at the hoist's defaults changes nothing."""
+        theta = self.coordinates(hoist, None)
+        if self.name == "sensor_offset":
+            return bool(np.all(theta == 0.0))
+        if self.name == "sensor_gain":
+            return bool(np.all(theta == 1.0))
+        if self.name == "groove_wear":
+            return not any(hoist.drum.groove_radius_deviation_m)
+        return False
+
+
+def _only_known(parameters: Mapping[str, Any] | None) -> Params:
+    return {k: dict(v) for k, v in (parameters or {}).items()}
+
+
+def _pair(value: Any) -> tuple[float, float]:
+    a, b = value
+    return float(a), float(b)
+
+
+def _friction_scale(h: HoistDescription, p: Mapping[str, Any]) -> np.ndarray:
+    base = _pair(h.friction_law.coulomb_n)
+    return np.array([_pair(p["coulomb_n"])[0] / base[0] if base[0] else 1.0])
+
+
+def _friction_set(h: HoistDescription, x: np.ndarray) -> dict[str, Any]:
+    s = float(max(x[0], 0.0))
+    law = h.friction_law
+    return {
+        "coulomb_n": (s * law.coulomb_n[0], s * law.coulomb_n[1]),
+        "static_n": (s * law.static_n[0], s * law.static_n[1]),
+    }
+
+
+def _length_scale(h: HoistDescription, p: Mapping[str, Any]) -> np.ndarray:
+    return np.array([p["length_chamber_to_sensor_m"] / h.piping.length_chamber_to_sensor_m])
+
+
+def _length_set(h: HoistDescription, x: np.ndarray) -> dict[str, Any]:
+    s = float(max(x[0], 1e-3))
+    return {
+        "length_chamber_to_sensor_m": s * h.piping.length_chamber_to_sensor_m,
+        "length_sensor_to_manifold_m": s * h.piping.length_sensor_to_manifold_m,
+    }
+
+
+def _k_base(h: HoistDescription) -> tuple[float, float, float]:
+    pp = h.piping
+    return (
+        pp.valve_loss_coefficient,
+        pp.fittings_loss_coefficient_chamber_to_sensor,
+        pp.fittings_loss_coefficient_sensor_to_manifold,
+    )
+
+
+def _loss_scale(h: HoistDescription, p: Mapping[str, Any]) -> np.ndarray:
+    base = sum(_k_base(h))
+    now = (
+        p["valve_loss_coefficient"]
+        + p["fittings_chamber_to_sensor"]
+        + p["fittings_sensor_to_manifold"]
+    )
+    return np.array([now / base if base else 1.0])
+
+
+def _loss_set(h: HoistDescription, x: np.ndarray) -> dict[str, Any]:
+    s = float(max(x[0], 0.0))
+    kv, k1, k2 = _k_base(h)
+    return {
+        "valve_loss_coefficient": s * kv,
+        "fittings_chamber_to_sensor": s * k1,
+        "fittings_sensor_to_manifold": s * k2,
+    }
+
+
+def _groove_get(h: HoistDescription, p: Mapping[str, Any]) -> np.ndarray:
+    dev = np.asarray(p["groove_radius_deviation_m"], dtype=float)
+    return dev[1:] - dev[0]
+
+
+def _groove_set(h: HoistDescription, x: np.ndarray) -> dict[str, Any]:
+    return {"groove_radius_deviation_m": [0.0, *[float(v) for v in x]]}
+
+
+def _terms() -> dict[str, EffectTerm]:
+    ln = math.log
+    terms = [
+        EffectTerm(
+            "tail_rope_weight",
+            ("mass_per_length_kg_m",),
+            (0.5,),
+            (),
+            "long travel: the tail rope hanging below the conveyance changes with depth",
+            lambda h, p: np.array([p["mass_per_length_kg_m"]]),
+            lambda h, x: {"mass_per_length_kg_m": float(x[0])},
+            prior_sd=-0.2,
+        ),
+        EffectTerm(
+            "conveyance_inertia",
+            ("mass_kg",),
+            (500.0,),
+            (),
+            "hard acceleration and deceleration of a loaded conveyance",
+            lambda h, p: np.array([p["mass_kg"]]),
+            lambda h, x: {"mass_kg": float(max(x[0], 0.0))},
+            prior_sd=-0.1,
+        ),
+        EffectTerm(
+            "seal_friction",
+            ("friction_scale",),
+            (0.1,),
+            (),
+            "load changes at standstill and motion reversals (all pistons sliding together)",
+            _friction_scale,
+            _friction_set,
+            prior_sd=0.3,
+        ),
+        EffectTerm(
+            "presliding_hysteresis",
+            ("ln_stiffness_n_m",),
+            (0.3,),
+            ("seal_friction",),
+            "small load changes in steps at standstill (sub-millimetre piston motion)",
+            lambda h, p: np.array([ln(p["stiffness_n_m"])]),
+            lambda h, x: {"stiffness_n_m": float(math.exp(x[0]))},
+            prior_sd=0.5,
+        ),
+        EffectTerm(
+            "pipe_laminar_loss",
+            ("length_scale",),
+            (0.2,),
+            (),
+            "slow steady piston motion (oil flow at low Reynolds number)",
+            _length_scale,
+            _length_set,
+            prior_sd=0.3,
+        ),
+        EffectTerm(
+            "local_loss",
+            ("loss_coefficient_scale",),
+            (0.2,),
+            (),
+            "fast load changes (high branch flow; the loss grows with flow squared)",
+            _loss_scale,
+            _loss_set,
+            prior_sd=0.5,
+        ),
+        EffectTerm(
+            "oil_compressibility",
+            ("ln_bulk_modulus_pa",),
+            (0.2,),
+            (),
+            "sudden load changes (pressure lag and ringing between cylinders)",
+            lambda h, p: np.array([ln(p["bulk_modulus_pa"])]),
+            lambda h, x: {"bulk_modulus_pa": float(math.exp(x[0]))},
+            prior_sd=0.3,
+        ),
+        EffectTerm(
+            "viscosity_temperature",
+            ("ln_viscosity_100c_m2_s",),
+            (0.1,),
+            ("pipe_laminar_loss",),
+            "the same trips at clearly different oil temperatures (cold morning, warm afternoon)",
+            lambda h, p: np.array([ln(p["kinematic_viscosity_100c_m2_s"])]),
+            lambda h, x: {"kinematic_viscosity_100c_m2_s": float(math.exp(x[0]))},
+            prior_sd=0.2,
+        ),
+        EffectTerm(
+            "sensor_offset",
+            tuple(f"offset_pa[{i}]" for i in range(1, 5)),
+            (1e3,) * 4,
+            (),
+            "the conveyance at rest empty and loaded (an offset does not scale with pressure)",
+            lambda h, p: np.asarray(p["offsets_pa"], dtype=float),
+            lambda h, x: {"offsets_pa": [float(v) for v in x]},
+            analytic=True,
+            prior_sd=5e4,
+        ),
+        EffectTerm(
+            "sensor_gain",
+            tuple(f"gain[{i}]" for i in range(1, 5)),
+            (1e-3,) * 4,
+            (),
+            "the conveyance at rest empty and loaded (a gain error scales with pressure)",
+            lambda h, p: np.asarray(p["gains"], dtype=float),
+            lambda h, x: {"gains": [float(v) for v in x]},
+            analytic=True,
+            prior_sd=0.02,
+        ),
+        EffectTerm(
+            "groove_wear",
+            tuple(f"groove_radius_deviation_m[{i}]" for i in range(2, 5)),
+            (1e-4,) * 3,
+            (),
+            "long travel in one direction at full speed (rope lengths drift apart)",
+            _groove_get,
+            _groove_set,
+            prior_sd=3e-4,
+        ),
+    ]
+    return {t.name: t for t in terms}
+
+
+class EffectLibrary:
+    """An ordered collection of :class:`EffectTerm` (pysindy-style library).
+
+    ``fit(hoist)`` sizes the per-sensor and per-rope terms to the hoist;
+    ``get_feature_names()`` lists the term names; ``lib_a + lib_b`` concatenates.
+    """
+
+    def __init__(self, terms: Iterable[EffectTerm]) -> None:
+        self.terms: dict[str, EffectTerm] = {}
+        for term in terms:
+            if term.name not in EFFECT_NAMES:
+                raise ValueError(f"unknown effect {term.name!r}; valid: {', '.join(EFFECT_NAMES)}")
+            self.terms[term.name] = term
+        self.n_terms_ = len(self.terms)
+
+    def fit(self, hoist: HoistDescription) -> EffectLibrary:
+        """Size per-sensor / per-rope terms to ``hoist.ropes_n``; returns self."""
+        n = hoist.ropes_n
+        sized = []
+        for term in self.terms.values():
+            if term.name in ("sensor_offset", "sensor_gain"):
+                stem = "offset_pa" if term.name == "sensor_offset" else "gain"
+                term = _resize(term, tuple(f"{stem}[{i}]" for i in range(1, n + 1)))
+            elif term.name == "groove_wear":
+                term = _resize(
+                    term, tuple(f"groove_radius_deviation_m[{i}]" for i in range(2, n + 1))
+                )
+            sized.append(term)
+        self.terms = {t.name: t for t in sized}
+        self.n_terms_ = len(self.terms)
+        return self
+
+    def get_feature_names(self) -> list[str]:
+        return list(self.terms)
+
+    def __getitem__(self, name: str) -> EffectTerm:
+        return self.terms[name]
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.terms
+
+    def __add__(self, other: EffectLibrary) -> EffectLibrary:
+        return EffectLibrary([*self.terms.values(), *other.terms.values()])
+
+    def candidates(self, model_effects: Iterable[str]) -> list[str]:
+        """Terms not in the model whose requirements are in it, in contract order."""
+        model = set(model_effects)
+        return [
+            name
+            for name, term in self.terms.items()
+            if name not in model and all(r in model for r in term.requires)
+        ]
+
+
+def _resize(term: EffectTerm, names: tuple[str, ...]) -> EffectTerm:
+    return EffectTerm(
+        term.name,
+        names,
+        (term.steps[0],) * len(names),
+        term.requires,
+        term.excitation,
+        term.get,
+        term.set,
+        term.analytic,
+        term.prior_sd,
+    )
+
+
+def term_parameters(
+    hoist: HoistDescription,
+    overrides: Mapping[str, Mapping[str, Any]] | None,
+    effects: Iterable[str],
+) -> Params:
+    """``overrides`` restricted to the switched-on ``effects`` (for ``simulate``)."""
+    on = set(effects)
+    return {k: dict(v) for k, v in (overrides or {}).items() if k in on}
+
+
+#: The full library: every contract effect, in contract order.
+EFFECT_LIBRARY = EffectLibrary(_terms().values())

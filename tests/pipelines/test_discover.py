@@ -1,0 +1,85 @@
+"""pipelines.discover and ``ropeload discover``: lake in, contract-5 JSON + plot + warehouse out."""
+
+from __future__ import annotations
+
+import json
+
+import polars as pl
+import pytest
+
+from pipelines.cli import main
+from pipelines.discover import discover_period
+from schemas.hoist import EXAMPLE_HOIST
+from tests.sims._discovery_cases import hidden_case
+from warehouse.store import DataRoot, open_reader
+
+
+@pytest.fixture(scope="module")
+def lake_with_offset(tmp_path_factory):
+    """Two trips whose sensor 2 reads 20 kPa high, landed in a lake; hoist file without it."""
+    plan, info = hidden_case("sensor_offset")
+    root = tmp_path_factory.mktemp("data")
+    hoist = plan.hoist
+    sensors = info["day"].sensors.with_columns(
+        pl.lit("0" * 64).alias("source_sha256"), pl.int_range(pl.len()).alias("source_line")
+    )
+    for (day,), part in (
+        sensors.with_columns(_d=pl.col("time_utc").dt.date())
+        .partition_by("_d", as_dict=True)
+        .items()
+    ):
+        target = (
+            root
+            / "lake"
+            / "field_samples"
+            / f"site={hoist.hoist.site}"
+            / f"hoist={hoist.hoist.name}"
+            / f"date={day}"
+            / "part-0.parquet"
+        )
+        target.parent.mkdir(parents=True, exist_ok=True)
+        part.drop("_d").write_parquet(target)
+    toml = root / "hoist.toml"  # the example hoist: its model has no sensor_offset
+    toml.write_text(EXAMPLE_HOIST.read_text())
+    return root, toml
+
+
+def test_discover_period_writes_report_plot_and_lands(lake_with_offset, tmp_path):
+    root, toml = lake_with_offset
+    out = discover_period(
+        hoist_path=toml, data=DataRoot.resolve(root), json_path=tmp_path / "r.json"
+    )
+    report = json.loads((tmp_path / "r.json").read_text())
+    for key in (
+        "hoist",
+        "period",
+        "effect",
+        "parameters",
+        "confidence",
+        "where",
+        "gap_before_pa",
+        "gap_after_pa",
+        "ranking",
+    ):
+        assert key in report
+    assert report["effect"] == "sensor_offset"
+    assert report["gap_after_pa"] < report["gap_before_pa"]
+    assert (tmp_path / "r.png").stat().st_size > 1000
+    assert out.landed_rows == len(report["findings"])
+    con = open_reader(DataRoot.resolve(root))
+    try:
+        rows = con.sql(
+            "select effect, iteration from discovery_findings order by iteration"
+        ).fetchall()
+    finally:
+        con.close()
+    assert rows[0] == ("sensor_offset", 1)
+
+
+def test_cli_discover(lake_with_offset, tmp_path, capsys):
+    root, toml = lake_with_offset
+    code = main(
+        ["discover", "--data", str(root), "--hoist", str(toml), "--json", str(tmp_path / "c.json")]
+    )
+    assert code == 0
+    assert json.loads(capsys.readouterr().out)["effect"] == "sensor_offset"

@@ -1,0 +1,71 @@
+"""Discovery on sims-generated data where the hoist's model omits one effect the data contain.
+
+Known truth: every case is a synthetic field day (sims.field_day) of the example hoist
+with one effect hidden from the model; discovery must name it and shrink the gap, and
+report ``none`` when the model is the data's.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sims.discovery import EFFECT_LIBRARY, discover_effects
+from tests.sims._discovery_cases import hidden_case
+
+#: Effects found in the plain two-trip scenario (full-shaft trips, loading at the stops).
+FOUND = [
+    "tail_rope_weight",
+    "conveyance_inertia",
+    "seal_friction",
+    "presliding_hysteresis",
+    "oil_compressibility",
+    "sensor_offset",
+    "sensor_gain",
+]
+
+
+def test_null_case_reports_none():
+    plan, _ = hidden_case(None)
+    result = discover_effects(plan, bootstrap=50)
+    assert [f.effect for f in result.findings] == ["none"]
+    assert result.findings[0].variance_ratio < 1.3
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("hidden", FOUND)
+def test_hidden_effect_is_named_and_the_gap_shrinks(hidden):
+    plan, _ = hidden_case(hidden)
+    result = discover_effects(plan, bootstrap=50, max_iterations=2)
+    first = result.findings[0]
+    assert first.effect == hidden
+    assert first.confidence >= 0.6
+    # the gap in excess of the sensor noise at least halves
+    noise = plan.noise_sigma_pa
+    excess_before = np.sqrt(max(first.gap_before_pa**2 - noise**2, 0.0))
+    excess_after = np.sqrt(max(first.gap_after_pa**2 - noise**2, 0.0))
+    assert excess_after < 0.5 * excess_before
+    assert first.ranking[0]["effect"] == hidden
+    if hidden == "sensor_offset":
+        assert first.parameters["offsets_pa"][1] == pytest.approx(2e4, rel=0.1)
+        assert np.abs(np.delete(first.parameters["offsets_pa"], 1)).max() < 2e3
+    if hidden == "sensor_gain":
+        assert first.parameters["gains"][2] == pytest.approx(1.01, abs=1e-3)
+    if hidden == "tail_rope_weight":
+        assert first.parameters["mass_per_length_kg_m"] == pytest.approx(6.2, rel=0.05)
+    if hidden == "conveyance_inertia":
+        assert first.parameters["mass_kg"] == pytest.approx(8200, rel=0.05)
+
+
+def test_library_terms_cover_the_contract():
+    from schemas.effects import EFFECT_NAMES
+
+    assert EFFECT_LIBRARY.get_feature_names() == list(EFFECT_NAMES)
+    assert "presliding_hysteresis" not in EFFECT_LIBRARY.candidates(["tail_rope_weight"])
+    assert "presliding_hysteresis" in EFFECT_LIBRARY.candidates(["seal_friction"])
+
+
+def test_bad_hyperparameters_raise():
+    plan, _ = hidden_case(None)
+    with pytest.raises(ValueError, match="variance_threshold"):
+        discover_effects(plan, variance_threshold=0.9)

@@ -63,7 +63,12 @@ def _cmd_ingest(args: argparse.Namespace) -> int:
     from pipelines.ingest import ingest_paths
     from warehouse.store import DataRoot
 
-    report = ingest_paths(args.paths, data=DataRoot.resolve(args.data))
+    if args.prefect:
+        from pipelines.flows import ingest_flow
+
+        report = ingest_flow(paths=[str(p) for p in args.paths], data=args.data)
+    else:
+        report = ingest_paths(args.paths, data=DataRoot.resolve(args.data))
     sys.stdout.write(f"{report}\n")
     return 0
 
@@ -92,6 +97,270 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _prefect_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--prefect",
+        action="store_true",
+        help="run as the Prefect flow of the same name (a flow run, task runs, artifacts); "
+        "without PREFECT_API_URL a temporary local server is started (~15 s)",
+    )
+
+
+def _fleet_options(parser: argparse.ArgumentParser) -> None:
+    """Options of the many-hoist commands (backfill, nightly)."""
+    _data_option(parser)
+    parser.add_argument(
+        "--hoists",
+        metavar="DIR",
+        type=Path,
+        action="append",
+        required=True,
+        help="folder of hoist descriptions (*.toml), or one file; repeatable",
+    )
+    parser.add_argument(
+        "--incoming",
+        metavar="DIR",
+        type=Path,
+        default=None,
+        help="raw logs as <incoming>/<site>/<hoist>/... (default <data>/incoming)",
+    )
+    parser.add_argument(
+        "--workers", type=int, default=2, help="hoist-days processed at a time (default 2)"
+    )
+    parser.add_argument(
+        "--dask",
+        metavar="ADDRESS",
+        default=None,
+        help="run the flow on a Dask cluster: a scheduler address or 'local' "
+        "(a LocalCluster of --workers processes); implies --prefect",
+    )
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    _prefect_option(parser)
+
+
+def _parse_time(text: str):
+    import datetime as dt
+
+    value = dt.datetime.fromisoformat(text)
+    return value.replace(tzinfo=dt.UTC) if value.tzinfo is None else value
+
+
+def _parse_day(text: str):
+    import datetime as dt
+
+    return dt.date.fromisoformat(text)
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from warehouse.store import DataRoot
+
+    checks = "sanity check skipped"
+    if args.prefect:
+        from pipelines.flows import run_flow
+
+        result = run_flow(
+            hoist=str(args.hoist.absolute()),
+            data=args.data,
+            start=args.start,
+            end=args.end,
+            payload_kg=args.payload_kg,
+            sanity=not args.no_sanity,
+        )
+    else:
+        from pipelines.backfill import check_sanity
+        from pipelines.run_period import run_period
+
+        data = DataRoot.resolve(args.data)
+        result = run_period(
+            hoist_path=args.hoist,
+            data=data,
+            start=args.start,
+            end=args.end,
+            payload_kg=args.payload_kg,
+        )
+        if not args.no_sanity and result.trip_summary.height:
+            frame = check_sanity(
+                hoist_path=args.hoist,
+                data=data,
+                run_id=result.run_id,
+                start=result.period_start_utc,
+                end=result.period_end_utc,
+            )
+            checks = f"sanity check {int(frame['passed'].sum())}/{frame.height} trips passed"
+    sys.stdout.write(
+        f"run {result.run_id}: {result.site}/{result.hoist} "
+        f"{result.period_start_utc:%Y-%m-%d %H:%M:%S} .. {result.period_end_utc:%Y-%m-%d %H:%M:%S}"
+        f" UTC, {result.samples} samples, {result.trip_summary.height} trips, "
+        f"{result.position_summary.height} position visits, {result.alarms.height} alarms"
+        f"{'' if args.prefect else '; ' + checks}\n"
+    )
+    return 0
+
+
+def _fleet(args: argparse.Namespace, run_plain, run_flow) -> int:
+    """Shared tail of backfill / nightly: plain functions or the flow; summary; status."""
+    from pipelines.backfill import StderrProgress, load_hoists
+    from warehouse.store import DataRoot
+
+    data = DataRoot.resolve(args.data)
+    if args.prefect or args.dask:
+        from pipelines.flows import PartitionsFailed
+
+        try:
+            report = run_flow(data.path, not args.no_progress)
+        except PartitionsFailed as exc:
+            report = exc.report
+    else:
+        sources = load_hoists(args.hoists, data=data, incoming=args.incoming)
+        report = run_plain(sources, data, None if args.no_progress else StderrProgress(0))
+    sys.stdout.write(str(report))
+    if not report.ok:
+        failed = getattr(report, "runs", report).failed
+        raise RopeloadError(
+            f"{len(failed)} partition(s) failed (reasons above; also in the runs table)"
+            if failed
+            else "some files were refused (see above)"
+        )
+    return 0
+
+
+def _cmd_backfill(args: argparse.Namespace) -> int:
+    def run_plain(sources, data, bar):
+        from pipelines.backfill import backfill
+
+        return backfill(
+            sources,
+            data=data,
+            start=args.start,
+            end=args.end,
+            max_workers=args.workers,
+            force=args.force,
+            sanity=args.sanity,
+            progress=bar,
+            on_plan=None if bar is None else lambda plan: bar.resize(plan.total),
+        )
+
+    def run_flow(data, show_progress):
+        from pipelines.flows import run_backfill_flow
+
+        return run_backfill_flow(
+            args.hoists,
+            start=args.start,
+            end=args.end,
+            data=data,
+            incoming=args.incoming,
+            max_workers=args.workers,
+            dask=args.dask,
+            force=args.force,
+            sanity=args.sanity,
+            show_progress=show_progress,
+        )
+
+    return _fleet(args, run_plain, run_flow)
+
+
+def _cmd_nightly(args: argparse.Namespace) -> int:
+    if len(args.hoists) != 1 and (args.prefect or args.dask):
+        raise RopeloadError("--prefect / --dask take a single --hoists folder")
+
+    def run_plain(sources, data, bar):
+        from pipelines.nightly import nightly
+
+        return nightly(
+            sources,
+            data=data,
+            max_workers=args.workers,
+            lookback_days=args.lookback_days,
+            sanity=not args.no_sanity,
+            progress=bar,
+            on_plan=None if bar is None else lambda partitions: bar.resize(len(partitions)),
+        )
+
+    def run_flow(data, show_progress):
+        from pipelines.flows import run_nightly_flow
+
+        return run_nightly_flow(
+            args.hoists[0],
+            data=data,
+            incoming=args.incoming,
+            lookback_days=args.lookback_days,
+            max_workers=args.workers,
+            dask=args.dask,
+            sanity=not args.no_sanity,
+            show_progress=show_progress,
+        )
+
+    return _fleet(args, run_plain, run_flow)
+
+
+def _add_flow_commands(commands) -> None:
+    """``run``, ``backfill`` and ``nightly`` (issue 7); ``--prefect`` runs their flows."""
+    run = commands.add_parser(
+        "run", help="compensate + reconcile + alarm a period of one hoist, and land it"
+    )
+    _data_option(run)
+    _hoist_option(run, required=True)
+    run.add_argument("--from", dest="start", type=_parse_time, metavar="T", help="UTC if no offset")
+    run.add_argument("--to", dest="end", type=_parse_time, metavar="T", help="exclusive")
+    run.add_argument("--payload-kg", type=float, default=None, help="known payload at standstill")
+    run.add_argument("--no-sanity", action="store_true", help="skip the simulation sanity check")
+    _prefect_option(run)
+    run.set_defaults(handler=_cmd_run)
+
+    backfill = commands.add_parser(
+        "backfill", help="every hoist-day of a date range: resumable, bounded concurrency"
+    )
+    _fleet_options(backfill)
+    backfill.add_argument(
+        "--from", dest="start", type=_parse_day, required=True, metavar="DAY", help="UTC day"
+    )
+    backfill.add_argument(
+        "--to", dest="end", type=_parse_day, required=True, metavar="DAY", help="UTC day, included"
+    )
+    backfill.add_argument("--force", action="store_true", help="re-run days the ledger marks done")
+    backfill.add_argument(
+        "--sanity", action="store_true", help="also run the simulation sanity check per day"
+    )
+    backfill.set_defaults(handler=_cmd_backfill)
+
+    nightly = commands.add_parser(
+        "nightly", help="every hoist's new raw files since its watermark, processed and landed"
+    )
+    _fleet_options(nightly)
+    nightly.add_argument(
+        "--lookback-days",
+        type=int,
+        default=3,
+        help="also re-run not-done days this far before each hoist's watermark (default 3)",
+    )
+    nightly.add_argument(
+        "--no-sanity", action="store_true", help="skip the simulation sanity check"
+    )
+    nightly.set_defaults(handler=_cmd_nightly)
+
+
+def _cmd_discover(args: argparse.Namespace) -> int:
+    import json
+
+    from pipelines.discover import discover_period
+    from warehouse.store import DataRoot
+
+    try:
+        out = discover_period(
+            hoist_path=args.hoist,
+            data=DataRoot.resolve(args.data),
+            start=args.start,
+            end=args.end,
+            json_path=args.json,
+        )
+    except LookupError as exc:
+        raise RopeloadError(str(exc)) from exc
+    report = out.report
+    summary = {k: report[k] for k in ("effect", "effects", "gap_before_pa", "gap_after_pa")}
+    sys.stdout.write(json.dumps(summary) + "\n")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="ropeload",
@@ -112,6 +381,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _data_option(ingest)
     ingest.add_argument("paths", nargs="+", type=Path, metavar="PATH", help="files or folders")
+    _prefect_option(ingest)
     ingest.set_defaults(handler=_cmd_ingest)
 
     calibrate = commands.add_parser(
@@ -129,6 +399,22 @@ def build_parser() -> argparse.ArgumentParser:
         "recordings", nargs="*", type=Path, metavar="MCAP", help="recordings to ingest and use"
     )
     calibrate.set_defaults(handler=_cmd_calibrate)
+
+    _add_flow_commands(commands)
+
+    discover = commands.add_parser(
+        "discover", help="name the effect missing from a hoist's model (contract section 5)"
+    )
+    _data_option(discover)
+    _hoist_option(discover, required=True)
+    discover.add_argument(
+        "--from", dest="start", type=_parse_time, metavar="T", help="UTC if no offset"
+    )
+    discover.add_argument("--to", dest="end", type=_parse_time, metavar="T", help="exclusive")
+    discover.add_argument(
+        "--json", type=Path, required=True, metavar="FILE", help="report to write"
+    )
+    discover.set_defaults(handler=_cmd_discover)
 
     query = commands.add_parser("query", help="SQL on the warehouse, read-only")
     _data_option(query)

@@ -1,0 +1,216 @@
+"""Backfill: partition plan, ledger, resume after SIGKILL, failures with reasons (no Prefect)."""
+
+from __future__ import annotations
+
+import datetime as dt
+import os
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import duckdb
+import pytest
+
+from pipelines.backfill import (
+    Partition,
+    backfill,
+    completed_partitions,
+    file_days,
+    fingerprint,
+    is_transient,
+    load_hoists,
+    partition_ledger,
+    plan_backfill,
+)
+from pipelines.deploy import write_example_mine
+from warehouse.store import DataRoot, open_reader
+
+REPO = Path(__file__).resolve().parents[2]
+FIRST, LAST = dt.date(2026, 3, 1), dt.date(2026, 3, 4)
+
+
+@pytest.fixture(scope="module")
+def mine(tmp_path_factory) -> tuple[Path, Path]:
+    """2 hoists x 3 local days of 10 minutes at 100 Hz (one CSV per hoist-day)."""
+    root = tmp_path_factory.mktemp("mine")
+    return write_example_mine(root, hoists=2, days=3)
+
+
+@pytest.fixture(scope="module")
+def reference(mine, tmp_path_factory) -> dict[str, tuple[int, int]]:
+    """Fingerprint of one uninterrupted backfill of the whole range."""
+    hoists, incoming = mine
+    data = DataRoot.resolve(tmp_path_factory.mktemp("reference"))
+    report = backfill(
+        load_hoists(hoists, data=data, incoming=incoming), data=data, start=FIRST, end=LAST
+    )
+    assert report.ok, str(report)
+    assert report.count("succeeded") == 6
+    return fingerprint(data)
+
+
+def test_file_days_follow_the_name_stamp_in_local_time():
+    assert file_days("x_20260302.csv", "Asia/Shanghai") == [
+        dt.date(2026, 3, 1),
+        dt.date(2026, 3, 2),
+    ]
+    assert file_days("x_20260302_0700.csv", "Asia/Shanghai") == [dt.date(2026, 3, 1)]
+    assert file_days("x_20260302_0800.csv", "Asia/Shanghai") == [dt.date(2026, 3, 2)]
+    assert file_days("x_20260302.csv", "UTC") == [dt.date(2026, 3, 2)]
+    assert file_days("site7_export.tdms", "UTC") is None
+
+
+def test_transient_errors_are_io_and_locks_only():
+    assert is_transient(OSError(5, "Input/output error"))
+    assert is_transient(TimeoutError("lock"))
+    assert is_transient(duckdb.IOException("Could not set lock on file"))
+    assert not is_transient(FileNotFoundError("gone"))
+    assert not is_transient(PermissionError("denied"))
+    assert not is_transient(ValueError("bad data"))
+    assert not is_transient(KeyError("column"))
+
+
+def test_second_backfill_skips_everything_and_force_changes_no_mart_row(mine, reference, tmp_path):
+    hoists, incoming = mine
+    data = DataRoot.resolve(tmp_path / "data")
+    sources = load_hoists(hoists, data=data, incoming=incoming)
+    first = backfill(sources, data=data, start=FIRST, end=LAST, max_workers=1)
+    assert first.count("succeeded") == 6
+    assert first.count("empty") == 2  # 03-01 UTC: no logs (12:00 local = 04:00 UTC)
+    assert fingerprint(data) == reference  # thread count does not change the rows
+
+    plan = plan_backfill(sources, data=data, start=FIRST, end=LAST)
+    assert (len(plan.todo), len(plan.done), len(plan.empty)) == (0, 6, 2)
+    again = backfill(sources, data=data, start=FIRST, end=LAST)
+    assert again.count("skipped") == 6
+    assert again.count("succeeded") == 0
+    assert fingerprint(data) == reference
+
+    forced = backfill(sources, data=data, start=FIRST, end=LAST, force=True)
+    assert forced.count("succeeded") == 6
+    after = fingerprint(data)
+    runs_rows, runs_days = after.pop("runs_per_day")
+    expected = dict(reference)
+    ref_rows, ref_days = expected.pop("runs_per_day")
+    assert after == expected  # marts and lake replaced, not added to
+    assert (runs_rows, runs_days) == (2 * ref_rows, ref_days)  # history of runs kept
+
+
+def test_changed_hoist_description_or_late_file_makes_a_day_not_done(mine, tmp_path):
+    hoists, incoming = mine
+    local = tmp_path / "hoists"
+    shutil.copytree(hoists, local)
+    data = DataRoot.resolve(tmp_path / "data")
+    sources = load_hoists(local / "shaft-1.toml", data=data, incoming=incoming)
+    day = dt.date(2026, 3, 2)
+    assert backfill(sources, data=data, start=day, end=day).count("succeeded") == 1
+    partition = Partition(sources[0], day)
+    assert completed_partitions(data, [partition]) == {partition.key}
+    # recalibration: a new hoist description content means the day must be recomputed
+    path = local / "shaft-1.toml"
+    path.write_text(path.read_text() + "\n# recalibrated\n")
+    assert completed_partitions(data, [partition]) == set()
+    assert backfill(sources, data=data, start=day, end=day).count("succeeded") == 1
+    ledger = partition_ledger(data)
+    assert ledger.filter(ledger["day"] == day)["status"].to_list() == ["succeeded"]
+
+
+def test_failed_partitions_are_reported_with_their_reason_and_recorded(mine, tmp_path):
+    hoists, incoming = mine
+    local = tmp_path / "hoists"
+    shutil.copytree(hoists, local)
+    data = DataRoot.resolve(tmp_path / "data")
+    sources = load_hoists(local, data=data, incoming=incoming)
+    # a typo saved into one hoist description while the backfill is queued: a data
+    # error (HoistDescriptionError is a ValueError), so its days fail without retries
+    broken = local / "shaft-2.toml"
+    broken.write_text(broken.read_text().replace('mass = "8.2 t"', 'mass = "8.2 m"'))
+    report = backfill(sources, data=data, start=FIRST, end=LAST, retry_delay_s=0)
+    # 03-01 UTC has a raw file to ingest too (local day 03-02 starts 03-01 16:00 UTC)
+    assert [o.key for o in report.failed] == [
+        f"paper-field-test/shaft-2/2026-03-0{d}" for d in (1, 2, 3, 4)
+    ]
+    assert report.count("succeeded") == 3  # the other hoist is not held up
+    failure = report.failed[0]
+    assert failure.attempts == 1
+    assert "HoistDescriptionError" in failure.message
+    assert "conveyance.mass" in failure.message
+    assert "not retried" in failure.message
+    assert "failed partitions:" in str(report)
+    con = open_reader(data)
+    try:
+        rows = con.sql(
+            "SELECT command, hoist, message FROM runs WHERE status = 'failed' ORDER BY 1"
+        ).fetchall()
+    finally:
+        con.close()
+    assert [r[:2] for r in rows] == [("backfill", "shaft-2")] * 4
+    # fixed: a restart runs exactly the failed days
+    broken.write_text(broken.read_text().replace('mass = "8.2 m"', 'mass = "8.2 t"'))
+    healed = backfill(sources, data=data, start=FIRST, end=LAST)
+    assert healed.ok
+    assert sorted(o.key for o in healed.outcomes if o.status == "succeeded") == [
+        o.key for o in report.failed[1:]
+    ]
+    assert report.failed[0].key in [o.key for o in healed.outcomes if o.status == "empty"]
+
+
+@pytest.mark.slow
+def test_backfill_killed_repeatedly_then_restarted_lands_exactly_the_reference_rows(
+    mine, reference, tmp_path
+):
+    """SIGKILL at random points (seeded), five times, then a full run: same rows."""
+    hoists, incoming = mine
+    data = tmp_path / "data"
+    command = [
+        sys.executable,
+        "-m",
+        "pipelines.cli",
+        "backfill",
+        "--data",
+        str(data),
+        "--hoists",
+        str(hoists),
+        "--incoming",
+        str(incoming),
+        "--from",
+        FIRST.isoformat(),
+        "--to",
+        LAST.isoformat(),
+        "--workers",
+        "2",
+        "--no-progress",
+    ]
+    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
+    rng = random.Random(20261122)
+    kills = []
+    for _ in range(5):
+        process = subprocess.Popen(
+            command, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+        )
+        # start-up (imports) takes ~2 s, a partition ~1 s: kill somewhere in the work
+        delay = rng.uniform(1.8, 3.8)
+        time.sleep(delay)
+        finished = process.poll() is not None
+        if not finished:
+            process.send_signal(signal.SIGKILL)
+        process.communicate(timeout=30)
+        done = (
+            partition_ledger(DataRoot.resolve(data)).height
+            if (data / "warehouse.duckdb").exists()
+            else 0
+        )
+        kills.append((round(delay, 2), "finished" if finished else "killed", done))
+    print("kills (delay s, outcome, days done):", kills)
+    final = subprocess.run(command, cwd=REPO, env=env, capture_output=True, text=True, timeout=120)
+    print(final.stdout)
+    assert final.returncode == 0, final.stderr
+    assert sum(outcome == "killed" for _, outcome, _ in kills) >= 3
+    result = fingerprint(DataRoot.resolve(data))
+    print("after restarts:", result)
+    print("uninterrupted: ", reference)
+    assert result == reference

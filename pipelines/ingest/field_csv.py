@@ -3,11 +3,17 @@
 The file is read in byte batches of about ``batch_bytes`` that end at a newline, so
 memory stays bounded however large the file is. Each batch goes through:
 
-1. numpy over the bytes: line bounds, field count per line (separator positions),
-   UTF-8 validity (fast whole-batch check, per line only if that fails). Lines with
-   the wrong field count or non-UTF-8 bytes are rejected here and cut out of the batch;
-   blank lines are not rows.
-2. ``polars.read_csv`` of the remaining lines, every column as a string.
+1. One compiled pass over the bytes (:mod:`.csv_scan`): line bounds, field count per
+   line, lines with bytes >= 0x80 (UTF-8 checked only for those, whole batch first),
+   whether the numeric fields hold only number bytes, and the timestamps of the plain
+   ``YYYY-MM-DD HH:MM:SS.fff`` shape. Lines with the wrong field count or non-UTF-8
+   bytes are rejected here and cut out of the batch; blank lines are not rows.
+2. ``polars.read_csv`` of the remaining lines, only the timestamp (when some were not
+   read in step 1) and the known channels. Fast path: the channels typed as floats,
+   when every numeric field is clean and there is no decimal comma; if polars still
+   finds an unparsable value it raises and the batch is read again the string way.
+   String path: every column as a string, cast per column (``strict=False``), so the
+   unparsable values can be told from empty ones. Both give the same values.
 3. Polars expressions: timestamps to UTC (:mod:`.local_time`), numbers with decimal
    comma and sentinels to SI floats, one quarantine reason per row
    (:mod:`.field_checks`).
@@ -29,6 +35,7 @@ import numpy as np
 import polars as pl
 
 from pipelines.ingest.batch import REJECTED_SCHEMA, Batch, Reading, RefusedFile, rejected_frame
+from pipelines.ingest.csv_scan import NUMBER_BYTES, count_newlines, scan_chunk
 from pipelines.ingest.field_checks import (
     CHANNELS,
     REASON_FIELD_COUNT,
@@ -51,6 +58,7 @@ _REQUIRED_KEYS = ("site", "hoist", "units")
 _SEPARATORS = (",", ";", "\t")
 _DECIMAL_COMMA = re.compile(r"^[-+]?\d*,\d+$")
 _KELVIN = {"K": -273.15}
+_SENTINEL = -9999.0
 
 
 @dataclass(frozen=True)
@@ -276,8 +284,8 @@ def open_csv(
     parser = _BatchParser(header, depth_limits_m(hoist), progress.ambiguity)
 
     def batches() -> Iterator[Batch]:
-        for batch in _iter_chunks(path, offset, line, batch_bytes, progress):
-            yield parser.parse(*batch)
+        for chunk, first_line, n_lines in _iter_chunks(path, offset, line, batch_bytes, progress):
+            yield parser.parse(chunk, first_line, n_lines)
             reading.bytes_consumed = progress.bytes_consumed
         reading.bytes_consumed = progress.bytes_consumed
         reading.partial = progress.partial
@@ -288,24 +296,36 @@ def open_csv(
 
 def _iter_chunks(
     path: Path, offset: int, line: int, batch_bytes: int, progress: _Progress
-) -> Iterator[tuple[bytes, int]]:
+) -> Iterator[tuple[bytes, int, int]]:
+    """``(chunk, first line number, lines in it)``; each chunk ends with a newline.
+
+    A chunk is ``batch_bytes`` plus the rest of the line it ends in: a small probe at
+    the nominal end finds that newline, then one ``read`` of exactly that length gives
+    the chunk (no carry, no copy). Near the end of the file the rest is read at once.
+    """
     with path.open("rb") as handle:
-        handle.seek(offset)
-        carry = b""
+        position = offset
         while True:
-            block = handle.read(batch_bytes)
-            if not block:
+            length = _through_newline(handle, position, batch_bytes)
+            handle.seek(position)
+            if length is not None:
+                chunk = handle.read(length)
+                carry = b""
+            else:
+                rest = handle.read()
+                cut = rest.rfind(b"\n")
+                chunk = rest if cut == len(rest) - 1 else rest[: cut + 1]
+                carry = rest[cut + 1 :]
+                del rest
+            if not chunk:
                 break
-            buffer = carry + block if carry else block
-            cut = buffer.rfind(b"\n")
-            if cut < 0:
-                carry = buffer
-                continue
-            chunk, carry = buffer[: cut + 1], buffer[cut + 1 :]
-            del buffer
-            yield chunk, line
-            line += chunk.count(b"\n")
+            n_lines = count_newlines(np.frombuffer(chunk, np.uint8))
+            yield chunk, line, n_lines
+            line += n_lines
+            position += len(chunk)
             progress.bytes_consumed += len(chunk)
+            if carry:
+                break
         if carry:
             progress.partial = (
                 f"line {line} is cut off ({len(carry)} bytes without a newline at the end): "
@@ -313,21 +333,34 @@ def _iter_chunks(
             )
 
 
-class _Lines:
-    """Line bounds of one chunk (computed once, on demand)."""
+def _through_newline(handle, position: int, batch_bytes: int) -> int | None:
+    """Bytes from ``position`` through the first newline at or after its ``batch_bytes``-th
+    byte, or ``None`` when the file ends before such a newline."""
+    probe_at = position + max(batch_bytes, 1) - 1
+    handle.seek(probe_at)
+    while probe := handle.read(1 << 16):
+        found = probe.find(b"\n")
+        if found >= 0:
+            return probe_at + found + 1 - position
+        probe_at += len(probe)
+    return None
 
-    def __init__(self, chunk: bytes) -> None:
+
+class _Lines:
+    """Line bounds of one chunk (from :func:`.csv_scan.scan_chunk`)."""
+
+    def __init__(self, chunk: bytes, starts: np.ndarray, ends: np.ndarray) -> None:
         self.chunk = chunk
-        self.bytes = np.frombuffer(chunk, np.uint8)
-        newlines = np.flatnonzero(self.bytes == 10)
-        self.starts = np.empty_like(newlines)
-        self.starts[:1] = 0
-        self.starts[1:] = newlines[:-1] + 1
-        self.lengths = newlines + 1 - self.starts
-        ends = newlines.copy()
-        carriage = (ends > self.starts) & (self.bytes[np.maximum(ends - 1, 0)] == 13)
-        ends[carriage] -= 1
+        self.starts = starts
         self.ends = ends
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """Bytes of each line including its line end."""
+        following = np.empty_like(self.starts)
+        following[:-1] = self.starts[1:]
+        following[-1:] = len(self.chunk)
+        return following - self.starts
 
     def text(self, index: int) -> str:
         return self.chunk[self.starts[index] : self.ends[index]].decode("utf-8", errors="replace")
@@ -342,25 +375,31 @@ class _BatchParser:
         self.ambiguity = ambiguity
         self.names = [f"c{i}" for i in range(len(header.columns))]
         self.separator_byte = ord(header.separator)
+        #: raw column index of each known channel, in column order
+        self.channel_index = [
+            i for i, name in enumerate(header.columns) if i > 0 and name in CHANNELS
+        ]
+        self.numeric = np.zeros(len(header.columns), np.bool_)
+        self.numeric[self.channel_index] = True
 
-    def parse(self, chunk: bytes, first_line: int) -> Batch:
-        lines = _Lines(chunk)
-        blank = lines.ends == lines.starts
-        separators = np.flatnonzero(lines.bytes == self.separator_byte)
-        fields = (
-            np.searchsorted(separators, lines.ends) - np.searchsorted(separators, lines.starts) + 1
+    def parse(self, chunk: bytes, first_line: int, n_lines: int) -> Batch:
+        buffer = np.frombuffer(chunk, np.uint8)
+        starts, ends, fields, high, clean, naive_us, ts_ok = scan_chunk(
+            buffer, n_lines, self.separator_byte, self.numeric, NUMBER_BYTES
         )
+        lines = _Lines(chunk, starts, ends)
+        blank = ends == starts
         wrong_count = ~blank & (fields != len(self.header.columns))
         non_utf8 = np.zeros_like(blank)
-        try:
-            chunk.decode("utf-8")
-        except UnicodeDecodeError:
-            high = np.flatnonzero(lines.bytes >= 0x80)
-            for index in np.unique(np.searchsorted(lines.starts, high, side="right") - 1):
-                try:
-                    chunk[lines.starts[index] : lines.ends[index]].decode("utf-8")
-                except UnicodeDecodeError:
-                    non_utf8[index] = True
+        if high.any():
+            try:
+                chunk.decode("utf-8")
+            except UnicodeDecodeError:
+                for index in np.flatnonzero(high):
+                    try:
+                        chunk[starts[index] : ends[index]].decode("utf-8")
+                    except UnicodeDecodeError:
+                        non_utf8[index] = True
         bad = non_utf8 | wrong_count
         keep = ~blank & ~bad
         rejected_rows = [
@@ -375,58 +414,91 @@ class _BatchParser:
         if keep.all():
             data = chunk
         else:
-            data = lines.bytes[np.repeat(keep, lines.lengths)].tobytes()
+            data = buffer[np.repeat(keep, lines.lengths)].tobytes()
+            naive_us, ts_ok, clean = naive_us[keep], ts_ok[keep], clean[keep]
         row_numbers = first_line + np.flatnonzero(keep)
 
         def raw_of(rows: list[int]) -> list[str | None]:
             return [lines.text(r - first_line) for r in rows]
 
-        samples, rejected = self._parse_rows(data, row_numbers, raw_of)
+        samples, rejected = self._parse_rows(
+            data, row_numbers, raw_of, _FastPath(naive_us, ts_ok, bool(clean.all()))
+        )
         rejected_all = pl.concat([rejected_frame(rejected_rows), rejected])
         return Batch(samples=samples, rejected=rejected_all, raw_of=raw_of)
 
+    def _read(self, data: bytes, fast: _FastPath) -> tuple[pl.DataFrame, bool]:
+        """The timestamp (unless all fast-parsed) and channel columns; typed if possible.
+
+        Returns the frame and whether its channel columns are already floats. The typed
+        read is tried only when every numeric field is clean (see :mod:`.csv_scan`) and
+        the file has no decimal comma; a value polars cannot parse makes it raise, and
+        the batch falls back to strings + cast (which find the row and the reason).
+        """
+        wanted = ([] if fast.all_times else [0]) + self.channel_index
+        options = dict(
+            has_header=False,
+            columns=wanted,
+            quote_char=None,
+            separator=self.header.separator,
+            raise_if_empty=False,
+        )
+        if fast.clean and not self.header.decimal_comma:
+            typed = {name: pl.String for name in self.names}
+            typed.update({self.names[i]: pl.Float64 for i in self.channel_index})
+            try:
+                return pl.read_csv(data, schema=typed, **options), True
+            except pl.exceptions.PolarsError:  # the string path finds row and reason
+                pass
+        text = pl.read_csv(
+            data,
+            schema=dict.fromkeys(self.names, pl.String),
+            empty_string_is_null=False,
+            **options,
+        )
+        return text, False
+
     def _parse_rows(
-        self, data: bytes, row_numbers: np.ndarray, raw_of
+        self, data: bytes, row_numbers: np.ndarray, raw_of, fast: _FastPath
     ) -> tuple[pl.DataFrame, pl.DataFrame]:
         columns = [f.name for f in FIELD_SAMPLES if f.name not in ("source_sha256",)]
         if row_numbers.size == 0:
             empty = pl.DataFrame(schema={**_sample_schema(), "_row": pl.Int64})
             return empty.select(*columns, "_row"), rejected_frame([])
-        text = pl.read_csv(
-            data,
-            has_header=False,
-            new_columns=self.names,
-            infer_schema=False,
-            quote_char=None,
-            separator=self.header.separator,
-            empty_string_is_null=False,
-            raise_if_empty=False,
-        )
+        text, typed = self._read(data, fast)
         time_utc, time_reason = parse_timestamps(
-            text["c0"], self.header.timezone, self.header.timestamp_formats, self.ambiguity
+            None if fast.all_times else text["c0"],
+            self.header.timezone,
+            self.header.timestamp_formats,
+            self.ambiguity,
+            prefilled=fast.naive(),
         )
         present: dict[str, str] = {}  # SI column -> raw channel name
         raw_of_column: dict[str, str] = {}
         casts: list[pl.Expr] = []
-        for name, raw in zip(self.header.columns[1:], self.names[1:], strict=True):
-            channel = CHANNELS.get(name)
-            if channel is None:
-                continue
+        for index in self.channel_index:
+            name, raw = self.header.columns[index], self.names[index]
+            channel = CHANNELS[name]
             present[channel.column] = name
             raw_of_column[channel.column] = raw
             source = pl.col(raw)
+            if typed:
+                casts.append(source.alias(channel.column))
+                continue
             if self.header.decimal_comma:
                 source = source.str.replace(",", ".", literal=True)
             casts.append(source.cast(pl.Float64, strict=False).alias(channel.column))
-        # Stage 1: one cast per column (in parallel). Stage 2 only does work where the
-        # cheap whole-column statistics say there is something to do.
+        # Stage 1: one cast per column (in parallel; nothing to do when read typed).
+        # Stage 2 only does work where the cheap whole-column statistics say there is
+        # something to do. Read typed, a null is an empty field (an unparsable value
+        # would have made the typed read fail), so only infinities are unparsable.
         numbers = text.select(*casts)
+        # s_: may hold a sentinel or an infinity (NaN or infinite, or a value <= -9999);
+        # a false alarm only costs the exact expressions below.
         flags = numbers.select(
             *[pl.col(c).null_count().alias(f"n_{c}") for c in present],
             *[
-                (pl.col(c).is_nan() | (pl.col(c) == -9999.0) | pl.col(c).is_infinite())
-                .any()
-                .alias(f"s_{c}")
+                ((~pl.col(c).is_finite().all()) | (pl.col(c).min() <= _SENTINEL)).alias(f"s_{c}")
                 for c in present
             ],
         ).row(0, named=True)
@@ -434,7 +506,12 @@ class _BatchParser:
         values: list[pl.Expr] = []
         for column, name in present.items():
             number = pl.col(column)
-            if flags[f"n_{column}"] or flags[f"s_{column}"]:
+            if typed:
+                if flags[f"s_{column}"]:
+                    reasons.append(
+                        pl.when(number.is_infinite()).then(pl.lit(f"unparsable value ({name})"))
+                    )
+            elif flags[f"n_{column}"] or flags[f"s_{column}"]:
                 unparsable = (pl.col(raw_of_column[column]) != "") & number.is_null()
                 reasons.append(
                     pl.when(unparsable | number.is_infinite()).then(
@@ -448,18 +525,22 @@ class _BatchParser:
                 scaled = number * factor if factor != 1.0 else number
                 values.append((scaled + offset if offset else scaled).alias(column))
         if reasons:
-            numbers = pl.concat(
-                [numbers, text.select([raw_of_column[c] for c in present])], how="horizontal"
-            )
+            if not typed:
+                numbers = pl.concat(
+                    [numbers, text.select([raw_of_column[c] for c in present])],
+                    how="horizontal",
+                )
             reason_values = numbers.select(pl.coalesce(*reasons).alias("_reason"))["_reason"]
             time_reason = time_reason.zip_with(time_reason.is_not_null(), reason_values)
         for channel in CHANNELS.values():
             if channel.column not in present:
                 values.append(pl.lit(None, pl.Float64).alias(channel.column))
+        rows = pl.Series("_row", row_numbers, dtype=pl.Int64)
         parsed = numbers.select(
             *values,
             pl.lit(time_utc).alias("time_utc"),
-            pl.Series("_row", row_numbers, dtype=pl.Int64),
+            pl.lit(rows).alias("_row"),
+            pl.lit(rows).alias("source_line"),
             pl.lit(time_reason).alias("_reason"),
         )
         physical = physical_reason(list(present), self.depth_limits)
@@ -471,18 +552,37 @@ class _BatchParser:
                 parsed = parsed.with_columns(
                     pl.coalesce(pl.col("_reason"), *physical).alias("_reason")
                 )
-        good = parsed.filter(pl.col("_reason").is_null())
-        samples = good.with_columns(pl.col("_row").alias("source_line"))
+        if parsed["_reason"].null_count() == parsed.height:
+            return parsed.select(*columns, "_row"), rejected_frame([])
+        samples = parsed.filter(pl.col("_reason").is_null())
         bad = parsed.filter(pl.col("_reason").is_not_null())
-        if bad.height:
-            rows = bad["_row"].to_list()
-            rejected = pl.DataFrame(
-                {"row": rows, "topic": None, "reason": bad["_reason"], "raw": raw_of(rows)},
-                schema=REJECTED_SCHEMA,
-            )
-        else:
-            rejected = rejected_frame([])
+        bad_rows = bad["_row"].to_list()
+        rejected = pl.DataFrame(
+            {"row": bad_rows, "topic": None, "reason": bad["_reason"], "raw": raw_of(bad_rows)},
+            schema=REJECTED_SCHEMA,
+        )
         return samples.select(*columns, "_row"), rejected
+
+
+@dataclass(frozen=True)
+class _FastPath:
+    """What the compiled scan found for the kept lines of a batch."""
+
+    naive_us: np.ndarray
+    ts_ok: np.ndarray
+    clean: bool
+
+    @property
+    def all_times(self) -> bool:
+        return bool(self.ts_ok.all())
+
+    def naive(self) -> pl.Series:
+        """Fast-parsed naive local times; null where the polars formats must decide."""
+        times = pl.Series("naive", self.naive_us, dtype=pl.Int64).cast(pl.Datetime("us"))
+        if self.all_times:
+            return times
+        ok = pl.Series(self.ts_ok)
+        return pl.select(pl.when(ok).then(times)).to_series().alias("naive")
 
 
 def _sample_schema() -> dict[str, pl.DataType]:

@@ -1,7 +1,8 @@
 """Landing samples in the Parquet lake: partitions, dedup against landed data, atomic parts.
 
 Layout: ``<data>/lake/<table>/site=<site>/hoist=<hoist>/date=<YYYY-MM-DD>/part-*.parquet``
-(UTC date), Arrow schema from :mod:`schemas.tables`, zstd, each part sorted by time.
+(UTC date), Arrow schema from :mod:`schemas.tables`, zstd (time and source line
+delta-encoded), each part sorted by time.
 
 Identity and dedup
     A sample is identified by ``(site, hoist, time_utc)``. Before landing, a batch is
@@ -31,6 +32,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -49,6 +51,8 @@ SMALL_PART_ROWS = 200_000
 MAX_PART_ROWS = 2_000_000
 _ROW_GROUP_ROWS = 256 * 1024
 _LINEAGE = ("time_utc", "source_sha256", "source_line")
+#: Columns stored delta-encoded (see :func:`write_parquet_atomic`).
+_DELTA = ("time_utc", "source_line")
 
 
 @dataclass
@@ -76,6 +80,7 @@ class LakeTable:
         self.root = data.table_dir(table)
         self.schema: pa.Schema = TABLES[table]
         self.values = [f.name for f in self.schema if f.name not in _LINEAGE]
+        self.delta = tuple(n for n in _DELTA if n in self.schema.names)
         self._parts_cache: dict[Path, tuple[tuple[int, int], _Part]] = {}
 
     def land(self, samples: pl.DataFrame, *, site: str, hoist: str, source_sha256: str) -> Landed:
@@ -83,9 +88,9 @@ class LakeTable:
         result = Landed()
         if samples.height == 0:
             return result
-        frame = samples.with_columns(pl.lit(source_sha256).alias("source_sha256")).sort(
-            "time_utc", "_row"
-        )
+        frame = samples.with_columns(pl.lit(source_sha256).alias("source_sha256"))
+        if not _sorted_by_time_and_row(frame):
+            frame = frame.sort("time_utc", "_row")
         frame = self._drop_batch_duplicates(frame, result)
         for date, part in _by_date(frame):
             directory = self.root / f"site={site}" / f"hoist={hoist}" / f"date={date}"
@@ -175,8 +180,19 @@ class LakeTable:
             seq = newest.seq + 1 if newest is not None else 1
             token = hashlib.sha256(f"{source_sha256}/{directory.name}/{seq}".encode()).hexdigest()
             target = directory / f"part-{seq:05d}-{token[:12]}.parquet"
-        write_parquet_atomic(merged.sort("time_utc", maintain_order=True), target, self.schema)
+        if not merged["time_utc"].is_sorted():
+            merged = merged.sort("time_utc", maintain_order=True)
+        write_parquet_atomic(merged, target, self.schema, delta=self.delta)
         self._parts_cache.pop(target, None)
+
+
+def _sorted_by_time_and_row(frame: pl.DataFrame) -> bool:
+    """Whether ``frame`` is already in (time_utc, _row) order (a file read in order is)."""
+    time = frame["time_utc"]
+    if time.null_count() or not time.is_sorted():
+        return False
+    step = pl.col("time_utc").diff() != pl.duration(microseconds=0)
+    return bool(frame.select((step | (pl.col("_row").diff() > 0)).all()).item())
 
 
 def _by_date(frame: pl.DataFrame) -> list[tuple[str, pl.DataFrame]]:
@@ -206,11 +222,24 @@ def _read_part(path: Path) -> _Part:
     return _Part(path, seq, meta.num_rows, min(lows), max(highs))
 
 
-def write_parquet_atomic(frame: pl.DataFrame, target: Path, schema: pa.Schema) -> None:
-    """Write ``frame`` as ``target`` (zstd, ``schema``) via temp file, fsync, ``os.replace``."""
+def write_parquet_atomic(
+    frame: pl.DataFrame, target: Path, schema: pa.Schema, *, delta: Sequence[str] = ()
+) -> None:
+    """Write ``frame`` as ``target`` (zstd, ``schema``) via temp file, fsync, ``os.replace``.
+
+    ``delta``: integer or timestamp columns (sorted or nearly so: time, source line) to
+    store with DELTA_BINARY_PACKED instead of trying a dictionary first, which for
+    all-distinct values only costs time (a third less CPU and size for a field batch).
+    """
     target.parent.mkdir(parents=True, exist_ok=True)
     table = frame.to_arrow().cast(schema)
     temporary = target.with_name(f".{target.stem}.{os.getpid()}.tmp")
+    encoding: dict = {}
+    if delta:
+        encoding = {
+            "use_dictionary": [n for n in schema.names if n not in delta],
+            "column_encoding": dict.fromkeys(delta, "DELTA_BINARY_PACKED"),
+        }
     try:
         with temporary.open("wb") as handle:
             pq.write_table(
@@ -219,6 +248,7 @@ def write_parquet_atomic(frame: pl.DataFrame, target: Path, schema: pa.Schema) -
                 compression="zstd",
                 compression_level=1,
                 row_group_size=_ROW_GROUP_ROWS,
+                **encoding,
             )
             handle.flush()
             os.fsync(handle.fileno())

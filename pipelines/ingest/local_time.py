@@ -12,7 +12,11 @@ Daylight-saving days make local time ambiguous or impossible:
   quarantined with ``REASON_DST_GAP``.
 
 Parsing is vectorised (polars ``str.to_datetime``); the formats are tried in order,
-each later one only on the rows the earlier ones could not read.
+each later one only on the rows the earlier ones could not read. The CSV reader hands
+in the times its compiled scan already read (:mod:`.csv_scan`, the plain
+``YYYY-MM-DD HH:MM:SS.fff`` shape); the formats then only see the rest. Batches in
+which the zone's offset cannot change (checked every 6 hours) are shifted by that one
+offset instead of going through the time-zone rules row by row.
 """
 
 from __future__ import annotations
@@ -32,6 +36,7 @@ _NAIVE = ("%Y-%m-%d %H:%M:%S%.f", "%Y-%m-%dT%H:%M:%S%.f")
 _AWARE = ("%Y-%m-%dT%H:%M:%S%.f%#z", "%Y-%m-%d %H:%M:%S%.f%#z")
 _UTC = pl.Datetime("us", "UTC")
 _EPISODE_US = 2 * 3600 * 1_000_000  # ambiguous samples further apart belong to another day
+_PROBE = dt.timedelta(hours=6)
 
 
 @dataclass
@@ -52,14 +57,35 @@ def formats_for(example: str) -> tuple[str, ...]:
 
 
 def parse_timestamps(
-    raw: pl.Series, zone: str, formats: tuple[str, ...], state: AmbiguityState
+    raw: pl.Series | None,
+    zone: str,
+    formats: tuple[str, ...],
+    state: AmbiguityState,
+    *,
+    prefilled: pl.Series | None = None,
 ) -> tuple[pl.Series, pl.Series]:
-    """UTC times and a reason (null when fine) for each raw timestamp string."""
-    n = len(raw)
-    naive = pl.Series("naive", [None] * n, dtype=pl.Datetime("us"))
-    aware = pl.Series("aware", [None] * n, dtype=_UTC)
+    """UTC times and a reason (null when fine) for each raw timestamp string.
+
+    ``prefilled`` holds naive local times already read by a faster parser (null where
+    it could not tell); the formats then only run on its null rows, and ``raw`` may be
+    ``None`` when it has none.
+    """
     remaining: np.ndarray | None = None  # None: all rows
-    for fmt in formats:
+    if prefilled is not None:
+        n = len(prefilled)
+        naive = prefilled.alias("naive")
+        remaining = np.flatnonzero(prefilled.is_null().to_numpy())
+    elif raw is not None:
+        n = len(raw)
+        naive = pl.repeat(None, n, dtype=pl.Datetime("us"), eager=True).alias("naive")
+    else:
+        raise ValueError("parse_timestamps needs raw strings or prefilled times")
+    aware = pl.repeat(None, n, dtype=_UTC, eager=True).alias("aware")
+    todo = formats if remaining is None or remaining.size else ()
+    if todo and raw is None:
+        raise ValueError("prefilled times have nulls but no raw strings were given")
+    for fmt in todo:
+        assert raw is not None
         sub = raw if remaining is None else raw.gather(remaining)
         parsed = sub.str.to_datetime(fmt, strict=False, time_unit="us", cache=False)
         has_offset = fmt.endswith("%#z")
@@ -84,7 +110,10 @@ def parse_timestamps(
         if remaining.size == 0:
             break
     local = _localise(naive, zone, state)
-    time_utc = aware.fill_null(local).alias("time_utc")
+    if aware.null_count() == n:
+        time_utc = local.alias("time_utc")
+    else:
+        time_utc = aware.fill_null(local).alias("time_utc")
     reason = (
         pl.select(
             pl.when(pl.lit(time_utc).is_not_null())
@@ -102,9 +131,10 @@ def parse_timestamps(
 def _localise(naive: pl.Series, zone: str, state: AmbiguityState) -> pl.Series:
     if zone == "UTC" or naive.null_count() == len(naive):
         return naive.dt.replace_time_zone("UTC")
+    offset = _constant_offset(naive, zone)
+    if offset is not None:  # the common case: a plain shift, no time-zone rules per row
+        return (naive - offset).dt.replace_time_zone("UTC")
     earliest = naive.dt.replace_time_zone(zone, ambiguous="earliest", non_existent="null")
-    if not _may_change_offset(naive, zone):
-        return earliest.dt.convert_time_zone("UTC")
     latest = naive.dt.replace_time_zone(zone, ambiguous="latest", non_existent="null")
     ambiguous = (earliest != latest).fill_null(False).to_numpy()
     if ambiguous.any():
@@ -138,17 +168,27 @@ def _second_pass(values: np.ndarray, state: AmbiguityState) -> np.ndarray:
     return seen
 
 
-def _may_change_offset(naive: pl.Series, zone: str) -> bool:
-    """False when no UTC-offset change can lie within the batch (the common case)."""
+def _constant_offset(naive: pl.Series, zone: str) -> dt.timedelta | None:
+    """The zone's UTC offset when it cannot change within the batch (the common case).
+
+    Checked at both ends and every 6 hours between, each for both folds, so a
+    daylight-saving change anywhere in the batch (or an ambiguous or skipped local time
+    at an end) gives ``None``. Batches spanning more than 20 days always give ``None``.
+    """
     low, high = naive.min(), naive.max()
     if low is None or high is None:
-        return False
+        return None
     assert isinstance(low, dt.datetime)
     assert isinstance(high, dt.datetime)
     if high - low > dt.timedelta(days=20):
-        return True
+        return None
     tz = zoneinfo.ZoneInfo(zone)
+    probes = [low + dt.timedelta(hours=6 * k) for k in range(int((high - low) / _PROBE) + 1)]
     offsets = {
-        value.replace(tzinfo=tz, fold=fold).utcoffset() for value in (low, high) for fold in (0, 1)
+        value.replace(tzinfo=tz, fold=fold).utcoffset()
+        for value in (*probes, high)
+        for fold in (0, 1)
     }
-    return len(offsets) > 1
+    if len(offsets) != 1:
+        return None
+    return offsets.pop()

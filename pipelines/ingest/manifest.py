@@ -19,7 +19,15 @@ import duckdb
 
 from pipelines.ingest.report import FileResult
 
-__all__ = ["Earlier", "Resume", "file_digests", "find_earlier", "record", "resume_candidates"]
+__all__ = [
+    "Earlier",
+    "Resume",
+    "file_digests",
+    "find_earlier",
+    "record",
+    "resume_candidates",
+    "size_seen",
+]
 
 _BLOCK = 8 << 20
 
@@ -47,6 +55,12 @@ def find_earlier(con: duckdb.DuckDBPyConnection, sha256: str) -> Earlier | None:
         "SELECT source_path, status, message FROM manifest WHERE source_sha256 = ?", [sha256]
     ).fetchall()
     return Earlier(*rows[0]) if rows else None
+
+
+def size_seen(con: duckdb.DuckDBPyConnection, size: int) -> bool:
+    """Whether any manifest row has this size (same content implies same size)."""
+    rows = con.execute("SELECT 1 FROM manifest WHERE size_bytes = ? LIMIT 1", [size]).fetchall()
+    return bool(rows)
 
 
 def resume_candidates(con: duckdb.DuckDBPyConnection, *, max_size: int) -> list[Resume]:

@@ -4,11 +4,14 @@ For each file, in one serialised warehouse writer (:func:`warehouse.store.open_w
 published every ``commit_every`` files):
 
 1. sha256 of the content; already in the manifest -> ``skipped`` (no-op, even renamed).
+   A CSV whose size no manifest row has (so certainly new) is opened and its first
+   batch read while the hash runs on a thread.
 2. A partial earlier version that this file extends -> resume after its
    ``bytes_consumed`` (:mod:`.manifest`).
 3. The format's reader yields batches (:mod:`.field_csv`, :mod:`.field_tdms`,
    :mod:`.rig_mcap`); rejected rows go to ``quarantine``, samples are landed with dedup
-   (:mod:`.landing`), conflicts quarantined.
+   (:mod:`.landing`), conflicts quarantined. Batch N lands on a worker thread while
+   batch N+1 is read (one batch in flight; see :func:`_land_all`).
 4. One manifest row with the accounting; the lake parts of the file are on disk before
    its manifest row is published.
 
@@ -19,22 +22,27 @@ published. Re-ingesting it lands nothing twice: those rows are exact duplicates 
 from __future__ import annotations
 
 import datetime as dt
+import itertools
 from collections import Counter
 from collections.abc import Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 import duckdb
 import polars as pl
 
-from pipelines.ingest.batch import Reading, RefusedFile
+from pipelines.ingest.batch import Batch, Reading, RefusedFile
+from pipelines.ingest.csv_scan import warm_up_in_background
 from pipelines.ingest.field_checks import REASON_CONFLICT, HoistLookup
 from pipelines.ingest.field_csv import DEFAULT_BATCH_BYTES, open_csv
-from pipelines.ingest.landing import LakeTable
+from pipelines.ingest.landing import LakeTable, Landed
 from pipelines.ingest.manifest import (
     file_digests,
     find_earlier,
     record,
     resume_candidates,
+    size_seen,
 )
 from pipelines.ingest.quarantine import insert_quarantine
 from pipelines.ingest.report import FileResult, IngestReport
@@ -83,11 +91,23 @@ def _ingest_file(
         return FileResult(path, "", "unknown", "refused", message=f"{path}: no such file")
     size = path.stat().st_size
     fmt = detect_format(path)
+    if fmt == "csv":
+        warm_up_in_background()
     candidates = resume_candidates(con, max_size=size) if fmt == "csv" else []
-    sha256, prefixes = file_digests(path, [c.size_bytes for c in candidates])
+    started: _Started | None = None
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="ropeload-hash") as hasher:
+        digests = hasher.submit(file_digests, path, [c.size_bytes for c in candidates])
+        if fmt == "csv" and not candidates and not size_seen(con, size):
+            # certainly new content (no manifest row of this size) and no earlier
+            # partial version to resume from: read the header and the first batch
+            # while the file is hashed
+            started = _start_csv(path, hoist_lookup, batch_bytes)
+        sha256, prefixes = digests.result()
     result = FileResult(path, sha256, fmt, "landed", size_bytes=size)
     earlier = find_earlier(con, sha256)
     if earlier is not None:
+        if started is not None:
+            started.close()
         result.status = "skipped"
         same = "this name" if earlier.path == str(path) else earlier.path
         result.message = f"already ingested ({earlier.status}) as {same}; nothing to do"
@@ -99,7 +119,10 @@ def _ingest_file(
             break
     notes: list[str] = []
     try:
-        reading = _open(path, fmt, hoist_lookup, batch_bytes, resume, notes)
+        if started is not None:
+            reading = started.reading_or_raise()
+        else:
+            reading = _open(path, fmt, hoist_lookup, batch_bytes, resume, notes)
         result.site, result.hoist = reading.site, reading.hoist
         _land_all(reading, result, con, data, lakes)
     except RefusedFile as exc:
@@ -116,6 +139,37 @@ def _ingest_file(
         notes.insert(0, f"{path}: header only, no data rows")
     result.message = "; ".join(notes)
     return result
+
+
+@dataclass
+class _Started:
+    """A CSV opened (and its first batch read) while the file was being hashed."""
+
+    reading: Reading | None = None
+    first: Batch | None = None
+    refusal: RefusedFile | None = None
+
+    def reading_or_raise(self) -> Reading:
+        if self.refusal is not None:
+            raise self.refusal
+        assert self.reading is not None
+        if self.first is not None:
+            self.reading.batches = itertools.chain([self.first], self.reading.batches)
+        return self.reading
+
+    def close(self) -> None:
+        if self.reading is not None:
+            close = getattr(self.reading.batches, "close", None)
+            if close is not None:
+                close()
+
+
+def _start_csv(path: Path, hoist_lookup: HoistLookup | None, batch_bytes: int) -> _Started:
+    try:
+        reading = open_csv(path, hoist_lookup=hoist_lookup, batch_bytes=batch_bytes)
+        return _Started(reading, next(reading.batches, None))
+    except RefusedFile as exc:
+        return _Started(refusal=exc)
 
 
 def _open(
@@ -169,17 +223,23 @@ def _land_all(
     data: DataRoot,
     lakes: dict[str, LakeTable],
 ) -> None:
+    """Land the batches of ``reading``: batch N lands while batch N+1 is being read.
+
+    Landing (dedup, Parquet write, fsync) runs on one worker thread, parsing on this
+    one (polars, pyarrow, numba and the fsync release the GIL). At most one batch is in
+    flight and the next one is handed over only after it has landed, so dedup sees
+    every earlier part; the warehouse connection is used from this thread only.
+    """
     lake = lakes.get(reading.table)
     if lake is None:
         lake = lakes[reading.table] = LakeTable(data, reading.table)
     reasons: Counter[str] = Counter()
     has_lines = result.format == "csv"
-    for batch in reading.batches:
+
+    def account(batch: Batch, landing: Future[Landed]) -> None:
+        landed = landing.result()
         result.rows_read += batch.rows_read
         rejected = batch.rejected
-        landed = lake.land(
-            batch.samples, site=reading.site, hoist=reading.hoist, source_sha256=result.sha256
-        )
         if landed.conflicts:
             conflicts = pl.DataFrame(
                 {
@@ -204,6 +264,25 @@ def _land_all(
             assert isinstance(high, dt.datetime)
             result.time_start_utc = min(low, result.time_start_utc or low)
             result.time_end_utc = max(high, result.time_end_utc or high)
+
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="ropeload-land") as worker:
+        pending: tuple[Batch, Future[Landed]] | None = None
+        try:
+            for batch in reading.batches:
+                if pending is not None:
+                    landing, pending = pending, None
+                    account(*landing)
+                future = worker.submit(
+                    lake.land,
+                    batch.samples,
+                    site=reading.site,
+                    hoist=reading.hoist,
+                    source_sha256=result.sha256,
+                )
+                pending = (batch, future)
+        finally:
+            if pending is not None:  # also when reading failed: the landed part counts
+                account(*pending)
     result.quarantined_by_reason = dict(sorted(reasons.items()))
 
 

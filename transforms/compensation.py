@@ -43,6 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import polars as pl
+from numba import njit
 
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPE_TENSIONS, ROPES
@@ -226,11 +227,17 @@ def _differential_displacement(
 
 def _increment_velocity(x: np.ndarray, dt: np.ndarray, segment_id: np.ndarray) -> np.ndarray:
     """(x[i] - x[i-1]) / dt[i], 0 at segment starts: the friction state sees exact steps."""
-    v = np.zeros_like(x)
-    v[1:] = np.diff(x) / dt[1:]
-    starts = np.r_[True, segment_id[1:] != segment_id[:-1]]
-    v[starts | ~np.isfinite(v)] = 0.0
+    v = np.empty_like(x)
+    _increment_kernel(np.ascontiguousarray(x), dt, np.ascontiguousarray(segment_id), v)
     return v
+
+
+@njit(cache=True, nogil=True)
+def _increment_kernel(x, dt, segment_id, v):  # pragma: no cover - numba
+    v[0] = 0.0
+    for i in range(1, x.shape[0]):
+        step = (x[i] - x[i - 1]) / dt[i]
+        v[i] = step if segment_id[i] == segment_id[i - 1] and np.isfinite(step) else 0.0
 
 
 def _viscosity(t_oil_c: np.ndarray | None, hoist: HoistDescription) -> np.ndarray | float:
@@ -400,7 +407,13 @@ def compensate(
         v_known = np.where(np.isfinite(v_flow), v_flow, 0.0)
         v = _increment_velocity(played[f"x{i}_m"], dt, segment)
         if with_branch_loss:
-            p_chamber = p_sensor - sensor_minus_chamber_pa(v_known, hoist, nu_m2_s=nu)
+            # the oil is still for most of a day: evaluate the loss where it flows only
+            flowing = v_known != 0.0
+            loss = np.zeros_like(p_sensor)
+            loss[flowing] = sensor_minus_chamber_pa(
+                v_known[flowing], hoist, nu_m2_s=nu if np.ndim(nu) == 0 else nu[flowing]
+            )
+            p_chamber = p_sensor - loss
         else:
             p_chamber = p_sensor.copy()
         if with_friction:

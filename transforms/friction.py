@@ -101,13 +101,28 @@ def friction_parameters(
     [12.0, 22.0, 0.001, 5.0]
     """
     p = np.asarray(p_pa, dtype=np.float64)
-    fc = np.maximum(law.coulomb_n[0] + law.coulomb_n[1] * p, 0.0)
-    fs = np.maximum(law.static_n[0] + law.static_n[1] * p, 0.0)
-    vs = np.maximum(
-        law.stribeck_speed_m_s[0] + law.stribeck_speed_m_s[1] * p, STRIBECK_SPEED_FLOOR_M_S
+    coefficients = np.array(
+        [law.coulomb_n, law.static_n, law.stribeck_speed_m_s, law.viscous_n_s_m],
+        dtype=np.float64,
     )
-    kv = np.maximum(law.viscous_n_s_m[0] + law.viscous_n_s_m[1] * p, 0.0)
+    floors = np.array([0.0, 0.0, STRIBECK_SPEED_FLOOR_M_S, 0.0])
+    if p.ndim == 0:
+        values = np.maximum(coefficients[:, 0] + coefficients[:, 1] * float(p), floors)
+        return tuple(np.float64(x) for x in values)  # type: ignore[return-value]
+    flat = np.ascontiguousarray(p.ravel())
+    out = np.empty((4, flat.size))
+    _linear_laws(flat, coefficients, floors, out)
+    fc, fs, vs, kv = (row.reshape(p.shape) for row in out)
     return fc, fs, vs, kv
+
+
+@njit(cache=True, nogil=True)
+def _linear_laws(p, coefficients, floors, out):  # pragma: no cover - numba
+    """out[k, i] = max(a_k + b_k p[i], floor_k): the four eq 17 lines in one pass."""
+    for i in range(p.shape[0]):
+        for k in range(4):
+            value = coefficients[k, 0] + coefficients[k, 1] * p[i]
+            out[k, i] = value if value > floors[k] else floors[k]
 
 
 def stribeck_friction(
@@ -487,7 +502,8 @@ def _maxwell_slip_kernel(
         if v[i] != v[i]:  # NaN velocity: hold the elements, no force
             force_out[i] = np.nan
             continue
-        g = stribeck_g(v[i], fc[i], fs[i], vs[i])
+        # at standstill g(0) = Fs exactly: no exp needed
+        g = fs[i] if v[i] == 0.0 else stribeck_g(v[i], fc[i], fs[i], vs[i])
         for j in range(weights.shape[0]):
             capacity[j] = weights[j] * g
         force_out[i] = maxwell_slip_step(deltas, v[i] * dt[i], stiffness, capacity) + kv[i] * v[i]

@@ -1,7 +1,9 @@
 """Evaluate the discovery workflow on many seeded synthetic trials (issue 8).
 
 Not a unit test: a script. Each trial generates a short field day of the example hoist
-(:func:`sims.field_day.generate_field_day`) with one effect hidden from the model (at
+(:func:`sims.discovery.cases.hidden_case`; the pipe, valve and viscosity effects in the
+scenarios with differential branch flow that excite them, see
+:mod:`sims.discovery.cases`) with one effect hidden from the model (at
 several sensor-noise levels, so the effect's RMS spans ~1-20 x the noise), with no
 effect hidden (null trials), or with two hidden (two-effect trials), and runs
 :func:`sims.discovery.discover_effects`. Prints the confusion matrix (truth x first
@@ -23,10 +25,10 @@ import numpy as np
 
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from sims.discovery import discover_effects
+from sims.discovery.cases import EXTRA, hidden_case
 from sims.field_day import generate_field_day
 from sims.noise import NoiseModel
 from sims.replay import plan_replay
-from tests.sims._discovery_cases import COUPLED, EXTRA, hoist_with
 
 EFFECTS = [
     "tail_rope_weight",
@@ -42,36 +44,20 @@ EFFECTS = [
     "groove_wear",
 ]
 NOISE_PA = (5e3, 15e3)
+#: Null trials in every scenario: the plain hoist and the one with drum-groove wear.
+NULL_SCENARIOS = ("plain", "differential", "orifice")
 
 
-def trial(hidden: list[str], seed: int, noise_pa: float, trips: int = 2):
-    base = load_hoist(EXAMPLE_HOIST)
-    truth, model = list(base.model.effects), list(base.model.effects)
-    params = {}
-    for h in hidden:
-        if h in EXTRA:
-            truth.append(h)
-            params[h] = EXTRA[h]
-        else:
-            model.remove(h)
-        if h in COUPLED and COUPLED[h] in model:
-            model.remove(COUPLED[h])
-            truth.remove(COUPLED[h])
-    day = generate_field_day(
-        base,
-        date="2026-03-02",
+def trial(hidden: list[str], seed: int, noise_pa: float, scenario: str | None = None):
+    """One seeded trial: the scenario that excites the (first) hidden effect
+    (:data:`sims.discovery.cases.SCENARIO_FOR`) unless ``scenario`` is given."""
+    plan, _ = hidden_case(
+        hidden,
         seed=seed,
-        trips=trips,
-        hours=trips * 150 / 3600,
-        sample_rate_hz=20.0,
-        loading_s=5.0,
-        rest_after_s=20.0,
-        effects=truth,
-        parameters=params or None,
+        trips=2,
         noise=NoiseModel(pressure_sigma_pa=noise_pa),
-        oil_temp_c=(10.0, 45.0),
+        scenario=scenario,
     )
-    plan = plan_replay(day.sensors, hoist_with(base, model), settle_s=20.0)
     return plan, discover_effects(plan, bootstrap=50, max_iterations=2 if len(hidden) > 1 else 1)
 
 
@@ -119,11 +105,12 @@ def main() -> None:
     t_start = time.perf_counter()
     for seed in range(args.seeds):
         for noise in NOISE_PA:
-            plan, res = trial([], 100 + seed, noise)
-            nulls += 1
-            answer = res.findings[0].effect
-            alarms += answer != "none"
-            confusion["none"][answer] += 1
+            for scenario in NULL_SCENARIOS:
+                plan, res = trial([], 100 + seed, noise, scenario)
+                nulls += 1
+                answer = res.findings[0].effect
+                alarms += answer != "none"
+                confusion["none"][answer] += 1
             for effect in EFFECTS:
                 plan, res = trial([effect], 200 + seed, noise)
                 f = res.findings[0]

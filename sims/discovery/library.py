@@ -66,6 +66,13 @@ class EffectTerm:
     requires : effects that must be in the model for this term to act.
     excitation : the operating condition that shows this effect most.
     analytic : columns are computed from the simulated pressures (sensor terms).
+    prior_sd : prior standard deviation of a coordinate when re-tuned (< 0: relative).
+    start_amplitudes : for a term that is null at its default and strongly nonlinear
+        around it (``groove_wear``: the pistons' friction flips once they drift apart,
+        so a finite-difference column at zero deviation sees only the presliding
+        stiffness), the amplitudes of a coarse scan along the data's differential
+        signature that gives the fit a non-zero start (see
+        :mod:`sims.discovery.selection`).
     """
 
     name: str
@@ -77,6 +84,7 @@ class EffectTerm:
     set: Callable[[HoistDescription, np.ndarray], dict[str, Any]]
     analytic: bool = False
     prior_sd: float = 0.0
+    start_amplitudes: tuple[float, ...] = ()
 
     def prior(self, theta: np.ndarray) -> np.ndarray:
         """Prior standard deviation of each coordinate when the term is re-tuned.
@@ -234,7 +242,8 @@ def _terms() -> dict[str, EffectTerm]:
             ("length_scale",),
             (0.2,),
             (),
-            "slow steady piston motion (oil flow at low Reynolds number)",
+            "oil flowing between the cylinders (groove wear or unequal ropes make the "
+            "pistons drift apart during travel): the loss is linear in that flow",
             _length_scale,
             _length_set,
             prior_sd=0.3,
@@ -244,7 +253,10 @@ def _terms() -> dict[str, EffectTerm]:
             ("loss_coefficient_scale",),
             (0.2,),
             (),
-            "fast load changes (high branch flow; the loss grows with flow squared)",
+            "trips at clearly different winding speeds with branch flow between the "
+            "cylinders (groove wear or unequal ropes): the loss grows with the flow squared, "
+            "while on trips of one speed a re-tuned laminar loss and its viscosity slope "
+            "mimic it",
             _loss_scale,
             _loss_set,
             prior_sd=0.5,
@@ -264,7 +276,8 @@ def _terms() -> dict[str, EffectTerm]:
             ("ln_viscosity_100c_m2_s",),
             (0.1,),
             ("pipe_laminar_loss",),
-            "the same trips at clearly different oil temperatures (cold morning, warm afternoon)",
+            "branch flow between the cylinders at clearly different oil temperatures "
+            "(a cold start warming up)",
             lambda h, p: np.array([ln(p["kinematic_viscosity_100c_m2_s"])]),
             lambda h, x: {"kinematic_viscosity_100c_m2_s": float(math.exp(x[0]))},
             prior_sd=0.2,
@@ -300,6 +313,7 @@ def _terms() -> dict[str, EffectTerm]:
             _groove_get,
             _groove_set,
             prior_sd=3e-4,
+            start_amplitudes=(1e-4, 3e-4, 6e-4),
         ),
     ]
     return {t.name: t for t in terms}
@@ -370,6 +384,7 @@ def _resize(term: EffectTerm, names: tuple[str, ...]) -> EffectTerm:
         term.set,
         term.analytic,
         term.prior_sd,
+        term.start_amplitudes,
     )
 
 

@@ -373,6 +373,81 @@ class _Engine:
             self.cache[name] = self.fd(term, effects, params, s0)
         return self.cache[name]
 
+    def _rss_trip_offsets(self, resid: np.ndarray) -> float:
+        """Residual sum of squares after a per-trip common offset (the payload)."""
+        if not np.all(np.isfinite(resid)):
+            return np.inf
+        trip = self.layout.trip
+        m = int(trip.max()) + 1 if trip.size else 0
+        mean = np.bincount(trip, resid, m) / np.maximum(np.bincount(trip, minlength=m), 1)
+        return float(np.sum((resid - mean[trip]) ** 2))
+
+    def start(
+        self, term: EffectTerm, effects: list[str], params: Params, s0: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """A non-zero start for a term that is null and nonlinear at its default.
+
+        Direction: the differential signature of the residual while the conveyance
+        moves -- per sensor, the mean of ``direction x (r_i - mean_j r_j)`` (groove wear
+        makes the pistons drift apart one way going down and back going up, and each
+        sliding piston's seal friction offsets its sensor by the sign of its motion);
+        the coordinates (ropes 2..n relative to rope 1) along it, largest 1. Scan:
+        both signs times ``term.start_amplitudes``; the best (per-trip offsets removed)
+        is refined by up to three Gauss-Newton steps. None when nothing beats zero by more
+        than 25 noise variances.
+        """
+        lay = self.layout
+        n = self.hoist.ropes_n
+        r = lay.y - s0
+        moving = lay.direction != "rest"
+        if term.name != "groove_wear" or moving.sum() < 10 * n:
+            return None
+        sgn = np.where(lay.direction == "down", 1.0, -1.0)
+        sig = np.array(
+            [np.mean((sgn * r)[moving & (lay.sensor == i)]) for i in range(n)], dtype=float
+        )
+        sig -= sig.mean()
+        # no differential signature above half the noise: nothing for a scan to find
+        if np.max(np.abs(sig)) < 0.5 * self.plan.noise_sigma_pa:
+            return None
+        g = sig[1:] - sig[0]
+        if not np.any(g) or not np.all(np.isfinite(g)):
+            return None
+        g = g / np.max(np.abs(g))
+        r0 = self._rss_trip_offsets(r)
+        best_theta, best_s, best_rss = None, s0, r0
+        for amp in term.start_amplitudes:
+            for sign in (1.0, -1.0):
+                th = sign * amp * g
+                s = self.sim(effects, _merge(params, term.name, term.parameters(self.hoist, th)))
+                rss = self._rss_trip_offsets(lay.y - s)
+                if rss < best_rss:
+                    best_theta, best_s, best_rss = th, s, rss
+        # nothing beats zero by more than a few noise variances: no start (the plain
+        # finite-difference column at zero is then as good as any)
+        if best_theta is None or r0 - best_rss < 25.0 * self.plan.noise_sigma_pa**2:
+            return None
+        m = int(lay.trip.max()) + 1
+        nuis = np.zeros((lay.y.size, m))
+        nuis[np.arange(lay.y.size), lay.trip] = 1.0
+        for _ in range(3):
+            p_at = _merge(params, term.name, term.parameters(self.hoist, best_theta))
+            cols = self.fd(term, effects, p_at, best_s)
+            if not cols.ok:
+                break
+            x = np.column_stack([cols.jac, nuis])
+            _, b = _solve(_normal(x, lay.y - best_s, lay.trip, m), np.ones(m))
+            th = best_theta + b[: cols.jac.shape[1]]
+            s = self.sim(effects, _merge(params, term.name, term.parameters(self.hoist, th)))
+            rss = self._rss_trip_offsets(lay.y - s)
+            if not rss < best_rss:
+                break
+            improved = (best_rss - rss) / best_rss
+            best_theta, best_s, best_rss = th, s, rss
+            if improved < 0.02:
+                break
+        return best_theta, best_s
+
     def candidate(self, name: str, effects: list[str], params: Params, s0: np.ndarray) -> _Columns:
         term = self.lib[name]
         if term.analytic:
@@ -380,10 +455,16 @@ class _Engine:
         if name in self.cache:
             return self.cache[name]
         eff = [*effects, name]
+        start = None
         if term.null_at_default(self.hoist):
             s_on = s0
+            if term.start_amplitudes:
+                start = self.start(term, eff, params, s0)
         else:
             s_on = self.sim(eff, params)
+        if start is not None:
+            params = _merge(params, name, term.parameters(self.hoist, start[0]))
+            s_on = start[1]
         if not np.all(np.isfinite(s_on)):
             cols = _Columns(
                 name,

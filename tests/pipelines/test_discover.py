@@ -10,7 +10,7 @@ import pytest
 from pipelines.cli import main
 from pipelines.discover import discover_period
 from schemas.hoist import EXAMPLE_HOIST
-from tests.sims._discovery_cases import hidden_case
+from sims.discovery.cases import hidden_case
 from warehouse.store import DataRoot, open_reader
 
 

@@ -6,7 +6,7 @@ import pytest
 
 from pipelines.sanity import sanity_check
 from schemas.tables import SANITY_CHECKS
-from tests.sims._discovery_cases import hidden_case
+from sims.discovery.cases import hidden_case
 
 
 def test_complete_model_passes_and_missing_effect_fails():

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sims.discovery.cases import hidden_case
 from sims.replay import estimate_noise_sigma, replay_fitted, replay_frame
-from tests.sims._discovery_cases import hidden_case
 
 
 @pytest.fixture(scope="module")

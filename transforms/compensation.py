@@ -37,6 +37,7 @@ collected frame of one hoist, sorted by time, and returns a ``ROPE_TENSIONS`` fr
 from __future__ import annotations
 
 import itertools
+import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -50,24 +51,23 @@ from schemas.tables import ROPE_TENSIONS, ROPES
 from transforms.filtering import (
     box_smooth,
     despike_median3,
-    lowpass_columns,
+    lowpass,
     play_operator,
-    with_segment_id,
 )
 from transforms.friction import (
+    STRIBECK_SPEED_FLOOR_M_S,
     friction_parameters,
     lugre_friction,
     maxwell_slip_elements,
     maxwell_slip_friction,
 )
-from transforms.kinematics import (
-    with_acceleration,
-    with_piston_velocity,
-    with_position,
-    with_trip_phases,
-)
+from transforms.kinematics import PHASES, smoothed_derivative
 from transforms.oil import effective_bulk_modulus, kinematic_viscosity
-from transforms.pressure_loss import sensor_minus_chamber_pa
+from transforms.pressure_loss import (
+    RE_LAMINAR,
+    _branch_constants,
+    sensor_minus_chamber_pa,
+)
 
 __all__ = [
     "CompensationSettings",
@@ -193,10 +193,10 @@ def _median_padded_smooth(x: np.ndarray, sigma_samples: float, edge_samples: int
     return box_smooth(padded, sigma_samples=sigma_samples)[pad:-pad]
 
 
-def _differential_displacement(
-    frame: pl.DataFrame, x_cols: list[str], settings: CompensationSettings
-) -> list[np.ndarray]:
-    """x_i - mean_j x_j per rope: smoothed, then a play operator of 3 sigma of its noise.
+def _differential_one(
+    time_s: np.ndarray, x: np.ndarray, mean: np.ndarray, settings: CompensationSettings
+) -> np.ndarray:
+    """x - mean_j x_j of one rope: smoothed, then a play operator of 3 sigma of its noise.
 
     The differential motion is slow and positions are continuous across a short logger
     dropout, so segments here are split only at gaps longer than
@@ -206,23 +206,18 @@ def _differential_displacement(
     half-width 3 times that keeps the slow wander of the filtered noise from moving the
     friction state.
     """
-    time_s = frame["time_utc"].dt.epoch("us").to_numpy().astype(np.float64) * 1e-6
     long_gap = np.r_[False, np.diff(time_s) > settings.differential_bridge_s]
     segment = np.cumsum(long_gap)
     bounds = np.r_[0, np.flatnonzero(long_gap), time_s.size]
-    mean = frame.select(pl.mean_horizontal(x_cols)).to_series().to_numpy()
     sigma_samples = 0.1325 / settings.differential_cutoff_hz * settings.sample_rate_hz
     edge = max(int(settings.sample_rate_hz / settings.differential_cutoff_hz), 1)
     shrink = 1.0 / np.sqrt(2.0 * np.sqrt(np.pi) * sigma_samples)
-    result = []
-    for column in x_cols:
-        raw = frame[column].to_numpy().astype(np.float64) - mean
-        sigma = displacement_noise_sigma(raw)
-        smooth = np.zeros_like(raw)
-        for a, b in itertools.pairwise(bounds):
-            smooth[a:b] = _median_padded_smooth(raw[a:b], sigma_samples, min(edge, b - a))
-        result.append(play_operator(smooth, segment, half_width=3.0 * sigma * shrink))
-    return result
+    raw = x - mean
+    sigma = displacement_noise_sigma(raw)
+    smooth = np.zeros_like(raw)
+    for a, b in itertools.pairwise(bounds):
+        smooth[a:b] = _median_padded_smooth(raw[a:b], sigma_samples, min(edge, b - a))
+    return play_operator(smooth, segment, half_width=3.0 * sigma * shrink)
 
 
 def _increment_velocity(x: np.ndarray, dt: np.ndarray, segment_id: np.ndarray) -> np.ndarray:
@@ -251,18 +246,6 @@ def _viscosity(t_oil_c: np.ndarray | None, hoist: HoistDescription) -> np.ndarra
     low, high = float(np.min(t_oil_c)), float(np.max(t_oil_c))
     grid = np.linspace(low, high, max(int((high - low) / 0.01) + 2, 2))
     return np.interp(t_oil_c, grid, kinematic_viscosity(grid, hoist.oil))
-
-
-def _despiked(frame: pl.DataFrame, columns: list[str], *, n_sigmas: float) -> pl.DataFrame:
-    """Single-sample spikes removed from ``columns``, per gap-free segment."""
-    segment = frame["segment_id"].to_numpy()
-    cleaned = [
-        pl.Series(c, despike_median3(frame[c].to_numpy(), segment, n_sigmas=n_sigmas)[0])
-        .fill_nan(None)
-        .alias(c)
-        for c in columns
-    ]
-    return frame.with_columns(cleaned)
 
 
 def _step_lengths(time_s: np.ndarray, segment_id: np.ndarray, nominal_dt_s: float) -> np.ndarray:
@@ -298,6 +281,129 @@ def _seal_friction(
     return force
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _step_kernel(time_s, segment_id, nominal_dt_s, dt):  # pragma: no cover - numba
+    """:func:`_step_lengths` in one pass."""
+    dt[0] = nominal_dt_s
+    for i in range(1, time_s.shape[0]):
+        dt[i] = nominal_dt_s if segment_id[i] != segment_id[i - 1] else time_s[i] - time_s[i - 1]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _laminar_loss_kernel(
+    v_flow, nu, area_ratio, d, length, rho, k_local, re_laminar, loss
+):  # pragma: no cover - numba
+    """Sensor minus chamber pressure, laminar branch only (the arithmetic of
+    :func:`transforms.pressure_loss.sensor_minus_chamber_pa`); 0 where the oil is still.
+
+    ``nu`` has one value per sample or a single value. Returns False as soon as a
+    Reynolds number exceeds ``re_laminar`` (the caller then takes the general path).
+    """
+    per_sample = nu.shape[0] > 1
+    for i in range(v_flow.shape[0]):
+        v = v_flow[i]
+        if not np.isfinite(v) or v == 0.0:
+            loss[i] = 0.0
+            continue
+        u = v * area_ratio
+        re = abs(u) * d / (nu[i] if per_sample else nu[0])
+        if re > re_laminar:
+            return False
+        lam = 64.0 / (re if re > 0.0 else 1.0)
+        dynamic = 0.5 * rho * u * abs(u)
+        loss[i] = 0.0 - (lam * length / d + k_local) * dynamic
+    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _rope_kernel(
+    x,
+    dt,
+    segment_id,
+    p_sensor,
+    loss,
+    coefficients,
+    floors,
+    mode,
+    stiffness,
+    weights,
+    sigma0,
+    sigma1,
+    area,
+    p_chamber,
+    friction,
+    tension_raw,
+    tension,
+):  # pragma: no cover - numba
+    """Increments, friction law, seal friction and tensions of one rope in one pass.
+
+    The same arithmetic, in the same order, as ``_increment_velocity``,
+    :func:`transforms.friction.friction_parameters` and
+    :func:`transforms.friction.maxwell_slip_friction` (``mode`` 1) or
+    :func:`transforms.friction.lugre_friction` (``mode`` 2); ``mode`` 0: no friction.
+    """
+    n_el = weights.shape[0]
+    deltas = np.zeros(n_el)
+    z = 0.0
+    for i in range(x.shape[0]):
+        pc = p_sensor[i] - loss[i]
+        p_chamber[i] = pc
+        f = 0.0
+        if mode != 0:
+            v = 0.0
+            if i > 0:
+                step = (x[i] - x[i - 1]) / dt[i]
+                if segment_id[i] == segment_id[i - 1] and np.isfinite(step):
+                    v = step
+            p = pc if np.isfinite(pc) else 0.0
+            value = coefficients[0, 0] + coefficients[0, 1] * p
+            fc = value if value > floors[0] else floors[0]
+            value = coefficients[1, 0] + coefficients[1, 1] * p
+            fs = value if value > floors[1] else floors[1]
+            value = coefficients[2, 0] + coefficients[2, 1] * p
+            vs = value if value > floors[2] else floors[2]
+            value = coefficients[3, 0] + coefficients[3, 1] * p
+            kv = value if value > floors[3] else floors[3]
+            if mode == 1:
+                if v == 0.0:
+                    g = fs
+                else:
+                    r = v / vs
+                    g = fc + (fs - fc) * math.exp(-r * r)
+                dx = v * dt[i]
+                total = 0.0
+                for j in range(n_el):
+                    limit = weights[j] * g / stiffness[j]
+                    dj = deltas[j] + dx
+                    if dj > limit:
+                        dj = limit
+                    elif dj < -limit:
+                        dj = -limit
+                    deltas[j] = dj
+                    total += stiffness[j] * dj
+                f = total + kv * v
+            else:
+                decay = 1.0
+                target = 0.0
+                if v != 0.0 and dt[i] > 0.0:
+                    r = v / vs
+                    g = fc + (fs - fc) * math.exp(-r * r)
+                    if g <= 0.0:
+                        decay = 0.0
+                    else:
+                        rate = sigma0 * abs(v) * dt[i] / g
+                        decay = math.exp(-rate) if rate < 745.0 else 0.0
+                        target = g / sigma0 if v > 0.0 else -g / sigma0
+                z_before = z
+                z = target + (z - target) * decay
+                f = sigma0 * z + kv * v
+                if dt[i] > 0.0:
+                    f += sigma1 * (z - z_before) / dt[i]
+        friction[i] = f
+        tension_raw[i] = p_sensor[i] * area
+        tension[i] = pc * area + f
+
+
 def compensate(
     samples: pl.DataFrame | pl.LazyFrame,
     hoist: HoistDescription,
@@ -326,71 +432,67 @@ def compensate(
     settings = settings or CompensationSettings()
     effects = set(hoist.model.effects if effects is None else effects)
     dt_nominal = 1.0 / settings.sample_rate_hz
-    frame = samples.lazy().sort("time_utc").collect()
+    p_cols, x_cols = _rope_cols("p{i}_pa"), _rope_cols("x{i}_m")
+    lazy = samples.lazy()
+    available = set(lazy.collect_schema().names())
+    # only the columns used below (a landed frame also carries e.g. long provenance
+    # strings, which sorting would otherwise have to move)
+    wanted = ["time_utc", "depth_m", "speed_m_s", "oil_temp_c", *p_cols, *x_cols]
+    frame = lazy.select(c for c in wanted if c in available).collect()
     if frame.height == 0:
         return pl.DataFrame(schema=_OUTPUT_SCHEMA)
+    if not frame["time_utc"].is_sorted():
+        frame = frame.sort("time_utc")
+    n = frame.height
+    workers = min(len(ROPES), os.cpu_count() or 1)
 
-    p_cols, x_cols = _rope_cols("p{i}_pa"), _rope_cols("x{i}_m")
-    calibration = [
-        ((pl.col(f"p{s.cylinder}_pa") - s.offset_pa) / s.gain).alias(f"p{s.cylinder}_pa")
-        for s in hoist.sensors
-    ]
-    frame = (
-        frame.with_columns(calibration)
-        .pipe(
-            with_segment_id,
-            "time_utc",
-            gap_factor=settings.gap_factor,
-            nominal_dt_s=dt_nominal,
-        )
-        .pipe(_despiked, [*p_cols, *x_cols], n_sigmas=settings.spike_sigmas)
-        .pipe(
-            lowpass_columns,
-            p_cols,
+    time_s = frame["time_utc"].dt.epoch("us").to_numpy().astype(np.float64) * 1e-6
+    gap = np.empty(n, dtype=np.int64)
+    gap[0] = 0
+    gap[1:] = np.diff(time_s) > settings.gap_factor * dt_nominal
+    segment = np.cumsum(gap)  # transforms.filtering.with_segment_id, on arrays
+
+    gains = {f"p{s.cylinder}_pa": (s.offset_pa, s.gain) for s in hoist.sensors}
+
+    def pressure(column: str) -> np.ndarray:
+        values = frame[column].cast(pl.Float64).to_numpy()
+        if column in gains:
+            offset, gain = gains[column]
+            values = (values - offset) / gain
+        values = despike_median3(values, segment, n_sigmas=settings.spike_sigmas)[0]
+        return lowpass(
+            values,
+            segment,
             sample_rate_hz=settings.sample_rate_hz,
             cutoff_hz=settings.pressure_cutoff_hz,
         )
-        .with_columns(pl.col("speed_m_s").fill_null(0.0).alias("_speed"))
-        .pipe(
-            with_acceleration,
-            dt_s=dt_nominal,
-            speed_col="_speed",
-            window_s=settings.acceleration_window_s,
+
+    def displacement(column: str) -> np.ndarray:
+        values = frame[column].cast(pl.Float64).to_numpy()
+        return despike_median3(values, segment, n_sigmas=settings.spike_sigmas)[0]
+
+    def acceleration() -> np.ndarray:
+        speed = frame["speed_m_s"].fill_null(0.0).cast(pl.Float64).to_numpy()
+        return smoothed_derivative(
+            speed, segment, dt_s=dt_nominal, window_s=settings.acceleration_window_s
         )
-        .pipe(with_trip_phases, hoist, speed_col="_speed")
-        .pipe(with_position, hoist)
-    )
 
-    has_x = all(frame[c].null_count() < frame.height for c in x_cols)
-    segment = frame["segment_id"].to_numpy()
-    p_mean = frame.select(pl.mean_horizontal(p_cols)).to_series().to_numpy()
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        accel_job = pool.submit(acceleration)
+        p_jobs = [pool.submit(pressure, c) for c in p_cols]
+        xs = list(pool.map(displacement, x_cols))
+        pressures = [job.result() for job in p_jobs]
+        accel = accel_job.result()
+    # NaN stands for null from here on (the frame version filled NaN with null)
+    labels = _trip_labels(frame, accel, segment, hoist)
+
+    has_x = all(bool((~np.isnan(x)).any()) for x in xs)
+    p_mean = _mean_horizontal(pressures)
     x_common = common_mode_displacement(p_mean, segment, hoist)
-    if has_x:
-        differential = _differential_displacement(frame, x_cols, settings)
-        estimates = {f"x{i}_m": x_common + differential[k] for k, i in enumerate(ROPES)}
-    else:
-        estimates = {f"x{i}_m": x_common for i in ROPES}
-    played = {
-        name: play_operator(values, segment, half_width=settings.displacement_deadband_m)
-        for name, values in estimates.items()
-    }
-    motion = frame.select("segment_id").with_columns(
-        pl.Series(name, values) for name, values in played.items()
-    )
-    motion = with_piston_velocity(
-        motion,
-        x_cols,
-        bore_area_m2=hoist.cylinders.bore_area_m2,
-        dt_s=dt_nominal,
-        window_s=settings.velocity_window_s,
-    )
-    flow_velocities = [motion[f"v{i}_m_s"].to_numpy().astype(np.float64) for i in ROPES]
-
-    time_s = frame["time_utc"].dt.epoch("us").to_numpy().astype(np.float64) * 1e-6
-    dt = _step_lengths(time_s, segment, dt_nominal)
-    area = hoist.cylinders.bore_area_m2
+    dt = np.empty(n)
+    _step_kernel(time_s, segment, dt_nominal, dt)
     t_oil = None
-    if "viscosity_temperature" in effects and frame["oil_temp_c"].null_count() < frame.height:
+    if "viscosity_temperature" in effects and frame["oil_temp_c"].null_count() < n:
         t_oil = (
             frame["oil_temp_c"]
             .fill_null(strategy="forward")
@@ -398,47 +500,185 @@ def compensate(
             .to_numpy()
         )
     nu = _viscosity(t_oil, hoist)
+    nu_arr = np.ascontiguousarray(np.atleast_1d(np.asarray(nu, dtype=np.float64)))
     with_branch_loss = bool({"pipe_laminar_loss", "local_loss"} & effects)
     with_friction = "seal_friction" in effects
     presliding = "presliding_hysteresis" in effects
+    law = hoist.friction_law
+    coefficients = np.array(
+        [law.coulomb_n, law.static_n, law.stribeck_speed_m_s, law.viscous_n_s_m],
+        dtype=np.float64,
+    )
+    floors = np.array([0.0, 0.0, STRIBECK_SPEED_FLOOR_M_S, 0.0])
+    if presliding:
+        stiffness, weights = maxwell_slip_elements(
+            law.presliding_elements, law.bristle_stiffness_n_m
+        )
+    else:
+        stiffness, weights = np.ones(1), np.ones(1)
+    mode = 0 if not with_friction else (1 if presliding else 2)
+    area = hoist.cylinders.bore_area_m2
+    area_ratio, d_pipe, length, _, k_local = _branch_constants(hoist)
+    x_mean = _mean_horizontal(xs) if has_x else None
 
-    def rope(i: int, v_flow: np.ndarray) -> dict[str, np.ndarray]:
-        p_sensor = frame[f"p{i}_pa"].to_numpy().astype(np.float64)
-        v_known = np.where(np.isfinite(v_flow), v_flow, 0.0)
-        v = _increment_velocity(played[f"x{i}_m"], dt, segment)
+    def rope(k: int) -> dict[str, np.ndarray]:
+        i = ROPES[k]
+        if has_x:
+            estimate = x_common + _differential_one(time_s, xs[k], x_mean, settings)
+        else:
+            estimate = x_common
+        played = play_operator(estimate, segment, half_width=settings.displacement_deadband_m)
+        p_sensor = np.ascontiguousarray(pressures[k])
+        loss = np.zeros(n)
         if with_branch_loss:
-            # the oil is still for most of a day: evaluate the loss where it flows only
-            flowing = v_known != 0.0
-            loss = np.zeros_like(p_sensor)
-            loss[flowing] = sensor_minus_chamber_pa(
-                v_known[flowing], hoist, nu_m2_s=nu if np.ndim(nu) == 0 else nu[flowing]
+            v_flow = smoothed_derivative(
+                played, segment, dt_s=dt_nominal, window_s=settings.velocity_window_s
             )
-            p_chamber = p_sensor - loss
-        else:
-            p_chamber = p_sensor.copy()
-        if with_friction:
-            p_for_law = np.where(np.isfinite(p_chamber), p_chamber, 0.0)
-            friction = _seal_friction(v, dt, p_for_law, hoist, presliding=presliding)
-        else:
-            friction = np.zeros_like(p_chamber)
+            laminar = _laminar_loss_kernel(
+                v_flow,
+                nu_arr,
+                area_ratio,
+                d_pipe,
+                length,
+                hoist.oil.density_kg_m3,
+                k_local,
+                RE_LAMINAR,
+                loss,
+            )
+            if not laminar:  # turbulent somewhere: the general (numpy) path
+                v_known = np.where(np.isfinite(v_flow), v_flow, 0.0)
+                flowing = v_known != 0.0
+                loss[:] = 0.0
+                loss[flowing] = sensor_minus_chamber_pa(
+                    v_known[flowing], hoist, nu_m2_s=nu if np.ndim(nu) == 0 else nu[flowing]
+                )
+        out = {name: np.empty(n) for name in ("p_chamber", "friction", "tension_raw", "tension")}
+        _rope_kernel(
+            played,
+            dt,
+            segment,
+            p_sensor,
+            loss,
+            coefficients,
+            floors,
+            mode,
+            stiffness,
+            weights,
+            float(law.bristle_stiffness_n_m),
+            float(law.bristle_damping_n_s_m),
+            area,
+            out["p_chamber"],
+            out["friction"],
+            out["tension_raw"],
+            out["tension"],
+        )
         return {
-            f"p_chamber{i}_pa": p_chamber,
-            f"friction{i}_n": friction,
-            f"tension_raw{i}_n": p_sensor * area,
-            f"tension{i}_n": p_chamber * area + friction,
+            f"p_chamber{i}_pa": out["p_chamber"],
+            f"friction{i}_n": out["friction"],
+            f"tension_raw{i}_n": out["tension_raw"],
+            f"tension{i}_n": out["tension"],
         }
 
     # The ropes are independent and the numba kernels and large numpy operations
-    # release the GIL, so the four run side by side.
-    with ThreadPoolExecutor(max_workers=min(len(ROPES), os.cpu_count() or 1)) as pool:
-        per_rope = list(pool.map(rope, ROPES, flow_velocities))
+    # release the GIL, so they run side by side.
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        per_rope = list(pool.map(rope, range(len(ROPES))))
     columns = {name: values for part in per_rope for name, values in part.items()}
 
-    result = frame.with_columns(
-        pl.Series(name, values, dtype=pl.Float64) for name, values in columns.items()
-    ).with_columns(
-        (-pl.col("acceleration_m_s2")).alias("acceleration_up_m_s2"),
+    def nullable(name: str, values: np.ndarray) -> pl.Series:
+        return pl.Series(name, values, dtype=pl.Float64).fill_nan(None)
+
+    out: dict[str, pl.Series] = {
+        "time_utc": frame["time_utc"],
+        "depth_m": frame["depth_m"],
+        "speed_m_s": frame["speed_m_s"],
+        "acceleration_up_m_s2": nullable("acceleration_up_m_s2", -accel),
+        **labels,
+        **{c: nullable(c, v) for c, v in zip(p_cols, pressures, strict=True)},
+        **{name: pl.Series(name, values, dtype=pl.Float64) for name, values in columns.items()},
+    }
+    result = pl.DataFrame(out).with_columns(
         pl.sum_horizontal(_rope_cols("tension_raw{i}_n")).alias("load_raw_n"),
         pl.sum_horizontal(_rope_cols("tension{i}_n")).alias("load_n"),
     )
     return result.select(pl.col(name).cast(dtype) for name, dtype in _OUTPUT_SCHEMA.items())
+
+
+def _mean_horizontal(arrays: list[np.ndarray]) -> np.ndarray:
+    """polars ``mean_horizontal`` of NaN-for-null arrays (nulls ignored), as an array."""
+    frame = pl.DataFrame(
+        {f"c{k}": pl.Series(a, dtype=pl.Float64).fill_nan(None) for k, a in enumerate(arrays)}
+    )
+    return frame.select(pl.mean_horizontal(frame.columns)).to_series().to_numpy()
+
+
+def _trip_labels(
+    frame: pl.DataFrame, accel: np.ndarray, segment: np.ndarray, hoist: HoistDescription
+) -> dict[str, pl.Series]:
+    """``phase``, ``direction``, ``trip_id`` (:func:`transforms.kinematics.with_trip_phases`
+    on the null-filled speed) and ``position`` (:func:`~transforms.kinematics.with_position`),
+    computed on arrays and built as categoricals, then cast to String once."""
+    speed = frame["speed_m_s"].fill_null(0.0).cast(pl.Float64).to_numpy()
+    depth = frame["depth_m"].cast(pl.Float64).to_numpy()
+    codes, direction, trip_id, position = _label_arrays(speed, accel, segment, depth, hoist)
+    position_names = [name for name, _ in _ordered_positions(hoist)]
+
+    def strings(name: str, values: np.ndarray, categories: list[str]) -> pl.Series:
+        known = values >= 0
+        if not categories or not known.any():
+            return pl.Series(name, [None], dtype=pl.String).extend_constant(None, values.size - 1)
+        index = pl.Series(np.where(known, values, 0).astype(np.uint32))
+        labels = pl.Series(name, categories, dtype=pl.String).gather(index)
+        if known.all():
+            return labels
+        return pl.select(pl.when(pl.lit(pl.Series(known))).then(labels)).to_series().alias(name)
+
+    return {
+        "trip_id": pl.Series("trip_id", trip_id, dtype=pl.Int64).set(pl.Series(trip_id < 0), None),
+        "phase": strings("phase", codes, list(PHASES)),
+        "direction": strings("direction", direction, ["down", "up"]),
+        "position": strings("position", position, position_names),
+    }
+
+
+def _ordered_positions(hoist: HoistDescription) -> list[tuple[str, float]]:
+    return sorted(hoist.shaft.positions_m.items(), key=lambda item: item[1])
+
+
+def _label_arrays(
+    speed: np.ndarray,
+    accel: np.ndarray,
+    segment: np.ndarray,
+    depth: np.ndarray,
+    hoist: HoistDescription,
+    *,
+    standstill_speed_m_s: float = 0.02,
+    acceleration_fraction: float = 0.3,
+    creep_factor: float = 1.5,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Integer codes (-1: null) of phase (index in PHASES), direction (0 down, 1 up),
+    trip id, and position (index in the depth-ordered positions): the rules of
+    :func:`transforms.kinematics.with_trip_phases` and ``position_expr``."""
+    winder = hoist.winder
+    a_t = accel * np.sign(speed)
+    abs_v = np.abs(speed)
+    moving = abs_v >= standstill_speed_m_s
+    phase = np.full(speed.size, PHASES.index("run"), dtype=np.int64)
+    phase[abs_v <= creep_factor * winder.creep_speed_m_s] = PHASES.index("creep")
+    phase[a_t < -acceleration_fraction * winder.deceleration_m_s2] = PHASES.index("decelerate")
+    phase[a_t > acceleration_fraction * winder.acceleration_m_s2] = PHASES.index("accelerate")
+    phase[~moving] = PHASES.index("standstill")
+    direction = np.full(speed.size, -1, dtype=np.int64)
+    direction[moving & (speed > 0)] = 0
+    direction[moving & (speed < 0)] = 1
+    start = moving.copy()
+    start[1:] &= ~moving[:-1] | (segment[1:] != segment[:-1])
+    trip_id = np.where(moving, np.cumsum(start) - 1, -1)
+    window = hoist.shaft.position_window_m
+    ordered = _ordered_positions(hoist)
+    distance = [np.abs(depth - d) for _, d in ordered]
+    best = np.minimum.reduce(distance) if distance else depth
+    position = np.full(depth.size, -1, dtype=np.int64)
+    for k, dist in enumerate(distance):
+        position[(dist == best) & (dist <= window)] = k
+    return phase, direction, trip_id, position

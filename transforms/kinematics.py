@@ -28,6 +28,7 @@ from typing import TypeVar
 
 import numpy as np
 import polars as pl
+from numba import njit
 from scipy import signal
 
 from schemas.hoist import HoistDescription
@@ -110,7 +111,9 @@ def smoothed_derivative(
         if bad.any():
             idx = np.arange(part.size)
             part = np.interp(idx, idx[~bad], part[~bad])
-        if b - a >= n_win:
+        if b - a >= _DIRECT_FACTOR * n_win:
+            d = _savgol_derivative(part, n_win, polyorder, dt_s)
+        elif b - a >= n_win:
             d = signal.savgol_filter(part, n_win, polyorder, deriv=1, delta=dt_s, mode="interp")
         elif b - a >= 2:
             d = np.gradient(part, dt_s)
@@ -118,6 +121,42 @@ def smoothed_derivative(
             d = np.zeros(1)
         d[bad] = np.nan
         out[a:b] = d
+    return out
+
+
+#: Segments at least this many windows long take the direct convolution path.
+_DIRECT_FACTOR = 4
+
+
+@njit(cache=True, nogil=True)
+def _correlate_valid(y, weights, out):  # pragma: no cover - numba
+    """out[i] = sum_k weights[k] y[i - h + k] for every i whose window fits in y."""
+    h = weights.shape[0] // 2
+    for i in range(h, y.shape[0] - h):
+        total = 0.0
+        for k in range(weights.shape[0]):
+            total += weights[k] * y[i - h + k]
+        out[i] = total
+
+
+def _savgol_derivative(y: np.ndarray, n_win: int, polyorder: int, dt_s: float) -> np.ndarray:
+    """``savgol_filter(y, n_win, polyorder, deriv=1, delta=dt_s, mode="interp")``, faster.
+
+    The interior is the same filter (``savgol_coeffs``) applied by a compiled loop (sums in
+    another order: equal to ~1e-15 relative); the ``n_win // 2`` samples at each end are
+    scipy's own polynomial fits, taken from ``savgol_filter`` on the first and last
+    2 ``n_win`` samples, which only see the first and last window.
+    """
+    y = np.ascontiguousarray(y, dtype=np.float64)
+    h = n_win // 2
+    coeffs = signal.savgol_coeffs(n_win, polyorder, deriv=1, delta=dt_s)
+    out = np.empty_like(y)
+    _correlate_valid(y, np.ascontiguousarray(coeffs[::-1]), out)
+    span = 2 * n_win
+    head = signal.savgol_filter(y[:span], n_win, polyorder, deriv=1, delta=dt_s, mode="interp")
+    tail = signal.savgol_filter(y[-span:], n_win, polyorder, deriv=1, delta=dt_s, mode="interp")
+    out[:h] = head[:h]
+    out[-h:] = tail[-h:]
     return out
 
 

@@ -1,0 +1,99 @@
+"""The fused per-rope kernels of transforms.compensation against the composed functions."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from schemas.hoist import EXAMPLE_HOIST, load_hoist
+from transforms.compensation import (
+    _increment_velocity,
+    _laminar_loss_kernel,
+    _rope_kernel,
+    _seal_friction,
+    _step_kernel,
+    _step_lengths,
+)
+from transforms.friction import STRIBECK_SPEED_FLOOR_M_S, maxwell_slip_elements
+from transforms.kinematics import _savgol_derivative
+from transforms.pressure_loss import RE_LAMINAR, _branch_constants, sensor_minus_chamber_pa
+
+
+def _random_record(rng: np.random.Generator, n: int = 20_000):
+    time_s = np.cumsum(np.where(rng.random(n) < 0.001, 5.0, 0.01))
+    segment = np.cumsum(np.r_[0, np.diff(time_s) > 0.03])
+    held = rng.random(n) < 0.5  # the friction state sees standstill too
+    x = np.cumsum(np.where(held, 0.0, rng.normal(0.0, 2e-6, n)))
+    p = 6e6 + rng.normal(0.0, 2e5, n)
+    p[rng.random(n) < 0.001] = np.nan
+    return time_s, segment, x, p
+
+
+@pytest.mark.parametrize("presliding", [True, False])
+def test_rope_kernel_matches_composed_functions(presliding: bool) -> None:
+    hoist = load_hoist(EXAMPLE_HOIST)
+    law = hoist.friction_law
+    rng = np.random.default_rng(3)
+    time_s, segment, x, p_sensor = _random_record(rng)
+    n = x.size
+    dt = np.empty(n)
+    _step_kernel(time_s, segment, 0.01, dt)
+    assert np.array_equal(dt, _step_lengths(time_s, segment, 0.01))
+
+    v_flow = rng.normal(0.0, 1e-3, n)
+    v_flow[rng.random(n) < 0.3] = 0.0
+    v_flow[rng.random(n) < 0.001] = np.nan
+    nu = np.full(n, 46e-6) + rng.normal(0.0, 1e-7, n)
+    area_ratio, d, length, _, k_local = _branch_constants(hoist)
+    loss = np.empty(n)
+    laminar = _laminar_loss_kernel(
+        v_flow, nu, area_ratio, d, length, hoist.oil.density_kg_m3, k_local, RE_LAMINAR, loss
+    )
+    assert laminar
+    v_known = np.where(np.isfinite(v_flow), v_flow, 0.0)
+    flowing = v_known != 0.0
+    expected_loss = np.zeros(n)
+    expected_loss[flowing] = sensor_minus_chamber_pa(v_known[flowing], hoist, nu_m2_s=nu[flowing])
+    np.testing.assert_allclose(loss, expected_loss, rtol=1e-12, atol=0.0)
+
+    coefficients = np.array(
+        [law.coulomb_n, law.static_n, law.stribeck_speed_m_s, law.viscous_n_s_m], dtype=float
+    )
+    floors = np.array([0.0, 0.0, STRIBECK_SPEED_FLOOR_M_S, 0.0])
+    stiffness, weights = maxwell_slip_elements(law.presliding_elements, law.bristle_stiffness_n_m)
+    out = [np.empty(n) for _ in range(4)]
+    _rope_kernel(
+        x, dt, segment, p_sensor, loss, coefficients, floors, 1 if presliding else 2,
+        stiffness, weights, law.bristle_stiffness_n_m, law.bristle_damping_n_s_m,
+        hoist.cylinders.bore_area_m2, *out,
+    )  # fmt: skip
+    p_chamber, friction, tension_raw, tension = out
+    np.testing.assert_array_equal(p_chamber, p_sensor - expected_loss)
+    v = _increment_velocity(x, dt, segment)
+    p_law = np.where(np.isfinite(p_chamber), p_chamber, 0.0)
+    expected = _seal_friction(v, dt, p_law, hoist, presliding=presliding)
+    scale = np.max(np.abs(expected))
+    np.testing.assert_allclose(friction, expected, rtol=1e-12, atol=1e-12 * scale)
+    area = hoist.cylinders.bore_area_m2
+    np.testing.assert_array_equal(tension_raw, p_sensor * area)
+    np.testing.assert_allclose(tension, p_chamber * area + expected, rtol=1e-12)
+
+
+def test_laminar_kernel_reports_turbulence() -> None:
+    hoist = load_hoist(EXAMPLE_HOIST)
+    area_ratio, d, length, _, k_local = _branch_constants(hoist)
+    loss = np.empty(3)
+    v = np.array([0.0, 1e-3, 100.0])
+    assert not _laminar_loss_kernel(
+        v, np.array([46e-6]), area_ratio, d, length, 870.0, k_local, RE_LAMINAR, loss
+    )
+
+
+@pytest.mark.parametrize("n_win", [5, 21, 51])
+def test_direct_savgol_matches_scipy(n_win: int) -> None:
+    rng = np.random.default_rng(n_win)
+    y = np.cumsum(rng.normal(0.0, 1e-4, 10 * n_win + 7))
+    expected = signal.savgol_filter(y, n_win, 2, deriv=1, delta=0.01, mode="interp")
+    got = _savgol_derivative(y, n_win, 2, 0.01)
+    np.testing.assert_allclose(got, expected, rtol=0.0, atol=1e-12 * np.max(np.abs(expected)))

@@ -34,6 +34,7 @@ from pipelines.prefect_env import apply_prefect_defaults
 apply_prefect_defaults()
 
 import datetime as dt  # noqa: E402  (Prefect's environment first)
+import time  # noqa: E402
 from collections.abc import Sequence  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
@@ -201,8 +202,11 @@ def partition_task(
 
 
 @task(name="discover", task_run_name="discover {source.key} {day}", **_TASK)
-def discover_task(source: HoistSource, day: dt.date, data: DataRoot) -> Path:
-    return discover_day(source, day, data=data)
+def discover_task(source: HoistSource, day: dt.date, data: DataRoot) -> tuple[Path, float]:
+    """The discrepancy report of one day, and the seconds it took (work, not overhead)."""
+    t0 = time.perf_counter()
+    path = discover_day(source, day, data=data)
+    return path, time.perf_counter() - t0
 
 
 @task(name="ingest-new-files", task_run_name="ingest {source.key}", **_TRANSIENT)
@@ -393,10 +397,12 @@ def nightly_flow(
         f"{site}/{hoist}/{day}": discover_task.submit(by_key[(site, hoist)], day, root)
         for site, hoist, day in days_to_discover(outcomes)
     }
+    found = {key: _discovered(future) for key, future in discoveries.items()}
     report = NightlyReport(
         hoists=nights,
         runs=BackfillReport(outcomes=outcomes),
-        discoveries={key: _discovered(future) for key, future in discoveries.items()},
+        discoveries={key: where for key, (where, _) in found.items()},
+        discover_s=sum(seconds for _, seconds in found.values()),
     )
     preamble = _hoists_markdown(report)
     summary = report_task(
@@ -408,11 +414,12 @@ def nightly_flow(
     return report
 
 
-def _discovered(future: PrefectFuture[Path]) -> str:
+def _discovered(future: PrefectFuture[tuple[Path, float]]) -> tuple[str, float]:
     try:
-        return str(future.result())
+        path, seconds = future.result()
     except Exception as exc:
-        return f"discovery failed: {type(exc).__name__}: {exc}"
+        return f"discovery failed: {type(exc).__name__}: {exc}", 0.0
+    return str(path), seconds
 
 
 def _night(future: PrefectFuture[HoistNight], source: HoistSource) -> HoistNight:

@@ -209,6 +209,7 @@ class NightlyReport:
     hoists: list[HoistNight]
     runs: BackfillReport
     discoveries: dict[str, str] = field(default_factory=dict)
+    discover_s: float = 0.0
 
     @property
     def ok(self) -> bool:
@@ -217,8 +218,8 @@ class NightlyReport:
 
     @property
     def work_s(self) -> float:
-        """Seconds spent inside the plain functions (ingest + runs)."""
-        return sum(n.ingest_s for n in self.hoists) + self.runs.work_s
+        """Seconds spent inside the plain functions (ingest + runs + discovery)."""
+        return sum(n.ingest_s for n in self.hoists) + self.runs.work_s + self.discover_s
 
     def hoist_table(self) -> pl.DataFrame:
         return pl.DataFrame([n.row() for n in self.hoists], infer_schema_length=None)
@@ -317,6 +318,8 @@ def nightly(
         sanity=sanity,
     )
     record_failures(data, outcomes, command="nightly")
+    t_discover = time.perf_counter()
     discoveries = _discover_all(sources, outcomes, data)
+    discover_s = time.perf_counter() - t_discover
     runs = BackfillReport(outcomes=outcomes, wall_s=time.perf_counter() - t0)
-    return NightlyReport(hoists=nights, runs=runs, discoveries=discoveries)
+    return NightlyReport(hoists=nights, runs=runs, discoveries=discoveries, discover_s=discover_s)

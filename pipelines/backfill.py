@@ -605,6 +605,10 @@ def run_partition(
     )
 
 
+#: Samples before a period that the sanity check replays to warm up the friction state.
+SANITY_LEAD_IN = dt.timedelta(hours=6)
+
+
 def check_sanity(
     *,
     hoist_path: str | Path,
@@ -621,8 +625,13 @@ def check_sanity(
 
     description = load_hoist(hoist_path)
     site, hoist = description.hoist.site, description.hoist.name
-    samples = scan_lake(data, "field_samples", site=site, hoist=hoist, start=start, end=end)
-    frame = sanity_check(samples, description, run_id=run_id, max_trips=max_trips)
+    # hours before the period: the replay of an earlier trip loads the seals' state
+    samples = scan_lake(
+        data, "field_samples", site=site, hoist=hoist, start=start - SANITY_LEAD_IN, end=end
+    )
+    frame = sanity_check(
+        samples, description, run_id=run_id, max_trips=max_trips, report_from=start
+    )
     land_sanity_checks(data, frame, site=site, hoist=hoist)
     return frame
 

@@ -163,7 +163,7 @@ def test_failed_partitions_are_reported_with_their_reason_and_recorded(mine, tmp
 def test_backfill_killed_repeatedly_then_restarted_lands_exactly_the_reference_rows(
     mine, reference, tmp_path
 ):
-    """SIGKILL at random points (seeded), five times, then a full run: same rows."""
+    """SIGKILL inside the work (seeded), at least three times, then a full run: same rows."""
     hoists, incoming = mine
     data = tmp_path / "data"
     command = [
@@ -182,30 +182,37 @@ def test_backfill_killed_repeatedly_then_restarted_lands_exactly_the_reference_r
         "--to",
         LAST.isoformat(),
         "--workers",
-        "2",
+        "1",  # one day at a time: a kill point after every day
         "--no-progress",
     ]
     env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
     rng = random.Random(20261122)
+    root = DataRoot.resolve(data)
+    total = reference["runs_per_day"][0]  # hoist-days with data
+
+    def days_done() -> int:
+        return partition_ledger(root).height if root.warehouse.exists() else 0
+
     kills = []
-    for _ in range(5):
+    while len(kills) < 8 and sum(k[1] == "killed" for k in kills) < 3:
+        before = days_done()
+        if before >= total:
+            break
         process = subprocess.Popen(
             command, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE
         )
-        # start-up (imports) takes ~2 s, a partition ~1 s: kill somewhere in the work
-        delay = rng.uniform(1.8, 3.8)
-        time.sleep(delay)
+        # wait until this run has landed one more day, then kill it at a random moment of
+        # the next one: every kill falls in the middle of real work, whatever the speed
+        deadline = time.monotonic() + 90
+        while process.poll() is None and days_done() <= before and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(rng.uniform(0.0, 0.4))
         finished = process.poll() is not None
         if not finished:
             process.send_signal(signal.SIGKILL)
         process.communicate(timeout=30)
-        done = (
-            partition_ledger(DataRoot.resolve(data)).height
-            if (data / "warehouse.duckdb").exists()
-            else 0
-        )
-        kills.append((round(delay, 2), "finished" if finished else "killed", done))
-    print("kills (delay s, outcome, days done):", kills)
+        kills.append((before, "finished" if finished else "killed", days_done()))
+    print("kills (days done before, outcome, days done after):", kills)
     final = subprocess.run(command, cwd=REPO, env=env, capture_output=True, text=True, timeout=120)
     print(final.stdout)
     assert final.returncode == 0, final.stderr

@@ -41,7 +41,8 @@ def test_a_night_takes_new_files_only_and_moves_the_watermark(site):
     assert first.ok, str(first)
     assert first.runs.count("succeeded") == 4
     # every day run is checked against the simulation; the synthetic data pass
-    assert all(o.checks >= 2 for o in first.runs.outcomes)
+    # every trip is checked but a day's first, which only warms up the friction state
+    assert all(o.checks >= 1 for o in first.runs.outcomes)
     assert sum(o.checks_failed for o in first.runs.outcomes) == 0
     assert first.discoveries == {}
     assert fingerprint(data)["sanity_checks"][0] == sum(o.checks for o in first.runs.outcomes)

@@ -39,9 +39,9 @@ import duckdb
 import polars as pl
 import pyarrow as pa
 
-from pipelines.ingest.landing import write_parquet_atomic
 from schemas.tables import ROPE_TENSIONS, RUNS, TABLES
 from transforms.reconciliation import conform
+from warehouse.parquet_files import write_parquet_atomic
 from warehouse.store import DataRoot
 
 __all__ = [
@@ -207,8 +207,8 @@ def land_rope_tensions(
 
     One file per UTC day. Rows of an existing file inside the period are replaced by the
     new ones, the rest kept; each file is written to a hidden temporary name, fsynced
-    and renamed over the old one (ingest's ``write_parquet_atomic``), so a reader sees
-    the old day or the new, never half.
+    and renamed over the old one (:func:`warehouse.parquet_files.write_parquet_atomic`),
+    so a reader sees the old day or the new, never half.
     Call inside :func:`warehouse.store.open_writer` (writers are serialised there).
     Returns the files written.
     """

@@ -31,8 +31,6 @@ Atomic parts, no multi-file step
 from __future__ import annotations
 
 import hashlib
-import os
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -41,6 +39,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from schemas.tables import TABLES
+from warehouse.parquet_files import write_parquet_atomic
 from warehouse.store import DataRoot
 
 __all__ = ["MAX_PART_ROWS", "SMALL_PART_ROWS", "LakeTable", "Landed", "write_parquet_atomic"]
@@ -49,7 +48,6 @@ __all__ = ["MAX_PART_ROWS", "SMALL_PART_ROWS", "LakeTable", "Landed", "write_par
 SMALL_PART_ROWS = 200_000
 #: ... as long as the merged part stays at or below this many rows.
 MAX_PART_ROWS = 2_000_000
-_ROW_GROUP_ROWS = 256 * 1024
 _LINEAGE = ("time_utc", "source_sha256", "source_line")
 #: Columns stored delta-encoded (see :func:`write_parquet_atomic`).
 _DELTA = ("time_utc", "source_line")
@@ -220,44 +218,3 @@ def _read_part(path: Path) -> _Part:
     if not lows:
         return _Part(path, seq, meta.num_rows, None, None)
     return _Part(path, seq, meta.num_rows, min(lows), max(highs))
-
-
-def write_parquet_atomic(
-    frame: pl.DataFrame, target: Path, schema: pa.Schema, *, delta: Sequence[str] = ()
-) -> None:
-    """Write ``frame`` as ``target`` (zstd, ``schema``) via temp file, fsync, ``os.replace``.
-
-    ``delta``: integer or timestamp columns (sorted or nearly so: time, source line) to
-    store with DELTA_BINARY_PACKED instead of trying a dictionary first, which for
-    all-distinct values only costs time (a third less CPU and size for a field batch).
-    """
-    target.parent.mkdir(parents=True, exist_ok=True)
-    table = frame.to_arrow().cast(schema)
-    temporary = target.with_name(f".{target.stem}.{os.getpid()}.tmp")
-    encoding: dict = {}
-    if delta:
-        encoding = {
-            "use_dictionary": [n for n in schema.names if n not in delta],
-            "column_encoding": dict.fromkeys(delta, "DELTA_BINARY_PACKED"),
-        }
-    try:
-        with temporary.open("wb") as handle:
-            pq.write_table(
-                table,
-                handle,
-                compression="zstd",
-                compression_level=1,
-                row_group_size=_ROW_GROUP_ROWS,
-                **encoding,
-            )
-            handle.flush()
-            os.fsync(handle.fileno())
-        temporary.replace(target)
-    except BaseException:
-        temporary.unlink(missing_ok=True)
-        raise
-    directory = os.open(target.parent, os.O_RDONLY)
-    try:
-        os.fsync(directory)
-    finally:
-        os.close(directory)

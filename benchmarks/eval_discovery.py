@@ -54,7 +54,8 @@ def trial(hidden: list[str], seed: int, noise_pa: float, scenario: str | None = 
     plan, _ = hidden_case(
         hidden,
         seed=seed,
-        trips=2,
+        # local_loss needs trips at winding speeds that go up and down (4, 10, 4 m/s)
+        trips=3 if "local_loss" in hidden else 2,
         noise=NoiseModel(pressure_sigma_pa=noise_pa),
         scenario=scenario,
     )

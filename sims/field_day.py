@@ -106,6 +106,7 @@ def generate_field_day(
     loading_s: float = 20.0,
     rest_after_s: float = 45.0,
     dt_s: float = 2e-3,
+    max_speeds_m_s: Sequence[float] | None = None,
 ) -> FieldDay:
     """Generate a synthetic field day for ``hoist``.
 
@@ -139,12 +140,18 @@ def generate_field_day(
         decay (head-rope damping ratio 0.02); after it the state is held.
     dt_s : float
         Integrator step of the device simulation [s].
+    max_speeds_m_s : sequence of float, optional
+        Full (winding) speed of each trip [m/s], cycled over the trips (trip ``k`` runs
+        at ``max_speeds_m_s[k % len]``); default the winder's ``max_speed_m_s`` for all.
 
     Returns
     -------
     FieldDay
     """
     noise = NoiseModel() if noise is None else noise
+    speeds = None if max_speeds_m_s is None else [float(v) for v in max_speeds_m_s]
+    if speeds is not None and (not speeds or min(speeds) <= 0.0):
+        raise ValueError(f"max_speeds_m_s: need positive speeds, got {max_speeds_m_s!r}")
     rng = np.random.default_rng(seed)
     period_s = hours * 3600.0 / max(trips, 1)
     n_total = round(hours * 3600.0 * sample_rate_hz)
@@ -172,6 +179,7 @@ def generate_field_day(
             end_depth_m=bottom if down else top,
             rest_before_s=loading_s + 5.0,
             rest_after_s=rest_after_s,
+            max_speed_m_s=None if speeds is None else speeds[k % len(speeds)],
             oil_temp_c=temp,
             start_time_s=start_s,
         )

@@ -24,7 +24,12 @@ more effects hidden from the hoist's model:
     flow follows the winding speed (acceleration, full speed, creep), so the flow
     amplitude spans 0 .. max and the orifice's loss, quadratic in the flow, differs in
     shape from the laminar loss (linear in the flow, and scaled by the temperature).
-    Excites ``local_loss``.
+    The trips alternate between 4 and 10 m/s full speed (:data:`MAX_SPEEDS_M_S`): on
+    trips of one speed the branch flow is flat most of a trip and a re-tuned laminar
+    loss with its viscosity slope mimics the orifice (the answer is ``none``); at
+    different speeds the loss scales with the speed squared, not with the speed, and
+    with three or more trips (two speeds, not monotonic in the oil temperature) the
+    viscosity slope cannot absorb it. Excites ``local_loss``.
 
 Why a separate scenario for ``local_loss``: with the example hoist's fittings
 (K = 1.2 between tee and manifold; the globe valve's K = 9 sits between the chamber
@@ -52,6 +57,7 @@ __all__ = [
     "COUPLED",
     "DIFFERENTIAL_GROOVE_M",
     "EXTRA",
+    "MAX_SPEEDS_M_S",
     "ORIFICE_LOSS_COEFFICIENT",
     "SCENARIOS",
     "SCENARIO_FOR",
@@ -81,6 +87,12 @@ SCENARIO_FOR: dict[str, str] = {
     "viscosity_temperature": "differential",
     "local_loss": "orifice",
 }
+#: Full (winding) speeds of the trips per scenario, cycled [m/s] (default the winder's).
+#: The orifice's trips run at different speeds: the branch flow scales with the winding
+#: speed, so its loss (quadratic in the flow) and the laminar loss (linear) separate;
+#: the speeds are not monotonic in time, so the viscosity slope (the oil warms over the
+#: period) cannot stand in for the speed dependence.
+MAX_SPEEDS_M_S: dict[str, tuple[float, ...]] = {"orifice": (4.0, 10.0)}
 #: Oil temperature at the start and end of the period per scenario [degC].
 _OIL_TEMP_C = {"plain": (28.0, 38.0), "differential": (0.0, 30.0), "orifice": (0.0, 30.0)}
 
@@ -115,11 +127,14 @@ def hidden_case(
     noise: NoiseModel | None = None,
     scenario: str | None = None,
     oil_temp_c: tuple[float, float] | None = None,
+    max_speeds_m_s: tuple[float, ...] | None = None,
 ) -> tuple[ReplayPlan, dict[str, Any]]:
     """Data with every model effect of the scenario's hoist plus ``hidden``; the model
     omits ``hidden`` (one name, several, or None for the null case).
 
-    ``scenario`` defaults to :data:`SCENARIO_FOR` of the (first) hidden effect. Returns
+    ``scenario`` defaults to :data:`SCENARIO_FOR` of the (first) hidden effect;
+    ``max_speeds_m_s`` (cycled over the trips) to :data:`MAX_SPEEDS_M_S` of the scenario
+    (the winder's full speed when not listed). Returns
     the replay plan (the hoist without the hidden effects) and ``{"truth_effects",
     "parameters", "day", "scenario", "hidden"}``.
     """
@@ -139,12 +154,19 @@ def hidden_case(
         if h in COUPLED and COUPLED[h] in model:
             model.remove(COUPLED[h])
             truth.remove(COUPLED[h])
+    if max_speeds_m_s is None:
+        max_speeds_m_s = MAX_SPEEDS_M_S.get(scenario)
+    # 150 s per trip at the full speed; slower trips get the longer period they need
+    period_s = 150.0
+    if max_speeds_m_s:
+        run = base.shaft.depth_m / base.winder.max_speed_m_s
+        period_s += max(base.shaft.depth_m / v - run for v in max_speeds_m_s)
     day: FieldDay = generate_field_day(
         base,
         date="2026-03-02",
         seed=seed,
         trips=trips,
-        hours=trips * 150 / 3600,
+        hours=trips * period_s / 3600,
         sample_rate_hz=20.0,
         loading_s=5.0,
         rest_after_s=20.0,
@@ -152,6 +174,7 @@ def hidden_case(
         parameters=params or None,
         noise=noise,
         oil_temp_c=_OIL_TEMP_C[scenario] if oil_temp_c is None else oil_temp_c,
+        max_speeds_m_s=max_speeds_m_s,
     )
     plan = plan_replay(day.sensors, hoist_with(base, model), settle_s=20.0)
     return plan, {

@@ -78,19 +78,46 @@ def test_null_case_with_differential_flow_reports_none():
 
 
 @pytest.mark.slow
+def test_local_loss_is_named_on_trips_at_different_winding_speeds():
+    """A damping orifice (K = 1000) on trips at 4, 10 and 4 m/s: the branch flow scales
+    with the winding speed, so the orifice's loss (quadratic in the flow) differs from
+    a re-tuned laminar loss (linear, scaled by the viscosity: the speeds are not
+    monotonic in the trip temperatures) and is named; the gap shrinks to the noise."""
+    plan, info = hidden_case("local_loss", trips=3)
+    assert info["scenario"] == "orifice"
+    assert "pipe_laminar_loss" in plan.hoist.model.effects  # re-tuned, not a candidate
+    result = discover_effects(plan, bootstrap=50, max_iterations=1)
+    first = result.findings[0]
+    assert first.effect == "local_loss"
+    assert first.confidence >= 0.6
+    assert first.ranking[0]["effect"] == "local_loss"
+    noise = plan.noise_sigma_pa
+    excess_before = np.sqrt(max(first.gap_before_pa**2 - noise**2, 0.0))
+    excess_after = np.sqrt(max(first.gap_after_pa**2 - noise**2, 0.0))
+    assert excess_after < 0.5 * excess_before
+
+
+@pytest.mark.slow
 def test_local_loss_on_equal_speed_trips_is_not_misnamed():
-    """A damping orifice (K = 1000) on trips of one winding speed: its loss (quadratic in
-    the branch flow) is mimicked by re-tuning the laminar loss and its viscosity slope
-    (two coordinates for two trip temperatures), so the honest answer is ``none`` or
-    ``ambiguous`` with pipe_laminar_loss -- never another effect; the separating
-    excitation (trips at different winding speeds) is in the library."""
-    plan, _ = hidden_case("local_loss")
+    """The same orifice on trips of one winding speed: its loss is mimicked by
+    re-tuning the laminar loss and its viscosity slope (two coordinates for two trip
+    temperatures), so the honest answer is ``none`` or ``ambiguous`` with
+    pipe_laminar_loss -- never another effect; the library names the separating
+    excitation (trips at different winding speeds)."""
+    plan, _ = hidden_case("local_loss", max_speeds_m_s=(10.0,))
     result = discover_effects(plan, bootstrap=50, max_iterations=1)
     first = result.findings[0]
     assert first.effect in ("local_loss", "none", "ambiguous")
     if first.effect == "ambiguous":
         assert set(first.ambiguous_between) == {"local_loss", "pipe_laminar_loss"}
     assert "winding speeds" in EFFECT_LIBRARY["local_loss"].excitation
+
+
+@pytest.mark.slow
+def test_null_case_with_an_orifice_and_different_speeds_reports_none():
+    plan, _ = hidden_case(None, scenario="orifice", trips=3)
+    result = discover_effects(plan, bootstrap=50, max_iterations=1)
+    assert [f.effect for f in result.findings] == ["none"]
 
 
 def test_library_terms_cover_the_contract():

@@ -135,3 +135,14 @@ def test_write_field_day_files(day, tmp_path):
     info = json.loads((tmp_path / names[2]).read_text())
     assert info["seed"] == 11
     assert len(info["trips"]) == 6
+
+
+def test_per_trip_max_speeds_cycle_over_the_trips():
+    day = generate_field_day(
+        HOIST, date="2026-03-02", seed=5, trips=3, hours=0.25, dt_s=5e-3, max_speeds_m_s=[4.0, 10.0]
+    )
+    moving = day.truth.filter(pl.col("trip_id").is_not_null())
+    top = moving.group_by("trip_id").agg(pl.col("speed_m_s").abs().max()).sort("trip_id")
+    assert top["speed_m_s"].to_list() == pytest.approx([4.0, 10.0, 4.0], rel=1e-3)
+    with pytest.raises(ValueError, match="max_speeds_m_s"):
+        generate_field_day(HOIST, date="2026-03-02", seed=5, trips=1, hours=0.1, max_speeds_m_s=[])

@@ -220,6 +220,22 @@ def _median_in(t: np.ndarray, values: np.ndarray, lo: float, hi: float) -> float
     return float(np.median(part)) if part.size else float("nan")
 
 
+def _plateau_median(
+    t: np.ndarray, values: np.ndarray, lo: float, hi: float, width_s: float, *, from_start: bool
+) -> float:
+    """Median of ``values`` over the first (``from_start``) or last ``width_s`` seconds of
+    logged samples within [lo, hi]: a logger gap at the edge of the interval shifts the
+    window to the nearest samples instead of leaving it empty."""
+    part = _span(t, lo, hi)
+    if part.stop <= part.start:
+        return float("nan")
+    if from_start:
+        first = float(t[part.start])
+        return _median_in(t, values, first, min(first + width_s, hi))
+    last = float(t[part.stop - 1])
+    return _median_in(t, values, max(last - width_s, lo), last)
+
+
 def _span(t: np.ndarray, lo: float, hi: float) -> slice:
     """Index range of sorted ``t`` within [lo, hi] (binary search, no full-array mask)."""
     return slice(int(np.searchsorted(t, lo, "left")), int(np.searchsorted(t, hi, "right")))
@@ -336,9 +352,10 @@ def plan_replay(
     rate = 1.0 / max(float(np.median(np.diff(t))), 1e-6)
     # 1-s moving average of the common-mode pressure (O(n); a median over a day at 100 Hz
     # costs tens of seconds); spikes are rare and the ramp fit below is robust to them
-    pcs = ndimage.uniform_filter1d(
-        np.nan_to_num(pc, nan=float(np.nanmedian(pc))), size=max(3, int(rate) | 1)
-    )
+    # missing values (dropped samples) interpolated in time, not filled with a constant
+    known = np.isfinite(pc)
+    pc_filled = np.interp(t, t[known], pc[known]) if known.any() else np.zeros_like(pc)
+    pcs = ndimage.uniform_filter1d(pc_filled, size=max(3, int(rate) | 1))
     w = hoist.winder
     shaft = hoist.shaft.depth_m
     # standstill depths between motions: shared by the trip before and after (chaining)
@@ -384,8 +401,8 @@ def plan_replay(
         vmax_arg = None if abs(vmax - w.max_speed_m_s) < 0.05 * w.max_speed_m_s else vmax
         s_lo = max(prev_end + 2.0, float(t[0]))
         s_hi = t_m - 0.3
-        p_pre = _median_in(t, pcs, s_lo, s_lo + 2.0)
-        p_post = _median_in(t, pcs, s_hi - 3.0, s_hi)
+        p_pre = _plateau_median(t, pcs, s_lo, s_hi, 2.0, from_start=True)
+        p_post = _plateau_median(t, pcs, s_lo, s_hi, 3.0, from_start=False)
         change = p_post - p_pre
         in_s = _span(t, s_lo, s_hi)
         if (

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import datetime as dt
+
 import numpy as np
+import polars as pl
 import pytest
 
 from sims.discovery.cases import hidden_case
-from sims.replay import estimate_noise_sigma, replay_fitted, replay_frame
+from sims.replay import estimate_noise_sigma, plan_replay, replay_fitted, replay_frame
 
 
 @pytest.fixture(scope="module")
@@ -52,3 +55,27 @@ def test_replay_without_a_true_effect_shows_a_gap(null_case):
     result = replay_fitted(plan, effects=effects, passes=2)
     resid = np.concatenate([r[np.isfinite(r)] for r in result.residuals(plan)])
     assert np.sqrt(np.mean(resid**2)) > 10 * plan.noise_sigma_pa
+
+
+def test_a_logger_gap_after_a_stop_does_not_lose_the_loading(null_case):
+    """Rows missing from 1 s to 6 s after a stop (where the level before the next
+    loading is read) move the reading to the nearest logged samples: the next trip's
+    level before loading, its payload and its fit are as without the gap."""
+    plan, info = null_case
+    sensors = info["day"].sensors
+    t0 = sensors["time_utc"][0]
+    stop = plan.t_ref + dt.timedelta(seconds=plan.trips[0].motion_end_s)
+    gapped = sensors.filter(
+        (pl.col("time_utc") < stop + dt.timedelta(seconds=1))
+        | (pl.col("time_utc") > stop + dt.timedelta(seconds=6))
+    )
+    assert gapped.height < sensors.height
+    assert gapped["time_utc"][0] == t0
+    gap_plan = plan_replay(gapped, plan.hoist, settle_s=20.0)
+    truth = info["day"].info["trips"][1]
+    # the level before loading: the standstill pressure at the previous payload
+    assert gap_plan.trips[1].p_before_pa == pytest.approx(plan.trips[1].p_before_pa, abs=5e3)
+    result = replay_fitted(gap_plan, passes=3)
+    assert result.payload_before_kg[1] == pytest.approx(truth["payload_before_kg"], abs=30.0)
+    resid = np.concatenate([r[np.isfinite(r)] for r in result.residuals(gap_plan)])
+    assert np.sqrt(np.mean(resid**2)) < 1.15 * gap_plan.noise_sigma_pa

@@ -77,6 +77,9 @@ __all__ = [
 ]
 
 _OUTPUT_SCHEMA = pl.Schema(pl.from_arrow(ROPE_TENSIONS.empty_table()).schema)
+_ACCELERATE, _RUN, _DECELERATE, _CREEP, _STANDSTILL = (
+    PHASES.index(name) for name in ("accelerate", "run", "decelerate", "creep", "standstill")
+)
 
 
 @dataclass(frozen=True)
@@ -139,21 +142,48 @@ def common_mode_displacement(
     the chambers, so x grows (rod out) while p rises. Differential piston motion is not
     observable this way and is taken as zero. Integrated per segment from 0.
     """
-    p = np.asarray(p_mean_pa, dtype=np.float64)
+    p = np.ascontiguousarray(p_mean_pa, dtype=np.float64)
     beta = effective_bulk_modulus(
         np.maximum(np.nan_to_num(p, nan=1e6), 1e5),
         hoist.oil.bulk_modulus_pa,
         hoist.oil.air_fraction,
     )
-    compliance = hoist.oil_volume_m3 / (hoist.ropes_n * hoist.cylinders.bore_area_m2 * beta)
-    dp = np.r_[0.0, np.diff(p)]
-    starts = np.r_[True, segment_id[1:] != segment_id[:-1]]
-    dp[starts | ~np.isfinite(dp)] = 0.0
-    dx = compliance * dp
-    x = np.cumsum(dx)
-    # restart the integral at every segment start
-    offsets = np.maximum.accumulate(np.where(starts, np.arange(x.size), 0))
-    return x - x[offsets] + dx[offsets]
+    x = np.empty_like(p)
+    if p.size:
+        _common_mode_kernel(
+            p,
+            np.ascontiguousarray(segment_id, dtype=np.int64),
+            float(hoist.oil_volume_m3),
+            hoist.ropes_n * hoist.cylinders.bore_area_m2,
+            beta,
+            x,
+        )
+    return x
+
+
+@njit(cache=True, nogil=True)
+def _common_mode_kernel(p, segment_id, volume, n_area, beta, x):  # pragma: no cover - numba
+    """n A dx = V / beta_e(p) dp integrated per segment from 0 (:func:`common_mode_displacement`).
+
+    The arithmetic of the array version: a running sum over the whole record, minus its
+    value at the segment's start.
+    """
+    total = 0.0
+    total_at_start = 0.0
+    dx_at_start = 0.0
+    for i in range(p.shape[0]):
+        start = i == 0 or segment_id[i] != segment_id[i - 1]
+        dp = 0.0
+        if not start:
+            dp = p[i] - p[i - 1]
+            if not np.isfinite(dp):
+                dp = 0.0
+        dx = volume / (n_area * beta[i]) * dp
+        total = dx if i == 0 else total + dx
+        if start:
+            total_at_start = total
+            dx_at_start = dx
+        x[i] = total - total_at_start + dx_at_start
 
 
 def displacement_noise_sigma(x: np.ndarray) -> float:
@@ -162,8 +192,12 @@ def displacement_noise_sigma(x: np.ndarray) -> float:
     For white noise of variance s^2, the second difference has variance 6 s^2; the
     median absolute deviation (x 1.4826) makes the estimate ignore real motion and steps.
     """
-    d2 = np.diff(np.asarray(x, dtype=np.float64), 2)
-    d2 = d2[:: max(1, d2.size // 200_000)]  # the median of 200 k of them is plenty
+    x = np.asarray(x, dtype=np.float64)
+    # every step-th second difference (the median of 200 k of them is plenty), as
+    # np.diff(x, 2)[::step] without differencing the whole record
+    step = max(1, (x.size - 2) // 200_000)
+    at = np.arange(0, max(x.size - 2, 0), step)
+    d2 = (x[at + 2] - x[at + 1]) - (x[at + 1] - x[at])
     d2 = d2[np.isfinite(d2)]
     if d2.size == 0:
         return 0.0
@@ -194,7 +228,11 @@ def _median_padded_smooth(x: np.ndarray, sigma_samples: float, edge_samples: int
 
 
 def _differential_one(
-    time_s: np.ndarray, x: np.ndarray, mean: np.ndarray, settings: CompensationSettings
+    x: np.ndarray,
+    mean: np.ndarray,
+    long_segment: np.ndarray,
+    bounds: np.ndarray,
+    settings: CompensationSettings,
 ) -> np.ndarray:
     """x - mean_j x_j of one rope: smoothed, then a play operator of 3 sigma of its noise.
 
@@ -204,11 +242,9 @@ def _differential_one(
     s = 0.1325 / f_c seconds (half-power frequency f_c); it leaves
     sigma / sqrt(2 sqrt(pi) s f_s) of the transducer's white noise, and a play of
     half-width 3 times that keeps the slow wander of the filtered noise from moving the
-    friction state.
+    friction state. ``long_segment`` and ``bounds`` (:func:`_long_segments`) number and
+    delimit those segments.
     """
-    long_gap = np.r_[False, np.diff(time_s) > settings.differential_bridge_s]
-    segment = np.cumsum(long_gap)
-    bounds = np.r_[0, np.flatnonzero(long_gap), time_s.size]
     sigma_samples = 0.1325 / settings.differential_cutoff_hz * settings.sample_rate_hz
     edge = max(int(settings.sample_rate_hz / settings.differential_cutoff_hz), 1)
     shrink = 1.0 / np.sqrt(2.0 * np.sqrt(np.pi) * sigma_samples)
@@ -217,7 +253,13 @@ def _differential_one(
     smooth = np.zeros_like(raw)
     for a, b in itertools.pairwise(bounds):
         smooth[a:b] = _median_padded_smooth(raw[a:b], sigma_samples, min(edge, b - a))
-    return play_operator(smooth, segment, half_width=3.0 * sigma * shrink)
+    return play_operator(smooth, long_segment, half_width=3.0 * sigma * shrink)
+
+
+def _long_segments(time_s: np.ndarray, bridge_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Segment id per sample and segment bounds [0, ..., n], split only at gaps > bridge_s."""
+    long_gap = np.r_[False, np.diff(time_s) > bridge_s]
+    return np.cumsum(long_gap), np.r_[0, np.flatnonzero(long_gap), time_s.size]
 
 
 def _increment_velocity(x: np.ndarray, dt: np.ndarray, segment_id: np.ndarray) -> np.ndarray:
@@ -520,11 +562,14 @@ def compensate(
     area = hoist.cylinders.bore_area_m2
     area_ratio, d_pipe, length, _, k_local = _branch_constants(hoist)
     x_mean = _mean_horizontal(xs) if has_x else None
+    long_segment, long_bounds = _long_segments(time_s, settings.differential_bridge_s)
 
     def rope(k: int) -> dict[str, np.ndarray]:
         i = ROPES[k]
         if has_x:
-            estimate = x_common + _differential_one(time_s, xs[k], x_mean, settings)
+            estimate = x_common + _differential_one(
+                xs[k], x_mean, long_segment, long_bounds, settings
+            )
         else:
             estimate = x_common
         played = play_operator(estimate, segment, half_width=settings.displacement_deadband_m)
@@ -584,9 +629,17 @@ def compensate(
     with ThreadPoolExecutor(max_workers=workers) as pool:
         per_rope = list(pool.map(rope, range(len(ROPES))))
     columns = {name: values for part in per_rope for name, values in part.items()}
+    load_raw, load = np.empty(n), np.empty(n)
+    _load_kernel(
+        tuple(columns[c] for c in _rope_cols("tension_raw{i}_n")),
+        tuple(columns[c] for c in _rope_cols("tension{i}_n")),
+        load_raw,
+        load,
+    )
 
     def nullable(name: str, values: np.ndarray) -> pl.Series:
-        return pl.Series(name, values, dtype=pl.Float64).fill_nan(None)
+        series = pl.Series(name, values, dtype=pl.Float64)
+        return series.fill_nan(None) if np.isnan(values).any() else series
 
     out: dict[str, pl.Series] = {
         "time_utc": frame["time_utc"],
@@ -596,20 +649,49 @@ def compensate(
         **labels,
         **{c: nullable(c, v) for c, v in zip(p_cols, pressures, strict=True)},
         **{name: pl.Series(name, values, dtype=pl.Float64) for name, values in columns.items()},
+        "load_raw_n": pl.Series("load_raw_n", load_raw, dtype=pl.Float64),
+        "load_n": pl.Series("load_n", load, dtype=pl.Float64),
     }
-    result = pl.DataFrame(out).with_columns(
-        pl.sum_horizontal(_rope_cols("tension_raw{i}_n")).alias("load_raw_n"),
-        pl.sum_horizontal(_rope_cols("tension{i}_n")).alias("load_n"),
-    )
-    return result.select(pl.col(name).cast(dtype) for name, dtype in _OUTPUT_SCHEMA.items())
+    result = pl.DataFrame([out[name] for name in _OUTPUT_SCHEMA])
+    if result.schema != _OUTPUT_SCHEMA:
+        result = result.cast(dict(_OUTPUT_SCHEMA))
+    return result
+
+
+@njit(cache=True, nogil=True)
+def _load_kernel(raw, compensated, load_raw, load):  # pragma: no cover - numba
+    """Row sums of the rope tensions (polars ``sum_horizontal``: in column order)."""
+    for i in range(load.shape[0]):
+        total_raw = raw[0][i]
+        total = compensated[0][i]
+        for k in range(1, len(raw)):
+            total_raw += raw[k][i]
+            total += compensated[k][i]
+        load_raw[i] = total_raw
+        load[i] = total
 
 
 def _mean_horizontal(arrays: list[np.ndarray]) -> np.ndarray:
     """polars ``mean_horizontal`` of NaN-for-null arrays (nulls ignored), as an array."""
-    frame = pl.DataFrame(
-        {f"c{k}": pl.Series(a, dtype=pl.Float64).fill_nan(None) for k, a in enumerate(arrays)}
-    )
-    return frame.select(pl.mean_horizontal(frame.columns)).to_series().to_numpy()
+    out = np.empty(arrays[0].shape[0]) if arrays else np.empty(0)
+    if arrays:
+        columns = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in arrays)
+        _mean_horizontal_kernel(columns, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _mean_horizontal_kernel(arrays, out):  # pragma: no cover - numba
+    """Row mean of the non-NaN values (sum in column order / count), NaN if none."""
+    for i in range(out.shape[0]):
+        total = 0.0
+        count = 0
+        for k in range(len(arrays)):
+            v = arrays[k][i]
+            if not np.isnan(v):
+                total += v
+                count += 1
+        out[i] = total / count if count else np.nan
 
 
 def _trip_labels(
@@ -624,14 +706,11 @@ def _trip_labels(
     position_names = [name for name, _ in _ordered_positions(hoist)]
 
     def strings(name: str, values: np.ndarray, categories: list[str]) -> pl.Series:
-        known = values >= 0
-        if not categories or not known.any():
+        if not categories:
             return pl.Series(name, [None], dtype=pl.String).extend_constant(None, values.size - 1)
-        index = pl.Series(np.where(known, values, 0).astype(np.uint32))
-        labels = pl.Series(name, categories, dtype=pl.String).gather(index)
-        if known.all():
-            return labels
-        return pl.select(pl.when(pl.lit(pl.Series(known))).then(labels)).to_series().alias(name)
+        # code -1 becomes a null index, which gathers a null
+        index = pl.Series(values).cast(pl.UInt32, strict=False)
+        return pl.Series(name, categories, dtype=pl.String).gather(index)
 
     return {
         "trip_id": pl.Series("trip_id", trip_id, dtype=pl.Int64).set(pl.Series(trip_id < 0), None),
@@ -660,25 +739,80 @@ def _label_arrays(
     trip id, and position (index in the depth-ordered positions): the rules of
     :func:`transforms.kinematics.with_trip_phases` and ``position_expr``."""
     winder = hoist.winder
-    a_t = accel * np.sign(speed)
-    abs_v = np.abs(speed)
-    moving = abs_v >= standstill_speed_m_s
-    phase = np.full(speed.size, PHASES.index("run"), dtype=np.int64)
-    phase[abs_v <= creep_factor * winder.creep_speed_m_s] = PHASES.index("creep")
-    phase[a_t < -acceleration_fraction * winder.deceleration_m_s2] = PHASES.index("decelerate")
-    phase[a_t > acceleration_fraction * winder.acceleration_m_s2] = PHASES.index("accelerate")
-    phase[~moving] = PHASES.index("standstill")
-    direction = np.full(speed.size, -1, dtype=np.int64)
-    direction[moving & (speed > 0)] = 0
-    direction[moving & (speed < 0)] = 1
-    start = moving.copy()
-    start[1:] &= ~moving[:-1] | (segment[1:] != segment[:-1])
-    trip_id = np.where(moving, np.cumsum(start) - 1, -1)
-    window = hoist.shaft.position_window_m
     ordered = _ordered_positions(hoist)
-    distance = [np.abs(depth - d) for _, d in ordered]
-    best = np.minimum.reduce(distance) if distance else depth
-    position = np.full(depth.size, -1, dtype=np.int64)
-    for k, dist in enumerate(distance):
-        position[(dist == best) & (dist <= window)] = k
+    phase = np.empty(speed.size, dtype=np.int8)
+    direction = np.empty(speed.size, dtype=np.int8)
+    trip_id = np.empty(speed.size, dtype=np.int64)
+    position = np.empty(speed.size, dtype=np.int8)
+    _label_kernel(
+        np.ascontiguousarray(speed, dtype=np.float64),
+        np.ascontiguousarray(accel, dtype=np.float64),
+        np.ascontiguousarray(segment, dtype=np.int64),
+        np.ascontiguousarray(depth, dtype=np.float64),
+        standstill_speed_m_s,
+        creep_factor * winder.creep_speed_m_s,
+        -acceleration_fraction * winder.deceleration_m_s2,
+        acceleration_fraction * winder.acceleration_m_s2,
+        np.array([d for _, d in ordered], dtype=np.float64),
+        float(hoist.shaft.position_window_m),
+        phase,
+        direction,
+        trip_id,
+        position,
+    )
     return phase, direction, trip_id, position
+
+
+@njit(cache=True, nogil=True)
+def _label_kernel(
+    speed,
+    accel,
+    segment,
+    depth,
+    standstill,
+    creep,
+    decelerating,
+    accelerating,
+    positions,
+    window,
+    phase,
+    direction,
+    trip_id,
+    position,
+):  # pragma: no cover - numba
+    """The rules of :func:`_label_arrays` (later rules override earlier ones) in one pass."""
+    trips = -1
+    was_moving = False
+    for i in range(speed.shape[0]):
+        v = speed[i]
+        abs_v = abs(v)
+        a_t = accel[i] * np.sign(v)
+        moving = abs_v >= standstill
+        code = _RUN
+        if abs_v <= creep:
+            code = _CREEP
+        if a_t < decelerating:
+            code = _DECELERATE
+        if a_t > accelerating:
+            code = _ACCELERATE
+        if not moving:
+            code = _STANDSTILL
+        phase[i] = code
+        direction[i] = -1
+        if moving and v > 0:
+            direction[i] = 0
+        elif moving and v < 0:
+            direction[i] = 1
+        if moving and (i == 0 or not was_moving or segment[i] != segment[i - 1]):
+            trips += 1
+        trip_id[i] = trips if moving else -1
+        was_moving = moving
+        position[i] = -1
+        if positions.shape[0] and not np.isnan(depth[i]):
+            best = abs(depth[i] - positions[0])
+            for k in range(1, positions.shape[0]):
+                best = min(best, abs(depth[i] - positions[k]))
+            for k in range(positions.shape[0]):
+                dist = abs(depth[i] - positions[k])
+                if dist == best and dist <= window:
+                    position[i] = k

@@ -28,16 +28,22 @@ def write_parquet_atomic(
     ``delta``: integer or timestamp columns (sorted or nearly so: time, source line) to
     store with DELTA_BINARY_PACKED instead of trying a dictionary first, which for
     all-distinct values only costs time (a third less CPU and size for a field batch).
+
+    Floating-point columns are stored BYTE_STREAM_SPLIT (no dictionary attempt): the
+    bytes of equal significance side by side, which zstd compresses far better than
+    interleaved noisy mantissas -- for a 100 Hz day of rope tensions about 2x faster
+    to write and 30 % smaller than a dictionary attempt falling back to PLAIN. Lossless.
     """
     target.parent.mkdir(parents=True, exist_ok=True)
     table = frame.to_arrow().cast(schema)
     temporary = target.with_name(f".{target.stem}.{os.getpid()}.tmp")
-    encoding: dict = {}
+    floats = [f.name for f in schema if pa.types.is_floating(f.type) and f.name not in delta]
+    encoding: dict = {
+        "use_dictionary": [n for n in schema.names if n not in delta and n not in floats],
+        "use_byte_stream_split": floats,
+    }
     if delta:
-        encoding = {
-            "use_dictionary": [n for n in schema.names if n not in delta],
-            "column_encoding": dict.fromkeys(delta, "DELTA_BINARY_PACKED"),
-        }
+        encoding["column_encoding"] = dict.fromkeys(delta, "DELTA_BINARY_PACKED")
     try:
         with temporary.open("wb") as handle:
             pq.write_table(

@@ -40,7 +40,7 @@ import itertools
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import polars as pl
@@ -74,6 +74,7 @@ __all__ = [
     "common_mode_displacement",
     "compensate",
     "displacement_noise_sigma",
+    "logger_rate_hz",
 ]
 
 _OUTPUT_SCHEMA = pl.Schema(pl.from_arrow(ROPE_TENSIONS.empty_table()).schema)
@@ -88,10 +89,12 @@ class CompensationSettings:
 
     Attributes
     ----------
-    sample_rate_hz : float
+    sample_rate_hz : float or None
         Nominal logger rate [Hz]; spacing above ``gap_factor`` / rate starts a segment.
+        None (the default): the record's own rate, :func:`logger_rate_hz`.
     pressure_cutoff_hz : float
-        Zero-phase low-pass on the pressures [Hz] (4th-order Butterworth, filtfilt).
+        Zero-phase low-pass on the pressures [Hz] (4th-order Butterworth, filtfilt);
+        at most 0.4 x the sample rate (below Nyquist) for slow loggers.
     spike_sigmas : float
         A sample further than this many noise sigmas from the median of itself and its
         neighbours is a spike (:func:`transforms.filtering.despike_median3`).
@@ -111,7 +114,7 @@ class CompensationSettings:
         residual noise of the estimate, well inside the seal's presliding range.
     """
 
-    sample_rate_hz: float = 100.0
+    sample_rate_hz: float | None = None
     gap_factor: float = 3.0
     pressure_cutoff_hz: float = 10.0
     spike_sigmas: float = 6.0
@@ -124,6 +127,22 @@ class CompensationSettings:
 
 def _rope_cols(template: str) -> list[str]:
     return [template.format(i=i) for i in ROPES]
+
+
+def logger_rate_hz(time_s: np.ndarray, *, default_hz: float = 100.0) -> float:
+    """A record's nominal sample rate [Hz]: 1 / the median positive time step.
+
+    The median ignores logger gaps and jitter. Filters, windows and segmentation depend
+    on it, so a 20 Hz log must not be treated as a 100 Hz one (every step would look like
+    a gap). ``default_hz`` when the record has fewer than two distinct times.
+    """
+    # every stride-th time (200 k steps are plenty): a step then spans stride samples
+    stride = max(1, len(time_s) // 200_000)
+    steps = np.diff(np.asarray(time_s, dtype=np.float64)[::stride])
+    steps = steps[steps > 0]
+    if steps.size == 0:
+        return default_hz
+    return float(stride / np.median(steps))
 
 
 def common_mode_displacement(
@@ -473,7 +492,6 @@ def compensate(
     """
     settings = settings or CompensationSettings()
     effects = set(hoist.model.effects if effects is None else effects)
-    dt_nominal = 1.0 / settings.sample_rate_hz
     p_cols, x_cols = _rope_cols("p{i}_pa"), _rope_cols("x{i}_m")
     lazy = samples.lazy()
     available = set(lazy.collect_schema().names())
@@ -489,6 +507,13 @@ def compensate(
     workers = min(len(ROPES), os.cpu_count() or 1)
 
     time_s = frame["time_utc"].dt.epoch("us").to_numpy().astype(np.float64) * 1e-6
+    rate_hz = settings.sample_rate_hz or logger_rate_hz(time_s)
+    settings = replace(
+        settings,
+        sample_rate_hz=rate_hz,
+        pressure_cutoff_hz=min(settings.pressure_cutoff_hz, 0.4 * rate_hz),
+    )
+    dt_nominal = 1.0 / rate_hz
     gap = np.empty(n, dtype=np.int64)
     gap[0] = 0
     gap[1:] = np.diff(time_s) > settings.gap_factor * dt_nominal
@@ -526,7 +551,6 @@ def compensate(
         pressures = [job.result() for job in p_jobs]
         accel = accel_job.result()
     # NaN stands for null from here on (the frame version filled NaN with null)
-    labels = _trip_labels(frame, accel, segment, hoist)
 
     has_x = all(bool((~np.isnan(x)).any()) for x in xs)
     p_mean = _mean_horizontal(pressures)
@@ -627,7 +651,9 @@ def compensate(
     # The ropes are independent and the numba kernels and large numpy operations
     # release the GIL, so they run side by side.
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        per_rope = list(pool.map(rope, range(len(ROPES))))
+        rope_jobs = [pool.submit(rope, k) for k in range(len(ROPES))]
+        labels = pool.submit(_trip_labels, frame, accel, segment, hoist).result()
+        per_rope = [job.result() for job in rope_jobs]
     columns = {name: values for part in per_rope for name, values in part.items()}
     load_raw, load = np.empty(n), np.empty(n)
     _load_kernel(

@@ -11,7 +11,7 @@ import pytest
 
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from schemas.tables import ROPE_TENSIONS
-from transforms.compensation import CompensationSettings, compensate
+from transforms.compensation import CompensationSettings, compensate, logger_rate_hz
 
 HOIST = load_hoist(EXAMPLE_HOIST)
 AREA = math.pi * 0.1**2 / 4  # 100 mm bore
@@ -208,3 +208,12 @@ def test_empty_input_gives_empty_schema():
     out = compensate(empty, HOIST)
     assert out.height == 0
     assert out.columns == ROPE_TENSIONS.names
+
+
+def test_logger_rate_from_the_record_ignores_gaps_and_jitter():
+    rng = np.random.default_rng(5)
+    t = np.arange(200_000) / 20.0 + rng.normal(0, 2e-4, 200_000)
+    t[50_000:] += 30.0  # a 30 s logger gap
+    t[120_000:] += 3600.0  # and an hour off
+    assert logger_rate_hz(np.sort(t)) == pytest.approx(20.0, rel=1e-3)
+    assert logger_rate_hz(np.array([5.0])) == 100.0  # nothing to measure: the default

@@ -55,3 +55,19 @@ def test_uncompensated_error_is_several_percent(visits):
         visits["error_before_fraction"].abs().mean()
         > 5 * visits["error_after_fraction"].abs().mean()
     )
+
+
+def test_a_20_hz_logger_is_compensated_as_well():
+    """The record's own rate sets the filters and segments: a 20 Hz log (a common
+    logger setting) is not mistaken for a 100 Hz one whose every step is a gap."""
+    day = generate_field_day(
+        HOIST, date="2026-03-02", seed=11, trips=4, hours=0.75, sample_rate_hz=20.0
+    )
+    samples = day.sensors.with_columns(
+        source_sha256=pl.lit("synthetic"), source_line=pl.int_range(pl.len())
+    )
+    visits = position_accuracy(compensate(samples, HOIST), day.truth, min_samples=20)
+    assert set(visits["position"]) == {"pithead", "middle", "bottom"}
+    assert visits["error_after_fraction"].abs().max() < 0.005
+    assert visits["rope_error_after_fraction"].max() < 0.01
+    assert visits["error_before_fraction"].abs().max() > 0.02

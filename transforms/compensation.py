@@ -544,19 +544,29 @@ def compensate(
             speed, segment, dt_s=dt_nominal, window_s=settings.acceleration_window_s
         )
 
+    def logged_motion(xs: list[np.ndarray]):
+        """Whether x is logged, its mean over the ropes, the long-gap segments, dt."""
+        has_x = all(bool((~np.isnan(x)).any()) for x in xs)
+        dt = np.empty(n)
+        _step_kernel(time_s, segment, dt_nominal, dt)
+        return (
+            has_x,
+            _mean_horizontal(xs) if has_x else None,
+            _long_segments(time_s, settings.differential_bridge_s),
+            dt,
+        )
+
     with ThreadPoolExecutor(max_workers=workers) as pool:
         accel_job = pool.submit(acceleration)
         p_jobs = [pool.submit(pressure, c) for c in p_cols]
         xs = list(pool.map(displacement, x_cols))
+        motion_job = pool.submit(logged_motion, xs)
         pressures = [job.result() for job in p_jobs]
+        # NaN stands for null from here on (the frame version filled NaN with null)
+        x_common = common_mode_displacement(_mean_horizontal(pressures), segment, hoist)
         accel = accel_job.result()
-    # NaN stands for null from here on (the frame version filled NaN with null)
+        has_x, x_mean, (long_segment, long_bounds), dt = motion_job.result()
 
-    has_x = all(bool((~np.isnan(x)).any()) for x in xs)
-    p_mean = _mean_horizontal(pressures)
-    x_common = common_mode_displacement(p_mean, segment, hoist)
-    dt = np.empty(n)
-    _step_kernel(time_s, segment, dt_nominal, dt)
     t_oil = None
     if "viscosity_temperature" in effects and frame["oil_temp_c"].null_count() < n:
         t_oil = (
@@ -585,8 +595,6 @@ def compensate(
     mode = 0 if not with_friction else (1 if presliding else 2)
     area = hoist.cylinders.bore_area_m2
     area_ratio, d_pipe, length, _, k_local = _branch_constants(hoist)
-    x_mean = _mean_horizontal(xs) if has_x else None
-    long_segment, long_bounds = _long_segments(time_s, settings.differential_bridge_s)
 
     def rope(k: int) -> dict[str, np.ndarray]:
         i = ROPES[k]

@@ -313,7 +313,7 @@ def _terms() -> dict[str, EffectTerm]:
             _groove_get,
             _groove_set,
             prior_sd=3e-4,
-            start_amplitudes=(1e-4, 3e-4, 6e-4),
+            start_amplitudes=(1e-4, 2e-4, 4e-4, 8e-4, 1.6e-3),
         ),
     ]
     return {t.name: t for t in terms}

@@ -56,6 +56,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy import optimize
 
 from schemas.effects import NO_EFFECT
 from schemas.hoist import HoistDescription
@@ -251,6 +252,14 @@ def _autocorrelation_time(resid: np.ndarray, layout: _Layout, max_lag: int = 40)
     return float(tau)
 
 
+#: The groove-wear start scan runs when a sensor's direction-signed differential
+#: residual is at least this many standard errors from zero ...
+_SIGNATURE_Z = 5.0
+#: ... the standard error taken with this autocorrelation time [samples] (white sensor
+#: noise gives 1; the margin covers filtered loggers).
+_SIGNATURE_TAU = 2.0
+
+
 # ---------------------------------------------------------------------------------------
 # columns
 # ---------------------------------------------------------------------------------------
@@ -392,9 +401,12 @@ class _Engine:
         makes the pistons drift apart one way going down and back going up, and each
         sliding piston's seal friction offsets its sensor by the sign of its motion);
         the coordinates (ropes 2..n relative to rope 1) along it, largest 1. Scan:
-        both signs times ``term.start_amplitudes``; the best (per-trip offsets removed)
-        is refined by up to three Gauss-Newton steps. None when nothing beats zero by more
-        than 25 noise variances.
+        both signs times ``term.start_amplitudes``, the best amplitude (per-trip offsets
+        removed) refined between its grid neighbours (Brent), then up to three damped
+        Gauss-Newton steps on all coordinates. None when the signature is within
+        ``_SIGNATURE_Z`` standard errors of zero (a fixed fraction of the noise would
+        ignore a signature that many samples make certain), or when nothing beats zero by
+        more than 25 noise variances.
         """
         lay = self.layout
         n = self.hoist.ropes_n
@@ -407,25 +419,51 @@ class _Engine:
             [np.mean((sgn * r)[moving & (lay.sensor == i)]) for i in range(n)], dtype=float
         )
         sig -= sig.mean()
-        # no differential signature above half the noise: nothing for a scan to find
-        if np.max(np.abs(sig)) < 0.5 * self.plan.noise_sigma_pa:
+        # no differential signature beyond its standard error: nothing for a scan to find.
+        # The signature is a mean over n_i moving samples of a sensor's deviation from
+        # the mean of the sensors, whose noise variance is (1 - 1/n) sigma^2; the
+        # standard error allows an autocorrelation time of _SIGNATURE_TAU samples.
+        counts = np.array([np.sum(moving & (lay.sensor == i)) for i in range(n)])
+        se = self.plan.noise_sigma_pa * np.sqrt(
+            _SIGNATURE_TAU * (1.0 - 1.0 / n) / np.maximum(counts, 1)
+        )
+        if np.max(np.abs(sig) / se) < _SIGNATURE_Z:
             return None
         g = sig[1:] - sig[0]
         if not np.any(g) or not np.all(np.isfinite(g)):
             return None
         g = g / np.max(np.abs(g))
         r0 = self._rss_trip_offsets(r)
-        best_theta, best_s, best_rss = None, s0, r0
-        for amp in term.start_amplitudes:
-            for sign in (1.0, -1.0):
-                th = sign * amp * g
-                s = self.sim(effects, _merge(params, term.name, term.parameters(self.hoist, th)))
-                rss = self._rss_trip_offsets(lay.y - s)
-                if rss < best_rss:
-                    best_theta, best_s, best_rss = th, s, rss
+        tried: dict[float, tuple[float, np.ndarray]] = {0.0: (r0, s0)}
+
+        def along(a: float) -> float:
+            """RSS (per-trip offsets removed) at coordinates ``a g``; remembered."""
+            if a not in tried:
+                s = self.sim(effects, _merge(params, term.name, term.parameters(self.hoist, a * g)))
+                tried[a] = (self._rss_trip_offsets(lay.y - s), s)
+            return tried[a][0]
+
+        grid = sorted({sign * amp for amp in term.start_amplitudes for sign in (1.0, -1.0)})
+        for a in grid:
+            along(a)
+        # refine between the grid neighbours of the best amplitude (Brent's bounded
+        # method): the RSS along the signature is V-shaped about the true deviation
+        points = sorted(tried)
+        k = points.index(min(tried, key=lambda a: tried[a][0]))
+        if points[k] != 0.0:
+            lo, hi = points[max(k - 1, 0)], points[min(k + 1, len(points) - 1)]
+            optimize.minimize_scalar(
+                along,
+                bounds=(lo, hi),
+                method="bounded",
+                options={"maxiter": 6, "xatol": 0.02 * (hi - lo)},
+            )
+        a_best = min(tried, key=lambda a: tried[a][0])
+        best_rss, best_s = tried[a_best]
+        best_theta = a_best * g
         # nothing beats zero by more than a few noise variances: no start (the plain
         # finite-difference column at zero is then as good as any)
-        if best_theta is None or r0 - best_rss < 25.0 * self.plan.noise_sigma_pa**2:
+        if a_best == 0.0 or r0 - best_rss < 25.0 * self.plan.noise_sigma_pa**2:
             return None
         m = int(lay.trip.max()) + 1
         nuis = np.zeros((lay.y.size, m))
@@ -437,9 +475,15 @@ class _Engine:
                 break
             x = np.column_stack([cols.jac, nuis])
             _, b = _solve(_normal(x, lay.y - best_s, lay.trip, m), np.ones(m))
-            th = best_theta + b[: cols.jac.shape[1]]
-            s = self.sim(effects, _merge(params, term.name, term.parameters(self.hoist, th)))
-            rss = self._rss_trip_offsets(lay.y - s)
+            step = b[: cols.jac.shape[1]]
+            # the response is piecewise (seal friction flips as pistons drift apart):
+            # a full step can overshoot, so it is halved up to twice before giving up
+            for fraction in (1.0, 0.5, 0.25):
+                th = best_theta + fraction * step
+                s = self.sim(effects, _merge(params, term.name, term.parameters(self.hoist, th)))
+                rss = self._rss_trip_offsets(lay.y - s)
+                if rss < best_rss:
+                    break
             if not rss < best_rss:
                 break
             improved = (best_rss - rss) / best_rss
@@ -822,6 +866,10 @@ def discover_effects(
         new_params = winner_only
         after = _refit(plan, eng, new_model, new_params, current)
         gap_after = _rms(lay.y - lay.flat(after.simulated)) if after.ok else np.inf
+        if term.start_amplitudes and gap_after > 1.1 * plan.noise_sigma_pa:
+            after, gap_after, new_params = _refine_along(
+                plan, eng, new_model, params, term, [theta, cols.theta0], current
+            )
         if gap_after > 1.1 * predicted and not term.analytic:
             # Gauss-Newton step on the winner's coordinates at the refitted point
             eng.rebase(after, new_model, new_params)
@@ -890,6 +938,52 @@ def discover_effects(
         replays=eng.replays + 0,
         notes=notes,
     )
+
+
+def _refine_along(
+    plan: ReplayPlan,
+    eng: _Engine,
+    effects: list[str],
+    params: Params,
+    term: EffectTerm,
+    starts: list[np.ndarray],
+    current: ReplayResult,
+    *,
+    evaluations: int = 8,
+) -> tuple[ReplayResult, float, Params]:
+    """Refitted gap minimised along the coordinates of a strongly nonlinear term.
+
+    A linear step from the scan's start (``term.start_amplitudes``) can land on the far
+    side of a kink in the response (seal friction flipping as the pistons drift apart)
+    and the payloads fitted without the term are biased; so the gap with payloads and
+    ramps refitted (:func:`_refit`) is minimised over the scale ``c`` of the better of
+    ``starts`` (Brent's bounded method on ``0.5 <= c <= 1.5``). Returns the best replay,
+    its gap and parameters.
+    """
+    lay = eng.layout
+    seen: dict[float, tuple[float, ReplayResult, Params]] = {}
+
+    def at(theta: np.ndarray) -> tuple[float, ReplayResult, Params]:
+        prm = _merge(params, term.name, term.parameters(plan.hoist, theta))
+        res = _refit(plan, eng, effects, prm, current)
+        gap = _rms(lay.y - lay.flat(res.simulated)) if res.ok else np.inf
+        return gap, res, prm
+
+    first = [at(np.asarray(t, float)) for t in starts]
+    k = int(np.argmin([f[0] for f in first]))
+    direction = np.asarray(starts[k], float)
+    seen[1.0] = first[k]
+
+    def gap_of(c: float) -> float:
+        if c not in seen:
+            seen[c] = at(c * direction)
+        return seen[c][0]
+
+    optimize.minimize_scalar(
+        gap_of, bounds=(0.5, 1.5), method="bounded", options={"maxiter": evaluations}
+    )
+    gap, res, prm = seen[min(seen, key=lambda c: seen[c][0])]
+    return res, gap, prm
 
 
 def _refit(

@@ -312,17 +312,67 @@ def lowpass(
     # scipy's default pad (3 (2 sections + 1) samples) leaves a start-up transient of
     # a few % at the edges; pad by three cut-off periods instead
     default_pad = max(3 * (2 * sos.shape[0] + 1), int(3 * sample_rate_hz / cutoff_hz))
+    zi = signal.sosfilt_zi(sos)
     out = x.copy()
     starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]])) if x.size else []
     bounds = [*list(starts), x.size]
+    longest = max((b - a for a, b in itertools.pairwise(bounds)), default=0)
+    work = np.empty(longest + 2 * default_pad)  # the forward pass, reused per segment
     for a, b in itertools.pairwise(bounds):
         part, bad = _fill_nan_linear(x[a:b])
         if b - a < 3 * order or bad.all():
             continue
-        filtered = signal.sosfiltfilt(sos, part, padlen=min(default_pad, b - a - 1))
-        filtered[bad] = np.nan
-        out[a:b] = filtered
+        _sosfiltfilt_kernel(
+            sos, zi, np.ascontiguousarray(part), min(default_pad, b - a - 1), work, out[a:b]
+        )
+        if bad.any():
+            out[a:b][bad] = np.nan
     return out
+
+
+@njit(inline="always")
+def _sos_sections(sos, state, x_cur):  # pragma: no cover - numba
+    """One sample through the second-order sections (scipy's transposed direct form II)."""
+    for s in range(sos.shape[0]):
+        x_new = sos[s, 0] * x_cur + state[s, 0]
+        state[s, 0] = sos[s, 1] * x_cur - sos[s, 4] * x_new + state[s, 1]
+        state[s, 1] = sos[s, 2] * x_cur - sos[s, 5] * x_new
+        x_cur = x_new
+    return x_cur
+
+
+@njit(cache=True, nogil=True)
+def _sosfiltfilt_kernel(sos, zi, x, pad, work, out):  # pragma: no cover - numba
+    """``scipy.signal.sosfiltfilt(sos, x, padlen=pad)`` into ``out``, bit for bit.
+
+    The same steps (odd extension by ``pad``, forward pass from ``zi x_ext[0]``,
+    backward pass from ``zi y[-1]``) and the same arithmetic order as scipy's
+    ``_sosfilt``, without materialising the extension or the reversed copies: two
+    passes over memory instead of about eight. ``work`` holds at least
+    ``len(x) + 2 pad`` samples.
+    """
+    m = x.shape[0]
+    n_sec = sos.shape[0]
+    total = m + 2 * pad
+    state = np.empty((n_sec, 2))
+    x_first = 2.0 * x[0] - x[pad]
+    for s in range(n_sec):
+        state[s, 0] = zi[s, 0] * x_first
+        state[s, 1] = zi[s, 1] * x_first
+    for j in range(pad):
+        work[j] = _sos_sections(sos, state, 2.0 * x[0] - x[pad - j])
+    for j in range(m):
+        work[pad + j] = _sos_sections(sos, state, x[j])
+    for k in range(pad):
+        work[pad + m + k] = _sos_sections(sos, state, 2.0 * x[m - 1] - x[m - 2 - k])
+    y_last = work[total - 1]
+    for s in range(n_sec):
+        state[s, 0] = zi[s, 0] * y_last
+        state[s, 1] = zi[s, 1] * y_last
+    for j in range(total - 1, pad + m - 1, -1):
+        _sos_sections(sos, state, work[j])
+    for j in range(pad + m - 1, pad - 1, -1):
+        out[j - pad] = _sos_sections(sos, state, work[j])
 
 
 def lowpass_columns(

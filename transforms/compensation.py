@@ -343,14 +343,6 @@ def _seal_friction(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _step_kernel(time_s, segment_id, nominal_dt_s, dt):  # pragma: no cover - numba
-    """:func:`_step_lengths` in one pass."""
-    dt[0] = nominal_dt_s
-    for i in range(1, time_s.shape[0]):
-        dt[i] = nominal_dt_s if segment_id[i] != segment_id[i - 1] else time_s[i] - time_s[i - 1]
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def _laminar_loss_kernel(
     v_flow, nu, area_ratio, d, length, rho, k_local, re_laminar, loss
 ):  # pragma: no cover - numba
@@ -362,27 +354,40 @@ def _laminar_loss_kernel(
     """
     per_sample = nu.shape[0] > 1
     for i in range(v_flow.shape[0]):
-        v = v_flow[i]
-        if not np.isfinite(v) or v == 0.0:
-            loss[i] = 0.0
-            continue
-        u = v * area_ratio
-        re = abs(u) * d / (nu[i] if per_sample else nu[0])
-        if re > re_laminar:
+        value = _laminar_loss_at(
+            v_flow[i], nu[i] if per_sample else nu[0], area_ratio, d, length, rho, k_local
+        )
+        if value[1] > re_laminar:
             return False
-        lam = 64.0 / (re if re > 0.0 else 1.0)
-        dynamic = 0.5 * rho * u * abs(u)
-        loss[i] = 0.0 - (lam * length / d + k_local) * dynamic
+        loss[i] = value[0]
     return True
+
+
+@njit(inline="always", error_model="numpy")
+def _laminar_loss_at(v, nu, area_ratio, d, length, rho, k_local):  # pragma: no cover - numba
+    """(sensor minus chamber pressure [Pa], Reynolds number) of one sample, laminar
+    (paper eq 12-14 with lambda = 64 / Re); (0, 0) where the oil is still or v unknown."""
+    if not np.isfinite(v) or v == 0.0:
+        return 0.0, 0.0
+    u = v * area_ratio
+    re = abs(u) * d / nu
+    lam = 64.0 / (re if re > 0.0 else 1.0)
+    dynamic = 0.5 * rho * u * abs(u)
+    return 0.0 - (lam * length / d + k_local) * dynamic, re
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _rope_kernel(
     x,
-    dt,
-    segment_id,
+    time_s,
+    gap_s,
+    nominal_dt_s,
     p_sensor,
+    loss_mode,
     loss,
+    v_flow,
+    nu,
+    branch,
     coefficients,
     floors,
     mode,
@@ -402,19 +407,48 @@ def _rope_kernel(
     :func:`transforms.friction.friction_parameters` and
     :func:`transforms.friction.maxwell_slip_friction` (``mode`` 1) or
     :func:`transforms.friction.lugre_friction` (``mode`` 2); ``mode`` 0: no friction.
+    Step lengths and segment starts come from ``time_s`` (a step above ``gap_s``
+    starts a segment and counts ``nominal_dt_s``, as :func:`_step_lengths`). The
+    branch loss (sensor minus chamber) is ``loss`` (``loss_mode`` 0), the laminar loss
+    of ``v_flow`` (1: :func:`_laminar_loss_kernel` inline, ``branch`` = area ratio,
+    bore, length, density, local loss coefficient, laminar Reynolds limit) or none (2).
+    Returns False, with the outputs incomplete, when a Reynolds number exceeds the
+    laminar limit in mode 1 (the caller then computes ``loss`` in general).
     """
     n_el = weights.shape[0]
     deltas = np.zeros(n_el)
     z = 0.0
+    per_sample = nu.shape[0] > 1
+    area_ratio, d, length, rho, k_local, re_laminar = (
+        branch[0], branch[1], branch[2], branch[3], branch[4], branch[5]
+    )  # fmt: skip
     for i in range(x.shape[0]):
-        pc = p_sensor[i] - loss[i]
+        # step length and segment start (:func:`_step_lengths`, the caller's segments)
+        same_segment = False
+        dt_i = nominal_dt_s
+        if i > 0:
+            dt_i = time_s[i] - time_s[i - 1]
+            same_segment = not dt_i > gap_s
+            if not same_segment:
+                dt_i = nominal_dt_s
+        if loss_mode == 1:
+            value = _laminar_loss_at(
+                v_flow[i], nu[i] if per_sample else nu[0], area_ratio, d, length, rho, k_local
+            )
+            if value[1] > re_laminar:
+                return False
+            pc = p_sensor[i] - value[0]
+        elif loss_mode == 0:
+            pc = p_sensor[i] - loss[i]
+        else:
+            pc = p_sensor[i] - 0.0
         p_chamber[i] = pc
         f = 0.0
         if mode != 0:
             v = 0.0
             if i > 0:
-                step = (x[i] - x[i - 1]) / dt[i]
-                if segment_id[i] == segment_id[i - 1] and np.isfinite(step):
+                step = (x[i] - x[i - 1]) / dt_i
+                if same_segment and np.isfinite(step):
                     v = step
             p = pc if np.isfinite(pc) else 0.0
             value = coefficients[0, 0] + coefficients[0, 1] * p
@@ -431,7 +465,7 @@ def _rope_kernel(
                 else:
                     r = v / vs
                     g = fc + (fs - fc) * math.exp(-r * r)
-                dx = v * dt[i]
+                dx = v * dt_i
                 total = 0.0
                 for j in range(n_el):
                     limit = weights[j] * g / stiffness[j]
@@ -446,23 +480,24 @@ def _rope_kernel(
             else:
                 decay = 1.0
                 target = 0.0
-                if v != 0.0 and dt[i] > 0.0:
+                if v != 0.0 and dt_i > 0.0:
                     r = v / vs
                     g = fc + (fs - fc) * math.exp(-r * r)
                     if g <= 0.0:
                         decay = 0.0
                     else:
-                        rate = sigma0 * abs(v) * dt[i] / g
+                        rate = sigma0 * abs(v) * dt_i / g
                         decay = math.exp(-rate) if rate < 745.0 else 0.0
                         target = g / sigma0 if v > 0.0 else -g / sigma0
                 z_before = z
                 z = target + (z - target) * decay
                 f = sigma0 * z + kv * v
-                if dt[i] > 0.0:
-                    f += sigma1 * (z - z_before) / dt[i]
+                if dt_i > 0.0:
+                    f += sigma1 * (z - z_before) / dt_i
         friction[i] = f
         tension_raw[i] = p_sensor[i] * area
         tension[i] = pc * area + f
+    return True
 
 
 def compensate(
@@ -545,15 +580,12 @@ def compensate(
         )
 
     def logged_motion(xs: list[np.ndarray]):
-        """Whether x is logged, its mean over the ropes, the long-gap segments, dt."""
+        """Whether x is logged, its mean over the ropes, the long-gap segments."""
         has_x = all(bool((~np.isnan(x)).any()) for x in xs)
-        dt = np.empty(n)
-        _step_kernel(time_s, segment, dt_nominal, dt)
         return (
             has_x,
             _mean_horizontal(xs) if has_x else None,
             _long_segments(time_s, settings.differential_bridge_s),
-            dt,
         )
 
     with ThreadPoolExecutor(max_workers=workers) as pool:
@@ -565,7 +597,7 @@ def compensate(
         # NaN stands for null from here on (the frame version filled NaN with null)
         x_common = common_mode_displacement(_mean_horizontal(pressures), segment, hoist)
         accel = accel_job.result()
-        has_x, x_mean, (long_segment, long_bounds), dt = motion_job.result()
+        has_x, x_mean, (long_segment, long_bounds) = motion_job.result()
 
     t_oil = None
     if "viscosity_temperature" in effects and frame["oil_temp_c"].null_count() < n:
@@ -595,6 +627,11 @@ def compensate(
     mode = 0 if not with_friction else (1 if presliding else 2)
     area = hoist.cylinders.bore_area_m2
     area_ratio, d_pipe, length, _, k_local = _branch_constants(hoist)
+    branch = np.array(
+        [area_ratio, d_pipe, length, hoist.oil.density_kg_m3, k_local, RE_LAMINAR], dtype=float
+    )
+    gap_s = settings.gap_factor * dt_nominal
+    no_array = np.zeros(1)
 
     def rope(k: int) -> dict[str, np.ndarray]:
         i = ROPES[k]
@@ -606,49 +643,48 @@ def compensate(
             estimate = x_common
         played = play_operator(estimate, segment, half_width=settings.displacement_deadband_m)
         p_sensor = np.ascontiguousarray(pressures[k])
-        loss = np.zeros(n)
+        out = {name: np.empty(n) for name in ("p_chamber", "friction", "tension_raw", "tension")}
+        v_flow = no_array
         if with_branch_loss:
             v_flow = smoothed_derivative(
                 played, segment, dt_s=dt_nominal, window_s=settings.velocity_window_s
             )
-            laminar = _laminar_loss_kernel(
+
+        def run(loss_mode: int, loss: np.ndarray) -> bool:
+            return _rope_kernel(
+                played,
+                time_s,
+                gap_s,
+                dt_nominal,
+                p_sensor,
+                loss_mode,
+                loss,
                 v_flow,
                 nu_arr,
-                area_ratio,
-                d_pipe,
-                length,
-                hoist.oil.density_kg_m3,
-                k_local,
-                RE_LAMINAR,
-                loss,
+                branch,
+                coefficients,
+                floors,
+                mode,
+                stiffness,
+                weights,
+                float(law.bristle_stiffness_n_m),
+                float(law.bristle_damping_n_s_m),
+                area,
+                out["p_chamber"],
+                out["friction"],
+                out["tension_raw"],
+                out["tension"],
             )
-            if not laminar:  # turbulent somewhere: the general (numpy) path
-                v_known = np.where(np.isfinite(v_flow), v_flow, 0.0)
-                flowing = v_known != 0.0
-                loss[:] = 0.0
-                loss[flowing] = sensor_minus_chamber_pa(
-                    v_known[flowing], hoist, nu_m2_s=nu if np.ndim(nu) == 0 else nu[flowing]
-                )
-        out = {name: np.empty(n) for name in ("p_chamber", "friction", "tension_raw", "tension")}
-        _rope_kernel(
-            played,
-            dt,
-            segment,
-            p_sensor,
-            loss,
-            coefficients,
-            floors,
-            mode,
-            stiffness,
-            weights,
-            float(law.bristle_stiffness_n_m),
-            float(law.bristle_damping_n_s_m),
-            area,
-            out["p_chamber"],
-            out["friction"],
-            out["tension_raw"],
-            out["tension"],
-        )
+
+        if not run(1 if with_branch_loss else 2, no_array):
+            # turbulent somewhere: the branch loss by the general (numpy) path
+            v_known = np.where(np.isfinite(v_flow), v_flow, 0.0)
+            flowing = v_known != 0.0
+            loss = np.zeros(n)
+            loss[flowing] = sensor_minus_chamber_pa(
+                v_known[flowing], hoist, nu_m2_s=nu if np.ndim(nu) == 0 else nu[flowing]
+            )
+            run(0, loss)
         return {
             f"p_chamber{i}_pa": out["p_chamber"],
             f"friction{i}_n": out["friction"],

@@ -12,7 +12,6 @@ from transforms.compensation import (
     _laminar_loss_kernel,
     _rope_kernel,
     _seal_friction,
-    _step_kernel,
     _step_lengths,
 )
 from transforms.friction import STRIBECK_SPEED_FLOOR_M_S, maxwell_slip_elements
@@ -37,9 +36,7 @@ def test_rope_kernel_matches_composed_functions(presliding: bool) -> None:
     rng = np.random.default_rng(3)
     time_s, segment, x, p_sensor = _random_record(rng)
     n = x.size
-    dt = np.empty(n)
-    _step_kernel(time_s, segment, 0.01, dt)
-    assert np.array_equal(dt, _step_lengths(time_s, segment, 0.01))
+    dt = _step_lengths(time_s, segment, 0.01)
 
     v_flow = rng.normal(0.0, 1e-3, n)
     v_flow[rng.random(n) < 0.3] = 0.0
@@ -62,13 +59,22 @@ def test_rope_kernel_matches_composed_functions(presliding: bool) -> None:
     )
     floors = np.array([0.0, 0.0, STRIBECK_SPEED_FLOOR_M_S, 0.0])
     stiffness, weights = maxwell_slip_elements(law.presliding_elements, law.bristle_stiffness_n_m)
-    out = [np.empty(n) for _ in range(4)]
-    _rope_kernel(
-        x, dt, segment, p_sensor, loss, coefficients, floors, 1 if presliding else 2,
-        stiffness, weights, law.bristle_stiffness_n_m, law.bristle_damping_n_s_m,
-        hoist.cylinders.bore_area_m2, *out,
-    )  # fmt: skip
-    p_chamber, friction, tension_raw, tension = out
+    branch = np.array(
+        [area_ratio, d, length, hoist.oil.density_kg_m3, k_local, RE_LAMINAR], dtype=float
+    )
+    results = []
+    for loss_mode in (0, 1):  # the loss given, or the laminar loss computed inline
+        out = [np.empty(n) for _ in range(4)]
+        assert _rope_kernel(
+            x, time_s, 0.03, 0.01, p_sensor, loss_mode, loss, v_flow, nu, branch,
+            coefficients, floors, 1 if presliding else 2, stiffness, weights,
+            law.bristle_stiffness_n_m, law.bristle_damping_n_s_m,
+            hoist.cylinders.bore_area_m2, *out,
+        )  # fmt: skip
+        results.append(out)
+    for a, b in zip(*results, strict=True):
+        np.testing.assert_array_equal(a, b)
+    p_chamber, friction, tension_raw, tension = results[0]
     np.testing.assert_array_equal(p_chamber, p_sensor - expected_loss)
     v = _increment_velocity(x, dt, segment)
     p_law = np.where(np.isfinite(p_chamber), p_chamber, 0.0)
@@ -80,14 +86,20 @@ def test_rope_kernel_matches_composed_functions(presliding: bool) -> None:
     np.testing.assert_allclose(tension, p_chamber * area + expected, rtol=1e-12)
 
 
-def test_laminar_kernel_reports_turbulence() -> None:
+def test_laminar_kernels_report_turbulence() -> None:
     hoist = load_hoist(EXAMPLE_HOIST)
     area_ratio, d, length, _, k_local = _branch_constants(hoist)
     loss = np.empty(3)
     v = np.array([0.0, 1e-3, 100.0])
-    assert not _laminar_loss_kernel(
-        v, np.array([46e-6]), area_ratio, d, length, 870.0, k_local, RE_LAMINAR, loss
-    )
+    nu = np.array([46e-6])
+    assert not _laminar_loss_kernel(v, nu, area_ratio, d, length, 870.0, k_local, RE_LAMINAR, loss)
+    branch = np.array([area_ratio, d, length, 870.0, k_local, RE_LAMINAR])
+    out = [np.empty(3) for _ in range(4)]
+    ones = np.ones(1)
+    assert not _rope_kernel(
+        np.zeros(3), np.arange(3) * 0.01, 0.03, 0.01, np.full(3, 6e6), 1, ones, v, nu,
+        branch, np.zeros((4, 2)), np.zeros(4), 0, ones, ones, 1.0, 1.0, 1.0, *out,
+    )  # fmt: skip
 
 
 @pytest.mark.parametrize("n_win", [5, 21, 51])

@@ -39,6 +39,8 @@ from __future__ import annotations
 import itertools
 import math
 import os
+import threading
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
@@ -49,10 +51,10 @@ from numba import njit
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPE_TENSIONS, ROPES
 from transforms.filtering import (
-    box_smooth,
+    _moving_average,
+    _play_kernel,
     despike_median3,
     lowpass,
-    play_operator,
 )
 from transforms.friction import (
     STRIBECK_SPEED_FLOOR_M_S,
@@ -223,7 +225,22 @@ def displacement_noise_sigma(x: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
 
 
-def _median_padded_smooth(x: np.ndarray, sigma_samples: float, edge_samples: int) -> np.ndarray:
+Buffer = Callable[[str, int], np.ndarray]
+
+
+def _fresh(name: str, size: int) -> np.ndarray:
+    """A new float64 array (the default of the ``buffer`` arguments below)."""
+    return np.empty(size)
+
+
+def _median_padded_smooth(
+    x: np.ndarray,
+    sigma_samples: float,
+    edge_samples: int,
+    *,
+    out: np.ndarray | None = None,
+    buffer: Buffer = _fresh,
+) -> np.ndarray:
     """Near-Gaussian smoothing whose ends are pinned to the median of the nearest samples.
 
     The kernel (:func:`transforms.filtering.box_smooth`) has only positive weights, so
@@ -231,19 +248,32 @@ def _median_padded_smooth(x: np.ndarray, sigma_samples: float, edge_samples: int
     out with an overshoot and a return, which a history-dependent friction state would
     take for a reversal (a Butterworth filter rings). Padding both ends with the median
     of the nearest ``edge_samples`` samples keeps the ends from being pinned to one
-    noisy raw sample.
+    noisy raw sample. Written into ``out`` when given; the padded work arrays come from
+    ``buffer(name, size)`` (reused arrays in the per-rope loop).
     """
+    if out is None:
+        out = np.empty_like(x)
     finite = np.isfinite(x)
     if not finite.any():
-        return np.zeros_like(x)
+        out[:] = 0.0
+        return out
     if not finite.all():
         idx = np.arange(x.size)
         x = np.interp(idx, idx[finite], x[finite])
     pad = int(4 * sigma_samples) + 1
-    padded = np.r_[
-        np.full(pad, np.median(x[:edge_samples])), x, np.full(pad, np.median(x[-edge_samples:]))
-    ]
-    return box_smooth(padded, sigma_samples=sigma_samples)[pad:-pad]
+    size = x.size + 2 * pad
+    current, other = buffer("smooth_a", size), buffer("smooth_b", size)
+    current[:pad] = np.median(x[:edge_samples])
+    current[pad : pad + x.size] = x
+    current[pad + x.size :] = np.median(x[-edge_samples:])
+    # transforms.filtering.box_smooth on the reused arrays: same passes, same sums
+    passes = 3
+    half = max(round((np.sqrt(12.0 * sigma_samples**2 / passes + 1.0) - 1.0) / 2.0), 0)
+    for _ in range(passes):
+        _moving_average(current, half, other)
+        current, other = other, current
+    out[:] = current[pad : pad + x.size]
+    return out
 
 
 def _differential_one(
@@ -252,27 +282,33 @@ def _differential_one(
     long_segment: np.ndarray,
     bounds: np.ndarray,
     settings: CompensationSettings,
+    *,
+    buffer: Buffer = _fresh,
 ) -> np.ndarray:
     """x - mean_j x_j of one rope: smoothed, then a play operator of 3 sigma of its noise.
 
     The differential motion is slow and positions are continuous across a short logger
     dropout, so segments here are split only at gaps longer than
-    ``settings.differential_bridge_s``. The smoother is a Gaussian of standard deviation
-    s = 0.1325 / f_c seconds (half-power frequency f_c); it leaves
-    sigma / sqrt(2 sqrt(pi) s f_s) of the transducer's white noise, and a play of
-    half-width 3 times that keeps the slow wander of the filtered noise from moving the
-    friction state. ``long_segment`` and ``bounds`` (:func:`_long_segments`) number and
-    delimit those segments.
+    ``settings.differential_bridge_s`` (``long_segment``, ``bounds``). The smoother is
+    a Gaussian of standard deviation s = 0.1325 / f_c seconds (half-power frequency
+    f_c); it leaves sigma / sqrt(2 sqrt(pi) s f_s) of the transducer's white noise, and
+    a play of half-width 3 times that keeps the slow wander of the filtered noise from
+    moving the friction state. Work arrays come from ``buffer(name, size)``; the
+    result is ``buffer("differential", n)``.
     """
     sigma_samples = 0.1325 / settings.differential_cutoff_hz * settings.sample_rate_hz
     edge = max(int(settings.sample_rate_hz / settings.differential_cutoff_hz), 1)
     shrink = 1.0 / np.sqrt(2.0 * np.sqrt(np.pi) * sigma_samples)
-    raw = x - mean
+    raw = np.subtract(x, mean, out=buffer("raw", x.size))
     sigma = displacement_noise_sigma(raw)
-    smooth = np.zeros_like(raw)
+    smooth = buffer("smoothed", x.size)
     for a, b in itertools.pairwise(bounds):
-        smooth[a:b] = _median_padded_smooth(raw[a:b], sigma_samples, min(edge, b - a))
-    return play_operator(smooth, long_segment, half_width=3.0 * sigma * shrink)
+        _median_padded_smooth(
+            raw[a:b], sigma_samples, min(edge, b - a), out=smooth[a:b], buffer=buffer
+        )
+    played = buffer("differential", x.size)
+    _play_kernel(smooth, long_segment, 3.0 * sigma * shrink, played)
+    return played
 
 
 def _long_segments(time_s: np.ndarray, bridge_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -633,21 +669,42 @@ def compensate(
     gap_s = settings.gap_factor * dt_nominal
     no_array = np.zeros(1)
 
+    # Work arrays are reused per thread: every fresh 70 MB array costs page faults, and
+    # freeing one interrupts the other thread (TLB shootdown), which cost more than the
+    # arithmetic of a rope.
+    local = threading.local()
+
+    def buffer(name: str, size: int) -> np.ndarray:
+        arrays = local.__dict__.setdefault("arrays", {})
+        if name not in arrays or arrays[name].size < size:
+            arrays[name] = np.empty(size)
+        return arrays[name][:size]
+
+    deadband = settings.displacement_deadband_m
+    if deadband < 0:
+        raise ValueError(f"displacement_deadband_m must be >= 0, got {deadband}")
+
     def rope(k: int) -> dict[str, np.ndarray]:
         i = ROPES[k]
         if has_x:
-            estimate = x_common + _differential_one(
-                xs[k], x_mean, long_segment, long_bounds, settings
+            differential = _differential_one(
+                xs[k], x_mean, long_segment, long_bounds, settings, buffer=buffer
             )
+            estimate = np.add(x_common, differential, out=buffer("estimate", n))
         else:
             estimate = x_common
-        played = play_operator(estimate, segment, half_width=settings.displacement_deadband_m)
+        played = buffer("played", n)
+        _play_kernel(estimate, segment, deadband, played)  # transforms.filtering.play_operator
         p_sensor = np.ascontiguousarray(pressures[k])
         out = {name: np.empty(n) for name in ("p_chamber", "friction", "tension_raw", "tension")}
         v_flow = no_array
         if with_branch_loss:
             v_flow = smoothed_derivative(
-                played, segment, dt_s=dt_nominal, window_s=settings.velocity_window_s
+                played,
+                segment,
+                dt_s=dt_nominal,
+                window_s=settings.velocity_window_s,
+                out=buffer("v_flow", n),
             )
 
         def run(loss_mode: int, loss: np.ndarray) -> bool:

@@ -56,6 +56,7 @@ def smoothed_derivative(
     dt_s: float,
     window_s: float = 0.1,
     polyorder: int = 2,
+    out: np.ndarray | None = None,
 ) -> np.ndarray:
     """Time derivative by a Savitzky-Golay filter, each segment on its own.
 
@@ -78,6 +79,9 @@ def smoothed_derivative(
         Smoothing window [s].
     polyorder : int
         Polynomial degree.
+    out : numpy.ndarray, optional
+        Float64 array of ``y``'s length to write into (a reused buffer); every element
+        is written.
 
     Returns
     -------
@@ -97,7 +101,8 @@ def smoothed_derivative(
     y = np.asarray(y, dtype=np.float64)
     seg = np.zeros(y.size, dtype=np.int64) if segment_id is None else np.asarray(segment_id)
     n_win = max(round(window_s / dt_s) | 1, polyorder + 2 | 1)
-    out = np.zeros_like(y)
+    if out is None:
+        out = np.zeros_like(y)
     if y.size == 0:
         return out
     starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]]))
@@ -112,8 +117,11 @@ def smoothed_derivative(
             idx = np.arange(part.size)
             part = np.interp(idx, idx[~bad], part[~bad])
         if b - a >= _DIRECT_FACTOR * n_win:
-            d = _savgol_derivative(part, n_win, polyorder, dt_s)
-        elif b - a >= n_win:
+            d = _savgol_derivative(part, n_win, polyorder, dt_s, out=out[a:b])
+            if bad.any():
+                d[bad] = np.nan
+            continue
+        if b - a >= n_win:
             d = signal.savgol_filter(part, n_win, polyorder, deriv=1, delta=dt_s, mode="interp")
         elif b - a >= 2:
             d = np.gradient(part, dt_s)
@@ -152,7 +160,9 @@ def _correlate_valid(y, weights, out):  # pragma: no cover - numba
             out[start + j] = acc[j]
 
 
-def _savgol_derivative(y: np.ndarray, n_win: int, polyorder: int, dt_s: float) -> np.ndarray:
+def _savgol_derivative(
+    y: np.ndarray, n_win: int, polyorder: int, dt_s: float, *, out: np.ndarray | None = None
+) -> np.ndarray:
     """``savgol_filter(y, n_win, polyorder, deriv=1, delta=dt_s, mode="interp")``, faster.
 
     The interior is the same filter (``savgol_coeffs``) applied by a compiled loop (sums in
@@ -163,7 +173,8 @@ def _savgol_derivative(y: np.ndarray, n_win: int, polyorder: int, dt_s: float) -
     y = np.ascontiguousarray(y, dtype=np.float64)
     h = n_win // 2
     coeffs = signal.savgol_coeffs(n_win, polyorder, deriv=1, delta=dt_s)
-    out = np.empty_like(y)
+    if out is None:
+        out = np.empty_like(y)
     _correlate_valid(y, np.ascontiguousarray(coeffs[::-1]), out)
     span = 2 * n_win
     head = signal.savgol_filter(y[:span], n_win, polyorder, deriv=1, delta=dt_s, mode="interp")

@@ -1,6 +1,6 @@
 """Compensation throughput for a 100 Hz hoist-day, next to a bare Parquet read + write.
 
-Usage: ``uv run python benchmarks/bench_compensation.py [--hours 24] [--repeat 3]``
+Usage: ``uv run python benchmarks/bench_compensation.py [--hours 24] [--repeat 5]``
 
 Prints the wall time of
   floor:        read_parquet + write of the landed day (same file)
@@ -82,7 +82,7 @@ def synthetic_day(hours: float, rate_hz: float = 100.0, seed: int = 1) -> pl.Dat
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hours", type=float, default=24.0)
-    parser.add_argument("--repeat", type=int, default=3, help="runs of each; medians are reported")
+    parser.add_argument("--repeat", type=int, default=5, help="runs of each; medians are reported")
     args = parser.parse_args()
     hoist = load_hoist(EXAMPLE_HOIST)
     runs: dict[str, list[float]] = {k: [] for k in ("floor", "read", "compute", "write")}

@@ -603,6 +603,7 @@ def compensate(
             segment,
             sample_rate_hz=settings.sample_rate_hz,
             cutoff_hz=settings.pressure_cutoff_hz,
+            out=values,  # the despiked copy is filtered in place
         )
 
     def displacement(column: str) -> np.ndarray:

@@ -270,6 +270,7 @@ def lowpass(
     sample_rate_hz: float,
     cutoff_hz: float,
     order: int = 4,
+    out: np.ndarray | None = None,
 ) -> np.ndarray:
     r"""Zero-phase Butterworth low-pass, each segment filtered on its own.
 
@@ -295,6 +296,9 @@ def lowpass(
         Nominal sampling rate and -3 dB (one pass) cut-off [Hz].
     order : int
         Butterworth order (per pass).
+    out : numpy.ndarray, optional
+        Float64 array of ``x``'s length to write into; may be ``x`` itself (filtered in
+        place: each segment is read whole before it is written).
 
     Returns
     -------
@@ -313,7 +317,10 @@ def lowpass(
     # a few % at the edges; pad by three cut-off periods instead
     default_pad = max(3 * (2 * sos.shape[0] + 1), int(3 * sample_rate_hz / cutoff_hz))
     zi = signal.sosfilt_zi(sos)
-    out = x.copy()
+    if out is None:
+        out = x.copy()
+    elif out is not x:
+        out[:] = x
     starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]])) if x.size else []
     bounds = [*list(starts), x.size]
     longest = max((b - a for a, b in itertools.pairwise(bounds)), default=0)

@@ -160,6 +160,9 @@ def test_lowpass_equals_scipy_sosfiltfilt_per_segment():
     x[[100, 101, 5100, 8000]] = np.nan
     seg = np.repeat(np.arange(len(lengths)), lengths)
     got = lowpass(x, seg, sample_rate_hz=100.0, cutoff_hz=10.0)
+    in_place = x.copy()
+    assert lowpass(in_place, seg, sample_rate_hz=100.0, cutoff_hz=10.0, out=in_place) is in_place
+    np.testing.assert_array_equal(in_place, got)
     sos = signal.butter(4, 10.0, btype="low", fs=100.0, output="sos")
     start = 0
     for k in lengths:

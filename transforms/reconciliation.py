@@ -142,7 +142,29 @@ def _imbalance_expr(prefix: str) -> pl.Expr:
     return pl.max_horizontal([(c - mean).abs() for c in cols]) / mean
 
 
-_OPTIONAL = {"direction": pl.String, "acceleration_up_m_s2": pl.Float64}
+_OPTIONAL = {"direction": pl.String, "acceleration_up_m_s2": pl.Float64, "phase": pl.String}
+
+#: Trip phases whose samples infer the payload: the winder's acceleration is not the
+#: conveyance's while the ropes stretch and bounce (accelerate / decelerate), so those
+#: samples would bias the payload by the bounce (several hundred kg on the paper hoist).
+STEADY_PHASES = ("run", "creep", "standstill")
+#: Stints with fewer samples (a pass by the edge of a position's window) do not count
+#: for a trip's payload spread.
+MIN_STINT_SAMPLES = 5
+
+
+def _trip_payload_expr() -> pl.Expr:
+    """A trip's payload [kg]: its stints' inferred payloads weighted by their samples."""
+    weight = pl.when(pl.col("payload_kg").is_not_null()).then(pl.col("samples"))
+    return pl.when(weight.sum() > 0).then(
+        (pl.col("payload_kg") * pl.col("samples")).sum() / weight.sum()
+    )
+
+
+def _trip_payload_spread_expr() -> pl.Expr:
+    """Largest minus smallest stint payload [kg] of a trip (stints of enough samples)."""
+    payload = pl.col("payload_kg").filter(pl.col("samples") >= MIN_STINT_SAMPLES)
+    return payload.max() - payload.min()
 
 
 def _lazy(frame: pl.LazyFrame | pl.DataFrame) -> pl.LazyFrame:
@@ -159,9 +181,7 @@ def _with_reference_payload(frame: pl.DataFrame, payload_kg: PayloadSource) -> p
     Stints outside a trip (``trip_id`` null: standstill, where loading happens) have no
     inferred reference; they get the known payload when it is a float, else null.
     """
-    inferred = pl.when(pl.col("trip_id").is_not_null()).then(
-        pl.col("payload_kg").mean().over("trip_id")
-    )
+    inferred = pl.when(pl.col("trip_id").is_not_null()).then(_trip_payload_expr().over("trip_id"))
     if payload_kg is None:
         return frame.with_columns(reference_payload_kg=inferred)
     if isinstance(payload_kg, pl.DataFrame):
@@ -192,8 +212,10 @@ def summarise_positions(
     One row per stint: a run of consecutive samples with the same ``trip_id`` and
     ``position`` (a trip passes each position once; standstill samples carry no trip id
     and give one row per stay). Tensions are averaged over the stint; ``payload_kg`` is
-    the payload inferred there. ``expected_load_n`` uses the reference payload: ``payload_kg`` when
-    known (a float for every trip, or a frame with ``trip_id`` and ``payload_kg``),
+    the payload inferred there from its steady samples (:data:`STEADY_PHASES`; null when
+    the stint is all acceleration). ``expected_load_n`` uses the reference payload:
+    ``payload_kg`` when known (a float for every trip, or a frame with ``trip_id`` and
+    ``payload_kg``),
     otherwise the mean of the trip's inferred payloads, so the error then measures how
     far the positions disagree.
 
@@ -209,7 +231,11 @@ def summarise_positions(
         lazy.sort("time_utc")
         .with_columns(_stint=changed.fill_null(True).cum_sum())
         .filter(pl.col("position").is_not_null())
-        .with_columns(_payload_sample_kg=_inferred_payload_expr(hoist))
+        .with_columns(
+            _payload_sample_kg=pl.when(
+                pl.col("phase").is_null() | pl.col("phase").is_in(STEADY_PHASES)
+            ).then(_inferred_payload_expr(hoist))
+        )
         .group_by("_stint")
         .agg(
             pl.col("trip_id").first(),
@@ -258,7 +284,7 @@ def summarise_trips(
     site: str,
     hoist_name: str,
 ) -> pl.DataFrame:
-    """One row per trip: extent, payload (mean over positions) and its spread, peaks.
+    """One row per trip: extent, payload (over positions, by samples) and its spread, peaks.
 
     ``max_imbalance_fraction`` is the largest per-sample rope-to-mean imbalance of the
     compensated tensions over the whole trip. Returns the TRIP_SUMMARY schema.
@@ -284,8 +310,8 @@ def summarise_trips(
         .with_columns(pl.col("trip_id").cast(pl.Int64))
         .group_by("trip_id")
         .agg(
-            pl.col("payload_kg").mean(),
-            (pl.col("payload_kg").max() - pl.col("payload_kg").min()).alias("payload_spread_kg"),
+            _trip_payload_expr().alias("payload_kg"),
+            _trip_payload_spread_expr().alias("payload_spread_kg"),
         )
     )
     result = (

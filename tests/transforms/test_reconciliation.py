@@ -190,3 +190,35 @@ def test_standstill_stays_are_separate_rows_without_inferred_reference(hoist):
     assert known["error_after_fraction"].to_list() == pytest.approx(
         [4000.0 / (8200 + 7688), 0.0], abs=1e-9
     )
+
+
+def test_trip_payload_ignores_rope_bounce_and_window_edge_passes(hoist):
+    """Accelerating samples (the winder's acceleration is not the conveyance's while the
+    ropes bounce) and a one-sample pass by a window's edge read hundreds of kg off; the
+    trip's payload and spread come from the steady, longer stints."""
+    frame = _samples(
+        hoist,
+        [
+            (
+                1,
+                3000.0,
+                [
+                    ("pithead", 0.0, 0.5, 40, 0.97, 0.9),  # departure: 3 % low, bouncing
+                    ("middle", 320.0, 0.0, 20, 1.0, 0.9),
+                    BOTTOM,
+                    ("middle", 330.0, 0.0, 1, 1.05, 0.9),  # one sample at a window's edge
+                ],
+            )
+        ],
+    )
+    phases = ["accelerate"] * 40 + ["run"] * 20 + ["creep"] * 50 + ["run"] * 2
+    frame = frame.with_columns(phase=pl.Series(phases))
+    positions, trips = reconcile(frame, hoist, run_id="r")
+    departure = positions.filter(pl.col("position") == "pithead")
+    assert departure["payload_kg"][0] is None
+    trip = trips.row(0, named=True)
+    edge = positions.filter(pl.col("samples") == 1)["payload_kg"][0]
+    assert edge > 3000.0 + 500.0
+    # weighted by samples: the one-sample stint moves it by 1/71 of its error
+    assert trip["payload_kg"] == pytest.approx(3000.0 + (edge - 3000.0) / 71, rel=1e-9)
+    assert trip["payload_spread_kg"] == pytest.approx(0.0, abs=1e-6)

@@ -24,6 +24,8 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from schemas.effects import EFFECT_DESCRIPTIONS, EFFECT_NAMES
 from schemas.hoist import HoistDescription
 
@@ -32,6 +34,7 @@ __all__ = [
     "EffectParameter",
     "EffectSpec",
     "ResolvedEffects",
+    "parameters_json",
     "resolve_effects",
 ]
 
@@ -355,3 +358,21 @@ def resolve_effects(
         else:
             resolved[name].update(given)
     return ResolvedEffects(enabled=enabled, parameters=resolved)
+
+
+def parameters_json(value: Any, *, significant_digits: int | None = None) -> Any:
+    """Effect parameters as JSON-ready values: dict keys as str, arrays and tuples as
+    lists, numpy scalars as Python numbers; floats rounded to ``significant_digits``
+    when given (reports), exact otherwise (truth records)."""
+    if isinstance(value, dict):
+        return {
+            str(k): parameters_json(v, significant_digits=significant_digits)
+            for k, v in value.items()
+        }
+    if isinstance(value, list | tuple | np.ndarray):
+        return [parameters_json(v, significant_digits=significant_digits) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and significant_digits is not None:
+        return float(f"{value:.{significant_digits}g}")
+    return value

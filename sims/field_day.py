@@ -38,6 +38,7 @@ import polars as pl
 
 from schemas.hoist import HoistDescription
 from sims.device import simulate
+from sims.effects import parameters_json
 from sims.field_logs import write_csv, write_tdms
 from sims.noise import NoiseModel, apply_sensor_noise
 from sims.trips import TripProfile, trip
@@ -278,25 +279,13 @@ def generate_field_day(
         "seed": seed,
         "sample_rate_hz": sample_rate_hz,
         "effects": sorted(resolved.enabled) if resolved is not None else [],
-        "parameters": _jsonable(resolved.parameters) if resolved is not None else {},
+        "parameters": parameters_json(resolved.parameters) if resolved is not None else {},
         "noise": dataclasses.asdict(noise),
         "trips": trip_rows,
         "dt_s": dt_s,
         "friction_law_si": dataclasses.asdict(hoist.friction_law),
     }
     return FieldDay(hoist=hoist, sensors=sensor, truth=truth, info=info)
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
 
 
 def write_field_day(

@@ -61,7 +61,7 @@ from scipy import optimize
 from schemas.effects import NO_EFFECT
 from schemas.hoist import HoistDescription
 from sims.discovery.library import EFFECT_LIBRARY, EffectLibrary, EffectTerm, term_parameters
-from sims.effects import resolve_effects
+from sims.effects import parameters_json, resolve_effects
 from sims.replay import (
     ReplayPlan,
     ReplayResult,
@@ -910,8 +910,8 @@ def discover_effects(
             Finding(
                 iteration,
                 top,
-                _jsonable(new_params.get(top, {})),
-                {k: _jsonable(v) for k, v in retuned.items()},
+                parameters_json(new_params.get(top, {}), significant_digits=6),
+                {k: parameters_json(v, significant_digits=6) for k, v in retuned.items()},
                 float(share[top]),
                 gap_before,
                 gap_after,
@@ -997,17 +997,3 @@ def _refit(
         passes=3,
         ramps_s=start.ramps_s,
     )
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, float):
-        return float(f"{value:.6g}")
-    return value

@@ -103,6 +103,7 @@ def main() -> None:
     reductions: list[float] = []
     nulls = alarms = 0
     two_hits = two_n = 0
+    pair_answers: list[str] = []
     t_start = time.perf_counter()
     for seed in range(args.seeds):
         for noise in NOISE_PA:
@@ -128,6 +129,9 @@ def main() -> None:
             plan, res = trial(pair, 300 + seed, 5e3)
             two_n += 1
             two_hits += set(res.effects_found) == set(pair)
+            pair_answers.append(
+                f"  seed {seed}: {' + '.join(pair)} -> " + ", ".join(f.effect for f in res.findings)
+            )
     names = ["none", *EFFECTS]
     answers = sorted({a for c in confusion.values() for a in c})
     short = {a: a[:8] for a in answers}
@@ -150,6 +154,7 @@ def main() -> None:
         else "no hits"
     )
     print(f"two-effect trials, both found: {two_hits}/{two_n}")
+    print("\n".join(pair_answers))
     print(f"trials wall time: {time.perf_counter() - t_start:.0f} s")
     if args.day:
         hoist_day()

@@ -293,20 +293,21 @@ def _differential_one(
     a Gaussian of standard deviation s = 0.1325 / f_c seconds (half-power frequency
     f_c); it leaves sigma / sqrt(2 sqrt(pi) s f_s) of the transducer's white noise, and
     a play of half-width 3 times that keeps the slow wander of the filtered noise from
-    moving the friction state. Work arrays come from ``buffer(name, size)``; the
-    result is ``buffer("differential", n)``.
+    moving the friction state. Work arrays come from ``buffer(name, size)``: the
+    result is written over the raw difference, ``buffer("work_a", n)``, and
+    ``buffer("work_b", n)`` (the smoothed difference) is free again on return.
     """
     sigma_samples = 0.1325 / settings.differential_cutoff_hz * settings.sample_rate_hz
     edge = max(int(settings.sample_rate_hz / settings.differential_cutoff_hz), 1)
     shrink = 1.0 / np.sqrt(2.0 * np.sqrt(np.pi) * sigma_samples)
-    raw = np.subtract(x, mean, out=buffer("raw", x.size))
+    raw = np.subtract(x, mean, out=buffer("work_a", x.size))
     sigma = displacement_noise_sigma(raw)
-    smooth = buffer("smoothed", x.size)
+    smooth = buffer("work_b", x.size)
     for a, b in itertools.pairwise(bounds):
         _median_padded_smooth(
             raw[a:b], sigma_samples, min(edge, b - a), out=smooth[a:b], buffer=buffer
         )
-    played = buffer("differential", x.size)
+    played = raw  # the raw difference is no longer needed
     _play_kernel(smooth, long_segment, 3.0 * sigma * shrink, played)
     return played
 
@@ -687,15 +688,19 @@ def compensate(
 
     def rope(k: int) -> dict[str, np.ndarray]:
         i = ROPES[k]
+        # two work arrays per thread, each reused once its content is consumed:
+        # work_a: raw difference -> differential -> branch velocity;
+        # work_b: smoothed difference -> estimate -> played (in place)
+        played = buffer("work_b", n)
         if has_x:
             differential = _differential_one(
                 xs[k], x_mean, long_segment, long_bounds, settings, buffer=buffer
             )
-            estimate = np.add(x_common, differential, out=buffer("estimate", n))
+            estimate = np.add(x_common, differential, out=played)
         else:
-            estimate = x_common
-        played = buffer("played", n)
-        _play_kernel(estimate, segment, deadband, played)  # transforms.filtering.play_operator
+            estimate = x_common  # shared by the ropes: not overwritten
+        # transforms.filtering.play_operator (in place is safe: sample i is read first)
+        _play_kernel(estimate, segment, deadband, played)
         p_sensor = np.ascontiguousarray(pressures[k])
         out = {name: np.empty(n) for name in ("p_chamber", "friction", "tension_raw", "tension")}
         v_flow = no_array
@@ -705,7 +710,7 @@ def compensate(
                 segment,
                 dt_s=dt_nominal,
                 window_s=settings.velocity_window_s,
-                out=buffer("v_flow", n),
+                out=buffer("work_a", n),
             )
 
         def run(loss_mode: int, loss: np.ndarray) -> bool:

@@ -41,8 +41,12 @@ Method (one iteration)
    the re-tuned parameters updated), the trips re-simulated with payloads re-fitted,
    and the gap (RMS of y - s) before and after reported overall and per region (trip
    phase, direction, shaft position, oil temperature, pressure level, cylinder). A
-   Gauss-Newton step on the winner's coordinates follows when the re-simulated gap is
-   more than 10 % above the linear prediction.
+   term that is null and strongly nonlinear at its default (groove wear: it starts from
+   a scan along the residual's differential signature, ``_Engine.start``) is then
+   fitted along its coordinates with payloads refitted (Brent, :func:`_refine_along`)
+   while the gap is above the noise: payloads fitted without it are biased, so the
+   linear step alone stops short. A Gauss-Newton step on the winner's coordinates
+   follows when the re-simulated gap is more than 10 % above the linear prediction.
 
 The loop repeats while a further effect passes (``max_iterations``); the columns of
 candidates are linearisations around the first base and are reused (each costs one

@@ -37,7 +37,6 @@ collected frame of one hoist, sorted by time, and returns a ``ROPE_TENSIONS`` fr
 from __future__ import annotations
 
 import itertools
-import math
 import os
 import threading
 from collections.abc import Callable
@@ -58,10 +57,14 @@ from transforms.filtering import (
 )
 from transforms.friction import (
     STRIBECK_SPEED_FLOOR_M_S,
+    _linear_law,
     friction_parameters,
+    lugre_force,
     lugre_friction,
+    lugre_z_step,
     maxwell_slip_elements,
     maxwell_slip_friction,
+    stribeck_g,
 )
 from transforms.kinematics import PHASES, smoothed_derivative
 from transforms.oil import effective_bulk_modulus, kinematic_viscosity
@@ -488,20 +491,16 @@ def _rope_kernel(
                 if same_segment and np.isfinite(step):
                     v = step
             p = pc if np.isfinite(pc) else 0.0
-            value = coefficients[0, 0] + coefficients[0, 1] * p
-            fc = value if value > floors[0] else floors[0]
-            value = coefficients[1, 0] + coefficients[1, 1] * p
-            fs = value if value > floors[1] else floors[1]
-            value = coefficients[2, 0] + coefficients[2, 1] * p
-            vs = value if value > floors[2] else floors[2]
-            value = coefficients[3, 0] + coefficients[3, 1] * p
-            kv = value if value > floors[3] else floors[3]
+            fc = _linear_law(coefficients, floors, 0, p)
+            fs = _linear_law(coefficients, floors, 1, p)
+            vs = _linear_law(coefficients, floors, 2, p)
+            kv = _linear_law(coefficients, floors, 3, p)
             if mode == 1:
-                if v == 0.0:
-                    g = fs
-                else:
-                    r = v / vs
-                    g = fc + (fs - fc) * math.exp(-r * r)
+                # at standstill g(0) = Fs exactly: no exp needed
+                g = fs if v == 0.0 else stribeck_g(v, fc, fs, vs)
+                # transforms.friction.maxwell_slip_step with capacity w_j = weights_j g,
+                # written out: the capacities stay in registers (a call with a capacity
+                # array is ~18 % slower per step); same arithmetic, same order
                 dx = v * dt_i
                 total = 0.0
                 for j in range(n_el):
@@ -515,22 +514,10 @@ def _rope_kernel(
                     total += stiffness[j] * dj
                 f = total + kv * v
             else:
-                decay = 1.0
-                target = 0.0
-                if v != 0.0 and dt_i > 0.0:
-                    r = v / vs
-                    g = fc + (fs - fc) * math.exp(-r * r)
-                    if g <= 0.0:
-                        decay = 0.0
-                    else:
-                        rate = sigma0 * abs(v) * dt_i / g
-                        decay = math.exp(-rate) if rate < 745.0 else 0.0
-                        target = g / sigma0 if v > 0.0 else -g / sigma0
                 z_before = z
-                z = target + (z - target) * decay
-                f = sigma0 * z + kv * v
-                if dt_i > 0.0:
-                    f += sigma1 * (z - z_before) / dt_i
+                if v != 0.0 and dt_i > 0.0:
+                    z = lugre_z_step(z, v, dt_i, sigma0, stribeck_g(v, fc, fs, vs))
+                f = lugre_force(z_before, z, v, dt_i, sigma0, sigma1, kv)
         friction[i] = f
         tension_raw[i] = p_sensor[i] * area
         tension[i] = pc * area + f

@@ -116,13 +116,19 @@ def friction_parameters(
     return fc, fs, vs, kv
 
 
+@njit(inline="always")
+def _linear_law(coefficients, floors, k, p):  # pragma: no cover - numba
+    """max(a_k + b_k p, floor_k): eq 17 line k at one pressure."""
+    value = coefficients[k, 0] + coefficients[k, 1] * p
+    return value if value > floors[k] else floors[k]
+
+
 @njit(cache=True, nogil=True)
 def _linear_laws(p, coefficients, floors, out):  # pragma: no cover - numba
     """out[k, i] = max(a_k + b_k p[i], floor_k): the four eq 17 lines in one pass."""
     for i in range(p.shape[0]):
         for k in range(4):
-            value = coefficients[k, 0] + coefficients[k, 1] * p[i]
-            out[k, i] = value if value > floors[k] else floors[k]
+            out[k, i] = _linear_law(coefficients, floors, k, p[i])
 
 
 def stribeck_friction(

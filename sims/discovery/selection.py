@@ -690,6 +690,26 @@ def discover_effects(
     weights = rng.multinomial(m, np.full(m, 1.0 / m), size=bootstrap).astype(float)
     findings: list[Finding] = []
     notes: list[str] = []
+
+    def no_addition(effect: str, confidence: float, ranked: list, message: str, **extra) -> Finding:
+        """A finding that adds nothing (none / ambiguous) at this iteration's state."""
+        return Finding(
+            iteration,
+            effect,
+            {},
+            {},
+            confidence,
+            gap_before,
+            gap_before,
+            plan.noise_sigma_pa,
+            ratio,
+            tau,
+            ranked,
+            where,
+            message=message,
+            **extra,
+        )
+
     for iteration in range(1, max_iterations + 1):
         r = lay.y - s0
         retune_names = [e for e in model if e in lib]
@@ -733,19 +753,10 @@ def discover_effects(
                 else "the residual exceeds the noise but no candidate could be scored"
             )
             findings.append(
-                Finding(
-                    iteration,
+                no_addition(
                     NO_EFFECT,
-                    {},
-                    {},
                     1.0 - min(1.0, max(ratio - 1.0, 0.0)),
-                    gap_before,
-                    gap_before,
-                    plan.noise_sigma_pa,
-                    ratio,
-                    tau,
                     [],
-                    where,
                     message=msg,
                 )
             )
@@ -796,19 +807,10 @@ def discover_effects(
                 f"({top}) explains only {explained:.0%} of the excess"
             )
             findings.append(
-                Finding(
-                    iteration,
+                no_addition(
                     NO_EFFECT,
-                    {},
-                    {},
                     1.0 - share.get(top, 0.0),
-                    gap_before,
-                    gap_before,
-                    plan.noise_sigma_pa,
-                    ratio,
-                    tau,
                     ranking,
-                    where,
                     message=msg,
                 )
             )
@@ -827,19 +829,10 @@ def discover_effects(
                 other = max(others, key=others.get) if others else NO_EFFECT
             pair = (top, other)
             findings.append(
-                Finding(
-                    iteration,
+                no_addition(
                     AMBIGUOUS,
-                    {},
-                    {},
                     share[top],
-                    gap_before,
-                    gap_before,
-                    plan.noise_sigma_pa,
-                    ratio,
-                    tau,
                     ranking,
-                    where,
                     ambiguous_between=pair,
                     excitation=_excitation(lib, *pair) if other in lib else lib[top].excitation,
                     message=f"{top} and {other} cannot be told apart on these trips",
@@ -890,19 +883,10 @@ def discover_effects(
                     after, gap_after, new_params = alt, gap_alt, p2
         if not after.ok or not gap_after < gap_before:
             findings.append(
-                Finding(
-                    iteration,
+                no_addition(
                     NO_EFFECT,
-                    {},
-                    {},
                     0.0,
-                    gap_before,
-                    gap_before,
-                    plan.noise_sigma_pa,
-                    ratio,
-                    tau,
                     ranking,
-                    where,
                     message=f"{top} scored best but adding it did not shrink the gap "
                     f"({gap_before:.0f} -> {gap_after:.0f} Pa)",
                 )

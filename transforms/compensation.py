@@ -50,8 +50,8 @@ from numba import njit
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPE_TENSIONS, ROPES
 from transforms.filtering import (
-    _moving_average,
     _play_kernel,
+    box_smooth_into,
     despike_median3,
     lowpass,
 )
@@ -269,13 +269,8 @@ def _median_padded_smooth(
     current[:pad] = np.median(x[:edge_samples])
     current[pad : pad + x.size] = x
     current[pad + x.size :] = np.median(x[-edge_samples:])
-    # transforms.filtering.box_smooth on the reused arrays: same passes, same sums
-    passes = 3
-    half = max(round((np.sqrt(12.0 * sigma_samples**2 / passes + 1.0) - 1.0) / 2.0), 0)
-    for _ in range(passes):
-        _moving_average(current, half, other)
-        current, other = other, current
-    out[:] = current[pad : pad + x.size]
+    smoothed = box_smooth_into(current, other, sigma_samples=sigma_samples)
+    out[:] = smoothed[pad : pad + x.size]
     return out
 
 

@@ -32,6 +32,7 @@ from scipy import signal
 __all__ = [
     "MAD_TO_SIGMA",
     "box_smooth",
+    "box_smooth_into",
     "despike_median3",
     "hampel",
     "lowpass",
@@ -527,12 +528,22 @@ def box_smooth(x: np.ndarray, *, sigma_samples: float, passes: int = 3) -> np.nd
     >>> box_smooth(np.r_[np.zeros(5), np.ones(5)], sigma_samples=1.0).round(3).tolist()
     [0.0, 0.0, 0.037, 0.148, 0.37, 0.63, 0.852, 0.963, 1.0, 1.0]
     """
+    values = np.array(x, dtype=np.float64)  # a copy: the passes overwrite it
+    work = np.empty_like(values)
+    return box_smooth_into(values, work, sigma_samples=sigma_samples, passes=passes)
+
+
+def box_smooth_into(
+    values: np.ndarray, work: np.ndarray, *, sigma_samples: float, passes: int = 3
+) -> np.ndarray:
+    """:func:`box_smooth` on caller-owned arrays: ``values`` (contiguous float64, the
+    input) and ``work`` (same length) are both overwritten; returns the one holding the
+    result. For loops that reuse their work arrays."""
     half = max(round((np.sqrt(12.0 * sigma_samples**2 / passes + 1.0) - 1.0) / 2.0), 0)
-    current = np.ascontiguousarray(x, dtype=np.float64)
-    out = np.empty_like(current)
+    current, other = values, work
     for _ in range(passes):
-        _moving_average(current, half, out)
-        current, out = out, current
+        _moving_average(current, half, other)
+        current, other = other, current
     return current
 
 

@@ -33,9 +33,6 @@ from schemas.tables import FIELD_SAMPLES, ROPE_TENSIONS
 from transforms.compensation import compensate
 from warehouse.parquet_files import write_parquet_atomic
 
-#: The delta-encoded columns of a landed field-samples part (pipelines/ingest/landing.py).
-FIELD_DELTA = ("time_utc", "source_line")
-
 
 def synthetic_day(hours: float, rate_hz: float = 100.0, seed: int = 1) -> pl.DataFrame:
     hoist = load_hoist(EXAMPLE_HOIST)
@@ -88,16 +85,14 @@ def main() -> None:
     runs: dict[str, list[float]] = {k: [] for k in ("floor", "read", "compute", "write")}
     with tempfile.TemporaryDirectory() as tmp:
         source = Path(tmp) / "day.parquet"
-        write_parquet_atomic(synthetic_day(args.hours), source, FIELD_SAMPLES, delta=FIELD_DELTA)
+        write_parquet_atomic(synthetic_day(args.hours), source, FIELD_SAMPLES)
         # warm-up: numba compilation and caches, not part of the measurement
         compensate(pl.read_parquet(source).head(20_000), hoist)
         # floor and compensation alternate, so a burst of load on the machine hits both
         for _ in range(args.repeat):
             t0 = time.perf_counter()
             frame = pl.read_parquet(source)
-            write_parquet_atomic(
-                frame, Path(tmp) / "floor.parquet", FIELD_SAMPLES, delta=FIELD_DELTA
-            )
+            write_parquet_atomic(frame, Path(tmp) / "floor.parquet", FIELD_SAMPLES)
             runs["floor"].append(time.perf_counter() - t0)
             del frame
 

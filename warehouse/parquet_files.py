@@ -15,25 +15,37 @@ import polars as pl
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-__all__ = ["write_parquet_atomic"]
+__all__ = ["SORTED_COLUMNS", "write_parquet_atomic"]
 
 _ROW_GROUP_ROWS = 256 * 1024
+#: Lake columns that are sorted or nearly so in every file (each file is sorted by time;
+#: a part's source lines rise with it): stored DELTA_BINARY_PACKED by default.
+SORTED_COLUMNS = ("time_utc", "source_line")
 
 
 def write_parquet_atomic(
-    frame: pl.DataFrame, target: Path, schema: pa.Schema, *, delta: Sequence[str] = ()
+    frame: pl.DataFrame,
+    target: Path,
+    schema: pa.Schema,
+    *,
+    delta: Sequence[str] | None = None,
 ) -> None:
     """Write ``frame`` as ``target`` (zstd, ``schema``) via temp file, fsync, ``os.replace``.
 
     ``delta``: integer or timestamp columns (sorted or nearly so: time, source line) to
     store with DELTA_BINARY_PACKED instead of trying a dictionary first, which for
-    all-distinct values only costs time (a third less CPU and size for a field batch).
+    all-distinct values only costs time (a third less CPU and size for a field batch;
+    for a 100 Hz day of rope tensions the time column is written in 0.05 s instead of
+    0.66 s, and takes 0.1 MB instead of 34 MB). Default: the ``SORTED_COLUMNS`` of
+    ``schema``.
 
     Floating-point columns are stored BYTE_STREAM_SPLIT (no dictionary attempt): the
     bytes of equal significance side by side, which zstd compresses far better than
     interleaved noisy mantissas -- for a 100 Hz day of rope tensions about 2x faster
     to write and 30 % smaller than a dictionary attempt falling back to PLAIN. Lossless.
     """
+    if delta is None:
+        delta = [name for name in SORTED_COLUMNS if name in schema.names]
     target.parent.mkdir(parents=True, exist_ok=True)
     table = frame.to_arrow().cast(schema)
     temporary = target.with_name(f".{target.stem}.{os.getpid()}.tmp")

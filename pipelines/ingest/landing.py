@@ -49,8 +49,6 @@ SMALL_PART_ROWS = 200_000
 #: ... as long as the merged part stays at or below this many rows.
 MAX_PART_ROWS = 2_000_000
 _LINEAGE = ("time_utc", "source_sha256", "source_line")
-#: Columns stored delta-encoded (see :func:`write_parquet_atomic`).
-_DELTA = ("time_utc", "source_line")
 
 
 @dataclass
@@ -78,7 +76,6 @@ class LakeTable:
         self.root = data.table_dir(table)
         self.schema: pa.Schema = TABLES[table]
         self.values = [f.name for f in self.schema if f.name not in _LINEAGE]
-        self.delta = tuple(n for n in _DELTA if n in self.schema.names)
         self._parts_cache: dict[Path, tuple[tuple[int, int], _Part]] = {}
 
     def land(self, samples: pl.DataFrame, *, site: str, hoist: str, source_sha256: str) -> Landed:
@@ -180,7 +177,7 @@ class LakeTable:
             target = directory / f"part-{seq:05d}-{token[:12]}.parquet"
         if not merged["time_utc"].is_sorted():
             merged = merged.sort("time_utc", maintain_order=True)
-        write_parquet_atomic(merged, target, self.schema, delta=self.delta)
+        write_parquet_atomic(merged, target, self.schema)
         self._parts_cache.pop(target, None)
 
 

@@ -35,3 +35,29 @@ def test_float_columns_round_trip_byte_stream_split(tmp_path) -> None:
     assert "BYTE_STREAM_SPLIT" in encodings["q"]
     assert "DELTA_BINARY_PACKED" in encodings["t"]
     assert not list(tmp_path.glob("x/.*.tmp"))
+
+
+def test_sorted_lake_columns_are_delta_encoded_by_default(tmp_path) -> None:
+    start = np.datetime64("2026-03-02T00:00:00", "us")
+    frame = pl.DataFrame(
+        {
+            "time_utc": pl.Series(start + np.arange(5000) * np.timedelta64(10_000, "us")),
+            "source_line": np.arange(5000, dtype=np.int64),
+            "trip_id": np.repeat(np.arange(5, dtype=np.int64), 1000),
+        }
+    ).with_columns(pl.col("time_utc").dt.replace_time_zone("UTC"))
+    schema = pa.schema(
+        [
+            ("time_utc", pa.timestamp("us", tz="UTC")),
+            ("source_line", pa.int64()),
+            ("trip_id", pa.int64()),
+        ]
+    )
+    target = tmp_path / "data.parquet"
+    write_parquet_atomic(frame, target, schema)
+    assert pl.read_parquet(target).equals(frame)
+    meta = pq.ParquetFile(target).metadata.row_group(0)
+    encodings = {meta.column(k).path_in_schema: meta.column(k).encodings for k in range(3)}
+    assert "DELTA_BINARY_PACKED" in encodings["time_utc"]
+    assert "DELTA_BINARY_PACKED" in encodings["source_line"]
+    assert "DELTA_BINARY_PACKED" not in encodings["trip_id"]

@@ -593,11 +593,13 @@ def compensate(
         values = frame[column].cast(pl.Float64).to_numpy()
         return despike_median3(values, segment, n_sigmas=settings.spike_sigmas)[0]
 
-    def acceleration() -> np.ndarray:
+    def kinematics() -> tuple[np.ndarray, dict[str, pl.Series]]:
+        """Conveyance acceleration, then the trip labels that depend on it."""
         speed = frame["speed_m_s"].fill_null(0.0).cast(pl.Float64).to_numpy()
-        return smoothed_derivative(
+        accel = smoothed_derivative(
             speed, segment, dt_s=dt_nominal, window_s=settings.acceleration_window_s
         )
+        return accel, _trip_labels(frame, accel, segment, hoist)
 
     def logged_motion(xs: list[np.ndarray]):
         """Whether x is logged, its mean over the ropes, the long-gap segments."""
@@ -608,17 +610,6 @@ def compensate(
             _long_segments(time_s, settings.differential_bridge_s),
         )
 
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        accel_job = pool.submit(acceleration)
-        p_jobs = [pool.submit(pressure, c) for c in p_cols]
-        xs = list(pool.map(displacement, x_cols))
-        motion_job = pool.submit(logged_motion, xs)
-        pressures = [job.result() for job in p_jobs]
-        # NaN stands for null from here on (the frame version filled NaN with null)
-        x_common = common_mode_displacement(_mean_horizontal(pressures), segment, hoist)
-        accel = accel_job.result()
-        has_x, x_mean, (long_segment, long_bounds) = motion_job.result()
-
     t_oil = None
     if "viscosity_temperature" in effects and frame["oil_temp_c"].null_count() < n:
         t_oil = (
@@ -627,8 +618,7 @@ def compensate(
             .fill_null(strategy="backward")
             .to_numpy()
         )
-    nu = _viscosity(t_oil, hoist)
-    nu_arr = np.ascontiguousarray(np.atleast_1d(np.asarray(nu, dtype=np.float64)))
+
     with_branch_loss = bool({"pipe_laminar_loss", "local_loss"} & effects)
     with_friction = "seal_friction" in effects
     presliding = "presliding_hysteresis" in effects
@@ -737,11 +727,27 @@ def compensate(
             f"tension{i}_n": out["tension"],
         }
 
-    # The ropes are independent and the numba kernels and large numpy operations
-    # release the GIL, so they run side by side.
+    # One pool for the whole computation. The trip labels go first: they are the longest
+    # job that does not wait for the pressures, so they overlap the pressure filters and
+    # the (serial) common mode instead of running alone after the ropes.
     with ThreadPoolExecutor(max_workers=workers) as pool:
+        kinematics_job = pool.submit(kinematics)
+        p_jobs = [pool.submit(pressure, c) for c in p_cols]
+        x_jobs = [pool.submit(displacement, c) for c in x_cols]
+        nu_job = pool.submit(_viscosity, t_oil, hoist)
+        # queued behind the displacement jobs, so it never waits for one not yet started
+        motion_job = pool.submit(lambda: logged_motion([job.result() for job in x_jobs]))
+        pressures = [job.result() for job in p_jobs]
+        # NaN stands for null from here on (the frame version filled NaN with null)
+        x_common = common_mode_displacement(_mean_horizontal(pressures), segment, hoist)
+        xs = [job.result() for job in x_jobs]
+        has_x, x_mean, (long_segment, long_bounds) = motion_job.result()
+        nu = nu_job.result()
+        nu_arr = np.ascontiguousarray(np.atleast_1d(np.asarray(nu, dtype=np.float64)))
+        # The ropes are independent and the numba kernels and large numpy operations
+        # release the GIL, so they run side by side.
         rope_jobs = [pool.submit(rope, k) for k in range(len(ROPES))]
-        labels = pool.submit(_trip_labels, frame, accel, segment, hoist).result()
+        accel, labels = kinematics_job.result()
         per_rope = [job.result() for job in rope_jobs]
     columns = {name: values for part in per_rope for name, values in part.items()}
     load_raw, load = np.empty(n), np.empty(n)

@@ -40,7 +40,7 @@ import itertools
 import os
 import threading
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -54,6 +54,7 @@ from transforms.filtering import (
     box_smooth_into,
     despike_median3,
     lowpass,
+    segment_ids,
 )
 from transforms.friction import (
     STRIBECK_SPEED_FLOOR_M_S,
@@ -67,7 +68,11 @@ from transforms.friction import (
     stribeck_g,
 )
 from transforms.kinematics import PHASES, smoothed_derivative
-from transforms.oil import effective_bulk_modulus, kinematic_viscosity
+from transforms.oil import (
+    ATMOSPHERIC_PRESSURE_PA,
+    effective_bulk_modulus_at,
+    kinematic_viscosity,
+)
 from transforms.pressure_loss import (
     RE_LAMINAR,
     _branch_constants,
@@ -167,42 +172,47 @@ def common_mode_displacement(
     observable this way and is taken as zero. Integrated per segment from 0.
     """
     p = np.ascontiguousarray(p_mean_pa, dtype=np.float64)
-    beta = effective_bulk_modulus(
-        np.maximum(np.nan_to_num(p, nan=1e6), 1e5),
-        hoist.oil.bulk_modulus_pa,
-        hoist.oil.air_fraction,
-    )
     x = np.empty_like(p)
+    if not 0.0 <= hoist.oil.air_fraction < 1.0:
+        raise ValueError(f"air_fraction: must be in [0, 1), got {hoist.oil.air_fraction}")
     if p.size:
         _common_mode_kernel(
             p,
             np.ascontiguousarray(segment_id, dtype=np.int64),
             float(hoist.oil_volume_m3),
             hoist.ropes_n * hoist.cylinders.bore_area_m2,
-            beta,
+            np.array([hoist.oil.bulk_modulus_pa, hoist.oil.air_fraction, ATMOSPHERIC_PRESSURE_PA]),
             x,
         )
     return x
 
 
 @njit(cache=True, nogil=True)
-def _common_mode_kernel(p, segment_id, volume, n_area, beta, x):  # pragma: no cover - numba
+def _common_mode_kernel(p, segment_id, volume, n_area, oil, x):  # pragma: no cover - numba
     """n A dx = V / beta_e(p) dp integrated per segment from 0 (:func:`common_mode_displacement`).
 
-    The arithmetic of the array version: a running sum over the whole record, minus its
-    value at the segment's start.
+    beta_e at max(p, 1 bar), 10 bar where p is unknown (NaN), isothermal
+    (:func:`transforms.oil.effective_bulk_modulus_at`; ``oil`` = liquid bulk modulus,
+    air fraction, reference pressure). The arithmetic of the array version: a running
+    sum over the whole record, minus its value at the segment's start.
     """
     total = 0.0
     total_at_start = 0.0
     dx_at_start = 0.0
     for i in range(p.shape[0]):
+        p_beta = p[i]
+        if np.isnan(p_beta):
+            p_beta = 1e6
+        elif np.isinf(p_beta):
+            p_beta = 1.7976931348623157e308 if p_beta > 0 else -1.7976931348623157e308
+        beta = effective_bulk_modulus_at(max(p_beta, 1e5), oil[0], oil[1], oil[2], 1.0)
         start = i == 0 or segment_id[i] != segment_id[i - 1]
         dp = 0.0
         if not start:
             dp = p[i] - p[i - 1]
             if not np.isfinite(dp):
                 dp = 0.0
-        dx = volume / (n_area * beta[i]) * dp
+        dx = volume / (n_area * beta) * dp
         total = dx if i == 0 else total + dx
         if start:
             total_at_start = total
@@ -312,8 +322,9 @@ def _differential_one(
 
 def _long_segments(time_s: np.ndarray, bridge_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Segment id per sample and segment bounds [0, ..., n], split only at gaps > bridge_s."""
-    long_gap = np.r_[False, np.diff(time_s) > bridge_s]
-    return np.cumsum(long_gap), np.r_[0, np.flatnonzero(long_gap), time_s.size]
+    segment = segment_ids(time_s, gap_factor=1.0, nominal_dt_s=bridge_s)
+    starts = np.flatnonzero(segment[1:] != segment[:-1]) + 1
+    return segment, np.r_[0, starts, time_s.size]
 
 
 def _increment_velocity(x: np.ndarray, dt: np.ndarray, segment_id: np.ndarray) -> np.ndarray:
@@ -560,7 +571,8 @@ def compensate(
     n = frame.height
     workers = min(len(ROPES), os.cpu_count() or 1)
 
-    time_s = frame["time_utc"].dt.epoch("us").to_numpy().astype(np.float64) * 1e-6
+    # the same arithmetic as .astype(float) * 1e-6, without the intermediate array
+    time_s = np.multiply(frame["time_utc"].dt.epoch("us").to_numpy(), 1e-6, out=np.empty(n))
     rate_hz = settings.sample_rate_hz or logger_rate_hz(time_s)
     settings = replace(
         settings,
@@ -568,25 +580,38 @@ def compensate(
         pressure_cutoff_hz=min(settings.pressure_cutoff_hz, 0.4 * rate_hz),
     )
     dt_nominal = 1.0 / rate_hz
-    gap = np.empty(n, dtype=np.int64)
-    gap[0] = 0
-    gap[1:] = np.diff(time_s) > settings.gap_factor * dt_nominal
-    segment = np.cumsum(gap)  # transforms.filtering.with_segment_id, on arrays
+    segment = segment_ids(time_s, gap_factor=settings.gap_factor, nominal_dt_s=dt_nominal)
+
+    # Work arrays are reused per thread: every fresh 70 MB array costs page faults, and
+    # freeing one interrupts the other thread (TLB shootdown), which cost more than the
+    # arithmetic of a rope.
+    local = threading.local()
+
+    def buffer(name: str, size: int) -> np.ndarray:
+        arrays = local.__dict__.setdefault("arrays", {})
+        if name not in arrays or arrays[name].size < size:
+            arrays[name] = np.empty(size)
+        return arrays[name][:size]
 
     gains = {f"p{s.cylinder}_pa": (s.offset_pa, s.gain) for s in hoist.sensors}
 
     def pressure(column: str) -> np.ndarray:
-        values = frame[column].cast(pl.Float64).to_numpy()
+        """Calibrated, despiked and low-passed, all in one new array."""
+        raw = frame[column].cast(pl.Float64).to_numpy()
         if column in gains:
             offset, gain = gains[column]
-            values = (values - offset) / gain
-        values = despike_median3(values, segment, n_sigmas=settings.spike_sigmas)[0]
+            values = np.subtract(raw, offset, out=np.empty(n))
+            np.divide(values, gain, out=values)
+            despike_median3(values, segment, n_sigmas=settings.spike_sigmas, out=values)
+        else:
+            values = despike_median3(raw, segment, n_sigmas=settings.spike_sigmas)[0]
         return lowpass(
             values,
             segment,
             sample_rate_hz=settings.sample_rate_hz,
             cutoff_hz=settings.pressure_cutoff_hz,
-            out=values,  # the despiked copy is filtered in place
+            out=values,
+            work=buffer("work_a", n),  # the rope jobs reuse it on this thread
         )
 
     def displacement(column: str) -> np.ndarray:
@@ -643,37 +668,31 @@ def compensate(
     gap_s = settings.gap_factor * dt_nominal
     no_array = np.zeros(1)
 
-    # Work arrays are reused per thread: every fresh 70 MB array costs page faults, and
-    # freeing one interrupts the other thread (TLB shootdown), which cost more than the
-    # arithmetic of a rope.
-    local = threading.local()
-
-    def buffer(name: str, size: int) -> np.ndarray:
-        arrays = local.__dict__.setdefault("arrays", {})
-        if name not in arrays or arrays[name].size < size:
-            arrays[name] = np.empty(size)
-        return arrays[name][:size]
-
     deadband = settings.displacement_deadband_m
     if deadband < 0:
         raise ValueError(f"displacement_deadband_m must be >= 0, got {deadband}")
 
     def rope(k: int) -> dict[str, np.ndarray]:
+        """Tensions of rope k; its inputs are futures of the jobs queued before it."""
         i = ROPES[k]
+        has_x, x_mean, (long_segment, long_bounds) = motion_job.result()
         # two work arrays per thread, each reused once its content is consumed:
         # work_a: raw difference -> differential -> branch velocity;
         # work_b: smoothed difference -> estimate -> played (in place)
         played = buffer("work_b", n)
         if has_x:
+            # the differential part does not wait for the common mode
             differential = _differential_one(
-                xs[k], x_mean, long_segment, long_bounds, settings, buffer=buffer
+                x_jobs[k].result(), x_mean, long_segment, long_bounds, settings, buffer=buffer
             )
-            estimate = np.add(x_common, differential, out=played)
+            estimate = np.add(common_mode.result(), differential, out=played)
         else:
-            estimate = x_common  # shared by the ropes: not overwritten
+            estimate = common_mode.result()  # shared by the ropes: not overwritten
         # transforms.filtering.play_operator (in place is safe: sample i is read first)
         _play_kernel(estimate, segment, deadband, played)
-        p_sensor = np.ascontiguousarray(pressures[k])
+        p_sensor = np.ascontiguousarray(p_jobs[k].result())
+        nu = nu_job.result()
+        nu_arr = np.ascontiguousarray(np.atleast_1d(np.asarray(nu, dtype=np.float64)))
         out = {name: np.empty(n) for name in ("p_chamber", "friction", "tension_raw", "tension")}
         v_flow = no_array
         if with_branch_loss:
@@ -727,26 +746,29 @@ def compensate(
             f"tension{i}_n": out["tension"],
         }
 
-    # One pool for the whole computation. The trip labels go first: they are the longest
-    # job that does not wait for the pressures, so they overlap the pressure filters and
-    # the (serial) common mode instead of running alone after the ropes.
+    # One pool for the whole computation; every job waits only for jobs queued before it
+    # or for the common mode, which this thread computes. The trip labels go first: they
+    # are the longest job that does not wait for the pressures, so they overlap the
+    # pressure filters instead of running alone after the ropes. The ropes are queued
+    # right away: each starts on its differential displacement while the common mode is
+    # still being integrated. The numba kernels and large numpy operations release the
+    # GIL, so the jobs run side by side.
+    common_mode: Future[np.ndarray] = Future()
     with ThreadPoolExecutor(max_workers=workers) as pool:
         kinematics_job = pool.submit(kinematics)
         p_jobs = [pool.submit(pressure, c) for c in p_cols]
         x_jobs = [pool.submit(displacement, c) for c in x_cols]
         nu_job = pool.submit(_viscosity, t_oil, hoist)
-        # queued behind the displacement jobs, so it never waits for one not yet started
         motion_job = pool.submit(lambda: logged_motion([job.result() for job in x_jobs]))
-        pressures = [job.result() for job in p_jobs]
-        # NaN stands for null from here on (the frame version filled NaN with null)
-        x_common = common_mode_displacement(_mean_horizontal(pressures), segment, hoist)
-        xs = [job.result() for job in x_jobs]
-        has_x, x_mean, (long_segment, long_bounds) = motion_job.result()
-        nu = nu_job.result()
-        nu_arr = np.ascontiguousarray(np.atleast_1d(np.asarray(nu, dtype=np.float64)))
-        # The ropes are independent and the numba kernels and large numpy operations
-        # release the GIL, so they run side by side.
         rope_jobs = [pool.submit(rope, k) for k in range(len(ROPES))]
+        try:
+            # NaN stands for null from here on (the frame version filled NaN with null)
+            pressures = [job.result() for job in p_jobs]
+            p_mean = _mean_horizontal(pressures)
+            common_mode.set_result(common_mode_displacement(p_mean, segment, hoist))
+        except BaseException as error:
+            common_mode.set_exception(error)  # the rope jobs fail instead of waiting
+            raise
         accel, labels = kinematics_job.result()
         per_rope = [job.result() for job in rope_jobs]
     columns = {name: values for part in per_rope for name, values in part.items()}
@@ -766,7 +788,8 @@ def compensate(
         "time_utc": frame["time_utc"],
         "depth_m": frame["depth_m"],
         "speed_m_s": frame["speed_m_s"],
-        "acceleration_up_m_s2": nullable("acceleration_up_m_s2", -accel),
+        # the labels are done with it: negated in place
+        "acceleration_up_m_s2": nullable("acceleration_up_m_s2", np.negative(accel, out=accel)),
         **labels,
         **{c: nullable(c, v) for c, v in zip(p_cols, pressures, strict=True)},
         **{name: pl.Series(name, values, dtype=pl.Float64) for name, values in columns.items()},

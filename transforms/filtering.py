@@ -71,13 +71,24 @@ def segment_ids(
     >>> segment_ids(np.array([0.0, 0.01, 0.02, 0.5, 0.51])).tolist()
     [0, 0, 0, 1, 1]
     """
-    t = np.asarray(t_s, dtype=np.float64)
+    t = np.ascontiguousarray(t_s, dtype=np.float64)
     if t.size < 2:
         return np.zeros(t.size, dtype=np.int64)
-    dt = np.diff(t)
-    nominal = float(np.median(dt)) if nominal_dt_s is None else nominal_dt_s
-    breaks = np.concatenate([[False], dt > gap_factor * nominal])
-    return np.cumsum(breaks, dtype=np.int64)
+    nominal = float(np.median(np.diff(t))) if nominal_dt_s is None else nominal_dt_s
+    out = np.empty(t.size, dtype=np.int64)
+    _segment_kernel(t, gap_factor * nominal, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _segment_kernel(t, max_step, out):  # pragma: no cover - numba
+    """out[i] = number of steps t[j] - t[j-1] > max_step for j <= i (cumsum of the breaks)."""
+    count = 0
+    out[0] = 0
+    for i in range(1, t.shape[0]):
+        if t[i] - t[i - 1] > max_step:
+            count += 1
+        out[i] = count
 
 
 def _seconds(frame_schema: pl.Schema, time_col: str) -> pl.Expr:
@@ -272,6 +283,7 @@ def lowpass(
     cutoff_hz: float,
     order: int = 4,
     out: np.ndarray | None = None,
+    work: np.ndarray | None = None,
 ) -> np.ndarray:
     r"""Zero-phase Butterworth low-pass, each segment filtered on its own.
 
@@ -300,6 +312,9 @@ def lowpass(
     out : numpy.ndarray, optional
         Float64 array of ``x``'s length to write into; may be ``x`` itself (filtered in
         place: each segment is read whole before it is written).
+    work : numpy.ndarray, optional
+        A float64 scratch array for the forward pass (a reused buffer), used when it
+        holds the longest segment plus twice the pad; otherwise one is allocated.
 
     Returns
     -------
@@ -325,7 +340,9 @@ def lowpass(
     starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]])) if x.size else []
     bounds = [*list(starts), x.size]
     longest = max((b - a for a, b in itertools.pairwise(bounds)), default=0)
-    work = np.empty(longest + 2 * default_pad)  # the forward pass, reused per segment
+    size = longest + 2 * default_pad
+    # the forward pass, reused per segment
+    work = np.empty(size) if work is None or work.size < size else work[:size]
     for a, b in itertools.pairwise(bounds):
         part, bad = _fill_nan_linear(x[a:b])
         if b - a < 3 * order or bad.all():
@@ -549,21 +566,28 @@ def box_smooth_into(
 
 @njit(cache=True, nogil=True)
 def _median3_kernel(x, seg, threshold, out):  # pragma: no cover - numba
+    """3-point median where a sample is a spike; ``out`` may be ``x`` (the raw previous
+    sample is kept in a register, so the median always sees raw neighbours)."""
     n = x.shape[0]
+    a = np.nan  # raw x[i - 1]
     for i in range(n):
-        out[i] = x[i]
-        if i == 0 or i == n - 1 or seg[i - 1] != seg[i] or seg[i + 1] != seg[i]:
-            continue
-        a, b, c = x[i - 1], x[i], x[i + 1]
-        if not (np.isfinite(a) and np.isfinite(b) and np.isfinite(c)):
-            continue
-        med = max(min(a, b), min(max(a, b), c))
-        if abs(b - med) > threshold:
-            out[i] = med
+        b = x[i]
+        out[i] = b
+        if not (i == 0 or i == n - 1 or seg[i - 1] != seg[i] or seg[i + 1] != seg[i]):
+            c = x[i + 1]
+            if np.isfinite(a) and np.isfinite(b) and np.isfinite(c):
+                med = max(min(a, b), min(max(a, b), c))
+                if abs(b - med) > threshold:
+                    out[i] = med
+        a = b
 
 
 def despike_median3(
-    x: np.ndarray, segment_id: np.ndarray | None = None, *, n_sigmas: float = 6.0
+    x: np.ndarray,
+    segment_id: np.ndarray | None = None,
+    *,
+    n_sigmas: float = 6.0,
+    out: np.ndarray | None = None,
 ) -> tuple[np.ndarray, float]:
     r"""Replace single-sample spikes by the median of the sample and its two neighbours.
 
@@ -576,7 +600,8 @@ def despike_median3(
     which a following 10 Hz low-pass removes anyway. Linear in n, a few ns per sample:
     the cheap alternative to :func:`hampel` for pressures that are low-passed next.
 
-    Returns the despiked signal and the sigma used.
+    Returns the despiked signal and the sigma used. ``out``: a float64 array of x's
+    length to write into; may be ``x`` itself (despiked in place).
 
     >>> despike_median3(np.array([0.0, 0.1, 9.0, 0.0, 0.1, 0.0, 0.1]))[0].tolist()
     [0.0, 0.1, 0.1, 0.0, 0.1, 0.0, 0.1]
@@ -594,6 +619,7 @@ def despike_median3(
         if segment_id is None
         else np.ascontiguousarray(segment_id, dtype=np.int64)
     )
-    out = np.empty_like(values)
+    if out is None:
+        out = np.empty_like(values)
     _median3_kernel(values, seg, n_sigmas * sigma, out)
     return out, sigma

@@ -18,6 +18,7 @@ this module. SI throughout: temperatures in degC where the name says ``_c``, vis
 from __future__ import annotations
 
 import numpy as np
+from numba import njit, vectorize
 
 from schemas.hoist import Oil
 
@@ -198,9 +199,25 @@ def effective_bulk_modulus(
     """
     if not 0.0 <= air_fraction < 1.0:
         raise ValueError(f"air_fraction: must be in [0, 1), got {air_fraction}")
-    p = np.asarray(p_pa, dtype=np.float64)
-    r = (p_ref_pa / p) ** (1.0 / polytropic_index)
-    x0 = air_fraction
-    return ((1.0 - x0) + x0 * r) / (
-        (1.0 - x0) / bulk_modulus_oil_pa + x0 * r / (polytropic_index * p)
+    return _effective_bulk_modulus_ufunc(
+        np.asarray(p_pa, dtype=np.float64),
+        bulk_modulus_oil_pa,
+        air_fraction,
+        p_ref_pa,
+        polytropic_index,
     )
+
+
+@njit(cache=True, nogil=True)
+def effective_bulk_modulus_at(
+    p: float, beta_l: float, x0: float, p_ref: float, n: float
+) -> float:  # pragma: no cover - numba
+    """:func:`effective_bulk_modulus` at one pressure (Merritt 1967 section 2.5), for
+    numba kernels; arguments unchecked, in the order of that function."""
+    r = (p_ref / p) ** (1.0 / n)
+    return ((1.0 - x0) + x0 * r) / ((1.0 - x0) / beta_l + x0 * r / (n * p))
+
+
+_effective_bulk_modulus_ufunc = vectorize(
+    ["float64(float64, float64, float64, float64, float64)"], cache=True
+)(effective_bulk_modulus_at.py_func)

@@ -9,6 +9,7 @@ import polars as pl
 import pytest
 
 from transforms.filtering import (
+    despike_median3,
     hampel,
     lowpass,
     lowpass_columns,
@@ -163,6 +164,9 @@ def test_lowpass_equals_scipy_sosfiltfilt_per_segment():
     in_place = x.copy()
     assert lowpass(in_place, seg, sample_rate_hz=100.0, cutoff_hz=10.0, out=in_place) is in_place
     np.testing.assert_array_equal(in_place, got)
+    work = np.full(x.size + 100, np.inf)  # a caller's scratch array: any content
+    with_work = lowpass(x, seg, sample_rate_hz=100.0, cutoff_hz=10.0, work=work)
+    np.testing.assert_array_equal(with_work, got)
     sos = signal.butter(4, 10.0, btype="low", fs=100.0, output="sos")
     start = 0
     for k in lengths:
@@ -178,3 +182,22 @@ def test_lowpass_equals_scipy_sosfiltfilt_per_segment():
             want[bad] = np.nan
             np.testing.assert_array_equal(got[start : start + k], want)
         start += k
+
+
+def test_despike_median3_in_place_sees_raw_neighbours():
+    """Written over its input, the 3-point median still uses the raw neighbours: two
+    spikes side by side are a feature (the median of each triple keeps them), exactly
+    as out of place."""
+    rng = np.random.default_rng(5)
+    x = rng.normal(0.0, 1.0, 2000)
+    x[[100, 700, 701, 1500]] = [40.0, 35.0, 35.0, -50.0]
+    seg = np.repeat([0, 1], 1000)
+    want, sigma = despike_median3(x, seg)
+    in_place = x.copy()
+    got, got_sigma = despike_median3(in_place, seg, out=in_place)
+    assert got is in_place
+    assert got_sigma == sigma
+    np.testing.assert_array_equal(got, want)
+    assert abs(got[100]) < 5
+    assert abs(got[1500]) < 5
+    assert got[700] == got[701] == 35.0

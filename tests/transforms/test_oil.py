@@ -78,3 +78,18 @@ def test_bulk_modulus_rejects_bad_fraction():
     with pytest.raises(ValueError):
         effective_bulk_modulus(1e6, 1.5e9, 1.0)
     assert math.isfinite(float(effective_bulk_modulus(1e6, 1.5e9, 0.19)))
+
+
+def test_effective_bulk_modulus_scalar_kernel_is_the_array_formula():
+    """The numba scalar form used inside kernels gives the array function's values,
+    written out here from Merritt's formula."""
+    from transforms.oil import ATMOSPHERIC_PRESSURE_PA, effective_bulk_modulus_at
+
+    p = np.linspace(1e5, 1e7, 101)
+    for x0, n in [(0.0, 1.0), (0.01, 1.0), (0.02, 1.4)]:
+        r = (ATMOSPHERIC_PRESSURE_PA / p) ** (1.0 / n)
+        formula = ((1.0 - x0) + x0 * r) / ((1.0 - x0) / 1.5e9 + x0 * r / (n * p))
+        array = effective_bulk_modulus(p, 1.5e9, x0, polytropic_index=n)
+        scalar = [effective_bulk_modulus_at(v, 1.5e9, x0, ATMOSPHERIC_PRESSURE_PA, n) for v in p]
+        np.testing.assert_allclose(array, formula, rtol=1e-15)
+        np.testing.assert_array_equal(scalar, array)

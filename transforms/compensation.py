@@ -492,7 +492,7 @@ def _rope_kernel(
         f = 0.0
         if mode != 0:
             v = 0.0
-            if i > 0:
+            if i > 0 and x[i] != x[i - 1]:  # (a NaN differs too); else 0 / dt is 0
                 step = (x[i] - x[i - 1]) / dt_i
                 if same_segment and np.isfinite(step):
                     v = step

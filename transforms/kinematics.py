@@ -137,13 +137,15 @@ _DIRECT_FACTOR = 4
 
 
 @njit(cache=True, nogil=True)
-def _correlate_valid(y, weights, out):  # pragma: no cover - numba
-    """out[i] = sum_k weights[k] y[i - h + k] for every i whose window fits in y.
+def _correlate_antisymmetric(y, weights, out):  # pragma: no cover - numba
+    """out[i] = sum_k weights[k] (y[i + k + 1] - y[i - k - 1]) for every i whose window fits.
 
-    Each sum is taken in k order, as a plain loop would; the outputs are computed a
-    block at a time, tap by tap, so that the compiler vectorises across them.
+    An odd-symmetric (derivative) filter applied to differences: half the products of a
+    plain correlation, and a flat stretch of ``y`` gives exactly 0. Each sum is taken in
+    k order; the outputs are computed a block at a time, tap by tap, so that the
+    compiler vectorises across them.
     """
-    h = weights.shape[0] // 2
+    h = weights.shape[0]
     stop = y.shape[0] - h
     block = 512
     acc = np.empty(block)
@@ -151,11 +153,12 @@ def _correlate_valid(y, weights, out):  # pragma: no cover - numba
         m = min(block, stop - start)
         for j in range(m):
             acc[j] = 0.0
-        for k in range(weights.shape[0]):
+        for k in range(h):
             w = weights[k]
-            window = y[start - h + k : start - h + k + m]
+            ahead = y[start + k + 1 : start + k + 1 + m]
+            behind = y[start - k - 1 : start - k - 1 + m]
             for j in range(m):
-                acc[j] += w * window[j]
+                acc[j] += w * (ahead[j] - behind[j])
         for j in range(m):
             out[start + j] = acc[j]
 
@@ -165,17 +168,23 @@ def _savgol_derivative(
 ) -> np.ndarray:
     """``savgol_filter(y, n_win, polyorder, deriv=1, delta=dt_s, mode="interp")``, faster.
 
-    The interior is the same filter (``savgol_coeffs``) applied by a compiled loop (sums in
-    another order: equal to ~1e-15 relative); the ``n_win // 2`` samples at each end are
-    scipy's own polynomial fits, taken from ``savgol_filter`` on the first and last
-    2 ``n_win`` samples, which only see the first and last window.
+    The interior is the same filter (``savgol_coeffs``), whose first-derivative
+    coefficients are odd-symmetric, applied to the differences y[i + k] - y[i - k] by a
+    compiled loop (equal to scipy to ~1e-14 relative; scipy's least-squares coefficients
+    are odd only to ~1e-14, and a flat signal here gives exactly 0, not ~1e-14 y); the
+    ``n_win // 2`` samples at each end are scipy's own polynomial fits, taken from
+    ``savgol_filter`` on the first and last 2 ``n_win`` samples, which only see the first
+    and last window.
     """
     y = np.ascontiguousarray(y, dtype=np.float64)
     h = n_win // 2
-    coeffs = signal.savgol_coeffs(n_win, polyorder, deriv=1, delta=dt_s)
+    # correlation weights for y[i + k] and y[i - k], k = 1..h (savgol_coeffs is in
+    # convolution order), made exactly odd
+    coeffs = signal.savgol_coeffs(n_win, polyorder, deriv=1, delta=dt_s)[::-1]
+    odd = 0.5 * (coeffs[h + 1 :] - coeffs[:h][::-1])
     if out is None:
         out = np.empty_like(y)
-    _correlate_valid(y, np.ascontiguousarray(coeffs[::-1]), out)
+    _correlate_antisymmetric(y, np.ascontiguousarray(odd), out)
     span = 2 * n_win
     head = signal.savgol_filter(y[:span], n_win, polyorder, deriv=1, delta=dt_s, mode="interp")
     tail = signal.savgol_filter(y[-span:], n_win, polyorder, deriv=1, delta=dt_s, mode="interp")

@@ -241,6 +241,27 @@ def displacement_noise_sigma(x: np.ndarray) -> float:
 Buffer = Callable[[str, int], np.ndarray]
 
 
+def _float_column(series: pl.Series, *, fill: float = np.nan, scale: float = 1.0) -> np.ndarray:
+    """A column as a new float64 array (null -> ``fill``), times ``scale`` if not 1.
+
+    Copied chunk by chunk: a day read from Parquet comes as one chunk per row group, and
+    ``to_numpy`` would first concatenate them into a polars array of its own.
+    """
+    out = np.empty(series.len())
+    start = 0
+    for chunk in series.get_chunks():
+        part = chunk.to_numpy()  # a view of the chunk's buffer when it has no nulls
+        stop = start + part.shape[0]
+        if scale != 1.0:
+            np.multiply(part, scale, out=out[start:stop])
+        else:
+            out[start:stop] = part
+        if chunk.null_count():
+            out[start:stop][chunk.is_null().to_numpy()] = fill
+        start = stop
+    return out
+
+
 def _fresh(name: str, size: int) -> np.ndarray:
     """A new float64 array (the default of the ``buffer`` arguments below)."""
     return np.empty(size)
@@ -571,8 +592,9 @@ def compensate(
     n = frame.height
     workers = min(len(ROPES), os.cpu_count() or 1)
 
-    # the same arithmetic as .astype(float) * 1e-6, without the intermediate array
-    time_s = np.multiply(frame["time_utc"].dt.epoch("us").to_numpy(), 1e-6, out=np.empty(n))
+    # epoch microseconds x 1e-6 (the arithmetic of .astype(float) * 1e-6), chunk by chunk
+    epoch_us = frame["time_utc"].dt.cast_time_unit("us").to_physical()
+    time_s = _float_column(epoch_us, scale=1e-6)
     rate_hz = settings.sample_rate_hz or logger_rate_hz(time_s)
     settings = replace(
         settings,
@@ -597,14 +619,12 @@ def compensate(
 
     def pressure(column: str) -> np.ndarray:
         """Calibrated, despiked and low-passed, all in one new array."""
-        raw = frame[column].cast(pl.Float64).to_numpy()
+        values = _float_column(frame[column])
         if column in gains:
             offset, gain = gains[column]
-            values = np.subtract(raw, offset, out=np.empty(n))
+            np.subtract(values, offset, out=values)
             np.divide(values, gain, out=values)
-            despike_median3(values, segment, n_sigmas=settings.spike_sigmas, out=values)
-        else:
-            values = despike_median3(raw, segment, n_sigmas=settings.spike_sigmas)[0]
+        despike_median3(values, segment, n_sigmas=settings.spike_sigmas, out=values)
         return lowpass(
             values,
             segment,
@@ -615,16 +635,17 @@ def compensate(
         )
 
     def displacement(column: str) -> np.ndarray:
-        values = frame[column].cast(pl.Float64).to_numpy()
-        return despike_median3(values, segment, n_sigmas=settings.spike_sigmas)[0]
+        values = _float_column(frame[column])
+        return despike_median3(values, segment, n_sigmas=settings.spike_sigmas, out=values)[0]
 
     def kinematics() -> tuple[np.ndarray, dict[str, pl.Series]]:
         """Conveyance acceleration, then the trip labels that depend on it."""
-        speed = frame["speed_m_s"].fill_null(0.0).cast(pl.Float64).to_numpy()
+        speed = _float_column(frame["speed_m_s"], fill=0.0)
         accel = smoothed_derivative(
             speed, segment, dt_s=dt_nominal, window_s=settings.acceleration_window_s
         )
-        return accel, _trip_labels(frame, accel, segment, hoist)
+        depth = _float_column(frame["depth_m"])
+        return accel, _trip_labels(speed, depth, accel, segment, hoist)
 
     def logged_motion(xs: list[np.ndarray]):
         """Whether x is logged, its mean over the ropes, the long-gap segments."""
@@ -637,12 +658,10 @@ def compensate(
 
     t_oil = None
     if "viscosity_temperature" in effects and frame["oil_temp_c"].null_count() < n:
-        t_oil = (
-            frame["oil_temp_c"]
-            .fill_null(strategy="forward")
-            .fill_null(strategy="backward")
-            .to_numpy()
-        )
+        temperature = frame["oil_temp_c"]
+        if temperature.null_count():
+            temperature = temperature.fill_null(strategy="forward").fill_null(strategy="backward")
+        t_oil = _float_column(temperature)
 
     with_branch_loss = bool({"pipe_laminar_loss", "local_loss"} & effects)
     with_friction = "seal_friction" in effects
@@ -839,13 +858,15 @@ def _mean_horizontal_kernel(arrays, out):  # pragma: no cover - numba
 
 
 def _trip_labels(
-    frame: pl.DataFrame, accel: np.ndarray, segment: np.ndarray, hoist: HoistDescription
+    speed: np.ndarray,
+    depth: np.ndarray,
+    accel: np.ndarray,
+    segment: np.ndarray,
+    hoist: HoistDescription,
 ) -> dict[str, pl.Series]:
     """``phase``, ``direction``, ``trip_id`` (:func:`transforms.kinematics.with_trip_phases`
     on the null-filled speed) and ``position`` (:func:`~transforms.kinematics.with_position`),
-    computed on arrays and built as categoricals, then cast to String once."""
-    speed = frame["speed_m_s"].fill_null(0.0).cast(pl.Float64).to_numpy()
-    depth = frame["depth_m"].cast(pl.Float64).to_numpy()
+    computed on arrays, each string column gathered from its few names."""
     codes, direction, trip_id, position = _label_arrays(speed, accel, segment, depth, hoist)
     position_names = [name for name, _ in _ordered_positions(hoist)]
 

@@ -217,3 +217,20 @@ def test_logger_rate_from_the_record_ignores_gaps_and_jitter():
     t[120_000:] += 3600.0  # and an hour off
     assert logger_rate_hz(np.sort(t)) == pytest.approx(20.0, rel=1e-3)
     assert logger_rate_hz(np.array([5.0])) == 100.0  # nothing to measure: the default
+
+
+def test_a_frame_in_chunks_gives_the_same_tensions():
+    """A day read from Parquet arrives as one chunk per row group (and with nulls from
+    dropped channels); the columns are read chunk by chunk, the result is the same."""
+    v = 5e-3
+    x = _equalising_flow(v, seconds=30.0)
+    frame = _frame(np.full(x.shape[1], 5e6), x, speed=np.linspace(0.0, 2.0, x.shape[1]))
+    frame = frame.with_columns(
+        pl.when(pl.int_range(pl.len()) % 97 == 3).then(None).otherwise(pl.col(c)).alias(c)
+        for c in ("p2_pa", "speed_m_s", "oil_temp_c")
+    )
+    chunked = pl.concat([frame.slice(k, 700) for k in range(0, frame.height, 700)], rechunk=False)
+    assert chunked["p1_pa"].n_chunks() > 1
+    whole = compensate(frame.rechunk(), HOIST)
+    assert compensate(chunked, HOIST).equals(whole, null_equal=True)
+    assert whole["p2_pa"].null_count() == frame["p2_pa"].null_count()

@@ -6,7 +6,9 @@ Prints the wall time of
   floor:        read_parquet + write of the landed day (same file)
   compensation: read_parquet + ``transforms.compensation.compensate`` + write
 and the throughput in samples/s (one sample = one timestamp with four ropes) and
-rope-samples/s (one pressure sample), plus the ratio to the floor. Both writes go
+rope-samples/s (one pressure sample), the ratio to the floor, and the compute's CPU
+time (user, and system: page faults on fresh memory, which vary with the kernel's memory
+state more than anything in the code, hence the medians). Both writes go
 through the pipeline's own writer (:func:`warehouse.parquet_files.write_parquet_atomic`:
 pyarrow, zstd level 1), the day with the encodings ingest lands it with, the result as
 the warehouse lands rope tensions. Targets (issue 5): compensation >= 10 M
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
+import resource
 import tempfile
 import time
 from pathlib import Path
@@ -82,7 +85,9 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=5, help="runs of each; medians are reported")
     args = parser.parse_args()
     hoist = load_hoist(EXAMPLE_HOIST)
-    runs: dict[str, list[float]] = {k: [] for k in ("floor", "read", "compute", "write")}
+    runs: dict[str, list[float]] = {
+        k: [] for k in ("floor", "read", "compute", "write", "user", "sys")
+    }
     with tempfile.TemporaryDirectory() as tmp:
         source = Path(tmp) / "day.parquet"
         write_parquet_atomic(synthetic_day(args.hours), source, FIELD_SAMPLES)
@@ -99,13 +104,17 @@ def main() -> None:
             t0 = time.perf_counter()
             frame = pl.read_parquet(source)
             t1 = time.perf_counter()
+            before = resource.getrusage(resource.RUSAGE_SELF)
             result = compensate(frame, hoist)
+            after = resource.getrusage(resource.RUSAGE_SELF)
             t2 = time.perf_counter()
             write_parquet_atomic(result, Path(tmp) / "tensions.parquet", ROPE_TENSIONS)
             t3 = time.perf_counter()
             runs["read"].append(t1 - t0)
             runs["compute"].append(t2 - t1)
             runs["write"].append(t3 - t2)
+            runs["user"].append(after.ru_utime - before.ru_utime)
+            runs["sys"].append(after.ru_stime - before.ru_stime)
             n = frame.height
             del frame, result
 
@@ -128,6 +137,10 @@ def main() -> None:
         f"  of which compute:                    {compute:7.2f} s  "
         f"{n / compute / 1e6:6.2f} M samples/s  ({4 * n / compute / 1e6:.2f} M rope-samples/s)"
         f"   (runs: {', '.join(f'{v:.2f}' for v in runs['compute'])})"
+    )
+    print(
+        f"  CPU of compute (all threads): user {med['user']:.2f} s, "
+        f"system {med['sys']:.2f} s (page faults on fresh memory)"
     )
     print(f"  read {med['read']:.2f} s, write {med['write']:.2f} s")
     print(

@@ -712,7 +712,10 @@ def compensate(
         p_sensor = np.ascontiguousarray(p_jobs[k].result())
         nu = nu_job.result()
         nu_arr = np.ascontiguousarray(np.atleast_1d(np.asarray(nu, dtype=np.float64)))
-        out = {name: np.empty(n) for name in ("p_chamber", "friction", "tension_raw", "tension")}
+        out = {name: np.empty(n) for name in ("p_chamber", "tension_raw", "tension")}
+        # this rope's despiked displacement is consumed (the differential is done): its
+        # array takes the friction, one fresh day-long array fewer
+        out["friction"] = x_jobs[k].result() if has_x else np.empty(n)
         v_flow = no_array
         if with_branch_loss:
             v_flow = smoothed_derivative(
@@ -791,7 +794,10 @@ def compensate(
         accel, labels = kinematics_job.result()
         per_rope = [job.result() for job in rope_jobs]
     columns = {name: values for part in per_rope for name, values in part.items()}
-    load_raw, load = np.empty(n), np.empty(n)
+    # the mean pressure and displacement are consumed: their arrays take the load sums
+    load_raw = p_mean
+    x_mean = motion_job.result()[1]
+    load = x_mean if x_mean is not None else np.empty(n)
     _load_kernel(
         tuple(columns[c] for c in _rope_cols("tension_raw{i}_n")),
         tuple(columns[c] for c in _rope_cols("tension{i}_n")),

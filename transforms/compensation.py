@@ -59,12 +59,9 @@ from transforms.filtering import (
 from transforms.friction import (
     STRIBECK_SPEED_FLOOR_M_S,
     _linear_law,
-    friction_parameters,
     lugre_force,
-    lugre_friction,
     lugre_z_step,
     maxwell_slip_elements,
-    maxwell_slip_friction,
     stribeck_g,
 )
 from transforms.kinematics import PHASES, smoothed_derivative
@@ -348,21 +345,6 @@ def _long_segments(time_s: np.ndarray, bridge_s: float) -> tuple[np.ndarray, np.
     return segment, np.r_[0, starts, time_s.size]
 
 
-def _increment_velocity(x: np.ndarray, dt: np.ndarray, segment_id: np.ndarray) -> np.ndarray:
-    """(x[i] - x[i-1]) / dt[i], 0 at segment starts: the friction state sees exact steps."""
-    v = np.empty_like(x)
-    _increment_kernel(np.ascontiguousarray(x), dt, np.ascontiguousarray(segment_id), v)
-    return v
-
-
-@njit(cache=True, nogil=True)
-def _increment_kernel(x, dt, segment_id, v):  # pragma: no cover - numba
-    v[0] = 0.0
-    for i in range(1, x.shape[0]):
-        step = (x[i] - x[i - 1]) / dt[i]
-        v[i] = step if segment_id[i] == segment_id[i - 1] and np.isfinite(step) else 0.0
-
-
 def _viscosity(t_oil_c: np.ndarray | None, hoist: HoistDescription) -> np.ndarray | float:
     """Kinematic viscosity [m2/s] per sample (ASTM D341), or at the reference temperature.
 
@@ -374,60 +356,6 @@ def _viscosity(t_oil_c: np.ndarray | None, hoist: HoistDescription) -> np.ndarra
     low, high = float(np.min(t_oil_c)), float(np.max(t_oil_c))
     grid = np.linspace(low, high, max(int((high - low) / 0.01) + 2, 2))
     return np.interp(t_oil_c, grid, kinematic_viscosity(grid, hoist.oil))
-
-
-def _step_lengths(time_s: np.ndarray, segment_id: np.ndarray, nominal_dt_s: float) -> np.ndarray:
-    """dt[i] = t[i] - t[i-1]; a segment's first sample gets the nominal step."""
-    dt = np.empty_like(time_s)
-    dt[0] = nominal_dt_s
-    dt[1:] = np.diff(time_s)
-    starts = np.r_[True, segment_id[1:] != segment_id[:-1]]
-    dt[starts] = nominal_dt_s
-    return dt
-
-
-def _seal_friction(
-    v: np.ndarray,
-    dt: np.ndarray,
-    p_chamber_pa: np.ndarray,
-    hoist: HoistDescription,
-    *,
-    presliding: bool,
-) -> np.ndarray:
-    law = hoist.friction_law
-    fc, fs, vs, kv = friction_parameters(p_chamber_pa, law)
-    v = np.where(np.isfinite(v), v, 0.0)  # no velocity information: hold the state
-    if presliding:
-        stiffness, weights = maxwell_slip_elements(
-            law.presliding_elements, law.bristle_stiffness_n_m
-        )
-        force, _ = maxwell_slip_friction(v, dt, fc, fs, vs, kv, stiffness, weights)
-    else:
-        force, _ = lugre_friction(
-            v, dt, fc, fs, vs, kv, law.bristle_stiffness_n_m, law.bristle_damping_n_s_m
-        )
-    return force
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _laminar_loss_kernel(
-    v_flow, nu, area_ratio, d, length, rho, k_local, re_laminar, loss
-):  # pragma: no cover - numba
-    """Sensor minus chamber pressure, laminar branch only (the arithmetic of
-    :func:`transforms.pressure_loss.sensor_minus_chamber_pa`); 0 where the oil is still.
-
-    ``nu`` has one value per sample or a single value. Returns False as soon as a
-    Reynolds number exceeds ``re_laminar`` (the caller then takes the general path).
-    """
-    per_sample = nu.shape[0] > 1
-    for i in range(v_flow.shape[0]):
-        value = _laminar_loss_at(
-            v_flow[i], nu[i] if per_sample else nu[0], area_ratio, d, length, rho, k_local
-        )
-        if value[1] > re_laminar:
-            return False
-        loss[i] = value[0]
-    return True
 
 
 @njit(inline="always", error_model="numpy")
@@ -470,15 +398,16 @@ def _rope_kernel(
 ):  # pragma: no cover - numba
     """Increments, friction law, seal friction and tensions of one rope in one pass.
 
-    The same arithmetic, in the same order, as ``_increment_velocity``,
-    :func:`transforms.friction.friction_parameters` and
+    Velocity v = (x[i] - x[i-1]) / dt[i] (0 at a segment's start or where unknown), then
+    the arithmetic of :func:`transforms.friction.friction_parameters` and
     :func:`transforms.friction.maxwell_slip_friction` (``mode`` 1) or
     :func:`transforms.friction.lugre_friction` (``mode`` 2); ``mode`` 0: no friction.
-    Step lengths and segment starts come from ``time_s`` (a step above ``gap_s``
-    starts a segment and counts ``nominal_dt_s``, as :func:`_step_lengths`). The
-    branch loss (sensor minus chamber) is ``loss`` (``loss_mode`` 0), the laminar loss
-    of ``v_flow`` (1: :func:`_laminar_loss_kernel` inline, ``branch`` = area ratio,
-    bore, length, density, local loss coefficient, laminar Reynolds limit) or none (2).
+    Step lengths and segment starts come from ``time_s``: a step above ``gap_s``
+    starts a segment and counts ``nominal_dt_s``. The branch loss (sensor minus
+    chamber) is ``loss`` (``loss_mode`` 0), the laminar loss of ``v_flow`` (1:
+    :func:`_laminar_loss_at`, ``branch`` = area ratio, bore, length, density, local
+    loss coefficient, laminar Reynolds limit) or none (2). The tests check it against
+    those functions.
     Returns False, with the outputs incomplete, when a Reynolds number exceeds the
     laminar limit in mode 1 (the caller then computes ``loss`` in general).
     """
@@ -490,7 +419,7 @@ def _rope_kernel(
         branch[0], branch[1], branch[2], branch[3], branch[4], branch[5]
     )  # fmt: skip
     for i in range(x.shape[0]):
-        # step length and segment start (:func:`_step_lengths`, the caller's segments)
+        # step length and segment start (the caller's segments)
         same_segment = False
         dt_i = nominal_dt_s
         if i > 0:

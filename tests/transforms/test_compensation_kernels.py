@@ -1,4 +1,7 @@
-"""The fused per-rope kernels of transforms.compensation against the composed functions."""
+"""The fused per-rope kernel of transforms.compensation against the public functions it
+fuses: step lengths and increments written out here, the branch loss
+(``sensor_minus_chamber_pa``), the friction laws (``friction_parameters``) and the
+friction models (``maxwell_slip_friction``, ``lugre_friction``)."""
 
 from __future__ import annotations
 
@@ -7,14 +10,14 @@ import pytest
 from scipy import signal
 
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
-from transforms.compensation import (
-    _increment_velocity,
-    _laminar_loss_kernel,
-    _rope_kernel,
-    _seal_friction,
-    _step_lengths,
+from transforms.compensation import _rope_kernel
+from transforms.friction import (
+    STRIBECK_SPEED_FLOOR_M_S,
+    friction_parameters,
+    lugre_friction,
+    maxwell_slip_elements,
+    maxwell_slip_friction,
 )
-from transforms.friction import STRIBECK_SPEED_FLOOR_M_S, maxwell_slip_elements
 from transforms.kinematics import _savgol_derivative
 from transforms.pressure_loss import RE_LAMINAR, _branch_constants, sensor_minus_chamber_pa
 
@@ -29,6 +32,17 @@ def _random_record(rng: np.random.Generator, n: int = 20_000):
     return time_s, segment, x, p
 
 
+def _steps_and_increments(time_s, segment, x, nominal_dt_s):
+    """dt[i] = t[i] - t[i-1] (the nominal step at a segment's start) and the velocity
+    (x[i] - x[i-1]) / dt[i] (0 at a segment's start or where x is unknown)."""
+    start = np.r_[True, segment[1:] != segment[:-1]]
+    dt = np.where(start, nominal_dt_s, np.diff(time_s, prepend=time_s[0]))
+    with np.errstate(invalid="ignore"):
+        v = np.diff(x, prepend=x[0]) / dt
+    v[start | ~np.isfinite(v)] = 0.0
+    return dt, v
+
+
 @pytest.mark.parametrize("presliding", [True, False])
 def test_rope_kernel_matches_composed_functions(presliding: bool) -> None:
     hoist = load_hoist(EXAMPLE_HOIST)
@@ -36,23 +50,17 @@ def test_rope_kernel_matches_composed_functions(presliding: bool) -> None:
     rng = np.random.default_rng(3)
     time_s, segment, x, p_sensor = _random_record(rng)
     n = x.size
-    dt = _step_lengths(time_s, segment, 0.01)
+    dt, v = _steps_and_increments(time_s, segment, x, 0.01)
 
     v_flow = rng.normal(0.0, 1e-3, n)
     v_flow[rng.random(n) < 0.3] = 0.0
     v_flow[rng.random(n) < 0.001] = np.nan
     nu = np.full(n, 46e-6) + rng.normal(0.0, 1e-7, n)
     area_ratio, d, length, _, k_local = _branch_constants(hoist)
-    loss = np.empty(n)
-    laminar = _laminar_loss_kernel(
-        v_flow, nu, area_ratio, d, length, hoist.oil.density_kg_m3, k_local, RE_LAMINAR, loss
-    )
-    assert laminar
     v_known = np.where(np.isfinite(v_flow), v_flow, 0.0)
     flowing = v_known != 0.0
     expected_loss = np.zeros(n)
     expected_loss[flowing] = sensor_minus_chamber_pa(v_known[flowing], hoist, nu_m2_s=nu[flowing])
-    np.testing.assert_allclose(loss, expected_loss, rtol=1e-12, atol=0.0)
 
     coefficients = np.array(
         [law.coulomb_n, law.static_n, law.stribeck_speed_m_s, law.viscous_n_s_m], dtype=float
@@ -66,19 +74,23 @@ def test_rope_kernel_matches_composed_functions(presliding: bool) -> None:
     for loss_mode in (0, 1):  # the loss given, or the laminar loss computed inline
         out = [np.empty(n) for _ in range(4)]
         assert _rope_kernel(
-            x, time_s, 0.03, 0.01, p_sensor, loss_mode, loss, v_flow, nu, branch,
+            x, time_s, 0.03, 0.01, p_sensor, loss_mode, expected_loss, v_flow, nu, branch,
             coefficients, floors, 1 if presliding else 2, stiffness, weights,
             law.bristle_stiffness_n_m, law.bristle_damping_n_s_m,
             hoist.cylinders.bore_area_m2, *out,
         )  # fmt: skip
         results.append(out)
-    for a, b in zip(*results, strict=True):
-        np.testing.assert_array_equal(a, b)
+    for given, inline in zip(*results, strict=True):
+        np.testing.assert_allclose(inline, given, rtol=1e-12)
     p_chamber, friction, tension_raw, tension = results[0]
     np.testing.assert_array_equal(p_chamber, p_sensor - expected_loss)
-    v = _increment_velocity(x, dt, segment)
     p_law = np.where(np.isfinite(p_chamber), p_chamber, 0.0)
-    expected = _seal_friction(v, dt, p_law, hoist, presliding=presliding)
+    fc, fs, vs, kv = friction_parameters(p_law, law)
+    if presliding:
+        expected, _ = maxwell_slip_friction(v, dt, fc, fs, vs, kv, stiffness, weights)
+    else:
+        sigma0, sigma1 = law.bristle_stiffness_n_m, law.bristle_damping_n_s_m
+        expected, _ = lugre_friction(v, dt, fc, fs, vs, kv, sigma0, sigma1)
     scale = np.max(np.abs(expected))
     np.testing.assert_allclose(friction, expected, rtol=1e-12, atol=1e-12 * scale)
     area = hoist.cylinders.bore_area_m2
@@ -86,13 +98,11 @@ def test_rope_kernel_matches_composed_functions(presliding: bool) -> None:
     np.testing.assert_allclose(tension, p_chamber * area + expected, rtol=1e-12)
 
 
-def test_laminar_kernels_report_turbulence() -> None:
+def test_rope_kernel_reports_turbulence() -> None:
     hoist = load_hoist(EXAMPLE_HOIST)
     area_ratio, d, length, _, k_local = _branch_constants(hoist)
-    loss = np.empty(3)
     v = np.array([0.0, 1e-3, 100.0])
     nu = np.array([46e-6])
-    assert not _laminar_loss_kernel(v, nu, area_ratio, d, length, 870.0, k_local, RE_LAMINAR, loss)
     branch = np.array([area_ratio, d, length, 870.0, k_local, RE_LAMINAR])
     out = [np.empty(3) for _ in range(4)]
     ones = np.ones(1)

@@ -39,12 +39,12 @@ import numpy as np
 import polars as pl
 
 from pipelines.lake import scan_lake
-from pipelines.provenance import code_version, new_run_id, utc_now
+from pipelines.provenance import hoist_run, new_run_id, utc_now
 from schemas.effects import NO_EFFECT
-from schemas.hoist import HoistDescription, hoist_sha256, load_hoist
+from schemas.hoist import HoistDescription, load_hoist
 from sims.discovery import DiscoveryResult, Finding, discover_effects
 from sims.replay import plan_replay
-from warehouse.landing import RunRecord, land_discovery_findings, land_run
+from warehouse.landing import land_discovery_findings, land_run
 from warehouse.store import DataRoot, open_writer
 
 __all__ = ["DiscoveryReport", "discover_period", "report_objects", "write_plot"]
@@ -203,22 +203,16 @@ def discover_period(
     run_id = new_run_id("discover")
     landed = 0
     if land:
-        run = RunRecord(
+        run = hoist_run(
             run_id=run_id,
             command="discover",
-            code_version=code_version(),
             started_at_utc=started,
-            hoist_sha256=hoist_sha256(hoist_path),
-            parameter_set=hoist.friction.parameter_set,
-            site=site,
-            hoist=name,
-            period_start_utc=p_start,
-            period_end_utc=p_end,
-            inputs=tuple(sorted(samples["source_sha256"].unique().to_list()))
+            hoist=hoist,
+            hoist_path=hoist_path,
+            period=(p_start, p_end),
+            inputs=sorted(samples["source_sha256"].unique().to_list())
             if "source_sha256" in samples.columns
             else (),
-            finished_at_utc=utc_now(),
-            status="succeeded",
             message=f"effects found: {', '.join(result.effects_found) or NO_EFFECT}",
         )
         rows = pl.DataFrame(

@@ -5,11 +5,15 @@ from __future__ import annotations
 import datetime as dt
 import subprocess
 import uuid
+from collections.abc import Sequence
 from functools import cache
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
-__all__ = ["code_version", "new_run_id", "utc_now"]
+from schemas.hoist import HoistDescription, hoist_sha256
+from warehouse.landing import RunRecord
+
+__all__ = ["code_version", "hoist_run", "new_run_id", "utc_now"]
 
 _REPO = Path(__file__).resolve().parents[1]
 
@@ -51,3 +55,34 @@ def new_run_id(command: str) -> str:
 
 def utc_now() -> dt.datetime:
     return dt.datetime.now(dt.UTC)
+
+
+def hoist_run(
+    *,
+    run_id: str,
+    command: str,
+    started_at_utc: dt.datetime,
+    hoist: HoistDescription,
+    hoist_path: str | Path,
+    period: tuple[dt.datetime, dt.datetime],
+    inputs: Sequence[str],
+    message: str,
+) -> RunRecord:
+    """The ``runs`` row of a succeeded run over one hoist's period, finished now: the code
+    version, the hoist file's hash and friction parameter set, the sources it read."""
+    return RunRecord(
+        run_id=run_id,
+        command=command,
+        code_version=code_version(),
+        started_at_utc=started_at_utc,
+        hoist_sha256=hoist_sha256(hoist_path),
+        parameter_set=hoist.friction.parameter_set,
+        site=hoist.hoist.site,
+        hoist=hoist.hoist.name,
+        period_start_utc=period[0],
+        period_end_utc=period[1],
+        inputs=tuple(inputs),
+        finished_at_utc=utc_now(),
+        status="succeeded",
+        message=message,
+    )

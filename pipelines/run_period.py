@@ -17,12 +17,12 @@ from pathlib import Path
 import polars as pl
 
 from pipelines.lake import scan_lake
-from pipelines.provenance import code_version, new_run_id, utc_now
-from schemas.hoist import HoistDescription, hoist_sha256, load_hoist
+from pipelines.provenance import hoist_run, new_run_id, utc_now
+from schemas.hoist import HoistDescription, load_hoist
 from transforms.alarms import evaluate_alarms
 from transforms.compensation import CompensationSettings, compensate
 from transforms.reconciliation import reconcile
-from warehouse.landing import RunRecord, land_results, land_rope_tensions
+from warehouse.landing import land_results, land_rope_tensions
 from warehouse.store import DataRoot, open_writer
 
 __all__ = ["LEAD_IN", "NoSamplesError", "RunResult", "run_period"]
@@ -125,20 +125,14 @@ def run_period(
         tensions, hoist, run_id=run_id, trip_payloads=reconciled.trip_summary, payload_kg=payload_kg
     )
     inputs = tuple(sorted(samples["source_sha256"].unique().to_list()))
-    run = RunRecord(
+    run = hoist_run(
         run_id=run_id,
         command=command,
-        code_version=code_version(),
         started_at_utc=started,
-        hoist_sha256=hoist_sha256(hoist_path),
-        parameter_set=hoist.friction.parameter_set,
-        site=site,
-        hoist=name,
-        period_start_utc=period_start,
-        period_end_utc=period_end,
+        hoist=hoist,
+        hoist_path=hoist_path,
+        period=(period_start, period_end),
         inputs=inputs,
-        finished_at_utc=utc_now(),
-        status="succeeded",
         message=f"{in_period.height} samples, {alarms.height} alarms",
     )
     with open_writer(data) as con:

@@ -234,3 +234,32 @@ def test_a_frame_in_chunks_gives_the_same_tensions():
     whole = compensate(frame.rechunk(), HOIST)
     assert compensate(chunked, HOIST).equals(whole, null_equal=True)
     assert whole["p2_pa"].null_count() == frame["p2_pa"].null_count()
+
+
+def test_a_failing_stage_raises_instead_of_hanging(monkeypatch):
+    """The rope jobs wait for the common mode, which the calling thread computes: when
+    that fails, they must fail too, and compensate must raise, not wait for ever."""
+    import threading
+
+    import transforms.compensation as module
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("common mode failed")
+
+    monkeypatch.setattr(module, "common_mode_displacement", broken)
+    x = _equalising_flow(5e-3, seconds=5.0)
+    frame = _frame(np.full(x.shape[1], 5e6), x)
+    outcome: list[BaseException] = []
+
+    def call() -> None:
+        try:
+            compensate(frame, HOIST)
+        except BaseException as error:
+            outcome.append(error)
+
+    worker = threading.Thread(target=call, daemon=True)
+    worker.start()
+    worker.join(timeout=60)
+    assert not worker.is_alive()
+    assert len(outcome) == 1
+    assert str(outcome[0]) == "common mode failed"

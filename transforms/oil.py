@@ -18,7 +18,7 @@ this module. SI throughout: temperatures in degC where the name says ``_c``, vis
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, vectorize
+from numba import njit
 
 from schemas.hoist import Oil
 
@@ -199,13 +199,17 @@ def effective_bulk_modulus(
     """
     if not 0.0 <= air_fraction < 1.0:
         raise ValueError(f"air_fraction: must be in [0, 1), got {air_fraction}")
-    return _effective_bulk_modulus_ufunc(
-        np.asarray(p_pa, dtype=np.float64),
-        bulk_modulus_oil_pa,
-        air_fraction,
-        p_ref_pa,
-        polytropic_index,
+    p = np.asarray(p_pa, dtype=np.float64)
+    out = np.empty(p.shape)
+    _effective_bulk_modulus_kernel(
+        np.ascontiguousarray(p).reshape(-1),
+        float(bulk_modulus_oil_pa),
+        float(air_fraction),
+        float(p_ref_pa),
+        float(polytropic_index),
+        out.reshape(-1),
     )
+    return out if out.ndim else out[()]
 
 
 @njit(cache=True, nogil=True)
@@ -218,6 +222,7 @@ def effective_bulk_modulus_at(
     return ((1.0 - x0) + x0 * r) / ((1.0 - x0) / beta_l + x0 * r / (n * p))
 
 
-_effective_bulk_modulus_ufunc = vectorize(
-    ["float64(float64, float64, float64, float64, float64)"], cache=True
-)(effective_bulk_modulus_at.py_func)
+@njit(cache=True, nogil=True)
+def _effective_bulk_modulus_kernel(p, beta_l, x0, p_ref, n, out):  # pragma: no cover - numba
+    for i in range(p.shape[0]):
+        out[i] = effective_bulk_modulus_at(p[i], beta_l, x0, p_ref, n)

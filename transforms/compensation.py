@@ -54,6 +54,7 @@ from transforms.filtering import (
     box_smooth_into,
     despike_median3,
     lowpass,
+    lowpass_work_size,
     segment_ids,
 )
 from transforms.friction import (
@@ -545,6 +546,7 @@ def compensate(
         return arrays[name][:size]
 
     gains = {f"p{s.cylinder}_pa": (s.offset_pa, s.gain) for s in hoist.sensors}
+    cutoff = settings.pressure_cutoff_hz
 
     def pressure(column: str) -> np.ndarray:
         """Calibrated, despiked and low-passed, all in one new array."""
@@ -558,9 +560,10 @@ def compensate(
             values,
             segment,
             sample_rate_hz=settings.sample_rate_hz,
-            cutoff_hz=settings.pressure_cutoff_hz,
+            cutoff_hz=cutoff,
             out=values,
-            work=buffer("work_a", n),  # the rope jobs reuse it on this thread
+            # the rope jobs reuse it on this thread
+            work=buffer("work_a", lowpass_work_size(n, sample_rate_hz=rate_hz, cutoff_hz=cutoff)),
         )
 
     def displacement(column: str) -> np.ndarray:

@@ -37,6 +37,7 @@ __all__ = [
     "hampel",
     "lowpass",
     "lowpass_columns",
+    "lowpass_work_size",
     "play_operator",
     "remove_spikes",
     "segment_ids",
@@ -314,7 +315,8 @@ def lowpass(
         place: each segment is read whole before it is written).
     work : numpy.ndarray, optional
         A float64 scratch array for the forward pass (a reused buffer), used when it
-        holds the longest segment plus twice the pad; otherwise one is allocated.
+        holds the longest segment plus twice the pad (:func:`lowpass_work_size`);
+        otherwise one is allocated.
 
     Returns
     -------
@@ -329,9 +331,7 @@ def lowpass(
     x = np.asarray(x, dtype=np.float64)
     seg = np.zeros(x.size, dtype=np.int64) if segment_id is None else np.asarray(segment_id)
     sos = signal.butter(order, cutoff_hz, btype="low", fs=sample_rate_hz, output="sos")
-    # scipy's default pad (3 (2 sections + 1) samples) leaves a start-up transient of
-    # a few % at the edges; pad by three cut-off periods instead
-    default_pad = max(3 * (2 * sos.shape[0] + 1), int(3 * sample_rate_hz / cutoff_hz))
+    default_pad = _lowpass_pad(sample_rate_hz, cutoff_hz, order)
     zi = signal.sosfilt_zi(sos)
     if out is None:
         out = x.copy()
@@ -352,6 +352,19 @@ def lowpass(
         if bad.any():
             out[a:b][bad] = np.nan
     return out
+
+
+def _lowpass_pad(sample_rate_hz: float, cutoff_hz: float, order: int) -> int:
+    """Odd-extension pad of :func:`lowpass` [samples]: three cut-off periods (scipy's
+    default, 3 (2 sections + 1) samples, leaves a start-up transient of a few % at the
+    edges), at least scipy's."""
+    sections = (order + 1) // 2
+    return max(3 * (2 * sections + 1), int(3 * sample_rate_hz / cutoff_hz))
+
+
+def lowpass_work_size(n: int, *, sample_rate_hz: float, cutoff_hz: float, order: int = 4) -> int:
+    """Samples of the scratch array :func:`lowpass` needs for a segment of ``n`` samples."""
+    return n + 2 * _lowpass_pad(sample_rate_hz, cutoff_hz, order)
 
 
 @njit(inline="always")

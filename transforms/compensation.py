@@ -65,7 +65,12 @@ from transforms.friction import (
     maxwell_slip_elements,
     stribeck_g,
 )
-from transforms.kinematics import PHASES, smoothed_derivative
+from transforms.kinematics import (
+    PHASES,
+    TRIP_BRIDGE_S,
+    TRIP_BRIDGE_SPEED_FRACTION,
+    smoothed_derivative,
+)
 from transforms.oil import (
     ATMOSPHERIC_PRESSURE_PA,
     effective_bulk_modulus_at,
@@ -577,7 +582,7 @@ def compensate(
             speed, segment, dt_s=dt_nominal, window_s=settings.acceleration_window_s
         )
         depth = _float_column(frame["depth_m"])
-        return accel, _trip_labels(speed, depth, accel, segment, hoist)
+        return accel, _trip_labels(time_s, speed, depth, accel, segment, hoist)
 
     def logged_motion(xs: list[np.ndarray]):
         """Whether x is logged, its mean over the ropes, the long-gap segments."""
@@ -796,6 +801,7 @@ def _mean_horizontal_kernel(arrays, out):  # pragma: no cover - numba
 
 
 def _trip_labels(
+    time_s: np.ndarray,
     speed: np.ndarray,
     depth: np.ndarray,
     accel: np.ndarray,
@@ -805,7 +811,7 @@ def _trip_labels(
     """``phase``, ``direction``, ``trip_id`` (:func:`transforms.kinematics.with_trip_phases`
     on the null-filled speed) and ``position`` (:func:`~transforms.kinematics.with_position`),
     computed on arrays, each string column gathered from its few names."""
-    codes, direction, trip_id, position = _label_arrays(speed, accel, segment, depth, hoist)
+    codes, direction, trip_id, position = _label_arrays(time_s, speed, accel, segment, depth, hoist)
     position_names = [name for name, _ in _ordered_positions(hoist)]
 
     def strings(name: str, values: np.ndarray, categories: list[str]) -> pl.Series:
@@ -828,6 +834,7 @@ def _ordered_positions(hoist: HoistDescription) -> list[tuple[str, float]]:
 
 
 def _label_arrays(
+    time_s: np.ndarray,
     speed: np.ndarray,
     accel: np.ndarray,
     segment: np.ndarray,
@@ -848,10 +855,13 @@ def _label_arrays(
     trip_id = np.empty(speed.size, dtype=np.int64)
     position = np.empty(speed.size, dtype=np.int8)
     _label_kernel(
+        np.ascontiguousarray(time_s, dtype=np.float64),
         np.ascontiguousarray(speed, dtype=np.float64),
         np.ascontiguousarray(accel, dtype=np.float64),
         np.ascontiguousarray(segment, dtype=np.int64),
         np.ascontiguousarray(depth, dtype=np.float64),
+        TRIP_BRIDGE_S,
+        TRIP_BRIDGE_SPEED_FRACTION,
         standstill_speed_m_s,
         creep_factor * winder.creep_speed_m_s,
         -acceleration_fraction * winder.deceleration_m_s2,
@@ -868,10 +878,13 @@ def _label_arrays(
 
 @njit(cache=True, nogil=True)
 def _label_kernel(
+    time_s,
     speed,
     accel,
     segment,
     depth,
+    bridge_s,
+    bridge_fraction,
     standstill,
     creep,
     decelerating,
@@ -906,8 +919,17 @@ def _label_kernel(
             direction[i] = 0
         elif moving and v < 0:
             direction[i] = 1
-        if moving and (i == 0 or not was_moving or segment[i] != segment[i - 1]):
+        if moving and (i == 0 or not was_moving):
             trips += 1
+        elif moving and segment[i] != segment[i - 1]:
+            # a logger gap inside a motion: the same trip if it kept moving the same way
+            v_before = speed[i - 1]
+            gap = time_s[i] - time_s[i - 1]
+            travelled = abs(depth[i] - depth[i - 1])  # NaN compares False
+            slower = min(abs_v, abs(v_before))
+            kept_moving = travelled >= bridge_fraction * slower * gap
+            if not (np.sign(v) == np.sign(v_before) and (gap <= bridge_s or kept_moving)):
+                trips += 1
         trip_id[i] = trips if moving else -1
         was_moving = moving
         position[i] = -1

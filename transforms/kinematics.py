@@ -32,6 +32,7 @@ from numba import njit
 from scipy import signal
 
 from schemas.hoist import HoistDescription
+from transforms.filtering import _seconds
 
 __all__ = [
     "PHASES",
@@ -264,6 +265,15 @@ def with_acceleration(
     )
 
 
+#: A logger gap of at most this long inside a motion in one direction continues the
+#: trip [s] (the replay merges motions 2 s apart the same way).
+TRIP_BRIDGE_S = 2.0
+#: ... as does a longer gap over which the depth advanced by at least this fraction of
+#: the slower speed either side of it times the gap: the conveyance kept moving, so no
+#: stop can have hidden in the gap.
+TRIP_BRIDGE_SPEED_FRACTION = 0.5
+
+
 def with_trip_phases(
     frame: Frame,
     hoist: HoistDescription,
@@ -271,6 +281,8 @@ def with_trip_phases(
     speed_col: str = "speed_m_s",
     acceleration_col: str = "acceleration_m_s2",
     segment_col: str = "segment_id",
+    time_col: str = "time_utc",
+    depth_col: str = "depth_m",
     standstill_speed_m_s: float = 0.02,
     acceleration_fraction: float = 0.3,
     creep_factor: float = 1.5,
@@ -288,9 +300,14 @@ def with_trip_phases(
     ==============  ===================================================================
 
     ``direction`` is ``"down"`` for speed > 0 and ``"up"`` for speed < 0 (null at
-    standstill). A trip is a maximal run of non-standstill samples within one
-    segment; ``trip_id`` numbers them from 0 in time order (null at standstill; a
-    direction reversal without a stop would stay one trip).
+    standstill). A trip is a maximal run of non-standstill samples; ``trip_id`` numbers
+    them from 0 in time order (null at standstill; a direction reversal without a stop
+    would stay one trip). A logger gap (a new segment) inside a motion continues the
+    trip when the motion has the same direction on both sides and the gap is at most
+    :data:`TRIP_BRIDGE_S`, or the depth advanced across it by at least
+    :data:`TRIP_BRIDGE_SPEED_FRACTION` x the slower speed x the gap (``depth_col``, when
+    the frame has it); otherwise the motion after the gap is a new trip. A dropout of a
+    fraction of a second mid-shaft is not a second trip.
 
     Adds columns ``phase`` (String), ``direction`` (String) and ``trip_id`` (Int64).
     Needs ``acceleration_col`` (:func:`with_acceleration`).
@@ -320,10 +337,20 @@ def with_trip_phases(
         .otherwise(pl.lit(None, dtype=pl.String))
     )
     moving_filled = moving.fill_null(False)
-    start = moving_filled & (
-        ~moving_filled.shift(1, fill_value=False)
-        | (pl.col(segment_col) != pl.col(segment_col).shift(1)).fill_null(True)
-    )
+    schema = frame.collect_schema()
+    if time_col not in schema:
+        raise ValueError(f"{time_col}: no such column (logger gaps inside a trip need times)")
+    gap_s = _seconds(schema, time_col).diff()
+    v_before = v.shift(1)
+    kept_moving = pl.lit(False)
+    if depth_col in schema:
+        travelled = pl.col(depth_col).diff().abs()
+        slower = pl.min_horizontal(v.abs(), v_before.abs())
+        kept_moving = travelled >= TRIP_BRIDGE_SPEED_FRACTION * slower * gap_s
+    same_direction = v.sign() == v_before.sign()
+    continues = (same_direction & ((gap_s <= TRIP_BRIDGE_S) | kept_moving)).fill_null(False)
+    new_segment = (pl.col(segment_col) != pl.col(segment_col).shift(1)).fill_null(True)
+    start = moving_filled & (~moving_filled.shift(1, fill_value=False) | (new_segment & ~continues))
     trip_id = pl.when(moving_filled).then(start.cast(pl.Int64).cum_sum() - 1)
     return frame.with_columns(
         phase.alias("phase"), direction.alias("direction"), trip_id.alias("trip_id")

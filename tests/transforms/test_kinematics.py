@@ -95,7 +95,7 @@ def test_trip_phases_on_trapezoidal_trips(trips):
         df.lazy()
         .pipe(with_segment_id, "t_s", nominal_dt_s=DT)
         .pipe(with_acceleration, dt_s=DT, window_s=0.5)
-        .pipe(with_trip_phases, HOIST)
+        .pipe(with_trip_phases, HOIST, time_col="t_s")
         .collect()
     )
     t = out["t_s"].to_numpy()

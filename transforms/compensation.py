@@ -925,9 +925,13 @@ def _label_kernel(
             # a logger gap inside a motion: the same trip if it kept moving the same way
             v_before = speed[i - 1]
             gap = time_s[i] - time_s[i - 1]
-            travelled = abs(depth[i] - depth[i - 1])  # NaN compares False
+            advance = (depth[i] - depth[i - 1]) * np.sign(v)  # NaN compares False
             slower = min(abs_v, abs(v_before))
-            kept_moving = travelled >= bridge_fraction * slower * gap
+            faster = max(abs_v, abs(v_before))
+            kept_moving = (
+                advance >= bridge_fraction * slower * gap
+                and advance <= faster / bridge_fraction * gap
+            )
             if not (np.sign(v) == np.sign(v_before) and (gap <= bridge_s or kept_moving)):
                 trips += 1
         trip_id[i] = trips if moving else -1

@@ -268,9 +268,10 @@ def with_acceleration(
 #: A logger gap of at most this long inside a motion in one direction continues the
 #: trip [s] (the replay merges motions 2 s apart the same way).
 TRIP_BRIDGE_S = 2.0
-#: ... as does a longer gap over which the depth advanced by at least this fraction of
-#: the slower speed either side of it times the gap: the conveyance kept moving, so no
-#: stop can have hidden in the gap.
+#: ... as does a longer gap over which the depth advanced, in the direction of motion,
+#: at a mean speed between this fraction of the slower speed either side of it and the
+#: faster speed over this fraction: the conveyance kept moving, so no stop (and no
+#: unseen round trip) can have hidden in the gap.
 TRIP_BRIDGE_SPEED_FRACTION = 0.5
 
 
@@ -304,10 +305,11 @@ def with_trip_phases(
     them from 0 in time order (null at standstill; a direction reversal without a stop
     would stay one trip). A logger gap (a new segment) inside a motion continues the
     trip when the motion has the same direction on both sides and the gap is at most
-    :data:`TRIP_BRIDGE_S`, or the depth advanced across it by at least
-    :data:`TRIP_BRIDGE_SPEED_FRACTION` x the slower speed x the gap (``depth_col``, when
-    the frame has it); otherwise the motion after the gap is a new trip. A dropout of a
-    fraction of a second mid-shaft is not a second trip.
+    :data:`TRIP_BRIDGE_S`, or the depth advanced across it, in that direction, at a mean
+    speed between :data:`TRIP_BRIDGE_SPEED_FRACTION` x the slower speed and the faster
+    speed / that fraction (``depth_col``, when the frame has it); otherwise the motion
+    after the gap is a new trip. A dropout of a fraction of a second mid-shaft is not a
+    second trip.
 
     Adds columns ``phase`` (String), ``direction`` (String) and ``trip_id`` (Int64).
     Needs ``acceleration_col`` (:func:`with_acceleration`).
@@ -344,9 +346,12 @@ def with_trip_phases(
     v_before = v.shift(1)
     kept_moving = pl.lit(False)
     if depth_col in schema:
-        travelled = pl.col(depth_col).diff().abs()
+        advance = pl.col(depth_col).diff() * v.sign()
         slower = pl.min_horizontal(v.abs(), v_before.abs())
-        kept_moving = travelled >= TRIP_BRIDGE_SPEED_FRACTION * slower * gap_s
+        faster = pl.max_horizontal(v.abs(), v_before.abs())
+        kept_moving = (advance >= TRIP_BRIDGE_SPEED_FRACTION * slower * gap_s) & (
+            advance <= faster / TRIP_BRIDGE_SPEED_FRACTION * gap_s
+        )
     same_direction = v.sign() == v_before.sign()
     continues = (same_direction & ((gap_s <= TRIP_BRIDGE_S) | kept_moving)).fill_null(False)
     new_segment = (pl.col(segment_col) != pl.col(segment_col).shift(1)).fill_null(True)

@@ -138,3 +138,28 @@ def test_positions_on_a_trip(trips):
         else:
             assert p is None
     assert {"pithead", "middle", "bottom"} <= set(pos) - {None} or depth.max() < 595
+
+
+@pytest.mark.parametrize(
+    ("gap_s", "depth_after_m", "trips"),
+    [
+        (0.24, 102.4, 1),  # a dropout mid-shaft at 10 m/s
+        (30.0, 400.0, 1),  # a long one, but the depth kept pace: no stop hid in it
+        (30.0, 110.0, 2),  # it advanced too little: the hoist stopped in the gap
+        (600.0, 50.0, 2),  # it went back up: an unseen round trip, then a new descent
+        (600.0, 450.0, 2),  # an unseen round trip ending deeper still
+    ],
+)
+def test_a_logger_gap_inside_a_motion(gap_s, depth_after_m, trips):
+    """Down at 10 m/s on both sides of a logger gap: one trip, unless the depth says the
+    conveyance did not keep moving through the gap at a speed between half the slower
+    and twice the faster of the two sides."""
+    t = np.r_[np.arange(0.0, 10.0, DT), 10.0 + gap_s + np.arange(0.0, 10.0, DT)]
+    depth = np.r_[np.linspace(0.0, 100.0, 1000), depth_after_m + np.arange(1000) * 0.1]
+    frame = pl.DataFrame({"t_s": t, "speed_m_s": np.full(t.size, 10.0), "depth_m": depth})
+    out = (
+        frame.pipe(with_segment_id, "t_s", nominal_dt_s=DT)
+        .with_columns(acceleration_m_s2=pl.lit(0.0))
+        .pipe(with_trip_phases, HOIST, time_col="t_s")
+    )
+    assert out["trip_id"].n_unique() == trips

@@ -176,8 +176,6 @@ def common_mode_displacement(
     """
     p = np.ascontiguousarray(p_mean_pa, dtype=np.float64)
     x = np.empty_like(p)
-    if not 0.0 <= hoist.oil.air_fraction < 1.0:
-        raise ValueError(f"air_fraction: must be in [0, 1), got {hoist.oil.air_fraction}")
     if p.size:
         _common_mode_kernel(
             p,
@@ -564,7 +562,7 @@ def compensate(
         return lowpass(
             values,
             segment,
-            sample_rate_hz=settings.sample_rate_hz,
+            sample_rate_hz=rate_hz,
             cutoff_hz=cutoff,
             out=values,
             # the rope jobs reuse it on this thread

@@ -3,6 +3,7 @@
 Segments
     :func:`segment_ids` -- contiguous-segment numbers from sample times (numpy).
     :func:`with_segment_id` -- the same as a column of a LazyFrame/DataFrame.
+    :func:`seconds_expr` -- a time column as float seconds (expression).
 
 Spikes
     :func:`hampel` -- Hampel identifier per segment (numpy in, numpy out; numba).
@@ -40,6 +41,7 @@ __all__ = [
     "lowpass_work_size",
     "play_operator",
     "remove_spikes",
+    "seconds_expr",
     "segment_ids",
     "with_segment_id",
 ]
@@ -92,7 +94,8 @@ def _segment_kernel(t, max_step, out):  # pragma: no cover - numba
         out[i] = count
 
 
-def _seconds(frame_schema: pl.Schema, time_col: str) -> pl.Expr:
+def seconds_expr(frame_schema: pl.Schema, time_col: str) -> pl.Expr:
+    """``time_col`` (a Datetime, or float seconds) as float seconds, an expression."""
     dtype = frame_schema[time_col]
     if dtype.is_temporal():
         return pl.col(time_col).dt.epoch("us").cast(pl.Float64) * 1e-6
@@ -120,7 +123,7 @@ def with_segment_id(
     >>> with_segment_id(df, "t_s", nominal_dt_s=0.01)["segment_id"].to_list()
     [0, 0, 0, 1, 1]
     """
-    t = _seconds(frame.collect_schema(), time_col)
+    t = seconds_expr(frame.collect_schema(), time_col)
     gap = (t.diff() > gap_factor * nominal_dt_s).fill_null(False)
     return frame.with_columns(gap.cast(pl.Int64).cum_sum().alias(name))
 

@@ -32,7 +32,7 @@ from numba import njit
 from scipy import signal
 
 from schemas.hoist import HoistDescription
-from transforms.filtering import _seconds
+from transforms.filtering import seconds_expr
 
 __all__ = [
     "PHASES",
@@ -342,7 +342,7 @@ def with_trip_phases(
     schema = frame.collect_schema()
     if time_col not in schema:
         raise ValueError(f"{time_col}: no such column (logger gaps inside a trip need times)")
-    gap_s = _seconds(schema, time_col).diff()
+    gap_s = seconds_expr(schema, time_col).diff()
     v_before = v.shift(1)
     kept_moving = pl.lit(False)
     if depth_col in schema:

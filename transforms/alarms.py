@@ -369,7 +369,8 @@ def evaluate_alarms(
     frame = (
         lazy.sort("time_utc")
         .with_columns(
-            _static_load_n=(pl.col("load_n") - tail_n) * G_STANDARD / (G_STANDARD + accel) + tail_n,
+            # the tail ropes accelerate with the conveyance (reconciliation docstring)
+            _static_load_n=pl.col("load_n") * G_STANDARD / (G_STANDARD + accel),
             _rated_load_n=tail_n + rated_n,
             _expected_n=expected_load_expr(hoist, payload_kg=pl.col("_payload_kg")),
         )

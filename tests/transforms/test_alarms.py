@@ -100,9 +100,8 @@ def synthetic_day(hoist, payloads_kg, *, seed=0, standstill_s=20.0):
         * hoist.ropes.tail_rope_mass_per_length_kg_m
         * (hoist.shaft.depth_m - cat["depth"])
     )
-    load = (hoist.conveyance.mass_kg + cat["payload"]) * (G_STANDARD + cat["a_up"]) + tail_kg * (
-        G_STANDARD
-    )
+    # the tail ropes hang from the conveyance and accelerate with it (issue 13)
+    load = (hoist.conveyance.mass_kg + cat["payload"] + tail_kg) * (G_STANDARD + cat["a_up"])
     moving = np.abs(cat["speed"]) > 0
     tensions = []
     for i in range(4):

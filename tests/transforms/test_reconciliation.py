@@ -12,7 +12,12 @@ import pytest
 
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from schemas.tables import POSITION_SUMMARY, TRIP_SUMMARY
-from transforms.reconciliation import PAPER_TEXT_PITHEAD_BEFORE_N, reconcile, table2_check
+from transforms.reconciliation import (
+    PAPER_TEXT_PITHEAD_BEFORE_N,
+    expected_load_expr,
+    reconcile,
+    table2_check,
+)
 
 # The paper's Table 2 as shipped beside the repository (../shared/paper); the same rows
 # are kept here so a clone without that folder still runs the check.
@@ -101,7 +106,8 @@ def _samples(hoist, trips):
     for trip_id, payload, stops in trips:
         for position, depth, accel, n, gain_after, gain_before in stops:
             tail = 2 * 6.2 * (620.0 - depth)
-            load = (8200.0 + payload) * (G + accel) + tail * G
+            # the tail ropes hang from the conveyance and accelerate with it
+            load = (8200.0 + payload + tail) * (G + accel)
             for k in range(n):
                 row = {
                     "time_utc": T0 + dt.timedelta(seconds=t + k * 0.01),
@@ -144,6 +150,7 @@ def test_reconcile_infers_constant_payload_and_errors(hoist):
 
     trip1 = positions.filter(pl.col("trip_id") == 1)
     # acceleration is removed: the payload is 3000 kg at every position, also moving
+    # (at the middle, a = 0.5 m/s2 acts on cage, payload and 3.7 t of tail rope alike)
     assert trip1["payload_kg"].to_list() == pytest.approx([3000.0] * 3, abs=1e-6)
     assert trip1["error_after_fraction"].to_list() == pytest.approx([0.0] * 3, abs=1e-12)
     bottom = trip1.filter(pl.col("position") == "bottom").row(0, named=True)
@@ -222,3 +229,18 @@ def test_trip_payload_ignores_rope_bounce_and_window_edge_passes(hoist):
     # weighted by samples: the one-sample stint moves it by 1/71 of its error
     assert trip["payload_kg"] == pytest.approx(3000.0 + (edge - 3000.0) / 71, rel=1e-9)
     assert trip["payload_spread_kg"] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_expected_load_counts_tail_rope_inertia(hoist):
+    """Newton on the conveyance with its hanging tail rope, by hand (issue 13).
+
+    At 600 m depth with a = +0.8 m/s2 up, 2 tail ropes of 6.2 kg/m over 20 m weigh 248 kg
+    and accelerate with the cage: F = (8200 + 1000 + 248)(g + 0.8). The issue-6 formula,
+    (8200 + 1000)(g + 0.8) + 248 g, is low by 248 x 0.8 = 198.4 N.
+    """
+    frame = pl.DataFrame({"depth_m": [600.0, 0.0], "acceleration_up_m_s2": [0.8, -0.75]})
+    got = frame.select(expected_load_expr(hoist, payload_kg=1000.0)).to_series().to_list()
+    tail_bottom, tail_top = 2 * 6.2 * 20.0, 2 * 6.2 * 620.0
+    assert got[0] == pytest.approx((9200.0 + tail_bottom) * (G + 0.8), rel=1e-12)
+    assert got[1] == pytest.approx((9200.0 + tail_top) * (G - 0.75), rel=1e-12)
+    assert got[0] - ((9200.0 * (G + 0.8)) + tail_bottom * G) == pytest.approx(198.4, rel=1e-9)

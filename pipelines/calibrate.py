@@ -51,6 +51,7 @@ from scipy.signal import savgol_filter
 from pipelines.lake import lake_partitions, scan_lake
 from pipelines.provenance import code_version, utc_now
 from schemas.hoist import FrictionLaw
+from schemas.names import UnsafeNameError, safe_name
 from transforms.friction_fit import (
     LinearFit,
     StribeckFit,
@@ -615,6 +616,12 @@ def calibrate_rig(
     from warehouse.store import open_writer
 
     started = utc_now()
+    try:  # a rig id is a lake folder, a parameter set a hoist description's name
+        for key, value in (("--rig", rig_id), ("--parameter-set", parameter_set)):
+            if value is not None:
+                safe_name(value, key=key, source="ropeload calibrate")
+    except UnsafeNameError as exc:
+        raise CalibrationError(str(exc)) from None
     notes: list[str] = []
     given_shas: list[str] = []
     infos: list[RigInfo] = []
@@ -698,7 +705,7 @@ def calibrate_rig(
     )
     if parameter_set is None:
         digest = hashlib.sha256("\n".join(inputs).encode()).hexdigest()[:12]
-        parameter_set = f"{rig_id}-{digest}"
+        parameter_set = f"{rig_id[:51]}-{digest}"  # a safe name: at most 64 characters
     run_id = f"calibrate-{parameter_set}"
     source = f"ropeload calibrate: rig {rig_id}, {len(inputs)} recording(s), run {run_id}"
     toml = friction_toml(law, bore_m=rig.bore_m, parameter_set=parameter_set, source=source)

@@ -32,10 +32,11 @@ def scan_lake(
     """Lazy scan of ``table`` for one site and hoist, ``start <= time_utc < end``.
 
     Returns an empty frame with the table's schema when nothing is landed. Naive
-    datetimes are taken as UTC.
+    datetimes are taken as UTC. ``site`` and ``hoist`` must be safe names
+    (:meth:`warehouse.store.DataRoot.partition_dir`; UnsafeNameError otherwise).
     """
     schema = TABLES[table]
-    root = data.table_dir(table) / f"site={site}" / f"hoist={hoist}"
+    root = data.partition_dir(table, site=site, hoist=hoist)
     files = sorted(root.glob("date=*/*.parquet"))
     if start is not None or end is not None:
         first = _utc(start).date().isoformat() if start is not None else ""

@@ -261,7 +261,7 @@ def discover_day(source: HoistSource, day: dt.date, *, data: DataRoot) -> Path:
     from pipelines.discover import discover_period
 
     start = dt.datetime.combine(day, dt.time(0), tzinfo=dt.UTC)
-    target = data.path / "reports" / "discovery" / f"{source.site}_{source.hoist}_{day}.json"
+    target = data.under("reports", "discovery", f"{source.site}_{source.hoist}_{day}.json")
     discover_period(
         hoist_path=source.path,
         data=data,

@@ -34,6 +34,7 @@ import polars as pl
 
 from pipelines.backfill import PartitionOutcome
 from pipelines.lake import scan_lake
+from schemas.names import join_inside
 from warehouse.store import DataRoot, open_reader
 
 __all__ = ["Report", "alarms_of", "build_report", "reconciliation_by_position"]
@@ -196,7 +197,7 @@ def build_report(
     figures go to ``out_dir`` (default ``<data>/reports/<UTC timestamp>``).
     """
     stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
-    folder = Path(out_dir) if out_dir is not None else data.path / "reports" / stamp
+    folder = Path(out_dir) if out_dir is not None else data.under("reports", stamp)
     ran = sorted((o for o in outcomes if o.status == "succeeded"), key=lambda o: o.key)
     run_ids = [o.run_id for o in ran if o.run_id]
     failed = sorted((o for o in outcomes if o.status == "failed"), key=lambda o: o.key)
@@ -231,7 +232,8 @@ def build_report(
     if ran:
         parts.append("## Tensions before / after compensation\n")
         for outcome in ran[-max_plotted_days:]:
-            path = folder / f"tensions_{outcome.site}_{outcome.hoist}_{outcome.day}.png"
+            name = f"tensions_{outcome.site}_{outcome.hoist}_{outcome.day}.png"
+            path = join_inside(folder, name, source="report")  # names from data: no escape
             encoded = _tension_figure(data, outcome, path)
             if encoded is not None:
                 report.figures.append(path)

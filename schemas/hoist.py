@@ -34,6 +34,7 @@ from pydantic import (
 )
 
 from schemas.effects import EffectName
+from schemas.names import name_problem
 from schemas.quantities import QuantityError, parse_quantity
 
 __all__ = [
@@ -111,6 +112,18 @@ Duration = Annotated[float, _quantity("time"), AfterValidator(_positive)]
 Temperature = Annotated[float, _quantity("temperature")]
 
 
+def _safe_name(value: str) -> str:
+    problem = name_problem(value)
+    if problem is not None:
+        raise ValueError(problem)
+    return value
+
+
+#: A name that becomes a folder or partition key (:mod:`schemas.names`): 1-64 of
+#: ``A-Z a-z 0-9 . _ -``, starting with a letter or digit, no ``..``.
+SafeName = Annotated[str, AfterValidator(_safe_name)]
+
+
 class _Section(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
 
@@ -118,8 +131,8 @@ class _Section(BaseModel):
 class HoistInfo(_Section):
     """``[hoist]``: identity of the hoist; matches the ``site``/``hoist`` of its logs."""
 
-    site: str = Field(min_length=1)
-    name: str = Field(min_length=1)
+    site: SafeName
+    name: SafeName
     timezone: str = "UTC"
 
     @field_validator("timezone")
@@ -301,7 +314,7 @@ class Friction(_Section):
     reading consistent with the paper's field result.
     """
 
-    parameter_set: str = Field(min_length=1)
+    parameter_set: SafeName
     source: str = ""
     force_unit: Literal["MPa", "kPa", "bar", "N", "kN"]
     speed_unit: Literal["mm/s", "m/s"]

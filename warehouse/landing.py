@@ -215,14 +215,13 @@ def land_rope_tensions(
     frame = conform(frame, ROPE_TENSIONS).filter(
         (pl.col("time_utc") >= period_start_utc) & (pl.col("time_utc") < period_end_utc)
     )
-    base = root.table_dir("rope_tensions") / f"site={site}" / f"hoist={hoist}"
     first = period_start_utc.astimezone(dt.UTC).date()
     last = (period_end_utc.astimezone(dt.UTC) - dt.timedelta(microseconds=1)).date()
     days = [first + dt.timedelta(days=k) for k in range((last - first).days + 1)]
     by_day = frame.with_columns(_day=pl.col("time_utc").dt.date())
     written = []
     for day in days:
-        directory = base / f"date={day.isoformat()}"
+        directory = root.partition_dir("rope_tensions", site=site, hoist=hoist, date=day)
         target = directory / "data.parquet"
         new = by_day.filter(pl.col("_day") == day).drop("_day")
         if target.exists():

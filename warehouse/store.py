@@ -3,8 +3,15 @@
 Data root layout (``--data DIR``, ``$ROPELOAD_DATA``, default ``./ropeload-data``)::
 
     <data>/lake/<table>/site=<site>/hoist=<hoist>/date=<YYYY-MM-DD>/part-*.parquet
+    <data>/reports/...               report figures, discovery JSON
     <data>/warehouse.duckdb          the published warehouse (readers open this)
     <data>/.warehouse.lock           writers serialise on this (flock)
+
+Nothing derived from input data becomes a path outside the data root: site, hoist
+and rig names are safe names (:mod:`schemas.names`, checked where they enter), and
+every path built from data comes from :meth:`DataRoot.partition_dir` or
+:meth:`DataRoot.under`, which check the names again and refuse a result that
+resolves (symlinks followed) outside its fixed folder (:meth:`DataRoot.inside`).
 
 Readers never wait for writers (issue 6, DuckDB locking in stack.md): a writer copies
 the published file to ``warehouse.duckdb.next``, lands into the copy, checkpoints it
@@ -17,8 +24,10 @@ that dies leaves the published file untouched.
 from __future__ import annotations
 
 import contextlib
+import datetime as dt
 import fcntl
 import os
+import re
 import shutil
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -26,10 +35,13 @@ from pathlib import Path
 
 import duckdb
 
+from schemas.names import PathEscapeError, join_inside, safe_name
+
 __all__ = ["DATA_ENV", "DEFAULT_DATA", "DataRoot", "open_reader", "open_writer"]
 
 DATA_ENV = "ROPELOAD_DATA"
 DEFAULT_DATA = Path("ropeload-data")
+_ISO_DAY = re.compile(r"\d{4}-\d{2}-\d{2}")
 
 
 @dataclass(frozen=True)
@@ -58,6 +70,53 @@ class DataRoot:
     @property
     def lock_file(self) -> Path:
         return self.path / ".warehouse.lock"
+
+    def inside(self, path: str | os.PathLike[str]) -> Path:
+        """``path`` if it resolves (symlinks followed) to the data root or below it.
+
+        Raises :class:`schemas.names.PathEscapeError` otherwise. Returns ``path``
+        unchanged (as a :class:`Path`).
+        """
+        path = Path(path)
+        real_root, real = self.path.resolve(), path.resolve()
+        if real != real_root and not real.is_relative_to(real_root):
+            raise PathEscapeError(f"{path} resolves to {real}, outside the data root {real_root}")
+        return path
+
+    def under(self, folder: str, *parts: str) -> Path:
+        """``<data>/<folder>/<parts...>``, each part one plain path component.
+
+        ``folder`` is a fixed folder of the layout (``reports``, ``incoming``); it may
+        be a symlink (e.g. to another disk), but what is named below it from data must
+        stay inside it (:func:`schemas.names.join_inside`: raises
+        :class:`~schemas.names.UnsafeNameError` for a part like ``..`` or ``a/b``,
+        :class:`~schemas.names.PathEscapeError` for an escape through a symlink).
+        """
+        safe_name(folder, key="folder", source=f"data root {self.path}")
+        return join_inside(self.path / folder, *parts, source=f"data root folder {folder!r}")
+
+    def partition_dir(
+        self, table: str, *, site: str, hoist: str, date: dt.date | str | None = None
+    ) -> Path:
+        """``<data>/lake/<table>/site=<site>/hoist=<hoist>[/date=<YYYY-MM-DD>]``.
+
+        ``table``, ``site`` and ``hoist`` must be safe names
+        (:func:`schemas.names.safe_name`, :class:`~schemas.names.UnsafeNameError`
+        otherwise), ``date`` a date or an ISO ``YYYY-MM-DD`` string; the result must
+        resolve inside the table's folder (:class:`~schemas.names.PathEscapeError`).
+        The lake and table folders may be symlinks; partitions below may not leave them.
+        """
+        source = f"lake table {table!r}"
+        safe_name(table, key="table", source="lake")
+        safe_name(site, key="site", source=source)
+        safe_name(hoist, key="hoist", source=source)
+        parts = [f"site={site}", f"hoist={hoist}"]
+        if date is not None:
+            day = date.isoformat() if isinstance(date, dt.date) else date
+            if not (isinstance(day, str) and _ISO_DAY.fullmatch(day)):
+                raise ValueError(f"{source}: date {date!r} is not YYYY-MM-DD")
+            parts.append(f"date={day}")
+        return join_inside(self.table_dir(table), *parts, source=source)
 
 
 @contextlib.contextmanager

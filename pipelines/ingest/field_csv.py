@@ -46,6 +46,7 @@ from pipelines.ingest.field_checks import (
     to_si,
 )
 from pipelines.ingest.local_time import AmbiguityState, formats_for, parse_timestamps
+from schemas.names import UnsafeNameError, safe_name
 from schemas.quantities import QuantityError, unit_factor
 from schemas.tables import FIELD_SAMPLES
 
@@ -132,6 +133,11 @@ def read_header(path: Path) -> CsvHeader:
             f"{path}: lines 1-{column_line[0] - 1}: header lacks required key(s) "
             f"{', '.join(repr(k) for k in missing)} (found: {have})"
         )
+    for key in ("site", "hoist"):  # they become lake folders: safe names only
+        try:
+            safe_name(meta[key][1], key=key, source=f"{path}: line {meta[key][0]}")
+        except UnsafeNameError as exc:
+            raise RefusedFile(str(exc)) from None
     col_no, col_text = column_line
     separator = max(_SEPARATORS, key=col_text.count)
     if col_text.count(separator) == 0:

@@ -33,6 +33,7 @@ from pipelines.ingest.field_checks import (
     physical_reason,
     to_si,
 )
+from schemas.names import UnsafeNameError, safe_name
 from schemas.quantities import QuantityError, unit_factor
 from schemas.tables import FIELD_SAMPLES
 
@@ -74,6 +75,10 @@ def _metadata(path: Path, tdms: TdmsFile):
     for key in ("site", "hoist"):
         if not str(props.get(key, "")).strip():
             raise RefusedFile(f"{path}: file property {key!r} is missing")
+        try:  # they become lake folders: safe names only
+            safe_name(str(props[key]).strip(), key=f"file property {key!r}", source=str(path))
+        except UnsafeNameError as exc:
+            raise RefusedFile(str(exc)) from None
     groups = {g.name: g for g in tdms.groups()}
     if _GROUP not in groups:
         raise RefusedFile(f"{path}: no group {_GROUP!r} (groups: {', '.join(groups) or 'none'})")

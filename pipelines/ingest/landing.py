@@ -73,6 +73,7 @@ class LakeTable:
     """One lake table of one data root; lands batches of samples with dedup."""
 
     def __init__(self, data: DataRoot, table: str) -> None:
+        self.data, self.table = data, table
         self.root = data.table_dir(table)
         self.schema: pa.Schema = TABLES[table]
         self.values = [f.name for f in self.schema if f.name not in _LINEAGE]
@@ -88,7 +89,7 @@ class LakeTable:
             frame = frame.sort("time_utc", "_row")
         frame = self._drop_batch_duplicates(frame, result)
         for date, part in _by_date(frame):
-            directory = self.root / f"site={site}" / f"hoist={hoist}" / f"date={date}"
+            directory = self.data.partition_dir(self.table, site=site, hoist=hoist, date=date)
             part = self._drop_landed(directory, part, result)
             if part.height:
                 self._write(directory, part, source_sha256)

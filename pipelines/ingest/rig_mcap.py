@@ -39,6 +39,7 @@ from mcap.records import Schema
 
 from pipelines.ingest.batch import REJECTED_SCHEMA, Batch, Reading, RefusedFile
 from pipelines.ingest.field_checks import MAX_PRESSURE_PA
+from schemas.names import UnsafeNameError, safe_name
 from schemas.tables import RIG_SAMPLES
 
 __all__ = [
@@ -219,7 +220,10 @@ def _reading(path: Path, collected: _Collected, partial: str | None) -> Reading:
     info = decoded["/rig/info"][0]
     if info.height == 0:
         raise RefusedFile(f"{path}: topic /rig/info: no valid message, so no rig_id")
-    rig_id = str(info["rig_id"][0])
+    try:  # the rig id becomes a lake folder (hoist=<rig_id>): a safe name only
+        rig_id = safe_name(info["rig_id"][0], key="rig_id", source=f"{path}: topic /rig/info")
+    except UnsafeNameError as exc:
+        raise RefusedFile(str(exc)) from None
     pressure, rejected_p = decoded["/rig/pressure"]
     samples = pressure.select(
         "time_utc",

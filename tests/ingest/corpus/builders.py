@@ -111,8 +111,10 @@ def tdms_file(
     omit_in: str = "p2",
     start: dt.datetime = dt.datetime(2026, 3, 2, 6, 0, 0),
     p_mpa: float = 4.8,
+    properties: dict[str, str] | None = None,
 ) -> Path:
-    """A contract-1b TDMS; ``omit`` names waveform properties left out of ``omit_in``."""
+    """A contract-1b TDMS; ``omit`` names waveform properties left out of ``omit_in``;
+    ``properties`` replace file properties (``site``, ``hoist``, ``timezone``)."""
     t0 = np.datetime64(start.replace(tzinfo=None), "us")
     wave = {"wf_start_time": t0, "wf_increment": 0.01, "wf_start_offset": 0.0}
     channels = []
@@ -128,7 +130,8 @@ def tdms_file(
         if name == omit_in:
             props = {k: v for k, v in props.items() if k not in omit}
         channels.append(ChannelObject("hoist", name, data, properties=props))
-    root = RootObject({"site": HEADER["site"], "hoist": "tdms-hoist", "timezone": "UTC"})
+    file_props = {"site": HEADER["site"], "hoist": "tdms-hoist", "timezone": "UTC"}
+    root = RootObject({**file_props, **(properties or {})})
     with TdmsWriter(path) as writer:
         writer.write_segment([root, GroupObject("hoist"), *channels])
     return path

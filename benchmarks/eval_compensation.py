@@ -1,0 +1,385 @@
+"""Evaluate the compensation at stops against independent truth (issue 13, "Must show").
+
+Not a unit test: a script. It measures how close the compensated load and rope
+tensions come to the true ones in *stop windows* -- spans of steady payload while the
+conveyance stands at a named position, after the first seconds following an arrival or
+a payload change -- and whether compensation ever makes a window worse than the raw
+reading (sum of p A).
+
+Days evaluated:
+
+- every ``*.csv.gz`` of ``../shared/validation/days/`` (an independent simulator of
+  the paper's field-test hoist, described by ``<name>.hoist.toml``; truth in
+  ``<name>.truth.json``, ``stops[].windows[]``). These files are **evaluation data**:
+  nothing in ropeload is, or may be, tuned to them (other days of the same kind are
+  used for judging). See ``../shared/validation/README.md``.
+- ``--sims N`` synthetic days of ropeload's own generator
+  (:func:`sims.field_day.generate_field_day`, the example hoist, 2 h at 50 Hz; these
+  ring after each arrival), with windows built from the simulation's truth frame the
+  same way: at rest at a named position with a steady payload, from 3 s after the
+  arrival or the end of the payload change to 1 s before the next change or departure.
+
+Each day goes the way a mine's data go: the CSV (decompressed into a temporary folder,
+the hoist TOML beside it) is ingested into a fresh data root
+(:func:`pipelines.ingest.ingest_paths`), the whole record is compensated and landed by
+:func:`pipelines.run_period.run_period` (what ``ropeload run --no-sanity`` calls), and
+the landed ``rope_tensions`` are read back from the lake
+(:func:`pipelines.lake.scan_lake`).
+
+Per window: the mean of the compensated load (``load_n``) and of the raw load
+(``load_raw_n``) against ``true_load_n``, and each rope's mean ``tension{i}_n`` against
+its true tension, errors in % of the true value. Per day it prints the window count,
+the load error before / after (worst and median |.|), the worst rope after, the
+windows where |after| > |before| + 0.2 %-points, the 95 % band coverage and median
+half-width (from ``load_lo_n``/``load_hi_n`` and ``tension{i}_lo_n``/``tension{i}_hi_n``
+when the landed table has them), the five worst windows, and the issue's targets.
+
+    uv run python benchmarks/eval_compensation.py [--days DIR] [--sims N] [--keep DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import gzip
+import json
+import shutil
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+
+from pipelines.ingest import ingest_paths
+from pipelines.lake import scan_lake
+from pipelines.run_period import run_period
+from schemas.hoist import EXAMPLE_HOIST, HoistDescription, load_hoist
+from schemas.tables import ROPES
+from sims.field_day import generate_field_day, write_field_day
+from warehouse.store import DataRoot
+
+DEFAULT_DAYS = Path(__file__).resolve().parents[1].parent / "shared" / "validation" / "days"
+
+#: Stop windows: skip this long after an arrival or the end of a payload change [s] ...
+SKIP_S = 3.0
+#: ... and end this long before the next change or departure [s]; shorter ones dropped
+#: (the generator rests 5 s between the end of a payload change and the departure, so
+#: its after-change windows are 1 s long: 50 samples at 50 Hz).
+TAIL_S = 1.0
+MIN_WINDOW_S = 1.0
+#: A window needs this many compensated samples to be evaluated (records end anywhere).
+MIN_SAMPLES = 10
+#: |after| > |before| + this counts as "worse than raw" [%-points].
+WORSE_PP = 0.2
+#: Issue 13 targets.
+TARGET_WORST_PCT = 1.0
+TARGET_MEDIAN_PCT = 0.3
+TARGET_ROPE_PCT = 2.0
+TARGET_COVERAGE = 0.90
+TARGET_HALF_WIDTH_PCT = 1.0
+
+
+@dataclass(frozen=True)
+class Window:
+    """A span ``[t0, t1)`` (UTC) of steady payload at a stop, with its true means."""
+
+    kind: str  # "arrival" or "after_payload_change"
+    position: str
+    t0: dt.datetime
+    t1: dt.datetime
+    true_load_n: float
+    true_tension_n: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class DayCase:
+    """One day to evaluate: a field-log CSV, its hoist description and truth windows."""
+
+    name: str
+    csv: Path
+    hoist_path: Path
+    windows: list[Window]
+
+
+def _utc(text: str) -> dt.datetime:
+    return dt.datetime.fromisoformat(text.replace("Z", "+00:00")).astimezone(dt.UTC)
+
+
+def validation_case(gz: Path, work: Path) -> DayCase:
+    """Decompress ``<name>.csv.gz`` into ``work/<name>/`` with its hoist TOML beside it."""
+    name = gz.name.removesuffix(".csv.gz")
+    folder = work / name
+    folder.mkdir(parents=True, exist_ok=True)
+    csv = folder / f"{name}.csv"
+    with gzip.open(gz, "rb") as src, csv.open("wb") as dst:
+        shutil.copyfileobj(src, dst)
+    hoist_path = folder / f"{name}.hoist.toml"
+    shutil.copyfile(gz.with_name(f"{name}.hoist.toml"), hoist_path)
+    truth = json.loads(gz.with_name(f"{name}.truth.json").read_text())
+    windows = [
+        Window(
+            kind=w["kind"],
+            position=stop["position"],
+            t0=_utc(w["t0_utc"]),
+            t1=_utc(w["t1_utc"]),
+            true_load_n=float(w["true_load_n"]),
+            true_tension_n=tuple(float(x) for x in w["true_tension_n"]),
+        )
+        for stop in truth["stops"]
+        for w in stop["windows"]
+    ]
+    return DayCase(name, csv, hoist_path, windows)
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """``[start, end)`` index pairs of the maximal runs of True in ``mask``."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True))
+
+
+def truth_windows(truth: pl.DataFrame, hoist: HoistDescription) -> list[Window]:
+    """Stop windows of a simulated day, built from its truth frame.
+
+    A stop span is a maximal run of samples at rest (|speed| < 1 um/s) with the payload
+    unchanged from the previous sample and the depth within the hoist's position
+    window of a named position. The window is ``[start + SKIP_S, end - TAIL_S)``; its
+    kind is ``after_payload_change`` when the sample before the span was at rest (the
+    payload was changing), else ``arrival`` (also at the start of the record).
+    """
+    t = truth["time_utc"]
+    speed = truth["speed_m_s"].to_numpy()
+    payload = truth["payload_kg"].to_numpy()
+    depth = truth["depth_m"].to_numpy()
+    rest = np.abs(speed) < 1e-6
+    steady = np.concatenate([[True], np.abs(np.diff(payload)) < 1e-9])
+    load = truth["load_n"].to_numpy()
+    tensions = [truth[f"tension{i}_n"].to_numpy() for i in ROPES]
+    t_ns = t.dt.epoch("ns").to_numpy()
+    windows = []
+    for start, end in _runs(rest & steady):
+        mean_depth = float(depth[start:end].mean())
+        names = [
+            name
+            for name, z in hoist.shaft.positions_m.items()
+            if abs(mean_depth - z) <= hoist.shaft.position_window_m
+        ]
+        if not names:
+            continue
+        kind = "after_payload_change" if start > 0 and rest[start - 1] else "arrival"
+        t0_ns = t_ns[start] + int(SKIP_S * 1e9)
+        t1_ns = (t_ns[end] if end < len(t_ns) else t_ns[-1]) - int(TAIL_S * 1e9)
+        if t1_ns - t0_ns < MIN_WINDOW_S * 1e9:
+            continue
+        lo, hi = np.searchsorted(t_ns, [t0_ns, t1_ns])
+        windows.append(
+            Window(
+                kind=kind,
+                position=names[0],
+                t0=t[int(lo)],
+                t1=t[int(hi)] if hi < len(t) else t[-1],
+                true_load_n=float(load[lo:hi].mean()),
+                true_tension_n=tuple(float(x[lo:hi].mean()) for x in tensions),
+            )
+        )
+    return windows
+
+
+def sims_case(k: int, work: Path) -> DayCase:
+    """Synthetic day ``k``: 2 h at 50 Hz of the example hoist, written as a mine's CSV."""
+    hoist = load_hoist(EXAMPLE_HOIST)
+    date = dt.date(2026, 3, 2) + dt.timedelta(days=k)
+    day = generate_field_day(
+        hoist, date=date, seed=1000 + k, trips=40, hours=2.0, sample_rate_hz=50.0
+    )
+    folder = work / f"sims_{k}"
+    written = write_field_day(day, folder, formats=("csv",))
+    hoist_path = folder / "sims.hoist.toml"
+    shutil.copyfile(EXAMPLE_HOIST, hoist_path)
+    csv = next(p for p in written if p.suffix == ".csv")
+    return DayCase(f"sims_{k} (seed {1000 + k})", csv, hoist_path, truth_windows(day.truth, hoist))
+
+
+def compensate_day(case: DayCase, root: Path) -> pl.DataFrame:
+    """Ingest the day into a fresh data root, run the whole record, read the landed rows."""
+    data = DataRoot.resolve(root)
+    hoist = load_hoist(case.hoist_path)
+    report = ingest_paths([case.csv], data=data, hoist_lookup=lambda site, name: hoist)
+    if not report.ok:
+        raise RuntimeError(f"{case.csv.name} refused by ingest: {report}")
+    run_period(hoist_path=case.hoist_path, data=data, hoist=hoist, command="eval")
+    return scan_lake(data, "rope_tensions", site=hoist.hoist.site, hoist=hoist.hoist.name).collect()
+
+
+def window_errors(tensions: pl.DataFrame, windows: list[Window]) -> pl.DataFrame:
+    """One row per window with samples: errors before / after in % of the true value.
+
+    Columns: ``kind``, ``position``, ``t0``, ``samples``, ``before_pct``,
+    ``after_pct``, ``rope{i}_pct``, ``rope_max_pct`` (largest |rope error|), and, when
+    the landed table has the band, ``covered`` (true load and every true rope tension
+    inside the window-mean band) and ``half_width_pct`` (half the load band in % of
+    the true load).
+    """
+    t_ns = tensions["time_utc"].dt.epoch("ns").to_numpy()
+    cols = {c: tensions[c].to_numpy() for c in tensions.columns if c.endswith("_n")}
+    band = "load_lo_n" in cols and "load_hi_n" in cols
+    rows = []
+    for w in windows:
+        lo, hi = np.searchsorted(t_ns, [w.t0.timestamp() * 1e9, w.t1.timestamp() * 1e9])
+        if hi - lo < MIN_SAMPLES:
+            continue
+
+        def mean(column: str, lo: int = int(lo), hi: int = int(hi)) -> float:
+            return float(np.nanmean(cols[column][lo:hi]))
+
+        ropes = [100 * (mean(f"tension{i}_n") / w.true_tension_n[i - 1] - 1) for i in ROPES]
+        row = {
+            "kind": w.kind,
+            "position": w.position,
+            "t0": w.t0,
+            "samples": int(hi - lo),
+            "before_pct": 100 * (mean("load_raw_n") / w.true_load_n - 1),
+            "after_pct": 100 * (mean("load_n") / w.true_load_n - 1),
+            **{f"rope{i}_pct": ropes[i - 1] for i in ROPES},
+            "rope_max_pct": max(abs(r) for r in ropes),
+        }
+        if band:
+            inside = mean("load_lo_n") <= w.true_load_n <= mean("load_hi_n")
+            for i in ROPES:
+                lo_i, hi_i = f"tension{i}_lo_n", f"tension{i}_hi_n"
+                inside &= lo_i in cols and mean(lo_i) <= w.true_tension_n[i - 1] <= mean(hi_i)
+            row["covered"] = bool(inside)
+            row["half_width_pct"] = 50 * (mean("load_hi_n") - mean("load_lo_n")) / w.true_load_n
+        rows.append(row)
+    return pl.DataFrame(rows)
+
+
+def _mark(ok: bool) -> str:
+    return "met" if ok else "NOT met"
+
+
+def report_day(name: str, errors: pl.DataFrame, windows: int, seconds: float) -> dict:
+    """Print the day's figures and targets; return them for the summary table."""
+    before = errors["before_pct"].abs()
+    after = errors["after_pct"].abs()
+    worse = int((after > before + WORSE_PP).sum())
+    rope = float(errors["rope_max_pct"].max())
+    fig = {
+        "name": name,
+        "windows": errors.height,
+        "worst_before": float(before.max()),
+        "median_before": float(before.median()),
+        "worst_after": float(after.max()),
+        "median_after": float(after.median()),
+        "rope_after": rope,
+        "worse": worse,
+        "coverage": None,
+        "half_width": None,
+    }
+    print(
+        f"\n== {name}: {errors.height} windows evaluated ({windows} in the truth), {seconds:.0f} s"
+    )
+    print(
+        f"  load error |before|: worst {fig['worst_before']:.2f} %, median "
+        f"{fig['median_before']:.2f} %"
+    )
+    print(
+        f"  load error |after| : worst {fig['worst_after']:.2f} %, median "
+        f"{fig['median_after']:.2f} %"
+    )
+    print(f"  worst rope after: {rope:.2f} %")
+    print(f"  windows with |after| > |before| + {WORSE_PP} pp: {worse}/{errors.height}")
+    if "covered" in errors.columns:
+        fig["coverage"] = float(errors["covered"].mean())
+        fig["half_width"] = float(errors["half_width_pct"].median())
+        print(
+            f"  band coverage: {fig['coverage']:.1%}; median half-width "
+            f"{fig['half_width']:.2f} % of the load"
+        )
+    else:
+        print("  band coverage: n/a (no band); median half-width: n/a (no band)")
+    print("  worst 5 windows (by |after|):")
+    print(
+        f"    {'kind':<21} {'position':<8} {'t0 (UTC)':<19} {'before':>8} {'after':>8} "
+        f"{'rope max':>8}"
+    )
+    worst = errors.with_columns(after.alias("_abs")).sort("_abs", descending=True).head(5)
+    for r in worst.iter_rows(named=True):
+        print(
+            f"    {r['kind']:<21} {r['position']:<8} {r['t0']:%Y-%m-%d %H:%M:%S} "
+            f"{r['before_pct']:>+7.2f}% {r['after_pct']:>+7.2f}% {r['rope_max_pct']:>7.2f}%"
+        )
+    band = fig["coverage"] is not None
+    targets = [
+        f"worst <= {TARGET_WORST_PCT} %: {_mark(fig['worst_after'] <= TARGET_WORST_PCT)}",
+        f"median <= {TARGET_MEDIAN_PCT} %: {_mark(fig['median_after'] <= TARGET_MEDIAN_PCT)}",
+        f"worst rope <= {TARGET_ROPE_PCT} %: {_mark(rope <= TARGET_ROPE_PCT)}",
+        f"none worse than raw by > {WORSE_PP} pp: {_mark(worse == 0)}",
+        f"coverage >= {TARGET_COVERAGE:.0%}: "
+        + (_mark(fig["coverage"] >= TARGET_COVERAGE) if band else "NOT met (no band)"),
+        f"median half-width <= {TARGET_HALF_WIDTH_PCT} %: "
+        + (_mark(fig["half_width"] <= TARGET_HALF_WIDTH_PCT) if band else "NOT met (no band)"),
+    ]
+    print("  targets: " + "; ".join(targets))
+    return fig
+
+
+def _summary(figures: list[dict]) -> None:
+    print("\n== summary (load errors |.| in %, stop windows)")
+    print(
+        f"  {'day':<22} {'win':>4} {'worst bef':>9} {'med bef':>8} {'worst aft':>9} "
+        f"{'med aft':>8} {'rope aft':>8} {'worse':>5} {'cover':>6} {'half-w':>6}"
+    )
+    for f in figures:
+        cover = "n/a" if f["coverage"] is None else f"{f['coverage']:.0%}"
+        half = "n/a" if f["half_width"] is None else f"{f['half_width']:.2f}"
+        print(
+            f"  {f['name']:<22} {f['windows']:>4} {f['worst_before']:>9.2f} "
+            f"{f['median_before']:>8.2f} {f['worst_after']:>9.2f} {f['median_after']:>8.2f} "
+            f"{f['rope_after']:>8.2f} {f['worse']:>5} {cover:>6} {half:>6}"
+        )
+
+
+def evaluate(days: Path, sims: int, work: Path) -> None:
+    """Evaluate every validation day in ``days`` and ``sims`` synthetic days under ``work``."""
+    figures = []
+    gz_files = sorted(days.glob("*.csv.gz"))
+    if not gz_files:
+        print(f"no *.csv.gz in {days}")
+    cases = [(lambda gz=gz: validation_case(gz, work / "inputs")) for gz in gz_files]
+    cases += [(lambda k=k: sims_case(k, work / "inputs")) for k in range(sims)]
+    for make in cases:
+        started = time.perf_counter()
+        case = make()
+        root = work / "data" / case.csv.stem
+        tensions = compensate_day(case, root)
+        errors = window_errors(tensions, case.windows)
+        figures.append(
+            report_day(case.name, errors, len(case.windows), time.perf_counter() - started)
+        )
+    _summary(figures)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument(
+        "--days", type=Path, default=DEFAULT_DAYS, help=f"validation days (default {DEFAULT_DAYS})"
+    )
+    ap.add_argument("--sims", type=int, default=2, help="synthetic days to add (default 2)")
+    ap.add_argument(
+        "--keep", type=Path, default=None, help="work in DIR and keep it (inputs, data roots)"
+    )
+    args = ap.parse_args()
+    started = time.perf_counter()
+    if args.keep is not None:
+        args.keep.mkdir(parents=True, exist_ok=True)
+        evaluate(args.days, args.sims, args.keep.absolute())
+    else:
+        with tempfile.TemporaryDirectory(prefix="ropeload-eval-") as tmp:
+            evaluate(args.days, args.sims, Path(tmp))
+    print(f"\nwall time {time.perf_counter() - started:.0f} s")
+
+
+if __name__ == "__main__":
+    main()

@@ -70,14 +70,15 @@ def name_problem(value: object) -> str | None:
         return f"not a string: {value!r} ({type(value).__name__})"
     if NAME_PATTERN.fullmatch(value) and ".." not in value:
         return None
+    bad = next((c for c in value if c not in _ALLOWED), None)
     if not value:
         reason = "empty"
-    elif len(value) > MAX_NAME_LENGTH:
-        reason = f"{len(value)} characters, more than {MAX_NAME_LENGTH}"
     elif ".." in value:
         reason = "contains '..'"
-    elif (bad := next((c for c in value if c not in _ALLOWED), None)) is not None:
+    elif bad is not None:
         reason = f"character {bad!r} not allowed"
+    elif len(value) > MAX_NAME_LENGTH:
+        reason = f"{len(value)} characters, more than {MAX_NAME_LENGTH}"
     else:
         reason = f"starts with {value[0]!r}"
     return f"unsafe name {value!r}: {reason}; {NAME_RULE}"

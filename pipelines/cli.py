@@ -42,10 +42,13 @@ def _hoist_option(parser: argparse.ArgumentParser, *, required: bool) -> None:
 
 
 def _cmd_query(args: argparse.Namespace) -> int:
-    from pipelines.query import format_result, run_query
+    from pipelines.query import QueryRefused, format_result, run_query
     from warehouse.store import DataRoot
 
-    frame = run_query(args.sql, data=DataRoot.resolve(args.data))
+    try:
+        frame = run_query(args.sql, data=DataRoot.resolve(args.data))
+    except QueryRefused as exc:
+        raise RopeloadError(str(exc)) from exc
     sys.stdout.write(format_result(frame, args.format))
     return 0
 

@@ -164,8 +164,12 @@ def open_writer(root: DataRoot) -> Iterator[duckdb.DuckDBPyConnection]:
             fcntl.flock(lock.fileno(), fcntl.LOCK_UN)
 
 
-def open_reader(root: DataRoot) -> duckdb.DuckDBPyConnection:
+def open_reader(root: DataRoot, *, sandbox: bool = False) -> duckdb.DuckDBPyConnection:
     """Open the published warehouse read-only (a consistent snapshot).
+
+    ``sandbox=True`` is for SQL typed by people (``ropeload query``): the connection
+    cannot write any file or read one outside ``<data>/lake``, whatever SQL it is given
+    (:func:`_open_sandboxed`). Plain readers (``sandbox=False``) run the pipeline's own SQL.
 
     Raises FileNotFoundError with the path when nothing has been landed yet.
     """
@@ -173,4 +177,74 @@ def open_reader(root: DataRoot) -> duckdb.DuckDBPyConnection:
         raise FileNotFoundError(
             f"no warehouse at {root.warehouse}: run 'ropeload ingest' or 'ropeload demo' first"
         )
+    if sandbox:
+        return _open_sandboxed(root)
     return duckdb.connect(str(root.warehouse), read_only=True)
+
+
+def _sql_text(text: str) -> str:
+    return "'" + text.replace("'", "''") + "'"
+
+
+def _open_sandboxed(root: DataRoot) -> duckdb.DuckDBPyConnection:
+    """A read-only connection locked to the warehouse and the lake (measured, DuckDB 2.0).
+
+    - A private in-memory DuckDB instance attaches the warehouse ``READ_ONLY`` and uses
+      it. Not ``duckdb.connect(path)``: that returns the per-path instance that other
+      connections of this process share, and the settings below are instance-wide.
+    - ``allowed_directories`` is ``<data>/lake/`` (the raw views read its Parquet) and
+      ``enable_external_access`` is off: any other path (``read_csv('/etc/passwd')``,
+      ``glob``, ``ATTACH``, ``COPY ... TO``, ``EXPORT DATABASE``, URLs) fails with a
+      Permission Error, and so do extension installs and loads. DuckDB normalises ``..``
+      before the prefix check (``<lake>/../x`` is refused); the check is on the path as
+      spelled, so a lake that is a symlink works, and so would a symlink planted inside
+      the lake (only writers of the lake can plant one).
+    - Still readable besides the lake: the attached warehouse file itself (DuckDB allows
+      it), whose bytes (``read_blob``) hold nothing its tables do not show. Still
+      writable: the lake, by a ``COPY`` statement, so :mod:`pipelines.query` refuses
+      every statement but one ``SELECT`` before anything runs.
+    - Sorts and joins too big for memory spill into a private folder of the system temp
+      directory, which DuckDB creates on first spill and removes on close (not next to
+      the warehouse, not in the working directory).
+    - ``lock_configuration`` last: no ``SET``, ``RESET`` or ``PRAGMA`` can undo any of it.
+
+    If the stored raw views point at another place than ``root`` (a data root moved, or
+    named by another path than the writer's), they and the models above them are
+    recreated as temporary views for ``root`` first: the stored ones would be refused.
+    """
+    import tempfile
+    import uuid
+
+    from warehouse.views import LAKE_VIEWS, refresh_views  # views imports store's types
+
+    spill = Path(tempfile.gettempdir()) / f"ropeload-query-{uuid.uuid4().hex}"
+    # in this order: allowed_directories must be set before enable_external_access goes
+    # off (DuckDB 2.0 refuses both as ``connect`` config: "before the database is started")
+    settings = {
+        "temp_directory": _sql_text(str(spill)),
+        "allowed_directories": f"[{_sql_text(str(root.lake) + os.sep)}]",
+        "enable_external_access": "false",
+        "autoload_known_extensions": "false",
+        "autoinstall_known_extensions": "false",
+        "allow_community_extensions": "false",
+    }
+    con = duckdb.connect(":memory:")
+    try:
+        con.execute(f"ATTACH {_sql_text(str(root.warehouse))} AS warehouse (READ_ONLY)")
+        con.execute("USE warehouse")
+        for name, value in settings.items():
+            con.execute(f"SET {name} = {value}")
+        stored = con.execute(
+            "SELECT view_name, sql FROM duckdb_views() WHERE database_name = 'warehouse'"
+        ).fetchall()
+        here = {view: str(root.table_dir(table) / "site=*") for view, table in LAKE_VIEWS.items()}
+        if any(
+            view in here and "read_parquet(" in sql and _sql_text(here[view])[:-1] not in sql
+            for view, sql in stored
+        ):
+            refresh_views(con, root, temporary=True)
+        con.execute("SET lock_configuration = true")
+    except BaseException:
+        con.close()
+        raise
+    return con

@@ -1,13 +1,35 @@
-"""``ropeload query``: read-only SQL, machine formats, one-line errors."""
+"""``ropeload query``: read-only in fact, machine formats, one-line errors.
+
+The escape probes are the ones a hostile tester got through a keyword filter: each must
+be refused (exit 1, one line ``ropeload query: refused: ...``), leave every file under
+the test's folder (data root, lake, an outside folder) byte for byte and mtime as it
+was, create none, and show none of the outside file's content.
+"""
 
 from __future__ import annotations
 
+import datetime as dt
+import hashlib
 import json
+import os
+import subprocess
+import sys
+from pathlib import Path
 
+import duckdb
+import polars as pl
 import pytest
 
 from pipelines.cli import main
-from warehouse.store import DataRoot, open_writer
+from pipelines.query import format_result
+from schemas.tables import POSITION_SUMMARY
+from transforms.reconciliation import conform
+from warehouse.landing import RunRecord, land_results, land_rope_tensions
+from warehouse.store import DataRoot, open_reader, open_writer
+
+DAY = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
+SECRET = "ROPELOAD-TEST-SECRET-7f3a"  # content of the outside files; must never be printed
+REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture
@@ -20,6 +42,280 @@ def data(tmp_path):
             "('r2', 'run', 'test', TIMESTAMPTZ '2026-03-03 06:00:00+00', 'failed')"
         )
     return root
+
+
+def _land(root: DataRoot) -> None:
+    """A run with 4 trips (12 position rows) and 24 hourly lake samples of 1..24 N."""
+    run = RunRecord(
+        run_id="r1", command="run", code_version="test", started_at_utc=DAY, site="s",
+        hoist="h", period_start_utc=DAY, period_end_utc=DAY + dt.timedelta(days=1),
+    )  # fmt: skip
+    positions = pl.DataFrame(
+        [
+            {"run_id": "r1", "site": "s", "hoist": "h", "trip_id": trip, "position": position,
+             "time_start_utc": DAY + dt.timedelta(minutes=10 * trip + k), "load_after_n": 1.0e5}
+            for trip in range(4)
+            for k, position in enumerate(("bottom", "middle", "pithead"))
+        ]
+    )  # fmt: skip
+    samples = pl.DataFrame(
+        {"time_utc": [DAY + dt.timedelta(hours=h) for h in range(24)],
+         "load_n": [float(h + 1) for h in range(24)]},
+        schema={"time_utc": pl.Datetime("us", "UTC"), "load_n": pl.Float64},
+    )  # fmt: skip
+    with open_writer(root) as con:
+        land_results(con, run, position_summary=conform(positions, POSITION_SUMMARY))
+        land_rope_tensions(root, samples, site="s", hoist="h", period_start_utc=DAY,
+                           period_end_utc=DAY + dt.timedelta(days=1))  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def audit(tmp_path_factory):
+    """(folder, data root): a landed warehouse and lake, and an outside folder with secrets."""
+    top = tmp_path_factory.mktemp("query")
+    root = DataRoot.resolve(top / "data")
+    _land(root)
+    outside = top / "outside"
+    outside.mkdir()
+    (outside / "secret.txt").write_text(SECRET + "\n")
+    (outside / "secret.csv").write_text(f"marker\n{SECRET}\n")
+    pl.DataFrame({"marker": [SECRET]}).write_parquet(outside / "secret.parquet")
+    other = duckdb.connect(str(outside / "other.duckdb"))
+    other.execute("CREATE TABLE t (a INTEGER)")
+    other.close()
+    return top, root
+
+
+def _files(top: Path) -> dict[str, tuple[int, int, str]]:
+    """Every file and folder under ``top``: size, mtime (ns), sha256 (files)."""
+    state = {}
+    for path in sorted(top.rglob("*")):
+        stat = path.stat()
+        digest = hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else "dir"
+        state[str(path.relative_to(top))] = (stat.st_size, stat.st_mtime_ns, digest)
+    return state
+
+
+# (id, SQL with {data} {lake} {part} {outside}, what the one-line refusal must name)
+ESCAPES = [
+    ("copy-to-warehouse", "COPY (SELECT 'x') TO '{data}/warehouse.duckdb'", "COPY statements"),
+    ("copy-to-lake-partition", "COPY (SELECT * FROM rope_tensions) TO '{part}/part-99999.parquet'",
+     "COPY statements"),
+    ("copy-to-outside", "COPY runs TO '{outside}/runs.csv'", "COPY statements"),
+    ("copy-from", "COPY runs FROM '{outside}/secret.csv'", "COPY statements"),
+    ("attach-then-insert",
+     "ATTACH '{outside}/other.duckdb' AS other (READ_ONLY false); INSERT INTO other.t VALUES (1)",
+     "2 statements (ATTACH, INSERT)"),
+    ("attach", "ATTACH '{outside}/other.duckdb' AS other (READ_ONLY false)", "ATTACH statements"),
+    ("detach", "DETACH warehouse", "DETACH statements"),
+    ("export-database", "EXPORT DATABASE '{outside}/export'", "EXPORT statements"),
+    ("import-database", "IMPORT DATABASE '{outside}'", "IMPORT (PRAGMA)"),
+    ("select-then-copy", "select 1; copy (select 'x') to '{outside}/x.csv'",
+     "2 statements (SELECT, COPY)"),
+    ("copy-then-select", "copy (select 'x') to '{outside}/x.csv'; select 1",
+     "2 statements (COPY, SELECT)"),
+    ("explain-analyze-copy",
+     "EXPLAIN ANALYZE COPY (SELECT 1 AS a) TO '{part}/part-explain.parquet'",
+     "under EXPLAIN, COPY statements"),
+    ("read-csv-passwd", "SELECT * FROM read_csv('/etc/passwd', sep = ':')",
+     'cannot access file "/etc/passwd"'),
+    ("read-csv-outside", "SELECT * FROM read_csv('{outside}/secret.csv')",
+     'cannot access file "{outside}/secret.csv"'),
+    ("read-text-outside", "SELECT content FROM read_text('{outside}/secret.txt')",
+     'cannot access file "{outside}/secret.txt"'),
+    ("read-blob-outside", "SELECT content FROM read_blob('{outside}/secret.txt')",
+     'cannot access file "{outside}/secret.txt"'),
+    ("glob-etc", "SELECT * FROM glob('/etc/*')", 'cannot access file "/etc/*"'),
+    ("glob-outside", "SELECT * FROM glob('{outside}/*')", 'cannot access file "{outside}/*"'),
+    ("read-parquet-outside", "SELECT * FROM read_parquet('{outside}/secret.parquet')",
+     'cannot access file "{outside}/secret.parquet"'),
+    ("relative-path", "SELECT content FROM read_text('../outside/secret.txt')",
+     'cannot access file "../outside/secret.txt"'),
+    ("dot-dot-out-of-the-lake", "SELECT content FROM read_text('{lake}/../../outside/secret.txt')",
+     "cannot access file"),
+    ("data-root-outside-the-lake", "SELECT content FROM read_text('{data}/.warehouse.lock')",
+     "cannot access file"),
+    ("nested-query-function",
+     "SELECT * FROM query('SELECT content FROM read_text(''{outside}/secret.txt'')')",
+     "cannot access file"),
+    ("set", "SET threads = 1", "SET statements"),
+    ("set-external-access", "SET enable_external_access = true", "SET statements"),
+    ("reset", "RESET lock_configuration", "RESET (SET)"),
+    ("use", "USE memory", "USE (SET)"),
+    ("pragma", "PRAGMA threads = 1", "PRAGMA (SET)"),
+    ("pragma-show", "PRAGMA show_tables", "PRAGMA statements"),
+    ("insert", "INSERT INTO runs (run_id) VALUES ('x')", "INSERT statements"),
+    ("with-insert", "WITH a AS (SELECT 'x' AS run_id) INSERT INTO runs (run_id) SELECT * FROM a",
+     "INSERT statements"),
+    ("create", "CREATE TABLE x AS SELECT 1", "CREATE statements"),
+    ("create-temp", "CREATE TEMP TABLE x AS SELECT 1", "CREATE statements"),
+    ("drop", "DROP TABLE runs", "DROP statements"),
+    ("update", "UPDATE runs SET status = 'x'", "UPDATE statements"),
+    ("delete", "DELETE FROM runs", "DELETE statements"),
+    ("alter", "ALTER TABLE runs ADD COLUMN x INTEGER", "ALTER statements"),
+    ("checkpoint", "CHECKPOINT", "CHECKPOINT (CALL)"),
+    ("force-checkpoint", "FORCE CHECKPOINT", "FORCE (CALL)"),
+    ("vacuum", "VACUUM", "VACUUM statements"),
+    ("install", "INSTALL httpfs", "INSTALL (LOAD)"),
+    ("load", "LOAD httpfs", "LOAD statements"),
+    ("update-extensions", "UPDATE EXTENSIONS", "UPDATE statements"),
+    ("call", "CALL checkpoint()", "CALL statements"),
+    ("begin", "BEGIN TRANSACTION", "BEGIN (TRANSACTION)"),
+    ("empty", " ; -- nothing", "no SQL statement"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("sql", "names"), [p[1:] for p in ESCAPES], ids=[p[0] for p in ESCAPES])
+def test_escape_is_refused_and_touches_nothing(audit, sql, names, capsys, monkeypatch):
+    top, root = audit
+    monkeypatch.chdir(root.path)  # '../outside/...' is the secret folder from here
+    fill = {
+        "data": root.path,
+        "lake": root.lake,
+        "part": root.partition_dir("rope_tensions", site="s", hoist="h", date="2026-03-02"),
+        "outside": top / "outside",
+    }
+    before = _files(top)
+    status = main(["query", "--data", str(root.path), "--format", "csv", sql.format(**fill)])
+    out, err = capsys.readouterr()
+    assert status == 1
+    assert out == ""
+    assert err.startswith("ropeload query: refused: ")
+    assert err.endswith("\n")
+    assert err.count("\n") == 1, err
+    assert names.format(**fill) in err
+    assert SECRET not in err
+    assert "root:" not in err
+    assert _files(top) == before  # nothing written, nothing created, not even an mtime
+
+
+@pytest.mark.parametrize(
+    "sql",
+    [
+        "COPY (SELECT 'x') TO '{data}/warehouse.duckdb'",
+        "COPY (SELECT 'x') TO '{outside}/x.csv'",
+        "ATTACH '{outside}/other.duckdb' AS other (READ_ONLY false)",
+        "EXPORT DATABASE '{outside}/export'",
+        "INSERT INTO runs (run_id) VALUES ('x')",
+        "SELECT content FROM read_text('{outside}/secret.txt')",
+        "SELECT * FROM read_csv('/etc/passwd', sep = ':')",
+        "SELECT * FROM glob('/etc/*')",
+        "SET enable_external_access = true",
+        "RESET allowed_directories",
+        "PRAGMA threads = 1",
+        "INSTALL httpfs",
+        "LOAD httpfs",
+    ],
+)
+def test_sandboxed_connection_stops_escapes_on_its_own(audit, sql):
+    """Second fence: with no statement check at all, DuckDB itself refuses these."""
+    top, root = audit
+    before = _files(top)
+    con = open_reader(root, sandbox=True)
+    try:
+        with pytest.raises(duckdb.Error):
+            con.sql(sql.format(data=root.path, outside=top / "outside")).fetchall()
+    finally:
+        con.close()
+    assert _files(top) == before
+
+
+def test_sandbox_does_not_leak_into_other_connections(audit):
+    """DuckDB settings are per instance: plain readers of the same file keep theirs."""
+    _, root = audit
+    plain = open_reader(root)  # open during the sandboxed query
+    try:
+        assert main(["query", "--data", str(root.path), "select count(*) from runs"]) == 0
+        assert plain.sql("SELECT current_setting('enable_external_access')").fetchall() == [(True,)]
+        plain.execute("SET threads = 1")  # not locked
+    finally:
+        plain.close()
+
+
+def _csv(capsys, root: DataRoot, sql: str) -> list[str]:
+    assert main(["query", "--data", str(root.path), "--format", "csv", sql]) == 0
+    return capsys.readouterr().out.splitlines()
+
+
+def test_views_marts_and_the_lake_stay_queryable(audit, capsys):
+    _, root = audit
+    assert _csv(capsys, root, "select run_id, status from runs") == [
+        "run_id,status",
+        "r1,succeeded",
+    ]
+    assert _csv(capsys, root, "select count(*) as n from position_summary") == ["n", "12"]
+    # the compensated layer is a view over the lake Parquet: 1 + 2 + ... + 24 N
+    assert _csv(
+        capsys, root, "select count(*) as n, sum(load_n) as s, min(site) as site from rope_tensions"
+    ) == ["n,s,site", "24,300.0,s"]
+    assert _csv(
+        capsys,
+        root,
+        "with per_hour as (select hour(time_utc) as h, load_n from raw_rope_tensions) "
+        "select load_n from per_hour where h = 23",
+    ) == ["load_n", "24.0"]
+    assert _csv(capsys, root, "select run_id, position_rows from audit_runs") == [
+        "run_id,position_rows",
+        "r1,12",
+    ]
+    lake_glob = f"{root.lake}/rope_tensions/*/*/*/*.parquet"
+    assert _csv(capsys, root, f"from read_parquet('{lake_glob}') select count(*) as n") == [
+        "n",
+        "24",
+    ]
+    assert _csv(capsys, root, "select count(*) as n from (describe position_summary)") == [
+        "n",
+        str(len(POSITION_SUMMARY)),
+    ]
+    plan = _csv(capsys, root, "explain select * from rope_tensions")
+    assert plan[0] == "explain_key,explain_value"
+    assert _csv(capsys, root, "explain (format json) select 1 as a")[0] == (
+        "explain_key,explain_value"
+    )
+
+
+def test_views_follow_a_moved_data_root(tmp_path, capsys):
+    """Stored raw views name the old lake, outside the sandbox; the reader re-points them."""
+    old = DataRoot.resolve(tmp_path / "old")
+    _land(old)
+    moved = DataRoot.resolve(tmp_path / "moved")
+    old.path.rename(moved.path)
+    assert _csv(capsys, moved, "select count(*) as n, sum(load_n) as s from rope_tensions") == [
+        "n,s",
+        "24,300.0",
+    ]
+    # and the old place is not readable through the moved root's sandbox
+    status = main(["query", "--data", str(moved.path), f"from read_text('{old.path}/x')"])
+    assert status == 1
+    assert "refused: cannot access file" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("sql", "names"),
+    [
+        ("COPY (SELECT 'x') TO '{data}/warehouse.duckdb'", "COPY statements"),
+        ("SELECT content FROM read_text('{outside}/secret.txt')", "cannot access file"),
+    ],
+)
+def test_refusal_through_the_installed_command(audit, sql, names):
+    top, root = audit
+    before = _files(top)
+    sql = sql.format(data=root.path, outside=top / "outside")
+    done = subprocess.run(
+        [sys.executable, "-m", "pipelines.cli", "query", "--data", str(root.path), sql],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+    )
+    assert done.returncode == 1
+    assert done.stdout == ""
+    assert done.stderr.startswith("ropeload query: refused: ")
+    assert names in done.stderr
+    assert done.stderr.count("\n") == 1
+    assert SECRET not in done.stderr
+    assert _files(top) == before
 
 
 def test_query_prints_csv(data, capsys):
@@ -59,6 +355,15 @@ def test_query_table_for_people(data, capsys):
     out = capsys.readouterr().out
     assert "r1" in out
     assert "r2" in out
+
+
+def test_table_format_keeps_every_column_whole():
+    long = "/srv/ropeload/incoming/" + "x" * 150 + ".csv"
+    frame = pl.DataFrame({f"column_{i:02d}": [long] for i in range(30)})
+    table = format_result(frame, "table")
+    assert all(f"column_{i:02d}" in table for i in range(30))
+    assert long in table
+    assert "…" not in table
 
 
 def test_query_is_read_only(data, capsys):

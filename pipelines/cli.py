@@ -63,17 +63,28 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cmd_ingest(args: argparse.Namespace) -> int:
-    from pipelines.ingest import ingest_paths
+    """The report on stdout; one ``ropeload ingest: <file>: <reason>`` line per refused
+    file on stderr and exit 1 if any was refused (the other files landed)."""
+    from pipelines.ingest import FilesRefused, ingest_paths
+    from pipelines.ingest.field_checks import hoist_lookup_from_files
     from warehouse.store import DataRoot
 
+    hoists = [str(p.absolute()) for p in args.hoist or []]
+    lookup = hoist_lookup_from_files(hoists)  # an invalid description stops here
     if args.prefect:
         from pipelines.flows import ingest_flow
 
-        report = ingest_flow(paths=[str(p) for p in args.paths], data=args.data)
+        try:
+            report = ingest_flow(paths=[str(p) for p in args.paths], data=args.data, hoists=hoists)
+        except FilesRefused as exc:
+            report = exc.report
     else:
-        report = ingest_paths(args.paths, data=DataRoot.resolve(args.data))
+        report = ingest_paths(args.paths, data=DataRoot.resolve(args.data), hoist_lookup=lookup)
     sys.stdout.write(f"{report}\n")
-    return 0
+    sys.stdout.flush()
+    for line in report.refusal_lines():
+        sys.stderr.write(f"ropeload ingest: {line}\n")
+    return 0 if report.ok else 1
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
@@ -384,6 +395,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _data_option(ingest)
     ingest.add_argument("paths", nargs="+", type=Path, metavar="PATH", help="files or folders")
+    ingest.add_argument(
+        "--hoist",
+        metavar="FILE",
+        type=Path,
+        action="append",
+        help="hoist description TOML of the logs' hoist (repeatable, one per hoist): depth "
+        "outside its shaft is quarantined; without one only depth above the pithead is",
+    )
     _prefect_option(ingest)
     ingest.set_defaults(handler=_cmd_ingest)
 

@@ -62,7 +62,8 @@ from pipelines.backfill import (  # noqa: E402
     record_failures,
     run_partition,
 )
-from pipelines.ingest import IngestReport, ingest_paths  # noqa: E402
+from pipelines.ingest import FilesRefused, IngestReport, ingest_paths  # noqa: E402
+from pipelines.ingest.field_checks import hoist_lookup_from_files  # noqa: E402
 from pipelines.nightly import (  # noqa: E402
     HoistNight,
     NightlyReport,
@@ -160,8 +161,8 @@ def task_runner(*, max_workers: int = 2, dask: str | None = None) -> Any:
 
 
 @task(name="ingest-files", **_TRANSIENT)
-def ingest_task(paths: list[str], data: DataRoot) -> IngestReport:
-    return ingest_paths(paths, data=data)
+def ingest_task(paths: list[str], data: DataRoot, hoists: list[str] | None = None) -> IngestReport:
+    return ingest_paths(paths, data=data, hoist_lookup=hoist_lookup_from_files(hoists or []))
 
 
 @task(name="run-period", **_TRANSIENT)
@@ -276,9 +277,20 @@ def _outcomes(
 
 
 @flow(name="ingest", persist_result=False)
-def ingest_flow(paths: list[str], data: str | None = None) -> IngestReport:
-    """``ropeload ingest``: files and folders into the lake."""
-    return ingest_task(paths, DataRoot.resolve(data))
+def ingest_flow(
+    paths: list[str], data: str | None = None, hoists: list[str] | None = None
+) -> IngestReport:
+    """``ropeload ingest``: files and folders into the lake (``hoists``: description files
+    for the depth-in-shaft check).
+
+    A refused file fails the flow run: :class:`~pipelines.ingest.FilesRefused` is raised
+    after every file was tried, its message one line per refused file, ``.report`` the
+    whole report (the other files landed).
+    """
+    report = ingest_task(paths, DataRoot.resolve(data), hoists)
+    if not report.ok:
+        raise FilesRefused(report)
+    return report
 
 
 @flow(name="run", persist_result=False)

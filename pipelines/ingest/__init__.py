@@ -5,6 +5,7 @@ Public API::
     report = ingest_paths(["logs/", "rig/run-12.mcap"], data=DataRoot.resolve(None))
     print(report)          # a short table, one line per file
     report.ok              # False when a file was refused
+    report.refusal_lines() # one "<file>: <reason>" per refused file (the CLI's stderr)
 
 Modules: :mod:`.sources` (what and which format), :mod:`.field_csv`,
 :mod:`.field_tdms`, :mod:`.rig_mcap` (readers), :mod:`.local_time` (timestamps, DST),
@@ -17,6 +18,6 @@ from __future__ import annotations
 
 from pipelines.ingest.batch import RefusedFile
 from pipelines.ingest.pipeline import ingest_paths
-from pipelines.ingest.report import FileResult, IngestReport
+from pipelines.ingest.report import FileResult, FilesRefused, IngestReport
 
-__all__ = ["FileResult", "IngestReport", "RefusedFile", "ingest_paths"]
+__all__ = ["FileResult", "FilesRefused", "IngestReport", "RefusedFile", "ingest_paths"]

@@ -20,17 +20,19 @@ channel), negative absolute pressure, pressure above 60 MPa, depth outside the s
 Depth outside the shaft: with a hoist description the landed range is
 ``[-DEPTH_MARGIN_M, shaft depth + DEPTH_MARGIN_M]`` (overtravel and encoder slack);
 without one only ``depth < -DEPTH_MARGIN_M`` is impossible, since the shaft depth is
-unknown.
+unknown. ``ropeload ingest --hoist FILE`` gives ingest the descriptions
+(:func:`hoist_lookup_from_files`); nightly and backfill give each hoist's own.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import polars as pl
 
-from schemas.hoist import HoistDescription
+from schemas.hoist import HoistDescription, load_hoist
 
 __all__ = [
     "CHANNELS",
@@ -44,6 +46,7 @@ __all__ = [
     "Channel",
     "HoistLookup",
     "depth_limits_m",
+    "hoist_lookup_from_files",
     "physical_reason",
     "to_si",
 ]
@@ -93,6 +96,32 @@ def to_si(value: pl.Expr, factor: float, offset: float = 0.0) -> pl.Expr:
     cleaned = pl.when(value.is_nan() | (value == _SENTINEL)).then(None).otherwise(value)
     scaled = cleaned * factor if factor != 1.0 else cleaned
     return scaled + offset if offset else scaled
+
+
+def hoist_lookup_from_files(paths: Sequence[str | Path]) -> HoistLookup | None:
+    """A ``hoist_lookup`` over hoist description files, by their ``[hoist] site``/``name``.
+
+    ``None`` for no files. Raises :class:`schemas.hoist.HoistDescriptionError` (naming
+    the file and key) for an invalid description, and ``ValueError`` when two files
+    describe the same hoist.
+    """
+    if not paths:
+        return None
+    by_key: dict[tuple[str, str], tuple[Path, HoistDescription]] = {}
+    for path in paths:
+        description = load_hoist(path)
+        key = (description.hoist.site, description.hoist.name)
+        if key in by_key:
+            raise ValueError(
+                f"{path}: describes {key[0]}/{key[1]}, as {by_key[key][0]} does: one file per hoist"
+            )
+        by_key[key] = (Path(path), description)
+
+    def lookup(site: str, hoist: str) -> HoistDescription | None:
+        found = by_key.get((site, hoist))
+        return found[1] if found is not None else None
+
+    return lookup
 
 
 def depth_limits_m(hoist: HoistDescription | None) -> tuple[float, float]:

@@ -60,6 +60,7 @@ _SEPARATORS = (",", ";", "\t")
 _DECIMAL_COMMA = re.compile(r"^[-+]?\d*,\d+$")
 _KELVIN = {"K": -273.15}
 _SENTINEL = -9999.0
+_CONTROL_BYTES = re.compile(rb"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
 
 
 @dataclass(frozen=True)
@@ -98,7 +99,7 @@ def read_header(path: Path) -> CsvHeader:
         terminated = end >= 0
         raw = head[pos : end if terminated else len(head)].rstrip(b"\r")
         line_no += 1
-        text = _header_text(path, raw, line_no)
+        text = _header_text(path, raw, line_no, notes)
         next_pos = end + 1 if terminated else len(head)
         if not text.strip():
             pos = next_pos
@@ -129,8 +130,9 @@ def read_header(path: Path) -> CsvHeader:
     missing = [k for k in _REQUIRED_KEYS if k not in meta]
     if missing:
         have = ", ".join(sorted(meta)) or "none"
+        where = f"lines 1-{column_line[0] - 1}" if column_line[0] > 1 else "line 1"
         raise RefusedFile(
-            f"{path}: lines 1-{column_line[0] - 1}: header lacks required key(s) "
+            f"{path}: {where}: header lacks required key(s) "
             f"{', '.join(repr(k) for k in missing)} (found: {have})"
         )
     for key in ("site", "hoist"):  # they become lake folders: safe names only
@@ -180,18 +182,36 @@ def read_header(path: Path) -> CsvHeader:
     )
 
 
-def _header_text(path: Path, raw: bytes, line_no: int) -> str:
+def _header_text(path: Path, raw: bytes, line_no: int, notes: list[str]) -> str:
     if b"\x00" in raw:
         if raw.startswith(b"#"):  # a header value with a NUL: show the line, key and all
             raise RefusedFile(f"{path}: line {line_no}: NUL byte in header line {raw[:80]!r}")
         raise RefusedFile(f"{path}: line {line_no}: binary data (NUL bytes), not a text log")
+    header_line = raw.lstrip().startswith(b"#")
+    if not header_line and (found := _CONTROL_BYTES.search(raw)):
+        # the column line (or whatever stands first) holds no control bytes in a text log
+        raise RefusedFile(
+            f"{path}: line {line_no}: binary data (control byte {found.group()!r} at byte "
+            f"{found.start()}), not a text log"
+        )
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise RefusedFile(
-            f"{path}: line {line_no}: header is not UTF-8 text (byte {exc.start}); "
-            "binary file or wrong encoding"
-        ) from None
+        if not header_line:  # column names are ASCII
+            raise RefusedFile(
+                f"{path}: line {line_no}: binary data or not a column line (not UTF-8 text "
+                f"at byte {exc.start}), not a text log"
+            ) from None
+    # A '#' line that is not UTF-8: a LabVIEW export on a Windows PC writes its code
+    # page. Read it as cp1252, else Latin-1 (never fails): an operator comment in
+    # Latin-1 must not refuse the rows, and what matters keeps its meaning ('°C' in
+    # units; site and hoist must be ASCII safe names anyway, checked after this).
+    try:
+        text, encoding = raw.decode("cp1252"), "cp1252"
+    except UnicodeDecodeError:
+        text, encoding = raw.decode("latin-1"), "Latin-1"
+    notes.append(f"line {line_no}: not UTF-8 text, read as {encoding}")
+    return text
 
 
 def _check_columns(path: Path, line: int, columns: tuple[str, ...], notes: list[str]) -> None:

@@ -1,10 +1,15 @@
 """The ingest manifest in the warehouse: one row per distinct source content (sha256).
 
 Content, not names, is the key: a file re-exported under a new name has the same
-sha256 and is skipped. A CSV that was still growing (``status = 'partial'``,
-``bytes_consumed < size_bytes``) is resumed when a longer file arrives whose first
-``size_bytes`` bytes hash to that row's ``source_sha256``: appending keeps the old
-content as a prefix, so the prefix hash identifies it without storing anything extra.
+sha256 and is skipped, when it was landed (or partial) in the same format. A refused
+content is read again on every ingest and its row replaced by the new outcome
+(:func:`forget` + :func:`record`); bytes of another format (an empty ``.mcap`` after
+an empty ``.csv``) are not "the same file" either.
+
+A CSV that was still growing (``status = 'partial'``, ``bytes_consumed < size_bytes``)
+is resumed when a longer file arrives whose first ``size_bytes`` bytes hash to that
+row's ``source_sha256``: appending keeps the old content as a prefix, so the prefix
+hash identifies it without storing anything extra.
 Ingest then starts at the old ``bytes_consumed`` (the first line not yet landed).
 """
 
@@ -24,6 +29,7 @@ __all__ = [
     "Resume",
     "file_digests",
     "find_earlier",
+    "forget",
     "record",
     "resume_candidates",
     "size_seen",
@@ -37,6 +43,7 @@ class Earlier:
     """A manifest row for the same content."""
 
     path: str
+    format: str
     status: str
     message: str | None
 
@@ -52,9 +59,15 @@ class Resume:
 
 def find_earlier(con: duckdb.DuckDBPyConnection, sha256: str) -> Earlier | None:
     rows = con.execute(
-        "SELECT source_path, status, message FROM manifest WHERE source_sha256 = ?", [sha256]
+        "SELECT source_path, format, status, message FROM manifest WHERE source_sha256 = ?",
+        [sha256],
     ).fetchall()
     return Earlier(*rows[0]) if rows else None
+
+
+def forget(con: duckdb.DuckDBPyConnection, sha256: str) -> None:
+    """Delete the manifest row of ``sha256`` (a refusal about to be replaced)."""
+    con.execute("DELETE FROM manifest WHERE source_sha256 = ?", [sha256])
 
 
 def size_seen(con: duckdb.DuckDBPyConnection, size: int) -> bool:

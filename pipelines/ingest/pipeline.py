@@ -3,9 +3,13 @@
 For each file, in one serialised warehouse writer (:func:`warehouse.store.open_writer`,
 published every ``commit_every`` files):
 
-1. sha256 of the content; already in the manifest -> ``skipped`` (no-op, even renamed).
-   A CSV whose size no manifest row has (so certainly new) is opened and its first
-   batch read while the hash runs on a thread.
+0. A 0-byte file is refused (it has no header), whatever its format.
+1. sha256 of the content; already in the manifest as a landed or partial file of the
+   same format -> ``skipped`` (no-op, even renamed). A refused content, or the same
+   bytes under another format, is read again: a refusal is said every time, and the
+   manifest row is replaced by the new outcome. A CSV whose size no manifest row has
+   (so certainly new) is opened and its first batch read while the hash runs on a
+   thread.
 2. A partial earlier version that this file extends -> resume after its
    ``bytes_consumed`` (:mod:`.manifest`).
 3. The format's reader yields batches (:mod:`.field_csv`, :mod:`.field_tdms`,
@@ -13,7 +17,9 @@ published every ``commit_every`` files):
    (:mod:`.landing`), conflicts quarantined. Batch N lands on a worker thread while
    batch N+1 is read (one batch in flight; see :func:`_land_all`).
 4. One manifest row with the accounting; the lake parts of the file are on disk before
-   its manifest row is published.
+   its manifest row is published. A CSV with a header and a column line but no data
+   rows lands 0 rows (status ``landed``, a note says so): an empty export is not an
+   error.
 
 Crash in the middle: the lake may hold part of a file whose manifest row was never
 published. Re-ingesting it lands nothing twice: those rows are exact duplicates now.
@@ -22,6 +28,7 @@ published. Re-ingesting it lands nothing twice: those rows are exact duplicates 
 from __future__ import annotations
 
 import datetime as dt
+import hashlib
 import itertools
 from collections import Counter
 from collections.abc import Sequence
@@ -38,8 +45,10 @@ from pipelines.ingest.field_checks import REASON_CONFLICT, HoistLookup
 from pipelines.ingest.field_csv import DEFAULT_BATCH_BYTES, open_csv
 from pipelines.ingest.landing import LakeTable, Landed
 from pipelines.ingest.manifest import (
+    Earlier,
     file_digests,
     find_earlier,
+    forget,
     record,
     resume_candidates,
     size_seen,
@@ -50,6 +59,8 @@ from pipelines.ingest.sources import detect_format, expand_paths
 from warehouse.store import DataRoot, open_writer
 
 __all__ = ["ingest_paths"]
+
+_EMPTY_SHA256 = hashlib.sha256(b"").hexdigest()
 
 
 def ingest_paths(
@@ -63,8 +74,10 @@ def ingest_paths(
     """Ingest files and folders (CSV, TDMS, MCAP in any mix) into ``data``.
 
     ``hoist_lookup(site, hoist)`` may return the hoist description of a field log, used
-    for the depth-in-shaft check. Refused files are reported (and recorded in the
-    manifest), not raised; check ``report.ok``.
+    for the depth-in-shaft check (:func:`.field_checks.hoist_lookup_from_files`); a file
+    whose hoist it does not know says so in its message. Refused files are reported (and
+    recorded in the manifest), not raised; check ``report.ok`` and
+    ``report.refusal_lines()``.
     """
     files = expand_paths(paths)
     report = IngestReport()
@@ -72,11 +85,27 @@ def ingest_paths(
         with open_writer(data) as con:
             lakes: dict[str, LakeTable] = {}
             for path in files[start : start + max(commit_every, 1)]:
-                result = _ingest_file(path, con, data, lakes, hoist_lookup, batch_bytes)
+                result, earlier = _ingest_file(path, con, data, lakes, hoist_lookup, batch_bytes)
                 if result.status != "skipped" and result.sha256:
-                    record(con, result)
+                    _record(con, result, earlier)
                 report.files.append(result)
     return report
+
+
+def _record(con: duckdb.DuckDBPyConnection, result: FileResult, earlier: Earlier | None) -> None:
+    """The manifest row of ``result``, replacing an earlier refusal of the same content."""
+    if earlier is not None:
+        if earlier.status != "refused":
+            # the same bytes were landed as another format (one row per content): keep
+            # that row; this file's outcome is in the report only
+            note = (
+                f"not recorded in the manifest: the same bytes are recorded as the "
+                f"{earlier.format} file {earlier.path} ({earlier.status})"
+            )
+            result.message = "; ".join(m for m in (result.message, note) if m)
+            return
+        forget(con, result.sha256)
+    record(con, result)
 
 
 def _ingest_file(
@@ -86,11 +115,19 @@ def _ingest_file(
     lakes: dict[str, LakeTable],
     hoist_lookup: HoistLookup | None,
     batch_bytes: int,
-) -> FileResult:
+) -> tuple[FileResult, Earlier | None]:
+    """The outcome of one file, and the manifest row of its content if there was one."""
     if not path.is_file():
-        return FileResult(path, "", "unknown", "refused", message=f"{path}: no such file")
+        return FileResult(path, "", "unknown", "refused", message=f"{path}: no such file"), None
     size = path.stat().st_size
     fmt = detect_format(path)
+    if size == 0:
+        result = FileResult(path, _EMPTY_SHA256, fmt, "refused")
+        result.message = f"{path}: empty file (0 bytes): no header, no data"
+        return result, find_earlier(con, _EMPTY_SHA256)
+    notes: list[str] = []
+    if hoist_lookup is not None:
+        hoist_lookup = _noting_misses(hoist_lookup, notes)
     if fmt == "csv":
         warm_up_in_background()
     candidates = resume_candidates(con, max_size=size) if fmt == "csv" else []
@@ -105,19 +142,18 @@ def _ingest_file(
         sha256, prefixes = digests.result()
     result = FileResult(path, sha256, fmt, "landed", size_bytes=size)
     earlier = find_earlier(con, sha256)
-    if earlier is not None:
+    if earlier is not None and earlier.status != "refused" and earlier.format == fmt:
         if started is not None:
             started.close()
         result.status = "skipped"
         same = "this name" if earlier.path == str(path) else earlier.path
         result.message = f"already ingested ({earlier.status}) as {same}; nothing to do"
-        return result
+        return result, earlier
     resume = None
     for candidate in reversed(candidates):  # the longest prefix first
         if prefixes.get(candidate.size_bytes) == candidate.sha256:
             resume = candidate
             break
-    notes: list[str] = []
     try:
         if started is not None:
             reading = started.reading_or_raise()
@@ -128,17 +164,31 @@ def _ingest_file(
     except RefusedFile as exc:
         result.status = "refused"
         result.message = str(exc)
-        return result
-    notes.extend(reading.notes)
+        return result, earlier
+    notes[:0] = reading.notes
     result.bytes_consumed = reading.bytes_consumed
     if reading.partial:
         result.status = "partial"
         notes.append(f"partial: {reading.partial}")
     elif result.rows_read == 0 and resume is None and fmt == "csv":
-        result.status = "refused"
-        notes.insert(0, f"{path}: header only, no data rows")
+        notes.insert(0, "no data rows (header and column line only): 0 rows landed")
     result.message = "; ".join(notes)
-    return result
+    return result, earlier
+
+
+def _noting_misses(lookup: HoistLookup, notes: list[str]) -> HoistLookup:
+    """``lookup`` that adds a note when it has no description for a file's hoist."""
+
+    def noting(site: str, hoist: str):
+        found = lookup(site, hoist)
+        if found is None:
+            notes.append(
+                f"no hoist description for {site}/{hoist}: depth checked against the "
+                "pithead only, not the shaft"
+            )
+        return found
+
+    return noting
 
 
 @dataclass

@@ -9,10 +9,17 @@ Statuses (also the manifest ``status``, except ``skipped``):
     cut off (still growing: ``bytes_consumed < size_bytes``, picked up on the next
     ingest) or a truncated MCAP recording. The message says why.
 ``refused``
-    nothing landed; the message names the file and the line, channel or topic.
+    nothing landed; the message names the file and the line, channel or topic. A
+    refusal is never final: the same content ingested again is read again (the code or
+    the options may have changed) and refused again, or landed, and the manifest row
+    replaced by the new outcome.
 ``skipped``
-    this content (sha256) is already in the manifest, under this or another name;
-    nothing was done (not written to the manifest again).
+    this content (sha256) is already in the manifest as a landed or partial file of the
+    same format, under this or another name; nothing was done (not written to the
+    manifest again). Refused content and content of another format are never skipped.
+
+``ropeload ingest`` prints the report on stdout and one line per refused file on
+stderr (:meth:`IngestReport.refusal_lines`), and exits 1 when any file was refused.
 
 For every file ``rows_read == rows_landed + rows_quarantined + rows_duplicate``.
 """
@@ -24,7 +31,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["STATUSES", "FileResult", "IngestReport"]
+__all__ = ["STATUSES", "FileResult", "FilesRefused", "IngestReport"]
 
 STATUSES = ("landed", "partial", "refused", "skipped")
 
@@ -49,6 +56,12 @@ class FileResult:
     time_start_utc: dt.datetime | None = None
     time_end_utc: dt.datetime | None = None
     message: str = ""
+
+    @property
+    def reason(self) -> str:
+        """The message on one line, without the leading ``<path>: `` it usually has."""
+        text = " ".join(self.message.split())
+        return text.removeprefix(f"{self.path}: ") or self.status
 
     @property
     def balanced(self) -> bool:
@@ -76,6 +89,10 @@ class IngestReport:
     def ok(self) -> bool:
         """No file refused (quarantined rows do not make a run fail)."""
         return not self.refused
+
+    def refusal_lines(self) -> list[str]:
+        """One ``<file>: <reason>`` line per refused file, in input order (for stderr)."""
+        return [f"{f.path}: {f.reason}" for f in self.refused]
 
     def totals(self) -> dict[str, int]:
         keys = ("rows_read", "rows_landed", "rows_quarantined", "rows_duplicate")
@@ -121,6 +138,19 @@ class IngestReport:
 
         rule = "  ".join("-" * w for w in widths)
         return "\n".join([line(head), rule, *(line(r) for r in rows[:-1]), rule, line(rows[-1])])
+
+
+class FilesRefused(RuntimeError):
+    """Raised by the ``ingest`` flow when some files were refused: the flow run fails.
+
+    ``report`` is the whole :class:`IngestReport` (the other files did land); the
+    message is the refusal lines, one per file.
+    """
+
+    def __init__(self, report: IngestReport) -> None:
+        lines = report.refusal_lines()
+        super().__init__(f"{len(lines)} file(s) refused:\n" + "\n".join(lines))
+        self.report = report
 
 
 def _short(text: str, width: int) -> str:

@@ -12,6 +12,7 @@ import datetime as dt
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import polars as pl
 import pytest
 
@@ -249,13 +250,105 @@ def case_empty_file(corpus, tmp):
 
 
 def case_header_only(corpus, tmp):
-    return corpus.csv_file(tmp / "headonly.csv", []), Expect("refused", 0, 0, message="header only")
+    # an export of a period without samples: lands 0 rows, says so; not a refusal
+    path = corpus.csv_file(tmp / "headonly.csv", [])
+    return path, Expect("landed", 0, 0, message="no data rows (header and column line only)")
+
+
+def case_header_only_with_blank_lines(corpus, tmp):
+    path = corpus.csv_file(tmp / "headblank.csv", ["", ""], newline="\r\n")
+    return path, Expect("landed", 0, 0, message="no data rows")
+
+
+def _with_header_line(path: Path, after: bytes, line: bytes) -> Path:
+    """Insert ``line`` (raw bytes, any encoding) after the header line starting ``after``."""
+    data = path.read_bytes()
+    at = data.index(b"\n", data.index(after)) + 1
+    path.write_bytes(data[:at] + line + b"\n" + data[at:])
+    return path
+
+
+def case_latin1_header_comment(corpus, tmp):
+    # an operator's comment typed on a Windows PC: Latin-1, not UTF-8
+    path = corpus.csv_file(tmp / "comment.csv", corpus.data_rows(100))
+    comment = "# comment: Prüfung nach Seilwechsel, Schacht geölt (Müller)".encode("latin-1")
+    _with_header_line(path, b"# timezone", comment)
+    return path, Expect("landed", 100, 100, message="line 4: not UTF-8 text, read as cp1252")
+
+
+def case_stray_bytes_in_free_comment(corpus, tmp):
+    # bytes no code page defines (0x81, 0x8d, 0x90 are holes in cp1252) in a line
+    # without 'key: value': read as Latin-1, ignored as a comment
+    path = corpus.csv_file(tmp / "stray.csv", corpus.data_rows(20))
+    _with_header_line(path, b"# site", b"# \x81\x8d\x90\xfe export tool v2 \xff")
+    return path, Expect("landed", 20, 20, message="line 2: not UTF-8 text, read as Latin-1")
+
+
+def case_cp1252_degree_sign_in_units(corpus, tmp):
+    header = {**corpus.HEADER, "units": "p=MPa, x=mm, depth=m, speed=m/s, oil_temp=°C"}
+    path = corpus.csv_file(tmp / "degree.csv", corpus.data_rows(10), header=header)
+    path.write_bytes(path.read_bytes().replace("°".encode(), "°".encode("cp1252")))
+    return path, Expect("landed", 10, 10, message="line 5: not UTF-8 text, read as cp1252")
+
+
+def case_non_utf8_rows_among_good_ones(corpus, tmp):
+    # undecodable bytes in data rows: those rows are quarantined (raw kept), not lost
+    rows: list = corpus.data_rows(12)
+    rows[3] = ",".join(rows[3]).replace("12.1", "12.1\udce9")
+    rows[8] = ",".join(rows[8]) + "\udc81"
+    path = corpus.csv_file(tmp / "rows.csv", [])
+    with path.open("ab") as handle:
+        for row in rows:
+            text = row if isinstance(row, str) else ",".join(row)
+            handle.write(text.encode("utf-8", "surrogateescape") + b"\n")
+    return path, Expect("landed", 12, 10, 2, reasons={"non-UTF-8 bytes": 2})
 
 
 def case_binary_garbage(corpus, tmp):
     path = tmp / "garbage.csv"
     path.write_bytes(bytes(range(256)) * 8)
     return path, Expect("refused", 0, 0, message="line 1: binary data")
+
+
+def case_binary_without_nul_bytes(corpus, tmp):
+    path = tmp / "image.csv"
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(range(1, 256)) * 4)
+    return path, Expect("refused", 0, 0, message="line 1: binary data or not a column line")
+
+
+def case_no_header_at_all(corpus, tmp):
+    path = corpus.csv_file(tmp / "plain.csv", corpus.data_rows(3), header={})
+    return path, Expect("refused", 0, 0, message="line 1: header lacks required key(s) 'site'")
+
+
+def case_empty_mcap(corpus, tmp):
+    path = tmp / "empty.mcap"
+    path.write_bytes(b"")
+    return path, Expect("refused", 0, 0, message="empty file (0 bytes)")
+
+
+def case_empty_tdms(corpus, tmp):
+    path = tmp / "empty.tdms"
+    path.write_bytes(b"")
+    return path, Expect("refused", 0, 0, message="empty file (0 bytes)")
+
+
+def case_garbage_mcap(corpus, tmp):
+    path = tmp / "garbage.mcap"
+    path.write_bytes(np.random.default_rng(3).bytes(4000))
+    return path, Expect("refused", 0, 0, message="no readable MCAP messages")
+
+
+def case_mcap_protobuf_topic(corpus, tmp):
+    path = corpus.mcap_file(tmp / "proto.mcap", bad_encoding_topic="/rig/pressure")
+    return path, Expect("refused", 0, 0, message="topic /rig/pressure: schema encoding")
+
+
+def case_missing_p4_column(corpus, tmp):
+    rows = [r[:4] + r[5:] for r in corpus.data_rows(3)]
+    columns = [c for c in corpus.COLUMNS if c != "p4"]
+    path = corpus.csv_file(tmp / "nop4.csv", rows, columns=columns)
+    return path, Expect("refused", 0, 0, message="line 6: column line lacks required channel(s) p4")
 
 
 def case_tdms(corpus, tmp):
@@ -311,6 +404,11 @@ def test_corpus_case(name, corpus, tmp_path, root):
     _check(report, root, expect)
     if expect.status == "refused":
         assert str(path) in report.files[0].message or path.name in report.files[0].message
+        assert report.refusal_lines() == [f"{path}: {report.files[0].reason}"]
+        assert "\n" not in report.refusal_lines()[0]
+    else:
+        assert report.ok
+        assert report.refusal_lines() == []
 
 
 # ---------------------------------------------------------------- values, not just counts

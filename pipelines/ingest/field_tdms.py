@@ -11,6 +11,10 @@ times (LabVIEW logs jitter and drop samples) and is used; otherwise
 (UTC), so ``timezone`` is informational here. A value channel without ``wf_increment``
 or ``wf_start_time`` refuses the file, naming the channel.
 
+A truncated file (channels of the last chunk end unevenly: the logger stopped
+mid-write) lands the samples every channel has and is ``partial``; the complete file,
+exported later, lands the rest (the first part as exact duplicates).
+
 Quarantine rows of TDMS files have no line; ``raw`` starts with the 0-based sample index
 (the samples' ``_row``).
 """
@@ -61,13 +65,11 @@ def open_tdms(path: Path, *, hoist_lookup: HoistLookup | None = None) -> Reading
     ]
     if unknown:
         notes.append(f"unknown channel(s) {', '.join(unknown)} ignored")
-    return Reading(
-        table="field_samples",
-        site=site,
-        hoist=hoist_name,
-        batches=_batches(tdms, units, timebase, limits),
-        notes=notes,
+    reading = Reading(
+        table="field_samples", site=site, hoist=hoist_name, batches=iter(()), notes=notes
     )
+    reading.batches = _batches(tdms, units, timebase, limits, reading)
+    return reading
 
 
 def _metadata(path: Path, tdms: TdmsFile):
@@ -122,8 +124,16 @@ def _metadata(path: Path, tdms: TdmsFile):
 
 
 def _batches(
-    tdms: TdmsFile, units: dict[str, tuple[float, float]], timebase, limits: tuple[float, float]
+    tdms: TdmsFile,
+    units: dict[str, tuple[float, float]],
+    timebase,
+    limits: tuple[float, float],
+    reading: Reading,
 ) -> Iterator[Batch]:
+    """Batches per data chunk. A chunk whose channels end unevenly is a truncated file
+    (the logger stopped mid-write): the samples every channel has land, the reading
+    stops there and is ``partial`` (a channel filled with nulls instead would land
+    wrong rows that the complete file's rows then conflict with)."""
     start, offset_s, increment_s = timebase
     try:
         for chunk in tdms.data_chunks():
@@ -131,8 +141,21 @@ def _batches(
             arrays = {c.name: (c.offset, c[:]) for c in group.channels()}
             if "p1" not in arrays:
                 continue
-            first, p1 = arrays["p1"]
-            n = len(p1)
+            first = arrays["p1"][0]
+            lengths = {
+                name: len(data)
+                for name, (offset, data) in arrays.items()
+                if (name in units or name == "timestamp") and offset == first
+            }
+            n = min(lengths.values())
+            if n < max(lengths.values()):
+                short = min(lengths, key=lengths.__getitem__)
+                reading.partial = (
+                    f"truncated: channel hoist/{short} ends at sample {first + n}, "
+                    f"{max(lengths.values()) - n} sample(s) before the longest channel; landed "
+                    "the samples every channel has"
+                )
+                arrays = {name: (offset, data[:n]) for name, (offset, data) in arrays.items()}
             index = np.arange(first, first + n, dtype=np.int64)
             if "timestamp" in arrays and len(arrays["timestamp"][1]) == n:
                 times = pl.Series("time_utc", arrays["timestamp"][1].astype("datetime64[us]"))
@@ -182,6 +205,8 @@ def _batches(
                 else rejected_frame([])
             )
             yield Batch(samples=samples, rejected=rejected, raw_of=raw_of)
+            if reading.partial:
+                break
     finally:
         tdms.close()
 

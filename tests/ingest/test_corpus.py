@@ -386,6 +386,16 @@ def case_mcap_rig_id_with_a_nul(corpus, tmp):
     return path, Expect("refused", 0, 0, message="rig_id: unsafe name 'rig\\x00a'")
 
 
+def case_tdms_truncated(corpus, tmp):
+    # the logger stopped mid-write: the last channel (speed) has 60 of 100 values; the
+    # 60 samples every channel has land (no rows with a null channel), the file is partial
+    path = corpus.tdms_file(tmp / "cut.tdms")
+    path.write_bytes(path.read_bytes()[: -40 * 8])
+    return path, Expect(
+        "partial", 60, 59, 1, message="truncated: channel hoist/speed ends at sample 60"
+    )
+
+
 CASES = {
     name.removeprefix("case_"): fn
     for name, fn in list(globals().items())

@@ -98,6 +98,21 @@ def test_growing_file_is_picked_up_where_it_stopped(corpus, tmp_path, root):
     assert len(list(root.table_dir("field_samples").rglob("*.parquet"))) == 1
 
 
+def test_truncated_tdms_then_the_complete_file_lands_every_sample_once(corpus, tmp_path, root):
+    full = corpus.tdms_file(tmp_path / "full.tdms", n=400)
+    cut = tmp_path / "cut.tdms"
+    cut.write_bytes(full.read_bytes()[: -250 * 8])  # speed has 150 of 400 values
+    first = ingest_paths([cut], data=root).files[0]
+    assert (first.status, first.rows_read, first.rows_landed) == ("partial", 150, 149)
+    second = ingest_paths([full], data=root).files[0]
+    assert second.status == "landed"
+    assert (second.rows_landed, second.rows_duplicate, second.rows_quarantined) == (250, 149, 1)
+    assert second.quarantined_by_reason == {"pressure above 60 MPa (p1)": 1}  # not conflicts
+    lake = pl.read_parquet(sorted(root.table_dir("field_samples").rglob("*.parquet")))
+    assert lake.height == 399
+    assert lake["speed_m_s"].null_count() == 0
+
+
 def test_large_file_streams_in_batches_and_lands_every_row(corpus, tmp_path, root):
     rows = corpus.data_rows(3000)
     rows[1500][1] = "bad"

@@ -118,7 +118,8 @@ def open_mcap(path: Path) -> Reading:
         if partial is None:
             partial = f"summary unreadable ({type(exc).__name__}: {exc}); read sequentially"
         if not any(collected.times.values()):
-            raise RefusedFile(f"{path}: no readable MCAP messages ({partial})") from None
+            why = partial.removesuffix("; landed the messages before it")
+            raise RefusedFile(f"{path}: no readable MCAP messages ({why})") from None
     return _reading(path, collected, partial)
 
 

@@ -90,6 +90,7 @@ def test_each_kind_of_refusal_exits_1_with_one_line(corpus, tmp_path, capsys):
         assert len(err) == 1, err
         assert err[0].startswith(f"{PREFIX}{path}: "), err
         assert reason in err[0], err
+        assert "landed" not in err[0], err  # a refusal lands nothing and must not say so
         assert "refused" in out  # the report is on stdout
 
 

@@ -10,7 +10,11 @@ usage error.
 from __future__ import annotations
 
 import argparse
+import errno
+import os
+import signal
 import sys
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -447,24 +451,153 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _known_errors() -> tuple[type[BaseException], ...]:
+    """Errors the user can cause: their message is the one line (no traceback).
+
+    Only evaluated when an exception reaches :func:`main`. Error classes of heavy
+    modules are taken only if the module is loaded (if it is not, it raised nothing).
+    """
     import duckdb
 
     from schemas.hoist import HoistDescriptionError
+    from warehouse.lock import LockTimeoutError
 
-    return (RopeloadError, HoistDescriptionError, FileNotFoundError, duckdb.Error, ValueError)
+    known: list[type[BaseException]] = [
+        RopeloadError,
+        HoistDescriptionError,
+        FileNotFoundError,
+        duckdb.Error,
+        ValueError,
+        LockTimeoutError,
+    ]
+    run_period = sys.modules.get("pipelines.run_period")
+    if run_period is not None:
+        known.append(run_period.NoSamplesError)
+    return tuple(known)
+
+
+#: OSError numbers the user causes (permissions, full disk, a file where a folder
+#: belongs, ulimit -n): one line naming the file. Others are bugs: traceback.
+_USER_ERRNOS = frozenset(
+    getattr(errno, name)
+    for name in (
+        "EACCES", "EPERM", "EROFS", "ENOSPC", "EDQUOT", "ENOTDIR", "EISDIR", "EEXIST",
+        "ENAMETOOLONG", "ELOOP", "EMFILE", "ENFILE", "EFBIG",
+    )
+    if hasattr(errno, name)
+)  # fmt: skip
+
+
+def _os_error_line(exc: OSError) -> str:
+    """``Permission denied: /data/.warehouse.lock`` (with the second path of a rename)."""
+    reason = exc.strerror or type(exc).__name__
+    paths = [str(p) for p in (exc.filename, exc.filename2) if p is not None]
+    return f"{reason}: {' -> '.join(paths)}" if paths else reason
+
+
+def _data_root_problem(args: argparse.Namespace) -> str | None:
+    """Why the command's data root cannot be used, or None.
+
+    A data root that exists must be a folder; a command that writes (all but ``query``
+    and ``calibrate --table1``) needs it writable, or creatable: its nearest existing
+    ancestor a writable folder. (As root, permission bits do not stop writes, and
+    ``os.access`` says so too; a read-only file system still does.)
+    """
+    if not hasattr(args, "data") or (args.command == "calibrate" and args.table1):
+        return None
+    from warehouse.store import DATA_ENV, DataRoot
+
+    path = DataRoot.resolve(args.data).path
+    origin = "--data" if args.data is not None else f"${DATA_ENV}"
+    if args.data is None and not os.environ.get(DATA_ENV):
+        origin = "the default"
+    writes = args.command != "query"
+    existing = path
+    while not os.path.lexists(existing) and existing != existing.parent:
+        existing = existing.parent
+    what = f"data root {path} ({origin})"
+    if existing == path:
+        if not path.is_dir():
+            return f"{what} is {'a file, ' if path.is_file() else ''}not a folder"
+        if writes and not os.access(path, os.W_OK | os.X_OK):
+            return f"{what} is not writable ({_why_not_writable(path)})"
+        return None
+    if not existing.is_dir():
+        return f"{what} cannot be created: {existing} is a file, not a folder"
+    if writes and not os.access(existing, os.W_OK | os.X_OK):
+        why = _why_not_writable(existing)
+        return f"{what} cannot be created: {existing} is not writable ({why})"
+    return None
+
+
+def _why_not_writable(path: Path) -> str:
+    try:
+        if os.statvfs(path).f_flag & os.ST_RDONLY:
+            return "read-only file system"
+    except OSError:
+        pass
+    return "permission denied"
+
+
+def _supervised(args: argparse.Namespace) -> bool:
+    """Whether the command starts servers or worker processes (then it is supervised)."""
+    return bool(getattr(args, "prefect", False) or getattr(args, "dask", None))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``ropeload`` script; returns the exit status."""
+    """Entry point of the ``ropeload`` script; returns the exit status.
+
+    Everything the user can cause ends as one line ``ropeload <command>: <reason>`` on
+    stderr with status 1 (2 for usage): refused input, a data root that is a file or
+    not writable, the warehouse lock timing out, memory exhaustion; SIGTERM/SIGHUP and
+    Ctrl-C end the command cleanly (status 143/129/130). An unexpected internal error
+    still prints its traceback: that is a bug report.
+
+    As the console script (``argv`` None), a command under a memory limit, or one that
+    starts servers and workers (``--prefect``, ``--dask``), runs in a child of this
+    process (:func:`pipelines.supervise.run_supervised`), which reports the child's
+    death by memory exhaustion and ends whatever it left running.
+    """
+    from pipelines import supervise
+    from warehouse.lock import INVOCATION_ENV, lock_timeout_s
+
     parser = build_parser()
     args = parser.parse_args(argv)
+    command: str = args.command
     handler: Callable[[argparse.Namespace], int] = args.handler
     try:
-        return handler(args)
+        lock_timeout_s()
+    except ValueError as exc:
+        sys.stderr.write(f"ropeload {command}: {exc}\n")
+        return 2
+    problem = _data_root_problem(args)
+    if problem is not None:
+        sys.stderr.write(f"ropeload {command}: {problem}\n")
+        return 1
+    os.environ.setdefault(INVOCATION_ENV, f"{os.getpid()}-{time.time_ns()}")
+    limit = supervise.memory_limit()
+    if argv is None and (limit is not None or _supervised(args)) and supervise.can_supervise():
+        status = supervise.run_supervised(command, limit)
+        if status is not None:
+            return status  # the supervisor; the child goes on below
+    message: str
+    try:
+        with supervise.terminate_on_signals():
+            return handler(args)
     except _known_errors() as exc:
         message = " ".join(str(exc).split()) or type(exc).__name__
-        sys.stderr.write(f"ropeload {args.command}: {message}\n")
-        return 1
+    except KeyboardInterrupt as exc:
+        signum = getattr(exc, "signum", signal.SIGINT)
+        sys.stderr.write(f"ropeload {command}: interrupted ({signal.Signals(signum).name})\n")
+        return 128 + signum
+    except (MemoryError, ImportError, OSError, SystemError, RuntimeError) as exc:
+        if supervise.memory_exhausted(exc, limit):
+            message = supervise.out_of_memory(command, limit)
+        elif isinstance(exc, OSError) and exc.errno in _USER_ERRNOS:
+            message = _os_error_line(exc)
+        else:
+            raise
+    sys.stderr.write(f"ropeload {command}: {message}\n")
+    return 1
 
 
 if __name__ == "__main__":

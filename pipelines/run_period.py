@@ -36,6 +36,32 @@ class NoSamplesError(LookupError):
     """Nothing landed for the hoist in the period asked for."""
 
 
+def _no_samples_message(
+    data: DataRoot, site: str, hoist: str, start: dt.datetime | None, end: dt.datetime | None
+) -> str:
+    """Which hoist and period had no samples, which days it has, and what to do."""
+    days = sorted(
+        p.name.removeprefix("date=")
+        for p in data.partition_dir("field_samples", site=site, hoist=hoist).glob("date=*")
+        if any(p.glob("*.parquet"))
+    )
+
+    def when(value: dt.datetime | None, default: str) -> str:
+        return default if value is None else f"{value.astimezone(dt.UTC):%Y-%m-%d %H:%M:%S}"
+
+    period = f"{when(start, 'the beginning')} .. {when(end, 'the end')} UTC"
+    if not days:
+        return (
+            f"no samples of hoist {site}/{hoist} are landed in {data.path}: ingest its logs "
+            f"first (ropeload ingest --data {data.path} PATH...)"
+        )
+    landed = days[0] if len(days) == 1 else f"{days[0]} .. {days[-1]} ({len(days)} days)"
+    return (
+        f"no samples of hoist {site}/{hoist} landed in {period} (landed days: {landed}): "
+        "choose --from/--to within them, or ingest that period's logs first (ropeload ingest)"
+    )
+
+
 @dataclass(frozen=True)
 class RunResult:
     """What one run computed and landed."""
@@ -111,10 +137,7 @@ def run_period(
     ).collect()
     in_period = samples if start is None else samples.filter(pl.col("time_utc") >= start)
     if in_period.height == 0:
-        raise NoSamplesError(
-            f"no landed samples for site {site!r}, hoist {name!r} in the period "
-            f"[{start or '-inf'}, {end or '+inf'}): ingest its logs first"
-        )
+        raise NoSamplesError(_no_samples_message(data, site, name, start, end))
     period_start, period_end = _period(in_period, start, end)
     run_id = new_run_id(command)
     tensions = compensate(samples, hoist, settings=settings).filter(

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import contextlib
 import datetime as dt
-import fcntl
 import os
 import re
 import shutil
@@ -120,48 +119,56 @@ class DataRoot:
 
 
 @contextlib.contextmanager
-def open_writer(root: DataRoot) -> Iterator[duckdb.DuckDBPyConnection]:
+def open_writer(
+    root: DataRoot, *, lock_timeout_s: float | None = None
+) -> Iterator[duckdb.DuckDBPyConnection]:
     """Open the warehouse for writing; publish atomically when the block succeeds.
 
-    Writers are serialised by an exclusive ``flock``; migrations are applied first, so
-    every writer sees the current schema. The views (:mod:`warehouse.views`) are
-    refreshed on the way in and again before publishing, so they point at this data
+    Writers are serialised by an exclusive lock (:class:`warehouse.lock.WarehouseLock`:
+    waits at most ``lock_timeout_s``, default ``$ROPELOAD_LOCK_TIMEOUT`` or 600 s, then
+    raises :class:`~warehouse.lock.LockTimeoutError` naming the holder). When the previous
+    holder died holding the lock, the temporary files of dead writers in the lake are
+    removed first (:func:`warehouse.parquet_files.remove_stale_temporaries`); the
+    staging copy of a dead writer is replaced in any case. Migrations are applied
+    first, so every writer sees the current schema. The views (:mod:`warehouse.views`)
+    are refreshed on the way in and again before publishing, so they point at this data
     root and at lake tables landed in the block. On an exception nothing is published.
     """
+    from warehouse.lock import WarehouseLock
     from warehouse.migrate import apply_migrations  # here: migrate imports store's types
+    from warehouse.parquet_files import remove_stale_temporaries
     from warehouse.views import refresh_views
 
     root.path.mkdir(parents=True, exist_ok=True)
-    with root.lock_file.open("a+") as lock:
-        fcntl.flock(lock.fileno(), fcntl.LOCK_EX)
+    with WarehouseLock(root.lock_file, timeout_s=lock_timeout_s) as lock:
+        staging = root.warehouse.with_name(root.warehouse.name + ".next")
+        staging.unlink(missing_ok=True)
+        Path(str(staging) + ".wal").unlink(missing_ok=True)
+        shutil.rmtree(str(staging) + ".tmp", ignore_errors=True)  # DuckDB's spill folder
+        if lock.previous_crashed and root.lake.is_dir():
+            remove_stale_temporaries(root.lake)
+        if root.warehouse.exists():
+            shutil.copyfile(root.warehouse, staging)
+        con = duckdb.connect(str(staging))
         try:
-            staging = root.warehouse.with_name(root.warehouse.name + ".next")
-            staging.unlink(missing_ok=True)
-            Path(str(staging) + ".wal").unlink(missing_ok=True)
-            if root.warehouse.exists():
-                shutil.copyfile(root.warehouse, staging)
-            con = duckdb.connect(str(staging))
-            try:
-                apply_migrations(con)
-                refresh_views(con, root)  # usable inside the block ...
-                yield con
-                refresh_views(con, root)  # ... and following lake tables landed in it
-                con.execute("CHECKPOINT")
-            except BaseException:
-                con.close()
-                staging.unlink(missing_ok=True)
-                raise
+            apply_migrations(con)
+            refresh_views(con, root)  # usable inside the block ...
+            yield con
+            refresh_views(con, root)  # ... and following lake tables landed in it
+            con.execute("CHECKPOINT")
+        except BaseException:
             con.close()
-            with staging.open("rb") as handle:
-                os.fsync(handle.fileno())
-            staging.replace(root.warehouse)
-            directory = os.open(root.path, os.O_RDONLY)
-            try:
-                os.fsync(directory)
-            finally:
-                os.close(directory)
+            staging.unlink(missing_ok=True)
+            raise
+        con.close()
+        with staging.open("rb") as handle:
+            os.fsync(handle.fileno())
+        staging.replace(root.warehouse)
+        directory = os.open(root.path, os.O_RDONLY)
+        try:
+            os.fsync(directory)
         finally:
-            fcntl.flock(lock.fileno(), fcntl.LOCK_UN)
+            os.close(directory)
 
 
 def open_reader(root: DataRoot, *, sandbox: bool = False) -> duckdb.DuckDBPyConnection:

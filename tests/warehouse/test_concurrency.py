@@ -9,17 +9,21 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+import os
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 from pathlib import Path
 
 import polars as pl
+import pytest
 
 from schemas.tables import POSITION_SUMMARY, TRIP_SUMMARY
 from transforms.reconciliation import conform
 from warehouse.landing import RunRecord, insert_frame, land_run
+from warehouse.lock import INVOCATION_ENV, LockTimeoutError, lock_timeout_s, read_holder
 from warehouse.store import DataRoot, open_writer
 
 REPO = Path(__file__).resolve().parents[2]
@@ -121,3 +125,106 @@ def test_reader_process_never_fails_nor_sees_half_a_landing(tmp_path):
     assert result["states"][0] == 0
     assert result["states"][-1] == DAYS
     assert len(result["states"]) >= 3
+
+
+# ----------------------------------------------------------- the lock: time-out, holder
+
+HOLDER = textwrap.dedent(
+    """
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, sys.argv[1])
+    from warehouse.store import DataRoot, open_writer
+
+    with open_writer(DataRoot(Path(sys.argv[2]))):
+        print("held", flush=True)
+        sys.stdin.readline()  # until the test says so
+    """
+)
+
+
+def _holder(root: DataRoot, *, same_invocation: bool = False) -> subprocess.Popen:
+    env = dict(os.environ)
+    if same_invocation:
+        env[INVOCATION_ENV] = "test-invocation"
+    else:
+        env.pop(INVOCATION_ENV, None)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", HOLDER, str(REPO), str(root.path)],
+        env=env,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert proc.stdout.readline() == "held\n"
+    return proc
+
+
+def _release(proc: subprocess.Popen) -> None:
+    proc.stdin.close()
+    assert proc.wait(timeout=30) == 0
+
+
+def test_lock_times_out_naming_the_holder(tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv(INVOCATION_ENV, raising=False)
+    root = DataRoot(tmp_path / "data")
+    holder = _holder(root)
+    try:
+        t0 = time.monotonic()
+        with pytest.raises(LockTimeoutError) as caught, open_writer(root, lock_timeout_s=0.3):
+            pass
+        waited = time.monotonic() - t0
+    finally:
+        _release(holder)
+    assert 0.3 <= waited < 5
+    message = str(caught.value)
+    assert f"held by pid {holder.pid} (-c {REPO} {root.path}, since 20" in message
+    assert "ROPELOAD_LOCK_TIMEOUT" in message
+    notice = capsys.readouterr().err.splitlines()
+    assert len(notice) == 1  # said once, however many times it looked
+    assert f"{root.lock_file} is held by pid {holder.pid} " in notice[0]
+    with open_writer(root, lock_timeout_s=0):  # free again, at once
+        pass
+
+
+def test_waiting_writer_gets_the_lock_when_the_holder_lets_go(tmp_path, monkeypatch):
+    monkeypatch.setenv("ROPELOAD_LOCK_TIMEOUT", "30")  # the default path reads it
+    root = DataRoot(tmp_path / "data")
+    holder = _holder(root)
+    threading.Timer(0.5, holder.stdin.close).start()
+    t0 = time.monotonic()
+    with open_writer(root):
+        waited = time.monotonic() - t0
+        assert read_holder(root.lock_file)["pid"] == os.getpid()
+    assert holder.wait(timeout=30) == 0
+    assert 0.4 <= waited < 10
+
+
+def test_lock_timeout_from_the_environment(tmp_path, monkeypatch):
+    root = DataRoot(tmp_path / "data")
+    holder = _holder(root)
+    try:
+        monkeypatch.setenv("ROPELOAD_LOCK_TIMEOUT", "0.2")
+        t0 = time.monotonic()
+        with pytest.raises(LockTimeoutError, match=r"timed out after 0\.2 s"), open_writer(root):
+            pass
+        assert time.monotonic() - t0 < 5
+    finally:
+        _release(holder)
+    for bad in ("-1", "soon", "inf", "nan"):
+        with pytest.raises(ValueError, match="ROPELOAD_LOCK_TIMEOUT"):
+            lock_timeout_s(bad)
+    assert lock_timeout_s("") == 600.0
+
+
+def test_a_sibling_of_the_same_command_waits_silently(tmp_path, capsys, monkeypatch):
+    """Dask workers and threads of one backfill queue for the lock all the time."""
+    monkeypatch.setenv(INVOCATION_ENV, "test-invocation")
+    root = DataRoot(tmp_path / "data")
+    holder = _holder(root, same_invocation=True)
+    try:
+        with pytest.raises(LockTimeoutError), open_writer(root, lock_timeout_s=1.2):
+            pass
+    finally:
+        _release(holder)
+    assert capsys.readouterr().err == ""

@@ -1,0 +1,470 @@
+"""Failures a process cannot report itself: memory exhaustion, and children that outlive it.
+
+Measured on a 2-core machine (2026-11): ``ropeload demo`` maps 5.3-5.8 GiB of address
+space for 1.1 GiB resident (thread arenas of glibc, Arrow's jemalloc pool, polars and
+numba reservations), so under ``ulimit -v 4000000`` it dies in polars' Rust allocator:
+``memory allocation of N bytes failed``, a backtrace, SIGABRT, exit 134. Lower limits
+fail at import (``ImportError: ... failed to map segment from shared object``) or with a
+``SystemError`` from C code that could not allocate. A cgroup memory limit ends in the
+kernel's SIGKILL. None of these can be caught in the dying process.
+
+So when a memory limit is set (:func:`memory_limit`), or the command starts servers
+and worker processes (Prefect's temporary server, a Dask ``LocalCluster``), the CLI
+runs the command in a forked child and this process stays as its supervisor
+(:func:`run_supervised`):
+
+- it becomes a child subreaper: whatever the child starts and leaves behind (the
+  Prefect server, Dask workers) is re-parented to it, and is terminated (SIGTERM, then
+  SIGKILL after a grace period) when the child has ended, however it ended;
+- the child gets SIGTERM when the supervisor dies (``PR_SET_PDEATHSIG``), even by
+  SIGKILL, and SIGTERM ends a command cleanly (:func:`terminate_on_signals`: Prefect
+  stops its server at exit, the flow closes its cluster, writers remove their
+  temporary files); SIGTERM, SIGHUP and SIGINT sent to the supervisor are passed on;
+- under a memory limit it reads the child's stderr (a pseudo-terminal when stderr is
+  one) and passes it through until the allocator's dying words, which it swallows; a
+  death by SIGABRT under an address-space limit, or by SIGKILL with the cgroup's OOM
+  counter raised, becomes the one line of :func:`out_of_memory`.
+
+A normal command (no limit, no ``--prefect``/``--dask``) does not fork: its start-up
+cost is a ``getrlimit`` and two small reads under ``/proc``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import errno
+import os
+import resource
+import select
+import signal
+import sys
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from types import FrameType
+
+__all__ = [
+    "MemoryLimit",
+    "Terminated",
+    "memory_exhausted",
+    "memory_limit",
+    "out_of_memory",
+    "run_supervised",
+    "terminate_on_signals",
+]
+
+_PR_SET_PDEATHSIG = 1
+_PR_SET_CHILD_SUBREAPER = 36
+#: What a starving allocator or loader writes before it aborts (Rust's std, C++'s
+#: terminate handler, glibc's loader), measured under ``ulimit -v``.
+_DYING_WORDS = (
+    b"memory allocation of ",
+    b"std::bad_alloc",
+    b"cannot allocate memory for thread-local data",
+)
+#: What a starving allocator writes and goes on (a line each time).
+_NOISE = (b"<jemalloc>: ",)
+_GRACE_S = 5.0
+_ADVICE = {
+    "run": "try a shorter period (--from/--to)",
+    "discover": "try a shorter period (--from/--to)",
+    "backfill": "try fewer --workers",
+    "nightly": "try fewer --workers",
+    "demo": "try fewer --hours",
+    "ingest": "ingest fewer or smaller files at a time",
+    "calibrate": "calibrate from fewer recordings at a time",
+    "query": "try a narrower query",
+}
+
+
+@dataclass(frozen=True)
+class MemoryLimit:
+    """A finite memory limit on this process: what kind, how many bytes, how it is set."""
+
+    kind: str  # "address-space", "data-segment" or "cgroup memory"
+    bytes: int
+    how: str  # "ulimit -v", "ulimit -d", or the cgroup file
+
+    @property
+    def counts_mappings(self) -> bool:
+        """Whether mere reservations count (rlimits), not only resident memory (cgroups)."""
+        return self.kind != "cgroup memory"
+
+    def __str__(self) -> str:
+        return f"{self.kind} limit {self.bytes / 2**30:.1f} GiB, {self.how}"
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP arrived: unwinds the command like Ctrl-C (cleanups run)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _cgroup_limit() -> MemoryLimit | None:
+    """The smallest finite ``memory.max`` of this process's cgroup (v2) and its parents."""
+    try:
+        lines = Path("/proc/self/cgroup").read_text().splitlines()
+    except OSError:
+        return None
+    relative = next((line[3:] for line in lines if line.startswith("0::")), None)
+    if relative is None:
+        return None
+    base = Path("/sys/fs/cgroup")
+    found = None
+    folder = base / relative.lstrip("/")
+    while True:
+        try:
+            text = (folder / "memory.max").read_text().strip()
+        except OSError:
+            text = "max"
+        if text != "max" and (found is None or int(text) < found.bytes):
+            found = MemoryLimit("cgroup memory", int(text), str(folder / "memory.max"))
+        if folder == base or base not in folder.parents:
+            return found
+        folder = folder.parent
+
+
+def memory_limit() -> MemoryLimit | None:
+    """The tightest finite memory limit on this process, if any.
+
+    The soft ``RLIMIT_AS`` (``ulimit -v``) or ``RLIMIT_DATA`` (``ulimit -d``, which also
+    counts private mappings since Linux 4.7), else a cgroup v2 ``memory.max``.
+    """
+    for kind, which, how in (
+        ("address-space", resource.RLIMIT_AS, "ulimit -v"),
+        ("data-segment", resource.RLIMIT_DATA, "ulimit -d"),
+    ):
+        soft, _ = resource.getrlimit(which)
+        if soft != resource.RLIM_INFINITY:
+            return MemoryLimit(kind, soft, how)
+    return _cgroup_limit()
+
+
+def out_of_memory(command: str, limit: MemoryLimit | None, *, what: str = "out of memory") -> str:
+    """The one-line reason for a command that ran out of memory (without the prefix)."""
+    advice = _ADVICE.get(command, "process less at a time")
+    if limit is None:
+        return f"{what}: {advice}"
+    note = ""
+    if limit.counts_mappings:
+        note = "; ropeload maps about 6 GiB of address space even for an hour of data"
+    return f"{what} ({limit}): {advice}, or raise the limit{note}"
+
+
+def memory_exhausted(exc: BaseException, limit: MemoryLimit | None) -> bool:
+    """Whether ``exc`` is the Python face of memory exhaustion.
+
+    MemoryError (numpy, pyarrow's ArrowMemoryError), an OSError ENOMEM, an ImportError
+    of a library that could not be mapped; under a finite limit also a SystemError (C
+    code that failed to allocate and did not say so) and "can't start new thread" (no
+    room for its stack), both measured under ``ulimit -v``.
+    """
+    if isinstance(exc, MemoryError):
+        return True
+    if isinstance(exc, OSError) and exc.errno == errno.ENOMEM:
+        return True
+    if isinstance(exc, ImportError):
+        text = str(exc)
+        return "failed to map segment" in text or "Cannot allocate memory" in text
+    if limit is None:
+        return False
+    return isinstance(exc, SystemError) or (
+        isinstance(exc, RuntimeError) and "can't start new thread" in str(exc)
+    )
+
+
+# ---------------------------------------------------------------------------- signals
+
+
+def _raise_terminated(signum: int, frame: FrameType | None) -> None:
+    raise Terminated(signum)
+
+
+@contextlib.contextmanager
+def terminate_on_signals() -> Iterator[None]:
+    """SIGTERM and SIGHUP raise :class:`Terminated` in the main thread while inside.
+
+    Python's default for SIGTERM ends the process at once: no ``finally``, no
+    ``atexit`` (Prefect's temporary server then outlives the command). Outside the
+    main thread this does nothing.
+    """
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    saved = {s: signal.signal(s, _raise_terminated) for s in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        yield
+    finally:
+        for signum, handler in saved.items():
+            signal.signal(signum, handler)
+
+
+# ---------------------------------------------------------------------------- supervisor
+
+
+def _prctl(option: int, value: int) -> bool:
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(option, value, 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
+
+
+def _single_threaded() -> bool:
+    try:
+        with Path("/proc/self/status").open(encoding="ascii") as handle:
+            for line in handle:
+                if line.startswith("Threads:"):
+                    return int(line.split()[1]) == 1
+    except OSError:
+        pass
+    return False
+
+
+def can_supervise() -> bool:
+    """Whether forking here is safe and useful: Linux, one thread (nothing heavy loaded yet)."""
+    return sys.platform.startswith("linux") and _single_threaded()
+
+
+def _oom_kills(limit: MemoryLimit | None) -> int:
+    if limit is None or limit.counts_mappings:
+        return 0
+    events = Path(limit.how).with_name("memory.events")
+    try:
+        for line in events.read_text().splitlines():
+            if line.startswith("oom_kill "):
+                return int(line.split()[1])
+    except (OSError, ValueError):
+        pass
+    return 0
+
+
+def _children() -> list[int]:
+    """Pids whose parent is this process (reparented orphans included)."""
+    me, found = os.getpid(), []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            text = (entry / "stat").read_text(encoding="ascii", errors="replace")
+            fields = text.rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        if int(fields[1]) == me and fields[0] != "Z":
+            found.append(int(entry.name))
+    return found
+
+
+def _reap() -> None:
+    with contextlib.suppress(ChildProcessError):
+        while os.waitpid(-1, os.WNOHANG)[0] > 0:
+            pass
+
+
+def end_children(grace_s: float = _GRACE_S) -> list[int]:
+    """Terminate every child of this process (SIGTERM, SIGKILL after ``grace_s``); reap them.
+
+    Repeated until none is left, as a dying child's own children are re-parented here
+    (this process is a subreaper). Returns the pids that had to be ended.
+    """
+    ended: list[int] = []
+    for _ in range(5):
+        _reap()
+        pids = _children()
+        if not pids:
+            break
+        ended += pids
+        for pid in pids:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGTERM)
+        deadline = time.monotonic() + grace_s
+        while time.monotonic() < deadline:
+            _reap()
+            if not any(pid in pids for pid in _children()):
+                break
+            time.sleep(0.05)
+        for pid in _children():
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+    _reap()
+    return ended
+
+
+def _stderr_channel() -> tuple[int, int]:
+    """(read end, write end) for the child's stderr: a pty if stderr is a terminal."""
+    if os.isatty(2):
+        import fcntl
+        import pty
+        import termios
+        import tty
+
+        master, slave = pty.openpty()
+        tty.setraw(slave)  # pass bytes as they are (no CR/LF translation)
+        with contextlib.suppress(OSError):
+            size = fcntl.ioctl(2, termios.TIOCGWINSZ, b"\0" * 8)
+            fcntl.ioctl(slave, termios.TIOCSWINSZ, size)
+        return master, slave
+    return os.pipe()
+
+
+class _Relay:
+    """Copies the child's stderr to ours, without what starving allocators say.
+
+    From an allocator's or loader's dying words on (:data:`_DYING_WORDS`, anywhere in a
+    line) nothing more is copied; lines of :data:`_NOISE` (jemalloc complaining, once
+    per attempt: 400 000 lines measured under ``ulimit -v 1500000``) are dropped one by
+    one. Text is copied as soon as it arrives (progress bars redraw without a newline),
+    except a tail that may be the start of such words, held until it is decided.
+    """
+
+    def __init__(self, fd: int | None) -> None:
+        self.fd = fd
+        self.dying = False
+        self.noisy = False
+        self._held = b""
+
+    def _filter(self, data: bytes) -> bytes:
+        data, self._held = self._held + data, b""
+        if self.dying:
+            return b""
+        cut = min((i for w in _DYING_WORDS if (i := data.find(w)) >= 0), default=-1)
+        if cut >= 0:
+            self.dying, data = True, data[:cut]
+        *lines, tail = data.split(b"\n")
+        out = bytearray()
+        for line in lines:
+            if line.startswith(_NOISE):
+                self.noisy = True
+            else:
+                out += line + b"\n"
+        if self.dying:
+            return bytes(out + tail)
+        if tail.startswith(_NOISE) or any(n.startswith(tail) for n in _NOISE if tail):
+            self._held = tail  # decided by the rest of its line
+            return bytes(out)
+        keep = max(
+            (k for w in _DYING_WORDS for k in range(1, len(w)) if tail.endswith(w[:k])),
+            default=0,
+        )
+        if keep:
+            self._held, tail = tail[-keep:], tail[:-keep]
+        return bytes(out + tail)
+
+    def pump(self, timeout_s: float) -> None:
+        if self.fd is None:
+            time.sleep(timeout_s)
+            return
+        ready, _, _ = select.select([self.fd], [], [], timeout_s)
+        if not ready:
+            return
+        try:
+            chunk = os.read(self.fd, 65536)
+        except OSError:  # EIO: the pty's last writer closed it
+            chunk = b""
+        if not chunk:
+            self._close()
+            return
+        self._write(self._filter(chunk))
+
+    def _write(self, data: bytes) -> None:
+        if data:
+            with contextlib.suppress(OSError):
+                os.write(2, data)
+
+    def _close(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+        held, self._held = self._held, b""
+        if held and not self.dying and not held.startswith(_NOISE):
+            self._write(held)
+
+    def drain(self) -> None:
+        """What is left once the child has ended (processes it started may hold it open)."""
+        while self.fd is not None and select.select([self.fd], [], [], 0.05)[0]:
+            self.pump(0.0)
+        self._close()
+
+
+def run_supervised(command: str, limit: MemoryLimit | None) -> int | None:
+    """Fork; in the child return None (run the command), in the parent its exit status.
+
+    The parent waits for the child (relaying its stderr under a memory limit), passes
+    on SIGTERM/SIGHUP/SIGINT, ends whatever the child left running, and turns a death
+    by memory exhaustion or a signal into one line on stderr.
+    """
+    capture = limit is not None
+    read_end, write_end = _stderr_channel() if capture else (-1, -1)
+    supervisor = os.getpid()
+    _prctl(_PR_SET_CHILD_SUBREAPER, 1)
+    oom_before = _oom_kills(limit)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    child = os.fork()
+    if child == 0:
+        _prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+        if os.getppid() != supervisor:  # the supervisor died before the line above
+            os.kill(os.getpid(), signal.SIGTERM)
+        if capture:
+            os.dup2(write_end, 2)
+            os.close(write_end)
+            os.close(read_end)
+        return None
+
+    if capture:
+        os.close(write_end)
+    relay = _Relay(read_end if capture else None)
+    foreground = _in_foreground()
+
+    def forward(signum: int, frame: FrameType | None) -> None:
+        if signum == signal.SIGINT and foreground:
+            return  # the terminal sent Ctrl-C to the child as well
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(child, signum)
+
+    for signum in (signal.SIGTERM, signal.SIGHUP, signal.SIGINT):
+        signal.signal(signum, forward)
+    if capture:
+        status = None
+        while status is None:
+            relay.pump(0.2)
+            pid, raw = os.waitpid(child, os.WNOHANG)
+            status = raw if pid == child else None
+        relay.drain()
+    else:
+        status = os.waitpid(child, 0)[1]  # a signal handler runs, then the wait resumes
+    end_children()
+    if os.WIFEXITED(status):
+        if os.WEXITSTATUS(status) != 0 and relay.dying:  # its last words were swallowed
+            sys.stderr.write(f"ropeload {command}: {out_of_memory(command, limit)}\n")
+            return 1
+        return os.WEXITSTATUS(status)
+    signum = os.WTERMSIG(status)
+    name = signal.Signals(signum).name
+    mapped = limit is not None and limit.counts_mappings
+    if relay.dying or (signum == signal.SIGABRT and mapped):
+        message = out_of_memory(command, limit)
+    elif signum == signal.SIGKILL and _oom_kills(limit) > oom_before:
+        message = out_of_memory(command, limit)
+    elif mapped and signum in (signal.SIGSEGV, signal.SIGBUS):
+        message = out_of_memory(command, limit, what=f"crashed ({name}), probably out of memory")
+    else:
+        sys.stderr.write(f"ropeload {command}: killed by {name}\n")
+        return 128 + signum
+    sys.stderr.write(f"ropeload {command}: {message}\n")
+    return 1
+
+
+def _in_foreground() -> bool:
+    """Whether this process group owns the terminal (then Ctrl-C reaches the child too)."""
+    for fd in (0, 1, 2):
+        with contextlib.suppress(OSError):
+            if os.isatty(fd):
+                return os.tcgetpgrp(fd) == os.getpgrp()
+    return False

@@ -1,0 +1,379 @@
+"""Everything the user can cause is one line ``ropeload <command>: <reason>`` (issue 15).
+
+Missing data for a period, a data root that is a file / cannot be created / is not
+writable, a warehouse lock held by another process past the time-out, memory
+exhaustion under ``ulimit -v`` (in-process errors, and the Rust allocator's abort that
+only a supervising parent can see), and processes left running by a command that died.
+Real commands, real processes, real signals.
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from pipelines.cli import main
+from warehouse.lock import INVOCATION_ENV
+
+REPO = Path(__file__).resolve().parents[2]
+HOIST = REPO / "schemas" / "hoists" / "paper_field_test.toml"
+
+
+def _one_line(err: str, command: str) -> str:
+    assert err.count("\n") == 1, err
+    assert err.endswith("\n"), err
+    assert err.startswith(f"ropeload {command}: "), err
+    assert "Traceback" not in err
+    return err
+
+
+def _csv(path: Path, rows: int = 20, start: str = "2026-03-02 06:00:00") -> Path:
+    """A small contract-1a CSV of the paper's field-test hoist (UTC, 100 Hz)."""
+    import datetime as dt
+
+    t0 = dt.datetime.fromisoformat(start)
+    lines = [
+        "# site: paper-field-test",
+        "# hoist: main-shaft",
+        "# timezone: UTC",
+        "# sample_rate_hz: 100",
+        "# units: p=MPa, x=mm, depth=m, speed=m/s, oil_temp=degC",
+        "timestamp,p1,p2,p3,p4,x1,x2,x3,x4,depth,speed,oil_temp",
+    ]
+    for i in range(rows):
+        t = (t0 + dt.timedelta(milliseconds=10 * i)).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3]
+        lines.append(f"{t},4.812,4.792,4.832,4.802,12.1,-3.4,0.2,7.9,{i * 0.5:.2f},1.000,31.2")
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+# ------------------------------------------------------------------ missing data
+
+
+def test_run_without_landed_data_names_hoist_and_says_ingest(tmp_path, capsys):
+    data = tmp_path / "data"
+    assert main(["run", "--data", str(data), "--hoist", str(HOIST)]) == 1
+    err = _one_line(capsys.readouterr().err, "run")
+    assert "hoist paper-field-test/main-shaft" in err
+    assert "ropeload ingest" in err
+    assert str(data) in err
+
+
+def test_run_for_a_period_without_data_names_the_period_and_the_landed_days(tmp_path, capsys):
+    data = tmp_path / "data"
+    assert main(["ingest", "--data", str(data), str(_csv(tmp_path / "day.csv"))]) == 0
+    capsys.readouterr()
+    status = main(
+        ["run", "--data", str(data), "--hoist", str(HOIST), "--from", "2020-01-01",
+         "--to", "2020-01-02"]
+    )  # fmt: skip
+    assert status == 1
+    err = _one_line(capsys.readouterr().err, "run")
+    assert "hoist paper-field-test/main-shaft" in err
+    assert "2020-01-01 00:00:00 .. 2020-01-02 00:00:00 UTC" in err
+    assert "landed days: 2026-03-02" in err
+    assert "--from/--to" in err
+
+
+# ------------------------------------------------------------------ the data root
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["ingest", "IN.csv"],
+        ["run", "--hoist", str(HOIST)],
+        ["backfill", "--hoists", str(HOIST), "--from", "2026-03-02", "--to", "2026-03-02"],
+        ["demo", "--hours", "0.01"],
+        ["query", "select 1"],
+    ],
+    ids=lambda a: a[0],
+)
+def test_data_root_that_is_a_file(args, tmp_path, capsys):
+    afile = tmp_path / "afile"
+    afile.write_text("not a folder\n")
+    args = [str(_csv(tmp_path / "in.csv")) if a == "IN.csv" else a for a in args]
+    assert main([*args, "--data", str(afile)]) == 1
+    err = _one_line(capsys.readouterr().err, args[0])
+    assert f"data root {afile} (--data) is a file, not a folder" in err
+    assert afile.read_text() == "not a folder\n"
+
+
+@pytest.mark.parametrize("command", ["ingest", "demo"])
+def test_data_root_under_a_file_cannot_be_created(command, tmp_path, capsys, monkeypatch):
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    monkeypatch.setenv("ROPELOAD_DATA", str(afile / "data"))
+    args = [command, str(_csv(tmp_path / "in.csv"))] if command == "ingest" else [command]
+    assert main(args) == 1
+    err = _one_line(capsys.readouterr().err, command)
+    assert f"data root {afile / 'data'} ($ROPELOAD_DATA) cannot be created: {afile} is a" in err
+
+
+@pytest.mark.skipif(
+    os.geteuid() == 0, reason="as root, permission bits do not stop writes (nothing to refuse)"
+)
+@pytest.mark.parametrize("command", ["ingest", "run", "demo"])
+def test_read_only_data_root(command, tmp_path, capsys):
+    data = tmp_path / "data"
+    data.mkdir()
+    data.chmod(0o555)
+    try:
+        args = {
+            "ingest": ["ingest", str(_csv(tmp_path / "in.csv"))],
+            "run": ["run", "--hoist", str(HOIST)],
+            "demo": ["demo"],
+        }[command]
+        assert main([*args, "--data", str(data)]) == 1
+        err = _one_line(capsys.readouterr().err, command)
+        assert f"data root {data} (--data) is not writable (permission denied)" in err
+        assert list(data.iterdir()) == []
+    finally:
+        data.chmod(0o755)
+
+
+def test_unwritable_file_inside_the_data_root_is_one_line(tmp_path, capsys):
+    """A user-caused OSError deep inside a command names the file (root or not)."""
+    data = tmp_path / "data"
+    (data / "lake").mkdir(parents=True)
+    (data / "lake" / "field_samples").write_text("a file where the table folder belongs")
+    status = main(["ingest", "--data", str(data), str(_csv(tmp_path / "in.csv"))])
+    assert status == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert str(data / "lake" / "field_samples") in err
+
+
+def test_bad_lock_timeout_is_a_usage_error(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("ROPELOAD_LOCK_TIMEOUT", "soon")
+    assert main(["query", "--data", str(tmp_path), "select 1"]) == 2
+    err = _one_line(capsys.readouterr().err, "query")
+    assert "ROPELOAD_LOCK_TIMEOUT='soon'" in err
+
+
+# ------------------------------------------------------------------ the lock
+
+HOLDER = textwrap.dedent(
+    """
+    import sys, time
+    from pathlib import Path
+    sys.path.insert(0, sys.argv[1])
+    from warehouse.store import DataRoot, open_writer
+
+    with open_writer(DataRoot(Path(sys.argv[2]))):
+        print("held", flush=True)
+        sys.stdin.readline()  # until the test closes our stdin
+    """
+)
+
+
+def test_lock_timeout_names_the_holder(tmp_path, capsys, monkeypatch):
+    data = tmp_path / "data"
+    env = {k: v for k, v in os.environ.items() if k != INVOCATION_ENV}  # another command
+    holder = subprocess.Popen(
+        [sys.executable, "-c", HOLDER, str(REPO), str(data)],
+        env=env,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert holder.stdout.readline() == "held\n"
+        monkeypatch.setenv("ROPELOAD_LOCK_TIMEOUT", "0.5")
+        t0 = time.monotonic()
+        status = main(["ingest", "--data", str(data), str(_csv(tmp_path / "in.csv"))])
+        waited = time.monotonic() - t0
+    finally:
+        holder.stdin.close()
+        holder.wait(timeout=30)
+    assert status == 1
+    assert waited >= 0.5
+    err = capsys.readouterr().err
+    lines = err.splitlines()
+    assert len(lines) == 2, err  # said once who holds it, then the time-out
+    notice, failure = lines
+    assert notice.startswith("ropeload: warehouse lock ")
+    assert f"held by pid {holder.pid} (-c {REPO} {data}, since " in notice
+    assert "waiting up to 0.5 s" in notice
+    assert failure.startswith("ropeload ingest: timed out after 0.5 s waiting for the warehouse")
+    assert f"held by pid {holder.pid} (-c {REPO} {data}, since " in failure
+    assert "ROPELOAD_LOCK_TIMEOUT" in failure
+    # the holder finished normally: the lock is free and says so
+    assert (data / ".warehouse.lock").read_text() == "released\n"
+    assert main(["ingest", "--data", str(data), str(tmp_path / "in.csv")]) == 0
+
+
+# ------------------------------------------------------------------ memory
+
+LIMITED = textwrap.dedent(
+    """
+    import resource, sys
+    limit = int(sys.argv.pop(1))
+    resource.setrlimit(resource.RLIMIT_AS, (limit, resource.RLIM_INFINITY))
+    sys.path.insert(0, {repo!r})
+    from pipelines.cli import main
+    sys.argv[0] = "ropeload"
+    sys.exit(main())
+    """
+)
+
+
+def _limited_ropeload(limit: int, *args: str) -> subprocess.CompletedProcess:
+    script = LIMITED.format(repo=str(REPO))
+    return subprocess.run(
+        [sys.executable, "-c", script, str(limit), *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=REPO,
+    )
+
+
+@pytest.mark.parametrize(
+    ("kib", "args", "advice"),
+    [
+        (500_000, ["run", "--hoist", str(HOIST)], "--from/--to"),
+        (1_800_000, ["demo", "--hours", "0.1"], "fewer --hours"),
+    ],
+    ids=["import-fails", "allocator-aborts"],
+)
+def test_out_of_memory_under_an_address_space_limit_is_one_line(kib, args, advice, tmp_path):
+    """``ulimit -v``, measured: at 0.5 GB a library cannot be mapped (ImportError in
+    the child); at 1.8 GB the demo dies in polars' Rust allocator ("memory allocation of
+    N bytes failed", a backtrace, SIGABRT), at other sizes by SIGSEGV or a SystemError.
+    Whichever way, one line, exit 1, and nothing of the allocator's last words."""
+    if resource.getrlimit(resource.RLIMIT_AS)[1] != resource.RLIM_INFINITY:
+        pytest.skip("a hard address-space limit is already set")
+    done = _limited_ropeload(kib * 1024, *args, "--data", str(tmp_path / "data"))
+    assert done.returncode == 1, done.stderr
+    err = _one_line(done.stderr, args[0])
+    assert f"out of memory (address-space limit {kib * 1024 / 2**30:.1f} GiB, ulimit -v): " in err
+    assert advice in err
+    assert "memory allocation of" not in err
+
+
+ABORTING = textwrap.dedent(
+    """
+    import os, resource, sys
+    sys.path.insert(0, sys.argv[1])
+    resource.setrlimit(resource.RLIMIT_AS, (64 * 2**30, resource.RLIM_INFINITY))
+    from pipelines import supervise
+    status = supervise.run_supervised("backfill", supervise.memory_limit())
+    if status is None:  # the child: say something, then die like Rust's allocator
+        sys.stderr.write("progress 1/2\\n")
+        sys.stderr.flush()
+        os.write(2, b"memory allocation of 12082160 bytes failed\\nstack backtrace:\\n  0: x\\n")
+        os.abort()
+    sys.exit(status)
+    """
+)
+
+
+def test_allocator_abort_in_the_child_becomes_one_line():
+    """Deterministic form of the 1.5 GiB case: what came before the allocator's last
+    words passes through, they and the backtrace do not, SIGABRT becomes exit 1."""
+    hard = resource.getrlimit(resource.RLIMIT_AS)[1]
+    if hard != resource.RLIM_INFINITY and hard < 64 * 2**30:
+        pytest.skip("a hard address-space limit below 64 GiB is set")
+    done = subprocess.run(
+        [sys.executable, "-c", ABORTING, str(REPO)], capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 1
+    first, second = done.stderr.splitlines()
+    assert first == "progress 1/2"
+    assert second.startswith("ropeload backfill: out of memory (address-space limit 64.0 GiB, ")
+    assert "try fewer --workers" in second
+
+
+# ------------------------------------------------------------------ children
+
+SUPERVISED = textwrap.dedent(
+    """
+    import subprocess, sys, time
+    sys.path.insert(0, sys.argv[1])
+    from pipelines import supervise
+    status = supervise.run_supervised("backfill", None)
+    if status is None:
+        # the child: a 'server' in its own session (like a daemon that ignores its
+        # parent's fate), stopped by our cleanup when we end cleanly
+        server = subprocess.Popen(["sleep", "300"], start_new_session=True)
+        print(server.pid, flush=True)
+        try:
+            with supervise.terminate_on_signals():
+                time.sleep(300)
+        except KeyboardInterrupt:
+            server.terminate()
+            server.wait()
+            sys.exit(143)
+    print("supervisor", status, flush=True)
+    sys.exit(status)
+    """
+)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+def _wait_gone(pid: int, seconds: float = 10.0) -> bool:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if not _alive(pid):
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def _start_supervised() -> tuple[subprocess.Popen, int, int]:
+    proc = subprocess.Popen(
+        [sys.executable, "-c", SUPERVISED, str(REPO)], stdout=subprocess.PIPE, text=True
+    )
+    server = int(proc.stdout.readline())
+    child = int(Path(f"/proc/{server}/stat").read_text().rsplit(")", 1)[1].split()[1])
+    assert child != proc.pid  # the server's parent is the supervisor's child
+    return proc, child, server
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="prctl is Linux-only")
+def test_child_killed_hard_its_server_is_ended_by_the_supervisor():
+    proc, child, server = _start_supervised()
+    try:
+        os.kill(child, signal.SIGKILL)  # no cleanup can run in the child
+        out = proc.stdout.read()
+        assert proc.wait(timeout=30) == 128 + signal.SIGKILL
+        assert out == f"supervisor {128 + signal.SIGKILL}\n"
+        assert _wait_gone(server)  # re-parented to the supervisor (subreaper), ended
+    finally:
+        for pid in (server, child, proc.pid):
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="prctl is Linux-only")
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGKILL], ids=["TERM", "KILL"])
+def test_supervisor_signalled_the_child_cleans_up(signum):
+    """SIGTERM is passed on; SIGKILL of the supervisor reaches the child as SIGTERM
+    (parent-death signal): either way the child's cleanup ends its server."""
+    proc, child, server = _start_supervised()
+    try:
+        proc.send_signal(signum)
+        status = proc.wait(timeout=30)
+        assert status == (143 if signum == signal.SIGTERM else -signal.SIGKILL)
+        assert _wait_gone(child)
+        assert _wait_gone(server)
+    finally:
+        for pid in (server, child, proc.pid):
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)

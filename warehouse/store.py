@@ -19,6 +19,10 @@ and publishes it with an atomic ``os.replace``. A reader that opened the old fil
 reading that snapshot (POSIX keeps the unlinked inode alive); a reader that opens after
 the replace sees the whole new landing. Nobody ever sees half a landing, and a writer
 that dies leaves the published file untouched.
+
+The file is written in the storage format of :data:`STORAGE_VERSION`, which DuckDB 1.4,
+1.5 (the CLI from PyPI) and 2.0 all open; a file in a newer format is rewritten once by
+the next writer.
 """
 
 from __future__ import annotations
@@ -36,10 +40,25 @@ import duckdb
 
 from schemas.names import PathEscapeError, join_inside, safe_name
 
-__all__ = ["DATA_ENV", "DEFAULT_DATA", "DataRoot", "open_reader", "open_writer"]
+__all__ = [
+    "DATA_ENV",
+    "DEFAULT_DATA",
+    "STORAGE_VERSION",
+    "DataRoot",
+    "open_reader",
+    "open_writer",
+    "storage_version",
+]
 
 DATA_ENV = "ROPELOAD_DATA"
 DEFAULT_DATA = Path("ropeload-data")
+
+#: Storage format of ``warehouse.duckdb`` (``STORAGE_VERSION`` of DuckDB's ``ATTACH``).
+#: DuckDB 2.0 writes format 69 by default, which no DuckDB 1.x opens: the CLI from PyPI
+#: (``duckdb-cli`` 1.5) reads formats 64-68, DuckDB 1.4 (LTS) 64-67. ``v1.4.0`` (format 67)
+#: is read by both and by DuckDB 2.0; nothing the warehouse stores needs a newer format,
+#: and the demo warehouse is the same size in both (warehouse/README.md, "DuckDB CLI").
+STORAGE_VERSION = "v1.4.0"
 _ISO_DAY = re.compile(r"\d{4}-\d{2}-\d{2}")
 
 
@@ -149,7 +168,11 @@ def open_writer(
             remove_stale_temporaries(root.lake)
         if root.warehouse.exists():
             shutil.copyfile(root.warehouse, staging)
-        con = duckdb.connect(str(staging))
+            _downgrade_storage(staging)  # once, for a file a DuckDB-2.0 default wrote
+        # a new file gets STORAGE_VERSION; an existing one keeps its own
+        con = duckdb.connect(
+            str(staging), config={"storage_compatibility_version": STORAGE_VERSION}
+        )
         try:
             apply_migrations(con)
             refresh_views(con, root)  # usable inside the block ...
@@ -169,6 +192,54 @@ def open_writer(
             os.fsync(directory)
         finally:
             os.close(directory)
+
+
+def _version_tuple(version: str) -> tuple[int, ...]:
+    """``'v1.4.0+'`` -> ``(1, 4, 0)``; ``()`` when DuckDB reports no version."""
+    return tuple(int(part) for part in re.findall(r"\d+", version)[:3])
+
+
+def storage_version(con: duckdb.DuckDBPyConnection, database: str | None = None) -> str:
+    """The storage format DuckDB reports for ``database`` (default: the current one),
+    e.g. ``'v1.4.0+'``: the oldest DuckDB that reads the file."""
+    row = con.execute(
+        "SELECT tags['storage_version'] FROM duckdb_databases() "
+        "WHERE database_name = coalesce(?, current_database())",
+        [database],
+    ).fetchall()
+    return (row[0][0] or "") if row else ""
+
+
+def _downgrade_storage(path: Path) -> bool:
+    """Rewrite the database file ``path`` in :data:`STORAGE_VERSION` if it is newer.
+
+    DuckDB keeps a file's storage format for its life (``storage_compatibility_version``
+    only applies to new files), so a file written in DuckDB 2.0's default format is
+    copied whole -- tables, data, keys, views -- into a new file of the older format
+    (``COPY FROM DATABASE``), which replaces it. Called on the writer's private copy, so
+    the published file is untouched until the writer publishes. Returns True if rewritten.
+    """
+    target = path.with_name(path.name + ".storage")
+    target.unlink(missing_ok=True)
+    con = duckdb.connect(":memory:")
+    try:
+        con.execute(f"ATTACH {_sql_text(str(path))} AS old_format (READ_ONLY)")
+        found = storage_version(con, "old_format")
+        if _version_tuple(found) <= _version_tuple(STORAGE_VERSION):
+            return False
+        con.execute(
+            f"ATTACH {_sql_text(str(target))} AS new_format "
+            f"(STORAGE_VERSION {_sql_text(STORAGE_VERSION)})"
+        )
+        con.execute("COPY FROM DATABASE old_format TO new_format")
+        con.execute("DETACH new_format")
+    except BaseException:
+        target.unlink(missing_ok=True)
+        raise
+    finally:
+        con.close()
+    target.replace(path)
+    return True
 
 
 def open_reader(root: DataRoot, *, sandbox: bool = False) -> duckdb.DuckDBPyConnection:

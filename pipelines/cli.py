@@ -557,7 +557,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     process (:func:`pipelines.supervise.run_supervised`), which reports the child's
     death by memory exhaustion and ends whatever it left running.
     """
-    from pipelines import supervise
+    from pipelines import exits
     from warehouse.lock import INVOCATION_ENV, lock_timeout_s
 
     parser = build_parser()
@@ -574,14 +574,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stderr.write(f"ropeload {command}: {problem}\n")
         return 1
     os.environ.setdefault(INVOCATION_ENV, f"{os.getpid()}-{time.time_ns()}")
-    limit = supervise.memory_limit()
-    if argv is None and (limit is not None or _supervised(args)) and supervise.can_supervise():
-        status = supervise.run_supervised(command, limit)
-        if status is not None:
-            return status  # the supervisor; the child goes on below
+    limit = exits.memory_limit()
+    if argv is None and (limit is not None or _supervised(args)):
+        from pipelines import supervise
+
+        if supervise.can_supervise():
+            status = supervise.run_supervised(command, limit)
+            if status is not None:
+                return status  # the supervisor; the child goes on below
     message: str
     try:
-        with supervise.terminate_on_signals():
+        with exits.terminate_on_signals():
             return handler(args)
     except _known_errors() as exc:
         message = " ".join(str(exc).split()) or type(exc).__name__
@@ -590,8 +593,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stderr.write(f"ropeload {command}: interrupted ({signal.Signals(signum).name})\n")
         return 128 + signum
     except (MemoryError, ImportError, OSError, SystemError, RuntimeError) as exc:
-        if supervise.memory_exhausted(exc, limit):
-            message = supervise.out_of_memory(command, limit)
+        if exits.memory_exhausted(exc, limit):
+            message = exits.out_of_memory(command, limit)
         elif isinstance(exc, OSError) and exc.errno in _USER_ERRNOS:
             message = _os_error_line(exc)
         else:

@@ -8,7 +8,8 @@ fail at import (``ImportError: ... failed to map segment from shared object``) o
 ``SystemError`` from C code that could not allocate. A cgroup memory limit ends in the
 kernel's SIGKILL. None of these can be caught in the dying process.
 
-So when a memory limit is set (:func:`memory_limit`), or the command starts servers
+So when a memory limit is set (:func:`pipelines.exits.memory_limit`), or the command
+starts servers
 and worker processes (Prefect's temporary server, a Dask ``LocalCluster``), the CLI
 runs the command in a forked child and this process stays as its supervisor
 (:func:`run_supervised`):
@@ -17,43 +18,33 @@ runs the command in a forked child and this process stays as its supervisor
   Prefect server, Dask workers) is re-parented to it, and is terminated (SIGTERM, then
   SIGKILL after a grace period) when the child has ended, however it ended;
 - the child gets SIGTERM when the supervisor dies (``PR_SET_PDEATHSIG``), even by
-  SIGKILL, and SIGTERM ends a command cleanly (:func:`terminate_on_signals`: Prefect
-  stops its server at exit, the flow closes its cluster, writers remove their
-  temporary files); SIGTERM, SIGHUP and SIGINT sent to the supervisor are passed on;
+  SIGKILL, and SIGTERM ends a command cleanly
+  (:func:`~pipelines.exits.terminate_on_signals`: Prefect stops its server at exit, the
+  flow closes its cluster, writers remove their temporary files); SIGTERM, SIGHUP and
+  SIGINT sent to the supervisor are passed on;
 - under a memory limit it reads the child's stderr (a pseudo-terminal when stderr is
   one) and passes it through until the allocator's dying words, which it swallows; a
   death by SIGABRT under an address-space limit, or by SIGKILL with the cgroup's OOM
-  counter raised, becomes the one line of :func:`out_of_memory`.
+  counter raised, becomes the one line of :func:`~pipelines.exits.out_of_memory`.
 
-A normal command (no limit, no ``--prefect``/``--dask``) does not fork: its start-up
-cost is a ``getrlimit`` and two small reads under ``/proc``.
+A normal command (no limit, no ``--prefect``/``--dask``) does not fork, nor import this
+module: its start-up cost is a ``getrlimit`` and two small reads under ``/proc``.
 """
 
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import errno
 import os
-import resource
 import select
 import signal
 import sys
 import time
-from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
 
-__all__ = [
-    "MemoryLimit",
-    "Terminated",
-    "memory_exhausted",
-    "memory_limit",
-    "out_of_memory",
-    "run_supervised",
-    "terminate_on_signals",
-]
+from pipelines.exits import MemoryLimit, out_of_memory
+
+__all__ = ["can_supervise", "end_children", "run_supervised"]
 
 _PR_SET_PDEATHSIG = 1
 _PR_SET_CHILD_SUBREAPER = 36
@@ -67,148 +58,11 @@ _DYING_WORDS = (
 #: What a starving allocator writes and goes on (a line each time).
 _NOISE = (b"<jemalloc>: ",)
 _GRACE_S = 5.0
-_ADVICE = {
-    "run": "try a shorter period (--from/--to)",
-    "discover": "try a shorter period (--from/--to)",
-    "backfill": "try fewer --workers",
-    "nightly": "try fewer --workers",
-    "demo": "try fewer --hours",
-    "ingest": "ingest fewer or smaller files at a time",
-    "calibrate": "calibrate from fewer recordings at a time",
-    "query": "try a narrower query",
-}
-
-
-@dataclass(frozen=True)
-class MemoryLimit:
-    """A finite memory limit on this process: what kind, how many bytes, how it is set."""
-
-    kind: str  # "address-space", "data-segment" or "cgroup memory"
-    bytes: int
-    how: str  # "ulimit -v", "ulimit -d", or the cgroup file
-
-    @property
-    def counts_mappings(self) -> bool:
-        """Whether mere reservations count (rlimits), not only resident memory (cgroups)."""
-        return self.kind != "cgroup memory"
-
-    def __str__(self) -> str:
-        return f"{self.kind} limit {self.bytes / 2**30:.1f} GiB, {self.how}"
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM or SIGHUP arrived: unwinds the command like Ctrl-C (cleanups run)."""
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-
-def _cgroup_limit() -> MemoryLimit | None:
-    """The smallest finite ``memory.max`` of this process's cgroup (v2) and its parents."""
-    try:
-        lines = Path("/proc/self/cgroup").read_text().splitlines()
-    except OSError:
-        return None
-    relative = next((line[3:] for line in lines if line.startswith("0::")), None)
-    if relative is None:
-        return None
-    base = Path("/sys/fs/cgroup")
-    found = None
-    folder = base / relative.lstrip("/")
-    while True:
-        try:
-            text = (folder / "memory.max").read_text().strip()
-        except OSError:
-            text = "max"
-        if text != "max" and (found is None or int(text) < found.bytes):
-            found = MemoryLimit("cgroup memory", int(text), str(folder / "memory.max"))
-        if folder == base or base not in folder.parents:
-            return found
-        folder = folder.parent
-
-
-def memory_limit() -> MemoryLimit | None:
-    """The tightest finite memory limit on this process, if any.
-
-    The soft ``RLIMIT_AS`` (``ulimit -v``) or ``RLIMIT_DATA`` (``ulimit -d``, which also
-    counts private mappings since Linux 4.7), else a cgroup v2 ``memory.max``.
-    """
-    for kind, which, how in (
-        ("address-space", resource.RLIMIT_AS, "ulimit -v"),
-        ("data-segment", resource.RLIMIT_DATA, "ulimit -d"),
-    ):
-        soft, _ = resource.getrlimit(which)
-        if soft != resource.RLIM_INFINITY:
-            return MemoryLimit(kind, soft, how)
-    return _cgroup_limit()
-
-
-def out_of_memory(command: str, limit: MemoryLimit | None, *, what: str = "out of memory") -> str:
-    """The one-line reason for a command that ran out of memory (without the prefix)."""
-    advice = _ADVICE.get(command, "process less at a time")
-    if limit is None:
-        return f"{what}: {advice}"
-    note = ""
-    if limit.counts_mappings:
-        note = "; ropeload maps about 6 GiB of address space even for an hour of data"
-    return f"{what} ({limit}): {advice}, or raise the limit{note}"
-
-
-def memory_exhausted(exc: BaseException, limit: MemoryLimit | None) -> bool:
-    """Whether ``exc`` is the Python face of memory exhaustion.
-
-    MemoryError (numpy, pyarrow's ArrowMemoryError), an OSError ENOMEM, an ImportError
-    of a library that could not be mapped; under a finite limit also a SystemError (C
-    code that failed to allocate and did not say so) and "can't start new thread" (no
-    room for its stack), both measured under ``ulimit -v``.
-    """
-    if isinstance(exc, MemoryError):
-        return True
-    if isinstance(exc, OSError) and exc.errno == errno.ENOMEM:
-        return True
-    if isinstance(exc, ImportError):
-        text = str(exc)
-        return "failed to map segment" in text or "Cannot allocate memory" in text
-    if limit is None:
-        return False
-    return isinstance(exc, SystemError) or (
-        isinstance(exc, RuntimeError) and "can't start new thread" in str(exc)
-    )
-
-
-# ---------------------------------------------------------------------------- signals
-
-
-def _raise_terminated(signum: int, frame: FrameType | None) -> None:
-    raise Terminated(signum)
-
-
-@contextlib.contextmanager
-def terminate_on_signals() -> Iterator[None]:
-    """SIGTERM and SIGHUP raise :class:`Terminated` in the main thread while inside.
-
-    Python's default for SIGTERM ends the process at once: no ``finally``, no
-    ``atexit`` (Prefect's temporary server then outlives the command). Outside the
-    main thread this does nothing.
-    """
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    saved = {s: signal.signal(s, _raise_terminated) for s in (signal.SIGTERM, signal.SIGHUP)}
-    try:
-        yield
-    finally:
-        for signum, handler in saved.items():
-            signal.signal(signum, handler)
-
-
-# ---------------------------------------------------------------------------- supervisor
 
 
 def _prctl(option: int, value: int) -> bool:
+    import ctypes
+
     try:
         libc = ctypes.CDLL(None, use_errno=True)
         return libc.prctl(option, value, 0, 0, 0) == 0

@@ -25,9 +25,7 @@ from __future__ import annotations
 import datetime as dt
 import errno
 import fcntl
-import json
 import os
-import socket
 import sys
 import time
 from collections.abc import Callable
@@ -86,6 +84,8 @@ def _this_command() -> str:
 
 def read_holder(path: Path) -> dict | None:
     """The holder recorded in the lock file ``path``; None if released, empty or unreadable."""
+    import json
+
     try:
         text = path.read_text(encoding="utf-8", errors="replace")
     except OSError:
@@ -102,6 +102,8 @@ def read_holder(path: Path) -> dict | None:
 
 def describe_holder(holder: dict | None) -> str:
     """``pid 123 on host (ropeload run --hoist h.toml, since 2026-03-01 10:00:00 UTC)``."""
+    import socket
+
     if not holder:
         return "another process (it recorded no name)"
     host = holder.get("host")
@@ -136,6 +138,9 @@ class WarehouseLock:
 
     def acquire(self) -> None:
         """Take the lock, waiting up to ``timeout_s``; raise LockTimeoutError after that."""
+        import json  # (here: every command imports this module, few take the lock)
+        import socket
+
         fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
         try:
             self._wait(fd)

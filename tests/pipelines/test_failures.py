@@ -265,8 +265,8 @@ ABORTING = textwrap.dedent(
     import os, resource, sys
     sys.path.insert(0, sys.argv[1])
     resource.setrlimit(resource.RLIMIT_AS, (64 * 2**30, resource.RLIM_INFINITY))
-    from pipelines import supervise
-    status = supervise.run_supervised("backfill", supervise.memory_limit())
+    from pipelines import exits, supervise
+    status = supervise.run_supervised("backfill", exits.memory_limit())
     if status is None:  # the child: say something, then die like Rust's allocator
         sys.stderr.write("progress 1/2\\n")
         sys.stderr.flush()
@@ -299,7 +299,7 @@ SUPERVISED = textwrap.dedent(
     """
     import subprocess, sys, time
     sys.path.insert(0, sys.argv[1])
-    from pipelines import supervise
+    from pipelines import exits, supervise
     status = supervise.run_supervised("backfill", None)
     if status is None:
         # the child: a 'server' in its own session (like a daemon that ignores its
@@ -307,7 +307,7 @@ SUPERVISED = textwrap.dedent(
         server = subprocess.Popen(["sleep", "300"], start_new_session=True)
         print(server.pid, flush=True)
         try:
-            with supervise.terminate_on_signals():
+            with exits.terminate_on_signals():
                 time.sleep(300)
         except KeyboardInterrupt:
             server.terminate()

@@ -41,7 +41,9 @@ reason, so ``ropeload query "select * from runs where status = 'failed'"`` lists
 
 from __future__ import annotations
 
+import atexit
 import datetime as dt
+import logging
 import re
 import sys
 import threading
@@ -51,7 +53,7 @@ from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal, TextIO
 
 import duckdb
 import polars as pl
@@ -66,6 +68,9 @@ from schemas.hoist import HoistDescription, hoist_sha256, load_hoist
 from schemas.tables import TABLES
 from warehouse.landing import RunRecord, insert_frame, land_run
 from warehouse.store import DataRoot, open_reader, open_writer
+
+if TYPE_CHECKING:
+    from rich.progress import Progress
 
 __all__ = [
     "BackfillPlan",
@@ -94,6 +99,8 @@ __all__ = [
     "run_partition_with_retries",
     "run_partitions",
 ]
+
+logger = logging.getLogger(__name__)
 
 Status = Literal["succeeded", "skipped", "empty", "failed"]
 #: Trips per hoist-day the simulation sanity check replays at most (spread over the day).
@@ -327,7 +334,7 @@ class PartitionOutcome:
 
 
 def _outcome(partition: Partition, status: Status, **values: object) -> PartitionOutcome:
-    return PartitionOutcome(
+    outcome = PartitionOutcome(
         key=partition.key,
         site=partition.source.site,
         hoist=partition.source.hoist,
@@ -335,6 +342,9 @@ def _outcome(partition: Partition, status: Status, **values: object) -> Partitio
         status=status,
         **values,  # type: ignore[arg-type]
     )
+    level = logging.INFO if status in ("succeeded", "failed") else logging.DEBUG
+    logger.log(level, "%s: %s (%s)", outcome.key, status, outcome.message)
+    return outcome
 
 
 #: ``runs.command`` values whose runs land a day's marts (run_period); others, such as
@@ -500,6 +510,17 @@ def plan_backfill(
             empty.append(partition)
         else:
             todo.append(partition)
+    logger.info(
+        "plan %s .. %s: %d hoist-days, %d to run, %d done, %d without data, %d undated "
+        "files ingested",
+        start,
+        end,
+        len(candidates),
+        len(todo),
+        len(finished),
+        len(empty),
+        undated,
+    )
     return BackfillPlan(tuple(todo), tuple(finished), tuple(empty), undated)
 
 
@@ -633,6 +654,8 @@ def check_sanity(
         samples, description, run_id=run_id, max_trips=max_trips, report_from=start
     )
     land_sanity_checks(data, frame, site=site, hoist=hoist)
+    passed = int(frame["passed"].sum()) if frame.height else 0
+    logger.info("sanity check of %s: %d/%d trips passed", run_id, passed, frame.height)
     return frame
 
 
@@ -697,6 +720,15 @@ def run_partition_with_retries(
             )
         except Exception as exc:
             if is_transient(exc) and attempt <= retries:
+                logger.warning(
+                    "%s: %s: %s; retry %d of %d in %.0f s",
+                    partition.key,
+                    type(exc).__name__,
+                    exc,
+                    attempt,
+                    retries,
+                    retry_delay_s * attempt,
+                )
                 time.sleep(retry_delay_s * attempt)
                 continue
             return failed_outcome(partition, exc, attempts=attempt)
@@ -710,6 +742,7 @@ def record_failures(
     failed = [o for o in outcomes if o.status == "failed"]
     if not failed:
         return 0
+    logger.info("%d failed partition(s) recorded in the runs table", len(failed))
     with open_writer(data) as con:
         for outcome in failed:
             start = dt.datetime.combine(outcome.day, dt.time(0), tzinfo=dt.UTC)
@@ -793,50 +826,97 @@ class BackfillReport:
 
 
 class StderrProgress:
-    """A plain progress bar on stderr (no dependency): ``[####....] 12/60 ...``.
+    """Progress of the partitions on stderr: a live bar (rich) on a terminal only.
 
-    On a terminal it redraws one line; otherwise it prints a line per ~10 %.
+    Call it with each :class:`PartitionOutcome`; :meth:`resize` once the number of
+    partitions is known. On a terminal rich redraws one line
+    (``partitions ━━━━━━━━━━━━━━━━━━━━━━━━━━ 12/60 1 failed 0:00:41 eta 0:03:05 <key>``)
+    and lines written to ``sys.stderr`` meanwhile (the log) go above it. Elsewhere (CI,
+    cron, a log file) it says nothing until the last partition, then one summary line
+    ``60/60 partitions, 1 failed, 245 s``. The bar ends at the last partition, on
+    :meth:`close`, or at exit. ``stream``: default ``sys.stderr``.
     """
 
-    def __init__(self, total: int, *, label: str = "partitions", width: int = 30) -> None:
-        self.total, self.label, self.width = total, label, width
+    def __init__(
+        self, total: int, *, label: str = "partitions", stream: TextIO | None = None
+    ) -> None:
+        self.total, self.label = total, label
         self.done = 0
         self.failed = 0
+        self._stream = sys.stderr if stream is None else stream
         self._started = time.perf_counter()
-        self._tty = sys.stderr.isatty()
-        self._last_decile = -1
         self._lock = threading.Lock()
+        self._closed = False
+        self._bar: Progress | None = None
+        if self._stream.isatty():
+            from rich.console import Console  # 0.2 s to import: only for a terminal
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TextColumn,
+                TimeElapsedColumn,
+                TimeRemainingColumn,
+            )
+
+            self._bar = Progress(
+                TextColumn("{task.description}"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TextColumn("{task.fields[failed]} failed"),
+                TimeElapsedColumn(),
+                TextColumn("eta"),
+                TimeRemainingColumn(),
+                TextColumn("{task.fields[key]}"),
+                console=Console(file=self._stream, force_terminal=True),
+                refresh_per_second=2,
+                redirect_stdout=False,  # stdout is the command's result, never the bar's
+                redirect_stderr=self._stream is sys.stderr,  # log lines go above the bar
+            )
+            self._task = self._bar.add_task(label, total=total, failed=0, key="")
+            self._start_bar()
+
+    def _start_bar(self) -> None:
+        """Draw the bar once there is something to count (not for an empty plan)."""
+        if self._bar is not None and self.total and not self._bar.live.is_started:
+            self._bar.start()
+            atexit.register(self.close)
 
     def resize(self, total: int) -> None:
         """Set the number of partitions once known (after planning)."""
         with self._lock:
             self.total = total
+            if self._bar is not None:
+                self._bar.update(self._task, total=total)
+                self._start_bar()
+        if total and self.done >= total:
+            self.close()
 
     def __call__(self, outcome: PartitionOutcome) -> None:
         with self._lock:
             self.done += 1
             self.failed += outcome.status == "failed"
-            self._draw(outcome.key)
+            if self._bar is not None:
+                self._bar.update(self._task, advance=1, failed=self.failed, key=outcome.key)
+        if self.total and self.done >= self.total:
+            self.close()
 
-    def _draw(self, key: str) -> None:
-        total = max(self.total, 1)
-        filled = round(self.width * self.done / total)
-        elapsed = time.perf_counter() - self._started
-        eta = elapsed / self.done * (self.total - self.done) if self.done else 0.0
-        line = (
-            f"[{'#' * filled}{'.' * (self.width - filled)}] {self.done}/{self.total} "
-            f"{self.label}, {self.failed} failed, {elapsed:.0f} s, eta {eta:.0f} s  {key}"
-        )
-        if self._tty:
-            end = "\n" if self.done >= self.total else ""
-            sys.stderr.write(f"\r\x1b[K{line}{end}")
-        else:
-            decile = self.done * 10 // total
-            if decile == self._last_decile and self.done < self.total:
+    def close(self) -> None:
+        """End the bar (a terminal) or write the summary line (elsewhere); once."""
+        with self._lock:
+            if self._closed:
                 return
-            self._last_decile = decile
-            sys.stderr.write(line + "\n")
-        sys.stderr.flush()
+            self._closed = True
+        if self._bar is not None:
+            if self._bar.live.is_started:
+                self._bar.stop()
+                atexit.unregister(self.close)
+            return
+        elapsed = time.perf_counter() - self._started
+        self._stream.write(
+            f"{self.done}/{self.total} {self.label}, {self.failed} failed, {elapsed:.0f} s\n"
+        )
+        self._stream.flush()
 
 
 def run_partitions(

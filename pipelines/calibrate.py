@@ -38,6 +38,7 @@ from __future__ import annotations
 import datetime as dt
 import hashlib
 import json
+import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -76,6 +77,8 @@ __all__ = [
     "steady_steps",
     "table1_report",
 ]
+
+logger = logging.getLogger(__name__)
 
 #: Keys of the eq-17 lines (SI), in the order Fc, Fs, vs, Kv.
 LINE_NAMES = ("coulomb_n", "static_n", "stribeck_speed_m_s", "viscous_n_s_m")
@@ -691,6 +694,13 @@ def calibrate_rig(
     if dropped:
         notes.append(f"{dropped} moving step(s) without {0.1:g} s of steady data were left out")
     per_pressure, fits = fit_pressure_levels(steps)
+    logger.info(
+        "calibrate rig %s: %d samples, %d steady steps, %d pressure level(s) fitted",
+        rig_id,
+        samples.height,
+        steps.height,
+        per_pressure.height,
+    )
     if per_pressure.height < 3:
         raise CalibrationError(
             f"rig {rig_id!r}: {per_pressure.height} pressure level(s) with at least 5 steady "

@@ -18,6 +18,8 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from pipelines.log import add_log_level_option, configure_logging
+
 __all__ = ["RopeloadError", "build_parser", "main"]
 
 
@@ -447,6 +449,8 @@ def build_parser() -> argparse.ArgumentParser:
     query.add_argument("sql", help='e.g. "select * from position_summary"')
     query.add_argument("--format", choices=["table", "csv", "json"], default="table")
     query.set_defaults(handler=_cmd_query)
+    for subcommand in commands.choices.values():
+        add_log_level_option(subcommand)
     return parser
 
 
@@ -562,6 +566,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     parser = build_parser()
     args = parser.parse_args(argv)
+    configure_logging(getattr(args, "log_level", None))  # stderr; stdout: the result
     command: str = args.command
     handler: Callable[[argparse.Namespace], int] = args.handler
     try:

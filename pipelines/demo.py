@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import datetime as dt
+import logging
 from pathlib import Path
 
 import polars as pl
@@ -24,6 +25,8 @@ from sims.field_day import generate_field_day, write_field_day
 from warehouse.store import DataRoot
 
 __all__ = ["DEMO_DATE", "demo_summary", "run_demo"]
+
+logger = logging.getLogger(__name__)
 
 DEMO_DATE = dt.date(2026, 3, 2)
 
@@ -92,6 +95,7 @@ def run_demo(*, data: DataRoot, seed: int = 7, hours: float = 1.0) -> str:
     incoming = data.path / "incoming" / "demo"
     written = write_field_day(day, incoming, formats=("csv",))
     logs = [p for p in written if p.suffix == ".csv"]
+    logger.info("demo: %d synthetic log file(s) written to %s", len(logs), incoming)
     report = ingest_paths(logs, data=data, hoist_lookup=lambda site, name: hoist)
     if not report.ok:
         refused = "; ".join(f"{f.path.name}: {f.message}" for f in report.refused)

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -48,6 +49,8 @@ from warehouse.landing import land_discovery_findings, land_run
 from warehouse.store import DataRoot, open_writer
 
 __all__ = ["DiscoveryReport", "discover_period", "report_objects", "write_plot"]
+
+logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -190,7 +193,11 @@ def discover_period(
     p_start = (start or samples["time_utc"].min()).astimezone(dt.UTC)
     p_end = (end or samples["time_utc"].max() + dt.timedelta(microseconds=1)).astimezone(dt.UTC)
     plan = plan_replay(samples, hoist, max_trips=max_trips)
+    logger.info("discover %s/%s %s .. %s: replaying trips", site, name, p_start, p_end)
     result = discover_effects(plan, max_iterations=max_iterations)
+    logger.info(
+        "discover %s/%s: effects found: %s", site, name, ", ".join(result.effects_found) or "none"
+    )
     period = (p_start.isoformat(), p_end.isoformat())
     report, per = report_objects(result, period)
     json_out = plot_out = None

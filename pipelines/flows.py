@@ -64,6 +64,7 @@ from pipelines.backfill import (  # noqa: E402
 )
 from pipelines.ingest import FilesRefused, IngestReport, ingest_paths  # noqa: E402
 from pipelines.ingest.field_checks import hoist_lookup_from_files  # noqa: E402
+from pipelines.log import enable_run_logs  # noqa: E402
 from pipelines.nightly import (  # noqa: E402
     HoistNight,
     NightlyReport,
@@ -76,6 +77,8 @@ from pipelines.nightly import (  # noqa: E402
 from pipelines.reports import Report, build_report  # noqa: E402
 from pipelines.run_period import RunResult, run_period  # noqa: E402
 from warehouse.store import DataRoot  # noqa: E402
+
+enable_run_logs()  # the module loggers' INFO lines go to the flow and task run logs
 
 __all__ = [
     "PARTITION_RETRIES",

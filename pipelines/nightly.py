@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import datetime as dt
 import importlib.util
+import logging
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -76,6 +77,8 @@ __all__ = [
 ]
 
 _RAW_SUFFIXES = {".csv", ".tdms"}
+
+logger = logging.getLogger(__name__)
 
 
 def find_new_files(source: HoistSource, known: set[tuple[str, int]]) -> list[Path]:
@@ -166,6 +169,14 @@ def ingest_new_files(
     night = HoistNight(source, new, report, before, after, ingest_s=time.perf_counter() - t0)
     if report is not None:
         night.days = sorted(_days_touched(report))
+    logger.info(
+        "%s: %d new file(s), days touched: %s; watermark %s -> %s",
+        source.key,
+        len(new),
+        ", ".join(map(str, night.days)) or "none",
+        _iso(before) or "-",
+        _iso(after) or "-",
+    )
     return night
 
 
@@ -199,7 +210,9 @@ def nightly_partitions(
         candidates += [Partition(night.source, day) for day in sorted(days)]
     candidates = [p for p in candidates if _has_samples_or_error(p, data)]
     done = completed_partitions(data, candidates, sanity=sanity)
-    return [p for p in candidates if p.key not in done]
+    todo = [p for p in candidates if p.key not in done]
+    logger.info("%d hoist-day(s) to run: %s", len(todo), ", ".join(p.key for p in todo))
+    return todo
 
 
 @dataclass
@@ -269,6 +282,7 @@ def discover_day(source: HoistSource, day: dt.date, *, data: DataRoot) -> Path:
         end=start + dt.timedelta(days=1),
         json_path=target,
     )
+    logger.info("discovery of %s %s (a sanity check failed): %s", source.key, day, target)
     return target
 
 

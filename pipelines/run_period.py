@@ -11,6 +11,7 @@ the same period replaces what it landed before: no duplicates.
 from __future__ import annotations
 
 import datetime as dt
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,6 +27,8 @@ from warehouse.landing import land_results, land_rope_tensions
 from warehouse.store import DataRoot, open_writer
 
 __all__ = ["LEAD_IN", "NoSamplesError", "RunResult", "run_period"]
+
+logger = logging.getLogger(__name__)
 
 
 #: Default lead-in before a period (see :func:`run_period`).
@@ -140,6 +143,16 @@ def run_period(
         raise NoSamplesError(_no_samples_message(data, site, name, start, end))
     period_start, period_end = _period(in_period, start, end)
     run_id = new_run_id(command)
+    logger.info(
+        "run %s: %s/%s %s .. %s UTC, %d samples (and %d of lead-in)",
+        run_id,
+        site,
+        name,
+        period_start,
+        period_end,
+        in_period.height,
+        samples.height - in_period.height,
+    )
     tensions = compensate(samples, hoist, settings=settings).filter(
         pl.col("time_utc") >= period_start
     )
@@ -174,6 +187,13 @@ def run_period(
             trip_summary=reconciled.trip_summary,
             alarms=alarms,
         )
+    logger.info(
+        "run %s landed: %d trips, %d position visits, %d alarms",
+        run_id,
+        reconciled.trip_summary.height,
+        reconciled.position_summary.height,
+        alarms.height,
+    )
     return RunResult(
         run_id=run_id,
         site=site,

@@ -12,6 +12,7 @@ a new migration here.
 
 from __future__ import annotations
 
+import logging
 import re
 from pathlib import Path
 
@@ -21,6 +22,8 @@ __all__ = ["MIGRATIONS_DIR", "apply_migrations", "migration_files"]
 
 MIGRATIONS_DIR = Path(__file__).parent / "migrations"
 _NAME = re.compile(r"^(\d{4})_[a-z0-9_]+\.sql$")
+
+logger = logging.getLogger(__name__)
 
 
 def migration_files() -> list[tuple[int, Path]]:
@@ -59,5 +62,6 @@ def apply_migrations(con: duckdb.DuckDBPyConnection) -> list[int]:
         except Exception:
             con.execute("ROLLBACK")
             raise
+        logger.info("warehouse migration %s applied", path.stem)
         applied.append(number)
     return applied

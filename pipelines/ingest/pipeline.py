@@ -30,6 +30,7 @@ from __future__ import annotations
 import datetime as dt
 import hashlib
 import itertools
+import logging
 from collections import Counter
 from collections.abc import Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -62,6 +63,8 @@ __all__ = ["ingest_paths"]
 
 _EMPTY_SHA256 = hashlib.sha256(b"").hexdigest()
 
+logger = logging.getLogger(__name__)
+
 
 def ingest_paths(
     paths: Sequence[str | Path],
@@ -89,7 +92,24 @@ def ingest_paths(
                 if result.status != "skipped" and result.sha256:
                     _record(con, result, earlier)
                 report.files.append(result)
+                _log_file(result)
     return report
+
+
+def _log_file(result: FileResult) -> None:
+    """What became of one file (a refusal: also the command's stderr line)."""
+    level = logging.DEBUG if result.status == "skipped" else logging.INFO
+    logger.log(
+        level,
+        "%s %s: %d rows read, %d landed, %d quarantined, %d duplicates%s",
+        result.status,
+        result.path,
+        result.rows_read,
+        result.rows_landed,
+        result.rows_quarantined,
+        result.rows_duplicate,
+        f" ({result.reason})" if result.message else "",
+    )
 
 
 def _record(con: duckdb.DuckDBPyConnection, result: FileResult, earlier: Earlier | None) -> None:

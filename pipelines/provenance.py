@@ -69,7 +69,8 @@ def hoist_run(
     message: str,
 ) -> RunRecord:
     """The ``runs`` row of a succeeded run over one hoist's period, finished now: the code
-    version, the hoist file's hash and friction parameter set, the sources it read."""
+    version, the hoist file's hash, friction parameter set and time zone, the sources it
+    read."""
     return RunRecord(
         run_id=run_id,
         command=command,
@@ -85,4 +86,5 @@ def hoist_run(
         finished_at_utc=utc_now(),
         status="succeeded",
         message=message,
+        timezone=hoist.hoist.timezone,
     )

@@ -138,11 +138,18 @@ RUNS = _schema(
         pa.field("finished_at_utc", TIME),
         pa.field("status", pa.string(), nullable=False),
         pa.field("message", pa.string()),
+        pa.field("timezone", pa.string()),
     ],
-    "one row per run; inputs are source_sha256 of the files it read",
+    "one row per run; inputs are source_sha256 of the files it read; timezone is the "
+    "hoist's IANA time zone ([hoist] timezone of its description) for runs over a hoist",
 )
 
-#: One row per compensated sample (wide over the four ropes).
+#: One row per compensated sample (wide over the four ropes). These are the lake's
+#: Parquet names (a contract kept since issue 2); the warehouse's ``rope_tensions`` view
+#: speaks the marts' words (warehouse/README.md, Glossary): ``p{i}_pa`` (calibrated and
+#: filtered) -> ``p_sensor{i}_pa``, ``tension_raw{i}_n`` -> ``tension_before{i}_n``,
+#: ``tension{i}_n`` -> ``tension_after{i}_n``, ``load_raw_n`` -> ``load_before_n``,
+#: ``load_n`` -> ``load_after_n``.
 ROPE_TENSIONS = _schema(
     [
         pa.field("time_utc", TIME, nullable=False),
@@ -205,10 +212,18 @@ TRIP_SUMMARY = _schema(
         pa.field("depth_end_m", pa.float64()),
         pa.field("payload_kg", pa.float64()),
         pa.field("payload_spread_kg", pa.float64()),
-        pa.field("max_load_n", pa.float64()),
-        pa.field("max_imbalance_fraction", pa.float64()),
+        pa.field("max_load_after_n", pa.float64()),
+        pa.field("max_imbalance_after_fraction", pa.float64()),
+        pa.field("max_imbalance_after_rope", pa.int32()),
+        pa.field("max_imbalance_after_time_utc", TIME),
+        *_per_rope("max_tension_after{i}_n", pa.float64()),
+        *_per_rope("min_tension_after{i}_n", pa.float64()),
+        *_per_rope("max_imbalance_after{i}_fraction", pa.float64()),
+        *_per_rope("max_imbalance_after{i}_time_utc", TIME),
     ],
-    "one row per trip; payload inferred from the compensated load at each position",
+    "one row per trip; payload inferred from the compensated load at each position; "
+    "extremes over the trip's samples after compensation, per rope and for the worst rope "
+    "(imbalance of rope i = |T_i - mean T| / mean T)",
 )
 
 #: One row per alarm event (debounced).

@@ -143,6 +143,46 @@ def _imbalance_expr(prefix: str) -> pl.Expr:
     return pl.max_horizontal([(c - mean).abs() for c in cols]) / mean
 
 
+def _rope_imbalance_expr(prefix: str, rope: int) -> pl.Expr:
+    """|T_rope - mean(T)| / mean(T) of one rope, per row (null where not a number)."""
+    mean = pl.mean_horizontal([pl.col(f"{prefix}{i}_n") for i in ROPES])
+    return ((pl.col(f"{prefix}{rope}_n") - mean).abs() / mean).fill_nan(None)
+
+
+def _rope_extremes_aggs() -> list[pl.Expr]:
+    """Per rope over a group of samples, after compensation: largest and smallest
+    tension, largest imbalance and the time of its sample (``_imbalance{i}`` columns)."""
+    aggs = []
+    for i in ROPES:
+        tension, imbalance = pl.col(f"tension{i}_n").fill_nan(None), pl.col(f"_imbalance{i}")
+        peak_time = pl.col("time_utc").sort_by(imbalance, descending=True, nulls_last=True)
+        aggs += [
+            tension.max().alias(f"max_tension_after{i}_n"),
+            tension.min().alias(f"min_tension_after{i}_n"),
+            imbalance.max().alias(f"max_imbalance_after{i}_fraction"),
+            pl.when(imbalance.max().is_not_null())
+            .then(peak_time.first())
+            .alias(f"max_imbalance_after{i}_time_utc"),
+        ]
+    return aggs
+
+
+def _worst_rope_exprs() -> list[pl.Expr]:
+    """The trip's worst rope (lowest number on a tie), its imbalance and when."""
+    per_rope = [pl.col(f"max_imbalance_after{i}_fraction") for i in ROPES]
+    worst = pl.max_horizontal(per_rope)
+    rope = pl.when(per_rope[0] == worst).then(pl.lit(ROPES[0], dtype=pl.Int32))
+    time = pl.when(per_rope[0] == worst).then(pl.col(f"max_imbalance_after{ROPES[0]}_time_utc"))
+    for i, column in zip(ROPES[1:], per_rope[1:], strict=True):
+        rope = rope.when(column == worst).then(pl.lit(i, dtype=pl.Int32))
+        time = time.when(column == worst).then(pl.col(f"max_imbalance_after{i}_time_utc"))
+    return [
+        worst.alias("max_imbalance_after_fraction"),
+        rope.alias("max_imbalance_after_rope"),
+        time.alias("max_imbalance_after_time_utc"),
+    ]
+
+
 _OPTIONAL = {"direction": pl.String, "acceleration_up_m_s2": pl.Float64, "phase": pl.String}
 
 #: Trip phases whose samples infer the payload: the winder's acceleration is not the
@@ -287,13 +327,18 @@ def summarise_trips(
 ) -> pl.DataFrame:
     """One row per trip: extent, payload (over positions, by samples) and its spread, peaks.
 
-    ``max_imbalance_fraction`` is the largest per-sample rope-to-mean imbalance of the
-    compensated tensions over the whole trip. Returns the TRIP_SUMMARY schema.
+    Peaks are over the trip's samples after compensation: ``max_load_after_n``; per rope
+    i the largest and smallest tension and the largest imbalance |T_i - mean T| / mean T
+    with the time of its sample (``max_imbalance_after{i}_fraction``, ``..._time_utc``);
+    and the worst rope's: ``max_imbalance_after_fraction`` (the largest per-sample
+    rope-to-mean imbalance of the trip), ``max_imbalance_after_rope`` (1-4, the lowest on
+    a tie) and ``max_imbalance_after_time_utc``. Returns the TRIP_SUMMARY schema.
     """
     lazy = _lazy(rope_tensions)
     trips = (
         lazy.filter(pl.col("trip_id").is_not_null())
         .sort("time_utc")
+        .with_columns(_rope_imbalance_expr("tension", i).alias(f"_imbalance{i}") for i in ROPES)
         .group_by("trip_id")
         .agg(
             pl.col("direction").drop_nulls().first(),
@@ -301,9 +346,10 @@ def summarise_trips(
             pl.col("time_utc").last().alias("time_end_utc"),
             pl.col("depth_m").drop_nulls().first().alias("depth_start_m"),
             pl.col("depth_m").drop_nulls().last().alias("depth_end_m"),
-            pl.col("load_n").max().alias("max_load_n"),
-            _imbalance_expr("tension").max().alias("max_imbalance_fraction"),
+            pl.col("load_n").max().alias("max_load_after_n"),
+            *_rope_extremes_aggs(),
         )
+        .with_columns(_worst_rope_exprs())
         .collect()
     )
     payloads = (

@@ -57,7 +57,8 @@ __all__ = [
 
 @dataclass(frozen=True)
 class RunRecord:
-    """One ``runs`` row (schema RUNS); ``inputs`` are the source_sha256 the run read."""
+    """One ``runs`` row (schema RUNS); ``inputs`` are the source_sha256 the run read;
+    ``timezone`` the hoist's IANA time zone for a run over one hoist."""
 
     run_id: str
     command: str
@@ -73,6 +74,7 @@ class RunRecord:
     inputs: Sequence[str] = field(default_factory=tuple)
     finished_at_utc: dt.datetime | None = None
     message: str | None = None
+    timezone: str | None = None
 
     def to_frame(self) -> pl.DataFrame:
         row = asdict(self)

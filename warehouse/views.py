@@ -2,18 +2,21 @@
 
 Layers (dbt naming; one model per file under ``warehouse/models/<layer>/``):
 
-``raw_*``
+``lake_*``
     Views over the lake Parquet, built here because they hold absolute paths:
-    ``raw_field_samples``, ``raw_rig_samples``, ``raw_rope_tensions``. Columns and types
-    are the Arrow schemas of :mod:`schemas.tables` plus the Hive keys ``site``, ``hoist``,
-    ``date``. With no file landed yet the view is an empty, fully typed relation, so
-    every layer above it can be created and queried.
+    ``lake_field_samples``, ``lake_rig_samples``, ``lake_rope_tensions``. Columns and
+    types are the Arrow schemas of :mod:`schemas.tables` (the lake's own names) plus the
+    Hive keys ``site``, ``hoist``, ``date``. With no file landed yet the view is an empty,
+    fully typed relation, so every layer above it can be created and queried. (Called
+    ``raw_*`` before issue 18, when "raw" also meant "uncompensated" in column names;
+    :func:`refresh_views` drops the old names.)
 ``stg_*`` (``models/staging``)
     One per raw source: rename, cast, units only.
 ``int_*`` (``models/intermediate``)
     Joins the marts share (run inputs joined to the manifest).
 marts (``models/marts``)
-    ``rope_tensions`` (the compensated layer) and the ``audit_*`` lineage views. The
+    ``rope_tensions`` (the compensated layer), ``hoists``, ``rope_trip_extremes`` and the
+    ``audit_*`` lineage views. The
     landed mart tables (``position_summary``, ``trip_summary``, ``alarms``,
     ``sanity_checks``, ``friction_parameter_sets``, ``discovery_findings``) are tables
     made by migrations.
@@ -40,6 +43,7 @@ __all__ = [
     "LAKE_VIEWS",
     "MODELS_DIR",
     "MODEL_LAYERS",
+    "RETIRED_VIEWS",
     "model_files",
     "raw_view_sql",
     "refresh_views",
@@ -48,12 +52,14 @@ __all__ = [
 MODELS_DIR = Path(__file__).parent / "models"
 MODEL_LAYERS = ("staging", "intermediate", "marts")
 
-#: raw view name -> lake table (``<data>/lake/<table>/site=/hoist=/date=/*.parquet``)
+#: lake view name -> lake table (``<data>/lake/<table>/site=/hoist=/date=/*.parquet``)
 LAKE_VIEWS = {
-    "raw_field_samples": "field_samples",
-    "raw_rig_samples": "rig_samples",
-    "raw_rope_tensions": "rope_tensions",
+    "lake_field_samples": "field_samples",
+    "lake_rig_samples": "rig_samples",
+    "lake_rope_tensions": "rope_tensions",
 }
+#: Views of earlier releases that no longer exist: dropped by :func:`refresh_views`.
+RETIRED_VIEWS = ("raw_field_samples", "raw_rig_samples", "raw_rope_tensions")
 
 _PARTITION_TYPES = {"site": "VARCHAR", "hoist": "VARCHAR", "date": "DATE"}
 
@@ -99,9 +105,13 @@ def refresh_views(
     """Create or replace every view for ``root``; return their names in creation order.
 
     ``temporary=True`` creates connection-local views (allowed on a read-only
-    connection); otherwise the views are stored in the database (inside a writer).
+    connection); otherwise the views are stored in the database (inside a writer), and
+    :data:`RETIRED_VIEWS` are dropped.
     """
     kind = "TEMPORARY VIEW" if temporary else "VIEW"
+    if not temporary:
+        for view in RETIRED_VIEWS:
+            con.execute(f"DROP VIEW IF EXISTS {view}")
     created = []
     for view, table in LAKE_VIEWS.items():
         con.execute(f"CREATE OR REPLACE {kind} {view} AS {raw_view_sql(root, table)}")

@@ -246,12 +246,14 @@ def test_views_marts_and_the_lake_stay_queryable(audit, capsys):
     assert _csv(capsys, root, "select count(*) as n from position_summary") == ["n", "12"]
     # the compensated layer is a view over the lake Parquet: 1 + 2 + ... + 24 N
     assert _csv(
-        capsys, root, "select count(*) as n, sum(load_n) as s, min(site) as site from rope_tensions"
+        capsys,
+        root,
+        "select count(*) as n, sum(load_after_n) as s, min(site) as site from rope_tensions",
     ) == ["n,s,site", "24,300.0,s"]
     assert _csv(
         capsys,
         root,
-        "with per_hour as (select hour(time_utc) as h, load_n from raw_rope_tensions) "
+        "with per_hour as (select hour(time_utc) as h, load_n from lake_rope_tensions) "
         "select load_n from per_hour where h = 23",
     ) == ["load_n", "24.0"]
     assert _csv(capsys, root, "select run_id, position_rows from audit_runs") == [
@@ -280,7 +282,9 @@ def test_views_follow_a_moved_data_root(tmp_path, capsys):
     _land(old)
     moved = DataRoot.resolve(tmp_path / "moved")
     old.path.rename(moved.path)
-    assert _csv(capsys, moved, "select count(*) as n, sum(load_n) as s from rope_tensions") == [
+    assert _csv(
+        capsys, moved, "select count(*) as n, sum(load_after_n) as s from rope_tensions"
+    ) == [
         "n,s",
         "24,300.0",
     ]

@@ -149,8 +149,8 @@ def test_rope_tensions_lake_view_and_partial_relanding(tmp_path):
     con = open_reader(root)
     try:
         rows = con.sql(
-            "SELECT load_n, count(*), min(site), min(hoist), min(date_utc) FROM rope_tensions "
-            "GROUP BY 1 ORDER BY 1"
+            "SELECT load_after_n, count(*), min(site), min(hoist), min(date_utc) "
+            "FROM rope_tensions GROUP BY 1 ORDER BY 1"
         ).fetchall()
     finally:
         con.close()
@@ -176,14 +176,14 @@ def test_views_follow_a_moved_data_root(tmp_path):
             con.sql("SELECT count(*) FROM rope_tensions").fetchall()
         # a reader can rebuild the views for the new place on its read-only connection
         refresh_views(con, moved, temporary=True)
-        assert con.sql("SELECT load_n FROM rope_tensions").fetchall() == [(3.0,)]
+        assert con.sql("SELECT load_after_n FROM rope_tensions").fetchall() == [(3.0,)]
     finally:
         con.close()
     with open_writer(moved):  # the next writer stores views for the new place
         pass
     con = open_reader(moved)
     try:
-        assert con.sql("SELECT load_n FROM rope_tensions").fetchall() == [(3.0,)]
+        assert con.sql("SELECT load_after_n FROM rope_tensions").fetchall() == [(3.0,)]
     finally:
         con.close()
 

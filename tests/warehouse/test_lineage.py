@@ -200,3 +200,64 @@ def test_readme_example_queries_run(landed):
     assert [row[-1] for row in lineage] == [str(root.path.parent / "logs" / "main-shaft-1.csv")]
     raw_lines = next(r for q, r in zip(queries, results, strict=True) if "source_line" in q)
     assert len(raw_lines) == 100
+
+
+def test_rope_trip_extremes_name_the_file_of_each_ropes_worst_sample(tmp_path):
+    """One trip over two raw files: each rope's worst sample is traced to its own file.
+
+    Rope 1 pulls 1.5x for a second in the first file (06:56:40), rope 3 goes slack in the
+    second (07:02:00); the other ropes' largest imbalance is then, too, in the second.
+    """
+    hoist = load_hoist(EXAMPLE_HOIST)
+    root = DataRoot(tmp_path / "data")
+    samples = _samples(hoist)
+    seconds = (pl.col("time_utc") - T0).dt.total_microseconds() / 1e6
+    tight = seconds.is_between(100.0, 101.0, closed="left")
+    samples = samples.with_columns(
+        pl.when(tight).then(1.5 * pl.col("tension1_n")).otherwise("tension1_n").alias(name)
+        for name in ("tension1_n", "tension_raw1_n")
+    ).with_columns(
+        trip_id=pl.lit(0, dtype=pl.Int64),
+        load_n=pl.sum_horizontal(f"tension{i}_n" for i in range(1, 5)),
+    )
+    manifest, shas = _ingest_by_hand(root, tmp_path, samples, hoist)
+    run = RunRecord(
+        run_id="trip-run", command="run", code_version="t", started_at_utc=T0,
+        hoist_sha256=hoist_sha256(EXAMPLE_HOIST), site=hoist.hoist.site, hoist=hoist.hoist.name,
+        period_start_utc=T0, period_end_utc=T0 + dt.timedelta(minutes=10), inputs=shas,
+        timezone=hoist.hoist.timezone,
+    )  # fmt: skip
+    _, trips = reconcile(samples, hoist, run_id=run.run_id, payload_kg=0.0)
+    with open_writer(root) as con:
+        insert_frame(con, "manifest", manifest)
+        land_results(con, run, trip_summary=trips)
+    con = open_reader(root)
+    try:
+        rows = con.sql(
+            "select rope, is_worst_rope, max_imbalance_after_fraction, "
+            "max_imbalance_after_time_utc, max_imbalance_after_time_local, "
+            "max_tension_after_n, source_path, source_paths from rope_trip_extremes order by rope"
+        ).fetchall()
+        trip = con.sql(
+            "select max_imbalance_after_rope, max_imbalance_after_fraction from trip_summary"
+        ).fetchall()
+    finally:
+        con.close()
+    files = [str(tmp_path / "logs" / f"main-shaft-{k}.csv") for k in (0, 1)]
+    assert [(r[0], r[1], r[6], r[7]) for r in rows] == [
+        (1, False, files[0], [files[0]]),
+        (2, False, files[1], [files[1]]),
+        (3, True, files[1], [files[1]]),
+        (4, False, files[1], [files[1]]),
+    ]
+    peak1, peak3 = rows[0], rows[2]
+    assert T0 + dt.timedelta(seconds=100) <= peak1[3] < T0 + dt.timedelta(seconds=101)
+    assert T0 + dt.timedelta(seconds=420) <= peak3[3] < T0 + dt.timedelta(seconds=425)
+    # Asia/Shanghai is UTC+8 all year
+    assert peak3[4] == (peak3[3] + dt.timedelta(hours=8)).replace(tzinfo=None)
+    # by hand: rope 3 at 0.2 x, the others at 1 x: mean 0.8, |0.2 - 0.8| / 0.8 = 0.75
+    assert peak3[2] == pytest.approx(0.75, abs=0.02)
+    # rope 1 at 1.5 x: mean 1.125, 0.375 / 1.125 = 1/3
+    assert peak1[2] == pytest.approx(1 / 3, abs=0.02)
+    assert peak1[5] == pytest.approx(1.5 * hoist.static_load_n(0.0) / 4, rel=0.02)
+    assert trip == [(3, peak3[2])]

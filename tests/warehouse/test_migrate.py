@@ -111,3 +111,43 @@ def test_raw_lake_views_match_arrow_schemas(tmp_path, view, table):
     assert [(n, t) for n, t, _ in _columns(con, view)] == expected
     assert tuple(n for n, _ in expected[-3:]) == LAKE_PARTITIONS
     assert con.sql(f"SELECT count(*) FROM {view}").fetchall() == [(0,)]
+
+
+def test_issue18_renames_keep_old_rows_and_retire_the_raw_views(tmp_path):
+    """A warehouse at migration 0002 with a trip and old-named views, upgraded by a writer."""
+    root = DataRoot(tmp_path)
+    con = duckdb.connect(str(root.warehouse))
+    con.execute(
+        "CREATE TABLE schema_migrations (version INTEGER PRIMARY KEY, name VARCHAR NOT NULL,"
+        " applied_at TIMESTAMPTZ NOT NULL DEFAULT now())"
+    )
+    for number, path in migration_files()[:2]:
+        con.execute(path.read_text())
+        con.execute("INSERT INTO schema_migrations (version, name) VALUES (?, ?)",
+                    [number, path.stem])  # fmt: skip
+    con.execute(
+        "INSERT INTO trip_summary (run_id, site, hoist, trip_id, max_load_n,"
+        " max_imbalance_fraction) VALUES ('old', 's', 'h', 0, 123.0, 0.01)"
+    )
+    con.execute("CREATE VIEW raw_rope_tensions AS SELECT 1 AS load_n")
+    con.close()
+    with open_writer(root):
+        pass
+    reader = open_reader(root)
+    try:
+        row = reader.sql(
+            "SELECT max_load_after_n, max_imbalance_after_fraction, max_imbalance_after_rope "
+            "FROM trip_summary"
+        ).fetchall()
+        views = {v for (v,) in reader.sql("SELECT view_name FROM duckdb_views()").fetchall()}
+        extremes = reader.sql(
+            "SELECT rope, max_imbalance_after_fraction, source_path FROM rope_trip_extremes "
+            "ORDER BY rope"
+        ).fetchall()
+    finally:
+        reader.close()
+    assert row == [(123.0, 0.01, None)]
+    assert "raw_rope_tensions" not in views
+    assert {"lake_rope_tensions", "hoists", "rope_trip_extremes"} <= views
+    # old rows have no per-rope extremes: the view still has the trip's four ropes, empty
+    assert extremes == [(i, None, None) for i in (1, 2, 3, 4)]

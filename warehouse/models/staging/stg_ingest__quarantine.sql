@@ -7,6 +7,6 @@ select
     line as source_line,
     topic,
     reason,
-    -- raw text as read
-    raw as raw_text
+    -- the line (or message) as read from the file
+    raw as source_text
 from quarantine

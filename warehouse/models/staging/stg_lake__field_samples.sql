@@ -1,5 +1,5 @@
 -- grain: one row per landed field-log sample (site, hoist, time_utc)
--- source: raw_field_samples (lake Parquet, Hive partitions site=/hoist=/date=)
+-- source: lake_field_samples (lake Parquet, Hive partitions site=/hoist=/date=)
 -- staging only: rename, cast, units (all SI already; pressures Pa, lengths m)
 select
     -- ids
@@ -22,4 +22,4 @@ select
     oil_temp_c,
     -- timestamps
     time_utc
-from raw_field_samples
+from lake_field_samples

@@ -1,5 +1,5 @@
 -- grain: one row per friction-rig pressure message (rig_id, time_utc)
--- source: raw_rig_samples (lake Parquet, partitions site=rig/hoist=<rig_id>/date=)
+-- source: lake_rig_samples (lake Parquet, partitions site=rig/hoist=<rig_id>/date=)
 select
     -- ids
     rig_id,
@@ -15,4 +15,4 @@ select
     oil_temp_c,
     -- timestamps
     time_utc
-from raw_rig_samples
+from lake_rig_samples

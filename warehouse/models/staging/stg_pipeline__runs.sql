@@ -9,6 +9,7 @@ select
     parameter_set,
     site,
     hoist,
+    timezone,
     status as run_status,
     message as run_message,
     inputs as input_sha256s,

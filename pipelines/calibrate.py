@@ -69,6 +69,9 @@ __all__ = [
     "CalibrationResult",
     "RigInfo",
     "calibrate_rig",
+    "eq17_coefficient_verdict",
+    "eq17_line_verdict",
+    "eq17_summary",
     "fit_pressure_levels",
     "format_calibration",
     "friction_toml",
@@ -850,16 +853,84 @@ def format_calibration(result: CalibrationResult) -> str:
     return "\n".join(out) + "\n"
 
 
+def eq17_coefficient_verdict(row: dict) -> str:
+    """One coefficient of eq 17 against the OLS fit, in words (a row of
+    :func:`transforms.friction_fit.compare_with_eq17`).
+
+    Two separate statements: whether eq 17 prints the OLS value (arithmetic: the OLS
+    line of the printed table is unique) and whether it is within the 95 % interval of
+    the OLS estimate (statistics: |z| against Student's t).
+    """
+    printed = "the OLS value to its printed digits" if row["reproduced"] else "not the OLS value"
+    z, limit = abs(row["z"]), row["z_limit"]
+    if row["consistent"]:
+        stat = f"consistent with OLS at 95 % (|z| {z:.2f} < {limit:.2f})"
+    else:
+        stat = f"differs from OLS at 95 % (|z| {z:.2f} >= {limit:.2f})"
+    return f"{printed}; {stat}"
+
+
+def eq17_line_verdict(row: dict) -> str:
+    """The eq-17 line of one parameter as a whole against the OLS line, in words (F
+    test of intercept and slope together, their correlation included)."""
+    test = f"F {row['line_f']:.2f}, p {row['line_p']:.2g}"
+    if row["line_consistent"]:
+        return f"line consistent with the OLS line at 95 % ({test})"
+    return (
+        f"line differs from the OLS line at 95 % ({test}; "
+        f"{row['line_gap_se']:.1f} standard errors apart at {row['line_gap_at']:g} MPa)"
+    )
+
+
+def eq17_summary(compare: pl.DataFrame) -> list[str]:
+    """What the comparison of eq 17 with OLS says, in a few sentences."""
+    rows = list(compare.iter_rows(named=True))
+    names = list(dict.fromkeys(r["parameter"] for r in rows))
+
+    def where(test) -> str:
+        chosen = [n for n in names if test([r for r in rows if r["parameter"] == n])]
+        return ", ".join(chosen) or "none"
+
+    worst = max(abs(r["z"]) for r in rows)
+    out = [
+        f"Printed digits: eq 17 is the OLS line of Table 1 for "
+        f"{where(lambda rs: all(r['reproduced'] for r in rs))}; not for "
+        f"{where(lambda rs: not all(r['reproduced'] for r in rs))}.",
+    ]
+    if all(r["consistent"] for r in rows):
+        out.append(
+            f"Statistics: every printed coefficient is within the 95 % interval of its OLS "
+            f"estimate (largest |z| {worst:.2f} < {rows[0]['z_limit']:.2f})."
+        )
+    else:
+        out.append(
+            "Statistics: outside the 95 % interval of the OLS estimate: "
+            + ", ".join(
+                f"{r['parameter']} {r['coefficient']} (|z| {abs(r['z']):.2f})"
+                for r in rows
+                if not r["consistent"]
+            )
+            + "."
+        )
+    out.append(
+        f"Whole lines at 95 %: consistent for "
+        f"{where(lambda rs: rs[0]['line_consistent'])}; different for "
+        f"{where(lambda rs: not rs[0]['line_consistent'])}."
+    )
+    return out
+
+
 def table1_report(table1: pl.DataFrame) -> str:
     """Ordinary least squares through paper Table 1, residuals, and the eq-17 comparison.
 
     Fits every column of Table 1 as a + b p (p in MPa) by OLS
     (:func:`transforms.friction_fit.fit_table1`), prints each line with standard errors
-    and R^2, the residual at each pressure, and then each coefficient against eq 17 as
-    printed (:func:`transforms.friction_fit.compare_with_eq17`): "differs" when eq 17 is
-    not the OLS value to within one unit of its last printed decimal, with the
-    difference in standard errors (z). Table 1 has no units (NOTES.md): the numbers are
-    Table 1's own (friction read as equivalent pressure in MPa, speed in mm/s).
+    and R^2, the residual at each pressure, and then each coefficient of eq 17 as
+    printed against the OLS value (:func:`transforms.friction_fit.compare_with_eq17`):
+    whether eq 17 prints the OLS value, and whether it is statistically consistent with
+    it (per coefficient, |z| against Student's t at 95 %; per line, an F test of both
+    coefficients together). Table 1 has no units (NOTES.md): the numbers are Table 1's
+    own (friction read as equivalent pressure in MPa, speed in mm/s).
 
     ``table1`` has the columns of :data:`transforms.friction_fit.TABLE1_COLUMNS`; the
     caller reads the file.
@@ -884,24 +955,20 @@ def table1_report(table1: pl.DataFrame) -> str:
     out.append(f"{'p [MPa]':>8} " + " ".join(f"{n:>20s}" for n in names))
     for k, pk in enumerate(p):
         out.append(f"{pk:8.1f} " + " ".join(f"{fits[n].residuals[k]:+20.5f}" for n in names))
+    rows = list(compare.iter_rows(named=True))
     out += [
         "",
-        "Against eq 17 as printed (differs: not the OLS value to one unit of eq 17's last "
-        "decimal; z = (eq17 - OLS) / se):",
+        "Eq 17 as printed against OLS (z = (eq17 - OLS) / se; 95 % two-sided limit "
+        f"|z| < {rows[0]['z_limit']:.2f}, Student t, {p.size - 2} degrees of freedom):",
     ]
-    for row in compare.iter_rows(named=True):
-        verdict = "agrees " if row["reproduced"] else "DIFFERS"
+    for row in rows:
         out.append(
             f"  {row['parameter']:20s} {row['coefficient']:9s} OLS {row['ols']:+.6g} "
-            f"eq17 {row['eq17']:+.6g}  {verdict} (diff {row['difference']:+.3g}, "
-            f"z {row['z']:+.2f})"
+            f"eq17 {row['eq17']:+.6g} (diff {row['difference']:+.3g}, z {row['z']:+.2f}): "
+            f"{eq17_coefficient_verdict(row)}"
         )
-    differs = sorted({r["parameter"] for r in compare.iter_rows(named=True) if not r["reproduced"]})
-    agrees = sorted(set(fits) - set(differs))
-    out += [
-        "",
-        f"Summary: eq 17 differs from OLS for {', '.join(differs) or 'nothing'}; "
-        f"it reproduces OLS for {', '.join(agrees) or 'nothing'}.",
-        "Use the OLS lines (with their residuals), not eq 17, as the fit of Table 1.",
-    ]
+        if row["coefficient"] == "slope":
+            out.append(f"  {'':20s} {'':9s} {eq17_line_verdict(row)}")
+    out += ["", "Summary:", *(f"  {line}" for line in eq17_summary(compare))]
+    out.append("Use the OLS lines (with their residuals), not eq 17, as the fit of Table 1.")
     return "\n".join(out) + "\n"

@@ -132,6 +132,57 @@ def test_compare_with_eq17_flags_coulomb_and_stribeck(table1):
     assert row["difference"] == pytest.approx(0.0357 - 0.02922, abs=1e-5)
 
 
+def test_compare_with_eq17_statistics_against_polyfit(table1):
+    """z per coefficient and the F test per line, from numpy's polyfit covariance."""
+    report = compare_with_eq17(fit_table1(table1))
+    p = table1["oil_pressure_mpa"].to_numpy().astype(float)
+    t_975_9 = 2.262  # Student t, 97.5 % quantile, 9 degrees of freedom (printed tables)
+    for name, (a_txt, b_txt) in EQ17.items():
+        (slope, intercept), cov = np.polyfit(p, table1[name].to_numpy(), 1, cov=True)
+        cov = cov[::-1, ::-1]  # polyfit orders (slope, intercept)
+        d = np.array([float(a_txt) - intercept, float(b_txt) - slope])
+        f = d @ np.linalg.solve(cov, d) / 2
+        rows = {r["coefficient"]: r for r in report.iter_rows(named=True) if r["parameter"] == name}
+        for k, coefficient in enumerate(("intercept", "slope")):
+            row = rows[coefficient]
+            assert row["z"] == pytest.approx(d[k] / np.sqrt(cov[k, k]), rel=1e-6)
+            assert row["z_limit"] == pytest.approx(t_975_9, abs=5e-4)
+            assert row["consistent"] == (abs(row["z"]) < t_975_9)
+            assert row["line_f"] == pytest.approx(f, rel=1e-6)
+    rows = list(report.iter_rows(named=True))
+    # Table 1: every printed coefficient within its 95 % interval (largest |z| 1.52) ...
+    assert max(abs(r["z"]) for r in rows) == pytest.approx(1.52, abs=0.01)
+    assert all(r["consistent"] for r in rows)
+    # ... but the Kv line as printed (slope 0.00006 for 0.0000664) is not: F(2, 9) = 6.86
+    # against the 95 % point 4.26; the other lines are consistent
+    line = {r["parameter"]: r for r in rows}
+    assert line["viscous_coefficient"]["line_f"] == pytest.approx(6.86, abs=0.01)
+    assert line["viscous_coefficient"]["line_p"] == pytest.approx(0.0155, abs=5e-4)
+    assert {n for n, r in line.items() if r["line_consistent"]} == {
+        "coulomb_friction",
+        "max_static_friction",
+        "stribeck_speed",
+    }
+
+
+def test_eq17_tests_reject_a_true_line_5_percent_of_the_time():
+    """Data drawn around eq 17 itself: each test must reject at its nominal 5 %."""
+    rng = np.random.default_rng(17)
+    p = np.arange(2.0, 13.0)
+    trials, rejected_z, rejected_line = 800, 0, 0
+    for _ in range(trials):
+        frame = {"oil_pressure_mpa": p}
+        for name, (a_txt, b_txt) in EQ17.items():
+            line = float(a_txt) + float(b_txt) * p
+            frame[name] = line + rng.normal(0.0, 0.02 * np.abs(line).mean(), p.size)
+        report = compare_with_eq17(fit_table1(pl.DataFrame(frame)))
+        rejected_z += int((~report["consistent"]).sum())
+        rejected_line += int((~report["line_consistent"]).sum()) // 2
+    # binomial: 5 % of 6400 coefficient tests (sd 0.27 %), of 3200 line tests (sd 0.39 %)
+    assert rejected_z / (8 * trials) == pytest.approx(0.05, abs=0.012)
+    assert rejected_line / (4 * trials) == pytest.approx(0.05, abs=0.015)
+
+
 def test_fit_line_weighted_known_truth():
     rng = np.random.default_rng(11)
     x = np.linspace(2, 12, 200)

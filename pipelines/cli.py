@@ -381,6 +381,53 @@ def _cmd_discover(args: argparse.Namespace) -> int:
     return 0
 
 
+#: ``ropeload paper`` sections (the keys of :data:`pipelines.paper.SECTIONS`, named here
+#: so that building the parser imports nothing heavy) and ``all``.
+PAPER_SECTIONS = ("table1", "table2", "eq9-10", "section3.1", "all")
+
+
+def _cmd_paper(args: argparse.Namespace) -> int:
+    """Each section's table on stdout as soon as it is done; figures and rows in
+    ``--out`` (default ``<data>/reports/paper``)."""
+    from pipelines.paper import run_paper
+    from warehouse.store import DataRoot
+
+    out = args.out
+    if out is None:
+        out = DataRoot.resolve(args.data).under("reports", "paper")
+
+    def emit(text: str) -> None:
+        sys.stdout.write(text + "\n")
+        sys.stdout.flush()
+
+    run_paper([args.section], out, emit=emit)
+    return 0
+
+
+def _add_paper_command(commands) -> None:
+    paper = commands.add_parser(
+        "paper",
+        help="the paper's tables, eq 9/10 and section 3.1 beside ropeload's numbers, with figures",
+    )
+    _data_option(paper)
+    paper.add_argument(
+        "section",
+        nargs="?",
+        default="all",
+        choices=PAPER_SECTIONS,
+        help="table1: OLS vs eq 17; table2: the field test; eq9-10: section 2.2 by formula "
+        "and simulation; section3.1: the rig's pressure loss (default: all)",
+    )
+    paper.add_argument(
+        "--out",
+        metavar="DIR",
+        type=Path,
+        default=None,
+        help="folder for the figures (PNG) and rows (CSV) (default: <data>/reports/paper)",
+    )
+    paper.set_defaults(handler=_cmd_paper)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="ropeload",
@@ -449,6 +496,7 @@ def build_parser() -> argparse.ArgumentParser:
     query.add_argument("sql", help='e.g. "select * from position_summary"')
     query.add_argument("--format", choices=["table", "csv", "json"], default="table")
     query.set_defaults(handler=_cmd_query)
+    _add_paper_command(commands)
     for subcommand in commands.choices.values():
         add_log_level_option(subcommand)
     return parser
@@ -501,12 +549,14 @@ def _os_error_line(exc: OSError) -> str:
 def _data_root_problem(args: argparse.Namespace) -> str | None:
     """Why the command's data root cannot be used, or None.
 
-    A data root that exists must be a folder; a command that writes (all but ``query``
-    and ``calibrate --table1``) needs it writable, or creatable: its nearest existing
-    ancestor a writable folder. (As root, permission bits do not stop writes, and
+    A data root that exists must be a folder; a command that writes (all but ``query``,
+    ``calibrate --table1`` and ``paper --out``) needs it writable, or creatable: its
+    nearest existing ancestor a writable folder. (As root, permission bits do not stop writes, and
     ``os.access`` says so too; a read-only file system still does.)
     """
     if not hasattr(args, "data") or (args.command == "calibrate" and args.table1):
+        return None
+    if args.command == "paper" and args.out is not None:  # the data root is not used
         return None
     from warehouse.store import DATA_ENV, DataRoot
 

@@ -55,12 +55,13 @@ from scipy import ndimage, optimize
 from schemas.hoist import G_STANDARD, HoistDescription
 from sims.device import simulate
 from sims.effects import resolve_effects
-from sims.trips import TripProfile, trip
+from sims.trips import TripProfile, fit_cut_trip, trip
 
 __all__ = [
     "ReplayPlan",
     "ReplayResult",
     "ReplayTrip",
+    "SkippedTrip",
     "estimate_noise_sigma",
     "payload_from_pressure",
     "plan_replay",
@@ -79,7 +80,12 @@ class ReplayTrip:
     """One measured trip prepared for simulation (times in s after ``ReplayPlan.t_ref``).
 
     ``time_s``, ``measured_pa`` ((m, n)), ``valid`` ((m, n)), ``phase``, ``direction``,
-    ``depth_m`` are the scored samples; the rest are the simulation inputs.
+    ``depth_m`` are the scored samples; the rest are the simulation inputs. ``cut`` is
+    ``"start"`` or ``"end"`` for a trip the record cuts (it starts or ends while the
+    conveyance moves; the unseen end is fitted, :func:`sims.trips.fit_cut_trip`): a trip
+    cut at its start is simulated from rest before the record but none of its samples is
+    valid (it only loads the seals' state for the next trip); one cut at its end is
+    simulated and scored up to the record's end.
     """
 
     trip_id: int
@@ -106,11 +112,25 @@ class ReplayTrip:
     ramp_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     ramp_measured_pa: np.ndarray = field(default_factory=lambda: np.zeros(0))
     profile_fit_m: float = 0.0
+    cut: str = ""
+
+
+@dataclass(frozen=True)
+class SkippedTrip:
+    """A trip of the record that :func:`plan_replay` could not prepare, and why."""
+
+    trip_id: int
+    motion_start_s: float
+    reason: str
 
 
 @dataclass(frozen=True)
 class ReplayPlan:
-    """Trips of one hoist's record prepared for replay; see :func:`plan_replay`."""
+    """Trips of one hoist's record prepared for replay; see :func:`plan_replay`.
+
+    ``skipped`` lists the analysed trips that could not be prepared, with the reason;
+    the trip after a skipped one starts its block's history again.
+    """
 
     hoist: HoistDescription
     t_ref: dt.datetime
@@ -120,6 +140,7 @@ class ReplayPlan:
     dt_s: float
     trips_found: int
     notes: tuple[str, ...] = ()
+    skipped: tuple[SkippedTrip, ...] = ()
 
     @property
     def n_sensors(self) -> int:
@@ -139,7 +160,8 @@ class ReplayResult:
 
     ``simulated[k]`` is (m_k, n) [Pa] (NaN where the simulation failed);
     ``payload_kg[k]`` the payload after trip k's loading, ``payload_before_kg[k]``
-    before it; ``status`` "success" or "failed" with ``message``.
+    before it; ``status`` "success" or "failed" with ``message``; ``trip_messages[k]``
+    says why trip k was not simulated ("" when it was).
     """
 
     simulated: tuple[np.ndarray, ...]
@@ -151,6 +173,7 @@ class ReplayResult:
     message: str = ""
     ramp_simulated: tuple[np.ndarray, ...] = ()
     ramps_s: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    trip_messages: tuple[str, ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -358,7 +381,8 @@ def plan_replay(
     pcs = ndimage.uniform_filter1d(pc_filled, size=max(3, int(rate) | 1))
     w = hoist.winder
     shaft = hoist.shaft.depth_m
-    # standstill depths between motions: shared by the trip before and after (chaining)
+    # standstill depths between motions: shared by the trip before and after (chaining);
+    # NaN where the record holds no standstill (it starts or ends while moving)
     stops = []
     bounds = (
         [(-np.inf, t[motions[0][0]])]
@@ -367,7 +391,9 @@ def plan_replay(
     )
     for lo, hi in bounds:
         d = _median_in(t, depth, lo + 1.0, hi - 0.5)
-        stops.append(float(np.clip(d, 0.0, shaft)))
+        if not np.isfinite(d):  # a standstill shorter than 1.5 s at the record's edge
+            d = _median_in(t, depth, lo + 0.05, hi - 0.05)
+        stops.append(float(np.clip(d, 0.0, shaft)) if np.isfinite(d) else float("nan"))
     notes: list[str] = []
     chosen = _chosen_trips(len(motions), max_trips, blocks)
     if len(motions) > max_trips:
@@ -376,10 +402,12 @@ def plan_replay(
             f"{len(chosen)} blocks of consecutive trips"
         )
     end_t = float(t[-1])
+    ramp_threshold = max(10.0 * sigma, 2e4) if np.isfinite(sigma) else 2e4
     # pass 1, every motion: start / stop times, top speed, loading ramp before it
     timing: list[dict[str, Any]] = []
     for k, (a_i, b_i) in enumerate(motions):
         prev_end = float(t[motions[k - 1][1]]) if k > 0 else float(t[0]) - 2.0
+        next_start = float(t[motions[k + 1][0]]) if k + 1 < len(motions) else end_t
         sp = _span(t, t[a_i] - 1.0, t[a_i] + 4.0)
         tw, vw = t[sp], np.abs(speed[sp])
         sel = (vw > 0.1) & (vw < 0.8 * w.acceleration_m_s2 * 4.0)
@@ -397,38 +425,36 @@ def plan_replay(
             else float(t[b_i])
         )
         top = np.abs(speed[a_i : b_i + 1])
-        vmax = float(np.median(top[top > 0.9 * np.nanmax(top)]))
+        vmax = float(np.nanmedian(top[top > 0.9 * np.nanmax(top)]))
         vmax_arg = None if abs(vmax - w.max_speed_m_s) < 0.05 * w.max_speed_m_s else vmax
-        s_lo = max(prev_end + 2.0, float(t[0]))
-        s_hi = t_m - 0.3
-        p_pre = _plateau_median(t, pcs, s_lo, s_hi, 2.0, from_start=True)
-        p_post = _plateau_median(t, pcs, s_lo, s_hi, 3.0, from_start=False)
-        change = p_post - p_pre
-        in_s = _span(t, s_lo, s_hi)
-        if (
-            np.isfinite(change)
-            and abs(change) > max(10.0 * sigma, 2e4)
-            and in_s.stop - in_s.start > 4
-        ):
-            u = (pcs[in_s] - p_pre) / change
-            ts = t[in_s]
-            above = np.flatnonzero(u > 0.1)
-            below = np.flatnonzero(u < 0.9)
-            t10 = float(ts[above[0]]) if above.size else float(ts[0])
-            t90 = float(ts[below[-1]]) if below.size else float(ts[-1])
-            dur = max((t90 - t10) / 0.8, 0.5)
-            r0, r1 = _fit_ramp(
-                ts,
-                pc[in_s],
-                max(s_lo, t10 - 0.1 * dur),
-                min(t10 - 0.1 * dur + dur, s_hi),
-                p_pre,
-                p_post,
-            )
-            r0, r1 = max(s_lo, r0), min(r1, s_hi)
+        d0, d1 = stops[k], stops[k + 1]
+        cut, skip = "", ""
+        if not (np.isfinite(d0) and np.isfinite(d1)):
+            # the record starts or ends while the conveyance moves (or the encoder depth
+            # is missing at a stop): the winder profile fitted to the logged depth
+            # completes the trip; both ends unknown: nothing anchors it
+            cut = "start" if not np.isfinite(d0) else "end"
+            try:
+                t_m, t_e, d0, d1, vmax_arg = _complete_cut_trip(
+                    hoist, t, depth, a_i, b_i, d0, d1, t_m, t_e, vmax_arg
+                )
+            except ValueError as exc:
+                skip = f"{_CUT_WORDS[cut]}: {exc}"
+        if cut == "start":
+            # no loading seen: the simulation starts at rest shortly before the motion
+            r0, r1 = t_m - 2.0, t_m - 1.5
+            p_pre = p_post = float("nan")
         else:
-            r0 = max(s_lo, t_m - 6.0)
-            r1 = min(r0 + 0.5, s_hi)
+            s_lo = max(prev_end + 2.0, float(t[0]))
+            r0, r1, p_pre, p_post = _loading_ramp(t, pc, pcs, s_lo, t_m - 0.3, ramp_threshold)
+        if not np.isfinite(p_post):
+            # no standstill before the motion in the record: the payload does not change
+            # during a trip, so the level after its stop (or, cut there too, while moving)
+            p_post = _plateau_median(t, pcs, t_e + 2.0, next_start - 0.3, 2.0, from_start=True)
+            if not np.isfinite(p_post):
+                p_post = _median_in(t, pc, t[a_i], t[b_i])
+            if not np.isfinite(p_post) and not skip:
+                skip = "no pressure logged to infer the payload from"
         timing.append(
             {
                 "t_m": t_m,
@@ -438,17 +464,42 @@ def plan_replay(
                 "r1": r1,
                 "p_pre": p_pre,
                 "p_post": p_post,
+                "d0": d0,
+                "d1": d1,
+                "cut": cut,
+                "skip": skip,
             }
         )
+    # a payload change after the last stop (loading for a trip the record does not
+    # hold): the last trip's window ends where it begins
+    trailing_ramp = np.inf
+    if timing and not timing[-1]["cut"]:
+        r0, _, p_a, p_b = _loading_ramp(
+            t, pc, pcs, timing[-1]["t_e"] + 2.0, end_t, ramp_threshold, fallback=False
+        )
+        if np.isfinite(r0) and abs(p_b - p_a) > ramp_threshold:
+            # the pressure shows the load change late (seal friction, rope bounce): stop
+            # short of the fitted ramp start, as scoring starts after a ramp's end
+            trailing_ramp = r0 - 0.5 * _RAMP_MARGIN_S
+            notes.append(
+                f"the payload changes after the last stop (from {r0:.0f} s): "
+                "the last trip's window ends there"
+            )
     # pass 2, the analysed trips: windows, scored samples
     trips: list[ReplayTrip] = []
+    skipped: list[SkippedTrip] = []
     for b, block in enumerate(chosen):
-        for j, k in enumerate(block):
+        restart = True  # the next planned trip starts the block's history
+        for k in block:
             tm = timing[k]
+            if tm["skip"]:
+                skipped.append(SkippedTrip(k, tm["t_m"], tm["skip"]))
+                restart = True
+                continue
             t_m, t_e, vmax_arg = tm["t_m"], tm["t_e"], tm["vmax"]
             r0, r1, p_pre, p_post = tm["r0"], tm["r1"], tm["p_pre"], tm["p_post"]
-            d0, d1 = stops[k], stops[k + 1]
-            next_ramp = timing[k + 1]["r0"] if k + 1 < len(motions) else np.inf
+            d0, d1 = tm["d0"], tm["d1"]
+            next_ramp = timing[k + 1]["r0"] if k + 1 < len(motions) else trailing_ramp
             win_end = min(t_e + settle_s, next_ramp, end_t)
             # scored samples: after the ramp, within the window, every 1/score_rate s
             lo = r1 + _RAMP_MARGIN_S
@@ -462,6 +513,10 @@ def plan_replay(
             if idx.size >= 5:
                 med = ndimage.median_filter(np.nan_to_num(meas), size=(5, 1), mode="nearest")
                 valid &= np.abs(meas - med) <= max(10.0 * sigma, 2e4)
+            if tm["cut"] == "start":
+                # simulated from rest with a fitted start: it loads the seals' state for
+                # the trips after it, its own pressures are not compared
+                valid[:] = False
             sp = _span(t, r0 - 1.0, min(r1 + 3.0, t_m - 0.3))
             ridx = np.arange(sp.start, sp.stop)
             if ridx.size:
@@ -489,12 +544,17 @@ def plan_replay(
                 notes.append(
                     f"trip {k}: encoder depth departs {fit:.2f} m RMS from the winder profile"
                 )
-            oil = _median_in(t, temp, r0, win_end)
+            if tm["cut"]:
+                notes.append(
+                    f"trip {k}: {_CUT_WORDS[tm['cut']]}: completed by the winder profile "
+                    f"fitted to the logged depth ({d0:.1f} -> {d1:.1f} m)"
+                )
+            oil = _median_in(t, temp, max(r0, float(t[0])), win_end)
             trips.append(
                 ReplayTrip(
                     trip_id=k,
                     block=b,
-                    first_in_block=j == 0,
+                    first_in_block=restart,
                     window_start_s=r0,
                     window_end_s=win_end,
                     ramp_start_s=r0,
@@ -516,8 +576,10 @@ def plan_replay(
                     ramp_time_s=t[ridx],
                     ramp_measured_pa=np.nanmedian(p[ridx], axis=1),
                     profile_fit_m=fit,
+                    cut=tm["cut"],
                 )
             )
+            restart = False
     return ReplayPlan(
         hoist=hoist,
         t_ref=t_ref,
@@ -527,7 +589,93 @@ def plan_replay(
         dt_s=dt_s,
         trips_found=len(motions),
         notes=tuple(notes),
+        skipped=tuple(skipped),
     )
+
+
+#: How a trip the record cuts is named in notes and reasons.
+_CUT_WORDS = {"start": "the record starts during this trip", "end": "the record ends during it"}
+
+
+def _complete_cut_trip(
+    hoist: HoistDescription,
+    t: np.ndarray,
+    depth: np.ndarray,
+    a_i: int,
+    b_i: int,
+    d0: float,
+    d1: float,
+    t_m: float,
+    t_e: float,
+    vmax: float | None,
+) -> tuple[float, float, float, float, float | None]:
+    """(motion start, motion end, start depth, end depth, max speed) of a trip with one
+    unknown end: :func:`sims.trips.fit_cut_trip` on the logged depth of its motion."""
+    if not (np.isfinite(d0) or np.isfinite(d1)):
+        raise ValueError("the record holds neither its start nor its stop")
+    motion = slice(a_i, b_i + 1)
+    speeds = (None,) if vmax is None else (None, vmax)
+    if np.isfinite(d0):
+        fit = fit_cut_trip(
+            hoist, t[motion], depth[motion], start_depth_m=d0, motion_start_s=t_m,
+            max_speeds_m_s=speeds,
+        )  # fmt: skip
+    else:
+        fit = fit_cut_trip(
+            hoist, t[motion], depth[motion], end_depth_m=d1, motion_end_s=t_e,
+            max_speeds_m_s=speeds,
+        )  # fmt: skip
+    return (
+        fit.motion_start_s,
+        fit.motion_end_s,
+        fit.start_depth_m,
+        fit.end_depth_m,
+        fit.max_speed_m_s,
+    )
+
+
+def _loading_ramp(
+    t: np.ndarray,
+    pc: np.ndarray,
+    pcs: np.ndarray,
+    s_lo: float,
+    s_hi: float,
+    threshold_pa: float,
+    *,
+    fallback: bool = True,
+) -> tuple[float, float, float, float]:
+    """(ramp start, ramp end, level before, level after) of a load change in the
+    standstill ``[s_lo, s_hi]`` (common-mode pressure ``pc``, its 1-s mean ``pcs``).
+
+    A change of the level by more than ``threshold_pa`` is located from its 10-90 %
+    crossing and refined by :func:`_fit_ramp`. Without one the ramp is a nominal 0.5 s
+    just before ``s_hi + 0.3`` (the motion start), or, with ``fallback=False``, NaN.
+    """
+    p_pre = _plateau_median(t, pcs, s_lo, s_hi, 2.0, from_start=True)
+    p_post = _plateau_median(t, pcs, s_lo, s_hi, 3.0, from_start=False)
+    change = p_post - p_pre
+    in_s = _span(t, s_lo, s_hi)
+    if np.isfinite(change) and abs(change) > threshold_pa and in_s.stop - in_s.start > 4:
+        u = (pcs[in_s] - p_pre) / change
+        ts = t[in_s]
+        above = np.flatnonzero(u > 0.1)
+        below = np.flatnonzero(u < 0.9)
+        t10 = float(ts[above[0]]) if above.size else float(ts[0])
+        t90 = float(ts[below[-1]]) if below.size else float(ts[-1])
+        dur = max((t90 - t10) / 0.8, 0.5)
+        r0, r1 = _fit_ramp(
+            ts,
+            pc[in_s],
+            max(s_lo, t10 - 0.1 * dur),
+            min(t10 - 0.1 * dur + dur, s_hi),
+            p_pre,
+            p_post,
+        )
+        return max(s_lo, r0), min(r1, s_hi), p_pre, p_post
+    if not fallback:
+        return float("nan"), float("nan"), p_pre, p_post
+    r0 = max(s_lo, s_hi + 0.3 - 6.0)
+    return r0, min(r0 + 0.5, s_hi), p_pre, p_post
 
 
 def _profile_of(
@@ -564,6 +712,8 @@ def _profile_of(
     after = payload_before if payload_after is None else payload_after
     return dataclasses.replace(
         prof,
+        # a trip the record cuts at its end is simulated up to the end of the record
+        duration_s=min(prof.duration_s, max(duration_s, 1e-3)),
         payload_time_s=np.array([ramp[0], max(ramp[1], ramp[0] + 1e-3)]),
         payload_kg=np.array([payload_before, after]),
     )
@@ -667,13 +817,14 @@ def replay(
     out: list[np.ndarray] = []
     ramp_out: list[np.ndarray] = []
     failures: list[str] = []
+    reasons: list[str] = []
     state = None
-    broken = False
+    broken = ""
     prev_end = -np.inf
     for k, tr in enumerate(plan.trips):
         if tr.first_in_block:
             state = None
-            broken = False
+            broken = ""
             prev_end = -np.inf
         else:
             pay_before[k] = pay[k - 1]
@@ -681,22 +832,23 @@ def replay(
         if broken:
             out.append(nan_block)
             ramp_out.append(np.full(tr.ramp_time_s.size, np.nan))
+            reasons.append(f"not simulated: {broken}")
             continue
         start = float(max(ramps[k, 0], prev_end))
         ramp_end = float(max(ramps[k, 1], start + 1e-3))
-        profile = _profile_of(
-            hoist,
-            tr.start_depth_m,
-            tr.end_depth_m,
-            tr.motion_start_s - start,
-            tr.window_end_s - start,
-            tr.max_speed_m_s,
-            tr.oil_temp_c,
-            (0.0, ramp_end - start),
-            float(pay_before[k]),
-            float(pay[k]),
-        )
         try:
+            profile = _profile_of(
+                hoist,
+                tr.start_depth_m,
+                tr.end_depth_m,
+                tr.motion_start_s - start,
+                tr.window_end_s - start,
+                tr.max_speed_m_s,
+                tr.oil_temp_c,
+                (0.0, ramp_end - start),
+                float(pay_before[k]),
+                float(pay[k]),
+            )
             res = simulate(
                 hoist,
                 profile,
@@ -708,13 +860,16 @@ def replay(
             )
         except ValueError as exc:
             failures.append(f"trip {tr.trip_id}: {exc}")
-            broken = True
+            reasons.append(f"simulation failed: {exc}")
+            broken = f"trip {tr.trip_id} before it could not be simulated ({exc})"
             out.append(nan_block)
             ramp_out.append(np.full(tr.ramp_time_s.size, np.nan))
             continue
+        reasons.append("")
         if not res.ok:
             failures.append(f"trip {tr.trip_id}: {res.message}")
-            broken = True
+            reasons[-1] = f"simulation failed: {res.message}"
+            broken = f"trip {tr.trip_id} before it could not be simulated ({res.message})"
         state = res.final_state
         t_sim = start + res.frame["time_s"].to_numpy()
         prev_end = float(t_sim[-1]) if t_sim.size else prev_end
@@ -738,6 +893,7 @@ def replay(
         message="; ".join(failures),
         ramp_simulated=tuple(ramp_out),
         ramps_s=ramps,
+        trip_messages=tuple(reasons),
     )
 
 
@@ -796,8 +952,8 @@ def replay_fitted(
         plan, effects=names, parameters=parameters, payload_kg=payload_kg, ramps_s=ramps_s
     )
     for _ in range(passes - 1):
-        if not result.ok:
-            break
+        if not any(np.isfinite(sim).any() for sim in result.simulated):
+            break  # nothing simulated: nothing to fit (a failed trip leaves the others)
         dp = np.array(
             [float(np.nanmean(r)) if np.isfinite(r).any() else 0.0 for r in result.residuals(plan)]
         )

@@ -79,3 +79,96 @@ def test_a_logger_gap_after_a_stop_does_not_lose_the_loading(null_case):
     assert result.payload_before_kg[1] == pytest.approx(truth["payload_before_kg"], abs=30.0)
     resid = np.concatenate([r[np.isfinite(r)] for r in result.residuals(gap_plan)])
     assert np.sqrt(np.mean(resid**2)) < 1.15 * gap_plan.noise_sigma_pa
+
+
+# ------------------------------------------------- records that cut a trip, and their ends
+
+
+def _at(plan, seconds: float) -> dt.datetime:
+    return plan.t_ref + dt.timedelta(seconds=seconds)
+
+
+def _rms(residual: np.ndarray) -> float:
+    finite = residual[np.isfinite(residual)]
+    return float(np.sqrt(np.mean(finite**2)))
+
+
+def test_a_record_ending_mid_trip_replays_what_is_logged(null_case):
+    """The logger stops halfway through the last trip: no crash; the trip is completed by
+    the winder profile fitted to its logged depth and compared up to the record's end."""
+    plan, info = null_case
+    truth = info["day"].info["trips"]
+    last = plan.trips[2]
+    end = _at(plan, 0.5 * (last.motion_start_s + last.motion_end_s))
+    cut = info["day"].sensors.filter(pl.col("time_utc") < end)
+    cut_plan = plan_replay(cut, plan.hoist, settle_s=20.0)
+    assert [tr.cut for tr in cut_plan.trips] == ["", "", "end"]
+    tr = cut_plan.trips[2]
+    assert not tr.first_in_block  # it continues the seals' history of the trip before
+    assert tr.start_depth_m == pytest.approx(truth[2]["start_depth_m"], abs=0.05)
+    assert tr.motion_start_s == pytest.approx(truth[2]["start_s"] + 10.0, abs=0.05)
+    assert tr.end_depth_m > 300.0  # going down, past the depth logged when it stopped
+    assert _at(cut_plan, tr.time_s[-1]) < end
+    assert any("record ends during it" in note for note in cut_plan.notes)
+    result = replay_fitted(cut_plan, passes=3)
+    assert result.ok, result.message
+    assert np.isfinite(result.simulated[2]).all()
+    assert _rms(result.residuals(cut_plan)[2]) < 1.3 * cut_plan.noise_sigma_pa
+
+
+def test_a_record_starting_mid_trip_warms_up_on_it(null_case):
+    """The logger starts 5 s into the first trip's motion: that trip is simulated from
+    rest at its fitted start, not compared, and the next trip continues from it."""
+    plan, info = null_case
+    truth = info["day"].info["trips"]
+    start = _at(plan, plan.trips[0].motion_start_s + 5.0)
+    cut = info["day"].sensors.filter(pl.col("time_utc") >= start)
+    cut_plan = plan_replay(cut, plan.hoist, settle_s=20.0)
+    assert [tr.cut for tr in cut_plan.trips] == ["start", "", ""]
+    first = cut_plan.trips[0]
+    assert first.start_depth_m == pytest.approx(truth[0]["start_depth_m"], abs=0.5)
+    assert first.end_depth_m == pytest.approx(truth[0]["end_depth_m"], abs=0.05)
+    assert _at(cut_plan, first.motion_start_s) < start  # it started before the record
+    assert not first.valid.any()
+    assert not cut_plan.trips[1].first_in_block
+    result = replay_fitted(cut_plan, passes=3)
+    assert result.ok, result.message
+    assert _rms(result.residuals(cut_plan)[1]) < 1.3 * cut_plan.noise_sigma_pa
+
+
+def test_a_record_inside_one_trip_skips_it_with_the_reason(null_case):
+    plan, info = null_case
+    tr = plan.trips[1]
+    inside = info["day"].sensors.filter(
+        pl.col("time_utc").is_between(
+            _at(plan, tr.motion_start_s + 20.0), _at(plan, tr.motion_end_s - 20.0)
+        )
+    )
+    cut_plan = plan_replay(inside, plan.hoist, settle_s=20.0)
+    assert cut_plan.trips == ()
+    assert [(s.trip_id, s.reason) for s in cut_plan.skipped] == [
+        (0, "the record starts during this trip: the record holds neither its start nor its stop")
+    ]
+
+
+def test_a_payload_change_after_the_last_stop_ends_its_window(null_case):
+    """The record ends after the next trip's loading but before it moves: the last
+    trip's standstill is compared only up to the loading, which it does not simulate."""
+    plan, info = null_case
+    truth = info["day"].info["trips"]
+    loading = _at(plan, truth[2]["start_s"])  # trip 2 loads for 5 s, moves at +10 s
+    cut = info["day"].sensors.filter(pl.col("time_utc") < loading + dt.timedelta(seconds=8))
+    cut_plan = plan_replay(cut, plan.hoist, settle_s=60.0)  # 60 s reach past the loading
+    assert len(cut_plan.trips) == 2
+    last = cut_plan.trips[-1]
+    assert _at(cut_plan, last.window_end_s) <= loading
+    assert _at(cut_plan, last.window_end_s) > loading - dt.timedelta(seconds=3)
+    assert any("payload changes after the last stop" in note for note in cut_plan.notes)
+    with_loading = _rms(replay_fitted(cut_plan, passes=3).residuals(cut_plan)[1])
+    # the same standstill, the record ending before the loading: the same gap (the
+    # generator holds the state 20 s after a stop, so 60 s leave more than the noise)
+    before = info["day"].sensors.filter(pl.col("time_utc") < loading - dt.timedelta(seconds=1))
+    plain = plan_replay(before, plan.hoist, settle_s=60.0)
+    assert plain.notes == ()
+    without = _rms(replay_fitted(plain, passes=3).residuals(plain)[1])
+    assert with_loading == pytest.approx(without, rel=0.03)

@@ -18,21 +18,68 @@ both carry ``time_utc``, ``p{i}_pa``, ``depth_m``, ``speed_m_s`` and ``oil_temp_
 ``trip_id`` in the result is the trip's index in the record (the replay's
 segmentation; the same rule as :func:`transforms.kinematics.with_trip_phases`: a trip is
 a continuous motion).
+
+Every reported trip gets a ``status``: ``passed``, ``failed`` (the gap exceeds the limit)
+or ``skipped`` with the reason in ``message`` (``passed`` is then null): a trip the
+replay could not prepare or simulate, or one the record cuts at its start (simulated
+only to load the seals' state). Ordinary data never make the check raise: a record that
+starts or ends while the conveyance moves (a trip across the period's edge) has that
+trip completed by the winder profile fitted to its logged depth
+(:func:`sims.trips.fit_cut_trip`) and scored for what is logged.
 """
 
 from __future__ import annotations
 
 import datetime as dt
+from dataclasses import dataclass
 
 import numpy as np
 import polars as pl
 
+from pipelines.steps import StepOutcome
 from schemas.hoist import HoistDescription
 from schemas.tables import SANITY_CHECKS
 from sims.replay import plan_replay, replay_fitted
 from transforms.reconciliation import conform
 
-__all__ = ["sanity_check"]
+__all__ = ["SanityOutcome", "sanity_check", "sanity_step"]
+
+
+@dataclass(frozen=True)
+class SanityOutcome:
+    """A run's sanity check: its per-trip rows (``SANITY_CHECKS``) and the step's outcome
+    (``failed`` with the reason when the check itself could not run)."""
+
+    checks: pl.DataFrame
+    step: StepOutcome
+
+    def count(self, status: str) -> int:
+        if not self.checks.height:
+            return 0
+        return int((self.checks["status"] == status).sum())
+
+    @property
+    def compared(self) -> int:
+        """Trips compared with the simulation (passed or failed)."""
+        return self.count("passed") + self.count("failed")
+
+    def words(self) -> str:
+        """``sanity check: 3 of 4 trips passed, 1 failed`` or why it did not run."""
+        return self.step.line()
+
+
+def sanity_step(checks: pl.DataFrame) -> StepOutcome:
+    """The step outcome of a check that ran: how many trips passed, failed, were skipped."""
+    if not checks.height:
+        return StepOutcome("sanity_check", "done", "no trip of the period to compare")
+    counts = {k: int((checks["status"] == k).sum()) for k in ("passed", "failed", "skipped")}
+    compared = counts["passed"] + counts["failed"]
+    words = [f"{counts['passed']} of {compared} trips passed"]
+    if counts["failed"]:
+        words.append(f"{counts['failed']} failed")
+    if counts["skipped"]:
+        words.append(f"{counts['skipped']} skipped (reasons in sanity_checks)")
+    return StepOutcome("sanity_check", "done", ", ".join(words))
 
 
 def sanity_check(
@@ -45,6 +92,7 @@ def sanity_check(
     dt_s: float = 2e-3,
     settle_s: float = 45.0,
     report_from: dt.datetime | None = None,
+    report_to: dt.datetime | None = None,
 ) -> pl.DataFrame:
     """Per-trip RMS gap between measured and simulated sensor pressure (``SANITY_CHECKS``).
 
@@ -69,9 +117,10 @@ def sanity_check(
         Trips checked at most (spread over the record in blocks).
     dt_s, settle_s : float
         Replay integrator step [s] and standstill simulated after each stop [s].
-    report_from : datetime, optional
-        Trips that start moving before this time are replayed (state warm-up) but not
-        reported.
+    report_from, report_to : datetime, optional
+        Only trips that start moving in ``[report_from, report_to)`` are reported; the
+        others are replayed (state warm-up, or a trip of the next period read so that
+        the last one of this period ends in the record) but not reported.
 
     Returns
     -------
@@ -82,6 +131,8 @@ def sanity_check(
         raise ValueError("threshold must exceed 1 (the noise alone gives 1)")
     frame = samples.collect() if isinstance(samples, pl.LazyFrame) else samples
     empty = conform(pl.DataFrame(), SANITY_CHECKS).clear()
+    if frame.height == 0:
+        return empty
     try:
         plan = plan_replay(frame, hoist, max_trips=max_trips, dt_s=dt_s, settle_s=settle_s)
     except ValueError as exc:
@@ -90,31 +141,58 @@ def sanity_check(
         raise
     result = replay_fitted(plan, passes=3)
     sigma = plan.noise_sigma_pa
+    messages = result.trip_messages or ("",) * len(plan.trips)
     rows = []
-    for tr, res in zip(plan.trips, result.residuals(plan), strict=True):
-        started = plan.t_ref + dt.timedelta(seconds=tr.motion_start_s)
-        if tr.first_in_block or (report_from is not None and started < report_from):
-            continue  # warm-up: the seals' friction state is being loaded
-        finite = res[np.isfinite(res)]
-        rms = float(np.sqrt(np.mean(finite**2))) if finite.size else float("nan")
-        ok = bool(np.isfinite(rms) and rms <= threshold * sigma)
-        if not finite.size:
-            message = f"simulation failed: {result.message}"
-        else:
-            message = (
-                f"{tr.direction} trip, oil {tr.oil_temp_c:.1f} degC: gap {rms / 1e3:.1f} kPa vs "
-                f"noise {sigma / 1e3:.1f} kPa ({rms / sigma:.2f} x, limit {threshold:g} x)"
-            )
+
+    def reported(seconds: float) -> bool:
+        started = plan.t_ref + dt.timedelta(seconds=seconds)
+        return (report_from is None or started >= report_from) and (
+            report_to is None or started < report_to
+        )
+
+    def row(trip_id: int, status: str, message: str, rms: float = float("nan")) -> None:
         rows.append(
             {
                 "run_id": run_id,
                 "site": hoist.hoist.site,
                 "hoist": hoist.hoist.name,
-                "trip_id": tr.trip_id,
+                "trip_id": trip_id,
                 "rms_gap_pa": rms,
                 "noise_pa": sigma,
-                "passed": ok,
+                "passed": None if status == "skipped" else status == "passed",
                 "message": message,
+                "status": status,
             }
         )
+
+    for tr, res, why in zip(plan.trips, result.residuals(plan), messages, strict=True):
+        if not reported(tr.motion_start_s):
+            continue
+        if not (np.isfinite(sigma) and sigma > 0):
+            row(tr.trip_id, "skipped", "the pressure noise could not be estimated")
+            continue
+        if tr.cut == "start":
+            row(tr.trip_id, "skipped", "the record starts during this trip: it only loads "
+                "the seals' state for the next one")  # fmt: skip
+            continue
+        if tr.first_in_block:
+            continue  # warm-up: the seals' friction state is being loaded
+        finite = res[np.isfinite(res)]
+        if not finite.size:
+            row(tr.trip_id, "skipped", why or "no sample of the trip could be compared")
+            continue
+        rms = float(np.sqrt(np.mean(finite**2)))
+        ok = bool(rms <= threshold * sigma)
+        cut = ", cut by the end of the record" if tr.cut == "end" else ""
+        row(
+            tr.trip_id,
+            "passed" if ok else "failed",
+            f"{tr.direction} trip{cut}, oil {tr.oil_temp_c:.1f} degC: gap {rms / 1e3:.1f} kPa "
+            f"vs noise {sigma / 1e3:.1f} kPa ({rms / sigma:.2f} x, limit {threshold:g} x)",
+            rms,
+        )
+    for gone in plan.skipped:
+        if reported(gone.motion_start_s):
+            row(gone.trip_id, "skipped", gone.reason)
+    rows.sort(key=lambda r: r["trip_id"])
     return conform(pl.DataFrame(rows), SANITY_CHECKS) if rows else empty

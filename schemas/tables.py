@@ -8,7 +8,7 @@ Lake tables (Parquet under ``<data>/lake/<table>/site=../hoist=../date=../``):
     FIELD_SAMPLES, RIG_SAMPLES, QUARANTINE
 Warehouse tables (DuckDB):
     MANIFEST, RUNS, ROPE_TENSIONS (also Parquet), POSITION_SUMMARY, TRIP_SUMMARY, ALARMS,
-    FRICTION_PARAMETER_SETS, SANITY_CHECKS, DISCOVERY_FINDINGS
+    FRICTION_PARAMETER_SETS, SANITY_CHECKS, DISCOVERY_FINDINGS, RUN_STEPS
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ __all__ = [
     "ROPES",
     "ROPE_TENSIONS",
     "RUNS",
+    "RUN_STEPS",
     "SANITY_CHECKS",
     "TABLES",
     "TRIP_SUMMARY",
@@ -276,10 +277,12 @@ SANITY_CHECKS = _schema(
         pa.field("trip_id", pa.int64(), nullable=False),
         pa.field("rms_gap_pa", pa.float64()),
         pa.field("noise_pa", pa.float64()),
-        pa.field("passed", pa.bool_(), nullable=False),
+        pa.field("passed", pa.bool_()),
         pa.field("message", pa.string()),
+        pa.field("status", pa.string()),
     ],
-    "one row per trip: RMS of measured minus simulated sensor pressure",
+    "one row per trip: RMS of measured minus simulated sensor pressure; status passed, "
+    "failed or skipped (passed null, the reason in message)",
 )
 
 #: One row per discrepancy report (contract section 5), the JSON kept whole.
@@ -300,6 +303,22 @@ DISCOVERY_FINDINGS = _schema(
     "one row per effect found (or 'none') by the discovery workflow",
 )
 
+#: One row per optional step of a hoist-day run (sanity check, discovery, report): its
+#: outcome. A failed optional step is a finding landed here, never a failed day.
+RUN_STEPS = _schema(
+    [
+        pa.field("run_id", pa.string(), nullable=False),
+        pa.field("step", pa.string(), nullable=False),
+        pa.field("site", pa.string(), nullable=False),
+        pa.field("hoist", pa.string(), nullable=False),
+        pa.field("status", pa.string(), nullable=False),
+        pa.field("message", pa.string()),
+        pa.field("finished_at_utc", TIME, nullable=False),
+    ],
+    "one row per optional step of a run (sanity_check, discovery, report): status done, "
+    "skipped or failed, and why",
+)
+
 TABLES: dict[str, pa.Schema] = {
     "field_samples": FIELD_SAMPLES,
     "rig_samples": RIG_SAMPLES,
@@ -313,6 +332,7 @@ TABLES: dict[str, pa.Schema] = {
     "friction_parameter_sets": FRICTION_PARAMETER_SETS,
     "sanity_checks": SANITY_CHECKS,
     "discovery_findings": DISCOVERY_FINDINGS,
+    "run_steps": RUN_STEPS,
 }
 
 _DUCKDB_TYPES = {

@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+import datetime as dt
+
+import polars as pl
 import pytest
 
-from pipelines.sanity import sanity_check
+from pipelines.sanity import sanity_check, sanity_step
+from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from schemas.tables import SANITY_CHECKS
-from sims.discovery.cases import hidden_case
+from sims.discovery.cases import hidden_case, hoist_with
+from sims.field_day import generate_field_day
 
 
 def test_complete_model_passes_and_missing_effect_fails():
@@ -16,6 +21,7 @@ def test_complete_model_passes_and_missing_effect_fails():
     assert good.columns == SANITY_CHECKS.names
     assert good.height == 1  # two trips; the first only warms up the friction state
     assert good["passed"].all()
+    assert good["status"].to_list() == ["passed"]
     assert (good["rms_gap_pa"] / good["noise_pa"]).max() < 1.2
     lacking = plan_ok.hoist.model_copy(
         update={
@@ -29,6 +35,7 @@ def test_complete_model_passes_and_missing_effect_fails():
     bad = sanity_check(sensors, lacking, run_id="r2", settle_s=20.0)
     assert bad.height == 1
     assert not bad["passed"].any()
+    assert bad["status"].to_list() == ["failed"]
     assert bad["message"][0].startswith(("down", "up"))
 
 
@@ -51,3 +58,84 @@ def test_trips_before_report_from_only_warm_up():
     )
     assert everything.height == 1
     assert late.height == 0
+
+
+# ------------------------------------------------- ordinary records that cut trips
+
+
+@pytest.fixture(scope="module")
+def ten_hz():
+    """Three trips (down, up, down) from a 10 Hz logger, 150 s apart; 5 s of loading
+    and 5 s of rest before each motion (motions start at 10, 160 and 310 s)."""
+    hoist = load_hoist(EXAMPLE_HOIST)
+    day = generate_field_day(
+        hoist,
+        date="2026-03-02",
+        seed=4,
+        trips=3,
+        hours=3 * 150 / 3600,
+        sample_rate_hz=10.0,
+        loading_s=5.0,
+        rest_after_s=20.0,
+        oil_temp_c=(30.0, 32.0),
+    )
+    return hoist, day
+
+
+def _seconds(day, seconds: float) -> dt.datetime:
+    return day.sensors["time_utc"].min() + dt.timedelta(seconds=seconds)
+
+
+def test_a_10_hz_record_ending_mid_trip_checks_the_cut_trip(ten_hz):
+    hoist, day = ten_hz
+    cut = day.sensors.filter(pl.col("time_utc") < _seconds(day, 350.0))  # trip 2 moving
+    checks = sanity_check(cut, hoist, run_id="r", settle_s=20.0)
+    assert checks["trip_id"].to_list() == [1, 2]
+    assert checks["status"].to_list() == ["passed", "passed"], checks["message"].to_list()
+    assert "cut by the end of the record" in checks["message"][1]
+    assert sanity_step(checks).message == "2 of 2 trips passed"
+
+
+def test_a_record_starting_mid_trip_says_the_cut_trip_only_warmed_up(ten_hz):
+    hoist, day = ten_hz
+    cut = day.sensors.filter(pl.col("time_utc") >= _seconds(day, 40.0))  # trip 0 moving
+    checks = sanity_check(cut, hoist, run_id="r", settle_s=20.0)
+    assert checks["trip_id"].to_list() == [0, 1, 2]
+    assert checks["status"].to_list() == ["skipped", "passed", "passed"]
+    assert checks["passed"][0] is None
+    assert checks["message"][0].startswith("the record starts during this trip")
+    step = sanity_step(checks)
+    assert step.status == "done"
+    assert step.message == "2 of 2 trips passed, 1 skipped (reasons in sanity_checks)"
+
+
+def test_a_trip_that_cannot_be_simulated_is_skipped_with_the_reason(ten_hz):
+    """A model the device simulation refuses for a trip (groove offsets beyond the
+    piston stroke when it starts from rest at the bottom) skips that block's trips,
+    each with the reason; the check itself does not fail."""
+    hoist, day = ten_hz
+    drum = hoist.drum.model_copy(update={"groove_radius_deviation_m": [1e-3, -1e-3, 1e-3, -1e-3]})
+    effects = [*hoist.model.effects, "groove_wear"]
+    worn = hoist_with(hoist.model_copy(update={"drum": drum}), effects)
+    # from the up trip's loading on (trips 0 and 1 of this record): the block starts at
+    # the bottom
+    record = day.sensors.filter(pl.col("time_utc") >= _seconds(day, 149.0))
+    checks = sanity_check(record, worn, run_id="r", settle_s=20.0)
+    assert checks["trip_id"].to_list() == [1]
+    assert checks["status"].to_list() == ["skipped"]
+    assert checks["passed"][0] is None
+    assert checks["message"][0].startswith("not simulated: trip 0 before it could not be simulated")
+    assert "stroke" in checks["message"][0]
+
+
+def test_only_trips_starting_in_the_reported_period_are_reported(ten_hz):
+    hoist, day = ten_hz
+    checks = sanity_check(
+        day.sensors,
+        hoist,
+        run_id="r",
+        settle_s=20.0,
+        report_from=_seconds(day, 100.0),
+        report_to=_seconds(day, 300.0),
+    )
+    assert checks["trip_id"].to_list() == [1]

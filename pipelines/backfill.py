@@ -775,6 +775,8 @@ class BackfillReport:
 
     outcomes: list[PartitionOutcome] = field(default_factory=list)
     wall_s: float = 0.0
+    #: The HTML report written for it (pipelines.reports), if any.
+    report_path: Path | None = None
 
     def count(self, status: Status) -> int:
         return sum(o.status == status for o in self.outcomes)
@@ -822,6 +824,8 @@ class BackfillReport:
         if self.failed:
             lines.append("failed partitions:")
             lines += [f"  {o.key}: {o.message}" for o in self.failed]
+        if self.report_path is not None:
+            lines.append(f"report: {self.report_path}")
         return "\n".join(lines) + "\n"
 
 
@@ -970,8 +974,13 @@ def backfill(
     sanity: bool = False,
     progress: Callable[[PartitionOutcome], None] | None = None,
     on_plan: Callable[[BackfillPlan], None] | None = None,
+    write_report: bool = True,
 ) -> BackfillReport:
     """Run every hoist-day of ``start..end`` not yet done, ``max_workers`` at a time.
+
+    With ``write_report`` one HTML report of the whole backfill is written under
+    ``<data>/reports/`` (:func:`pipelines.reports.write_fleet_report`; its path in
+    ``report.report_path``).
 
     Resumable and idempotent (module docstring). Never raises for a failed partition:
     failures are in ``report.failed`` with their reasons and in ``runs``.
@@ -999,6 +1008,17 @@ def backfill(
     )
     record_failures(data, report.outcomes)
     report.wall_s = time.perf_counter() - t0
+    if write_report:
+        from pipelines.reports import write_fleet_report
+
+        report.report_path = write_fleet_report(
+            data,
+            kind="backfill",
+            outcomes=report.outcomes,
+            sources=sources,
+            sanity=sanity,
+            range_text=f"{start} .. {end}",
+        ).path
     return report
 
 

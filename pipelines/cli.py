@@ -174,9 +174,10 @@ def _parse_day(text: str):
 def _cmd_run(args: argparse.Namespace) -> int:
     from warehouse.store import DataRoot
 
-    checks = "sanity check skipped"
+    checks, error = "", None
     if args.prefect:
         from pipelines.flows import run_flow
+        from pipelines.reports import run_report_path
 
         result = run_flow(
             hoist=str(args.hoist.absolute()),
@@ -186,34 +187,29 @@ def _cmd_run(args: argparse.Namespace) -> int:
             payload_kg=args.payload_kg,
             sanity=not args.no_sanity,
         )
+        report = run_report_path(DataRoot.resolve(args.data), result)
     else:
-        from pipelines.backfill import check_sanity
-        from pipelines.run_period import run_period
+        from pipelines.run_period import run_checked
 
-        data = DataRoot.resolve(args.data)
-        result = run_period(
+        checked = run_checked(
             hoist_path=args.hoist,
-            data=data,
+            data=DataRoot.resolve(args.data),
             start=args.start,
             end=args.end,
             payload_kg=args.payload_kg,
+            sanity=not args.no_sanity,
         )
-        if not args.no_sanity and result.trip_summary.height:
-            frame = check_sanity(
-                hoist_path=args.hoist,
-                data=data,
-                run_id=result.run_id,
-                start=result.period_start_utc,
-                end=result.period_end_utc,
-            )
-            checks = f"sanity check {int(frame['passed'].sum())}/{frame.height} trips passed"
+        result, report, error = checked.result, checked.report, checked.sanity_error
+        checks = "; " + checked.sanity_words
     sys.stdout.write(
         f"run {result.run_id}: {result.site}/{result.hoist} "
         f"{result.period_start_utc:%Y-%m-%d %H:%M:%S} .. {result.period_end_utc:%Y-%m-%d %H:%M:%S}"
         f" UTC, {result.samples} samples, {result.trip_summary.height} trips, "
         f"{result.position_summary.height} position visits, {result.alarms.height} alarms"
-        f"{'' if args.prefect else '; ' + checks}\n"
+        f"{checks}\nreport: {report}\n"
     )
+    if error is not None:  # the run is landed and reported; the check's failure fails it
+        raise error
     return 0
 
 

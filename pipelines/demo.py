@@ -4,7 +4,8 @@
    (``schemas/hoists/paper_field_test.toml``) with the device model of ``sims/`` and
    write it as the mine's logger would (CSV and TDMS, with noise, jitter and dropouts);
 2. ingest the files into the Parquet lake;
-3. compensate, reconcile and alarm the period and land it in the warehouse;
+3. compensate, reconcile and alarm the period, check its trips against the hoist's
+   simulation, land it in the warehouse and write its HTML report (``<data>/reports/``);
 4. print, per hoist position, the measured (uncompensated), compensated and expected
    load, and, because the data are synthetic, the true load the simulation applied.
 """
@@ -18,7 +19,7 @@ from pathlib import Path
 import polars as pl
 
 from pipelines.ingest import ingest_paths
-from pipelines.run_period import RunResult, run_period
+from pipelines.run_period import RunResult, run_checked
 from schemas.hoist import EXAMPLE_HOIST, HoistDescription, load_hoist
 from sims.accuracy import position_accuracy
 from sims.field_day import generate_field_day, write_field_day
@@ -103,9 +104,10 @@ def run_demo(*, data: DataRoot, seed: int = 7, hours: float = 1.0) -> str:
     # whole seconds around the log: the CSV keeps milliseconds, the simulation microseconds
     start = day.sensors["time_utc"].min().replace(microsecond=0)
     end = day.sensors["time_utc"].max().replace(microsecond=0) + dt.timedelta(seconds=1)
-    result = run_period(
+    checked = run_checked(
         hoist_path=EXAMPLE_HOIST, data=data, start=start, end=end, hoist=hoist, command="demo"
     )
+    result = checked.result
     totals = report.totals()
     header = (
         f"ingested {len(logs)} file(s) from {Path(incoming)}: {totals['rows_read']} rows read, "
@@ -113,7 +115,11 @@ def run_demo(*, data: DataRoot, seed: int = 7, hours: float = 1.0) -> str:
         f"{totals['rows_duplicate']} duplicates\n"
     )
     footer = (
-        f"\n  warehouse: {data.warehouse}\n"
+        f"\n  {checked.sanity_words}\n"
+        f"  report: {checked.report}\n"
+        f"  warehouse: {data.warehouse}\n"
         f'  try: ropeload query --data {data.path} "select * from position_summary"\n'
     )
+    if checked.sanity_error is not None:
+        raise checked.sanity_error
     return header + demo_summary(result, day.truth, hoist) + footer

@@ -20,6 +20,8 @@ with re-tuning, BIC + trip bootstrap, iteration) and writes
     scoring), ``noise_pa``, ``variance_ratio``, and for ``ambiguous``
     ``ambiguous_between`` (two names) and ``excitation`` (what would separate them);
   - ``"plot"``: the before / after PNG written beside the JSON;
+  - ``"residual_trace"``: the worst trip's residual before / after, downsampled
+    (:func:`residual_trace`), which the HTML reports draw;
 
 * the plot (``<json stem>.png``): residual RMS per region before and after, and the
   residual of the worst trip over time;
@@ -48,7 +50,7 @@ from sims.replay import plan_replay
 from warehouse.landing import land_discovery_findings, land_run
 from warehouse.store import DataRoot, open_writer
 
-__all__ = ["DiscoveryReport", "discover_period", "report_objects", "write_plot"]
+__all__ = ["DiscoveryReport", "discover_period", "report_objects", "residual_trace", "write_plot"]
 
 logger = logging.getLogger(__name__)
 
@@ -144,9 +146,8 @@ def write_plot(result: DiscoveryResult, path: str | Path) -> Path:
     found = ", ".join(result.effects_found) or result.findings[0].effect
     ax1.set_title(f"{plan.hoist.hoist.name}: measured - simulated sensor pressure ({found})")
     ax1.legend()
-    worst = int(np.argmax([np.nanmean(r**2) if np.isfinite(r).any() else -1 for r in before]))
+    worst, sensor = _worst_trip(before)
     tr = plan.trips[worst]
-    sensor = int(np.nanargmax(np.nanmean(before[worst] ** 2, axis=0)))
     ax2.plot(tr.time_s - tr.time_s[0], before[worst][:, sensor] / 1e3, lw=0.7, label="before")
     ax2.plot(tr.time_s - tr.time_s[0], after[worst][:, sensor] / 1e3, lw=0.7, label="after")
     ax2.set_xlabel(f"time in trip {tr.trip_id} ({tr.direction}) [s]")
@@ -157,6 +158,47 @@ def write_plot(result: DiscoveryResult, path: str | Path) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def _worst_trip(before: tuple[np.ndarray, ...]) -> tuple[int, int]:
+    """The trip with the largest mean squared residual, and its worst sensor (0-based)."""
+    worst = int(np.argmax([np.nanmean(r**2) if np.isfinite(r).any() else -1 for r in before]))
+    return worst, int(np.nanargmax(np.nanmean(before[worst] ** 2, axis=0)))
+
+
+def residual_trace(result: DiscoveryResult, *, buckets: int = 1500) -> dict[str, Any]:
+    """The worst trip's residual over time, before and after the effects found.
+
+    Measured minus simulated sensor pressure [Pa] of the trip and sensor that
+    :func:`write_plot` draws, with the hoist's model (``before``) and with every effect
+    found added (``after``), each min/max-downsampled to ``buckets`` time spans (peaks
+    kept, :func:`pipelines.reports.downsample_minmax`; null where the line breaks). The
+    HTML reports draw it (``"residual_trace"`` in the report JSON).
+    """
+    from pipelines.reports.downsample import downsample_minmax
+
+    plan = result.plan
+    before = result.before.residuals(plan)
+    after = result.after.residuals(plan)
+    worst, sensor = _worst_trip(before)
+    trip = plan.trips[worst]
+    t = np.asarray(trip.time_s - trip.time_s[0], dtype=float)
+
+    def reduced(residual: np.ndarray) -> dict[str, list[float | None]]:
+        t_out, y_out = downsample_minmax(t, residual[:, sensor], buckets)
+        return {
+            "time_s": [round(float(v), 3) for v in t_out],
+            "pa": [None if not np.isfinite(v) else round(float(v), 1) for v in y_out],
+        }
+
+    return {
+        "trip_id": int(trip.trip_id),
+        "direction": trip.direction,
+        "sensor": sensor + 1,
+        "effects": list(result.effects_found),
+        "before": reduced(before[worst]),
+        "after": reduced(after[worst]),
+    }
 
 
 def discover_period(
@@ -206,6 +248,7 @@ def discover_period(
         json_out.parent.mkdir(parents=True, exist_ok=True)
         plot_out = write_plot(result, json_out.with_suffix(".png"))
         report["plot"] = plot_out.name
+        report["residual_trace"] = residual_trace(result)
         json_out.write_text(json.dumps(report, indent=2, default=str))
     run_id = new_run_id("discover")
     landed = 0

@@ -74,7 +74,7 @@ from pipelines.nightly import (  # noqa: E402
     ingest_new_files,
     nightly_partitions,
 )
-from pipelines.reports import Report, build_report  # noqa: E402
+from pipelines.reports import Report  # noqa: E402
 from pipelines.run_period import RunResult, run_period  # noqa: E402
 from warehouse.store import DataRoot  # noqa: E402
 
@@ -226,16 +226,30 @@ def record_failures_task(data: DataRoot, outcomes: list[PartitionOutcome], comma
 
 
 @task(name="report", **_TASK)
-def report_task(
-    data: DataRoot, outcomes: list[PartitionOutcome], title: str, preamble: str
-) -> Report:
-    return build_report(data, outcomes, title=title, preamble=preamble)
+def report_task(data: DataRoot, **fleet: Any) -> Report:
+    """The night's or backfill's HTML report (:func:`pipelines.reports.write_fleet_report`)."""
+    from pipelines.reports import write_fleet_report
+
+    return write_fleet_report(data, **fleet)
+
+
+@task(name="run-report", **_TASK)
+def run_report_task(data: DataRoot, result: RunResult, hoist: str, steps: list[Any]) -> Report:
+    """A run's HTML report (:func:`pipelines.reports.write_run_report`)."""
+    from pipelines.reports import write_run_report
+    from schemas.hoist import load_hoist
+
+    return write_run_report(data, result, hoist=load_hoist(hoist), steps=steps, command="run")
 
 
 @task(name="publish-artifacts", **_TASK)
 def publish_task(report: Report, key: str) -> None:
-    """The report as a markdown artifact and its tables as table artifacts."""
-    create_markdown_artifact(markdown=report.markdown, key=key, description=report.title)
+    """The report as a markdown artifact (figures as PNG, the HTML's path), its tables as
+    table artifacts."""
+    from pipelines.reports import figure_png
+
+    markdown = report.markdown(png=figure_png)
+    create_markdown_artifact(markdown=markdown, key=key, description=report.title)
     for name, rows in report.tables.items():
         if rows:
             create_table_artifact(
@@ -306,10 +320,23 @@ def run_flow(
     sanity: bool = True,
 ) -> RunResult:
     """``ropeload run``: compensate, reconcile, alarm and sanity-check a period of one hoist."""
+    from pipelines.reports import sanity_step
+
     root = DataRoot.resolve(data)
     result = run_period_task(hoist, root, start, end, payload_kg)
+    checks, error = None, None
     if sanity and result.trip_summary.height:
-        sanity_task(hoist, root, result.run_id, result.period_start_utc, result.period_end_utc)
+        try:
+            checks = sanity_task(
+                hoist, root, result.run_id, result.period_start_utc, result.period_end_utc
+            )
+        except Exception as exc:  # reported, then raised: the report is written anyway
+            error = exc
+    reason = "not asked for (sanity=False)" if not sanity else "no trip in the period"
+    steps = [sanity_step(checks, error=error, reason=reason)]
+    publish_task(run_report_task(root, result, hoist, steps), "run-report")
+    if error is not None:
+        raise error
     return result
 
 
@@ -376,7 +403,11 @@ def backfill_flow(
         plan.todo, root, force=force, command="backfill", sanity=sanity, progress=progress
     )
     record_failures_task(root, report.outcomes, "backfill")
-    summary = report_task(root, report.outcomes, f"Backfill {start} .. {end}", "")
+    summary = report_task(
+        root, kind="backfill", outcomes=report.outcomes, sources=sources, sanity=sanity,
+        range_text=f"{start} .. {end}",
+    )  # fmt: skip
+    report.report_path = summary.path
     publish_task(summary, "backfill-report")
     if not report.ok:
         raise PartitionsFailed(report)
@@ -419,10 +450,11 @@ def nightly_flow(
         discoveries={key: where for key, (where, _) in found.items()},
         discover_s=sum(seconds for _, seconds in found.values()),
     )
-    preamble = _hoists_markdown(report)
     summary = report_task(
-        root, outcomes, f"Nightly run {dt.datetime.now(dt.UTC):%Y-%m-%d %H:%M}Z", preamble
-    )
+        root, kind="nightly", outcomes=outcomes, sources=sources, sanity=sanity,
+        hoist_rows=[n.row() for n in nights], discoveries=report.discoveries,
+    )  # fmt: skip
+    report.report_path = summary.path
     publish_task(summary, "nightly-report")
     if not report.ok:
         raise PartitionsFailed(report)
@@ -442,24 +474,6 @@ def _night(future: PrefectFuture[HoistNight], source: HoistSource) -> HoistNight
         return future.result()
     except Exception as exc:
         return failed_night(source, exc)
-
-
-def _hoists_markdown(report: NightlyReport) -> str:
-    lines = [
-        "| hoist | new files | refused | rows landed | watermark | ingest error |",
-        "|---|---|---|---|---|---|",
-    ]
-    for row in (n.row() for n in report.hoists):
-        lines.append(
-            f"| {row['hoist']} | {row['new_files']} | {row['refused']} | {row['rows_landed']} | "
-            f"{row['watermark_before'] or '-'} -> {row['watermark_after'] or '-'} | "
-            f"{row['error'] or ''} |"
-        )
-    checks = sum(o.checks for o in report.runs.outcomes)
-    failed = sum(o.checks_failed for o in report.runs.outcomes)
-    lines.append(f"\nSimulation sanity check: {checks - failed}/{checks} trips passed.\n")
-    lines += [f"- discovery {key}: `{where}`" for key, where in report.discoveries.items()]
-    return "\n".join(lines) + "\n"
 
 
 # ------------------------------------------------------------- callers with a runner

@@ -223,6 +223,8 @@ class NightlyReport:
     runs: BackfillReport
     discoveries: dict[str, str] = field(default_factory=dict)
     discover_s: float = 0.0
+    #: The night's HTML report (pipelines.reports), if written.
+    report_path: Path | None = None
 
     @property
     def ok(self) -> bool:
@@ -251,7 +253,8 @@ class NightlyReport:
         failed = sum(o.checks_failed for o in self.runs.outcomes)
         lines.append(f"sanity checks: {checks - failed}/{checks} trips passed")
         lines += [f"discovery {key}: {where}" for key, where in self.discoveries.items()]
-        return "\n".join(lines) + "\n" + str(self.runs)
+        report = "" if self.report_path is None else f"report: {self.report_path}\n"
+        return "\n".join(lines) + "\n" + str(self.runs) + report
 
 
 def sanity_available() -> bool:
@@ -310,11 +313,14 @@ def nightly(
     sanity: bool = True,
     progress: Callable[[PartitionOutcome], None] | None = None,
     on_plan: Callable[[list[Partition]], None] | None = None,
+    write_report: bool = True,
 ) -> NightlyReport:
     """One night for ``sources``: ingest new files per hoist, run the affected days.
 
     Never raises for a failed partition or a refused file: see ``report.ok``.
-    ``on_plan(partitions)`` is called once the hoist-days to run are known.
+    ``on_plan(partitions)`` is called once the hoist-days to run are known. With
+    ``write_report`` the night's HTML report is written under ``<data>/reports/``
+    (:func:`pipelines.reports.write_fleet_report`; ``report.report_path``).
     """
     t0 = time.perf_counter()
     known = known_files(data)
@@ -336,4 +342,17 @@ def nightly(
     discoveries = _discover_all(sources, outcomes, data)
     discover_s = time.perf_counter() - t_discover
     runs = BackfillReport(outcomes=outcomes, wall_s=time.perf_counter() - t0)
-    return NightlyReport(hoists=nights, runs=runs, discoveries=discoveries, discover_s=discover_s)
+    night = NightlyReport(hoists=nights, runs=runs, discoveries=discoveries, discover_s=discover_s)
+    if write_report:
+        from pipelines.reports import write_fleet_report
+
+        night.report_path = write_fleet_report(
+            data,
+            kind="nightly",
+            outcomes=outcomes,
+            sources=sources,
+            sanity=sanity,
+            hoist_rows=[n.row() for n in nights],
+            discoveries=discoveries,
+        ).path
+    return night

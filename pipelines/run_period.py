@@ -26,7 +26,7 @@ from transforms.reconciliation import reconcile
 from warehouse.landing import land_results, land_rope_tensions
 from warehouse.store import DataRoot, open_writer
 
-__all__ = ["LEAD_IN", "NoSamplesError", "RunResult", "run_period"]
+__all__ = ["LEAD_IN", "CheckedRun", "NoSamplesError", "RunResult", "run_checked", "run_period"]
 
 logger = logging.getLogger(__name__)
 
@@ -206,4 +206,78 @@ def run_period(
         trip_summary=reconciled.trip_summary,
         alarms=alarms,
         inputs=inputs,
+    )
+
+
+@dataclass(frozen=True)
+class CheckedRun:
+    """A run, its simulation sanity check and the HTML report of both (:func:`run_checked`).
+
+    ``sanity`` is what :func:`pipelines.backfill.check_sanity` returned, None when the
+    check did not run; ``sanity_error`` an error it raised (then said in the report and
+    for the caller to raise); ``sanity_words`` how it went; ``report`` the HTML file.
+    """
+
+    result: RunResult
+    sanity: object | None
+    sanity_error: Exception | None
+    sanity_words: str
+    report: Path
+
+
+def run_checked(
+    *,
+    hoist_path: str | Path,
+    data: DataRoot,
+    start: dt.datetime | None = None,
+    end: dt.datetime | None = None,
+    payload_kg: float | None = None,
+    sanity: bool = True,
+    hoist: HoistDescription | None = None,
+    command: str = "run",
+) -> CheckedRun:
+    """:func:`run_period`, then the simulation sanity check of its trips, then its report.
+
+    The report (:func:`pipelines.reports.write_run_report`, under ``<data>/reports/``)
+    is written whatever the sanity check does: a failing check is said in it in words
+    and returned in ``sanity_error`` for the caller to raise after. Errors of the run
+    itself propagate (nothing was landed, there is nothing to report).
+    """
+    from pipelines.backfill import check_sanity
+    from pipelines.reports import sanity_step, write_run_report
+
+    hoist = hoist or load_hoist(hoist_path)
+    result = run_period(
+        hoist_path=hoist_path,
+        data=data,
+        start=start,
+        end=end,
+        payload_kg=payload_kg,
+        hoist=hoist,
+        command=command,
+    )
+    checks: object | None = None
+    error: Exception | None = None
+    if sanity and result.trip_summary.height:
+        try:
+            checks = check_sanity(
+                hoist_path=hoist_path,
+                data=data,
+                run_id=result.run_id,
+                start=result.period_start_utc,
+                end=result.period_end_utc,
+            )
+        except Exception as exc:  # said in the report, raised by the caller
+            error = exc
+    reason = "no trip in the period" if sanity else "not asked for (--no-sanity)"
+    step = sanity_step(checks, error=error, reason=reason)
+    report = write_run_report(data, result, hoist=hoist, steps=[step], command=command)
+    assert report.path is not None
+    sentence = step.sentence()
+    return CheckedRun(
+        result=result,
+        sanity=checks,
+        sanity_error=error,
+        sanity_words=sentence[:1].lower() + sentence[1:].rstrip("."),
+        report=report.path,
     )

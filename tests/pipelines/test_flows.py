@@ -66,7 +66,9 @@ def test_backfill_flow_lands_the_plain_rows_and_publishes_the_report(mine, refer
     assert "## Reconciliation per position" in markdown[0].data
     assert "data:image/png;base64," in markdown[0].data
     assert _artifacts("backfill-report-partitions")[0].type == "table"
-    assert list((data / "reports").glob("*/tensions_*.png"))
+    (html,) = (data / "reports").glob("backfill-*.html")  # the same report, interactive
+    assert f"`{html}`" in markdown[0].data
+    assert report.report_path == html
 
 
 def test_nightly_flow_processes_new_files_and_a_second_night_changes_nothing(

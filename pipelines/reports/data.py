@@ -1,0 +1,353 @@
+"""What a report reads: the runs' marts from the warehouse and their series from the lake.
+
+* :func:`run_tables` -- ``runs``, ``position_summary``, ``trip_summary``, ``alarms`` and
+  ``sanity_checks`` of a set of runs, in one read-only connection;
+  :func:`discovery_rows` -- the ``discovery_findings`` of a hoist over a period.
+* :func:`period_series` -- one hoist-period of rope tensions, reduced to what the plots
+  draw: load before / after / expected (and the 95 % band when landed), the load error
+  against the expected load, each rope's deviation from the mean of the four, the lowest
+  and highest rope tension, each min/max-downsampled per pixel bucket
+  (:mod:`pipelines.reports.downsample`); and the worst rope of every trip, from every
+  sample.
+* Local time: :class:`Zone` converts UTC to the hoist's zone (``[hoist] timezone``)
+  and names it for axis titles.
+
+Column names: the lake keeps ``load_raw_n`` (before, ``p x A``) / ``load_n`` (after)
+and ``tension{i}_n``; ``trip_summary`` columns are read under their issue-18 names
+(``max_load_after_n``, ``max_imbalance_after_fraction``, ``max_imbalance_after_rope``)
+and also accepted under the earlier ones.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import zoneinfo
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import polars as pl
+
+from pipelines.reports.downsample import bucket_extremes, downsample_minmax
+from schemas.hoist import HoistDescription
+from schemas.tables import ROPES
+from transforms.reconciliation import STEADY_PHASES, expected_load_expr
+from warehouse.store import DataRoot, open_reader
+
+__all__ = [
+    "BUCKETS",
+    "MIN_VISIT_SAMPLES",
+    "PeriodSeries",
+    "RunTables",
+    "Zone",
+    "discovery_rows",
+    "period_series",
+    "run_tables",
+]
+
+#: Pixel buckets of a time-series plot (about the width of a wide screen).
+BUCKETS = 2000
+#: Position stints with fewer samples are a pass by the edge of a position's window,
+#: not a visit: left out of the reconciliation plots (transforms.reconciliation uses the
+#: same bound for a trip's payload spread).
+MIN_VISIT_SAMPLES = 5
+
+_TRIP_RENAMES = {
+    "max_load_n": "max_load_after_n",
+    "max_imbalance_fraction": "max_imbalance_after_fraction",
+}
+_TRIP_OPTIONAL = {
+    "max_load_after_n": pl.Float64,
+    "max_imbalance_after_fraction": pl.Float64,
+    "max_imbalance_after_rope": pl.Int32,
+    "max_imbalance_after_time_utc": pl.Datetime("us", "UTC"),
+}
+
+
+@dataclass(frozen=True)
+class Zone:
+    """A hoist's time zone: UTC -> local wall time, and its name for axis titles."""
+
+    name: str
+
+    @property
+    def info(self) -> zoneinfo.ZoneInfo:
+        return zoneinfo.ZoneInfo(self.name)
+
+    def label(self, start: dt.datetime, end: dt.datetime | None = None) -> str:
+        """``Asia/Shanghai, UTC+08:00`` (both offsets when daylight saving changes)."""
+        offsets = []
+        for moment in (start, end or start):
+            offset = moment.astimezone(self.info).strftime("%z")
+            text = f"UTC{offset[:3]}:{offset[3:]}"
+            if text not in offsets:
+                offsets.append(text)
+        return f"{self.name}, {' / '.join(offsets)}"
+
+    def axis_title(self, start: dt.datetime, end: dt.datetime | None = None) -> str:
+        return f"local time ({self.label(start, end)})"
+
+    def local(self, moment: dt.datetime) -> dt.datetime:
+        return moment.astimezone(self.info)
+
+    def text(self, moment: dt.datetime | None, fmt: str = "%Y-%m-%d %H:%M:%S") -> str:
+        return "" if moment is None else self.local(moment).strftime(fmt)
+
+    def expr(self, column: str) -> pl.Expr:
+        """A UTC datetime column as naive local wall time (for plots and tables)."""
+        return pl.col(column).dt.convert_time_zone(self.name).dt.replace_time_zone(None)
+
+    def wall(self, epoch_us: np.ndarray) -> np.ndarray:
+        """UTC microseconds since the epoch -> naive local ``datetime64[us]``."""
+        series = pl.Series(np.asarray(epoch_us, dtype=np.int64)).cast(pl.Datetime("us", "UTC"))
+        return series.dt.convert_time_zone(self.name).dt.replace_time_zone(None).to_numpy()
+
+
+# ----------------------------------------------------------------------- warehouse
+
+
+@dataclass
+class RunTables:
+    """The marts of a set of runs (empty frames with their columns when none)."""
+
+    runs: pl.DataFrame
+    position_summary: pl.DataFrame
+    trip_summary: pl.DataFrame
+    alarms: pl.DataFrame
+    sanity_checks: pl.DataFrame
+
+    def of(self, run_id: str) -> RunTables:
+        """The rows of one run."""
+
+        def one(frame: pl.DataFrame) -> pl.DataFrame:
+            return frame.filter(pl.col("run_id") == run_id) if frame.width else frame
+
+        return RunTables(
+            runs=one(self.runs),
+            position_summary=one(self.position_summary),
+            trip_summary=one(self.trip_summary),
+            alarms=one(self.alarms),
+            sanity_checks=one(self.sanity_checks),
+        )
+
+
+def _normalise_trips(trips: pl.DataFrame) -> pl.DataFrame:
+    renames = {
+        old: new for old, new in _TRIP_RENAMES.items() if old in trips.columns and new not in trips
+    }
+    trips = trips.rename(renames)
+    missing = [pl.lit(None, dtype=t).alias(n) for n, t in _TRIP_OPTIONAL.items() if n not in trips]
+    return trips.with_columns(missing) if missing else trips
+
+
+def run_tables(data: DataRoot, run_ids: Sequence[str]) -> RunTables:
+    """``runs`` and the marts of ``run_ids`` from the warehouse, oldest first."""
+    orders = {
+        "runs": "started_at_utc",
+        "position_summary": "time_start_utc",
+        "trip_summary": "time_start_utc",
+        "alarms": "start_utc",
+        "sanity_checks": "trip_id",
+    }
+    frames: dict[str, pl.DataFrame] = {}
+    ids = sorted(set(run_ids))
+    if not data.warehouse.exists():
+        frames = {name: pl.DataFrame() for name in orders}
+    else:
+        con = open_reader(data)
+        try:
+            for name, order in orders.items():
+                frames[name] = con.sql(
+                    f"SELECT * FROM {name} WHERE list_contains($ids, run_id) ORDER BY {order}",
+                    params={"ids": ids},
+                ).pl()
+        finally:
+            con.close()
+    if frames["trip_summary"].width:
+        frames["trip_summary"] = _normalise_trips(frames["trip_summary"])
+    return RunTables(**frames)
+
+
+def discovery_rows(
+    data: DataRoot, *, site: str, hoist: str, start: dt.datetime, end: dt.datetime
+) -> pl.DataFrame:
+    """``discovery_findings`` of a hoist whose period overlaps ``[start, end)``."""
+    if not data.warehouse.exists():
+        return pl.DataFrame()
+    con = open_reader(data)
+    try:
+        return con.sql(
+            "SELECT * FROM discovery_findings WHERE site = $site AND hoist = $hoist "
+            "AND period_start_utc < $end AND period_end_utc > $start "
+            "ORDER BY period_start_utc, run_id, iteration",
+            params={"site": site, "hoist": hoist, "start": start, "end": end},
+        ).pl()
+    finally:
+        con.close()
+
+
+# ---------------------------------------------------------------------------- lake
+
+
+@dataclass
+class PeriodSeries:
+    """One hoist-period, downsampled for plotting (times: naive local ``datetime64``).
+
+    ``lines[name] = (t, y)`` for ``before_kn``, ``after_kn``, ``expected_kn``,
+    ``error_before_pct``, ``error_after_pct``, ``deviation{i}_pct``, ``lowest_kn``,
+    ``highest_kn``; ``band = (t, lo_kn, hi_kn)`` when the band columns are landed;
+    ``worst_rope``: per trip the rope furthest from the mean and that fraction.
+    """
+
+    start_utc: dt.datetime
+    end_utc: dt.datetime
+    samples: int
+    lines: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    band: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    worst_rope: pl.DataFrame = field(default_factory=pl.DataFrame)
+    extremes: dict[str, float] = field(default_factory=dict)
+    first_utc: dt.datetime | None = None
+    last_utc: dt.datetime | None = None
+
+    @property
+    def span_utc(self) -> tuple[dt.datetime, dt.datetime]:
+        """What the time axes show: the samples' extent (the period when none)."""
+        if self.first_utc is None or self.last_utc is None:
+            return self.start_utc, self.end_utc
+        return self.first_utc, self.last_utc
+
+
+def _payload_expr(trips: pl.DataFrame) -> pl.Expr:
+    """Each sample's trip payload [kg] (null outside trips or where none was inferred)."""
+    known = trips.filter(pl.col("payload_kg").is_not_null()) if trips.width else trips
+    if not known.height:
+        return pl.lit(None, dtype=pl.Float64)
+    return (
+        pl.col("trip_id")
+        .cast(pl.Int64)
+        .replace_strict(
+            known["trip_id"].cast(pl.Int64),
+            known["payload_kg"].cast(pl.Float64),
+            default=None,
+            return_dtype=pl.Float64,
+        )
+    )
+
+
+def period_series(
+    frame: pl.LazyFrame | pl.DataFrame,
+    *,
+    hoist: HoistDescription,
+    trips: pl.DataFrame,
+    zone: Zone,
+    start_utc: dt.datetime,
+    end_utc: dt.datetime,
+    buckets: int = BUCKETS,
+) -> PeriodSeries:
+    """Rope tensions of one hoist-period reduced to the report's plot lines.
+
+    ``frame`` holds ``ROPE_TENSIONS`` rows (the lake's names); ``trips`` the run's
+    ``trip_summary`` (its ``payload_kg`` gives the expected load during trips, by
+    :func:`transforms.reconciliation.expected_load_expr`). The load error is drawn on the
+    steady phases of trips only (``STEADY_PHASES``): while the winder accelerates the
+    ropes stretch and the conveyance's acceleration is not the winder's.
+    """
+    lazy = frame.lazy() if isinstance(frame, pl.DataFrame) else frame
+    names = lazy.collect_schema().names()
+    band = "load_lo_n" in names and "load_hi_n" in names
+    tensions = [pl.col(f"tension{i}_n") for i in ROPES]
+    mean = pl.mean_horizontal(tensions)
+    payload = _payload_expr(trips)
+    expected = pl.when(pl.col("trip_id").is_not_null()).then(
+        expected_load_expr(hoist, payload_kg=payload)
+    )
+    steady = pl.col("trip_id").is_not_null() & pl.col("phase").is_in(list(STEADY_PHASES))
+    f32 = pl.Float32
+    columns = [
+        pl.col("time_utc").dt.epoch("us").alias("t"),
+        pl.col("trip_id").cast(pl.Int64),
+        (pl.col("load_raw_n") / 1e3).cast(f32).alias("before_kn"),
+        (pl.col("load_n") / 1e3).cast(f32).alias("after_kn"),
+        (expected / 1e3).cast(f32).alias("expected_kn"),
+        pl.when(steady)
+        .then((pl.col("load_raw_n") / expected - 1) * 100)
+        .cast(f32)
+        .alias("error_before_pct"),
+        pl.when(steady)
+        .then((pl.col("load_n") / expected - 1) * 100)
+        .cast(f32)
+        .alias("error_after_pct"),
+        *[
+            ((c - mean) / mean * 100).cast(f32).alias(f"deviation{i}_pct")
+            for i, c in zip(ROPES, tensions, strict=True)
+        ],
+        (pl.min_horizontal(tensions) / 1e3).cast(f32).alias("lowest_kn"),
+        (pl.max_horizontal(tensions) / 1e3).cast(f32).alias("highest_kn"),
+    ]  # fmt: skip
+    if band:
+        columns += [
+            (pl.col("load_lo_n") / 1e3).cast(f32).alias("lo_kn"),
+            (pl.col("load_hi_n") / 1e3).cast(f32).alias("hi_kn"),
+        ]
+    start_utc, end_utc = start_utc.astimezone(dt.UTC), end_utc.astimezone(dt.UTC)
+    table = (
+        lazy.with_columns(pl.col("time_utc").dt.convert_time_zone("UTC"))
+        .filter((pl.col("time_utc") >= start_utc) & (pl.col("time_utc") < end_utc))
+        .select(columns)
+        .sort("t")
+        .collect()
+    )
+    out = PeriodSeries(start_utc=start_utc, end_utc=end_utc, samples=table.height)
+    if table.height == 0:
+        return out
+    t = table["t"].to_numpy()
+    # the buckets span the samples, not the period: a day with ten minutes of logs gets
+    # its 2000 buckets over those ten minutes
+    t0, t1 = int(t[0]), int(t[-1]) + 1
+    out.first_utc = _EPOCH + dt.timedelta(microseconds=t0)
+    out.last_utc = _EPOCH + dt.timedelta(microseconds=t1)
+    for name in table.columns:
+        if name in ("t", "trip_id", "lo_kn", "hi_kn"):
+            continue
+        y = table[name].fill_null(np.nan).to_numpy()
+        t_out, y_out = downsample_minmax(t, y, buckets, t0=t0, t1=t1)
+        out.lines[name] = (zone.wall(t_out), y_out)
+        finite = y[np.isfinite(y)]
+        if finite.size:
+            out.extremes[f"{name}_min"] = float(finite.min())
+            out.extremes[f"{name}_max"] = float(finite.max())
+    if band:
+        out.band = _band(t, table, zone, buckets, t0, t1)
+    deviations = [pl.col(f"deviation{i}_pct").abs() for i in ROPES]
+    out.worst_rope = (
+        table.lazy()
+        .filter(pl.col("trip_id").is_not_null())
+        .group_by("trip_id")
+        .agg([d.max().alias(f"rope{i}") for i, d in zip(ROPES, deviations, strict=True)])
+        .unpivot(index="trip_id", variable_name="rope", value_name="pct")
+        .with_columns(pl.col("rope").str.strip_prefix("rope").cast(pl.Int32))
+        .sort("trip_id", "pct", "rope", descending=[False, True, False])
+        .group_by("trip_id", maintain_order=True)
+        .first()
+        .select("trip_id", "rope", (pl.col("pct") / 100).alias("fraction"))
+        .collect()
+    )
+    return out
+
+
+def _band(
+    t: np.ndarray, table: pl.DataFrame, zone: Zone, buckets: int, t0: int, t1: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Outer envelope of the band per bucket: lowest ``lo`` and highest ``hi``."""
+    lo = table["lo_kn"].fill_null(np.nan).to_numpy()
+    hi = table["hi_kn"].fill_null(np.nan).to_numpy()
+    b_lo, _, lo_min, _, _ = bucket_extremes(t, lo, buckets, t0=t0, t1=t1)
+    b_hi, _, _, _, hi_max = bucket_extremes(t, hi, buckets, t0=t0, t1=t1)
+    both, at_lo, at_hi = np.intersect1d(b_lo, b_hi, return_indices=True)
+    if both.size == 0:
+        return None
+    centre = t0 + (both + 0.5) * ((t1 - t0) / buckets)
+    return zone.wall(np.round(centre).astype(np.int64)), lo_min[at_lo], hi_max[at_hi]
+
+
+_EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.UTC)

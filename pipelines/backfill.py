@@ -64,6 +64,7 @@ from pipelines.ingest.sources import expand_paths
 from pipelines.lake import scan_lake
 from pipelines.provenance import code_version, new_run_id, utc_now
 from pipelines.run_period import LEAD_IN, NoSamplesError, run_period
+from pipelines.steps import StepOutcome, land_steps, one_line, report_failed, step_table_exists
 from schemas.hoist import HoistDescription, hoist_sha256, load_hoist
 from schemas.tables import TABLES
 from warehouse.landing import RunRecord, insert_frame, land_run
@@ -71,6 +72,8 @@ from warehouse.store import DataRoot, open_reader, open_writer
 
 if TYPE_CHECKING:
     from rich.progress import Progress
+
+    from pipelines.sanity import SanityOutcome
 
 __all__ = [
     "BackfillPlan",
@@ -87,12 +90,14 @@ __all__ = [
     "file_span",
     "fingerprint",
     "hoist_lookup",
+    "incoming_notes",
     "is_transient",
     "known_files",
     "lake_inputs",
     "land_sanity_checks",
     "load_hoists",
     "partition_ledger",
+    "partition_states",
     "plan_backfill",
     "record_failures",
     "run_partition",
@@ -229,6 +234,59 @@ def _raw_files(source: HoistSource) -> list[Path]:
     return [p for p in expand_paths([source.incoming]) if p.suffix.lower() in _RAW_SUFFIXES]
 
 
+def incoming_notes(sources: Sequence[HoistSource]) -> list[str]:
+    """One line per thing in the incoming convention that will not be processed: a hoist
+    without its ``<incoming>/<site>/<hoist>/`` folder or without raw files in it, an
+    incoming folder no hoist description claims (its logs are never read), raw files
+    outside any ``<site>/<hoist>/`` folder. Hidden entries (``.name``) are ignored."""
+    notes: list[str] = []
+    claimed = {(s.site, s.hoist) for s in sources}
+    sites = {s.site for s in sources}
+    for source in sources:
+        if not source.incoming.is_dir():
+            notes.append(
+                f"hoist {source.key} ({source.path.name}): no incoming folder {source.incoming}"
+            )
+        elif not _raw_files(source):
+            notes.append(
+                f"hoist {source.key} ({source.path.name}): no raw files (CSV, TDMS) in "
+                f"{source.incoming}"
+            )
+    roots = sorted({s.incoming.parent.parent for s in sources})
+    for root in roots:
+        if not root.is_dir():
+            continue
+        stray = [p for p in root.iterdir() if p.is_file() and p.suffix.lower() in _RAW_SUFFIXES]
+        for site_dir in sorted(p for p in root.iterdir() if p.is_dir()):
+            if site_dir.name.startswith("."):
+                continue
+            if site_dir.name not in sites:
+                notes.append(
+                    f"incoming folder {site_dir}: no hoist description has "
+                    f"[hoist] site = '{site_dir.name}'; its logs are not read"
+                )
+                continue
+            stray += [
+                p for p in site_dir.iterdir() if p.is_file() and p.suffix.lower() in _RAW_SUFFIXES
+            ]
+            for hoist_dir in sorted(p for p in site_dir.iterdir() if p.is_dir()):
+                if not hoist_dir.name.startswith(".") and (
+                    (site_dir.name, hoist_dir.name) not in claimed
+                ):
+                    notes.append(
+                        f"incoming folder {hoist_dir}: no hoist description claims it "
+                        f"([hoist] site = '{site_dir.name}', name = '{hoist_dir.name}'); "
+                        "its logs are not read"
+                    )
+        for folder in sorted({p.parent for p in stray}):
+            count = sum(p.parent == folder for p in stray)
+            notes.append(
+                f"incoming folder {folder}: {count} raw file(s) outside any <site>/<hoist> "
+                "folder; not read"
+            )
+    return notes
+
+
 def known_files(data: DataRoot) -> set[tuple[str, int]]:
     """(absolute path, size) of every file in the ingest manifest.
 
@@ -311,6 +369,11 @@ class PartitionOutcome:
     checks: int = 0
     checks_failed: int = 0
     attempts: int = 1
+    #: Trips the sanity check could not compare (each with its reason in sanity_checks).
+    checks_skipped: int = 0
+    #: The optional steps' outcomes that did not go as planned, in words (e.g. "sanity
+    #: check: failed: ValueError: ..."): findings of a day that still counts as done.
+    findings: tuple[str, ...] = ()
     ingest_s: float = 0.0
     run_s: float = 0.0
 
@@ -365,6 +428,7 @@ def _latest_runs(data: DataRoot) -> pl.DataFrame:
             "run_id": pl.String,
             "trips": pl.Int64,
             "checks": pl.Int64,
+            "sanity_steps": pl.Int64,
         }
     )
     if not data.warehouse.exists():
@@ -376,8 +440,14 @@ def _latest_runs(data: DataRoot) -> pl.DataFrame:
             "epoch_us(period_start_utc) AS start_us, epoch_us(period_end_utc) AS end_us, "
             "epoch_us(coalesce(finished_at_utc, started_at_utc)) AS at_us, "
             "(SELECT count(*) FROM trip_summary t WHERE t.run_id = r.run_id) AS trips, "
-            "(SELECT count(*) FROM sanity_checks c WHERE c.run_id = r.run_id) AS checks "
-            "FROM runs r WHERE site IS NOT NULL AND period_start_utc IS NOT NULL "
+            "(SELECT count(*) FROM sanity_checks c WHERE c.run_id = r.run_id) AS checks, "
+            + (
+                "(SELECT count(*) FROM run_steps s WHERE s.run_id = r.run_id "
+                "AND s.step = 'sanity_check') AS sanity_steps "
+                if step_table_exists(con)
+                else "0 AS sanity_steps "
+            )
+            + "FROM runs r WHERE site IS NOT NULL AND period_start_utc IS NOT NULL "
             f"AND command IN ({', '.join(repr(c) for c in LEDGER_COMMANDS)})"
         ).pl()
     finally:
@@ -397,21 +467,28 @@ def _latest_runs(data: DataRoot) -> pl.DataFrame:
     )
 
 
-def completed_partitions(
-    data: DataRoot, partitions: Iterable[Partition], *, sanity: bool = False
-) -> set[str]:
-    """Keys of the partitions the ledger says are done (see the module docstring).
+PartitionState = Literal["done", "sanity", "todo"]
 
-    With ``sanity``, a day with trips is done only once its sanity checks are landed
-    too (they are landed after the run: a crash in between re-runs the day).
+
+def partition_states(
+    data: DataRoot, partitions: Iterable[Partition], *, sanity: bool = False
+) -> dict[str, tuple[PartitionState, dict[str, object] | None]]:
+    """Per partition key: its state in the ledger and its latest run's ledger row.
+
+    ``done``: the latest run of exactly its day succeeded, read exactly the inputs now
+    landed, with the current hoist description, and (with ``sanity``) its sanity check
+    has an outcome (``run_steps``, or trip rows landed before that table existed) or it
+    had no trip. ``sanity``: all of that but the sanity check's outcome: only the check
+    is left to do, the compensation stands. ``todo``: anything else.
     """
     latest = {
         (r["site"], r["hoist"], r["day"]): r for r in _latest_runs(data).iter_rows(named=True)
     }
     shas: dict[Path, str] = {}
-    done = set()
+    states: dict[str, tuple[PartitionState, dict[str, object] | None]] = {}
     for partition in partitions:
         row = latest.get((partition.source.site, partition.source.hoist, partition.day))
+        states[partition.key] = ("todo", row)
         if row is None or row["status"] != "succeeded":
             continue
         sha = shas.get(partition.source.path)
@@ -419,16 +496,34 @@ def completed_partitions(
             sha = shas[partition.source.path] = hoist_sha256(partition.source.path)
         if row["hoist_sha256"] != sha:
             continue
-        if sanity and row["trips"] and not row["checks"]:
-            continue
         inputs = tuple(sorted(row["inputs"] or ()))
         try:
             landed = partition.inputs(data)
         except Exception:  # unreadable lake day: not done; running it reports why
             continue
-        if inputs and inputs == landed:
-            done.add(partition.key)
-    return done
+        if not inputs or inputs != landed:
+            continue
+        checked = not row["trips"] or row["checks"] or row["sanity_steps"]
+        states[partition.key] = ("sanity" if sanity and not checked else "done", row)
+    return states
+
+
+def completed_partitions(
+    data: DataRoot, partitions: Iterable[Partition], *, sanity: bool = False
+) -> set[str]:
+    """Keys of the partitions the ledger says are done (see the module docstring and
+    :func:`partition_states`).
+
+    With ``sanity``, a day with trips is done only once its sanity check has an outcome
+    (landed after the run: a crash in between leaves the check to do, not the day).
+    Whatever that outcome -- trips failed, skipped, or the check itself failed -- the
+    day is done: an optional step's failure is a finding (:mod:`pipelines.steps`).
+    """
+    return {
+        key
+        for key, (state, _) in partition_states(data, partitions, sanity=sanity).items()
+        if state == "done"
+    }
 
 
 def partition_ledger(data: DataRoot) -> pl.DataFrame:
@@ -553,9 +648,12 @@ def run_partition(
 ) -> PartitionOutcome:
     """Ingest the partition's new files, then run its UTC day unless already done.
 
-    With ``sanity`` the simulation sanity check (:func:`pipelines.sanity.sanity_check`,
-    at most ``sanity_trips`` trips) runs on the day's samples and is landed under the
-    run's id (:func:`land_sanity_checks`).
+    With ``sanity`` the simulation sanity check (:func:`check_sanity`, at most
+    ``sanity_trips`` trips) runs on the day's samples and is landed under the run's id.
+    It is an optional step: whatever it finds, and also when it fails, its outcome is
+    landed and the day succeeds (the failure is in ``findings``). A day whose
+    compensation is done but whose check is missing (a crash between the two, or a day
+    first run without ``sanity``) gets only the check.
 
     Raises whatever ingest or :func:`~pipelines.run_period.run_period` raise (the
     callers decide about retries, :func:`is_transient`); a day without samples is an
@@ -579,7 +677,10 @@ def run_partition(
             files_ingested=ingested,
             ingest_s=t1 - t0,
         )
-    if not force and partition.key in completed_partitions(data, [partition], sanity=sanity):
+    state, row = "todo", None
+    if not force:
+        state, row = partition_states(data, [partition], sanity=sanity)[partition.key]
+    if state == "done":
         return _outcome(
             partition,
             "skipped",
@@ -587,40 +688,53 @@ def run_partition(
             files_ingested=ingested,
             ingest_s=t1 - t0,
         )
-    try:
-        result = run_period(
+    if state == "sanity":
+        assert row is not None
+        run_id = str(row["run_id"])
+        head = f"compensation already landed (run {run_id}); its sanity check run now"
+        trips = int(row["trips"] or 0)  # type: ignore[call-overload]
+        samples = 0
+    else:
+        try:
+            result = run_period(
+                hoist_path=partition.source.path,
+                data=data,
+                start=partition.start,
+                end=partition.end,
+                command=command,
+            )
+        except NoSamplesError as exc:
+            return _outcome(partition, "empty", message=str(exc), ingest_s=t1 - t0)
+        run_id, trips, samples = result.run_id, result.trip_summary.height, result.samples
+        head = f"{trips} trips, {result.alarms.height} alarms"
+    checks = failed_checks = skipped_checks = 0
+    findings: list[str] = []
+    if sanity and trips:
+        checked = check_sanity(
             hoist_path=partition.source.path,
             data=data,
-            start=partition.start,
-            end=partition.end,
-            command=command,
-        )
-    except NoSamplesError as exc:
-        return _outcome(partition, "empty", message=str(exc), ingest_s=t1 - t0)
-    checks = failed_checks = 0
-    if sanity and result.trip_summary.height:
-        frame = check_sanity(
-            hoist_path=partition.source.path,
-            data=data,
-            run_id=result.run_id,
+            run_id=run_id,
             start=partition.start,
             end=partition.end,
             max_trips=sanity_trips,
         )
-        checks, failed_checks = frame.height, int((~frame["passed"]).sum())
-        notes.insert(0, f"sanity: {checks - failed_checks}/{checks} trips passed")
+        checks, failed_checks = checked.compared, checked.count("failed")
+        skipped_checks = checked.count("skipped")
+        if checked.step.failed:
+            findings.append(checked.words())
+        notes.insert(0, checked.words())
     t2 = time.perf_counter()
     return _outcome(
         partition,
         "succeeded",
-        message="; ".join(
-            [f"{result.trip_summary.height} trips, {result.alarms.height} alarms", *notes]
-        ),
-        run_id=result.run_id,
-        samples=result.samples,
+        message="; ".join([head, *notes]),
+        run_id=run_id,
+        samples=samples,
         files_ingested=ingested,
         checks=checks,
         checks_failed=failed_checks,
+        checks_skipped=skipped_checks,
+        findings=tuple(findings),
         ingest_s=t1 - t0,
         run_s=t2 - t1,
     )
@@ -628,6 +742,9 @@ def run_partition(
 
 #: Samples before a period that the sanity check replays to warm up the friction state.
 SANITY_LEAD_IN = dt.timedelta(hours=6)
+#: Samples after a period it reads so that a trip running across the period's end (a trip
+#: across UTC midnight) is checked whole, in the period it started in.
+SANITY_LEAD_OUT = dt.timedelta(minutes=15)
 
 
 def check_sanity(
@@ -638,37 +755,88 @@ def check_sanity(
     start: dt.datetime,
     end: dt.datetime,
     max_trips: int = SANITY_TRIPS,
-) -> pl.DataFrame:
-    """Simulation sanity check of a run's period (:func:`pipelines.sanity.sanity_check`),
-    landed under ``run_id`` (:func:`land_sanity_checks`); returns the ``SANITY_CHECKS`` rows.
+    hoist: HoistDescription | None = None,
+    threshold: float = 1.5,
+) -> SanityOutcome:
+    """Simulation sanity check of a run's period (:func:`pipelines.sanity.sanity_check`):
+    the trips that start moving in ``[start, end)``, landed under ``run_id`` with the
+    step's outcome (:func:`land_sanity_checks`). A trip passes when its RMS gap is at
+    most ``threshold`` x the pressure noise.
+
+    An optional step: an error of the check itself (data it cannot replay, a numerical
+    failure, a lake file it cannot read) is landed as a ``failed`` outcome with the
+    reason and returned, not raised. Only an error landing the outcome is raised (the
+    warehouse is unavailable: the caller's retry runs the check alone again, since the
+    day's compensation is already done).
     """
-    from pipelines.sanity import sanity_check
+    from pipelines.sanity import SanityOutcome, sanity_check, sanity_step
 
-    description = load_hoist(hoist_path)
-    site, hoist = description.hoist.site, description.hoist.name
-    # hours before the period: the replay of an earlier trip loads the seals' state
-    samples = scan_lake(
-        data, "field_samples", site=site, hoist=hoist, start=start - SANITY_LEAD_IN, end=end
-    )
-    frame = sanity_check(
-        samples, description, run_id=run_id, max_trips=max_trips, report_from=start
-    )
-    land_sanity_checks(data, frame, site=site, hoist=hoist)
-    passed = int(frame["passed"].sum()) if frame.height else 0
-    logger.info("sanity check of %s: %d/%d trips passed", run_id, passed, frame.height)
-    return frame
+    description = hoist or load_hoist(hoist_path)
+    site, name = description.hoist.site, description.hoist.name
+    try:
+        # hours before the period: the replay of an earlier trip loads the seals' state;
+        # minutes after it: the period's last trip ends in the record
+        samples = scan_lake(
+            data,
+            "field_samples",
+            site=site,
+            hoist=name,
+            start=start - SANITY_LEAD_IN,
+            end=end + SANITY_LEAD_OUT,
+        )
+        frame = sanity_check(
+            samples,
+            description,
+            run_id=run_id,
+            max_trips=max_trips,
+            report_from=start,
+            report_to=end,
+            threshold=threshold,
+        )
+        step = sanity_step(frame)
+    except Exception as exc:
+        logger.warning(
+            "sanity check of %s failed (landed as its finding; the run stands): %s",
+            run_id,
+            one_line(exc),
+            exc_info=logger.isEnabledFor(logging.DEBUG),
+        )
+        frame = _empty_checks()
+        step = StepOutcome("sanity_check", "failed", one_line(exc))
+    land_sanity_checks(data, frame, site=site, hoist=name, run_id=run_id, step=step)
+    logger.info("sanity check of %s: %s", run_id, step.line())
+    return SanityOutcome(frame, step)
 
 
-def land_sanity_checks(data: DataRoot, frame: pl.DataFrame, *, site: str, hoist: str) -> int:
-    """Land a run's sanity checks; drop the hoist's checks whose run was replaced since."""
-    run_ids = sorted(set(frame["run_id"].to_list()))
+def _empty_checks() -> pl.DataFrame:
+    from schemas.tables import SANITY_CHECKS
+    from transforms.reconciliation import conform
+
+    return conform(pl.DataFrame(), SANITY_CHECKS).clear()
+
+
+def land_sanity_checks(
+    data: DataRoot,
+    frame: pl.DataFrame,
+    *,
+    site: str,
+    hoist: str,
+    run_id: str | None = None,
+    step: StepOutcome | None = None,
+) -> int:
+    """Land a run's sanity checks (and, with ``step``, the check's outcome in
+    ``run_steps``, same transaction); drop the hoist's checks whose run was replaced."""
+    run_ids = sorted(set(frame["run_id"].to_list()) | ({run_id} if run_id else set()))
     with open_writer(data) as con:
         con.execute(
             "DELETE FROM sanity_checks WHERE list_contains(?, run_id) OR (site = ? AND hoist = ? "
             "AND run_id NOT IN (SELECT run_id FROM trip_summary))",
             [run_ids, site, hoist],
         )
-        return insert_frame(con, "sanity_checks", frame)
+        landed = insert_frame(con, "sanity_checks", frame)
+        if step is not None and run_id is not None:
+            land_steps(con, run_id=run_id, site=site, hoist=hoist, outcomes=[step])
+        return landed
 
 
 # ---------------------------------------------------------------- errors and retries
@@ -777,6 +945,9 @@ class BackfillReport:
     wall_s: float = 0.0
     #: The HTML report written for it (pipelines.reports), if any.
     report_path: Path | None = None
+    #: Things to say that are not a partition's outcome, one line each (e.g. an incoming
+    #: folder no hoist claims); they do not fail it.
+    notes: list[str] = field(default_factory=list)
 
     def count(self, status: Status) -> int:
         return sum(o.status == status for o in self.outcomes)
@@ -820,7 +991,11 @@ class BackfillReport:
             f"{self.count('skipped')} already done, {self.count('empty')} without data, "
             f"{self.count('failed')} failed; {self.samples} samples in {self.wall_s:.1f} s"
         )
-        lines = [head]
+        lines = [head, *self.notes]
+        found = sorted((o for o in self.outcomes if o.findings), key=lambda o: o.key)
+        if found:
+            lines.append("findings (optional steps that did not complete; the days are done):")
+            lines += [f"  {o.key}: {finding}" for o in found for finding in o.findings]
         if self.failed:
             lines.append("failed partitions:")
             lines += [f"  {o.key}: {o.message}" for o in self.failed]
@@ -1008,17 +1183,21 @@ def backfill(
     )
     record_failures(data, report.outcomes)
     report.wall_s = time.perf_counter() - t0
+    report.notes = incoming_notes(sources)
     if write_report:
-        from pipelines.reports import write_fleet_report
+        try:  # optional: a report that cannot be written is a finding, not a failure
+            from pipelines.reports import write_fleet_report
 
-        report.report_path = write_fleet_report(
-            data,
-            kind="backfill",
-            outcomes=report.outcomes,
-            sources=sources,
-            sanity=sanity,
-            range_text=f"{start} .. {end}",
-        ).path
+            report.report_path = write_fleet_report(
+                data,
+                kind="backfill",
+                outcomes=report.outcomes,
+                sources=sources,
+                sanity=sanity,
+                range_text=f"{start} .. {end}",
+            ).path
+        except Exception as exc:
+            report.notes.append(report_failed(data, report.outcomes, exc))
     return report
 
 

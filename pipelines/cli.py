@@ -311,6 +311,8 @@ def _cmd_nightly(args: argparse.Namespace) -> int:
 
 def _add_flow_commands(commands) -> None:
     """``run``, ``backfill`` and ``nightly`` (issue 7); ``--prefect`` runs their flows."""
+    from pipelines.night_options import add_night_options
+
     run = commands.add_parser(
         "run", help="compensate + reconcile + alarm a period of one hoist, and land it"
     )
@@ -343,15 +345,7 @@ def _add_flow_commands(commands) -> None:
         "nightly", help="every hoist's new raw files since its watermark, processed and landed"
     )
     _fleet_options(nightly)
-    nightly.add_argument(
-        "--lookback-days",
-        type=int,
-        default=3,
-        help="also re-run not-done days this far before each hoist's watermark (default 3)",
-    )
-    nightly.add_argument(
-        "--no-sanity", action="store_true", help="skip the simulation sanity check"
-    )
+    add_night_options(nightly)  # shared with python -m pipelines.deploy serve|pool
     nightly.set_defaults(handler=_cmd_nightly)
 
 

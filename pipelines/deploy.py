@@ -43,6 +43,7 @@ from warehouse.store import DataRoot  # noqa: E402
 __all__ = [
     "DEFAULT_CRON",
     "DEFAULT_NAME",
+    "build_parser",
     "deploy_to_pool",
     "main",
     "mine_timezone",
@@ -74,13 +75,23 @@ def nightly_schedule(*, cron: str = DEFAULT_CRON, timezone: str) -> Any:
 
 
 def nightly_parameters(
-    *, hoists: str | Path, data: str | Path, incoming: str | Path | None = None
+    *,
+    hoists: str | Path,
+    data: str | Path,
+    incoming: str | Path | None = None,
+    lookback_days: int = 3,
+    sanity: bool = True,
 ) -> dict[str, Any]:
-    """Parameters of the nightly deployment (absolute paths: the runner's cwd may differ)."""
+    """Parameters of the nightly deployment (absolute paths: the runner's cwd may differ):
+    those of :func:`pipelines.flows.nightly_flow`, as ``ropeload nightly`` takes them."""
+    if lookback_days < 0:
+        raise ValueError(f"lookback_days must be >= 0, got {lookback_days}")
     return {
         "hoists": str(Path(hoists).absolute()),
         "data": str(Path(data).absolute()),
         "incoming": None if incoming is None else str(Path(incoming).absolute()),
+        "lookback_days": lookback_days,
+        "sanity": sanity,
     }
 
 
@@ -93,16 +104,23 @@ def serve_nightly(
     timezone: str | None = None,
     name: str = DEFAULT_NAME,
     max_workers: int = 2,
+    dask: str | None = None,
+    lookback_days: int = 3,
+    sanity: bool = True,
 ) -> None:
     """Register the nightly deployment with its schedule and serve it (blocks)."""
     from pipelines.flows import nightly_flow, task_runner
 
     zone = timezone or mine_timezone(hoists, data=DataRoot.resolve(data))
-    served = nightly_flow.with_options(task_runner=task_runner(max_workers=max_workers))
+    parameters = nightly_parameters(
+        hoists=hoists, data=data, incoming=incoming, lookback_days=lookback_days, sanity=sanity
+    )
+    runner = task_runner(max_workers=max_workers, dask=dask)
+    served = nightly_flow.with_options(task_runner=runner)
     served.serve(
         name=name,
         schedules=[nightly_schedule(cron=cron, timezone=zone)],
-        parameters=nightly_parameters(hoists=hoists, data=data, incoming=incoming),
+        parameters=parameters,
         description=f"ropeload nightly run at '{cron}' {zone}",
         tags=["ropeload", "nightly"],
     )
@@ -117,17 +135,22 @@ def deploy_to_pool(
     cron: str = DEFAULT_CRON,
     timezone: str | None = None,
     name: str = DEFAULT_NAME,
+    lookback_days: int = 3,
+    sanity: bool = True,
 ) -> Any:
     """Register the nightly deployment on a process work pool (source: this checkout)."""
     from prefect import Flow
 
     zone = timezone or mine_timezone(hoists, data=DataRoot.resolve(data))
+    parameters = nightly_parameters(
+        hoists=hoists, data=data, incoming=incoming, lookback_days=lookback_days, sanity=sanity
+    )
     source = Flow.from_source(source=str(_REPO), entrypoint="pipelines/flows.py:nightly_flow")
     return source.deploy(
         name=name,
         work_pool_name=work_pool,
         schedules=[nightly_schedule(cron=cron, timezone=zone)],
-        parameters=nightly_parameters(hoists=hoists, data=data, incoming=incoming),
+        parameters=parameters,
         description=f"ropeload nightly run at '{cron}' {zone}",
         tags=["ropeload", "nightly"],
         build=False,
@@ -181,8 +204,11 @@ def write_example_mine(
     return hoist_dir, incoming
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m pipelines.deploy serve|pool|example ...``."""
+def build_parser() -> argparse.ArgumentParser:
+    """``python -m pipelines.deploy serve|pool|example``: serve and pool take the switches
+    of ``ropeload nightly`` (:func:`pipelines.night_options.add_night_options`)."""
+    from pipelines.night_options import add_night_options
+
     parser = argparse.ArgumentParser(
         prog="python -m pipelines.deploy", description=__doc__.split("\n")[0]
     )
@@ -195,14 +221,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         sub.add_argument("--cron", default=DEFAULT_CRON, help=f"default '{DEFAULT_CRON}'")
         sub.add_argument("--timezone", default=None, help="default: the hoists' time zone")
         sub.add_argument("--name", default=DEFAULT_NAME)
+        add_night_options(sub)
         if name == "serve":
             sub.add_argument("--workers", type=int, default=2, help="partitions at a time")
+            sub.add_argument(
+                "--dask",
+                metavar="ADDRESS",
+                default=None,
+                help="run each night on a Dask cluster: a scheduler address or 'local'",
+            )
         else:
             sub.add_argument("--work-pool", required=True)
     example = commands.add_parser("example", help="write a synthetic mine to try the recipe")
     example.add_argument("root", type=Path)
     example.add_argument("--days", type=int, default=2)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m pipelines.deploy serve|pool|example ...``."""
+    args = build_parser().parse_args(argv)
     if args.command == "example":
         hoist_dir, incoming = write_example_mine(args.root, days=args.days)
         sys.stdout.write(f"hoists: {hoist_dir}\nincoming: {incoming}\n")
@@ -214,9 +252,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         "cron": args.cron,
         "timezone": args.timezone,
         "name": args.name,
+        "lookback_days": args.lookback_days,
+        "sanity": not args.no_sanity,
     }
     if args.command == "serve":
-        serve_nightly(**common, max_workers=args.workers)
+        serve_nightly(**common, max_workers=args.workers, dask=args.dask)
     else:
         deployment_id = deploy_to_pool(work_pool=args.work_pool, **common)
         sys.stdout.write(f"deployment {deployment_id} on work pool {args.work_pool}\n")

@@ -55,6 +55,7 @@ from pipelines.backfill import (  # noqa: E402
     StderrProgress,
     check_sanity,
     failed_outcome,
+    incoming_notes,
     is_transient,
     known_files,
     load_hoists,
@@ -70,12 +71,16 @@ from pipelines.nightly import (  # noqa: E402
     NightlyReport,
     days_to_discover,
     discover_day,
+    discovery_outcome,
+    discovery_words,
     failed_night,
     ingest_new_files,
+    land_discoveries,
     nightly_partitions,
 )
 from pipelines.reports import Report  # noqa: E402
 from pipelines.run_period import RunResult, run_period  # noqa: E402
+from pipelines.steps import StepOutcome, report_failed  # noqa: E402
 from warehouse.store import DataRoot  # noqa: E402
 
 enable_run_logs()  # the module loggers' INFO lines go to the flow and task run logs
@@ -183,6 +188,8 @@ def run_period_task(
 def sanity_task(
     hoist_path: str, data: DataRoot, run_id: str, start: dt.datetime, end: dt.datetime
 ) -> Any:
+    """The sanity check of a run (:func:`pipelines.backfill.check_sanity`): its failure is
+    landed as a finding and returned, only transient errors raise (and are retried)."""
     return check_sanity(hoist_path=hoist_path, data=data, run_id=run_id, start=start, end=end)
 
 
@@ -320,23 +327,19 @@ def run_flow(
     sanity: bool = True,
 ) -> RunResult:
     """``ropeload run``: compensate, reconcile, alarm and sanity-check a period of one hoist."""
-    from pipelines.reports import sanity_step
+    from pipelines.reports import Step, sanity_step
 
     root = DataRoot.resolve(data)
     result = run_period_task(hoist, root, start, end, payload_kg)
-    checks, error = None, None
-    if sanity and result.trip_summary.height:
-        try:
-            checks = sanity_task(
-                hoist, root, result.run_id, result.period_start_utc, result.period_end_utc
-            )
-        except Exception as exc:  # reported, then raised: the report is written anyway
-            error = exc
     reason = "not asked for (sanity=False)" if not sanity else "no trip in the period"
-    steps = [sanity_step(checks, error=error, reason=reason)]
+    steps = [sanity_step(None, reason=reason)]
+    if sanity and result.trip_summary.height:
+        # an optional step: its failure is landed as a finding, not a failed run
+        found = sanity_task(
+            hoist, root, result.run_id, result.period_start_utc, result.period_end_utc
+        )
+        steps = [Step("sanity check", found.step.status, found.step.message)]
     publish_task(run_report_task(root, result, hoist, steps), "run-report")
-    if error is not None:
-        raise error
     return result
 
 
@@ -403,12 +406,16 @@ def backfill_flow(
         plan.todo, root, force=force, command="backfill", sanity=sanity, progress=progress
     )
     record_failures_task(root, report.outcomes, "backfill")
-    summary = report_task(
-        root, kind="backfill", outcomes=report.outcomes, sources=sources, sanity=sanity,
-        range_text=f"{start} .. {end}",
-    )  # fmt: skip
-    report.report_path = summary.path
-    publish_task(summary, "backfill-report")
+    report.notes = incoming_notes(sources)
+    try:  # optional: a report that cannot be written is a finding, not a failed backfill
+        summary = report_task(
+            root, kind="backfill", outcomes=report.outcomes, sources=sources, sanity=sanity,
+            range_text=f"{start} .. {end}",
+        )  # fmt: skip
+        report.report_path = summary.path
+        publish_task(summary, "backfill-report")
+    except Exception as exc:
+        report.notes.append(report_failed(root, report.outcomes, exc))
     if not report.ok:
         raise PartitionsFailed(report)
     return report
@@ -429,6 +436,7 @@ def nightly_flow(
     """
     root = DataRoot.resolve(data)
     sources = load_hoists(hoists, data=root, incoming=incoming)
+    notes = incoming_notes(sources)
     known = known_files(root)
     futures = ingest_hoist_task.map(sources, data=unmapped(root), known=unmapped(known))
     nights = [_night(future, source) for future, source in zip(futures, sources, strict=True)]
@@ -444,29 +452,35 @@ def nightly_flow(
         for site, hoist, day in days_to_discover(outcomes)
     }
     found = {key: _discovered(future) for key, future in discoveries.items()}
+    land_discoveries(outcomes, {key: step for key, (step, _) in found.items()}, root)
     report = NightlyReport(
         hoists=nights,
         runs=BackfillReport(outcomes=outcomes),
-        discoveries={key: where for key, (where, _) in found.items()},
+        discoveries={key: discovery_words(step) for key, (step, _) in found.items()},
         discover_s=sum(seconds for _, seconds in found.values()),
+        notes=notes,
     )
-    summary = report_task(
-        root, kind="nightly", outcomes=outcomes, sources=sources, sanity=sanity,
-        hoist_rows=[n.row() for n in nights], discoveries=report.discoveries,
-    )  # fmt: skip
-    report.report_path = summary.path
-    publish_task(summary, "nightly-report")
+    try:  # optional: a report that cannot be written is a finding, not a failed night
+        summary = report_task(
+            root, kind="nightly", outcomes=outcomes, sources=sources, sanity=sanity,
+            hoist_rows=[n.row() for n in nights], discoveries=report.discoveries,
+        )  # fmt: skip
+        report.report_path = summary.path
+        publish_task(summary, "nightly-report")
+    except Exception as exc:
+        report.notes.append(report_failed(root, outcomes, exc))
     if not report.ok:
         raise PartitionsFailed(report)
     return report
 
 
-def _discovered(future: PrefectFuture[tuple[Path, float]]) -> tuple[str, float]:
+def _discovered(future: PrefectFuture[tuple[Path, float]]) -> tuple[StepOutcome, float]:
+    """A discovery task's outcome: a failed discovery is a finding, not a failed night."""
     try:
         path, seconds = future.result()
     except Exception as exc:
-        return f"discovery failed: {type(exc).__name__}: {exc}", 0.0
-    return str(path), seconds
+        return discovery_outcome(None, exc), 0.0
+    return discovery_outcome(path), seconds
 
 
 def _night(future: PrefectFuture[HoistNight], source: HoistSource) -> HoistNight:

@@ -28,16 +28,26 @@ changes nothing: no file is new, every day is done.
 
 Simulation sanity check and discovery. Each hoist-day run by a night is also checked
 against the hoist's simulation (:func:`pipelines.backfill.check_sanity`, landed in
-``sanity_checks``; a day counts as done only with its checks landed). For each hoist
-with a failed check, discovery (:func:`pipelines.discover.discover_period`) runs over
-its latest failed day and writes ``<data>/reports/discovery/<site>_<hoist>_<day>.json``
-(and a plot), landing its findings in ``discovery_findings``.
+``sanity_checks``, its outcome in ``run_steps``; a day counts as done once the check has
+an outcome). For each hoist with a failed check, discovery
+(:func:`pipelines.discover.discover_period`) runs over its latest failed day and writes
+``<data>/reports/discovery/<site>_<hoist>_<day>.json`` (and a plot), landing its
+findings in ``discovery_findings``.
+
+Optional steps never fail a night (:mod:`pipelines.steps`): a sanity check, discovery or
+report that fails is landed as that step's outcome with the day's run and said on
+stdout; the day's compensation is done and is not recomputed the next night. Neither
+does ordinary data: a record that ends (or starts) mid-trip, a trip across UTC
+midnight, a payload change after the last stop, a 10-20 Hz logger. What the incoming
+convention leaves unread -- a folder no hoist description claims, a hoist without its
+folder or raw files -- is named, one line each (exit status unchanged).
 """
 
 from __future__ import annotations
 
 import datetime as dt
 import importlib.util
+import json
 import logging
 import time
 from collections.abc import Callable, Sequence
@@ -54,12 +64,14 @@ from pipelines.backfill import (
     _has_samples_or_error,
     completed_partitions,
     hoist_lookup,
+    incoming_notes,
     known_files,
     record_failures,
     run_partitions,
 )
 from pipelines.ingest import IngestReport, ingest_paths
 from pipelines.ingest.sources import expand_paths
+from pipelines.steps import StepOutcome, one_line, record_steps, report_failed
 from warehouse.store import DataRoot, open_reader
 
 __all__ = [
@@ -67,9 +79,13 @@ __all__ = [
     "NightlyReport",
     "days_to_discover",
     "discover_day",
+    "discover_days",
+    "discovery_outcome",
+    "discovery_words",
     "failed_night",
     "find_new_files",
     "ingest_new_files",
+    "land_discoveries",
     "nightly",
     "nightly_partitions",
     "sanity_available",
@@ -225,6 +241,10 @@ class NightlyReport:
     discover_s: float = 0.0
     #: The night's HTML report (pipelines.reports), if written.
     report_path: Path | None = None
+    #: One line each: incoming folders no hoist claims, hoists without a folder or raw
+    #: files (:func:`pipelines.backfill.incoming_notes`), an optional step's failure.
+    #: Said, landed where there is a day to land it with, never a failed night.
+    notes: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -249,9 +269,14 @@ class NightlyReport:
                 f" -> {row['watermark_after'] or '-'}"
                 + (f"; ingest failed: {night.error}" if night.error else "")
             )
+        lines += self.notes
         checks = sum(o.checks for o in self.runs.outcomes)
         failed = sum(o.checks_failed for o in self.runs.outcomes)
-        lines.append(f"sanity checks: {checks - failed}/{checks} trips passed")
+        skipped = sum(o.checks_skipped for o in self.runs.outcomes)
+        lines.append(
+            f"sanity checks: {checks - failed}/{checks} trips passed"
+            + (f", {skipped} skipped (reasons in sanity_checks)" if skipped else "")
+        )
         lines += [f"discovery {key}: {where}" for key, where in self.discoveries.items()]
         report = "" if self.report_path is None else f"report: {self.report_path}\n"
         return "\n".join(lines) + "\n" + str(self.runs) + report
@@ -289,17 +314,60 @@ def discover_day(source: HoistSource, day: dt.date, *, data: DataRoot) -> Path:
     return target
 
 
-def _discover_all(
+def discovery_outcome(path: Path | None, exc: BaseException | None = None) -> StepOutcome:
+    """The discovery step of a day: its report (and the effect named), or why it failed."""
+    if exc is not None:
+        return StepOutcome("discovery", "failed", one_line(exc))
+    assert path is not None
+    try:
+        effect = json.loads(path.read_text(encoding="utf-8")).get("effect", "?")
+    except (OSError, ValueError):
+        effect = "?"
+    return StepOutcome("discovery", "done", f"effect {effect}; report {path}")
+
+
+def land_discoveries(
+    outcomes: Sequence[PartitionOutcome], found: dict[str, StepOutcome], data: DataRoot
+) -> None:
+    """Land each discovery's outcome as a step of the day's run it analysed (never
+    raises: the outcome is said on stdout anyway)."""
+    runs = {o.key: o for o in outcomes if o.run_id}
+    for key, step in found.items():
+        outcome = runs.get(key)
+        if outcome is None or outcome.run_id is None:
+            continue
+        try:
+            record_steps(
+                data, run_id=outcome.run_id, site=outcome.site, hoist=outcome.hoist,
+                outcomes=[step],
+            )  # fmt: skip
+        except Exception as exc:
+            logger.warning("%s: discovery outcome not landed: %s", key, one_line(exc))
+
+
+def discovery_words(step: StepOutcome) -> str:
+    """What a night prints per discovery: the report's path, or why it failed."""
+    if step.failed:
+        return f"discovery failed: {step.message}"
+    return step.message.rsplit("report ", 1)[-1]
+
+
+def discover_days(
     sources: Sequence[HoistSource], outcomes: Sequence[PartitionOutcome], data: DataRoot
-) -> dict[str, str]:
+) -> dict[str, StepOutcome]:
+    """Discovery over each hoist's latest day with a failed check (:func:`discover_day`);
+    its outcome per ``site/hoist/day``, also landed with the day's run. An optional step:
+    a discovery that fails is a finding, it never fails the night."""
     by_key = {(s.site, s.hoist): s for s in sources}
-    found: dict[str, str] = {}
+    found: dict[str, StepOutcome] = {}
     for site, hoist, day in days_to_discover(outcomes):
         key = f"{site}/{hoist}/{day}"
         try:
-            found[key] = str(discover_day(by_key[(site, hoist)], day, data=data))
+            found[key] = discovery_outcome(discover_day(by_key[(site, hoist)], day, data=data))
         except Exception as exc:
-            found[key] = f"discovery failed: {type(exc).__name__}: {exc}"
+            logger.warning("discovery of %s failed (a finding): %s", key, one_line(exc))
+            found[key] = discovery_outcome(None, exc)
+    land_discoveries(outcomes, found, data)
     return found
 
 
@@ -323,6 +391,7 @@ def nightly(
     (:func:`pipelines.reports.write_fleet_report`; ``report.report_path``).
     """
     t0 = time.perf_counter()
+    notes = incoming_notes(sources)
     known = known_files(data)
     nights = [_ingest_or_error(source, data=data, known=known) for source in sources]
     partitions = nightly_partitions(nights, data=data, lookback_days=lookback_days, sanity=sanity)
@@ -339,20 +408,26 @@ def nightly(
     )
     record_failures(data, outcomes, command="nightly")
     t_discover = time.perf_counter()
-    discoveries = _discover_all(sources, outcomes, data)
+    found = discover_days(sources, outcomes, data)
+    discoveries = {key: discovery_words(step) for key, step in found.items()}
     discover_s = time.perf_counter() - t_discover
     runs = BackfillReport(outcomes=outcomes, wall_s=time.perf_counter() - t0)
-    night = NightlyReport(hoists=nights, runs=runs, discoveries=discoveries, discover_s=discover_s)
+    night = NightlyReport(
+        hoists=nights, runs=runs, discoveries=discoveries, discover_s=discover_s, notes=notes
+    )
     if write_report:
-        from pipelines.reports import write_fleet_report
+        try:  # optional: a report that cannot be written is a finding, not a failed night
+            from pipelines.reports import write_fleet_report
 
-        night.report_path = write_fleet_report(
-            data,
-            kind="nightly",
-            outcomes=outcomes,
-            sources=sources,
-            sanity=sanity,
-            hoist_rows=[n.row() for n in nights],
-            discoveries=discoveries,
-        ).path
+            night.report_path = write_fleet_report(
+                data,
+                kind="nightly",
+                outcomes=outcomes,
+                sources=sources,
+                sanity=sanity,
+                hoist_rows=[n.row() for n in nights],
+                discoveries=discoveries,
+            ).path
+        except Exception as exc:
+            night.notes.append(report_failed(data, outcomes, exc))
     return night

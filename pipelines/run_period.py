@@ -239,12 +239,13 @@ def run_checked(
     """:func:`run_period`, then the simulation sanity check of its trips, then its report.
 
     The report (:func:`pipelines.reports.write_run_report`, under ``<data>/reports/``)
-    is written whatever the sanity check does: a failing check is said in it in words
-    and returned in ``sanity_error`` for the caller to raise after. Errors of the run
-    itself propagate (nothing was landed, there is nothing to report).
+    is written whatever the sanity check does. The check is an optional step: its
+    findings, and its own failure, are landed (``sanity_checks``, ``run_steps``) and
+    said in the report, never raised (``sanity_error`` stays None; kept for callers).
+    Errors of the run itself propagate (nothing was landed, there is nothing to report).
     """
     from pipelines.backfill import check_sanity
-    from pipelines.reports import sanity_step, write_run_report
+    from pipelines.reports import Step, sanity_step, write_run_report
 
     hoist = hoist or load_hoist(hoist_path)
     result = run_period(
@@ -258,19 +259,23 @@ def run_checked(
     )
     checks: object | None = None
     error: Exception | None = None
+    found = None
     if sanity and result.trip_summary.height:
-        try:
-            checks = check_sanity(
-                hoist_path=hoist_path,
-                data=data,
-                run_id=result.run_id,
-                start=result.period_start_utc,
-                end=result.period_end_utc,
-            )
-        except Exception as exc:  # said in the report, raised by the caller
-            error = exc
+        # an optional step: a failure of the check itself is landed as its finding
+        # (run_steps) and said in the report, it does not fail the run
+        found = check_sanity(
+            hoist_path=hoist_path,
+            data=data,
+            run_id=result.run_id,
+            start=result.period_start_utc,
+            end=result.period_end_utc,
+            hoist=hoist,
+        )
+        checks = found.checks
     reason = "no trip in the period" if sanity else "not asked for (--no-sanity)"
     step = sanity_step(checks, error=error, reason=reason)
+    if found is not None:
+        step = Step("sanity check", found.step.status, found.step.message)
     report = write_run_report(data, result, hoist=hoist, steps=[step], command=command)
     assert report.path is not None
     sentence = step.sentence()

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
 import datetime as dt
+import inspect
 import os
 import shutil
 from pathlib import Path
@@ -10,12 +13,24 @@ from pathlib import Path
 import polars as pl
 import pytest
 
-from pipelines.backfill import fingerprint, known_files, load_hoists, partition_ledger
-from pipelines.deploy import write_example_mine
+from pipelines.backfill import (
+    check_sanity,
+    fingerprint,
+    known_files,
+    load_hoists,
+    partition_ledger,
+)
+from pipelines.cli import build_parser as build_cli_parser
+from pipelines.cli import main
+from pipelines.deploy import build_parser, nightly_parameters, write_example_mine
+from pipelines.flows import nightly_flow
+from pipelines.lake import scan_lake
+from pipelines.night_options import add_night_options
 from pipelines.nightly import find_new_files, nightly, watermarks
-from schemas.hoist import load_hoist
+from pipelines.steps import steps_of
+from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from sims.field_day import generate_field_day, write_field_day
-from warehouse.store import DataRoot
+from warehouse.store import DataRoot, open_reader
 
 
 @pytest.fixture(scope="module")
@@ -116,3 +131,193 @@ def test_a_hoist_failing_its_ingest_does_not_hold_up_the_others_and_heals(site):
         "paper-field-test/shaft-2/2026-03-02",
         "paper-field-test/shaft-2/2026-03-03",
     ]
+
+
+# ------------------------------------------- ordinary data never fail a night (issue 15)
+
+MIDNIGHT = dt.datetime(2026, 3, 3, tzinfo=dt.UTC)
+
+
+@pytest.fixture(scope="module")
+def midnight_mine(tmp_path_factory) -> tuple[Path, Path]:
+    """One hoist, a 10 Hz logger, three trips 150 s apart from 23:56:40Z: trip 0 on
+    2026-03-02, trip 1 across UTC midnight (moving 23:59:20Z .. 00:00:53Z), and the
+    record ends at 00:02:40Z, 50 s into trip 2's motion."""
+    root = tmp_path_factory.mktemp("midnight-mine")
+    hoist_dir, incoming = root / "hoists", root / "incoming"
+    hoist_dir.mkdir()
+    path = hoist_dir / "main-shaft.toml"
+    path.write_text(EXAMPLE_HOIST.read_text(encoding="utf-8"))
+    hoist = load_hoist(path)
+    start = MIDNIGHT - dt.timedelta(minutes=3, seconds=20)  # 07:56:40 in Asia/Shanghai
+    local_hours = 8.0 - (3 * 60 + 20) / 3600
+    day = generate_field_day(
+        hoist, date="2026-03-03", seed=11, trips=3, hours=3 * 150 / 3600,
+        start_hour=local_hours, sample_rate_hz=10.0, loading_s=5.0, rest_after_s=20.0,
+        oil_temp_c=(30.0, 31.0),
+    )  # fmt: skip
+    assert abs(day.sensors["time_utc"].min() - start) < dt.timedelta(seconds=0.01)  # jitter
+    cut = dataclasses.replace(
+        day, sensors=day.sensors.filter(pl.col("time_utc") < start + dt.timedelta(seconds=360))
+    )
+    target = incoming / hoist.hoist.site / hoist.hoist.name
+    for written in write_field_day(cut, target, formats=("csv",)):
+        if written.suffix != ".csv":
+            written.unlink()
+    return hoist_dir, incoming
+
+
+@pytest.fixture
+def midnight(midnight_mine, tmp_path) -> tuple[Path, Path, DataRoot]:
+    hoists, incoming = midnight_mine
+    shutil.copytree(hoists, tmp_path / "hoists")
+    shutil.copytree(incoming, tmp_path / "incoming")
+    return tmp_path / "hoists", tmp_path / "incoming", DataRoot.resolve(tmp_path / "data")
+
+
+def _runs(data: DataRoot) -> list[tuple]:
+    con = open_reader(data)
+    try:
+        return con.sql("SELECT * FROM runs ORDER BY run_id").fetchall()
+    finally:
+        con.close()
+
+
+def _lake_files(data: DataRoot) -> dict[str, tuple[int, int]]:
+    return {
+        str(p.relative_to(data.path)): (p.stat().st_size, p.stat().st_mtime_ns)
+        for p in sorted((data.path / "lake").rglob("*.parquet"))
+    }
+
+
+def test_a_trip_across_midnight_and_a_record_ending_mid_trip_are_a_done_night(midnight, capsys):
+    hoists, incoming, data = midnight
+    argv = ["nightly", "--hoists", str(hoists), "--incoming", str(incoming),
+            "--data", str(data.path), "--no-progress"]  # fmt: skip
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "2 partitions: 2 run, 0 already done, 0 without data, 0 failed" in out
+    assert "sanity checks: 2/2 trips passed" in out
+    assert "findings" not in out
+    ledger = partition_ledger(data)
+    assert ledger.select("day", "status").rows() == [
+        (dt.date(2026, 3, 2), "succeeded"),
+        (dt.date(2026, 3, 3), "succeeded"),
+    ]
+    # the tensions of both days are landed
+    lake = scan_lake(data, "rope_tensions", site="paper-field-test", hoist="main-shaft")
+    tensions = lake.select("time_utc").collect()["time_utc"]
+    assert tensions.min() < MIDNIGHT < tensions.max()
+    # per trip, under each day's run: the trip that crossed midnight is checked whole on
+    # the day it started; the trip the record cuts is checked for what is logged
+    con = open_reader(data)
+    try:
+        checks = con.sql(
+            "SELECT r.period_start_utc, c.trip_id, c.status, c.message FROM sanity_checks c "
+            "JOIN runs r USING (run_id) ORDER BY 1"
+        ).fetchall()
+        steps = con.sql(
+            "SELECT s.step, s.status, s.message FROM run_steps s JOIN runs r USING (run_id) "
+            "WHERE s.step = 'sanity_check' ORDER BY r.period_start_utc"
+        ).fetchall()
+    finally:
+        con.close()
+    assert [(start.date(), trip, status) for start, trip, status, _ in checks] == [
+        (dt.date(2026, 3, 2), 1, "passed"),
+        (dt.date(2026, 3, 3), 2, "passed"),
+    ]
+    assert "cut by the end of the record" in checks[1][3]
+    assert steps == [("sanity_check", "done", "1 of 1 trips passed")] * 2
+    # the next night: nothing is new, nothing is recomputed
+    runs, files, prints = _runs(data), _lake_files(data), fingerprint(data)
+    assert main(argv) == 0
+    assert "0 partitions" in capsys.readouterr().out
+    assert _runs(data) == runs
+    assert _lake_files(data) == files
+    assert fingerprint(data) == prints
+
+
+def test_a_failed_sanity_check_is_a_finding_and_its_day_is_not_recomputed(midnight):
+    """A check that fails (here: an impossible limit) is landed as the day's finding;
+    the ledger counts the day done. A day whose check is missing gets only the check."""
+    hoists, incoming, data = midnight
+    sources = load_hoists(hoists, data=data, incoming=incoming)
+    assert nightly(sources, data=data, sanity=False).ok
+    runs = _runs(data)
+    day2, day3 = [r for r in partition_ledger(data).iter_rows(named=True)]
+    outcome = check_sanity(
+        hoist_path=sources[0].path, data=data, run_id=day3["run_id"],
+        start=MIDNIGHT, end=MIDNIGHT + dt.timedelta(days=1), threshold=1.0,
+    )  # fmt: skip
+    assert outcome.step.status == "failed"
+    assert outcome.step.message == "ValueError: threshold must exceed 1 (the noise alone gives 1)"
+    assert steps_of(data, [day3["run_id"]]).select("step", "status").rows() == [
+        ("sanity_check", "failed")
+    ]
+    night = nightly(sources, data=data)
+    assert night.ok, str(night)
+    # 2026-03-03 stays done; 2026-03-02 gets its check, not a new run
+    assert [(o.key, o.status, o.run_id) for o in night.runs.outcomes] == [
+        ("paper-field-test/main-shaft/2026-03-02", "succeeded", day2["run_id"])
+    ]
+    assert night.runs.outcomes[0].message.startswith("compensation already landed")
+    assert night.runs.outcomes[0].checks == 1
+    assert _runs(data) == runs
+    assert nightly(sources, data=data).runs.outcomes == []
+
+
+def test_unclaimed_incoming_folders_and_hoists_without_data_are_named(tmp_path, capsys):
+    hoists, incoming = tmp_path / "hoists", tmp_path / "incoming"
+    hoists.mkdir()
+    text = EXAMPLE_HOIST.read_text(encoding="utf-8")
+    (hoists / "a.toml").write_text(text.replace('name = "main-shaft"', 'name = "shaft-a"'))
+    (hoists / "b.toml").write_text(text.replace('name = "main-shaft"', 'name = "shaft-b"'))
+    (incoming / "paper-field-test" / "shaft-b").mkdir(parents=True)  # empty
+    (incoming / "paper-field-test" / "Shaft-A").mkdir()  # not the name of a.toml
+    (incoming / "other-site" / "x").mkdir(parents=True)
+    (incoming / "loose_20260302.csv").write_text("# site: s\n")
+    argv = ["nightly", "--hoists", str(hoists), "--incoming", str(incoming),
+            "--data", str(tmp_path / "data"), "--no-progress"]  # fmt: skip
+    assert main(argv) == 0
+    out = capsys.readouterr().out.splitlines()
+    expected = [
+        f"hoist paper-field-test/shaft-a (a.toml): no incoming folder "
+        f"{incoming / 'paper-field-test' / 'shaft-a'}",
+        f"hoist paper-field-test/shaft-b (b.toml): no raw files (CSV, TDMS) in "
+        f"{incoming / 'paper-field-test' / 'shaft-b'}",
+        f"incoming folder {incoming / 'other-site'}: no hoist description has "
+        "[hoist] site = 'other-site'; its logs are not read",
+        f"incoming folder {incoming / 'paper-field-test' / 'Shaft-A'}: no hoist description "
+        "claims it ([hoist] site = 'paper-field-test', name = 'Shaft-A'); its logs are not read",
+        f"incoming folder {incoming}: 1 raw file(s) outside any <site>/<hoist> folder; not read",
+    ]
+    for line in expected:
+        assert out.count(line) == 1, (line, out)
+
+
+def test_deploy_serve_and_pool_take_the_switches_of_nightly(tmp_path):
+    night = argparse.ArgumentParser()
+    add_night_options(night)
+    switches = {s for a in night._actions for s in a.option_strings} - {"-h", "--help"}
+    assert switches == {"--lookback-days", "--no-sanity"}
+    cli_nightly = build_cli_parser()._subparsers._group_actions[0].choices["nightly"]
+    for command in ("serve", "pool"):
+        sub = build_parser()._subparsers._group_actions[0].choices[command]
+        options = {s for a in sub._actions for s in a.option_strings}
+        assert switches <= options
+        assert switches <= {s for a in cli_nightly._actions for s in a.option_strings}
+    args = build_parser().parse_args(
+        ["serve", "--hoists", "h", "--data", "d", "--no-sanity", "--lookback-days", "7",
+         "--dask", "local", "--workers", "3"]
+    )  # fmt: skip
+    assert (args.no_sanity, args.lookback_days, args.dask, args.workers) == (True, 7, "local", 3)
+    params = nightly_parameters(
+        hoists="h", data="d", lookback_days=args.lookback_days, sanity=not args.no_sanity
+    )
+    assert (params["lookback_days"], params["sanity"]) == (7, False)
+    # the deployment's parameters are the flow's
+    assert set(params) <= set(inspect.signature(nightly_flow.fn).parameters)
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(
+            ["serve", "--hoists", "h", "--data", "d", "--lookback-days", "-1"]
+        )

@@ -256,12 +256,17 @@ def period_series(
     names = lazy.collect_schema().names()
     band = "load_lo_n" in names and "load_hi_n" in names
     tensions = [pl.col(f"tension{i}_n") for i in ROPES]
-    mean = pl.mean_horizontal(tensions)
-    payload = _payload_expr(trips)
-    expected = pl.when(pl.col("trip_id").is_not_null()).then(
-        expected_load_expr(hoist, payload_kg=payload)
-    )
-    steady = pl.col("trip_id").is_not_null() & pl.col("phase").is_in(list(STEADY_PHASES))
+    # computed once per sample (the columns below reuse them)
+    shared = [
+        pl.mean_horizontal(tensions).alias("_mean"),
+        pl.when(pl.col("trip_id").is_not_null())
+        .then(expected_load_expr(hoist, payload_kg=_payload_expr(trips)))
+        .alias("_expected"),
+        (pl.col("trip_id").is_not_null() & pl.col("phase").is_in(list(STEADY_PHASES))).alias(
+            "_steady"
+        ),
+    ]
+    mean, expected, steady = pl.col("_mean"), pl.col("_expected"), pl.col("_steady")
     f32 = pl.Float32
     columns = [
         pl.col("time_utc").dt.epoch("us").alias("t"),
@@ -293,10 +298,12 @@ def period_series(
     table = (
         lazy.with_columns(pl.col("time_utc").dt.convert_time_zone("UTC"))
         .filter((pl.col("time_utc") >= start_utc) & (pl.col("time_utc") < end_utc))
+        .with_columns(shared)
         .select(columns)
-        .sort("t")
         .collect()
     )
+    if not table["t"].is_sorted():  # the lake and a run's frame are already in time order
+        table = table.sort("t")
     out = PeriodSeries(start_utc=start_utc, end_utc=end_utc, samples=table.height)
     if table.height == 0:
         return out

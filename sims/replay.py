@@ -30,6 +30,15 @@ payload, oil temperature -- and these come from the log itself:
     through the pressure dependence of the seal friction, so a second pass leaves
     < 0.1 % of the first correction) and the trips re-simulated.
 
+Records are cut anywhere (a logger stops mid-trip, a day ends at UTC midnight), and a
+replay never crashes on that: a trip the record starts or ends in is completed by the
+winder profile fitted to its logged depth (:func:`sims.trips.fit_cut_trip`) and marked
+``cut``; cut at its end it is simulated and scored up to the record's end, cut at its
+start it is simulated from rest before the record and only loads the seals' state. A
+trip that cannot be prepared is listed in ``ReplayPlan.skipped`` with the reason, one
+the simulation refuses gets its reason in ``ReplayResult.trip_messages``. A load change
+after the last stop (loading for a trip the record does not hold) ends the last window.
+
 Long records are analysed on at most ``max_trips`` trips in ``blocks`` blocks of
 consecutive trips spread evenly over the record (temperature and payload ranges
 covered, simulation cost bounded: ~0.2 s per 2-minute trip at ``dt_s = 2 ms``).

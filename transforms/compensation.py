@@ -76,6 +76,7 @@ from transforms.oil import (
     effective_bulk_modulus_at,
     kinematic_viscosity,
 )
+from transforms.piston_motion import share_out_common_motion
 from transforms.pressure_loss import (
     RE_LAMINAR,
     _branch_constants,
@@ -622,27 +623,47 @@ def compensate(
     gap_s = settings.gap_factor * dt_nominal
     no_array = np.zeros(1)
 
+    zeros = np.zeros(n)
     deadband = settings.displacement_deadband_m
     if deadband < 0:
         raise ValueError(f"displacement_deadband_m must be >= 0, got {deadband}")
 
+    def smoothed_logged(k: int) -> np.ndarray | None:
+        """Rope k's logged displacement, smoothed and played (None without a logged x)."""
+        has_x, _, (long_segment, long_bounds) = motion_job.result()
+        if not has_x:
+            return None
+        # the result is a per-thread work array: copied before the thread reuses it
+        return _differential_one(
+            x_jobs[k].result(), zeros, long_segment, long_bounds, settings, buffer=buffer
+        ).copy()
+
+    def piston_motion() -> tuple[np.ndarray, ...]:
+        """Each piston's displacement: the common mode shared out by the logged motion."""
+        logged = [job.result() for job in smooth_jobs]
+        if any(d is None for d in logged):
+            common = common_mode.result()
+            return tuple(common for _ in ROPES)  # shared by the ropes: not overwritten
+        common = common_mode.result()
+        return share_out_common_motion(
+            common, tuple(logged), segment, elastic_half_width_m=elastic_half_width(common)
+        )
+
+    def elastic_half_width(common: np.ndarray) -> float:
+        """n F_s / sigma_0 at the record's median pressure: the presliding range of the sum."""
+        if mode == 0 or not law.bristle_stiffness_n_m > 0:
+            return 0.0
+        p_typical = float(np.nanmedian(p_mean))  # set before the common mode
+        static = _linear_law(coefficients, floors, 1, p_typical if np.isfinite(p_typical) else 0.0)
+        return len(ROPES) * static / float(law.bristle_stiffness_n_m)
+
     def rope(k: int) -> dict[str, np.ndarray]:
         """Tensions of rope k; its inputs are futures of the jobs queued before it."""
         i = ROPES[k]
-        has_x, x_mean, (long_segment, long_bounds) = motion_job.result()
-        # two work arrays per thread, each reused once its content is consumed:
-        # work_a: raw difference -> differential -> branch velocity;
-        # work_b: smoothed difference -> estimate -> played (in place)
+        has_x = motion_job.result()[0]
         played = buffer("work_b", n)
-        if has_x:
-            # the differential part does not wait for the common mode
-            differential = _differential_one(
-                x_jobs[k].result(), x_mean, long_segment, long_bounds, settings, buffer=buffer
-            )
-            estimate = np.add(common_mode.result(), differential, out=played)
-        else:
-            estimate = common_mode.result()  # shared by the ropes: not overwritten
-        # transforms.filtering.play_operator (in place is safe: sample i is read first)
+        estimate = motion_share.result()[k]
+        # transforms.filtering.play_operator (the estimate is not overwritten)
         _play_kernel(estimate, segment, deadband, played)
         p_sensor = np.ascontiguousarray(p_jobs[k].result())
         nu = nu_job.result()
@@ -717,6 +738,8 @@ def compensate(
         x_jobs = [pool.submit(displacement, c) for c in x_cols]
         nu_job = pool.submit(_viscosity, t_oil, hoist)
         motion_job = pool.submit(lambda: logged_motion([job.result() for job in x_jobs]))
+        smooth_jobs = [pool.submit(smoothed_logged, k) for k in range(len(ROPES))]
+        motion_share = pool.submit(piston_motion)
         rope_jobs = [pool.submit(rope, k) for k in range(len(ROPES))]
         try:
             # NaN stands for null from here on (the frame version filled NaN with null)

@@ -1,0 +1,167 @@
+r"""Each piston's motion from the closed oil volume and the logged displacements (issue 13).
+
+The seal friction of a piston depends on the history of *its own* motion (paper eq 15:
+the bristle state follows the piston's increments), so the compensation needs each
+piston's displacement, not just the four pistons' mean. Two observables carry it:
+
+- the oil: the chambers, pipes and manifold are one closed volume V, so the *sum* of the
+  four displacements follows the common pressure, A sum_i dx_i = V dp / beta_e(p)
+  (NOTES.md; :func:`transforms.compensation.common_mode_displacement` gives the per-piston
+  mean). With 5 kPa of pressure noise that is a micrometre-class sensor of the sum,
+  fast;
+- the logged x_i: each piston's own position, but to a 0.1 mm step with ~0.02 mm of
+  noise, so only its slow, millimetre-scale part is usable (Gaussian-smoothed, then a
+  play operator of three noise sigmas, as :func:`transforms.compensation._differential_one`
+  computes it).
+
+How the sum is shared out is the crux. A real hoist's pistons stick and slip: at a
+payload change at rest one piston usually slides millimetres while the others stick
+(micrometres of presliding), and on a trip the piston with the least friction margin
+slides while the rest hold. Splitting the fast sum equally and correcting the split
+later with the slow logged difference (the first wave's estimate) makes the sticking
+pistons go one way and come back: their friction changes sign, the error of a stop
+after a payload change grows from ~6 % to ~8 % (issue 13). A Gaussian smoother or a
+Kalman/RTS smoother with random-walk pistons does the same: their minimum-energy
+allocation spreads the correction over time, which is a reversal for a piston that
+never moved. Stick-slip motion is *sparse* per piston.
+
+So the fast increments of the sum go to the pistons the logged record shows moving
+*at that time*, in proportion to how fast they move (sliding weights), and the logged
+motion that the sum does not explain (pistons exchanging oil through the manifold while
+the sum stays put) is kept as it is:
+
+.. math::
+    u_{i,t} = \Delta D_{i,t} + w_{i,t} \bigl(\Delta S_t - \sum_j \Delta D_{j,t}\bigr),
+    \qquad w_{i,t} = \frac{|\Delta D_{i,t}| + \epsilon}{\sum_j (|\Delta D_{j,t}| + \epsilon)}
+
+with D_i the smoothed, played logged position, S the pressure-derived sum and epsilon a
+floor that makes the split equal when nothing is seen moving (all pistons stuck: each
+takes a quarter of the presliding, as elastic bristles of equal stiffness do). By
+construction sum_i u_i = Delta S exactly (the oil is conserved), a piston whose
+smoothed record does not move gets no share of the sum (no reversal), and where the
+logged motion and the sum agree the estimate is the logged motion itself. Without a
+logged x every piston takes a quarter of the sum, as before.
+
+What it cannot do: tell which piston slid when the motion is below the play band
+(a tenth of a millimetre): the compensation's uncertainty band covers that case
+(:mod:`transforms.uncertainty`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["share_out_common_motion"]
+
+
+def share_out_common_motion(
+    common_m: np.ndarray,
+    logged: tuple[np.ndarray, ...],
+    segment_id: np.ndarray,
+    *,
+    elastic_half_width_m: float = 0.0,
+    floor_m: float = 1e-9,
+) -> tuple[np.ndarray, ...]:
+    """Per-piston displacement estimates [m] from the common mode and the logged motion.
+
+    Parameters
+    ----------
+    common_m : ndarray
+        Mean piston displacement from the closed oil volume [m] (per sample, restarting
+        at segment starts; :func:`transforms.compensation.common_mode_displacement`).
+    logged : tuple of ndarray
+        Smoothed and played logged displacement of each piston [m] (NaN where unknown).
+    segment_id : ndarray of int
+        Gap-free segment of each sample; the estimates restart at the logged value.
+    elastic_half_width_m : float
+        Half-width h of the play operator on the sum [m]: motion of the sum within
+        +-h of its last turning point is elastic (presliding of every seal, shared
+        equally); only motion beyond it is shared out by the sliding weights. The
+        presliding range of n seals, n F_s / sigma_0 (the hoist's bristle stiffness).
+    floor_m : float
+        epsilon of the sliding weights [m per sample]: below it a piston counts as not
+        seen moving.
+
+    Returns
+    -------
+    tuple of ndarray
+        One displacement per piston; their increments sum to n x the common mode's.
+
+    Examples
+    --------
+    A payload change at rest that one piston of four takes alone: the sum of the
+    increments (4 x 0.5 mm) goes to piston 1, the others stay put.
+
+    >>> import numpy as np
+    >>> common = np.array([0.0, 0.0, 0.5e-3, 0.5e-3])
+    >>> x1 = np.array([0.0, 1e-3, 2e-3, 2e-3])  # the smoothed record leads the step
+    >>> still = np.zeros(4)
+    >>> out = share_out_common_motion(common, (x1, still, still, still), np.zeros(4, int))
+    >>> [round(float(v) * 1e3, 3) for v in out[0]], [abs(round(float(v) * 1e3, 3)) for v in out[1]]
+    ([0.0, 0.0, 2.0, 2.0], [0.0, 0.0, 0.0, 0.0])
+    """
+    n = common_m.shape[0]
+    m = len(logged)
+    stacked = np.empty((m, n))
+    for k, values in enumerate(logged):
+        stacked[k] = values
+    out = np.empty((m, n))
+    if n:
+        _share_kernel(
+            np.ascontiguousarray(common_m, dtype=np.float64),
+            stacked,
+            np.ascontiguousarray(segment_id, dtype=np.int64),
+            float(elastic_half_width_m),
+            float(floor_m),
+            out,
+        )
+    return tuple(out[k] for k in range(m))
+
+
+@njit(cache=True, nogil=True)
+def _share_kernel(common, logged, segment, half_width, floor, out):  # pragma: no cover - numba
+    """u_i = dD_i + w_i (dY - sum_j dD_j) + dE / m, w_i ∝ |dD_i| + floor (module docstring).
+
+    S = m x the common mode; Y = play(S, half_width) its sliding part, E = S - Y its
+    elastic part. A NaN logged increment counts as 0 (the piston is not seen moving);
+    each segment starts at the logged value (0 if unknown).
+    """
+    m, n = logged.shape
+    weights = np.empty(m)
+    increments = np.empty(m)
+    slide = 0.0
+    elastic = 0.0
+    for t in range(n):
+        total = m * common[t]
+        if t == 0 or segment[t] != segment[t - 1]:
+            slide = total if np.isfinite(total) else 0.0
+            elastic = 0.0
+            for i in range(m):
+                value = logged[i, t]
+                out[i, t] = value if np.isfinite(value) else 0.0
+            continue
+        slide_before, elastic_before = slide, elastic
+        if np.isfinite(total):
+            if total > slide + half_width:
+                slide = total - half_width
+            elif total < slide - half_width:
+                slide = total + half_width
+            elastic = total - slide
+        d_sum = slide - slide_before
+        d_elastic = (elastic - elastic_before) / m
+        logged_sum = 0.0
+        weight_sum = 0.0
+        for i in range(m):
+            d = logged[i, t] - logged[i, t - 1]
+            if not np.isfinite(d):
+                d = 0.0
+            increments[i] = d
+            logged_sum += d
+            weights[i] = abs(d) + floor
+            weight_sum += weights[i]
+        unexplained = d_sum - logged_sum
+        for i in range(m):
+            out[i, t] = (
+                out[i, t - 1] + increments[i] + weights[i] / weight_sum * unexplained + d_elastic
+            )

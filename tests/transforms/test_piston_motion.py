@@ -60,12 +60,12 @@ def test_an_oscillation_inside_the_presliding_range_is_shared_equally():
     x = share_out_common_motion(
         total / 4, logged, np.zeros(n, dtype=np.int64), elastic_half_width_m=0.2e-3
     )
-    # the elastic part goes a quarter to each piston (to under a micrometre: the
+    # the elastic part goes a quarter to each piston (to two micrometres of a 1 mm drift: the
     # weights' floor leaks a little); piston 1's logged drift is not the oil's (the sum
     # did not move), so the oil overrules it
     assert np.std(total / 4) > 5e-6
     for k in range(4):
-        np.testing.assert_allclose(x[k], total / 4, atol=1e-6)
+        np.testing.assert_allclose(x[k], total / 4, atol=2e-6)
 
 
 def test_nothing_seen_moving_splits_the_sum_equally_and_gaps_restart():

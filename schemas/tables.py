@@ -168,9 +168,14 @@ ROPE_TENSIONS = _schema(
         *_per_rope("tension{i}_n", pa.float64()),
         pa.field("load_raw_n", pa.float64()),
         pa.field("load_n", pa.float64()),
+        *_per_rope("tension{i}_lo_n", pa.float64()),
+        *_per_rope("tension{i}_hi_n", pa.float64()),
+        pa.field("load_lo_n", pa.float64()),
+        pa.field("load_hi_n", pa.float64()),
     ],
     "one row per sample after filtering and compensation; raw = p x A_bore (paper eq 2 "
-    "without corrections)",
+    "without corrections); *_lo_n / *_hi_n: the 95 % band of the compensated value "
+    "(transforms.uncertainty; null in partitions landed before the band existed)",
 )
 
 #: Paper Table 2 shape: one row per trip and hoist position.

@@ -82,6 +82,7 @@ from transforms.pressure_loss import (
     _branch_constants,
     sensor_minus_chamber_pa,
 )
+from transforms.uncertainty import load_band, rope_band
 
 __all__ = [
     "CompensationSettings",
@@ -126,6 +127,11 @@ class CompensationSettings:
     displacement_deadband_m : float
         Half-width of the play operator on the estimated piston displacement [m]: the
         residual noise of the estimate, well inside the seal's presliding range.
+    friction_relative_sigma : float
+        Relative standard uncertainty of the hoist's calibrated friction law, for the
+        95 % band (:mod:`transforms.uncertainty`).
+    pressure_sigma_pa : float
+        White noise of a raw pressure reading [Pa] (1 sigma), for the band.
     """
 
     sample_rate_hz: float | None = None
@@ -137,6 +143,8 @@ class CompensationSettings:
     differential_cutoff_hz: float = 0.1
     differential_bridge_s: float = 120.0
     displacement_deadband_m: float = 5e-6
+    friction_relative_sigma: float = 0.10
+    pressure_sigma_pa: float = 5e3
 
 
 def _rope_cols(template: str) -> list[str]:
@@ -624,6 +632,13 @@ def compensate(
     no_array = np.zeros(1)
 
     zeros = np.zeros(n)
+    # the sensor's noise after the low-pass, as a force on the piston (the band)
+    pressure_noise_n = (
+        settings.pressure_sigma_pa
+        * np.sqrt(min(1.0, 2.0 * settings.pressure_cutoff_hz / rate_hz))
+        * hoist.cylinders.bore_area_m2
+    )
+    band_gaussian: dict[int, np.ndarray] = {}
     deadband = settings.displacement_deadband_m
     if deadband < 0:
         raise ValueError(f"displacement_deadband_m must be >= 0, got {deadband}")
@@ -638,31 +653,38 @@ def compensate(
             x_jobs[k].result(), zeros, long_segment, long_bounds, settings, buffer=buffer
         ).copy()
 
-    def piston_motion() -> tuple[np.ndarray, ...]:
-        """Each piston's displacement: the common mode shared out by the logged motion."""
+    def piston_motion() -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+        """Each piston's displacement (the common mode shared out by the logged motion)
+        and its blind motion since last seen sliding (:mod:`transforms.piston_motion`)."""
         logged = [job.result() for job in smooth_jobs]
-        if any(d is None for d in logged):
-            common = common_mode.result()
-            return tuple(common for _ in ROPES)  # shared by the ropes: not overwritten
         common = common_mode.result()
+        if any(d is None for d in logged):
+            never_seen = np.full(n, np.inf)  # pressure only: no piston is seen sliding
+            # shared by the ropes: not overwritten
+            return tuple(common for _ in ROPES), tuple(never_seen for _ in ROPES)
         return share_out_common_motion(
-            common, tuple(logged), segment, elastic_half_width_m=elastic_half_width(common)
+            common,
+            tuple(logged),
+            segment,
+            elastic_half_width_m=len(ROPES) * presliding_range_m(),
+            # from any state, a seal saturates once it has moved 2 F_s / sigma_0
+            seen_reset_m=2.0 * presliding_range_m(),
         )
 
-    def elastic_half_width(common: np.ndarray) -> float:
-        """n F_s / sigma_0 at the record's median pressure: the presliding range of the sum."""
+    def presliding_range_m() -> float:
+        """F_s / sigma_0 at the record's median pressure: one seal's presliding range."""
         if mode == 0 or not law.bristle_stiffness_n_m > 0:
             return 0.0
         p_typical = float(np.nanmedian(p_mean))  # set before the common mode
         static = _linear_law(coefficients, floors, 1, p_typical if np.isfinite(p_typical) else 0.0)
-        return len(ROPES) * static / float(law.bristle_stiffness_n_m)
+        return static / float(law.bristle_stiffness_n_m)
 
     def rope(k: int) -> dict[str, np.ndarray]:
         """Tensions of rope k; its inputs are futures of the jobs queued before it."""
         i = ROPES[k]
         has_x = motion_job.result()[0]
         played = buffer("work_b", n)
-        estimate = motion_share.result()[k]
+        estimate = motion_share.result()[0][k]
         # transforms.filtering.play_operator (the estimate is not overwritten)
         _play_kernel(estimate, segment, deadband, played)
         p_sensor = np.ascontiguousarray(p_jobs[k].result())
@@ -717,11 +739,23 @@ def compensate(
                 v_known[flowing], hoist, nu_m2_s=nu if np.ndim(nu) == 0 else nu[flowing]
             )
             run(0, loss)
+        lo, hi, gaussian = rope_band(
+            out["tension"],
+            out["friction"] if mode != 0 else np.zeros(n),
+            out["p_chamber"],
+            motion_share.result()[1][k],
+            static_law_n=tuple(law.static_n) if mode != 0 else (0.0, 0.0),
+            bristle_stiffness_n_m=float(law.bristle_stiffness_n_m) if mode != 0 else 0.0,
+            gaussian_sigma_n=(settings.friction_relative_sigma, pressure_noise_n),
+        )
+        band_gaussian[k] = gaussian
         return {
             f"p_chamber{i}_pa": out["p_chamber"],
             f"friction{i}_n": out["friction"],
             f"tension_raw{i}_n": out["tension_raw"],
             f"tension{i}_n": out["tension"],
+            f"tension{i}_lo_n": lo,
+            f"tension{i}_hi_n": hi,
         }
 
     # One pool for the whole computation; every job waits only for jobs queued before it
@@ -763,6 +797,14 @@ def compensate(
         load,
     )
 
+    load_lo, load_hi = load_band(
+        load,
+        [columns[c] for c in _rope_cols("tension{i}_lo_n")],
+        [columns[c] for c in _rope_cols("tension{i}_hi_n")],
+        [columns[c] for c in _rope_cols("tension{i}_n")],
+        [band_gaussian[k] for k in range(len(ROPES))],
+    )
+
     def nullable(name: str, values: np.ndarray) -> pl.Series:
         series = pl.Series(name, values, dtype=pl.Float64)
         return series.fill_nan(None) if np.isnan(values).any() else series
@@ -775,9 +817,20 @@ def compensate(
         "acceleration_up_m_s2": nullable("acceleration_up_m_s2", np.negative(accel, out=accel)),
         **labels,
         **{c: nullable(c, v) for c, v in zip(p_cols, pressures, strict=True)},
-        **{name: pl.Series(name, values, dtype=pl.Float64) for name, values in columns.items()},
+        **{
+            name: nullable(name, values)
+            for name, values in columns.items()
+            if "_lo_" in name or "_hi_" in name
+        },
+        **{
+            name: pl.Series(name, values, dtype=pl.Float64)
+            for name, values in columns.items()
+            if not ("_lo_" in name or "_hi_" in name)
+        },
         "load_raw_n": pl.Series("load_raw_n", load_raw, dtype=pl.Float64),
         "load_n": pl.Series("load_n", load, dtype=pl.Float64),
+        "load_lo_n": nullable("load_lo_n", load_lo),
+        "load_hi_n": nullable("load_hi_n", load_hi),
     }
     result = pl.DataFrame([out[name] for name in _OUTPUT_SCHEMA])
     if result.schema != _OUTPUT_SCHEMA:

@@ -61,8 +61,10 @@ def share_out_common_motion(
     segment_id: np.ndarray,
     *,
     elastic_half_width_m: float = 0.0,
+    seen_reset_m: float = np.inf,
+    blind_deadband_m: float = 2e-6,
     floor_m: float = 1e-9,
-) -> tuple[np.ndarray, ...]:
+) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
     """Per-piston displacement estimates [m] from the common mode and the logged motion.
 
     Parameters
@@ -79,14 +81,30 @@ def share_out_common_motion(
         +-h of its last turning point is elastic (presliding of every seal, shared
         equally); only motion beyond it is shared out by the sliding weights. The
         presliding range of n seals, n F_s / sigma_0 (the hoist's bristle stiffness).
+    seen_reset_m : float
+        A piston whose motion *seen* in the logged record (since the last reset) exceeds
+        this [m] has slid through its presliding range: its friction state is known
+        (up to the law's own uncertainty) and its blind motion restarts at 0. The
+        presliding range F_s / sigma_0.
+    blind_deadband_m : float
+        Half-width of a play operator on each piston's blind motion before its path
+        length is summed [m]: the pressure noise's nanometres do not add up, a ringing
+        hoist's tens of micrometres of oscillation do (they shake the seals).
     floor_m : float
         epsilon of the sliding weights [m per sample]: below it a piston counts as not
         seen moving.
 
     Returns
     -------
-    tuple of ndarray
-        One displacement per piston; their increments sum to n x the common mode's.
+    (displacements, blind) : tuple of tuple of ndarray
+        One displacement per piston [m], their increments summing to n x the common
+        mode's; and per piston the path length of its *blind* motion [m] since it was
+        last seen sliding (back and forth both count): the part that came from the oil
+        alone (the elastic share, or an equal split when no piston was seen moving),
+        which the logged record could not attribute. It is infinite until the piston
+        is first seen sliding (the friction state at the start of a record is
+        unknown). The uncertainty band (:mod:`transforms.uncertainty`) turns it into a
+        friction range.
 
     Examples
     --------
@@ -97,7 +115,7 @@ def share_out_common_motion(
     >>> common = np.array([0.0, 0.0, 0.5e-3, 0.5e-3])
     >>> x1 = np.array([0.0, 1e-3, 2e-3, 2e-3])  # the smoothed record leads the step
     >>> still = np.zeros(4)
-    >>> out = share_out_common_motion(common, (x1, still, still, still), np.zeros(4, int))
+    >>> out, _ = share_out_common_motion(common, (x1, still, still, still), np.zeros(4, int))
     >>> [round(float(v) * 1e3, 3) for v in out[0]], [abs(round(float(v) * 1e3, 3)) for v in out[1]]
     ([0.0, 0.0, 2.0, 2.0], [0.0, 0.0, 0.0, 0.0])
     """
@@ -107,29 +125,41 @@ def share_out_common_motion(
     for k, values in enumerate(logged):
         stacked[k] = values
     out = np.empty((m, n))
+    blind = np.empty((m, n))
     if n:
         _share_kernel(
             np.ascontiguousarray(common_m, dtype=np.float64),
             stacked,
             np.ascontiguousarray(segment_id, dtype=np.int64),
             float(elastic_half_width_m),
+            float(seen_reset_m),
+            float(blind_deadband_m),
             float(floor_m),
             out,
+            blind,
         )
-    return tuple(out[k] for k in range(m))
+    return tuple(out[k] for k in range(m)), tuple(blind[k] for k in range(m))
 
 
 @njit(cache=True, nogil=True)
-def _share_kernel(common, logged, segment, half_width, floor, out):  # pragma: no cover - numba
+def _share_kernel(
+    common, logged, segment, half_width, seen_reset, deadband, floor, out, blind
+):  # pragma: no cover - numba
     """u_i = dD_i + w_i (dY - sum_j dD_j) + dE / m, w_i ∝ |dD_i| + floor (module docstring).
 
     S = m x the common mode; Y = play(S, half_width) its sliding part, E = S - Y its
     elastic part. A NaN logged increment counts as 0 (the piston is not seen moving);
-    each segment starts at the logged value (0 if unknown).
+    each segment starts at the logged value (0 if unknown). ``blind``: path length of
+    play(net blind motion, deadband) since the piston's seen motion last exceeded
+    ``seen_reset`` (inf before).
     """
     m, n = logged.shape
     weights = np.empty(m)
     increments = np.empty(m)
+    seen = np.zeros(m)
+    unseen = np.zeros(m)
+    played = np.zeros(m)
+    path = np.full(m, np.inf)
     slide = 0.0
     elastic = 0.0
     for t in range(n):
@@ -140,6 +170,7 @@ def _share_kernel(common, logged, segment, half_width, floor, out):  # pragma: n
             for i in range(m):
                 value = logged[i, t]
                 out[i, t] = value if np.isfinite(value) else 0.0
+                blind[i, t] = path[i]
             continue
         slide_before, elastic_before = slide, elastic
         if np.isfinite(total):
@@ -161,7 +192,21 @@ def _share_kernel(common, logged, segment, half_width, floor, out):  # pragma: n
             weights[i] = abs(d) + floor
             weight_sum += weights[i]
         unexplained = d_sum - logged_sum
+        informed = weight_sum > m * floor * (1.0 + 1e-9)  # some piston seen moving
         for i in range(m):
-            out[i, t] = (
-                out[i, t - 1] + increments[i] + weights[i] / weight_sum * unexplained + d_elastic
-            )
+            shared = weights[i] / weight_sum * unexplained
+            out[i, t] = out[i, t - 1] + increments[i] + shared + d_elastic
+            seen[i] += increments[i] + (shared if informed else 0.0)
+            unseen[i] += d_elastic + (0.0 if informed else shared)
+            if unseen[i] > played[i] + deadband:
+                path[i] += unseen[i] - deadband - played[i]
+                played[i] = unseen[i] - deadband
+            elif unseen[i] < played[i] - deadband:
+                path[i] += played[i] - deadband - unseen[i]
+                played[i] = unseen[i] + deadband
+            if abs(seen[i]) > seen_reset:
+                seen[i] = 0.0
+                unseen[i] = 0.0
+                played[i] = 0.0
+                path[i] = 0.0
+            blind[i, t] = path[i]

@@ -1,0 +1,179 @@
+"""A 95 % band for each compensated rope tension and for the load (issue 13).
+
+The compensated tension is T_i = p_chamber,i A + F_i (paper eq 2), with F_i the seal
+friction that the friction model (paper eq 15-17) gives for the estimated piston motion
+(:mod:`transforms.piston_motion`). Three things make it uncertain, and the band says by
+how much instead of guessing:
+
+1. **The friction state.** A piston's friction depends on its own motion since it last
+   slid. Where the logged record showed the piston sliding (more than its presliding
+   range F_s / sigma_0), the sign and level of its friction are known. Motion that only
+   the oil saw (the elastic share of the common motion, or an equal split when no
+   piston was seen moving) could have gone to any piston: its *blind* motion (path
+   length b_i, back and forth) moves the bristles by up to b_i, so the friction may lie
+   anywhere within +- sigma_0 b_i of the estimate, and never beyond the seal's static capacity
+   +-F_s(p) (eq 17). Until a piston is first seen sliding, its friction state is
+   unknown: the whole +-F_s. This part is a range, not a Gaussian: it is added whole.
+   A hoist that rings at rest shakes its seals (the oil sees the oscillation, the
+   logged x does not), so its friction range widens with the ringing, as it should:
+   the seals may have relaxed.
+2. **The friction law.** Calibrated on a rig (eq 17 lines), the law holds to a
+   relative standard uncertainty (``CompensationSettings.friction_relative_sigma``,
+   10 % by default): 1.96 x that x |F_i|.
+3. **The pressure sensor.** ``CompensationSettings.pressure_sigma_pa`` of white noise
+   on the raw reading, reduced by the low-pass to sigma x sqrt(2 f_c / f_s): 1.96 x that x A.
+
+Parts 2 and 3 are independent Gaussians (added in quadrature); part 1 is added to them.
+For the load, the friction ranges of the four pistons add (the same blind motion may
+have gone to any of them), and the Gaussian parts add in quadrature.
+
+Where x is not logged, no piston is ever seen sliding: the band is the seals' whole
+static range, the honest answer of a pressure-only record.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["Z95", "load_band", "rope_band"]
+
+#: Two-sided 95 % coverage factor of a normal distribution.
+Z95 = 1.959963984540054
+
+
+def rope_band(
+    tension_n: np.ndarray,
+    friction_n: np.ndarray,
+    p_chamber_pa: np.ndarray,
+    blind_m: np.ndarray,
+    *,
+    static_law_n: tuple[float, float],
+    bristle_stiffness_n_m: float,
+    gaussian_sigma_n: tuple[float, float],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """95 % band of one rope's tension (module docstring).
+
+    Parameters
+    ----------
+    tension_n, friction_n, p_chamber_pa : ndarray
+        The compensated tension, its seal friction and the chamber pressure per sample.
+    blind_m : ndarray
+        Path length of the piston's blind motion since it was last seen sliding [m]
+        (inf: never).
+    static_law_n : (float, float)
+        F_s = a + b p [N, N/Pa] (eq 17's static line).
+    bristle_stiffness_n_m : float
+        sigma_0 [N/m].
+    gaussian_sigma_n : (float, float)
+        (relative friction sigma, pressure-noise sigma x A [N]).
+
+    Returns
+    -------
+    (lo, hi, gaussian) : ndarray
+        The band's bounds [N] and its Gaussian standard uncertainty [N] (for the load
+        band).
+
+    Examples
+    --------
+    A piston seen sliding (blind motion 0): only the law and the sensor, 1.96 x
+    sqrt((0.1 x 1000)^2 + 20^2) = 199.9 N either side; one never seen: +- F_s more.
+
+    >>> import numpy as np
+    >>> lo, hi, _ = rope_band(
+    ...     np.array([30_000.0, 30_000.0]), np.array([1000.0, 1000.0]),
+    ...     np.full(2, 3e6), np.array([0.0, np.inf]),
+    ...     static_law_n=(1000.0, 2e-4), bristle_stiffness_n_m=3e7,
+    ...     gaussian_sigma_n=(0.1, 20.0))
+    >>> [round(float(v), 1) for v in hi - 30_000.0]
+    [199.9, 799.9]
+    >>> [round(float(v), 1) for v in 30_000.0 - lo]
+    [199.9, 2799.9]
+    """
+    n = tension_n.shape[0]
+    lo, hi, gaussian = np.empty(n), np.empty(n), np.empty(n)
+    _rope_band_kernel(
+        np.ascontiguousarray(tension_n, dtype=np.float64),
+        np.ascontiguousarray(friction_n, dtype=np.float64),
+        np.ascontiguousarray(p_chamber_pa, dtype=np.float64),
+        np.ascontiguousarray(blind_m, dtype=np.float64),
+        float(static_law_n[0]),
+        float(static_law_n[1]),
+        float(bristle_stiffness_n_m),
+        float(gaussian_sigma_n[0]),
+        float(gaussian_sigma_n[1]),
+        lo,
+        hi,
+        gaussian,
+    )
+    return lo, hi, gaussian
+
+
+@njit(cache=True, nogil=True)
+def _rope_band_kernel(
+    tension,
+    friction,
+    p_chamber,
+    blind,
+    static_a,
+    static_b,
+    sigma0,
+    rel,
+    p_noise,
+    lo,
+    hi,
+    gaussian,
+):  # pragma: no cover - numba
+    """Per sample: friction range [max(F - s0 b, -cap), min(F + s0 b, cap)] plus
+    1.96 x the Gaussian part; cap = max(F_s(p), |F|) (kinetic friction with its viscous
+    part can exceed F_s while sliding)."""
+    for t in range(tension.shape[0]):
+        f = friction[t]
+        p = p_chamber[t]
+        if not (np.isfinite(tension[t]) and np.isfinite(f) and np.isfinite(p)):
+            lo[t] = np.nan
+            hi[t] = np.nan
+            gaussian[t] = np.nan
+            continue
+        capacity = max(static_a + static_b * p, 0.0, abs(f))
+        reach = sigma0 * blind[t] if sigma0 > 0.0 else np.inf
+        f_lo = max(f - reach, -capacity)
+        f_hi = min(f + reach, capacity)
+        sigma = np.sqrt((rel * f) ** 2 + p_noise**2)
+        lo[t] = tension[t] - (f - f_lo) - Z95 * sigma
+        hi[t] = tension[t] + (f_hi - f) + Z95 * sigma
+        gaussian[t] = sigma
+
+
+def load_band(
+    load_n: np.ndarray,
+    rope_lo: list[np.ndarray],
+    rope_hi: list[np.ndarray],
+    rope_tension: list[np.ndarray],
+    rope_gaussian: list[np.ndarray],
+) -> tuple[np.ndarray, np.ndarray]:
+    """95 % band of the load: the ropes' friction ranges add, their Gaussian parts add
+    in quadrature (module docstring).
+
+    Examples
+    --------
+    Two ropes, each 100 N of range below and above and a 50 N Gaussian sigma:
+    200 + 1.96 x 50 sqrt(2) = 338.6 N either side of the load.
+
+    >>> import numpy as np
+    >>> t = [np.array([10_000.0]), np.array([10_000.0])]
+    >>> g = [np.array([50.0]), np.array([50.0])]
+    >>> half = 100.0 + 1.959963984540054 * 50.0
+    >>> lo, hi = load_band(np.array([20_000.0]), [x - half for x in t], [x + half for x in t], t, g)
+    >>> round(float(hi[0] - 20_000.0), 1), round(float(20_000.0 - lo[0]), 1)
+    (338.6, 338.6)
+    """
+    below = np.zeros_like(load_n)
+    above = np.zeros_like(load_n)
+    variance = np.zeros_like(load_n)
+    for lo, hi, tension, sigma in zip(rope_lo, rope_hi, rope_tension, rope_gaussian, strict=True):
+        below += tension - lo - Z95 * sigma
+        above += hi - tension - Z95 * sigma
+        variance += sigma**2
+    gaussian = Z95 * np.sqrt(variance)
+    return load_n - below - gaussian, load_n + above + gaussian

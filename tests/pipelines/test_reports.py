@@ -386,7 +386,22 @@ def test_demo_report_says_how_the_sanity_check_and_discovery_went(demo):
     passed = int(checks["passed"].sum())
     assert f"Sanity check: {passed} of {checks.height} trips passed." in html
     assert "Discovery: skipped: not needed: no trip failed the sanity check." in html
-    assert "no uncertainty band yet" in html.lower()
+
+
+def test_load_figure_draws_the_landed_95_percent_band(demo):
+    """The band (issue 13) lands beside the values, holds them and is drawn."""
+    data, _, html, _ = demo
+    outside = _sql(
+        data,
+        "SELECT count(*) AS n, count(load_after_lo_n) AS with_band FROM rope_tensions "
+        "WHERE NOT (load_after_lo_n <= load_after_n AND load_after_n <= load_after_hi_n "
+        "AND tension_after1_lo_n <= tension_after1_n "
+        "AND tension_after1_n <= tension_after1_hi_n)",
+    )
+    assert outside["n"][0] == 0
+    assert _sql(data, "SELECT count(load_after_lo_n) AS n FROM rope_tensions")["n"][0] > 0
+    assert "95 % band (after)" in html
+    assert "no uncertainty band yet" not in html.lower()
 
 
 # ----------------------------------------------------------- a failing sanity check

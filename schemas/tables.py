@@ -168,10 +168,11 @@ ROPE_TENSIONS = _schema(
         *_per_rope("tension{i}_n", pa.float64()),
         pa.field("load_raw_n", pa.float64()),
         pa.field("load_n", pa.float64()),
-        *_per_rope("tension{i}_lo_n", pa.float64()),
-        *_per_rope("tension{i}_hi_n", pa.float64()),
-        pa.field("load_lo_n", pa.float64()),
-        pa.field("load_hi_n", pa.float64()),
+        # the band in single precision: 7 digits are 0.01 N of a 100 kN load
+        *_per_rope("tension{i}_lo_n", pa.float32()),
+        *_per_rope("tension{i}_hi_n", pa.float32()),
+        pa.field("load_lo_n", pa.float32()),
+        pa.field("load_hi_n", pa.float32()),
     ],
     "one row per sample after filtering and compensation; raw = p x A_bore (paper eq 2 "
     "without corrections); *_lo_n / *_hi_n: the 95 % band of the compensated value "

@@ -638,7 +638,6 @@ def compensate(
         * np.sqrt(min(1.0, 2.0 * settings.pressure_cutoff_hz / rate_hz))
         * hoist.cylinders.bore_area_m2
     )
-    band_gaussian: dict[int, np.ndarray] = {}
     deadband = settings.displacement_deadband_m
     if deadband < 0:
         raise ValueError(f"displacement_deadband_m must be >= 0, got {deadband}")
@@ -666,6 +665,7 @@ def compensate(
             common,
             tuple(logged),
             segment,
+            overwrite_logged=True,  # the smoothed copies are this job's own
             elastic_half_width_m=len(ROPES) * presliding_range_m(),
             # from any state, a seal saturates once it has moved 2 F_s / sigma_0
             seen_reset_m=2.0 * presliding_range_m(),
@@ -739,16 +739,23 @@ def compensate(
                 v_known[flowing], hoist, nu_m2_s=nu if np.ndim(nu) == 0 else nu[flowing]
             )
             run(0, loss)
-        lo, hi, gaussian = rope_band(
+        estimates, blind = motion_share.result()
+        # rope k's estimate is consumed (played above) and its blind motion is read
+        # before each hi is written: they take the band, unless shared by the ropes
+        own = estimates[k] is not estimates[(k + 1) % len(ROPES)]
+        lo, hi = rope_band(
             out["tension"],
             out["friction"] if mode != 0 else np.zeros(n),
             out["p_chamber"],
-            motion_share.result()[1][k],
+            blind[k],
             static_law_n=tuple(law.static_n) if mode != 0 else (0.0, 0.0),
             bristle_stiffness_n_m=float(law.bristle_stiffness_n_m) if mode != 0 else 0.0,
-            gaussian_sigma_n=(settings.friction_relative_sigma, pressure_noise_n),
+            gaussian_sigma_n=(
+                settings.friction_relative_sigma if mode != 0 else 0.0,
+                pressure_noise_n,
+            ),
+            out=(estimates[k], blind[k]) if own else None,
         )
-        band_gaussian[k] = gaussian
         return {
             f"p_chamber{i}_pa": out["p_chamber"],
             f"friction{i}_n": out["friction"],
@@ -802,11 +809,12 @@ def compensate(
         [columns[c] for c in _rope_cols("tension{i}_lo_n")],
         [columns[c] for c in _rope_cols("tension{i}_hi_n")],
         [columns[c] for c in _rope_cols("tension{i}_n")],
-        [band_gaussian[k] for k in range(len(ROPES))],
+        [columns[c] for c in _rope_cols("friction{i}_n")],
+        gaussian_sigma_n=(settings.friction_relative_sigma if mode != 0 else 0.0, pressure_noise_n),
     )
 
-    def nullable(name: str, values: np.ndarray) -> pl.Series:
-        series = pl.Series(name, values, dtype=pl.Float64)
+    def nullable(name: str, values: np.ndarray, dtype: type = pl.Float64) -> pl.Series:
+        series = pl.Series(name, values, dtype=dtype)
         return series.fill_nan(None) if np.isnan(values).any() else series
 
     out: dict[str, pl.Series] = {
@@ -818,19 +826,15 @@ def compensate(
         **labels,
         **{c: nullable(c, v) for c, v in zip(p_cols, pressures, strict=True)},
         **{
-            name: nullable(name, values)
+            name: nullable(name, values, pl.Float32)  # the band (schemas.tables)
+            if name.endswith(("_lo_n", "_hi_n"))
+            else pl.Series(name, values, dtype=pl.Float64)
             for name, values in columns.items()
-            if "_lo_" in name or "_hi_" in name
-        },
-        **{
-            name: pl.Series(name, values, dtype=pl.Float64)
-            for name, values in columns.items()
-            if not ("_lo_" in name or "_hi_" in name)
         },
         "load_raw_n": pl.Series("load_raw_n", load_raw, dtype=pl.Float64),
         "load_n": pl.Series("load_n", load, dtype=pl.Float64),
-        "load_lo_n": nullable("load_lo_n", load_lo),
-        "load_hi_n": nullable("load_hi_n", load_hi),
+        "load_lo_n": nullable("load_lo_n", load_lo, pl.Float32),
+        "load_hi_n": nullable("load_hi_n", load_hi, pl.Float32),
     }
     result = pl.DataFrame([out[name] for name in _OUTPUT_SCHEMA])
     if result.schema != _OUTPUT_SCHEMA:

@@ -64,6 +64,7 @@ def share_out_common_motion(
     seen_reset_m: float = np.inf,
     blind_deadband_m: float = 2e-6,
     floor_m: float = 1e-9,
+    overwrite_logged: bool = False,
 ) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
     """Per-piston displacement estimates [m] from the common mode and the logged motion.
 
@@ -93,6 +94,9 @@ def share_out_common_motion(
     floor_m : float
         epsilon of the sliding weights [m per sample]: below it a piston counts as not
         seen moving.
+    overwrite_logged : bool
+        Write the displacements over the ``logged`` arrays (contiguous float64): no new
+        day-long arrays, whose page faults cost more than the arithmetic.
 
     Returns
     -------
@@ -120,16 +124,14 @@ def share_out_common_motion(
     ([0.0, 0.0, 2.0, 2.0], [0.0, 0.0, 0.0, 0.0])
     """
     n = common_m.shape[0]
-    m = len(logged)
-    stacked = np.empty((m, n))
-    for k, values in enumerate(logged):
-        stacked[k] = values
-    out = np.empty((m, n))
-    blind = np.empty((m, n))
+    if overwrite_logged:
+        out = tuple(logged)
+    else:
+        out = tuple(np.array(values, dtype=np.float64) for values in logged)
+    blind = tuple(np.empty(n) for _ in out)
     if n:
         _share_kernel(
             np.ascontiguousarray(common_m, dtype=np.float64),
-            stacked,
             np.ascontiguousarray(segment_id, dtype=np.int64),
             float(elastic_half_width_m),
             float(seen_reset_m),
@@ -138,24 +140,28 @@ def share_out_common_motion(
             out,
             blind,
         )
-    return tuple(out[k] for k in range(m)), tuple(blind[k] for k in range(m))
+    return out, blind
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _share_kernel(
-    common, logged, segment, half_width, seen_reset, deadband, floor, out, blind
+    common, segment, half_width, seen_reset, deadband, floor, out, blind
 ):  # pragma: no cover - numba
     """u_i = dD_i + w_i (dY - sum_j dD_j) + dE / m, w_i ∝ |dD_i| + floor (module docstring).
 
-    S = m x the common mode; Y = play(S, half_width) its sliding part, E = S - Y its
-    elastic part. A NaN logged increment counts as 0 (the piston is not seen moving);
-    each segment starts at the logged value (0 if unknown). ``blind``: path length of
-    play(net blind motion, deadband) since the piston's seen motion last exceeded
-    ``seen_reset`` (inf before).
+    ``out`` holds the logged displacements D_i on entry and the estimates on return
+    (sample t is read before it is written). S = m x the common mode; Y = play(S,
+    half_width) its sliding part, E = S - Y its elastic part. A NaN logged increment
+    counts as 0 (the piston is not seen moving); each segment starts at the logged value
+    (0 if unknown). ``blind``: path length of play(net blind motion, deadband) since the
+    piston's seen motion last exceeded ``seen_reset`` (inf before).
     """
-    m, n = logged.shape
+    m = len(out)
+    n = common.shape[0]
     weights = np.empty(m)
     increments = np.empty(m)
+    last_logged = np.empty(m)
+    position = np.empty(m)
     seen = np.zeros(m)
     unseen = np.zeros(m)
     played = np.zeros(m)
@@ -168,9 +174,11 @@ def _share_kernel(
             slide = total if np.isfinite(total) else 0.0
             elastic = 0.0
             for i in range(m):
-                value = logged[i, t]
-                out[i, t] = value if np.isfinite(value) else 0.0
-                blind[i, t] = path[i]
+                value = out[i][t]
+                last_logged[i] = value
+                position[i] = value if np.isfinite(value) else 0.0
+                out[i][t] = position[i]
+                blind[i][t] = path[i]
             continue
         slide_before, elastic_before = slide, elastic
         if np.isfinite(total):
@@ -184,20 +192,27 @@ def _share_kernel(
         logged_sum = 0.0
         weight_sum = 0.0
         for i in range(m):
-            d = logged[i, t] - logged[i, t - 1]
+            value = out[i][t]
+            d = value - last_logged[i]
+            last_logged[i] = value
             if not np.isfinite(d):
                 d = 0.0
             increments[i] = d
             logged_sum += d
             weights[i] = abs(d) + floor
             weight_sum += weights[i]
-        unexplained = d_sum - logged_sum
+        unexplained = (d_sum - logged_sum) / weight_sum
         informed = weight_sum > m * floor * (1.0 + 1e-9)  # some piston seen moving
         for i in range(m):
-            shared = weights[i] / weight_sum * unexplained
-            out[i, t] = out[i, t - 1] + increments[i] + shared + d_elastic
-            seen[i] += increments[i] + (shared if informed else 0.0)
-            unseen[i] += d_elastic + (0.0 if informed else shared)
+            shared = weights[i] * unexplained
+            position[i] += increments[i] + shared + d_elastic
+            out[i][t] = position[i]
+            if informed:
+                seen[i] += increments[i] + shared
+                unseen[i] += d_elastic
+            else:
+                seen[i] += increments[i]
+                unseen[i] += d_elastic + shared
             if unseen[i] > played[i] + deadband:
                 path[i] += unseen[i] - deadband - played[i]
                 played[i] = unseen[i] - deadband
@@ -209,4 +224,4 @@ def _share_kernel(
                 unseen[i] = 0.0
                 played[i] = 0.0
                 path[i] = 0.0
-            blind[i, t] = path[i]
+            blind[i][t] = path[i]

@@ -51,7 +51,8 @@ def rope_band(
     static_law_n: tuple[float, float],
     bristle_stiffness_n_m: float,
     gaussian_sigma_n: tuple[float, float],
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    out: tuple[np.ndarray, np.ndarray] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """95 % band of one rope's tension (module docstring).
 
     Parameters
@@ -67,12 +68,13 @@ def rope_band(
         sigma_0 [N/m].
     gaussian_sigma_n : (float, float)
         (relative friction sigma, pressure-noise sigma x A [N]).
+    out : (ndarray, ndarray), optional
+        Arrays for (lo, hi); ``hi`` may be ``blind_m`` itself (read before written).
 
     Returns
     -------
-    (lo, hi, gaussian) : ndarray
-        The band's bounds [N] and its Gaussian standard uncertainty [N] (for the load
-        band).
+    (lo, hi) : ndarray
+        The band's bounds [N].
 
     Examples
     --------
@@ -80,7 +82,7 @@ def rope_band(
     sqrt((0.1 x 1000)^2 + 20^2) = 199.9 N either side; one never seen: +- F_s more.
 
     >>> import numpy as np
-    >>> lo, hi, _ = rope_band(
+    >>> lo, hi = rope_band(
     ...     np.array([30_000.0, 30_000.0]), np.array([1000.0, 1000.0]),
     ...     np.full(2, 3e6), np.array([0.0, np.inf]),
     ...     static_law_n=(1000.0, 2e-4), bristle_stiffness_n_m=3e7,
@@ -91,7 +93,7 @@ def rope_band(
     [199.9, 2799.9]
     """
     n = tension_n.shape[0]
-    lo, hi, gaussian = np.empty(n), np.empty(n), np.empty(n)
+    lo, hi = out if out is not None else (np.empty(n), np.empty(n))
     _rope_band_kernel(
         np.ascontiguousarray(tension_n, dtype=np.float64),
         np.ascontiguousarray(friction_n, dtype=np.float64),
@@ -104,9 +106,8 @@ def rope_band(
         float(gaussian_sigma_n[1]),
         lo,
         hi,
-        gaussian,
     )
-    return lo, hi, gaussian
+    return lo, hi
 
 
 @njit(cache=True, nogil=True)
@@ -122,7 +123,6 @@ def _rope_band_kernel(
     p_noise,
     lo,
     hi,
-    gaussian,
 ):  # pragma: no cover - numba
     """Per sample: friction range [max(F - s0 b, -cap), min(F + s0 b, cap)] plus
     1.96 x the Gaussian part; cap = max(F_s(p), |F|) (kinetic friction with its viscous
@@ -133,16 +133,14 @@ def _rope_band_kernel(
         if not (np.isfinite(tension[t]) and np.isfinite(f) and np.isfinite(p)):
             lo[t] = np.nan
             hi[t] = np.nan
-            gaussian[t] = np.nan
             continue
-        capacity = max(static_a + static_b * p, 0.0, abs(f))
+        capacity = max(max(static_a + static_b * p, 0.0), abs(f))
         reach = sigma0 * blind[t] if sigma0 > 0.0 else np.inf
         f_lo = max(f - reach, -capacity)
         f_hi = min(f + reach, capacity)
         sigma = np.sqrt((rel * f) ** 2 + p_noise**2)
         lo[t] = tension[t] - (f - f_lo) - Z95 * sigma
         hi[t] = tension[t] + (f_hi - f) + Z95 * sigma
-        gaussian[t] = sigma
 
 
 def load_band(
@@ -150,30 +148,60 @@ def load_band(
     rope_lo: list[np.ndarray],
     rope_hi: list[np.ndarray],
     rope_tension: list[np.ndarray],
-    rope_gaussian: list[np.ndarray],
+    rope_friction: list[np.ndarray],
+    *,
+    gaussian_sigma_n: tuple[float, float],
 ) -> tuple[np.ndarray, np.ndarray]:
     """95 % band of the load: the ropes' friction ranges add, their Gaussian parts add
-    in quadrature (module docstring).
+    in quadrature (module docstring). ``gaussian_sigma_n`` as for :func:`rope_band`
+    (the Gaussian part of each rope is recomputed from its friction, not stored).
 
     Examples
     --------
-    Two ropes, each 100 N of range below and above and a 50 N Gaussian sigma:
-    200 + 1.96 x 50 sqrt(2) = 338.6 N either side of the load.
+    Two ropes with 1000 N of friction (10 % law uncertainty, no sensor noise) and 100 N
+    of friction range below and above: 200 + 1.96 x 100 sqrt(2) = 477.2 N either side.
 
     >>> import numpy as np
     >>> t = [np.array([10_000.0]), np.array([10_000.0])]
-    >>> g = [np.array([50.0]), np.array([50.0])]
-    >>> half = 100.0 + 1.959963984540054 * 50.0
-    >>> lo, hi = load_band(np.array([20_000.0]), [x - half for x in t], [x + half for x in t], t, g)
+    >>> f = [np.array([1000.0]), np.array([1000.0])]
+    >>> half = 100.0 + 1.959963984540054 * 100.0
+    >>> lo, hi = load_band(
+    ...     np.array([20_000.0]), [x - half for x in t], [x + half for x in t], t, f,
+    ...     gaussian_sigma_n=(0.1, 0.0))
     >>> round(float(hi[0] - 20_000.0), 1), round(float(20_000.0 - lo[0]), 1)
-    (338.6, 338.6)
+    (477.2, 477.2)
     """
-    below = np.zeros_like(load_n)
-    above = np.zeros_like(load_n)
-    variance = np.zeros_like(load_n)
-    for lo, hi, tension, sigma in zip(rope_lo, rope_hi, rope_tension, rope_gaussian, strict=True):
-        below += tension - lo - Z95 * sigma
-        above += hi - tension - Z95 * sigma
-        variance += sigma**2
-    gaussian = Z95 * np.sqrt(variance)
-    return load_n - below - gaussian, load_n + above + gaussian
+    lo, hi = np.empty_like(load_n), np.empty_like(load_n)
+    _load_band_kernel(
+        np.ascontiguousarray(load_n, dtype=np.float64),
+        tuple(rope_lo),
+        tuple(rope_hi),
+        tuple(rope_tension),
+        tuple(rope_friction),
+        float(gaussian_sigma_n[0]),
+        float(gaussian_sigma_n[1]),
+        lo,
+        hi,
+    )
+    return lo, hi
+
+
+@njit(cache=True, nogil=True)
+def _load_band_kernel(
+    load, rope_lo, rope_hi, tension, friction, rel, p_noise, lo, hi
+):  # pragma: no cover - numba
+    """Per sample: load -/+ (sum of the ropes' ranges + 1.96 sqrt(sum of sigma^2))."""
+    for t in range(load.shape[0]):
+        below = 0.0
+        above = 0.0
+        variance = 0.0
+        for k in range(len(tension)):
+            f = friction[k][t]
+            sigma = np.sqrt((rel * f) ** 2 + p_noise**2)
+            gaussian = Z95 * sigma
+            below += tension[k][t] - rope_lo[k][t] - gaussian
+            above += rope_hi[k][t] - tension[k][t] - gaussian
+            variance += sigma * sigma
+        spread = Z95 * np.sqrt(variance)
+        lo[t] = load[t] - below - spread
+        hi[t] = load[t] + above + spread

@@ -343,6 +343,7 @@ TABLES: dict[str, pa.Schema] = {
 
 _DUCKDB_TYPES = {
     pa.float64(): "DOUBLE",
+    pa.float32(): "FLOAT",
     pa.int64(): "BIGINT",
     pa.int32(): "INTEGER",
     pa.string(): "VARCHAR",

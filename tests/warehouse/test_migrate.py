@@ -17,6 +17,7 @@ from warehouse.views import LAKE_VIEWS, refresh_views
 # schemas.tables' own mapping, so a wrong mapping there is caught here).
 EXPECTED_SQL = {
     pa.float64(): "DOUBLE",
+    pa.float32(): "FLOAT",
     pa.int64(): "BIGINT",
     pa.int32(): "INTEGER",
     pa.string(): "VARCHAR",

@@ -201,8 +201,12 @@ POSITION_SUMMARY = _schema(
         pa.field("error_after_fraction", pa.float64()),
         pa.field("imbalance_after_fraction", pa.float64()),
         pa.field("samples", pa.int64()),
+        # migration 0005 (issue 13): the stint means of the 95 % band of load_after_n
+        pa.field("load_after_lo_n", pa.float64()),
+        pa.field("load_after_hi_n", pa.float64()),
     ],
-    "one row per trip and named position (Table 2 of the paper); loads in N",
+    "one row per trip and named position (Table 2 of the paper); loads in N; "
+    "load_after_lo_n / _hi_n: the stint means of the load's 95 % band",
 )
 
 #: One row per hoist trip.
@@ -227,8 +231,11 @@ TRIP_SUMMARY = _schema(
         *_per_rope("min_tension_after{i}_n", pa.float64()),
         *_per_rope("max_imbalance_after{i}_fraction", pa.float64()),
         *_per_rope("max_imbalance_after{i}_time_utc", TIME),
+        # migration 0005 (issue 13): the highest upper bound of the load's 95 % band
+        pa.field("max_load_after_hi_n", pa.float64()),
     ],
-    "one row per trip; payload inferred from the compensated load at each position; "
+    "one row per trip; max_load_after_hi_n: the highest the load may have been (95 % "
+    "band); payload inferred from the compensated load at each position; "
     "extremes over the trip's samples after compensation, per rope and for the worst rope "
     "(imbalance of rope i = |T_i - mean T| / mean T)",
 )

@@ -263,7 +263,13 @@ def summarise_positions(
     Returns a frame with the POSITION_SUMMARY schema.
     """
     lazy = _lazy(rope_tensions)
+    band = {"load_lo_n", "load_hi_n"} <= set(lazy.collect_schema().names())
     means = [pl.col(f"tension_raw{i}_n").mean().alias(f"tension_before{i}_n") for i in ROPES]
+    if band:  # the 95 % band (transforms.uncertainty); absent in hand-made frames
+        means += [
+            pl.col("load_lo_n").mean().alias("load_after_lo_n"),
+            pl.col("load_hi_n").mean().alias("load_after_hi_n"),
+        ]
     means += [pl.col(f"tension{i}_n").mean().alias(f"tension_after{i}_n") for i in ROPES]
     changed = pl.col("position").ne_missing(pl.col("position").shift(1)) | pl.col(
         "trip_id"
@@ -335,6 +341,7 @@ def summarise_trips(
     a tie) and ``max_imbalance_after_time_utc``. Returns the TRIP_SUMMARY schema.
     """
     lazy = _lazy(rope_tensions)
+    band = "load_hi_n" in lazy.collect_schema().names()
     trips = (
         lazy.filter(pl.col("trip_id").is_not_null())
         .sort("time_utc")
@@ -347,6 +354,7 @@ def summarise_trips(
             pl.col("depth_m").drop_nulls().first().alias("depth_start_m"),
             pl.col("depth_m").drop_nulls().last().alias("depth_end_m"),
             pl.col("load_n").max().alias("max_load_after_n"),
+            *([pl.col("load_hi_n").max().alias("max_load_after_hi_n")] if band else []),
             *_rope_extremes_aggs(),
         )
         .with_columns(_worst_rope_exprs())

@@ -244,3 +244,24 @@ def test_expected_load_counts_tail_rope_inertia(hoist):
     assert got[0] == pytest.approx((9200.0 + tail_bottom) * (G + 0.8), rel=1e-12)
     assert got[1] == pytest.approx((9200.0 + tail_top) * (G - 0.75), rel=1e-12)
     assert got[0] - ((9200.0 * (G + 0.8)) + tail_bottom * G) == pytest.approx(198.4, rel=1e-9)
+
+
+def test_the_load_band_is_summarised_per_position_visit_and_trip(hoist):
+    """Issue 13: the stint means of the band's bounds, and the trip's highest bound."""
+    frame = _samples(hoist, [(1, 3000.0, [BOTTOM, PITHEAD])])
+    # a band of +-1 % around the load, widening to +3 % for one sample at the pithead
+    hi = frame["load_n"] * 1.01
+    spike = frame.with_row_index().filter(pl.col("position") == "pithead")["index"][10]
+    hi = hi.scatter(spike, frame["load_n"][spike] * 1.03)
+    frame = frame.with_columns(load_lo_n=pl.col("load_n") * 0.99, load_hi_n=hi)
+    positions, trips = reconcile(frame, hoist, run_id="run-1")
+    for row in positions.iter_rows(named=True):
+        bump = 0.02 / 50 if row["position"] == "pithead" else 0.0  # one sample of 50
+        assert row["load_after_lo_n"] == pytest.approx(0.99 * row["load_after_n"])
+        assert row["load_after_hi_n"] == pytest.approx((1.01 + bump) * row["load_after_n"])
+    pithead_load = positions.filter(pl.col("position") == "pithead")["load_after_n"][0]
+    assert trips["max_load_after_hi_n"][0] == pytest.approx(1.03 * pithead_load)
+    # without a band (a frame landed before it existed) the summaries are null
+    positions, trips = reconcile(frame.drop("load_lo_n", "load_hi_n"), hoist, run_id="r")
+    assert positions["load_after_hi_n"].null_count() == positions.height
+    assert trips["max_load_after_hi_n"].null_count() == trips.height

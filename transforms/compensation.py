@@ -5,16 +5,16 @@ For each cylinder i of a hoist, per sample:
 1. sensor calibration: p_i = (reading_i - offset_i) / gain_i (hoist ``[[sensors]]``);
 2. single-sample spikes removed (3-point median) and a zero-phase low-pass, per
    gap-free segment;
-3. piston motion: the common mode (all four pistons together) from the pressure,
-   because the chambers, pipes and manifold are one closed oil volume and a change dp
-   of the common pressure moves every piston by V dp / (n A beta) (NOTES.md) -- with a
-   5 kPa pressure noise that is a nanometre-class displacement sensor, against the
-   ~0.05 mm noise of a displacement transducer and common-mode motions of a few tenths
-   of a millimetre per trip; plus, where x_i is logged, the differential part
-   x_i - mean(x), low-passed. The friction state is driven by the increments of a play
-   (deadband) operator on that estimate, so residual noise does not move it and a
-   smoothed derivative's overshoot at a stop cannot flip it; the branch flow uses the
-   Savitzky-Golay velocity of the same estimate;
+3. piston motion (:mod:`transforms.piston_motion`): the chambers, pipes and manifold
+   are one closed oil volume, so the *sum* of the four displacements follows the
+   common pressure, A sum dx_i = V dp / beta (NOTES.md) -- with a 5 kPa pressure noise
+   a micrometre-class sensor of the sum. Where x_i is logged (to a 0.1 mm step), its
+   smoothed, played record says *which* pistons move: the oil's motion is shared out
+   to the pistons seen moving, the part within the seals' presliding range equally
+   (elastic), so a piston that sticks through a payload change is not moved out and
+   back (issue 13). The friction state is driven by the increments of a play
+   (deadband) operator on that estimate, so residual noise does not move it; the
+   branch flow uses the Savitzky-Golay velocity of the same estimate;
 4. chamber pressure: the sensor sits after the globe valve and the first branch part,
    so p_chamber = p_sensor - (p_sensor - p_chamber)(v, T) (paper eq 12-14, contract 1a);
 5. seal friction F_i: LuGre (paper eq 15, which the paper calls "Leuven") driven by v_i,
@@ -23,7 +23,10 @@ For each cylinder i of a hoist, per sample:
    Leuven / GMS idea) replace the single bristle. The state is carried through
    standstill, so the friction left by the last motion is kept, not zeroed;
 6. tension T_i = p_chamber,i A_bore + F_i (paper eq 2, F positive while the rod moves
-   out), and the uncompensated T_raw,i = p_sensor,i A_bore (the paper's "before").
+   out), and the uncompensated T_raw,i = p_sensor,i A_bore (the paper's "before");
+7. a 95 % band for each tension and the load (:mod:`transforms.uncertainty`): the
+   friction range the estimate cannot resolve (motion only the oil saw), the friction
+   law's uncertainty and the sensor noise.
 
 Which corrections apply follows the hoist's ``[model] effects``: ``seal_friction``,
 ``presliding_hysteresis``, ``pipe_laminar_loss`` / ``local_loss`` (both are in the branch
@@ -118,9 +121,9 @@ class CompensationSettings:
     acceleration_window_s : float
         Savitzky-Golay window for the conveyance acceleration [s].
     differential_cutoff_hz : float
-        Half-power frequency of the Gaussian smoothing of the differential part of the
-        logged displacement (x_i minus the mean of the four) [Hz]. Differential motion
-        (ropes stretching differently, groove wear) is slow; the transducer's noise is not.
+        Half-power frequency of the Gaussian smoothing of each logged displacement [Hz],
+        which says which pistons move (:mod:`transforms.piston_motion`); the oil gives
+        the fast motion of their sum. The transducer's noise and step are not slow.
     differential_bridge_s : float
         Logger gaps up to this long [s] are bridged for the differential displacement
         (pistons do not jump while the logger drops samples); longer gaps restart it.

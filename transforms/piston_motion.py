@@ -44,7 +44,20 @@ logged x every piston takes a quarter of the sum, as before.
 
 What it cannot do: tell which piston slid when the motion is below the play band
 (a tenth of a millimetre): the compensation's uncertainty band covers that case
-(:mod:`transforms.uncertainty`).
+(:mod:`transforms.uncertainty`). It does not use the rope springs (each rope's stiffness
+and length offset are unknown to the mine; the research prototype
+``benchmarks/research/stick_slip_prototype.py`` shows that with them known the stop
+error falls to 1.6-1.8 %, with them nominal it rises to 2.5 % median), nor the
+sensor-to-sensor pressure differences while oil flows.
+
+Measured (``benchmarks/eval_compensation.py``, stop windows of the independent
+validation days, load error |after| worst / median; the first wave's in brackets):
+days 101-103 2.2 / 0.23, 2.1 / 0.27, 2.5 / 0.29 % (8.4 / 0.51, 8.0 / 0.48,
+3.3 / 0.24 %); day 104, whose ropes ring and whose seals the ringing relaxes, 5.3 /
+1.5 % (2.4 / 0.81 %): the estimate keeps the friction a slide left, the ringing world
+lost about half of it. Tried and dropped: sharing the oil's motion by each seal's room
+to its static capacity (elastic-plastic, one common demand) without the rope springs:
+1.6-1.8 % median, the wrong piston saturates first.
 """
 
 from __future__ import annotations

@@ -1,6 +1,7 @@
 -- grain: one row per position-summary row and source file its run read
--- (run_id, trip_id, position, source_sha256): the Table 2 numbers -> run -> parameter
--- set -> raw files; covers_position is true for files overlapping the position window.
+-- (run_id, position, time_start_utc, source_sha256): the Table 2 numbers -> run ->
+-- parameter set -> raw files; covers_position is true for files overlapping the
+-- position window.
 with positions as (
     select * from position_summary
 ),

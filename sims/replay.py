@@ -64,6 +64,7 @@ from scipy import ndimage, optimize
 from schemas.hoist import G_STANDARD, HoistDescription
 from sims.device import simulate
 from sims.effects import resolve_effects
+from sims.logged_motion import motion_knots, profile_from_knots, rope_damping_from_record
 from sims.trips import TripProfile, fit_cut_trip, trip
 
 __all__ = [
@@ -94,7 +95,10 @@ class ReplayTrip:
     conveyance moves; the unseen end is fitted, :func:`sims.trips.fit_cut_trip`): a trip
     cut at its start is simulated from rest before the record but none of its samples is
     valid (it only loads the seals' state for the next trip); one cut at its end is
-    simulated and scored up to the record's end.
+    simulated and scored up to the record's end. ``motion_knots`` (time [s after
+    ``t_ref``], speed [m/s, + down], depth [m]) is the logged motion that drives the
+    simulation (:mod:`sims.logged_motion`); None for a trip cut at its start (driven by
+    the fitted winder profile).
     """
 
     trip_id: int
@@ -122,6 +126,7 @@ class ReplayTrip:
     ramp_measured_pa: np.ndarray = field(default_factory=lambda: np.zeros(0))
     profile_fit_m: float = 0.0
     cut: str = ""
+    motion_knots: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
 
 @dataclass(frozen=True)
@@ -138,7 +143,10 @@ class ReplayPlan:
     """Trips of one hoist's record prepared for replay; see :func:`plan_replay`.
 
     ``skipped`` lists the analysed trips that could not be prepared, with the reason;
-    the trip after a skipped one starts its block's history again.
+    the trip after a skipped one starts its block's history again. ``rope_bounce`` says
+    what the record shows of the ropes' ringing (:func:`sims.logged_motion.
+    rope_damping_from_record`); ``hoist`` carries the damping ratio the replay uses
+    (the description's unless the record contradicts it, also said in ``notes``).
     """
 
     hoist: HoistDescription
@@ -150,6 +158,7 @@ class ReplayPlan:
     trips_found: int
     notes: tuple[str, ...] = ()
     skipped: tuple[SkippedTrip, ...] = ()
+    rope_bounce: str = ""
 
     @property
     def n_sensors(self) -> int:
@@ -329,6 +338,7 @@ def plan_replay(
     score_rate_hz: float = 20.0,
     settle_s: float = 30.0,
     dt_s: float = 2e-3,
+    motion: str = "winder",
 ) -> ReplayPlan:
     """Segment ``samples`` of one hoist into trips and prepare their simulation.
 
@@ -347,12 +357,22 @@ def plan_replay(
         Standstill simulated and scored after each stop [s].
     dt_s : float
         Integrator step of the replays [s].
+    motion : {"winder", "logged"}
+        What drives each trip's simulation: the hoist description's winder profile
+        (constant acceleration, the top speed logged when it is 5 % off the described
+        one) or the encoder's logged speed (:mod:`sims.logged_motion`; jerk, per-trip
+        acceleration and top speed as they were). "winder" is the default because it
+        replays the validation trials closer today (48 / 51 kPa against 60 / 56 kPa on
+        two records with nothing hidden): the gap left is the seal friction's state,
+        which the input motion moves either way (README, issue 14).
 
     Raises
     ------
     ValueError
         Required columns missing, or no trip (motion of >= 3 s) in the record.
     """
+    if motion not in ("winder", "logged"):
+        raise ValueError(f"motion: 'winder' or 'logged', not {motion!r}")
     n = hoist.ropes_n
     pcols = [f"p{i}_pa" for i in range(1, n + 1)]
     need = {"time_utc", "depth_m", "speed_m_s", *pcols}
@@ -388,6 +408,11 @@ def plan_replay(
     known = np.isfinite(pc)
     pc_filled = np.interp(t, t[known], pc[known]) if known.any() else np.zeros_like(pc)
     pcs = ndimage.uniform_filter1d(pc_filled, size=max(3, int(rate) | 1))
+    # the ropes' damping as the record shows it (a hoist that rings and one that does not
+    # both replay to the noise; the description's ratio is a default a mine cannot know)
+    zeta, zeta_how = rope_damping_from_record(
+        t, pc_filled, [float(t[b_i]) for _, b_i in motions], quiet
+    )
     w = hoist.winder
     shaft = hoist.shaft.depth_m
     # standstill depths between motions: shared by the trip before and after (chaining);
@@ -477,6 +502,8 @@ def plan_replay(
                 "d1": d1,
                 "cut": cut,
                 "skip": skip,
+                "a_t": float(t[a_i]),
+                "b_t": float(t[b_i]),
             }
         )
     # a payload change after the last stop (loading for a trip the record does not
@@ -534,14 +561,40 @@ def plan_replay(
             profile = _profile_of(
                 hoist, d0, d1, t_m - r0, max(win_end - r0, 1.0), vmax_arg, 20.0, (0.0, 1.0), 0.0
             )
+            # the logged motion drives the simulation (sims.logged_motion); a trip cut at
+            # its start is simulated from rest before the record: the fitted profile
+            knots = None
+            if motion == "logged" and tm["cut"] != "start":
+                knots = motion_knots(
+                    t,
+                    speed,
+                    tm["a_t"] - 1.5,
+                    end_t + 1e-6 if tm["cut"] == "end" else min(tm["b_t"] + 1.5, end_t + 1e-6),
+                    d0,
+                    d1,
+                    at_rest_after=tm["cut"] != "end",
+                )
             tau = t[idx] - r0
-            spd = profile.speed(tau)
-            acc = profile.acceleration(tau) * np.sign(spd)
+            # phases of the motion the simulation follows (|a| > 0.05 m/s2: above the
+            # logged speed's 1 mm/s steps over a 0.1 s knot)
+            driven = profile
+            if knots is not None:
+                driven = profile_from_knots(
+                    *knots,
+                    start_s=r0,
+                    duration_s=max(win_end - r0, 1.0),
+                    payload_time_s=np.array([0.0]),
+                    payload_kg=np.array([0.0]),
+                    oil_temp_c=None,
+                    direction="down" if d1 > d0 else "up",
+                )
+            spd = driven.speed(tau)
+            acc = driven.acceleration(tau) * np.sign(spd)
             phase = np.select(
                 [
-                    np.abs(spd) < 1e-6,
-                    acc > 1e-6,
-                    acc < -1e-6,
+                    np.abs(spd) < 0.01,
+                    acc > 0.05,
+                    acc < -0.05,
                     np.abs(spd) <= 1.01 * w.creep_speed_m_s,
                 ],
                 ["standstill", "accelerate", "decelerate", "creep"],
@@ -581,15 +634,16 @@ def plan_replay(
                     measured_pa=meas,
                     valid=valid,
                     phase=phase,
-                    depth_m=profile.depth(tau),
+                    depth_m=driven.depth(tau),
                     ramp_time_s=t[ridx],
                     ramp_measured_pa=np.nanmedian(p[ridx], axis=1),
                     profile_fit_m=fit,
                     cut=tm["cut"],
+                    motion_knots=knots,
                 )
             )
             restart = False
-    return ReplayPlan(
+    plan = ReplayPlan(
         hoist=hoist,
         t_ref=t_ref,
         trips=tuple(trips),
@@ -599,6 +653,60 @@ def plan_replay(
         trips_found=len(motions),
         notes=tuple(notes),
         skipped=tuple(skipped),
+        rope_bounce=zeta_how,
+    )
+    return _with_rope_damping(plan, zeta)
+
+
+def _with_damping(hoist: HoistDescription, zeta: float) -> HoistDescription:
+    ropes = hoist.ropes.model_copy(update={"head_rope_damping_ratio": zeta})
+    return hoist.model_copy(update={"ropes": ropes})
+
+
+def _with_rope_damping(plan: ReplayPlan, zeta_read: float | None) -> ReplayPlan:
+    """The plan with the head ropes' damping ratio the record supports.
+
+    The description's ratio stays unless the record contradicts it: ringing read at a
+    ratio more than a factor 2 off it, or no ringing 3-7 s after the stops where the
+    description's ropes would still ring (``zeta_read`` 1.0, which only bounds the
+    ratio from below: 0.3 and 1.0 both leave nothing after 3 s). Then the candidates
+    (the description's, the read one or 0.1 / 0.3 / 1.0 above the description's) are
+    replayed on the first block's first three trips (payloads fitted, two passes) and
+    the one with the smallest gap is used if it beats the description's by 10 %.
+    """
+    described = plan.hoist.ropes.head_rope_damping_ratio
+    if zeta_read is None or not plan.trips:
+        return plan
+    if zeta_read < 1.0:
+        if 0.5 <= zeta_read / max(described, 1e-9) <= 2.0:
+            how = f"{plan.rope_bounce}; consistent with the description's {described:g}"
+            return dataclasses.replace(plan, rope_bounce=how)
+        candidates = [described, zeta_read]
+    else:
+        candidates = [described] + [c for c in (0.1, 0.3, 1.0) if c > 1.5 * described]
+        if len(candidates) == 1:
+            return plan
+    block = [tr for tr in plan.trips if tr.block == plan.trips[0].block][:3]
+    gaps = []
+    for zeta in candidates:
+        trial = dataclasses.replace(plan, hoist=_with_damping(plan.hoist, zeta), trips=block)
+        res = replay_fitted(trial, passes=2)
+        r = np.concatenate([x[np.isfinite(x)] for x in res.residuals(trial)])
+        gaps.append(float(np.sqrt(np.mean(r**2))) if r.size else np.inf)
+    best = int(np.argmin(gaps))
+    said = ", ".join(f"{z:g}: {g / 1e3:.1f} kPa" for z, g in zip(candidates, gaps, strict=True))
+    if best == 0 or not gaps[best] < 0.9 * gaps[0]:
+        how = f"{plan.rope_bounce}; the description's {described:g} kept (replay gap {said})"
+        return dataclasses.replace(plan, rope_bounce=how)
+    how = (
+        f"{plan.rope_bounce}; damping ratio {candidates[best]:g} replaces the "
+        f"description's {described:g} (replay gap on {len(block)} trips {said})"
+    )
+    return dataclasses.replace(
+        plan,
+        hoist=_with_damping(plan.hoist, candidates[best]),
+        rope_bounce=how,
+        notes=(*plan.notes, f"rope bounce: {how}"),
     )
 
 
@@ -846,18 +954,29 @@ def replay(
         start = float(max(ramps[k, 0], prev_end))
         ramp_end = float(max(ramps[k, 1], start + 1e-3))
         try:
-            profile = _profile_of(
-                hoist,
-                tr.start_depth_m,
-                tr.end_depth_m,
-                tr.motion_start_s - start,
-                tr.window_end_s - start,
-                tr.max_speed_m_s,
-                tr.oil_temp_c,
-                (0.0, ramp_end - start),
-                float(pay_before[k]),
-                float(pay[k]),
-            )
+            if tr.motion_knots is not None and tr.motion_knots[0][-1] > start:
+                profile = profile_from_knots(
+                    *tr.motion_knots,
+                    start_s=start,
+                    duration_s=max(tr.window_end_s - start, 1e-3),
+                    payload_time_s=np.array([0.0, ramp_end - start]),
+                    payload_kg=np.array([float(pay_before[k]), float(pay[k])]),
+                    oil_temp_c=tr.oil_temp_c,
+                    direction=tr.direction,
+                )
+            else:
+                profile = _profile_of(
+                    hoist,
+                    tr.start_depth_m,
+                    tr.end_depth_m,
+                    tr.motion_start_s - start,
+                    tr.window_end_s - start,
+                    tr.max_speed_m_s,
+                    tr.oil_temp_c,
+                    (0.0, ramp_end - start),
+                    float(pay_before[k]),
+                    float(pay[k]),
+                )
             res = simulate(
                 hoist,
                 profile,

@@ -1,0 +1,226 @@
+"""The conveyance's logged motion as a replay input, and the rope bounce seen in a record.
+
+A replay (:mod:`sims.replay`) simulates measured trips through the device model. The
+winder profile of the hoist description (:func:`sims.trips.trip`: constant acceleration
+and deceleration, infinite jerk at the phase changes, the described top speed) is what
+the winder is set to do, not what it did: real winders are jerk-limited, reach a top
+speed a few percent off the nameplate and accelerate differently trip to trip
+(0.75-0.85 m/s2 seen on one hoist). On a 600 m trip a 3 % slower top speed moves the
+conveyance 10 m behind the described one by mid-trip, and the hanging tail rope
+(6.2 kg/m x 2) with it: ~0.1 MPa of common-mode pressure. So the replay drives the
+simulation with what the encoder logged:
+
+:func:`motion_knots`
+    The logged speed of one trip averaged into ``knot_s`` bins and integrated
+    (trapezoid) from the standstill depth before the trip; the speeds are scaled by the
+    ratio of the logged travel (stop depth - start depth) to the integrated one, so the
+    profile ends at the logged stop depth (an encoder's speed and depth channels
+    disagree by the speed's calibration).
+:func:`profile_from_knots`
+    A :class:`sims.trips.TripProfile` whose constant-acceleration segments join the
+    knots: speed piecewise linear, depth piecewise quadratic, both continuous -- the
+    form the device simulation takes (its kernel looks segments up by time).
+
+Rope bounce (the conveyance oscillating on its head ropes, 0.8-2.7 Hz from pithead to
+bottom) is rung by every change of acceleration. How much a hoist rings depends on its
+ropes' damping, which a mine does not know (the hoist description's
+``head_rope_damping_ratio`` is a default). :func:`rope_damping_from_record` reads it off
+the record: the common-mode pressure after each stop, band-passed around the bounce
+frequencies, against the same band at quiet standstill. Where the ringing is not above
+the noise 3-7 s after the stops, the ropes are damped at ~0.2 or more (a model that rings
+where the data does not leaves a gap of ~0.1 MPa, see issue 14) and the replay chooses
+among 0.1 / 0.3 / 1.0 by its gap (:func:`sims.replay.plan_replay`); where it is, the
+damping ratio comes from the decay of its envelope (logarithmic decrement,
+``zeta = lambda / (2 pi f)``, small-damping form).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal
+
+from sims.trips import TripProfile
+
+__all__ = ["motion_knots", "profile_from_knots", "rope_damping_from_record"]
+
+#: Knot spacing of the logged motion [s]: the bins average the encoder's speed
+#: quantisation (1 mm/s) and jitter, and are short against a winder's jerk phase (~1 s).
+KNOT_S = 0.1
+
+
+def motion_knots(
+    t_s: np.ndarray,
+    speed_m_s: np.ndarray,
+    t_lo: float,
+    t_hi: float,
+    start_depth_m: float,
+    end_depth_m: float,
+    *,
+    at_rest_before: bool = True,
+    at_rest_after: bool = True,
+    knot_s: float = KNOT_S,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Knots (time [s], speed [m/s, + down], depth [m]) of the logged motion in
+    ``[t_lo, t_hi]``; None when fewer than 5 bins hold a logged speed.
+
+    Bins of ``knot_s`` hold the mean logged speed at their samples' mean time; empty
+    bins (dropped samples) are left out (the neighbours' segment spans them). With
+    ``at_rest_before`` / ``at_rest_after`` the first / last knot is at rest (the window
+    starts and ends at a standstill); with both, the speeds are scaled so the
+    integrated travel equals ``end_depth_m - start_depth_m`` (when that scale is
+    within 10 % of one; else the encoder's channels disagree and the speed is kept as
+    logged).
+    """
+    inside = (t_s >= t_lo) & (t_s < t_hi) & np.isfinite(speed_m_s)
+    if inside.sum() < 5 or t_hi - t_lo < 5 * knot_s:
+        return None
+    n_bins = int(np.ceil((t_hi - t_lo) / knot_s))
+    b = np.minimum(((t_s[inside] - t_lo) / knot_s).astype(np.int64), n_bins - 1)
+    count = np.bincount(b, minlength=n_bins)
+    total = np.bincount(b, weights=speed_m_s[inside], minlength=n_bins)
+    have = count > 0
+    if have.sum() < 5:
+        return None
+    # a bin's mean speed belongs to its samples' mean time (jitter moves a sample across
+    # a bin edge: 4 or 6 samples shift the mean time by a tenth of the bin)
+    when = np.bincount(b, weights=t_s[inside], minlength=n_bins)
+    centres = when[have] / count[have]
+    v = total[have] / count[have]
+    if at_rest_before:
+        v[0] = 0.0
+    if at_rest_after:
+        v[-1] = 0.0
+    step = np.diff(centres)
+    travel = float(np.sum(0.5 * (v[1:] + v[:-1]) * step))
+    wanted = end_depth_m - start_depth_m
+    if at_rest_before and at_rest_after and abs(travel) > 1.0 and np.isfinite(wanted):
+        scale = wanted / travel
+        if abs(scale - 1.0) < 0.1:
+            v = v * scale
+    depth = start_depth_m + np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * step)])
+    return centres, v, depth
+
+
+def profile_from_knots(
+    knots_s: np.ndarray,
+    speed_m_s: np.ndarray,
+    depth_m: np.ndarray,
+    *,
+    start_s: float,
+    duration_s: float,
+    payload_time_s: np.ndarray,
+    payload_kg: np.ndarray,
+    oil_temp_c: float | None,
+    direction: str,
+) -> TripProfile:
+    """A :class:`~sims.trips.TripProfile` from ``start_s`` (its time 0, at rest at the
+    first knot's depth) through the knots (constant acceleration between neighbours)
+    to ``duration_s``, holding the last knot's speed after it (0 for a trip that ends
+    in the record). Knots before ``start_s`` are dropped (the profile starts at the
+    first later one). Payload knots are relative to ``start_s``.
+    """
+    keep = knots_s > start_s
+    tk, vk, dk = knots_s[keep] - start_s, speed_m_s[keep], depth_m[keep]
+    if tk.size < 2:
+        raise ValueError("logged motion: fewer than two knots after the simulation start")
+    acc = np.diff(vk) / np.diff(tk)
+    # before the first knot: its speed held (at rest for a window that starts at a
+    # standstill; a ramp refined into the motion starts the simulation moving)
+    starts = np.concatenate([[0.0], tk])
+    depths = np.concatenate([[dk[0] - vk[0] * tk[0]], dk])
+    speeds = np.concatenate([[vk[0]], vk])
+    accs = np.concatenate([[0.0], acc, [0.0]])
+    return TripProfile(
+        segment_start_s=starts,
+        segment_depth_m=depths,
+        segment_speed_m_s=speeds,
+        segment_acceleration_m_s2=accs,
+        duration_s=float(duration_s),
+        payload_time_s=np.asarray(payload_time_s, dtype=float),
+        payload_kg=np.asarray(payload_kg, dtype=float),
+        oil_temp_c=oil_temp_c,
+        direction=direction,
+    )
+
+
+def rope_damping_from_record(
+    t_s: np.ndarray,
+    common_pa: np.ndarray,
+    stops_s: list[float],
+    quiet: np.ndarray,
+    *,
+    band_hz: tuple[float, float] = (0.5, 4.0),
+    window_s: float = 12.0,
+    detect_ratio: float = 3.0,
+) -> tuple[float | None, str]:
+    """Head-rope damping ratio seen in the record, and how it was read.
+
+    Parameters
+    ----------
+    t_s, common_pa : sample times [s] and the common-mode (mean of the sensors)
+        pressure [Pa], NaN-free, roughly uniform in time.
+    stops_s : times the conveyance came to rest [s].
+    quiet : samples at quiet standstill (no motion, no load change, bounce decayed).
+    band_hz : the rope-bounce band.
+    window_s : the part after each stop that is read [s].
+    detect_ratio : ringing is seen when the band RMS 3-7 s after a stop exceeds this
+        many times the band RMS at quiet standstill (the noise).
+
+    Returns
+    -------
+    (zeta, how) : ``zeta`` is 1.0 when no ringing is above the noise 3-7 s after the
+        stops (a lower bound in fact: damping ratios from ~0.2 up leave nothing there;
+        :func:`sims.replay.plan_replay` decides among them by replay), the ratio read from
+        the envelope decay (ringing seen), or None (not enough record to tell: keep the
+        hoist description's). ``how`` says it in words.
+    """
+    if t_s.size < 100 or not stops_s:
+        return None, "too short a record to read the rope bounce"
+    rate = 1.0 / float(np.median(np.diff(t_s)))
+    if rate < 2.5 * band_hz[1]:
+        return None, f"logged at {rate:.0f} Hz: too slow to see the rope bounce"
+    sos = signal.butter(2, band_hz, btype="bandpass", fs=rate, output="sos")
+    band = signal.sosfiltfilt(sos, common_pa)
+    # robust RMS (1.4826 MAD): a load change at standstill rings the band filter too
+    noise = 1.4826 * float(np.median(np.abs(band[quiet]))) if quiet.sum() > 10 * rate else np.nan
+    if not np.isfinite(noise) or noise <= 0.0:
+        return None, "no quiet standstill to compare the rope bounce with"
+    envelope = np.abs(signal.hilbert(band))
+    rings, decays = [], []
+    for t_stop in stops_s:
+        w = (t_s >= t_stop + 0.5) & (t_s < t_stop + window_s)
+        if w.sum() < 4 * rate:
+            continue
+        # 3-7 s after the stop: the band filter's answer to the stop's pressure step
+        # (and a seal's settling) has died out, a rope's ringing (decay time
+        # 1 / (zeta omega), 2-7 s at zeta 0.03) has not
+        first = (t_s >= t_stop + 3.0) & (t_s < t_stop + 7.0)
+        ratio = float(np.sqrt(np.mean(band[first] ** 2))) / noise
+        rings.append(ratio)
+        if ratio < detect_ratio:
+            continue
+        tw, env = t_s[w], envelope[w]
+        strong = env > 2.0 * noise * np.sqrt(2.0)
+        if strong.sum() < 2 * rate:
+            continue
+        slope = np.polyfit(tw[strong] - t_stop, np.log(env[strong]), 1)[0]
+        f, pxx = signal.periodogram(band[w], fs=rate)
+        f_ring = float(f[np.argmax(pxx)])
+        if slope < 0 and f_ring > 0:
+            decays.append(-slope / (2.0 * np.pi * f_ring))
+    if not rings:
+        return None, "no stop with enough standstill after it to read the rope bounce"
+    seen = sum(r >= detect_ratio for r in rings)
+    if seen < max(1, len(rings) // 4):
+        return 1.0, (
+            f"no rope bounce above the noise after {len(rings) - seen} of {len(rings)} "
+            f"stops (median {np.median(rings):.1f} x the noise in {band_hz[0]:g}-"
+            f"{band_hz[1]:g} Hz): ropes replayed critically damped"
+        )
+    if not decays:
+        return None, f"rope bounce seen after {seen} of {len(rings)} stops, decay not read"
+    zeta = float(np.clip(np.median(decays), 0.002, 1.0))
+    return zeta, (
+        f"rope bounce seen after {seen} of {len(rings)} stops; damping ratio "
+        f"{zeta:.3f} from its decay (median of {len(decays)})"
+    )

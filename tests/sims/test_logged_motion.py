@@ -1,0 +1,162 @@
+"""sims.logged_motion: the logged motion as a replay input, the rope bounce a record shows.
+
+Analytic motions and synthetic pressure records with known damping; and replays of
+ropeload's own simulated days whose ropes ring or do not, described either way.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from sims.discovery.cases import scenario_hoist
+from sims.field_day import generate_field_day
+from sims.logged_motion import motion_knots, profile_from_knots, rope_damping_from_record
+from sims.replay import plan_replay, replay_fitted
+
+
+def _trapezoid(t: np.ndarray, a: float = 0.8, vmax: float = 9.7, t0: float = 5.0):
+    """Speed and depth of a 0 -> 600 m trip: accelerate at ``a`` to ``vmax``, run,
+    decelerate at ``a`` (analytic)."""
+    ta = vmax / a
+    run = (600.0 - vmax * ta) / vmax
+    tt = np.clip(t - t0, 0.0, None)
+    t_end = 2 * ta + run
+    v = np.where(
+        tt < ta, a * tt, np.where(tt < ta + run, vmax, np.maximum(vmax - a * (tt - ta - run), 0.0))
+    )
+    d_acc = 0.5 * a * np.minimum(tt, ta) ** 2
+    d_run = vmax * np.clip(tt - ta, 0.0, run)
+    td = np.clip(tt - ta - run, 0.0, ta)
+    d_dec = vmax * td - 0.5 * a * td**2
+    return np.where(tt > t_end, 0.0, v), d_acc + d_run + d_dec, t0 + t_end
+
+
+def test_knots_of_a_quantised_logged_trip_follow_the_analytic_depth():
+    t = np.arange(0.0, 90.0, 0.02)  # 50 Hz
+    rng = np.random.default_rng(1)
+    t_log = t + rng.uniform(-2e-3, 2e-3, t.size)  # logger jitter
+    v, _d, t_end = _trapezoid(t_log)
+    v_logged = np.round(v, 3)  # 1 mm/s resolution
+    knots = motion_knots(t_log, v_logged, 4.0, t_end + 1.0, 0.0, 600.0)
+    assert knots is not None
+    tk, vk, dk = knots
+    assert vk[0] == 0.0
+    assert vk[-1] == 0.0
+    assert dk[-1] == pytest.approx(600.0, abs=1e-9)  # scaled to the logged travel
+    prof = profile_from_knots(
+        tk, vk, dk, start_s=1.0, duration_s=t_end + 5.0, payload_time_s=np.array([0.0]),
+        payload_kg=np.array([100.0]), oil_temp_c=None, direction="down",
+    )  # fmt: skip
+    tq = np.linspace(2.0, t_end + 4.0, 3000)
+    v_true, d_true, _ = _trapezoid(tq)
+    # depth within 2 cm, speed within 0.05 m/s (the 0.1 s knots round the corners)
+    assert np.max(np.abs(prof.depth(tq - 1.0) - d_true)) < 0.02
+    assert np.max(np.abs(prof.speed(tq - 1.0) - v_true)) < 0.05
+    # the acceleration is the logged one (0.8 m/s2), not a description's
+    mid_acc = prof.acceleration(np.array([8.0, 10.0]) - 1.0)
+    np.testing.assert_allclose(mid_acc, 0.8, atol=0.02)
+    assert prof.speed(np.array([t_end + 3.0 - 1.0]))[0] == 0.0
+
+
+def test_knots_need_logged_samples():
+    t = np.arange(0.0, 10.0, 0.1)
+    assert motion_knots(t, np.full(t.size, np.nan), 1.0, 9.0, 0.0, 10.0) is None
+
+
+def _record(zeta: float | None, f_hz: float = 1.5, seed: int = 0):
+    """Common-mode pressure at 50 Hz: a step at each of 6 stops, followed (zeta given)
+    by a ring of 40 kPa decaying at ``zeta``; white noise of 2.5 kPa."""
+    rate = 50.0
+    t = np.arange(0.0, 600.0, 1 / rate)
+    rng = np.random.default_rng(seed)
+    p = 5e6 + rng.normal(0.0, 2.5e3, t.size)
+    stops = [60.0 + 90.0 * k for k in range(6)]
+    w = 2 * np.pi * f_hz
+    for k, ts in enumerate(stops):
+        after = t >= ts
+        p[after] += 2e5 * (-1) ** k
+        if zeta is not None:
+            tau = t[after] - ts
+            wd = w * np.sqrt(1 - zeta**2)
+            p[after] += 4e4 * np.exp(-zeta * w * tau) * np.cos(wd * tau)
+    quiet = np.ones(t.size, bool)
+    for ts in stops:
+        quiet[(t > ts - 30.0) & (t < ts + 25.0)] = False
+    return t, p, stops, quiet
+
+
+@pytest.mark.parametrize("zeta", [0.02, 0.05])
+def test_damping_read_off_a_ringing_record(zeta):
+    t, p, stops, quiet = _record(zeta)
+    got, how = rope_damping_from_record(t, p, stops, quiet)
+    assert got == pytest.approx(zeta, rel=0.25), how
+    assert "seen after 6 of 6 stops" in how
+
+
+def test_a_record_without_ringing_reads_as_critically_damped():
+    t, p, stops, quiet = _record(None)
+    got, how = rope_damping_from_record(t, p, stops, quiet)
+    assert got == 1.0
+    assert "no rope bounce above the noise after 6 of 6 stops" in how
+
+
+def test_a_record_too_slow_for_the_bounce_keeps_the_description():
+    t, p, stops, quiet = _record(0.02)
+    got, how = rope_damping_from_record(t[::10], p[::10], stops, quiet[::10])  # 5 Hz
+    assert got is None
+    assert "too slow" in how
+
+
+def _with_damping(hoist, zeta: float):
+    return hoist.model_copy(
+        update={"ropes": hoist.ropes.model_copy(update={"head_rope_damping_ratio": zeta})}
+    )
+
+
+@pytest.fixture(scope="module")
+def stiff_and_ringing_days():
+    """Two simulated days of the same hoist: ropes critically damped (no ringing) and
+    damped at 0.02 (ringing), 3 trips at 20 Hz each."""
+    base = scenario_hoist("plain")
+    days = {}
+    for zeta in (1.0, 0.02):
+        days[zeta] = generate_field_day(
+            _with_damping(base, zeta), date="2026-03-02", seed=4, trips=3,
+            hours=3 * 150.0 / 3600, sample_rate_hz=20.0, loading_s=5.0, rest_after_s=20.0,
+        )  # fmt: skip
+    return base, days
+
+
+def _gap(plan) -> float:
+    res = replay_fitted(plan, passes=3)
+    r = np.concatenate([x[np.isfinite(x)] for x in res.residuals(plan)])
+    return float(np.sqrt(np.mean(r**2)))
+
+
+def test_a_hoist_that_does_not_ring_replays_to_the_noise_described_as_ringing(
+    stiff_and_ringing_days,
+):
+    base, days = stiff_and_ringing_days
+    described = _with_damping(base, 0.02)
+    plan = plan_replay(days[1.0].sensors, described, settle_s=20.0)
+    assert plan.hoist.ropes.head_rope_damping_ratio >= 0.3
+    assert any("replaces the description's 0.02" in note for note in plan.notes)
+    assert _gap(plan) < 1.2 * plan.noise_sigma_pa
+    # the description's ringing ropes, as the replay had them before: far from the noise
+    as_described = dataclasses.replace(plan, hoist=described)
+    assert _gap(as_described) > 2.0 * plan.noise_sigma_pa
+
+
+def test_a_ringing_hoist_keeps_or_finds_its_damping(stiff_and_ringing_days):
+    base, days = stiff_and_ringing_days
+    kept = plan_replay(days[0.02].sensors, _with_damping(base, 0.02), settle_s=20.0)
+    assert kept.hoist.ropes.head_rope_damping_ratio == 0.02
+    assert "consistent with the description's 0.02" in kept.rope_bounce
+    assert _gap(kept) < 1.2 * kept.noise_sigma_pa
+    # described as barely ringing: the record says otherwise, the read damping is used
+    found = plan_replay(days[0.02].sensors, _with_damping(base, 0.3), settle_s=20.0)
+    assert found.hoist.ropes.head_rope_damping_ratio == pytest.approx(0.02, rel=0.3)
+    assert _gap(found) < 1.5 * found.noise_sigma_pa

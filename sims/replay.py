@@ -39,6 +39,15 @@ trip that cannot be prepared is listed in ``ReplayPlan.skipped`` with the reason
 the simulation refuses gets its reason in ``ReplayResult.trip_messages``. A load change
 after the last stop (loading for a trip the record does not hold) ends the last window.
 
+The ropes' ringing is read off the record, not taken on trust from the description
+(whose ``head_rope_damping_ratio`` is a default a mine cannot know): a model that rings
+at ~1 Hz where the hoist does not leaves a common-mode gap of ~0.1 MPa. The description's
+ratio stays unless the record contradicts it; then the ratio read from the ringing's decay
+(or, with no ringing seen 3-7 s after the stops, 0.1 / 0.3 / 1.0) is chosen by the replay
+gap (:mod:`sims.logged_motion`, ``ReplayPlan.rope_bounce``). The trips can also be driven
+by the encoder's logged speed instead of the winder profile (``plan_replay(motion=
+"logged")``).
+
 Long records are analysed on at most ``max_trips`` trips in ``blocks`` blocks of
 consecutive trips spread evenly over the record (temperature and payload ranges
 covered, simulation cost bounded: ~0.2 s per 2-minute trip at ``dt_s = 2 ms``).

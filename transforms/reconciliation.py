@@ -251,8 +251,11 @@ def summarise_positions(
     Samples count for a position where the ``position`` column names it (trip
     segmentation marks samples within the hoist's ``position_window`` of a named depth).
     One row per stint: a run of consecutive samples with the same ``trip_id`` and
-    ``position`` (a trip passes each position once; standstill samples carry no trip id
-    and give one row per stay). Tensions are averaged over the stint; ``payload_kg`` is
+    ``position`` (standstill samples carry no trip id and give one row per stay). A trip
+    usually passes a position once, but a sample just outside the position window (the
+    conveyance's bounce at a stop, a logger's jitter) splits a pass into two stints: the
+    grain is ``(run_id, position, time_start_utc)``, not the trip and position
+    (warehouse/README.md). Tensions are averaged over the stint; ``payload_kg`` is
     the payload inferred there from its steady samples (:data:`STEADY_PHASES`; null when
     the stint is all acceleration). ``expected_load_n`` uses the reference payload:
     ``payload_kg`` when known (a float for every trip, or a frame with ``trip_id`` and

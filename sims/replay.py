@@ -213,6 +213,11 @@ class ReplayResult:
             for tr, sim in zip(plan.trips, self.simulated, strict=True)
         )
 
+    def rms_gap_pa(self, plan: ReplayPlan) -> float:
+        """RMS of measured minus simulated over every valid sample [Pa]; NaN if none."""
+        r = np.concatenate([x[np.isfinite(x)] for x in self.residuals(plan)])
+        return float(np.sqrt(np.mean(r**2))) if r.size else float("nan")
+
 
 # ---------------------------------------------------------------------------------------
 # planning
@@ -699,9 +704,8 @@ def _with_rope_damping(plan: ReplayPlan, zeta_read: float | None) -> ReplayPlan:
     gaps = []
     for zeta in candidates:
         trial = dataclasses.replace(plan, hoist=_with_damping(plan.hoist, zeta), trips=block)
-        res = replay_fitted(trial, passes=2)
-        r = np.concatenate([x[np.isfinite(x)] for x in res.residuals(trial)])
-        gaps.append(float(np.sqrt(np.mean(r**2))) if r.size else np.inf)
+        gap = replay_fitted(trial, passes=2).rms_gap_pa(trial)
+        gaps.append(gap if np.isfinite(gap) else np.inf)
     best = int(np.argmin(gaps))
     said = ", ".join(f"{z:g}: {g / 1e3:.1f} kPa" for z, g in zip(candidates, gaps, strict=True))
     if best == 0 or not gaps[best] < 0.9 * gaps[0]:

@@ -131,9 +131,7 @@ def stiff_and_ringing_days():
 
 
 def _gap(plan) -> float:
-    res = replay_fitted(plan, passes=3)
-    r = np.concatenate([x[np.isfinite(x)] for x in res.residuals(plan)])
-    return float(np.sqrt(np.mean(r**2)))
+    return replay_fitted(plan, passes=3).rms_gap_pa(plan)
 
 
 def test_a_hoist_that_does_not_ring_replays_to_the_noise_described_as_ringing(

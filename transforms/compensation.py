@@ -39,6 +39,7 @@ collected frame of one hoist, sorted by time, and returns a ``ROPE_TENSIONS`` fr
 
 from __future__ import annotations
 
+import datetime as dt
 import itertools
 import os
 import threading
@@ -53,9 +54,12 @@ from numba import njit
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPE_TENSIONS, ROPES
 from transforms.filtering import (
+    PLAY_STATE_SIZE,
     _play_kernel,
     box_smooth_into,
     despike_median3,
+    first_difference_sigma,
+    fresh_state,
     lowpass,
     lowpass_work_size,
     segment_ids,
@@ -79,7 +83,7 @@ from transforms.oil import (
     effective_bulk_modulus_at,
     kinematic_viscosity,
 )
-from transforms.piston_motion import share_out_common_motion
+from transforms.piston_motion import share_out_common_motion, share_state
 from transforms.pressure_loss import (
     RE_LAMINAR,
     _branch_constants,
@@ -88,11 +92,19 @@ from transforms.pressure_loss import (
 from transforms.uncertainty import load_band, rope_band
 
 __all__ = [
+    "CompensationCarry",
+    "CompensationContext",
     "CompensationSettings",
     "common_mode_displacement",
     "compensate",
+    "compensate_window",
+    "compensation_context",
+    "compensation_margins_s",
+    "context_sample",
+    "context_stride",
     "displacement_noise_sigma",
     "logger_rate_hz",
+    "second_difference_sigma",
 ]
 
 _OUTPUT_SCHEMA = pl.Schema(pl.from_arrow(ROPE_TENSIONS.empty_table()).schema)
@@ -171,7 +183,11 @@ def logger_rate_hz(time_s: np.ndarray, *, default_hz: float = 100.0) -> float:
 
 
 def common_mode_displacement(
-    p_mean_pa: np.ndarray, segment_id: np.ndarray, hoist: HoistDescription
+    p_mean_pa: np.ndarray,
+    segment_id: np.ndarray,
+    hoist: HoistDescription,
+    *,
+    state: np.ndarray | None = None,
 ) -> np.ndarray:
     r"""Piston displacement implied by oil compression when x is not logged [m].
 
@@ -185,6 +201,7 @@ def common_mode_displacement(
     :func:`transforms.oil.effective_bulk_modulus`). A rising load squeezes oil out of
     the chambers, so x grows (rod out) while p rises. Differential piston motion is not
     observable this way and is taken as zero. Integrated per segment from 0.
+    ``state``: carried from the previous block of the same record (:func:`fresh_state`).
     """
     p = np.ascontiguousarray(p_mean_pa, dtype=np.float64)
     x = np.empty_like(p)
@@ -192,26 +209,40 @@ def common_mode_displacement(
         _common_mode_kernel(
             p,
             np.ascontiguousarray(segment_id, dtype=np.int64),
-            float(hoist.oil_volume_m3),
-            hoist.ropes_n * hoist.cylinders.bore_area_m2,
-            np.array([hoist.oil.bulk_modulus_pa, hoist.oil.air_fraction, ATMOSPHERIC_PRESSURE_PA]),
+            *_common_mode_constants(hoist),
             x,
+            fresh_state(COMMON_MODE_STATE_SIZE) if state is None else state,
         )
     return x
 
 
+def _common_mode_constants(hoist: HoistDescription) -> tuple[float, float, np.ndarray]:
+    """Oil volume [m3], n A_bore [m2] and (beta_liquid, air fraction, p_ref) of the hoist."""
+    return (
+        float(hoist.oil_volume_m3),
+        hoist.ropes_n * hoist.cylinders.bore_area_m2,
+        np.array([hoist.oil.bulk_modulus_pa, hoist.oil.air_fraction, ATMOSPHERIC_PRESSURE_PA]),
+    )
+
+
+#: Length of the resumable state of :func:`_common_mode_kernel` (:func:`fresh_state`).
+COMMON_MODE_STATE_SIZE = 6
+
+
 @njit(cache=True, nogil=True)
-def _common_mode_kernel(p, segment_id, volume, n_area, oil, x):  # pragma: no cover - numba
+def _common_mode_kernel(p, segment_id, volume, n_area, oil, x, state):  # pragma: no cover - numba
     """n A dx = V / beta_e(p) dp integrated per segment from 0 (:func:`common_mode_displacement`).
 
     beta_e at max(p, 1 bar), 10 bar where p is unknown (NaN), isothermal
     (:func:`transforms.oil.effective_bulk_modulus_at`; ``oil`` = liquid bulk modulus,
     air fraction, reference pressure). The arithmetic of the array version: a running
-    sum over the whole record, minus its value at the segment's start.
+    sum over the whole record, minus its value at the segment's start. ``state`` =
+    [ran, continues segment, running sum, its value and dx at the segment's start,
+    last p] (:func:`transforms.filtering.fresh_state`).
     """
-    total = 0.0
-    total_at_start = 0.0
-    dx_at_start = 0.0
+    ran = state[0] != 0.0
+    resume = ran and state[1] != 0.0
+    total, total_at_start, dx_at_start, p_last = state[2], state[3], state[4], state[5]
     for i in range(p.shape[0]):
         p_beta = p[i]
         if np.isnan(p_beta):
@@ -219,18 +250,21 @@ def _common_mode_kernel(p, segment_id, volume, n_area, oil, x):  # pragma: no co
         elif np.isinf(p_beta):
             p_beta = 1.7976931348623157e308 if p_beta > 0 else -1.7976931348623157e308
         beta = effective_bulk_modulus_at(max(p_beta, 1e5), oil[0], oil[1], oil[2], 1.0)
-        start = i == 0 or segment_id[i] != segment_id[i - 1]
+        start = (i == 0 and not resume) or (i > 0 and segment_id[i] != segment_id[i - 1])
         dp = 0.0
         if not start:
-            dp = p[i] - p[i - 1]
+            dp = p[i] - (p[i - 1] if i > 0 else p_last)
             if not np.isfinite(dp):
                 dp = 0.0
         dx = volume / (n_area * beta) * dp
-        total = dx if i == 0 else total + dx
+        total = dx if (i == 0 and not ran) else total + dx
         if start:
             total_at_start = total
             dx_at_start = dx
         x[i] = total - total_at_start + dx_at_start
+    if p.shape[0]:
+        state[0] = 1.0
+        state[2], state[3], state[4], state[5] = total, total_at_start, dx_at_start, p[-1]
 
 
 def displacement_noise_sigma(x: np.ndarray) -> float:
@@ -244,7 +278,12 @@ def displacement_noise_sigma(x: np.ndarray) -> float:
     # np.diff(x, 2)[::step] without differencing the whole record
     step = max(1, (x.size - 2) // 200_000)
     at = np.arange(0, max(x.size - 2, 0), step)
-    d2 = (x[at + 2] - x[at + 1]) - (x[at + 1] - x[at])
+    return second_difference_sigma((x[at + 2] - x[at + 1]) - (x[at + 1] - x[at]))
+
+
+def second_difference_sigma(d2: np.ndarray) -> float:
+    """White-noise sigma from second differences: 1.4826 MAD / sqrt 6 (non-finite ignored)."""
+    d2 = np.asarray(d2, dtype=np.float64)
     d2 = d2[np.isfinite(d2)]
     if d2.size == 0:
         return 0.0
@@ -318,40 +357,41 @@ def _median_padded_smooth(
     return out
 
 
-def _differential_one(
+def _differential_smooth(
     x: np.ndarray,
-    mean: np.ndarray,
-    long_segment: np.ndarray,
     bounds: np.ndarray,
     settings: CompensationSettings,
     *,
     buffer: Buffer = _fresh,
 ) -> np.ndarray:
-    """x - mean_j x_j of one rope: smoothed, then a play operator of 3 sigma of its noise.
+    """One rope's logged displacement, Gaussian-smoothed per long segment.
 
     The differential motion is slow and positions are continuous across a short logger
     dropout, so segments here are split only at gaps longer than
-    ``settings.differential_bridge_s`` (``long_segment``, ``bounds``). The smoother is
-    a Gaussian of standard deviation s = 0.1325 / f_c seconds (half-power frequency
-    f_c); it leaves sigma / sqrt(2 sqrt(pi) s f_s) of the transducer's white noise, and
-    a play of half-width 3 times that keeps the slow wander of the filtered noise from
-    moving the friction state. Work arrays come from ``buffer(name, size)``: the
-    result is written over the raw difference, ``buffer("work_a", n)``, and
-    ``buffer("work_b", n)`` (the smoothed difference) is free again on return.
+    ``settings.differential_bridge_s`` (``bounds``). The smoother is a Gaussian of
+    standard deviation s = 0.1325 / f_c seconds (half-power frequency f_c); it leaves
+    sigma / sqrt(2 sqrt(pi) s f_s) of the transducer's white noise (:func:`_smoothed_noise`),
+    and the caller's play operator of half-width 3 times that keeps the slow wander of the
+    filtered noise from moving the friction state. The result is ``buffer("work_b", n)``.
     """
-    sigma_samples = 0.1325 / settings.differential_cutoff_hz * settings.sample_rate_hz
+    sigma_samples = _smoothing_sigma_samples(settings)
     edge = max(int(settings.sample_rate_hz / settings.differential_cutoff_hz), 1)
-    shrink = 1.0 / np.sqrt(2.0 * np.sqrt(np.pi) * sigma_samples)
-    raw = np.subtract(x, mean, out=buffer("work_a", x.size))
-    sigma = displacement_noise_sigma(raw)
     smooth = buffer("work_b", x.size)
     for a, b in itertools.pairwise(bounds):
         _median_padded_smooth(
-            raw[a:b], sigma_samples, min(edge, b - a), out=smooth[a:b], buffer=buffer
+            x[a:b], sigma_samples, min(edge, b - a), out=smooth[a:b], buffer=buffer
         )
-    played = raw  # the raw difference is no longer needed
-    _play_kernel(smooth, long_segment, 3.0 * sigma * shrink, played)
-    return played
+    return smooth
+
+
+def _smoothing_sigma_samples(settings: CompensationSettings) -> float:
+    """Standard deviation of the differential smoother [samples]."""
+    return 0.1325 / settings.differential_cutoff_hz * settings.sample_rate_hz
+
+
+def _smoothed_noise(settings: CompensationSettings) -> float:
+    """Share of white noise the differential smoother leaves, 1 / sqrt(2 sqrt(pi) s f_s)."""
+    return 1.0 / np.sqrt(2.0 * np.sqrt(np.pi) * _smoothing_sigma_samples(settings))
 
 
 def _long_segments(time_s: np.ndarray, bridge_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -364,13 +404,16 @@ def _long_segments(time_s: np.ndarray, bridge_s: float) -> tuple[np.ndarray, np.
 def _viscosity(t_oil_c: np.ndarray | None, hoist: HoistDescription) -> np.ndarray | float:
     """Kinematic viscosity [m2/s] per sample (ASTM D341), or at the reference temperature.
 
-    Walther's relation is smooth in T, so it is evaluated on a 0.01 degC-fine grid over
-    the logged range and interpolated: exact to ~1e-7 relative, 20x cheaper per sample.
+    Walther's relation is smooth in T, so it is evaluated on a grid of whole hundredths
+    of a degree over the logged range and interpolated: exact to ~1e-7 relative, 20x
+    cheaper per sample; the grid's nodes do not depend on the range, so a block of a
+    day gets the values of the whole day.
     """
     if t_oil_c is None:
         return float(kinematic_viscosity(hoist.oil.reference_temperature_c, hoist.oil))
     low, high = float(np.min(t_oil_c)), float(np.max(t_oil_c))
-    grid = np.linspace(low, high, max(int((high - low) / 0.01) + 2, 2))
+    first, last = int(np.floor(low * 100.0)), int(np.ceil(high * 100.0))
+    grid = np.arange(first, max(last, first + 1) + 1) / 100.0
     return np.interp(t_oil_c, grid, kinematic_viscosity(grid, hoist.oil))
 
 
@@ -411,6 +454,7 @@ def _rope_kernel(
     friction,
     tension_raw,
     tension,
+    state,
 ):  # pragma: no cover - numba
     """Increments, friction law, seal friction and tensions of one rope in one pass.
 
@@ -425,11 +469,19 @@ def _rope_kernel(
     loss coefficient, laminar Reynolds limit) or none (2). The tests check it against
     those functions.
     Returns False, with the outputs incomplete, when a Reynolds number exceeds the
-    laminar limit in mode 1 (the caller then computes ``loss`` in general).
+    laminar limit in mode 1 (the caller then computes ``loss`` in general; ``state`` is
+    then also incomplete: pass a copy). ``state`` = [ran, last x, last time, LuGre z,
+    Maxwell-slip deflections...] carries the friction state from the previous block
+    (:func:`transforms.filtering.fresh_state`, :data:`ROPE_STATE_BASE` + elements).
     """
     n_el = weights.shape[0]
+    ran = state[0] != 0.0
     deltas = np.zeros(n_el)
     z = 0.0
+    if ran:
+        z = state[3]
+        for j in range(n_el):
+            deltas[j] = state[4 + j]
     per_sample = nu.shape[0] > 1
     area_ratio, d, length, rho, k_local, re_laminar = (
         branch[0], branch[1], branch[2], branch[3], branch[4], branch[5]
@@ -438,8 +490,9 @@ def _rope_kernel(
         # step length and segment start (the caller's segments)
         same_segment = False
         dt_i = nominal_dt_s
-        if i > 0:
-            dt_i = time_s[i] - time_s[i - 1]
+        x_before = x[i - 1] if i > 0 else state[1]
+        if i > 0 or ran:
+            dt_i = time_s[i] - (time_s[i - 1] if i > 0 else state[2])
             same_segment = not dt_i > gap_s
             if not same_segment:
                 dt_i = nominal_dt_s
@@ -458,8 +511,8 @@ def _rope_kernel(
         f = 0.0
         if mode != 0:
             v = 0.0
-            if i > 0 and x[i] != x[i - 1]:  # (a NaN differs too); else 0 / dt is 0
-                step = (x[i] - x[i - 1]) / dt_i
+            if (i > 0 or ran) and x[i] != x_before:  # (a NaN differs too); else 0 / dt is 0
+                step = (x[i] - x_before) / dt_i
                 if same_segment and np.isfinite(step):
                     v = step
             p = pc if np.isfinite(pc) else 0.0
@@ -493,7 +546,180 @@ def _rope_kernel(
         friction[i] = f
         tension_raw[i] = p_sensor[i] * area
         tension[i] = pc * area + f
+    if x.shape[0]:
+        state[0] = 1.0
+        state[1] = x[x.shape[0] - 1]
+        state[2] = time_s[x.shape[0] - 1]
+        state[3] = z
+        for j in range(n_el):
+            state[4 + j] = deltas[j]
     return True
+
+
+#: Length of :func:`_rope_kernel`'s state before its Maxwell-slip elements.
+ROPE_STATE_BASE = 4
+
+
+#: Rows the record-wide statistics of :class:`CompensationContext` are read from (about).
+CONTEXT_ROWS = 200_000
+
+
+def context_stride(rows: int) -> int:
+    """Every how many rows :func:`compensation_context` looks (row counts from 0)."""
+    return max(1, rows // CONTEXT_ROWS)
+
+
+def context_sample(samples: pl.DataFrame | pl.LazyFrame, stride: int) -> pl.LazyFrame:
+    """Rows i, i + 1, i + 2 of every i divisible by ``stride`` (time-sorted samples), with
+    their row number ``_row``: what :func:`compensation_context` reads. On a lazy scan of
+    a long period this streams: only about 3 / ``stride`` of the rows are kept."""
+    return (
+        samples.lazy()
+        .with_row_index("_row")
+        .filter(pl.col("_row") % stride < 3)
+        .with_columns(pl.col("_row").cast(pl.Int64))
+    )
+
+
+@dataclass(frozen=True)
+class CompensationContext:
+    """Record-wide statistics of :func:`compensate`, measured once for the whole record.
+
+    A block of a day (issue 16) must be compensated with the day's statistics, not its
+    own, to give the day's result; :func:`compensation_context` reads them from a sparse,
+    evenly spread sample of the record (:func:`context_sample`).
+
+    Attributes
+    ----------
+    sample_rate_hz : float
+        The logger's rate [Hz] (1 / the median step between neighbouring samples), or
+        ``settings.sample_rate_hz`` when set.
+    spike_sigma : dict of str to float
+        White-noise sigma of each calibrated pressure and logged displacement column
+        (:func:`transforms.filtering.first_difference_sigma`), for the despiking.
+    displacement_sigma_m : tuple of float
+        White-noise sigma of each rope's logged displacement from second differences
+        [m] (:func:`second_difference_sigma`), for the differential's play band.
+    typical_pressure_pa : float
+        Median of the ropes' mean calibrated pressure [Pa] (the presliding range's F_s).
+    has_x : bool
+        Every rope's displacement is logged somewhere in the record.
+    """
+
+    sample_rate_hz: float
+    spike_sigma: dict[str, float]
+    displacement_sigma_m: tuple[float, ...]
+    typical_pressure_pa: float
+    has_x: bool
+
+
+def _calibrated(frame: pl.DataFrame, column: str, hoist: HoistDescription) -> np.ndarray:
+    values = _float_column(frame[column])
+    for sensor in hoist.sensors:
+        if column == f"p{sensor.cylinder}_pa":
+            values = (values - sensor.offset_pa) / sensor.gain
+    return values
+
+
+def compensation_context(
+    sample: pl.DataFrame, hoist: HoistDescription, settings: CompensationSettings, stride: int
+) -> CompensationContext:
+    """:class:`CompensationContext` from a :func:`context_sample` of the record."""
+    row = sample["_row"].to_numpy()
+    first = row % stride == 0
+    pair = np.flatnonzero(first[:-1] & (row[1:] == row[:-1] + 1))
+    triple = pair[(pair + 2 < row.size)]
+    triple = triple[row[np.minimum(triple + 2, row.size - 1)] == row[triple] + 2]
+    epoch_us = sample["time_utc"].dt.cast_time_unit("us").to_physical().to_numpy()
+    steps = (epoch_us[pair + 1] - epoch_us[pair]) * 1e-6
+    steps = steps[steps > 0]
+    rate_hz = settings.sample_rate_hz or (float(1.0 / np.median(steps)) if steps.size else 100.0)
+    spike_sigma: dict[str, float] = {}
+    p_cols, x_cols = _rope_cols("p{i}_pa"), _rope_cols("x{i}_m")
+    pressures = []
+    for column in (*p_cols, *x_cols):
+        values = (
+            _calibrated(sample, column, hoist)
+            if column in sample.columns
+            else np.full(row.size, np.nan)
+        )
+        spike_sigma[column] = first_difference_sigma(values[pair + 1] - values[pair])
+        if column in p_cols:
+            pressures.append(values[first])
+    displacement_sigma = []
+    has_x = True
+    for column in x_cols:
+        x = _float_column(sample[column]) if column in sample.columns else np.full(row.size, np.nan)
+        has_x = has_x and bool(np.isfinite(x).any())
+        d2 = (x[triple + 2] - x[triple + 1]) - (x[triple + 1] - x[triple])
+        displacement_sigma.append(second_difference_sigma(d2))
+    mean = _mean_horizontal(pressures) if pressures and row.size else np.empty(0)
+    typical = float(np.nanmedian(mean)) if np.isfinite(mean).any() else 0.0
+    return CompensationContext(
+        sample_rate_hz=rate_hz,
+        spike_sigma=spike_sigma,
+        displacement_sigma_m=tuple(displacement_sigma),
+        typical_pressure_pa=typical,
+        has_x=has_x,
+    )
+
+
+@dataclass
+class CompensationCarry:
+    """The sequential state of :func:`compensate_window` from one block to the next.
+
+    Each array is a resumable kernel's state (:func:`transforms.filtering.fresh_state`).
+    The filters before them are not causal, so a block is compensated on a window with a
+    margin either side (:func:`compensation_margins_s`); the kernels that feed a second
+    filter (the oil's common mode, the pistons' share-out, the play operators) resume
+    ``resume_s`` before the block's start, the friction and trip labels at its start.
+    """
+
+    common: np.ndarray
+    differential: list[np.ndarray]
+    share: np.ndarray
+    played: list[np.ndarray]
+    rope: list[np.ndarray]
+    labels: np.ndarray
+
+    @classmethod
+    def fresh(cls, elements: int) -> CompensationCarry:
+        ropes = range(len(ROPES))
+        return cls(
+            common=fresh_state(COMMON_MODE_STATE_SIZE),
+            differential=[fresh_state(PLAY_STATE_SIZE) for _ in ropes],
+            share=share_state(len(ROPES)),
+            played=[fresh_state(PLAY_STATE_SIZE) for _ in ropes],
+            rope=[fresh_state(ROPE_STATE_BASE + elements) for _ in ropes],
+            labels=fresh_state(LABEL_STATE_SIZE),
+        )
+
+
+def compensation_margins_s(settings: CompensationSettings) -> tuple[float, float]:
+    """(resume, halo) [s] of block processing (:func:`compensate_window`).
+
+    ``resume``: the first-stage kernels restart this long before a block, so the piston
+    velocity filter (``velocity_window_s``) has exact input at the block's edges.
+    ``halo``: samples this far beyond (resume + block + resume) are read so that the
+    zero-phase filters have forgotten the window's edges: 10 periods of the pressure
+    low-pass, the differential smoother's 4 sigma plus its median-padded edge, twice
+    each Savitzky-Golay window, and at least 30 s.
+    """
+    resume = max(1.0, 2.0 * settings.velocity_window_s)
+    smoother_s = 4.0 * 0.1325 / settings.differential_cutoff_hz
+    halo = max(
+        30.0,
+        10.0 / settings.pressure_cutoff_hz,
+        2.0 * (smoother_s + 1.0 / settings.differential_cutoff_hz),
+        2.0 * settings.acceleration_window_s,
+        2.0 * settings.velocity_window_s,
+    )
+    return resume, halo
+
+
+def _continues(segment: np.ndarray, at: int) -> float:
+    """1.0 when sample ``at`` continues the gap-free segment of sample ``at - 1``."""
+    return 1.0 if 0 < at < segment.size and segment[at] == segment[at - 1] else 0.0
 
 
 def compensate(
@@ -520,34 +746,119 @@ def compensate(
     -------
     polars.DataFrame
         One row per sample with the columns of ``schemas.tables.ROPE_TENSIONS``.
+
+    See Also
+    --------
+    compensate_window : the same on a block of a longer record, with its state carried
+        (what ``ropeload run`` uses, :mod:`pipelines.blocks`).
     """
     settings = settings or CompensationSettings()
-    effects = set(hoist.model.effects if effects is None else effects)
-    p_cols, x_cols = _rope_cols("p{i}_pa"), _rope_cols("x{i}_m")
+    frame = _input_frame(samples)
+    if frame.height == 0:
+        return pl.DataFrame(schema=_OUTPUT_SCHEMA)
+    stride = context_stride(frame.height)
+    context = compensation_context(context_sample(frame, stride).collect(), hoist, settings, stride)
+    result, _ = compensate_window(frame, hoist, context=context, settings=settings, effects=effects)
+    return result
+
+
+def _input_frame(samples: pl.DataFrame | pl.LazyFrame) -> pl.DataFrame:
+    """The columns :func:`compensate_window` reads, collected and sorted by time."""
     lazy = samples.lazy()
     available = set(lazy.collect_schema().names())
     # only the columns used below (a landed frame also carries e.g. long provenance
     # strings, which sorting would otherwise have to move)
-    wanted = ["time_utc", "depth_m", "speed_m_s", "oil_temp_c", *p_cols, *x_cols]
+    wanted = ["time_utc", "depth_m", "speed_m_s", "oil_temp_c", *_rope_cols("p{i}_pa")]
+    wanted += _rope_cols("x{i}_m")
     frame = lazy.select(c for c in wanted if c in available).collect()
-    if frame.height == 0:
-        return pl.DataFrame(schema=_OUTPUT_SCHEMA)
-    if not frame["time_utc"].is_sorted():
+    if frame.height and not frame["time_utc"].is_sorted():
         frame = frame.sort("time_utc")
+    return frame
+
+
+def compensate_window(
+    samples: pl.DataFrame | pl.LazyFrame,
+    hoist: HoistDescription,
+    *,
+    context: CompensationContext,
+    settings: CompensationSettings | None = None,
+    effects: set[str] | None = None,
+    carry: CompensationCarry | None = None,
+    block_start_utc: dt.datetime | None = None,
+    block_end_utc: dt.datetime | None = None,
+) -> tuple[pl.DataFrame, CompensationCarry]:
+    """Compensate the block ``block_start_utc <= t < block_end_utc`` of a longer record.
+
+    ``samples`` hold the block and the margins of :func:`compensation_margins_s` either
+    side (less at the record's ends); ``context`` the record's statistics; ``carry`` the
+    state the previous block returned (None for the record's first block, which must
+    then start at the samples' start). Returns the block's ``ROPE_TENSIONS`` rows and the
+    state for the next block, which starts at ``block_end_utc``. Called on the whole
+    record at once (no carry, no bounds) it is :func:`compensate`; block by block it
+    gives the same rows (tests/transforms/test_blocks.py states the tolerance).
+    """
+    settings = settings or CompensationSettings()
+    effects = set(hoist.model.effects if effects is None else effects)
+    p_cols, x_cols = _rope_cols("p{i}_pa"), _rope_cols("x{i}_m")
+    frame = _input_frame(samples)
     n = frame.height
+    law = hoist.friction_law
+    presliding = "presliding_hysteresis" in effects
+    if presliding:
+        stiffness, weights = maxwell_slip_elements(
+            law.presliding_elements, law.bristle_stiffness_n_m
+        )
+    else:
+        stiffness, weights = np.ones(1), np.ones(1)
+    resuming = carry is not None  # a block after the record's first
+    carry = carry or CompensationCarry.fresh(weights.shape[0])
+    if n == 0:
+        return pl.DataFrame(schema=_OUTPUT_SCHEMA), carry
     workers = min(len(ROPES), os.cpu_count() or 1)
 
     # epoch microseconds x 1e-6 (the arithmetic of .astype(float) * 1e-6), chunk by chunk
     epoch_us = frame["time_utc"].dt.cast_time_unit("us").to_physical()
     time_s = _float_column(epoch_us, scale=1e-6)
-    rate_hz = settings.sample_rate_hz or logger_rate_hz(time_s)
+    rate_hz = context.sample_rate_hz
     settings = replace(
         settings,
         sample_rate_hz=rate_hz,
         pressure_cutoff_hz=min(settings.pressure_cutoff_hz, 0.4 * rate_hz),
     )
+    resume_s, _ = compensation_margins_s(settings)
+    epoch = epoch_us.to_numpy()
+
+    def index(at: dt.datetime | None, shift_s: float, default: int) -> int:
+        if at is None:
+            return default
+        micros = _epoch_us(at) + round(shift_s * 1e6)
+        return int(np.searchsorted(epoch, micros, side="left"))
+
+    core_lo, core_hi = index(block_start_utc, 0.0, 0), index(block_end_utc, 0.0, n)
+    stage_lo = index(block_start_utc, -resume_s, 0) if resuming else 0
+    handover = index(block_end_utc, -resume_s, n)
+    stage_hi = index(block_end_utc, resume_s, n)
     dt_nominal = 1.0 / rate_hz
     segment = segment_ids(time_s, gap_factor=settings.gap_factor, nominal_dt_s=dt_nominal)
+    nxt = CompensationCarry(
+        common=carry.common,
+        differential=list(carry.differential),
+        share=carry.share,
+        played=list(carry.played),
+        rope=list(carry.rope),
+        labels=carry.labels,
+    )
+
+    def staged(run: Callable[[int, int, np.ndarray], None], seg: np.ndarray, state: np.ndarray):
+        """Run a first-stage kernel over [stage_lo, stage_hi) resuming ``state``; returns
+        its state at the hand-over to the next block."""
+        state = state.copy()
+        state[1] = _continues(seg, stage_lo)
+        run(stage_lo, handover, state)
+        saved = state.copy()
+        state[1] = _continues(seg, handover)
+        run(handover, stage_hi, state)
+        return saved
 
     # Work arrays are reused per thread: every fresh 70 MB array costs page faults, and
     # freeing one interrupts the other thread (TLB shootdown), which cost more than the
@@ -562,6 +873,7 @@ def compensate(
 
     gains = {f"p{s.cylinder}_pa": (s.offset_pa, s.gain) for s in hoist.sensors}
     cutoff = settings.pressure_cutoff_hz
+    n_sigmas = settings.spike_sigmas
 
     def pressure(column: str) -> np.ndarray:
         """Calibrated, despiked and low-passed, all in one new array."""
@@ -570,7 +882,8 @@ def compensate(
             offset, gain = gains[column]
             np.subtract(values, offset, out=values)
             np.divide(values, gain, out=values)
-        despike_median3(values, segment, n_sigmas=settings.spike_sigmas, out=values)
+        sigma = context.spike_sigma.get(column)
+        despike_median3(values, segment, n_sigmas=n_sigmas, out=values, sigma=sigma)
         return lowpass(
             values,
             segment,
@@ -582,8 +895,9 @@ def compensate(
         )
 
     def displacement(column: str) -> np.ndarray:
-        values = _float_column(frame[column])
-        return despike_median3(values, segment, n_sigmas=settings.spike_sigmas, out=values)[0]
+        values = _float_column(frame[column]) if column in frame.columns else np.full(n, np.nan)
+        sigma = context.spike_sigma.get(column)
+        return despike_median3(values, segment, n_sigmas=n_sigmas, out=values, sigma=sigma)[0]
 
     def kinematics() -> tuple[np.ndarray, dict[str, pl.Series]]:
         """Conveyance acceleration, then the trip labels that depend on it."""
@@ -592,16 +906,18 @@ def compensate(
             speed, segment, dt_s=dt_nominal, window_s=settings.acceleration_window_s
         )
         depth = _float_column(frame["depth_m"])
-        return accel, _trip_labels(time_s, speed, depth, accel, segment, hoist)
+        state = carry.labels.copy()
+        state[1] = _continues(segment, core_lo)
+        window = slice(core_lo, core_hi)
+        labels = _trip_labels(
+            time_s[window], speed[window], depth[window], accel[window], segment[window],
+            hoist, state,
+        )  # fmt: skip
+        nxt.labels = state
+        return accel, labels
 
-    def logged_motion(xs: list[np.ndarray]):
-        """Whether x is logged, its mean over the ropes, the long-gap segments."""
-        has_x = all(bool((~np.isnan(x)).any()) for x in xs)
-        return (
-            has_x,
-            _mean_horizontal(xs) if has_x else None,
-            _long_segments(time_s, settings.differential_bridge_s),
-        )
+    has_x = context.has_x
+    long_segment, long_bounds = _long_segments(time_s, settings.differential_bridge_s)
 
     t_oil = None
     if "viscosity_temperature" in effects and frame["oil_temp_c"].null_count() < n:
@@ -612,19 +928,11 @@ def compensate(
 
     with_branch_loss = bool({"pipe_laminar_loss", "local_loss"} & effects)
     with_friction = "seal_friction" in effects
-    presliding = "presliding_hysteresis" in effects
-    law = hoist.friction_law
     coefficients = np.array(
         [law.coulomb_n, law.static_n, law.stribeck_speed_m_s, law.viscous_n_s_m],
         dtype=np.float64,
     )
     floors = np.array([0.0, 0.0, STRIBECK_SPEED_FLOOR_M_S, 0.0])
-    if presliding:
-        stiffness, weights = maxwell_slip_elements(
-            law.presliding_elements, law.bristle_stiffness_n_m
-        )
-    else:
-        stiffness, weights = np.ones(1), np.ones(1)
     mode = 0 if not with_friction else (1 if presliding else 2)
     area = hoist.cylinders.bore_area_m2
     area_ratio, d_pipe, length, _, k_local = _branch_constants(hoist)
@@ -634,7 +942,6 @@ def compensate(
     gap_s = settings.gap_factor * dt_nominal
     no_array = np.zeros(1)
 
-    zeros = np.zeros(n)
     # the sensor's noise after the low-pass, as a force on the piston (the band)
     pressure_noise_n = (
         settings.pressure_sigma_pa
@@ -647,13 +954,18 @@ def compensate(
 
     def smoothed_logged(k: int) -> np.ndarray | None:
         """Rope k's logged displacement, smoothed and played (None without a logged x)."""
-        has_x, _, (long_segment, long_bounds) = motion_job.result()
         if not has_x:
             return None
-        # the result is a per-thread work array: copied before the thread reuses it
-        return _differential_one(
-            x_jobs[k].result(), zeros, long_segment, long_bounds, settings, buffer=buffer
-        ).copy()
+        smooth = _differential_smooth(x_jobs[k].result(), long_bounds, settings, buffer=buffer)
+        # the result is a per-thread work array: played into a copy of its own
+        played = np.empty(n)
+        half_width = 3.0 * context.displacement_sigma_m[k] * _smoothed_noise(settings)
+
+        def run(lo: int, hi: int, state: np.ndarray) -> None:
+            _play_kernel(smooth[lo:hi], long_segment[lo:hi], half_width, played[lo:hi], state)
+
+        nxt.differential[k] = staged(run, long_segment, carry.differential[k])
+        return played
 
     def piston_motion() -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
         """Each piston's displacement (the common mode shared out by the logged motion)
@@ -664,32 +976,43 @@ def compensate(
             never_seen = np.full(n, np.inf)  # pressure only: no piston is seen sliding
             # shared by the ropes: not overwritten
             return tuple(common for _ in ROPES), tuple(never_seen for _ in ROPES)
-        return share_out_common_motion(
-            common,
-            tuple(logged),
-            segment,
-            overwrite_logged=True,  # the smoothed copies are this job's own
-            elastic_half_width_m=len(ROPES) * presliding_range_m(),
-            # from any state, a seal saturates once it has moved 2 F_s / sigma_0
-            seen_reset_m=2.0 * presliding_range_m(),
-        )
+        blind = tuple(np.empty(n) for _ in ROPES)
 
-    def presliding_range_m() -> float:
-        """F_s / sigma_0 at the record's median pressure: one seal's presliding range."""
-        if mode == 0 or not law.bristle_stiffness_n_m > 0:
-            return 0.0
-        p_typical = float(np.nanmedian(p_mean))  # set before the common mode
+        def run(lo: int, hi: int, state: np.ndarray) -> None:
+            _, parts = share_out_common_motion(
+                common[lo:hi],
+                tuple(d[lo:hi] for d in logged),
+                segment[lo:hi],
+                overwrite_logged=True,  # the smoothed copies are this job's own
+                elastic_half_width_m=len(ROPES) * presliding_range_m,
+                # from any state, a seal saturates once it has moved 2 F_s / sigma_0
+                seen_reset_m=2.0 * presliding_range_m,
+                state=state,
+            )
+            for whole, part in zip(blind, parts, strict=True):
+                whole[lo:hi] = part
+
+        nxt.share = staged(run, segment, carry.share)
+        return tuple(logged), blind
+
+    # F_s / sigma_0 at the record's median pressure: one seal's presliding range
+    presliding_range_m = 0.0
+    if mode != 0 and law.bristle_stiffness_n_m > 0:
+        p_typical = context.typical_pressure_pa
         static = _linear_law(coefficients, floors, 1, p_typical if np.isfinite(p_typical) else 0.0)
-        return static / float(law.bristle_stiffness_n_m)
+        presliding_range_m = static / float(law.bristle_stiffness_n_m)
 
     def rope(k: int) -> dict[str, np.ndarray]:
         """Tensions of rope k; its inputs are futures of the jobs queued before it."""
         i = ROPES[k]
-        has_x = motion_job.result()[0]
         played = buffer("work_b", n)
         estimate = motion_share.result()[0][k]
+
         # transforms.filtering.play_operator (the estimate is not overwritten)
-        _play_kernel(estimate, segment, deadband, played)
+        def run_play(lo: int, hi: int, state: np.ndarray) -> None:
+            _play_kernel(estimate[lo:hi], segment[lo:hi], deadband, played[lo:hi], state)
+
+        nxt.played[k] = staged(run_play, segment, carry.played[k])
         p_sensor = np.ascontiguousarray(p_jobs[k].result())
         nu = nu_job.result()
         nu_arr = np.ascontiguousarray(np.atleast_1d(np.asarray(nu, dtype=np.float64)))
@@ -699,25 +1022,29 @@ def compensate(
         out["friction"] = x_jobs[k].result() if has_x else np.empty(n)
         v_flow = no_array
         if with_branch_loss:
-            v_flow = smoothed_derivative(
-                played,
-                segment,
+            v_flow = np.zeros(n)
+            v_flow[stage_lo:stage_hi] = smoothed_derivative(
+                played[stage_lo:stage_hi],
+                segment[stage_lo:stage_hi],
                 dt_s=dt_nominal,
                 window_s=settings.velocity_window_s,
-                out=buffer("work_a", n),
+                out=buffer("work_a", stage_hi - stage_lo),
             )
+        window = slice(core_lo, core_hi)
+        start_state = carry.rope[k]
 
         def run(loss_mode: int, loss: np.ndarray) -> bool:
-            return _rope_kernel(
-                played,
-                time_s,
+            state = start_state.copy()
+            done = _rope_kernel(
+                played[window],
+                time_s[window],
                 gap_s,
                 dt_nominal,
-                p_sensor,
+                p_sensor[window],
                 loss_mode,
-                loss,
-                v_flow,
-                nu_arr,
+                loss[window] if loss.size == n else loss,
+                v_flow[window] if v_flow.size == n else v_flow,
+                nu_arr[window] if nu_arr.size == n else nu_arr,
                 branch,
                 coefficients,
                 floors,
@@ -727,11 +1054,14 @@ def compensate(
                 float(law.bristle_stiffness_n_m),
                 float(law.bristle_damping_n_s_m),
                 area,
-                out["p_chamber"],
-                out["friction"],
-                out["tension_raw"],
-                out["tension"],
+                out["p_chamber"][window],
+                out["friction"][window],
+                out["tension_raw"][window],
+                out["tension"][window],
+                state,
             )
+            nxt.rope[k] = state
+            return done
 
         if not run(1 if with_branch_loss else 2, no_array):
             # turbulent somewhere: the branch loss by the general (numpy) path
@@ -747,23 +1077,23 @@ def compensate(
         # before each hi is written: they take the band, unless shared by the ropes
         own = estimates[k] is not estimates[(k + 1) % len(ROPES)]
         lo, hi = rope_band(
-            out["tension"],
-            out["friction"] if mode != 0 else np.zeros(n),
-            out["p_chamber"],
-            blind[k],
+            out["tension"][window],
+            out["friction"][window] if mode != 0 else np.zeros(core_hi - core_lo),
+            out["p_chamber"][window],
+            blind[k][window],
             static_law_n=tuple(law.static_n) if mode != 0 else (0.0, 0.0),
             bristle_stiffness_n_m=float(law.bristle_stiffness_n_m) if mode != 0 else 0.0,
             gaussian_sigma_n=(
                 settings.friction_relative_sigma if mode != 0 else 0.0,
                 pressure_noise_n,
             ),
-            out=(estimates[k], blind[k]) if own else None,
+            out=(estimates[k][window], blind[k][window]) if own else None,
         )
         return {
-            f"p_chamber{i}_pa": out["p_chamber"],
-            f"friction{i}_n": out["friction"],
-            f"tension_raw{i}_n": out["tension_raw"],
-            f"tension{i}_n": out["tension"],
+            f"p_chamber{i}_pa": out["p_chamber"][window],
+            f"friction{i}_n": out["friction"][window],
+            f"tension_raw{i}_n": out["tension_raw"][window],
+            f"tension{i}_n": out["tension"][window],
             f"tension{i}_lo_n": lo,
             f"tension{i}_hi_n": hi,
         }
@@ -781,7 +1111,6 @@ def compensate(
         p_jobs = [pool.submit(pressure, c) for c in p_cols]
         x_jobs = [pool.submit(displacement, c) for c in x_cols]
         nu_job = pool.submit(_viscosity, t_oil, hoist)
-        motion_job = pool.submit(lambda: logged_motion([job.result() for job in x_jobs]))
         smooth_jobs = [pool.submit(smoothed_logged, k) for k in range(len(ROPES))]
         motion_share = pool.submit(piston_motion)
         rope_jobs = [pool.submit(rope, k) for k in range(len(ROPES))]
@@ -789,17 +1118,27 @@ def compensate(
             # NaN stands for null from here on (the frame version filled NaN with null)
             pressures = [job.result() for job in p_jobs]
             p_mean = _mean_horizontal(pressures)
-            common_mode.set_result(common_mode_displacement(p_mean, segment, hoist))
+            common = np.empty(n)
+
+            def run_common(lo: int, hi: int, state: np.ndarray) -> None:
+                if hi > lo:
+                    common[lo:hi] = common_mode_displacement(
+                        p_mean[lo:hi], segment[lo:hi], hoist, state=state
+                    )
+
+            nxt.common = staged(run_common, segment, carry.common)
+            common_mode.set_result(common)
         except BaseException as error:
             common_mode.set_exception(error)  # the rope jobs fail instead of waiting
             raise
         accel, labels = kinematics_job.result()
         per_rope = [job.result() for job in rope_jobs]
+    window = slice(core_lo, core_hi)
+    m = core_hi - core_lo
     columns = {name: values for part in per_rope for name, values in part.items()}
-    # the mean pressure and displacement are consumed: their arrays take the load sums
-    load_raw = p_mean
-    x_mean = motion_job.result()[1]
-    load = x_mean if x_mean is not None else np.empty(n)
+    # the mean pressure's array takes the raw load sum
+    load_raw = p_mean[window]
+    load = np.empty(m)
     _load_kernel(
         tuple(columns[c] for c in _rope_cols("tension_raw{i}_n")),
         tuple(columns[c] for c in _rope_cols("tension{i}_n")),
@@ -820,14 +1159,15 @@ def compensate(
         series = pl.Series(name, values, dtype=dtype)
         return series.fill_nan(None) if np.isnan(values).any() else series
 
+    rows = frame.slice(core_lo, m)
+    accel_up = np.negative(accel[window])
     out: dict[str, pl.Series] = {
-        "time_utc": frame["time_utc"],
-        "depth_m": frame["depth_m"],
-        "speed_m_s": frame["speed_m_s"],
-        # the labels are done with it: negated in place
-        "acceleration_up_m_s2": nullable("acceleration_up_m_s2", np.negative(accel, out=accel)),
+        "time_utc": rows["time_utc"],
+        "depth_m": rows["depth_m"],
+        "speed_m_s": rows["speed_m_s"],
+        "acceleration_up_m_s2": nullable("acceleration_up_m_s2", accel_up),
         **labels,
-        **{c: nullable(c, v) for c, v in zip(p_cols, pressures, strict=True)},
+        **{c: nullable(c, v[window]) for c, v in zip(p_cols, pressures, strict=True)},
         **{
             name: nullable(name, values, pl.Float32)  # the band (schemas.tables)
             if name.endswith(("_lo_n", "_hi_n"))
@@ -842,7 +1182,14 @@ def compensate(
     result = pl.DataFrame([out[name] for name in _OUTPUT_SCHEMA])
     if result.schema != _OUTPUT_SCHEMA:
         result = result.cast(dict(_OUTPUT_SCHEMA))
-    return result
+    return result, nxt
+
+
+def _epoch_us(at: dt.datetime) -> int:
+    """Microseconds since the epoch of a datetime (naive: UTC)."""
+    at = at.replace(tzinfo=dt.UTC) if at.tzinfo is None else at
+    delta = at - dt.datetime(1970, 1, 1, tzinfo=dt.UTC)
+    return (delta.days * 86_400 + delta.seconds) * 1_000_000 + delta.microseconds
 
 
 @njit(cache=True, nogil=True)
@@ -888,14 +1235,19 @@ def _trip_labels(
     accel: np.ndarray,
     segment: np.ndarray,
     hoist: HoistDescription,
+    state: np.ndarray | None = None,
 ) -> dict[str, pl.Series]:
     """``phase``, ``direction``, ``trip_id`` (:func:`transforms.kinematics.with_trip_phases`
     on the null-filled speed) and ``position`` (:func:`~transforms.kinematics.with_position`),
     computed on arrays, each string column gathered from its few names."""
-    codes, direction, trip_id, position = _label_arrays(time_s, speed, accel, segment, depth, hoist)
+    codes, direction, trip_id, position = _label_arrays(
+        time_s, speed, accel, segment, depth, hoist, state=state
+    )
     position_names = [name for name, _ in _ordered_positions(hoist)]
 
     def strings(name: str, values: np.ndarray, categories: list[str]) -> pl.Series:
+        if values.size == 0:
+            return pl.Series(name, [], dtype=pl.String)
         if not categories:
             return pl.Series(name, [None], dtype=pl.String).extend_constant(None, values.size - 1)
         # code -1 becomes a null index, which gathers a null
@@ -925,10 +1277,12 @@ def _label_arrays(
     standstill_speed_m_s: float = 0.02,
     acceleration_fraction: float = 0.3,
     creep_factor: float = 1.5,
+    state: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Integer codes (-1: null) of phase (index in PHASES), direction (0 down, 1 up),
     trip id, and position (index in the depth-ordered positions): the rules of
-    :func:`transforms.kinematics.with_trip_phases` and ``position_expr``."""
+    :func:`transforms.kinematics.with_trip_phases` and ``position_expr``. ``state``:
+    carried from the previous block (:func:`_label_kernel`)."""
     winder = hoist.winder
     ordered = _ordered_positions(hoist)
     phase = np.empty(speed.size, dtype=np.int8)
@@ -953,6 +1307,7 @@ def _label_arrays(
         direction,
         trip_id,
         position,
+        fresh_state(LABEL_STATE_SIZE) if state is None else state,
     )
     return phase, direction, trip_id, position
 
@@ -976,10 +1331,17 @@ def _label_kernel(
     direction,
     trip_id,
     position,
+    state,
 ):  # pragma: no cover - numba
-    """The rules of :func:`_label_arrays` (later rules override earlier ones) in one pass."""
-    trips = -1
-    was_moving = False
+    """The rules of :func:`_label_arrays` (later rules override earlier ones) in one pass.
+
+    ``state`` = [ran, continues segment, last trip id, was moving, last speed, time,
+    depth] (:func:`transforms.filtering.fresh_state`, :data:`LABEL_STATE_SIZE`).
+    """
+    ran = state[0] != 0.0
+    resume = ran and state[1] != 0.0
+    trips = int(state[2]) if ran else -1
+    was_moving = ran and state[3] != 0.0
     for i in range(speed.shape[0]):
         v = speed[i]
         abs_v = abs(v)
@@ -1000,13 +1362,14 @@ def _label_kernel(
             direction[i] = 0
         elif moving and v < 0:
             direction[i] = 1
-        if moving and (i == 0 or not was_moving):
+        new_segment = not resume if i == 0 else segment[i] != segment[i - 1]
+        if moving and ((i == 0 and not ran) or not was_moving):
             trips += 1
-        elif moving and segment[i] != segment[i - 1]:
+        elif moving and new_segment:
             # a logger gap inside a motion: the same trip if it kept moving the same way
-            v_before = speed[i - 1]
-            gap = time_s[i] - time_s[i - 1]
-            advance = (depth[i] - depth[i - 1]) * np.sign(v)  # NaN compares False
+            v_before = speed[i - 1] if i > 0 else state[4]
+            gap = time_s[i] - (time_s[i - 1] if i > 0 else state[5])
+            advance = (depth[i] - (depth[i - 1] if i > 0 else state[6])) * np.sign(v)
             slower = min(abs_v, abs(v_before))
             faster = max(abs_v, abs(v_before))
             kept_moving = (
@@ -1026,3 +1389,13 @@ def _label_kernel(
                 dist = abs(depth[i] - positions[k])
                 if dist == best and dist <= window:
                     position[i] = k
+    n = speed.shape[0]
+    if n:
+        state[0] = 1.0
+        state[2] = trips
+        state[3] = 1.0 if was_moving else 0.0
+        state[4], state[5], state[6] = speed[n - 1], time_s[n - 1], depth[n - 1]
+
+
+#: Length of :func:`_label_kernel`'s state.
+LABEL_STATE_SIZE = 7

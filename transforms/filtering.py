@@ -35,6 +35,8 @@ __all__ = [
     "box_smooth",
     "box_smooth_into",
     "despike_median3",
+    "first_difference_sigma",
+    "fresh_state",
     "hampel",
     "lowpass",
     "lowpass_columns",
@@ -485,11 +487,34 @@ def lowpass_columns(
     return frame.with_columns([make(c) for c in columns])
 
 
+#: Length of the resumable state of :func:`_play_kernel`.
+PLAY_STATE_SIZE = 3
+
+
+def fresh_state(size: int) -> np.ndarray:
+    """A resumable kernel's state before its first call (``state[0] == 0``: nothing seen).
+
+    The sequential kernels of the compensation take a float64 ``state`` array and run
+    over a block of samples: ``state[0]`` is 1 once a call has run (the rest then holds
+    what the kernel carries to the next sample), ``state[1]`` is set by the caller to 1
+    when the block's first sample continues the previous block's gap-free segment. The
+    kernel leaves its state after the block's last sample there, so calling it on two
+    consecutive blocks gives the result of one call on both (block processing, issue 16).
+
+    >>> fresh_state(3).tolist()
+    [0.0, 0.0, 0.0]
+    """
+    return np.zeros(size)
+
+
 @njit(cache=True, nogil=True)
-def _play_kernel(x, seg, half_width, out):  # pragma: no cover - numba
-    y = np.nan
+def _play_kernel(x, seg, half_width, out, state):  # pragma: no cover - numba
+    """The play operator over a block; ``state`` = [ran, continues segment, y]
+    (:func:`fresh_state`)."""
+    resume = state[0] != 0.0 and state[1] != 0.0
+    y = state[2] if resume else np.nan
     for i in range(x.shape[0]):
-        if i == 0 or seg[i] != seg[i - 1]:
+        if (i == 0 and not resume) or (i > 0 and seg[i] != seg[i - 1]):
             y = np.nan
         xi = x[i]
         if np.isfinite(xi):
@@ -500,6 +525,8 @@ def _play_kernel(x, seg, half_width, out):  # pragma: no cover - numba
             elif xi < y - half_width:
                 y = xi + half_width
         out[i] = y
+    state[0] = 1.0
+    state[2] = y
 
 
 def play_operator(
@@ -543,7 +570,7 @@ def play_operator(
         else np.ascontiguousarray(segment_id, dtype=np.int64)
     )
     out = np.empty_like(values)
-    _play_kernel(values, seg, float(half_width), out)
+    _play_kernel(values, seg, float(half_width), out, fresh_state(PLAY_STATE_SIZE))
     return out
 
 
@@ -637,6 +664,7 @@ def despike_median3(
     *,
     n_sigmas: float = 6.0,
     out: np.ndarray | None = None,
+    sigma: float | None = None,
 ) -> tuple[np.ndarray, float]:
     r"""Replace single-sample spikes by the median of the sample and its two neighbours.
 
@@ -650,19 +678,20 @@ def despike_median3(
     the cheap alternative to :func:`hampel` for pressures that are low-passed next.
 
     Returns the despiked signal and the sigma used. ``out``: a float64 array of x's
-    length to write into; may be ``x`` itself (despiked in place).
+    length to write into; may be ``x`` itself (despiked in place). ``sigma``: the
+    noise sigma, when it is known from a longer record than ``x`` (a block of a day,
+    :func:`first_difference_sigma` of the day's differences).
 
     >>> despike_median3(np.array([0.0, 0.1, 9.0, 0.0, 0.1, 0.0, 0.1]))[0].tolist()
     [0.0, 0.1, 0.1, 0.0, 0.1, 0.0, 0.1]
     """
     values = np.ascontiguousarray(x, dtype=np.float64)
-    # every step-th first difference (the median of 200 k of them is plenty), without
-    # differencing the whole record
-    step = max(1, (values.size - 1) // 200_000)
-    at = np.arange(0, max(values.size - 1, 0), step)
-    d = values[at + 1] - values[at]
-    d = d[np.isfinite(d)]
-    sigma = float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0)) if d.size else 0.0
+    if sigma is None:
+        # every step-th first difference (the median of 200 k of them is plenty), without
+        # differencing the whole record
+        step = max(1, (values.size - 1) // 200_000)
+        at = np.arange(0, max(values.size - 1, 0), step)
+        sigma = first_difference_sigma(values[at + 1] - values[at])
     seg = (
         np.zeros(values.shape[0], dtype=np.int64)
         if segment_id is None
@@ -672,3 +701,18 @@ def despike_median3(
         out = np.empty_like(values)
     _median3_kernel(values, seg, n_sigmas * sigma, out)
     return out, sigma
+
+
+def first_difference_sigma(differences: np.ndarray) -> float:
+    """White-noise sigma from first differences x[i+1] - x[i]: 1.4826 MAD / sqrt 2.
+
+    Non-finite differences are ignored; 0 when none is left.
+
+    >>> round(first_difference_sigma(np.array([0.1, -0.1, 0.1, -0.1, np.nan])), 6)
+    0.104836
+    """
+    d = np.asarray(differences, dtype=np.float64)
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        return 0.0
+    return float(MAD_TO_SIGMA * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0))

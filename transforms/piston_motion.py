@@ -65,7 +65,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["share_out_common_motion"]
+__all__ = ["share_out_common_motion", "share_state"]
 
 
 def share_out_common_motion(
@@ -78,6 +78,7 @@ def share_out_common_motion(
     blind_deadband_m: float = 2e-6,
     floor_m: float = 1e-9,
     overwrite_logged: bool = False,
+    state: np.ndarray | None = None,
 ) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
     """Per-piston displacement estimates [m] from the common mode and the logged motion.
 
@@ -110,6 +111,10 @@ def share_out_common_motion(
     overwrite_logged : bool
         Write the displacements over the ``logged`` arrays (contiguous float64): no new
         day-long arrays, whose page faults cost more than the arithmetic.
+    state : ndarray, optional
+        The estimator's state carried from the previous block of the same record
+        (:func:`share_state`; updated in place), so that blocks give the result of the
+        whole record (issue 16). Default: a fresh start.
 
     Returns
     -------
@@ -152,13 +157,19 @@ def share_out_common_motion(
             float(floor_m),
             out,
             blind,
+            share_state(len(out)) if state is None else state,
         )
     return out, blind
 
 
+def share_state(pistons: int) -> np.ndarray:
+    """Fresh state of the share-out for ``pistons`` pistons (see :func:`_share_kernel`)."""
+    return np.zeros(4 + 6 * pistons)
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _share_kernel(
-    common, segment, half_width, seen_reset, deadband, floor, out, blind
+    common, segment, half_width, seen_reset, deadband, floor, out, blind, state
 ):  # pragma: no cover - numba
     """u_i = dD_i + w_i (dY - sum_j dD_j) + dE / m, w_i ∝ |dD_i| + floor (module docstring).
 
@@ -167,7 +178,9 @@ def _share_kernel(
     half_width) its sliding part, E = S - Y its elastic part. A NaN logged increment
     counts as 0 (the piston is not seen moving); each segment starts at the logged value
     (0 if unknown). ``blind``: path length of play(net blind motion, deadband) since the
-    piston's seen motion last exceeded ``seen_reset`` (inf before).
+    piston's seen motion last exceeded ``seen_reset`` (inf before). ``state`` = [ran,
+    continues segment, slide, elastic, then per piston: last logged value, position,
+    seen, unseen, played, path] (:func:`transforms.filtering.fresh_state`).
     """
     m = len(out)
     n = common.shape[0]
@@ -181,9 +194,20 @@ def _share_kernel(
     path = np.full(m, np.inf)
     slide = 0.0
     elastic = 0.0
+    ran = state[0] != 0.0
+    resume = ran and state[1] != 0.0
+    if ran:
+        slide, elastic = state[2], state[3]
+        for i in range(m):
+            last_logged[i] = state[4 + i]
+            position[i] = state[4 + m + i]
+            seen[i] = state[4 + 2 * m + i]
+            unseen[i] = state[4 + 3 * m + i]
+            played[i] = state[4 + 4 * m + i]
+            path[i] = state[4 + 5 * m + i]
     for t in range(n):
         total = m * common[t]
-        if t == 0 or segment[t] != segment[t - 1]:
+        if (t == 0 and not resume) or (t > 0 and segment[t] != segment[t - 1]):
             slide = total if np.isfinite(total) else 0.0
             elastic = 0.0
             for i in range(m):
@@ -238,3 +262,13 @@ def _share_kernel(
                 played[i] = 0.0
                 path[i] = 0.0
             blind[i][t] = path[i]
+    if n:
+        state[0] = 1.0
+        state[2], state[3] = slide, elastic
+        for i in range(m):
+            state[4 + i] = last_logged[i]
+            state[4 + m + i] = position[i]
+            state[4 + 2 * m + i] = seen[i]
+            state[4 + 3 * m + i] = unseen[i]
+            state[4 + 4 * m + i] = played[i]
+            state[4 + 5 * m + i] = path[i]

@@ -10,7 +10,7 @@ import pytest
 from scipy import signal
 
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
-from transforms.compensation import _rope_kernel
+from transforms.compensation import ROPE_STATE_BASE, _rope_kernel
 from transforms.friction import (
     STRIBECK_SPEED_FLOOR_M_S,
     friction_parameters,
@@ -77,7 +77,7 @@ def test_rope_kernel_matches_composed_functions(presliding: bool) -> None:
             x, time_s, 0.03, 0.01, p_sensor, loss_mode, expected_loss, v_flow, nu, branch,
             coefficients, floors, 1 if presliding else 2, stiffness, weights,
             law.bristle_stiffness_n_m, law.bristle_damping_n_s_m,
-            hoist.cylinders.bore_area_m2, *out,
+            hoist.cylinders.bore_area_m2, *out, np.zeros(ROPE_STATE_BASE + weights.size),
         )  # fmt: skip
         results.append(out)
     for given, inline in zip(*results, strict=True):
@@ -109,6 +109,7 @@ def test_rope_kernel_reports_turbulence() -> None:
     assert not _rope_kernel(
         np.zeros(3), np.arange(3) * 0.01, 0.03, 0.01, np.full(3, 6e6), 1, ones, v, nu,
         branch, np.zeros((4, 2)), np.zeros(4), 0, ones, ones, 1.0, 1.0, 1.0, *out,
+        np.zeros(ROPE_STATE_BASE + 1),
     )  # fmt: skip
 
 

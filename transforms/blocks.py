@@ -1,0 +1,121 @@
+"""Compensation of a long record in time blocks, in memory bounded by the block (issue 16).
+
+:func:`transforms.compensation.compensate` holds a whole record in memory: a 100 Hz day
+is 8.6 M samples, ~40 day-long arrays of work and a 40-column result, 7-8 GB. Here the
+record is read and compensated block by block:
+
+1. the record's statistics (logger rate, noise sigmas, typical pressure) are read once
+   from a sparse, evenly spread sample of it (:func:`transforms.compensation.context_sample`,
+   about 3 x 200 k rows whatever the record's length), so every block uses the record's
+   values, not its own;
+2. each block ``[t_k, t_k+1)`` is read with a margin either side
+   (:func:`transforms.compensation.compensation_margins_s`: 30 s or more, so the
+   zero-phase filters have forgotten the window's edges) and compensated by
+   :func:`transforms.compensation.compensate_window`, which resumes every sequential
+   kernel (oil common mode, pistons' share-out, play operators, seal friction, trip
+   labels) from the state the previous block left (:class:`CompensationCarry`).
+
+Equivalence. The sequential kernels carry their exact state, so the only differences
+from the whole record come from the non-causal filters at the window's edges, 30 s or
+more away from the block: the Butterworth low-pass's start-up transient has decayed by
+then to far below a rounding error, the Savitzky-Golay and Gaussian smoothers have
+finite support. Running sums in the smoother add rounding at the 1e-13 relative level.
+``tests/transforms/test_blocks.py`` checks a day with gaps, stops on block edges and
+a trip across one against the whole-record result (every column within 1e-9 relative
+or 1e-6 absolute in its unit, labels equal). Not equal: a logged displacement missing
+for longer than the margin inside one 120 s-bridged segment (the whole record
+interpolates across it, a block sees no neighbour) and the oil temperature's leading
+nulls of a block (filled from inside the window, not from before it).
+
+Block edges are whole multiples of ``block`` from midnight UTC (an hour by default), so
+a re-run of part of a day computes the same blocks.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import itertools
+from collections.abc import Callable, Iterator
+
+import polars as pl
+
+from schemas.hoist import HoistDescription
+from transforms.compensation import (
+    CompensationCarry,
+    CompensationContext,
+    CompensationSettings,
+    compensate_window,
+    compensation_margins_s,
+)
+
+__all__ = ["DEFAULT_BLOCK", "block_edges", "compensate_blocks"]
+
+#: Default block length of ``ropeload run`` (360 k samples of a 100 Hz logger).
+DEFAULT_BLOCK = dt.timedelta(hours=1)
+
+Reader = Callable[[dt.datetime, dt.datetime], pl.DataFrame]
+
+
+def block_edges(
+    start: dt.datetime, end: dt.datetime, block: dt.timedelta = DEFAULT_BLOCK
+) -> list[tuple[dt.datetime, dt.datetime]]:
+    """Blocks ``[lo, hi)`` covering ``[start, end)``, inner edges on multiples of ``block``
+    counted from midnight UTC of ``start``'s day.
+
+    >>> utc = dt.timezone.utc
+    >>> edges = block_edges(dt.datetime(2026, 3, 1, 22, 30, tzinfo=utc),
+    ...                     dt.datetime(2026, 3, 2, 0, 10, tzinfo=utc))
+    >>> [(lo.strftime("%H:%M"), hi.strftime("%H:%M")) for lo, hi in edges]
+    [('22:30', '23:00'), ('23:00', '00:00'), ('00:00', '00:10')]
+    """
+    if block <= dt.timedelta(0):
+        raise ValueError(f"block must be positive, got {block}")
+    midnight = dt.datetime.combine(start.astimezone(dt.UTC).date(), dt.time(), dt.UTC)
+    k = (start - midnight) // block + 1
+    edges = [start]
+    while midnight + k * block < end:
+        edges.append(midnight + k * block)
+        k += 1
+    edges.append(end)
+    return list(itertools.pairwise(edges))
+
+
+def compensate_blocks(
+    read: Reader,
+    hoist: HoistDescription,
+    *,
+    start: dt.datetime,
+    end: dt.datetime,
+    context: CompensationContext,
+    settings: CompensationSettings | None = None,
+    effects: set[str] | None = None,
+    block: dt.timedelta = DEFAULT_BLOCK,
+) -> Iterator[pl.DataFrame]:
+    """``ROPE_TENSIONS`` rows of ``start <= t < end``, one frame per block, in time order.
+
+    ``read(lo, hi)`` returns the record's samples ``lo <= t < hi`` (FIELD_SAMPLES columns,
+    sorted by time); ``start`` must be the record's first sample time (the friction state
+    starts there, as in :func:`transforms.compensation.compensate`). ``context``: the
+    whole record's statistics (:func:`transforms.compensation.compensation_context`).
+    Concatenated, the frames are the whole record's compensation (module docstring).
+    """
+    settings = settings or CompensationSettings()
+    resume_s, halo_s = compensation_margins_s(settings)
+    margin = dt.timedelta(seconds=resume_s + halo_s)
+    carry: CompensationCarry | None = None
+    for lo, hi in block_edges(start, end, block):
+        window = read(max(start, lo - margin), min(end, hi + margin))
+        if window.height == 0:
+            continue
+        rows, carry = compensate_window(
+            window,
+            hoist,
+            context=context,
+            settings=settings,
+            effects=effects,
+            carry=carry,
+            block_start_utc=lo,
+            block_end_utc=hi if hi < end else None,
+        )
+        if rows.height:
+            yield rows

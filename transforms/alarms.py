@@ -65,12 +65,14 @@ from schemas.tables import ALARMS, ROPES
 from transforms.reconciliation import conform, expected_load_expr, tail_rope_weight_expr
 
 __all__ = [
+    "ALARM_MARGIN_S",
     "ALARM_RULES",
     "STANDSTILL_SPEED_M_S",
     "AlarmRule",
     "RuleThresholds",
     "alarm_id",
     "evaluate_alarms",
+    "merge_alarm_pieces",
     "rule_thresholds",
 ]
 
@@ -532,3 +534,72 @@ def _sensor_alarms(
         message="no samples logged",
     )  # fmt: skip
     return rows
+
+
+#: Margin [s] around a block when alarms are evaluated block by block
+#: (:func:`merge_alarm_pieces`): longer than a debounce plus a merge gap, so an event
+#: shorter than it is seen whole in at least one window.
+ALARM_MARGIN_S = 120.0
+
+#: Rules whose peak is the smallest value (the others: the largest; rope imbalance: the
+#: largest magnitude, its sign kept; durations are recomputed).
+_PEAK_MIN = {"slack_rope"}
+_PEAK_DURATION = {"sensor_flatline", "sensor_stuck", "sensor_dropout"}
+
+
+def merge_alarm_pieces(
+    pieces: pl.DataFrame, *, site: str, hoist: str, merge_gap_s: float = 2.0
+) -> pl.DataFrame:
+    """Alarms of overlapping windows of one record, merged into the record's alarms.
+
+    Block processing (issue 16) evaluates :func:`evaluate_alarms` on each block with
+    :data:`ALARM_MARGIN_S` either side. An event is then seen whole in one window,
+    twice (in an overlap) or in pieces cut at window edges. Pieces of the same rule and
+    rope that overlap or are at most ``merge_gap_s`` apart become one alarm: the earliest
+    start, the latest end, the most extreme peak of the pieces (durations recomputed),
+    ``alarm_id`` from the merged start. What differs from evaluating the whole record at
+    once: an event whose value stays between the hysteresis band's two thresholds across
+    a whole window overlap can come out as two alarms instead of one.
+    """
+    if pieces.height == 0:
+        return conform(pl.DataFrame(), ALARMS)
+    rows: list[dict[str, object]] = []
+    ordered = pieces.sort("rule", "rope", "start_utc", "end_utc", nulls_last=True)
+    gap = dt.timedelta(seconds=merge_gap_s)
+    current: dict[str, object] | None = None
+    for row in ordered.iter_rows(named=True):
+        if (
+            current is not None
+            and row["rule"] == current["rule"]
+            and row["rope"] == current["rope"]
+            and row["start_utc"] <= current["end_utc"] + gap
+        ):
+            current["end_utc"] = max(current["end_utc"], row["end_utc"])
+            if _more_extreme(row, current):
+                for key in ("peak_time_utc", "peak_value", "threshold"):
+                    current[key] = row[key]
+            continue
+        if current is not None:
+            rows.append(current)
+        current = dict(row)
+    assert current is not None
+    rows.append(current)
+    for row in rows:
+        if row["rule"] in _PEAK_DURATION:
+            row["peak_value"] = (row["end_utc"] - row["start_utc"]).total_seconds()
+        row["alarm_id"] = alarm_id(site, hoist, row["rule"], row["rope"], row["start_utc"])
+    result = pl.DataFrame(rows, schema=pieces.schema)
+    return conform(result, ALARMS).sort("start_utc", "rule", "rope", nulls_last=True)
+
+
+def _more_extreme(row: dict[str, object], current: dict[str, object]) -> bool:
+    new, old = row["peak_value"], current["peak_value"]
+    if new is None or old is None or new != new or old != old:  # NaN
+        return old is None or old != old
+    if row["rule"] in _PEAK_MIN:
+        return new < old
+    if row["rule"] == "rope_imbalance":
+        return abs(new) > abs(old)
+    if row["rule"] == "sensor_out_of_range":
+        return abs(new - row["threshold"] / 2.0) > abs(old - current["threshold"] / 2.0)
+    return new > old

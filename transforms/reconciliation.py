@@ -57,13 +57,18 @@ __all__ = [
     "G_STANDARD",
     "PAPER_TEXT_PITHEAD_BEFORE_N",
     "Reconciliation",
+    "StintCarry",
     "conform",
     "expected_load_expr",
     "reconcile",
+    "stint_partials",
     "summarise_positions",
+    "summarise_positions_from_partials",
     "summarise_trips",
+    "summarise_trips_from_partials",
     "table2_check",
     "tail_rope_weight_expr",
+    "trip_partials",
 ]
 
 #: The pithead sum before compensation as printed in the paper's text (section 5.2).
@@ -237,6 +242,95 @@ def _with_reference_payload(frame: pl.DataFrame, payload_kg: PayloadSource) -> p
     return frame.with_columns(reference_payload_kg=pl.lit(float(payload_kg)))
 
 
+_STINT_MEANS = (
+    "depth_m",
+    *(f"tension_raw{i}_n" for i in ROPES),
+    *(f"tension{i}_n" for i in ROPES),
+    "load_raw_n",
+    "load_n",
+    "load_lo_n",
+    "load_hi_n",
+    "_payload_sample_kg",
+)
+
+
+class StintCarry(NamedTuple):
+    """Where a block's stints continue from: the previous block's last ``position`` and
+    ``trip_id`` and the number of stints so far (:func:`stint_partials`)."""
+
+    position: str | None = None
+    trip_id: int | None = None
+    stints: int = 0
+
+
+def stint_partials(
+    rope_tensions: pl.LazyFrame | pl.DataFrame,
+    hoist: HoistDescription,
+    *,
+    carry: StintCarry | None = None,
+) -> tuple[pl.DataFrame, StintCarry]:
+    """Sums, counts and extents per stint of one block of samples (issue 16).
+
+    A stint is a run of consecutive samples with the same ``trip_id`` and ``position``
+    (:func:`summarise_positions`); ``carry`` continues the numbering of the previous
+    block, so a stint cut by a block edge gets one number in both. Concatenate the
+    partials of every block and pass them to :func:`summarise_positions_from_partials`.
+    """
+    carry = carry or StintCarry()
+    lazy = _lazy(rope_tensions).sort("time_utc")
+    names = lazy.collect_schema().names()
+    previous = [
+        pl.lit(carry.position, dtype=pl.String),
+        pl.lit(carry.trip_id, dtype=pl.Int64),
+    ]
+    changed = pl.col("position").ne_missing(
+        pl.col("position").shift(1, fill_value=previous[0])
+    ) | pl.col("trip_id").ne_missing(pl.col("trip_id").shift(1, fill_value=previous[1]))
+    if carry.stints == 0:  # the record's first sample starts a stint
+        changed = changed | (pl.int_range(pl.len()) == 0)
+    steady = pl.col("phase").is_null() | pl.col("phase").is_in(STEADY_PHASES)
+    numbered = lazy.with_columns(
+        _stint=(changed.cast(pl.Int64).cum_sum() + (carry.stints - 1)),
+        _payload_sample_kg=pl.when(steady).then(_inferred_payload_expr(hoist)),
+    ).collect()
+    if numbered.height == 0:
+        return _empty_partials(), carry
+    last = numbered.row(numbered.height - 1, named=True)
+    following = StintCarry(last["position"], last["trip_id"], int(last["_stint"]) + 1)
+    present = [c for c in _STINT_MEANS if c in names or c == "_payload_sample_kg"]
+    partials = (
+        numbered.lazy()
+        .filter(pl.col("position").is_not_null())
+        .group_by("_stint")
+        .agg(
+            pl.col("trip_id").first(),
+            pl.col("position").first(),
+            pl.col("time_utc").min().alias("time_start_utc"),
+            pl.col("time_utc").max().alias("time_end_utc"),
+            pl.col("acceleration_up_m_s2").fill_null(0.0).sum().alias("_sum_accel"),
+            *(pl.col(c).cast(pl.Float64).sum().alias(f"_sum_{c}") for c in present),
+            *(pl.col(c).count().cast(pl.Int64).alias(f"_n_{c}") for c in present),
+            pl.len().cast(pl.Int64).alias("samples"),
+        )
+        .collect()
+    )
+    return partials, following
+
+
+def _empty_partials() -> pl.DataFrame:
+    return pl.DataFrame(
+        schema={
+            "_stint": pl.Int64,
+            "trip_id": pl.Int64,
+            "position": pl.String,
+            "time_start_utc": pl.Datetime("us", "UTC"),
+            "time_end_utc": pl.Datetime("us", "UTC"),
+            "_sum_accel": pl.Float64,
+            "samples": pl.Int64,
+        }
+    )
+
+
 def summarise_positions(
     rope_tensions: pl.LazyFrame | pl.DataFrame,
     hoist: HoistDescription,
@@ -263,45 +357,51 @@ def summarise_positions(
     otherwise the mean of the trip's inferred payloads, so the error then measures how
     far the positions disagree.
 
-    Returns a frame with the POSITION_SUMMARY schema.
+    The whole record is one block of :func:`stint_partials`. Returns a frame with the
+    POSITION_SUMMARY schema.
     """
-    lazy = _lazy(rope_tensions)
-    band = {"load_lo_n", "load_hi_n"} <= set(lazy.collect_schema().names())
-    means = [pl.col(f"tension_raw{i}_n").mean().alias(f"tension_before{i}_n") for i in ROPES]
-    if band:  # the 95 % band (transforms.uncertainty); absent in hand-made frames
-        means += [
-            pl.col("load_lo_n").mean().alias("load_after_lo_n"),
-            pl.col("load_hi_n").mean().alias("load_after_hi_n"),
-        ]
-    means += [pl.col(f"tension{i}_n").mean().alias(f"tension_after{i}_n") for i in ROPES]
-    changed = pl.col("position").ne_missing(pl.col("position").shift(1)) | pl.col(
-        "trip_id"
-    ).ne_missing(pl.col("trip_id").shift(1))
-    grouped = (
-        lazy.sort("time_utc")
-        .with_columns(_stint=changed.fill_null(True).cum_sum())
-        .filter(pl.col("position").is_not_null())
-        .with_columns(
-            _payload_sample_kg=pl.when(
-                pl.col("phase").is_null() | pl.col("phase").is_in(STEADY_PHASES)
-            ).then(_inferred_payload_expr(hoist))
-        )
-        .group_by("_stint")
-        .agg(
-            pl.col("trip_id").first(),
-            pl.col("position").first(),
-            pl.col("time_utc").min().alias("time_start_utc"),
-            pl.col("time_utc").max().alias("time_end_utc"),
-            pl.col("depth_m").mean(),
-            pl.col("acceleration_up_m_s2").fill_null(0.0).mean().alias("_accel_m_s2"),
-            *means,
-            pl.col("load_raw_n").mean().alias("load_before_n"),
-            pl.col("load_n").mean().alias("load_after_n"),
-            pl.col("_payload_sample_kg").mean().alias("payload_kg"),
-            pl.len().cast(pl.Int64).alias("samples"),
-        )
-        .collect()
+    partials, _ = stint_partials(rope_tensions, hoist)
+    return summarise_positions_from_partials(
+        partials, hoist, run_id=run_id, site=site, hoist_name=hoist_name, payload_kg=payload_kg
     )
+
+
+def summarise_positions_from_partials(
+    partials: pl.DataFrame,
+    hoist: HoistDescription,
+    *,
+    run_id: str,
+    site: str | None = None,
+    hoist_name: str | None = None,
+    payload_kg: PayloadSource = None,
+) -> pl.DataFrame:
+    """:func:`summarise_positions` from the :func:`stint_partials` of every block."""
+    sums = [c for c in partials.columns if c.startswith("_sum_") and c != "_sum_accel"]
+    counts = [f"_n_{c.removeprefix('_sum_')}" for c in sums]
+    grouped = partials.group_by("_stint").agg(
+        pl.col("trip_id").first(),
+        pl.col("position").first(),
+        pl.col("time_start_utc").min(),
+        pl.col("time_end_utc").max(),
+        pl.col("_sum_accel").sum(),
+        *(pl.col(c).sum() for c in (*sums, *counts)),
+        pl.col("samples").sum(),
+    )
+    alias = {
+        "depth_m": "depth_m",
+        "load_raw_n": "load_before_n",
+        "load_n": "load_after_n",
+        "load_lo_n": "load_after_lo_n",
+        "load_hi_n": "load_after_hi_n",
+        "_payload_sample_kg": "payload_kg",
+        **{f"tension_raw{i}_n": f"tension_before{i}_n" for i in ROPES},
+        **{f"tension{i}_n": f"tension_after{i}_n" for i in ROPES},
+    }
+    means = [
+        pl.when(pl.col(f"_n_{c}") > 0).then(pl.col(f"_sum_{c}") / pl.col(f"_n_{c}")).alias(alias[c])
+        for c in (s.removeprefix("_sum_") for s in sums)
+    ]
+    grouped = grouped.with_columns(*means, _accel_m_s2=pl.col("_sum_accel") / pl.col("samples"))
     expected = expected_load_expr(
         hoist,
         payload_kg=pl.col("reference_payload_kg"),
@@ -326,6 +426,30 @@ def summarise_positions(
     return conform(result, POSITION_SUMMARY)
 
 
+def trip_partials(rope_tensions: pl.LazyFrame | pl.DataFrame) -> pl.DataFrame:
+    """Extents and peaks per trip of one block of samples (:func:`summarise_trips`);
+    concatenate the partials of every block for :func:`summarise_trips_from_partials`."""
+    lazy = _lazy(rope_tensions)
+    band = "load_hi_n" in lazy.collect_schema().names()
+    return (
+        lazy.filter(pl.col("trip_id").is_not_null())
+        .sort("time_utc")
+        .with_columns(_rope_imbalance_expr("tension", i).alias(f"_imbalance{i}") for i in ROPES)
+        .group_by("trip_id")
+        .agg(
+            pl.col("direction").drop_nulls().first(),
+            pl.col("time_utc").first().alias("time_start_utc"),
+            pl.col("time_utc").last().alias("time_end_utc"),
+            pl.col("depth_m").drop_nulls().first().alias("depth_start_m"),
+            pl.col("depth_m").drop_nulls().last().alias("depth_end_m"),
+            pl.col("load_n").max().alias("max_load_after_n"),
+            *([pl.col("load_hi_n").max().alias("max_load_after_hi_n")] if band else []),
+            *_rope_extremes_aggs(),
+        )
+        .collect()
+    )
+
+
 def summarise_trips(
     rope_tensions: pl.LazyFrame | pl.DataFrame,
     position_summary: pl.DataFrame,
@@ -343,25 +467,50 @@ def summarise_trips(
     rope-to-mean imbalance of the trip), ``max_imbalance_after_rope`` (1-4, the lowest on
     a tie) and ``max_imbalance_after_time_utc``. Returns the TRIP_SUMMARY schema.
     """
-    lazy = _lazy(rope_tensions)
-    band = "load_hi_n" in lazy.collect_schema().names()
+    return summarise_trips_from_partials(
+        trip_partials(rope_tensions),
+        position_summary,
+        run_id=run_id,
+        site=site,
+        hoist_name=hoist_name,
+    )
+
+
+def summarise_trips_from_partials(
+    partials: pl.DataFrame,
+    position_summary: pl.DataFrame,
+    *,
+    run_id: str,
+    site: str,
+    hoist_name: str,
+) -> pl.DataFrame:
+    """:func:`summarise_trips` from the :func:`trip_partials` of every block."""
+    band = "max_load_after_hi_n" in partials.columns
+    extremes = []
+    for i in ROPES:
+        imbalance = pl.col(f"max_imbalance_after{i}_fraction")
+        extremes += [
+            pl.col(f"max_tension_after{i}_n").max(),
+            pl.col(f"min_tension_after{i}_n").min(),
+            imbalance.max(),
+            pl.col(f"max_imbalance_after{i}_time_utc")
+            .sort_by(imbalance, descending=True, nulls_last=True, maintain_order=True)
+            .first(),
+        ]
     trips = (
-        lazy.filter(pl.col("trip_id").is_not_null())
-        .sort("time_utc")
-        .with_columns(_rope_imbalance_expr("tension", i).alias(f"_imbalance{i}") for i in ROPES)
-        .group_by("trip_id")
+        partials.sort("time_start_utc")
+        .group_by("trip_id", maintain_order=True)
         .agg(
             pl.col("direction").drop_nulls().first(),
-            pl.col("time_utc").first().alias("time_start_utc"),
-            pl.col("time_utc").last().alias("time_end_utc"),
-            pl.col("depth_m").drop_nulls().first().alias("depth_start_m"),
-            pl.col("depth_m").drop_nulls().last().alias("depth_end_m"),
-            pl.col("load_n").max().alias("max_load_after_n"),
-            *([pl.col("load_hi_n").max().alias("max_load_after_hi_n")] if band else []),
-            *_rope_extremes_aggs(),
+            pl.col("time_start_utc").first(),
+            pl.col("time_end_utc").last(),
+            pl.col("depth_start_m").drop_nulls().first(),
+            pl.col("depth_end_m").drop_nulls().last(),
+            pl.col("max_load_after_n").max(),
+            *([pl.col("max_load_after_hi_n").max()] if band else []),
+            *extremes,
         )
         .with_columns(_worst_rope_exprs())
-        .collect()
     )
     payloads = (
         position_summary.filter(pl.col("trip_id").is_not_null())

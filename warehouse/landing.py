@@ -9,8 +9,9 @@ Contents
     ``sanity_checks``.
 :func:`land_friction_parameter_sets`, :func:`land_discovery_findings`
     Calibration and discovery results.
-:func:`land_rope_tensions`
-    The compensated samples, as Parquet in the lake.
+:func:`land_rope_tensions`, :class:`RopeTensionStage`
+    The compensated samples, as Parquet in the lake (one file per UTC hour), staged
+    block by block and published at landing.
 :func:`insert_frame`
     The shared step: conform a frame to its Arrow schema and ``INSERT ... BY NAME``.
 
@@ -30,6 +31,7 @@ is published whole or not at all, and readers keep their snapshot meanwhile.
 from __future__ import annotations
 
 import datetime as dt
+import shutil
 import uuid
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
@@ -45,6 +47,7 @@ from warehouse.parquet_files import write_parquet_atomic
 from warehouse.store import DataRoot
 
 __all__ = [
+    "RopeTensionStage",
     "RunRecord",
     "insert_frame",
     "land_discovery_findings",
@@ -205,35 +208,131 @@ def land_rope_tensions(
     period_start_utc: dt.datetime,
     period_end_utc: dt.datetime,
 ) -> list[Path]:
-    """Write compensated samples to ``<lake>/rope_tensions/site=/hoist=/date=/data.parquet``.
+    """Write compensated samples to the lake in one go (:class:`RopeTensionStage`).
 
-    One file per UTC day. Rows of an existing file inside the period are replaced by the
-    new ones, the rest kept; each file is written to a hidden temporary name, fsynced
-    and renamed over the old one (:func:`warehouse.parquet_files.write_parquet_atomic`),
-    so a reader sees the old day or the new, never half.
     Call inside :func:`warehouse.store.open_writer` (writers are serialised there).
-    Returns the files written.
+    Returns the files written or removed.
     """
-    frame = conform(frame, ROPE_TENSIONS).filter(
-        (pl.col("time_utc") >= period_start_utc) & (pl.col("time_utc") < period_end_utc)
-    )
-    first = period_start_utc.astimezone(dt.UTC).date()
-    last = (period_end_utc.astimezone(dt.UTC) - dt.timedelta(microseconds=1)).date()
-    days = [first + dt.timedelta(days=k) for k in range((last - first).days + 1)]
-    by_day = frame.with_columns(_day=pl.col("time_utc").dt.date())
-    written = []
-    for day in days:
-        directory = root.partition_dir("rope_tensions", site=site, hoist=hoist, date=day)
-        target = directory / "data.parquet"
-        new = by_day.filter(pl.col("_day") == day).drop("_day")
-        if target.exists():
-            old = conform(pl.read_parquet(target, hive_partitioning=False), ROPE_TENSIONS)
-            keep = old.filter(
-                (pl.col("time_utc") < period_start_utc) | (pl.col("time_utc") >= period_end_utc)
-            )
-            new = pl.concat([keep, new])
-        if new.height == 0 and not target.exists():
-            continue
+    stage = RopeTensionStage(root, site=site, hoist=hoist)
+    try:
+        stage.add(frame)
+        return stage.publish(period_start_utc, period_end_utc)
+    finally:
+        stage.discard()
+
+
+def _hour_file(root: DataRoot, site: str, hoist: str, hour: dt.datetime) -> Path:
+    directory = root.partition_dir("rope_tensions", site=site, hoist=hoist, date=hour.date())
+    return directory / f"hour-{hour:%H}.parquet"
+
+
+class RopeTensionStage:
+    """A run's compensated samples, staged block by block and published at landing.
+
+    ``<lake>/rope_tensions/site=/hoist=/date=/hour-HH.parquet``: one file per UTC hour,
+    so a re-run of part of a day rewrites the hours it touches (at most two partly), not
+    the day (issue 16). :meth:`add` writes a block's rows under a hidden staging folder
+    of the table (readers' ``*.parquet`` globs of the partitions never see it);
+    :meth:`publish` (inside :func:`warehouse.store.open_writer`) replaces, hour by
+    hour, the rows of ``period_start <= t < period_end`` and keeps the rest of each hour,
+    every file written atomically (:func:`warehouse.parquet_files.write_parquet_atomic`),
+    so a reader sees an hour old or new, never half. A day landed before hour files (one
+    ``data.parquet``) is split into hour files the first time a run touches it. Memory:
+    one hour of rows at a time.
+    """
+
+    def __init__(self, root: DataRoot, *, site: str, hoist: str) -> None:
+        self.root, self.site, self.hoist = root, site, hoist
+        # partition_dir checks the names: nothing from the data leaves the lake
+        table = root.partition_dir("rope_tensions", site=site, hoist=hoist).parent.parent
+        self.folder = table / f".staging-{uuid.uuid4().hex}"
+        self.parts: dict[dt.datetime, list[Path]] = {}
+
+    def add(self, frame: pl.DataFrame) -> None:
+        """Stage a block's ROPE_TENSIONS rows (any order of blocks; rows sorted by time)."""
+        if frame.height == 0:
+            return
+        frame = conform(frame, ROPE_TENSIONS)
+        hours = frame["time_utc"].dt.truncate("1h")
+        self.folder.mkdir(parents=True, exist_ok=True)
+        for (hour,), part in (
+            frame.with_columns(_hour=hours)
+            .partition_by("_hour", as_dict=True, maintain_order=True)
+            .items()
+        ):
+            paths = self.parts.setdefault(hour, [])
+            path = self.folder / f"{hour:%Y%m%dT%H}-{len(paths):04d}.parquet"
+            part.drop("_hour").write_parquet(path, compression="lz4", statistics=True)
+            paths.append(path)
+
+    def files(self) -> list[Path]:
+        """The staged files, in time order."""
+        return [path for hour in sorted(self.parts) for path in self.parts[hour]]
+
+    def publish(self, period_start_utc: dt.datetime, period_end_utc: dt.datetime) -> list[Path]:
+        """Replace the period's rows in the lake by the staged ones; returns the files
+        written or removed."""
+        start = period_start_utc.astimezone(dt.UTC)
+        end = period_end_utc.astimezone(dt.UTC)
+        hour = start.replace(minute=0, second=0, microsecond=0)
+        inside = (pl.col("time_utc") >= start) & (pl.col("time_utc") < end)
+        touched_days = set()
+        written = []
+        while hour < end:
+            touched_days.add(hour.date())
+            written += self._replace_hour(hour, self.parts.get(hour, []), inside=inside)
+            hour += dt.timedelta(hours=1)
+        for day in sorted(touched_days):
+            written += self._retire_day_file(day)
+        return written
+
+    def _replace_hour(
+        self, hour: dt.datetime, staged: list[Path], *, inside: pl.Expr
+    ) -> list[Path]:
+        target = _hour_file(self.root, self.site, self.hoist, hour)
+        old = [p for p in (target, target.with_name("data.parquet")) if p.exists()]
+        in_hour = (pl.col("time_utc") >= hour) & (pl.col("time_utc") < hour + dt.timedelta(hours=1))
+        frames = [
+            conform(pl.read_parquet(path, hive_partitioning=False).filter(in_hour & ~inside),
+                    ROPE_TENSIONS)
+            for path in old
+        ]  # fmt: skip
+        frames += [pl.read_parquet(path).filter(inside) for path in staged]
+        new = pl.concat(frames) if frames else pl.DataFrame()
+        if new.height == 0:
+            if target.exists():
+                target.unlink()
+                return [target]
+            return []
         write_parquet_atomic(new.sort("time_utc"), target, ROPE_TENSIONS)
-        written.append(target)
-    return written
+        return [target]
+
+    def _retire_day_file(self, day: dt.date) -> list[Path]:
+        """Split a day's ``data.parquet`` (the layout before hour files) into hour files."""
+        legacy = (
+            self.root.partition_dir("rope_tensions", site=self.site, hoist=self.hoist, date=day)
+            / "data.parquet"
+        )
+        if not legacy.exists():
+            return []
+        written = []
+        midnight = dt.datetime.combine(day, dt.time(), dt.UTC)
+        for k in range(24):
+            hour = midnight + dt.timedelta(hours=k)
+            target = _hour_file(self.root, self.site, self.hoist, hour)
+            if target.exists():
+                continue  # replaced above: already holds the day file's rows it keeps
+            in_hour = (pl.col("time_utc") >= hour) & (
+                pl.col("time_utc") < hour + dt.timedelta(hours=1)
+            )
+            rows = pl.scan_parquet(legacy, hive_partitioning=False).filter(in_hour).collect()
+            if rows.height:
+                write_parquet_atomic(conform(rows, ROPE_TENSIONS), target, ROPE_TENSIONS)
+                written.append(target)
+        legacy.unlink()
+        return [*written, legacy]
+
+    def discard(self) -> None:
+        """Remove the staging folder (after publishing, or when the run failed)."""
+        shutil.rmtree(self.folder, ignore_errors=True)
+        self.parts = {}

@@ -8,7 +8,8 @@ import duckdb
 import polars as pl
 import pytest
 
-from schemas.tables import ALARMS, POSITION_SUMMARY, TRIP_SUMMARY
+from schemas.tables import ALARMS, POSITION_SUMMARY, ROPE_TENSIONS, TRIP_SUMMARY
+from transforms.reconciliation import conform
 from warehouse.landing import RunRecord, land_results, land_rope_tensions
 from warehouse.store import DataRoot, open_reader, open_writer
 from warehouse.views import refresh_views
@@ -139,6 +140,8 @@ def test_rope_tensions_lake_view_and_partial_relanding(tmp_path):
         assert con.sql("SELECT count(*) FROM rope_tensions").fetchall() == [(0,)]  # no files yet
         land_rope_tensions(root, frame, site="s", hoist="h", period_start_utc=DAY,
                            period_end_utc=DAY + dt.timedelta(days=1))  # fmt: skip
+    table = root.table_dir("rope_tensions")
+    before = {p.name: p.stat().st_mtime_ns for p in table.rglob("*.parquet")}
     # re-land the hours 06:00-12:00 with new values: 6 rows replaced, 18 kept
     with open_writer(root) as con:
         land_rope_tensions(
@@ -155,8 +158,32 @@ def test_rope_tensions_lake_view_and_partial_relanding(tmp_path):
     finally:
         con.close()
     assert rows == [(1.0, 18, "s", "h", DAY.date()), (2.0, 6, "s", "h", DAY.date())]
-    files = sorted(p.name for p in root.table_dir("rope_tensions").rglob("*") if p.is_file())
-    assert files == ["data.parquet"]
+    files = sorted(p.name for p in table.rglob("*") if p.is_file())
+    assert files == [f"hour-{h:02d}.parquet" for h in range(24)]  # and no staging left
+    after = {p.name: p.stat().st_mtime_ns for p in table.rglob("*.parquet")}
+    rewritten = sorted(name for name in after if after[name] != before[name])
+    assert rewritten == [f"hour-{h:02d}.parquet" for h in range(6, 12)]  # only what changed
+
+
+def test_a_day_file_of_the_earlier_layout_is_split_into_hours(tmp_path):
+    root = DataRoot(tmp_path / "data")
+    times = [DAY + dt.timedelta(hours=h, minutes=30) for h in range(24)]
+    frame = pl.DataFrame(
+        {"time_utc": times, "load_n": [float(h) for h in range(24)]},
+        schema={"time_utc": pl.Datetime("us", "UTC"), "load_n": pl.Float64},
+    )
+    day_dir = root.partition_dir("rope_tensions", site="s", hoist="h", date=DAY.date())
+    day_dir.mkdir(parents=True)
+    conform(frame, ROPE_TENSIONS).write_parquet(day_dir / "data.parquet")
+    with open_writer(root):
+        land_rope_tensions(
+            root, frame.filter(pl.col("load_n") == 3.0).with_columns(load_n=pl.lit(-3.0)),
+            site="s", hoist="h", period_start_utc=DAY + dt.timedelta(hours=3),
+            period_end_utc=DAY + dt.timedelta(hours=4),
+        )  # fmt: skip
+    assert sorted(p.name for p in day_dir.iterdir()) == [f"hour-{h:02d}.parquet" for h in range(24)]
+    landed = pl.read_parquet(sorted(day_dir.glob("*.parquet")), hive_partitioning=False)
+    assert landed["load_n"].to_list() == [-3.0 if h == 3 else float(h) for h in range(24)]
 
 
 def test_views_follow_a_moved_data_root(tmp_path):

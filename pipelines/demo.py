@@ -39,7 +39,7 @@ def demo_summary(result: RunResult, truth: pl.DataFrame, hoist: HoistDescription
     (conveyance, payload, tail rope, dynamics). Visits are the steady ones: at rest at a
     position, or passing it at constant speed; errors are the worst visit's.
     """
-    visits = position_accuracy(result.rope_tensions, truth, min_samples=50).filter(
+    visits = position_accuracy(result.rope_tensions.lazy().collect(), truth, min_samples=50).filter(
         pl.col("phase").is_in(["standstill", "run"])
     )
     order = {name: k for k, name in enumerate(hoist.shaft.positions_m)}

@@ -20,10 +20,23 @@ import polars as pl
 from pipelines.lake import scan_lake
 from pipelines.provenance import hoist_run, new_run_id, utc_now
 from schemas.hoist import HoistDescription, load_hoist
-from transforms.alarms import evaluate_alarms
-from transforms.compensation import CompensationSettings, compensate
-from transforms.reconciliation import reconcile
-from warehouse.landing import land_results, land_rope_tensions
+from schemas.tables import ALARMS
+from transforms.alarms import ALARM_MARGIN_S, evaluate_alarms, merge_alarm_pieces
+from transforms.blocks import DEFAULT_BLOCK, block_edges, compensate_blocks
+from transforms.compensation import (
+    CompensationSettings,
+    compensation_context,
+    context_sample,
+    context_stride,
+)
+from transforms.reconciliation import (
+    conform,
+    stint_partials,
+    summarise_positions_from_partials,
+    summarise_trips_from_partials,
+    trip_partials,
+)
+from warehouse.landing import RopeTensionStage, land_results
 from warehouse.store import DataRoot, open_writer
 
 __all__ = ["LEAD_IN", "CheckedRun", "NoSamplesError", "RunResult", "run_checked", "run_period"]
@@ -33,6 +46,10 @@ logger = logging.getLogger(__name__)
 
 #: Default lead-in before a period (see :func:`run_period`).
 LEAD_IN = dt.timedelta(minutes=30)
+
+
+def _utc(value: dt.datetime) -> dt.datetime:
+    return value.replace(tzinfo=dt.UTC) if value.tzinfo is None else value.astimezone(dt.UTC)
 
 
 class NoSamplesError(LookupError):
@@ -75,19 +92,13 @@ class RunResult:
     period_start_utc: dt.datetime
     period_end_utc: dt.datetime
     samples: int
-    rope_tensions: pl.DataFrame
+    #: the landed compensated samples of the period (a lazy scan of the lake; a frame
+    #: when made by hand)
+    rope_tensions: pl.LazyFrame | pl.DataFrame
     position_summary: pl.DataFrame
     trip_summary: pl.DataFrame
     alarms: pl.DataFrame
     inputs: tuple[str, ...]
-
-
-def _period(
-    samples: pl.DataFrame, start: dt.datetime | None, end: dt.datetime | None
-) -> tuple[dt.datetime, dt.datetime]:
-    first = start or samples["time_utc"].min()
-    last = end or samples["time_utc"].max() + dt.timedelta(microseconds=1)
-    return first.astimezone(dt.UTC), last.astimezone(dt.UTC)
 
 
 def run_period(
@@ -101,6 +112,7 @@ def run_period(
     settings: CompensationSettings | None = None,
     command: str = "run",
     lead_in: dt.timedelta = LEAD_IN,
+    block: dt.timedelta = DEFAULT_BLOCK,
 ) -> RunResult:
     """Compensate, reconcile and alarm ``start <= t < end`` of one hoist; land the results.
 
@@ -125,6 +137,11 @@ def run_period(
         Samples this long before ``start`` are compensated too and then dropped: the
         filters and the seals' friction state start from the hoist's real history, not
         from rest (the friction left by earlier motion persists for hours).
+    block : timedelta
+        Samples are read, compensated, reconciled and staged for landing this many at a
+        time (:mod:`transforms.blocks`; default an hour, 360 k samples at 100 Hz), so
+        memory is bounded by the block, not the period; the results are those of the
+        whole period at once (within the tolerance :mod:`transforms.blocks` states).
 
     Raises
     ------
@@ -133,65 +150,103 @@ def run_period(
     """
     started = utc_now()
     hoist = hoist or load_hoist(hoist_path)
+    settings = settings or CompensationSettings()
     site, name = hoist.hoist.site, hoist.hoist.name
+    start, end = (None if t is None else _utc(t) for t in (start, end))
     scan_start = None if start is None else start - lead_in
-    samples = scan_lake(
-        data, "field_samples", site=site, hoist=name, start=scan_start, end=end
+
+    def scan(lo: dt.datetime | None, hi: dt.datetime | None) -> pl.LazyFrame:
+        return scan_lake(data, "field_samples", site=site, hoist=name, start=lo, end=hi)
+
+    record = scan(scan_start, end)
+    extent = record.select(
+        pl.len().alias("rows"),
+        pl.col("time_utc").min().alias("first"),
+        pl.col("time_utc").max().alias("last"),
+        ((pl.col("time_utc") >= start).sum() if start is not None else pl.len()).alias("in_period"),
     ).collect()
-    in_period = samples if start is None else samples.filter(pl.col("time_utc") >= start)
-    if in_period.height == 0:
+    rows, first, last, in_period = extent.row(0)
+    if not rows or not in_period:
         raise NoSamplesError(_no_samples_message(data, site, name, start, end))
-    period_start, period_end = _period(in_period, start, end)
+    period_start = (start or first).astimezone(dt.UTC)
+    period_end = (end or last + dt.timedelta(microseconds=1)).astimezone(dt.UTC)
     run_id = new_run_id(command)
     logger.info(
-        "run %s: %s/%s %s .. %s UTC, %d samples (and %d of lead-in)",
+        "run %s: %s/%s %s .. %s UTC, %d samples (and %d of lead-in), blocks of %s",
         run_id,
         site,
         name,
         period_start,
         period_end,
-        in_period.height,
-        samples.height - in_period.height,
+        in_period,
+        rows - in_period,
+        block,
     )
-    tensions = compensate(samples, hoist, settings=settings).filter(
-        pl.col("time_utc") >= period_start
-    )
-    reconciled = reconcile(tensions, hoist, run_id=run_id, payload_kg=payload_kg)
-    alarms = evaluate_alarms(
-        tensions, hoist, run_id=run_id, trip_payloads=reconciled.trip_summary, payload_kg=payload_kg
-    )
-    inputs = tuple(sorted(samples["source_sha256"].unique().to_list()))
-    run = hoist_run(
-        run_id=run_id,
-        command=command,
-        started_at_utc=started,
-        hoist=hoist,
-        hoist_path=hoist_path,
-        period=(period_start, period_end),
-        inputs=inputs,
-        message=f"{in_period.height} samples, {alarms.height} alarms",
-    )
-    with open_writer(data) as con:
-        land_rope_tensions(
-            data,
-            tensions,
+    stride = context_stride(rows)
+    sample = context_sample(record, stride).collect(engine="streaming")
+    context = compensation_context(sample, hoist, settings, stride)
+
+    def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
+        return scan(lo, hi).collect()
+
+    stage = RopeTensionStage(data, site=site, hoist=name)
+    try:
+        inputs: set[str] = set()
+        stints, trips = [], []
+        carry = None
+        for tensions in compensate_blocks(
+            read,
+            hoist,
+            start=first,
+            end=last + dt.timedelta(microseconds=1),
+            context=context,
+            settings=settings,
+            block=block,
+        ):
+            tensions = tensions.filter(pl.col("time_utc") >= period_start)
+            stage.add(tensions)
+            part, carry = stint_partials(tensions, hoist, carry=carry)
+            stints.append(part)
+            trips.append(trip_partials(tensions))
+        inputs = set(
+            record.select(pl.col("source_sha256").unique()).collect()["source_sha256"].to_list()
+        )
+        positions = summarise_positions_from_partials(
+            pl.concat(stints, how="diagonal_relaxed"), hoist, run_id=run_id, payload_kg=payload_kg
+        )
+        trip_summary = summarise_trips_from_partials(
+            pl.concat(trips, how="diagonal_relaxed"),
+            positions,
+            run_id=run_id,
             site=site,
-            hoist=name,
-            period_start_utc=period_start,
-            period_end_utc=period_end,
+            hoist_name=name,
         )
-        land_results(
-            con,
-            run,
-            position_summary=reconciled.position_summary,
-            trip_summary=reconciled.trip_summary,
-            alarms=alarms,
+        alarms = _block_alarms(
+            stage, hoist, run_id=run_id, trips=trip_summary, payload_kg=payload_kg,
+            start=period_start, end=period_end, block=block,
+        )  # fmt: skip
+        run = hoist_run(
+            run_id=run_id,
+            command=command,
+            started_at_utc=started,
+            hoist=hoist,
+            hoist_path=hoist_path,
+            period=(period_start, period_end),
+            inputs=tuple(sorted(inputs)),
+            message=f"{in_period} samples, {alarms.height} alarms",
         )
+        with open_writer(data) as con:
+            stage.publish(period_start, period_end)
+            land_results(
+                con, run, position_summary=positions, trip_summary=trip_summary, alarms=alarms
+            )
+    finally:
+        stage.discard()
     logger.info(
         "run %s landed: %d trips, %d position visits, %d alarms",
         run_id,
-        reconciled.trip_summary.height,
-        reconciled.position_summary.height,
+        trip_summary.height,
+        positions.height,
         alarms.height,
     )
     return RunResult(
@@ -200,13 +255,49 @@ def run_period(
         hoist=name,
         period_start_utc=period_start,
         period_end_utc=period_end,
-        samples=in_period.height,
-        rope_tensions=tensions,
-        position_summary=reconciled.position_summary,
-        trip_summary=reconciled.trip_summary,
+        samples=in_period,
+        rope_tensions=scan_lake(
+            data, "rope_tensions", site=site, hoist=name, start=period_start, end=period_end
+        ),
+        position_summary=positions,
+        trip_summary=trip_summary,
         alarms=alarms,
-        inputs=inputs,
+        inputs=tuple(sorted(inputs)),
     )
+
+
+def _block_alarms(
+    stage: RopeTensionStage,
+    hoist: HoistDescription,
+    *,
+    run_id: str,
+    trips: pl.DataFrame,
+    payload_kg: float | None,
+    start: dt.datetime,
+    end: dt.datetime,
+    block: dt.timedelta,
+) -> pl.DataFrame:
+    """Alarms of the staged rope tensions, block by block with a margin, merged
+    (:func:`transforms.alarms.merge_alarm_pieces`)."""
+    files = stage.files()
+    if not files:
+        return conform(pl.DataFrame(), ALARMS)
+    staged = pl.scan_parquet(files)
+    margin = dt.timedelta(seconds=ALARM_MARGIN_S)
+    pieces = []
+    for lo, hi in block_edges(start, end, block):
+        window = staged.filter(
+            (pl.col("time_utc") >= lo - margin) & (pl.col("time_utc") < hi + margin)
+        ).collect()
+        if window.height:
+            pieces.append(
+                evaluate_alarms(
+                    window, hoist, run_id=run_id, trip_payloads=trips, payload_kg=payload_kg
+                )
+            )
+    if not pieces:
+        return conform(pl.DataFrame(), ALARMS)
+    return merge_alarm_pieces(pl.concat(pieces), site=hoist.hoist.site, hoist=hoist.hoist.name)
 
 
 @dataclass(frozen=True)

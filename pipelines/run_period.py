@@ -20,7 +20,7 @@ import polars as pl
 from pipelines.lake import scan_lake
 from pipelines.provenance import hoist_run, new_run_id, utc_now
 from schemas.hoist import HoistDescription, load_hoist
-from schemas.tables import ALARMS
+from schemas.tables import ALARMS, ROPES
 from transforms.alarms import ALARM_MARGIN_S, evaluate_alarms, merge_alarm_pieces
 from transforms.blocks import DEFAULT_BLOCK, block_edges, compensate_blocks
 from transforms.compensation import (
@@ -266,6 +266,14 @@ def run_period(
     )
 
 
+#: What :func:`transforms.alarms.evaluate_alarms` reads of the rope tensions.
+_ALARM_COLUMNS = [
+    "time_utc", "trip_id", "depth_m", "speed_m_s", "acceleration_up_m_s2", "load_n",
+    *(f"p{i}_pa" for i in ROPES), *(f"tension{i}_n" for i in ROPES),
+    *(f"tension_raw{i}_n" for i in ROPES),
+]  # fmt: skip
+
+
 def _block_alarms(
     stage: RopeTensionStage,
     hoist: HoistDescription,
@@ -282,7 +290,7 @@ def _block_alarms(
     files = stage.files()
     if not files:
         return conform(pl.DataFrame(), ALARMS)
-    staged = pl.scan_parquet(files)
+    staged = pl.scan_parquet(files).select(_ALARM_COLUMNS)
     margin = dt.timedelta(seconds=ALARM_MARGIN_S)
     pieces = []
     for lo, hi in block_edges(start, end, block):

@@ -31,6 +31,7 @@ is published whole or not at all, and readers keep their snapshot meanwhile.
 from __future__ import annotations
 
 import datetime as dt
+import os
 import shutil
 import uuid
 from collections.abc import Sequence
@@ -226,6 +227,14 @@ def _hour_file(root: DataRoot, site: str, hoist: str, hour: dt.datetime) -> Path
     return directory / f"hour-{hour:%H}.parquet"
 
 
+def _fsync_folder(folder: Path) -> None:
+    handle = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(handle)
+    finally:
+        os.close(handle)
+
+
 class RopeTensionStage:
     """A run's compensated samples, staged block by block and published at landing.
 
@@ -262,7 +271,8 @@ class RopeTensionStage:
         ):
             paths = self.parts.setdefault(hour, [])
             path = self.folder / f"{hour:%Y%m%dT%H}-{len(paths):04d}.parquet"
-            part.drop("_hour").write_parquet(path, compression="lz4", statistics=True)
+            # the lake's own format: an hour the run covers whole is then just renamed
+            write_parquet_atomic(part.drop("_hour"), path, ROPE_TENSIONS)
             paths.append(path)
 
     def files(self) -> list[Path]:
@@ -280,17 +290,27 @@ class RopeTensionStage:
         written = []
         while hour < end:
             touched_days.add(hour.date())
-            written += self._replace_hour(hour, self.parts.get(hour, []), inside=inside)
+            whole = start <= hour and hour + dt.timedelta(hours=1) <= end
+            written += self._replace_hour(
+                hour, self.parts.get(hour, []), inside=inside, whole=whole
+            )
             hour += dt.timedelta(hours=1)
         for day in sorted(touched_days):
             written += self._retire_day_file(day)
         return written
 
     def _replace_hour(
-        self, hour: dt.datetime, staged: list[Path], *, inside: pl.Expr
+        self, hour: dt.datetime, staged: list[Path], *, inside: pl.Expr, whole: bool
     ) -> list[Path]:
+        """Replace the period's rows of one hour; ``whole``: the period covers the hour."""
         target = _hour_file(self.root, self.site, self.hoist, hour)
-        old = [p for p in (target, target.with_name("data.parquet")) if p.exists()]
+        legacy = target.with_name("data.parquet")
+        if whole and len(staged) == 1:  # nothing of the old hour is kept: a rename
+            target.parent.mkdir(parents=True, exist_ok=True)
+            staged[0].replace(target)
+            _fsync_folder(target.parent)
+            return [target]
+        old = [p for p in (target, legacy) if p.exists() and not (whole and p == target)]
         in_hour = (pl.col("time_utc") >= hour) & (pl.col("time_utc") < hour + dt.timedelta(hours=1))
         frames = [
             conform(pl.read_parquet(path, hive_partitioning=False).filter(in_hour & ~inside),

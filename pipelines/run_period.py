@@ -293,16 +293,23 @@ def _block_alarms(
     staged = pl.scan_parquet(files).select(_ALARM_COLUMNS)
     margin = dt.timedelta(seconds=ALARM_MARGIN_S)
     pieces = []
+    tail: pl.DataFrame | None = None
     for lo, hi in block_edges(start, end, block):
         window = staged.filter(
             (pl.col("time_utc") >= lo - margin) & (pl.col("time_utc") < hi + margin)
         ).collect()
-        if window.height:
-            pieces.append(
-                evaluate_alarms(
-                    window, hoist, run_id=run_id, trip_payloads=trips, payload_kg=payload_kg
-                )
-            )
+        if window.height == 0:
+            continue
+        parts = [window]
+        if tail is not None and window["time_utc"][0] > tail["time_utc"][0]:
+            # a logger gap longer than the windows' overlap: no window holds both its
+            # sides, so its two samples are checked on their own ("no samples logged")
+            parts.append(pl.concat([tail, window.head(1)]))
+        tail = window.tail(1)
+        pieces += [
+            evaluate_alarms(part, hoist, run_id=run_id, trip_payloads=trips, payload_kg=payload_kg)
+            for part in parts
+        ]
     if not pieces:
         return conform(pl.DataFrame(), ALARMS)
     return merge_alarm_pieces(pl.concat(pieces), site=hoist.hoist.site, hoist=hoist.hoist.name)

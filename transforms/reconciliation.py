@@ -326,6 +326,8 @@ def _empty_partials() -> pl.DataFrame:
             "time_start_utc": pl.Datetime("us", "UTC"),
             "time_end_utc": pl.Datetime("us", "UTC"),
             "_sum_accel": pl.Float64,
+            **{f"_sum_{c}": pl.Float64 for c in _STINT_MEANS},
+            **{f"_n_{c}": pl.Int64 for c in _STINT_MEANS},
             "samples": pl.Int64,
         }
     )

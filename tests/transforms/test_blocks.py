@@ -15,9 +15,11 @@ import datetime as dt
 import numpy as np
 import polars as pl
 import pytest
+from polars.testing import assert_frame_equal
 
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from sims.field_day import generate_field_day
+from transforms.alarms import ALARM_MARGIN_S, evaluate_alarms, merge_alarm_pieces
 from transforms.blocks import block_edges, compensate_blocks
 from transforms.compensation import (
     CompensationSettings,
@@ -25,6 +27,13 @@ from transforms.compensation import (
     compensation_context,
     context_sample,
     context_stride,
+)
+from transforms.reconciliation import (
+    reconcile,
+    stint_partials,
+    summarise_positions_from_partials,
+    summarise_trips_from_partials,
+    trip_partials,
 )
 
 HOIST = load_hoist(EXAMPLE_HOIST)
@@ -50,6 +59,10 @@ def record() -> pl.DataFrame:
 
 
 def _blocks(record: pl.DataFrame, **kwargs) -> pl.DataFrame:
+    return pl.concat(list(_block_frames(record, **kwargs)))
+
+
+def _block_frames(record: pl.DataFrame, **kwargs):
     settings = CompensationSettings()
     stride = context_stride(record.height)
     context = compensation_context(
@@ -61,10 +74,9 @@ def _blocks(record: pl.DataFrame, **kwargs) -> pl.DataFrame:
 
     start = record["time_utc"][0]
     end = record["time_utc"][-1] + dt.timedelta(microseconds=1)
-    frames = compensate_blocks(
+    return compensate_blocks(
         read, HOIST, start=start, end=end, context=context, block=BLOCK, **kwargs
     )
-    return pl.concat(list(frames))
 
 
 def _assert_same(whole: pl.DataFrame, blocks: pl.DataFrame) -> None:
@@ -115,3 +127,52 @@ def test_block_edges_reject_nonpositive_block() -> None:
     t = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
     with pytest.raises(ValueError, match="block must be positive"):
         block_edges(t, t + dt.timedelta(hours=1), dt.timedelta(0))
+
+
+def test_reconciliation_and_alarms_from_blocks_equal_whole_record(record: pl.DataFrame) -> None:
+    """Per-stint and per-trip partials of the blocks, and alarms of the blocks with their
+    margin, merged: the whole record's position and trip summaries and alarms."""
+    hoist = HOIST.model_copy(
+        update={"alarms": HOIST.alarms.model_copy(update={"imbalance_fraction": 0.004})}
+    )  # tight enough that the record raises imbalance alarms, some across block edges
+    whole = compensate(record, hoist)
+    blocks = list(_block_frames(record))
+    want = reconcile(whole, hoist, run_id="r")
+    stints, trips, carry = [], [], None
+    for frame in blocks:
+        part, carry = stint_partials(frame, hoist, carry=carry)
+        stints.append(part)
+        trips.append(trip_partials(frame))
+    positions = summarise_positions_from_partials(
+        pl.concat(stints, how="diagonal_relaxed"), hoist, run_id="r"
+    )
+    trip_summary = summarise_trips_from_partials(
+        pl.concat(trips, how="diagonal_relaxed"),
+        positions,
+        run_id="r",
+        site=hoist.hoist.site,
+        hoist_name=hoist.hoist.name,
+    )
+    assert positions.height == want.position_summary.height > 10
+    assert_frame_equal(positions, want.position_summary, rel_tol=1e-9, abs_tol=1e-6)
+    assert_frame_equal(trip_summary, want.trip_summary, rel_tol=1e-9, abs_tol=1e-6)
+
+    alarms = evaluate_alarms(whole, hoist, run_id="r", trip_payloads=want.trip_summary)
+    margin = dt.timedelta(seconds=ALARM_MARGIN_S)
+    pieces, tail = [], None
+    start, end = whole["time_utc"][0], whole["time_utc"][-1] + dt.timedelta(microseconds=1)
+    for lo, hi in block_edges(start, end, BLOCK):  # as pipelines.run_period does
+        window = whole.filter(
+            (pl.col("time_utc") >= lo - margin) & (pl.col("time_utc") < hi + margin)
+        )
+        parts = [window]
+        if tail is not None and window["time_utc"][0] > tail["time_utc"][0]:
+            parts.append(pl.concat([tail, window.head(1)]))  # a gap no window spans
+        tail = window.tail(1)
+        pieces += [
+            evaluate_alarms(part, hoist, run_id="r", trip_payloads=want.trip_summary)
+            for part in parts
+        ]
+    merged = merge_alarm_pieces(pl.concat(pieces), site=hoist.hoist.site, hoist=hoist.hoist.name)
+    assert alarms.height >= 3
+    assert_frame_equal(merged, alarms, rel_tol=1e-6)

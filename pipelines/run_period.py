@@ -21,7 +21,7 @@ from pipelines.lake import scan_lake
 from pipelines.provenance import hoist_run, new_run_id, utc_now
 from schemas.hoist import HoistDescription, load_hoist
 from schemas.tables import ALARMS, ROPES
-from transforms.alarms import ALARM_MARGIN_S, evaluate_alarms, merge_alarm_pieces
+from transforms.alarms import evaluate_alarms_in_blocks
 from transforms.blocks import DEFAULT_BLOCK, block_edges, compensate_blocks
 from transforms.compensation import (
     CompensationSettings,
@@ -186,12 +186,15 @@ def run_period(
     sample = context_sample(record, stride).collect(engine="streaming")
     context = compensation_context(sample, hoist, settings, stride)
 
+    inputs: set[str] = set()  # the source files read (runs.inputs)
+
     def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
-        return scan(lo, hi).collect()
+        frame = scan(lo, hi).collect()
+        inputs.update(frame["source_sha256"].unique().to_list())
+        return frame
 
     stage = RopeTensionStage(data, site=site, hoist=name)
     try:
-        inputs: set[str] = set()
         stints, trips = [], []
         carry = None
         for tensions in compensate_blocks(
@@ -208,9 +211,6 @@ def run_period(
             part, carry = stint_partials(tensions, hoist, carry=carry)
             stints.append(part)
             trips.append(trip_partials(tensions))
-        inputs = set(
-            record.select(pl.col("source_sha256").unique()).collect()["source_sha256"].to_list()
-        )
         positions = summarise_positions_from_partials(
             pl.concat(stints, how="diagonal_relaxed"), hoist, run_id=run_id, payload_kg=payload_kg
         )
@@ -285,34 +285,24 @@ def _block_alarms(
     end: dt.datetime,
     block: dt.timedelta,
 ) -> pl.DataFrame:
-    """Alarms of the staged rope tensions, block by block with a margin, merged
-    (:func:`transforms.alarms.merge_alarm_pieces`)."""
+    """Alarms of the staged rope tensions, block by block
+    (:func:`transforms.alarms.evaluate_alarms_in_blocks`)."""
     files = stage.files()
     if not files:
         return conform(pl.DataFrame(), ALARMS)
     staged = pl.scan_parquet(files).select(_ALARM_COLUMNS)
-    margin = dt.timedelta(seconds=ALARM_MARGIN_S)
-    pieces = []
-    tail: pl.DataFrame | None = None
-    for lo, hi in block_edges(start, end, block):
-        window = staged.filter(
-            (pl.col("time_utc") >= lo - margin) & (pl.col("time_utc") < hi + margin)
-        ).collect()
-        if window.height == 0:
-            continue
-        parts = [window]
-        if tail is not None and window["time_utc"][0] > tail["time_utc"][0]:
-            # a logger gap longer than the windows' overlap: no window holds both its
-            # sides, so its two samples are checked on their own ("no samples logged")
-            parts.append(pl.concat([tail, window.head(1)]))
-        tail = window.tail(1)
-        pieces += [
-            evaluate_alarms(part, hoist, run_id=run_id, trip_payloads=trips, payload_kg=payload_kg)
-            for part in parts
-        ]
-    if not pieces:
-        return conform(pl.DataFrame(), ALARMS)
-    return merge_alarm_pieces(pl.concat(pieces), site=hoist.hoist.site, hoist=hoist.hoist.name)
+
+    def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
+        return staged.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi)).collect()
+
+    return evaluate_alarms_in_blocks(
+        read,
+        block_edges(start, end, block),
+        hoist,
+        run_id=run_id,
+        trip_payloads=trips,
+        payload_kg=payload_kg,
+    )
 
 
 @dataclass(frozen=True)

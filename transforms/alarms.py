@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import datetime as dt
 import hashlib
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -72,6 +73,7 @@ __all__ = [
     "RuleThresholds",
     "alarm_id",
     "evaluate_alarms",
+    "evaluate_alarms_in_blocks",
     "merge_alarm_pieces",
     "rule_thresholds",
 ]
@@ -545,6 +547,45 @@ ALARM_MARGIN_S = 120.0
 #: largest magnitude, its sign kept; durations are recomputed).
 _PEAK_MIN = {"slack_rope"}
 _PEAK_DURATION = {"sensor_flatline", "sensor_stuck", "sensor_dropout"}
+
+
+def evaluate_alarms_in_blocks(
+    read: Callable[[dt.datetime, dt.datetime], pl.DataFrame],
+    blocks: Sequence[tuple[dt.datetime, dt.datetime]],
+    hoist: HoistDescription,
+    *,
+    run_id: str,
+    trip_payloads: pl.DataFrame | None = None,
+    payload_kg: float | None = None,
+) -> pl.DataFrame:
+    """:func:`evaluate_alarms` of a long record, one block at a time (issue 16).
+
+    ``read(lo, hi)`` returns the ROPE_TENSIONS rows ``lo <= t < hi``; each block of
+    ``blocks`` is read with :data:`ALARM_MARGIN_S` either side and the alarms of all the
+    windows are merged (:func:`merge_alarm_pieces`). A logger gap longer than two
+    margins has no window holding both its sides: its two bounding samples are checked
+    on their own, so its "no samples logged" alarm is raised as on the whole record.
+    """
+    margin = dt.timedelta(seconds=ALARM_MARGIN_S)
+    pieces = []
+    tail: pl.DataFrame | None = None
+    for lo, hi in blocks:
+        window = read(lo - margin, hi + margin)
+        if window.height == 0:
+            continue
+        parts = [window]
+        if tail is not None and window["time_utc"][0] > tail["time_utc"][0]:
+            parts.append(pl.concat([tail, window.head(1)], how="vertical_relaxed"))
+        tail = window.tail(1)
+        pieces += [
+            evaluate_alarms(
+                part, hoist, run_id=run_id, trip_payloads=trip_payloads, payload_kg=payload_kg
+            )
+            for part in parts
+        ]
+    if not pieces:
+        return conform(pl.DataFrame(), ALARMS)
+    return merge_alarm_pieces(pl.concat(pieces), site=hoist.hoist.site, hoist=hoist.hoist.name)
 
 
 def merge_alarm_pieces(

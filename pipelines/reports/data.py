@@ -243,8 +243,14 @@ def period_series(
     start_utc: dt.datetime,
     end_utc: dt.datetime,
     buckets: int = BUCKETS,
+    chunk: dt.timedelta | None = dt.timedelta(hours=1),
 ) -> PeriodSeries:
     """Rope tensions of one hoist-period reduced to the report's plot lines.
+
+    The samples are read ``chunk`` at a time and only those that can be a bucket's
+    smallest or largest value, or a trip's largest rope deviation, are kept
+    (:func:`_reduced_table`), so a long period costs memory for its plot, not its samples.
+    ``chunk=None`` reads every sample at once (the same lines, more memory).
 
     ``frame`` holds ``ROPE_TENSIONS`` rows (the lake's names); ``trips`` the run's
     ``trip_summary`` (its ``payload_kg`` gives the expected load during trips, by
@@ -295,22 +301,19 @@ def period_series(
             (pl.col("load_hi_n") / 1e3).cast(f32).alias("hi_kn"),
         ]
     start_utc, end_utc = start_utc.astimezone(dt.UTC), end_utc.astimezone(dt.UTC)
-    table = (
+    rows = (
         lazy.with_columns(pl.col("time_utc").dt.convert_time_zone("UTC"))
         .filter((pl.col("time_utc") >= start_utc) & (pl.col("time_utc") < end_utc))
         .with_columns(shared)
         .select(columns)
-        .collect()
     )
-    if not table["t"].is_sorted():  # the lake and a run's frame are already in time order
-        table = table.sort("t")
-    out = PeriodSeries(start_utc=start_utc, end_utc=end_utc, samples=table.height)
+    table, samples, (t0, t1) = _reduced_table(rows, buckets, chunk=chunk)
+    out = PeriodSeries(start_utc=start_utc, end_utc=end_utc, samples=samples)
     if table.height == 0:
         return out
     t = table["t"].to_numpy()
     # the buckets span the samples, not the period: a day with ten minutes of logs gets
-    # its 2000 buckets over those ten minutes
-    t0, t1 = int(t[0]), int(t[-1]) + 1
+    # its 2000 buckets over those ten minutes (t0, t1 from _reduced_table)
     out.first_utc = _EPOCH + dt.timedelta(microseconds=t0)
     out.last_utc = _EPOCH + dt.timedelta(microseconds=t1)
     for name in table.columns:
@@ -340,6 +343,60 @@ def period_series(
         .collect()
     )
     return out
+
+
+def _reduced_table(
+    rows: pl.LazyFrame, buckets: int, *, chunk: dt.timedelta | None
+) -> tuple[pl.DataFrame, int, tuple[int, int]]:
+    """The rows of ``rows`` (columns ``t``, ``trip_id`` and values) that the plot lines,
+    extremes, band and per-trip worst rope need, how many rows there were, and the
+    buckets' span (first sample's time, last sample's time + 1) [us].
+
+    Buckets span the samples' first to last time (as in :func:`period_series`); per
+    chunk of ``chunk`` and value column the rows holding a bucket's first smallest and
+    first largest value are kept, and per trip the rows holding each rope's largest
+    deviation. Every bucket's and trip's extremes over the whole period are among them,
+    so the lines drawn from the kept rows are those of all rows.
+    """
+    extent = rows.select(
+        pl.len(), pl.col("t").min().alias("first"), pl.col("t").max().alias("last")
+    )
+    extent = extent.collect()
+    samples, first, last = extent.row(0)
+    if not samples:
+        return rows.collect(), 0, (0, 0)
+    t0, t1 = int(first), int(last) + 1
+    if chunk is None:
+        return rows.sort("t").collect(), samples, (t0, t1)
+    step = int(chunk.total_seconds() * 1e6)
+    kept = []
+    for lo in range(t0, t1, step):
+        part = rows.filter((pl.col("t") >= lo) & (pl.col("t") < lo + step)).collect()
+        if part.height == 0:
+            continue
+        if not part["t"].is_sorted():
+            part = part.sort("t")
+        t = part["t"].to_numpy()
+        keep = np.zeros(part.height, dtype=bool)
+        for name in part.columns:
+            if name in ("t", "trip_id"):
+                continue
+            y = part[name].cast(pl.Float64).fill_null(np.nan).to_numpy()
+            _, i_min, _, i_max, _ = bucket_extremes(t, y, buckets, t0=t0, t1=t1)
+            keep[i_min] = True
+            keep[i_max] = True
+        trips = part.with_row_index("_i").filter(pl.col("trip_id").is_not_null())
+        for i in ROPES:
+            deviation = pl.col(f"deviation{i}_pct").abs()
+            worst = (
+                trips.filter(deviation.is_not_null())
+                .group_by("trip_id")
+                .agg(pl.col("_i").sort_by(deviation, descending=True).first())
+            )
+            keep[worst["_i"].to_numpy()] = True
+        keep[[0, -1]] = True  # the samples' extent (the time axes)
+        kept.append(part.filter(pl.Series(keep)))
+    return pl.concat(kept), samples, (t0, t1)
 
 
 def _band(

@@ -19,7 +19,7 @@ from polars.testing import assert_frame_equal
 
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from sims.field_day import generate_field_day
-from transforms.alarms import ALARM_MARGIN_S, evaluate_alarms, merge_alarm_pieces
+from transforms.alarms import evaluate_alarms, evaluate_alarms_in_blocks
 from transforms.blocks import block_edges, compensate_blocks
 from transforms.compensation import (
     CompensationSettings,
@@ -158,21 +158,17 @@ def test_reconciliation_and_alarms_from_blocks_equal_whole_record(record: pl.Dat
     assert_frame_equal(trip_summary, want.trip_summary, rel_tol=1e-9, abs_tol=1e-6)
 
     alarms = evaluate_alarms(whole, hoist, run_id="r", trip_payloads=want.trip_summary)
-    margin = dt.timedelta(seconds=ALARM_MARGIN_S)
-    pieces, tail = [], None
     start, end = whole["time_utc"][0], whole["time_utc"][-1] + dt.timedelta(microseconds=1)
-    for lo, hi in block_edges(start, end, BLOCK):  # as pipelines.run_period does
-        window = whole.filter(
-            (pl.col("time_utc") >= lo - margin) & (pl.col("time_utc") < hi + margin)
-        )
-        parts = [window]
-        if tail is not None and window["time_utc"][0] > tail["time_utc"][0]:
-            parts.append(pl.concat([tail, window.head(1)]))  # a gap no window spans
-        tail = window.tail(1)
-        pieces += [
-            evaluate_alarms(part, hoist, run_id="r", trip_payloads=want.trip_summary)
-            for part in parts
-        ]
-    merged = merge_alarm_pieces(pl.concat(pieces), site=hoist.hoist.site, hoist=hoist.hoist.name)
+
+    def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
+        return whole.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi))
+
+    merged = evaluate_alarms_in_blocks(
+        read,
+        block_edges(start, end, BLOCK),
+        hoist,
+        run_id="r",
+        trip_payloads=want.trip_summary,
+    )
     assert alarms.height >= 3
     assert_frame_equal(merged, alarms, rel_tol=1e-6)

@@ -15,7 +15,8 @@ child) is the child's own:
 For ``--hours 24`` and ``--double`` (a 24 h and a 48 h file in one run) it prints seconds,
 peak RSS and the ratios the issue targets: ropeload <= 3x the floor, >= 2x the pandas
 script's speed, peak <= 2 GB for a day and <= 1.1x when the day doubles. ``--small``
-adds the 2 h, 50 Hz case (ropeload <= 1.5x the pandas script).
+adds the 2 h, 50 Hz case (ropeload <= 1.5x the pandas script); ``--backfill 4`` a
+``ropeload backfill --workers 4`` of four hoists with the same day each (<= 8 GB).
 
     uv run python benchmarks/bench_day.py                    # 24 h day
     uv run python benchmarks/bench_day.py --double --small   # 24 h, 48 h and 2 h 50 Hz
@@ -153,11 +154,52 @@ def case(hours: float, rate_hz: float, workdir: Path) -> dict:
     return result
 
 
+def backfill_case(hours: float, hoists: int, workdir: Path) -> dict:
+    """``ropeload backfill --workers N`` of N hoists with one simulated day each."""
+    csv = workdir / f"day-{hours:g}h-100hz.csv"
+    if not csv.exists():
+        _process([sys.executable, __file__, "--generate", str(hours), "100", str(csv)])
+    mine = workdir / "mine"
+    shutil.rmtree(mine, ignore_errors=True)
+    text = HOIST.read_text(encoding="utf-8")
+    for k in range(1, hoists + 1):
+        name = f"shaft-{k}"
+        (mine / "hoists").mkdir(parents=True, exist_ok=True)
+        (mine / "hoists" / f"{name}.toml").write_text(
+            text.replace('name = "main-shaft"', f'name = "{name}"'), encoding="utf-8"
+        )
+        folder = mine / "incoming" / "paper-field-test" / name
+        folder.mkdir(parents=True)
+        with csv.open("rb") as src, (folder / f"paper-field-test_{name}.csv").open("wb") as out:
+            for line in src:
+                out.write(line.replace(b"# hoist: main-shaft", f"# hoist: {name}".encode()))
+                if not line.startswith(b"#"):
+                    break
+            shutil.copyfileobj(src, out)
+    os.sync()
+    result = _process(
+        [sys.executable, "-m", "pipelines.cli", "backfill", "--data", str(mine / "data"),
+         "--hoists", str(mine / "hoists"), "--incoming", str(mine / "incoming"),
+         "--from", "2026-02-28", "--to", "2026-03-05", "--workers", str(hoists),
+         "--no-progress"]
+    )  # fmt: skip
+    shutil.rmtree(mine, ignore_errors=True)
+    print(
+        f"\nbackfill of {hoists} hoists x {hours:g} h at 100 Hz, --workers {hoists}: "
+        f"{result['seconds']:.1f} s, peak RSS {result['peak_rss_bytes'] / 1e9:.2f} GB "
+        "(target: 4 workers within 8 GB)"
+    )
+    return result
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hours", type=float, default=24.0)
     parser.add_argument("--double", action="store_true", help="also a file twice as long")
     parser.add_argument("--small", action="store_true", help="also 2 h at 50 Hz")
+    parser.add_argument(
+        "--backfill", type=int, default=0, metavar="N", help="also a backfill of N hoist-days"
+    )
     parser.add_argument("--workdir", type=Path, help="keep generated files here")
     parser.add_argument("--child", nargs=3, metavar=("KIND", "CSV", "OUT"), help=argparse.SUPPRESS)
     parser.add_argument("--generate", nargs=3, help=argparse.SUPPRESS)
@@ -180,6 +222,8 @@ def main() -> None:
             print(f"\nropeload peak RSS x2 day / x1 day: {ratio:.2f} (target <= 1.1)")
         if args.small:
             case(2.0, 50.0, workdir)
+        if args.backfill:
+            backfill_case(args.hours, args.backfill, workdir)
 
 
 if __name__ == "__main__":

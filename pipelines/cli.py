@@ -10,6 +10,7 @@ usage error.
 from __future__ import annotations
 
 import argparse
+import datetime as dt
 import errno
 import os
 import signal
@@ -171,6 +172,13 @@ def _parse_day(text: str):
     return dt.date.fromisoformat(text)
 
 
+def _positive_minutes(text: str) -> float:
+    value = float(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be a positive number of minutes, got {text}")
+    return value
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from warehouse.store import DataRoot
 
@@ -198,6 +206,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             end=args.end,
             payload_kg=args.payload_kg,
             sanity=not args.no_sanity,
+            block=dt.timedelta(minutes=args.block_minutes),
         )
         result, report, error = checked.result, checked.report, checked.sanity_error
         checks = "; " + checked.sanity_words
@@ -322,6 +331,14 @@ def _add_flow_commands(commands) -> None:
     run.add_argument("--to", dest="end", type=_parse_time, metavar="T", help="exclusive")
     run.add_argument("--payload-kg", type=float, default=None, help="known payload at standstill")
     run.add_argument("--no-sanity", action="store_true", help="skip the simulation sanity check")
+    run.add_argument(
+        "--block-minutes",
+        type=_positive_minutes,
+        default=60.0,
+        metavar="M",
+        help="samples are processed M minutes at a time: memory grows with M, not with "
+        "the period (default 60; results do not depend on it)",
+    )
     _prefect_option(run)
     run.set_defaults(handler=_cmd_run)
 

@@ -22,13 +22,8 @@ from pipelines.provenance import hoist_run, new_run_id, utc_now
 from schemas.hoist import HoistDescription, load_hoist
 from schemas.tables import ALARMS, ROPES
 from transforms.alarms import evaluate_alarms_in_blocks
-from transforms.blocks import DEFAULT_BLOCK, block_edges, compensate_blocks
-from transforms.compensation import (
-    CompensationSettings,
-    compensation_context,
-    context_sample,
-    context_stride,
-)
+from transforms.blocks import DEFAULT_BLOCK, block_edges, compensate_blocks, record_context
+from transforms.compensation import CompensationSettings
 from transforms.reconciliation import (
     conform,
     stint_partials,
@@ -182,9 +177,16 @@ def run_period(
         rows - in_period,
         block,
     )
-    stride = context_stride(rows)
-    sample = context_sample(record, stride).collect(engine="streaming")
-    context = compensation_context(sample, hoist, settings, stride)
+    columns = ["time_utc", *(f"p{i}_pa" for i in ROPES), *(f"x{i}_m" for i in ROPES)]
+    context = record_context(
+        lambda lo, hi: scan(lo, hi).select(columns).collect(),
+        hoist,
+        start=first,
+        end=last + dt.timedelta(microseconds=1),
+        rows=rows,
+        settings=settings,
+        block=block,
+    )
 
     inputs: set[str] = set()  # the source files read (runs.inputs)
 
@@ -331,6 +333,7 @@ def run_checked(
     sanity: bool = True,
     hoist: HoistDescription | None = None,
     command: str = "run",
+    block: dt.timedelta = DEFAULT_BLOCK,
 ) -> CheckedRun:
     """:func:`run_period`, then the simulation sanity check of its trips, then its report.
 
@@ -352,6 +355,7 @@ def run_checked(
         payload_kg=payload_kg,
         hoist=hoist,
         command=command,
+        block=block,
     )
     checks: object | None = None
     error: Exception | None = None

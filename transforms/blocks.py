@@ -5,9 +5,9 @@ is 8.6 M samples, ~40 day-long arrays of work and a 40-column result, 7-8 GB. He
 record is read and compensated block by block:
 
 1. the record's statistics (logger rate, noise sigmas, typical pressure) are read once
-   from a sparse, evenly spread sample of it (:func:`transforms.compensation.context_sample`,
-   about 3 x 200 k rows whatever the record's length), so every block uses the record's
-   values, not its own;
+   from a sparse, evenly spread sample of it (:func:`record_context`: a first pass over
+   the blocks keeps about 3 x 200 k rows whatever the record's length), so every block
+   uses the record's values, not its own;
 2. each block ``[t_k, t_k+1)`` is read with a margin either side
    (:func:`transforms.compensation.compensation_margins_s`: 30 s or more, so the
    zero-phase filters have forgotten the window's edges) and compensated by
@@ -45,10 +45,13 @@ from transforms.compensation import (
     CompensationContext,
     CompensationSettings,
     compensate_window,
+    compensation_context,
     compensation_margins_s,
+    context_sample,
+    context_stride,
 )
 
-__all__ = ["DEFAULT_BLOCK", "block_edges", "compensate_blocks"]
+__all__ = ["DEFAULT_BLOCK", "block_edges", "compensate_blocks", "record_context"]
 
 #: Default block length of ``ropeload run`` (360 k samples of a 100 Hz logger).
 DEFAULT_BLOCK = dt.timedelta(hours=1)
@@ -119,3 +122,30 @@ def compensate_blocks(
         )
         if rows.height:
             yield rows
+
+
+def record_context(
+    read: Reader,
+    hoist: HoistDescription,
+    *,
+    start: dt.datetime,
+    end: dt.datetime,
+    rows: int,
+    settings: CompensationSettings | None = None,
+    block: dt.timedelta = DEFAULT_BLOCK,
+) -> CompensationContext:
+    """The record's statistics for :func:`compensate_blocks`, read block by block.
+
+    ``read(lo, hi)`` as for :func:`compensate_blocks` (only ``time_utc`` and the ``p`` and
+    ``x`` columns are used), ``rows`` the record's number of samples. Rows are numbered
+    across the blocks, so the sample is the one :func:`transforms.compensation.compensate`
+    takes of the whole record in memory, and so are the statistics.
+    """
+    settings = settings or CompensationSettings()
+    stride = context_stride(rows)
+    parts, offset = [], 0
+    for lo, hi in block_edges(start, end, block):
+        frame = read(lo, hi)
+        parts.append(context_sample(frame, stride, offset=offset).collect())
+        offset += frame.height
+    return compensation_context(pl.concat(parts, how="vertical_relaxed"), hoist, settings, stride)

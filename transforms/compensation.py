@@ -569,13 +569,15 @@ def context_stride(rows: int) -> int:
     return max(1, rows // CONTEXT_ROWS)
 
 
-def context_sample(samples: pl.DataFrame | pl.LazyFrame, stride: int) -> pl.LazyFrame:
+def context_sample(
+    samples: pl.DataFrame | pl.LazyFrame, stride: int, *, offset: int = 0
+) -> pl.LazyFrame:
     """Rows i, i + 1, i + 2 of every i divisible by ``stride`` (time-sorted samples), with
-    their row number ``_row``: what :func:`compensation_context` reads. On a lazy scan of
-    a long period this streams: only about 3 / ``stride`` of the rows are kept."""
+    their row number ``_row`` (the first row is number ``offset``: a block of a longer
+    record): what :func:`compensation_context` reads, about 3 / ``stride`` of the rows."""
     return (
         samples.lazy()
-        .with_row_index("_row")
+        .with_row_index("_row", offset=offset)
         .filter(pl.col("_row") % stride < 3)
         .with_columns(pl.col("_row").cast(pl.Int64))
     )

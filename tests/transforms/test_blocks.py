@@ -20,13 +20,9 @@ from polars.testing import assert_frame_equal
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from sims.field_day import generate_field_day
 from transforms.alarms import evaluate_alarms, evaluate_alarms_in_blocks
-from transforms.blocks import block_edges, compensate_blocks
+from transforms.blocks import block_edges, compensate_blocks, record_context
 from transforms.compensation import (
-    CompensationSettings,
     compensate,
-    compensation_context,
-    context_sample,
-    context_stride,
 )
 from transforms.reconciliation import (
     reconcile,
@@ -63,17 +59,13 @@ def _blocks(record: pl.DataFrame, **kwargs) -> pl.DataFrame:
 
 
 def _block_frames(record: pl.DataFrame, **kwargs):
-    settings = CompensationSettings()
-    stride = context_stride(record.height)
-    context = compensation_context(
-        context_sample(record, stride).collect(), HOIST, settings, stride
-    )
-
     def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
         return record.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi))
 
     start = record["time_utc"][0]
     end = record["time_utc"][-1] + dt.timedelta(microseconds=1)
+    # the statistics of the record read block by block (as ropeload run does)
+    context = record_context(read, HOIST, start=start, end=end, rows=record.height, block=BLOCK)
     return compensate_blocks(
         read, HOIST, start=start, end=end, context=context, block=BLOCK, **kwargs
     )

@@ -35,6 +35,9 @@ the reference temperature).
 
 The friction state is sequential over the whole record, so :func:`compensate` takes a
 collected frame of one hoist, sorted by time, and returns a ``ROPE_TENSIONS`` frame.
+:func:`compensate_window` does the same for one block of a longer record, resuming the
+sequential kernels from the state the previous block left (:class:`CompensationCarry`)
+with the record's statistics (:class:`CompensationContext`): :mod:`transforms.blocks`.
 """
 
 from __future__ import annotations

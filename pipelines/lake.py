@@ -28,8 +28,12 @@ def scan_lake(
     hoist: str,
     start: dt.datetime | None = None,
     end: dt.datetime | None = None,
+    sort: bool = True,
 ) -> pl.LazyFrame:
     """Lazy scan of ``table`` for one site and hoist, ``start <= time_utc < end``.
+
+    Sorted by time unless ``sort`` is False (for aggregates that do not need the order:
+    a sort makes polars read every selected column of the period at once).
 
     Returns an empty frame with the table's schema when nothing is landed. Naive
     datetimes are taken as UTC. ``site`` and ``hoist`` must be safe names
@@ -49,7 +53,7 @@ def scan_lake(
         frame = frame.filter(pl.col("time_utc") >= _utc(start))
     if end is not None:
         frame = frame.filter(pl.col("time_utc") < _utc(end))
-    return frame.sort("time_utc")
+    return frame.sort("time_utc") if sort else frame
 
 
 def lake_partitions(data: DataRoot, table: str) -> pl.DataFrame:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import datetime as dt
 import logging
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -188,17 +189,28 @@ def run_period(
         block=block,
     )
 
-    inputs: set[str] = set()  # the source files read (runs.inputs)
+    # the source files read (runs.inputs), without sorting the period's rows
+    inputs = set(
+        scan_lake(
+            data, "field_samples", site=site, hoist=name, start=scan_start, end=end, sort=False
+        )
+        .select(pl.col("source_sha256").unique())
+        .collect(engine="streaming")["source_sha256"]
+        .to_list()
+    )
+    wanted = ["time_utc", "depth_m", "speed_m_s", "oil_temp_c", *columns[1:]]
 
     def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
-        frame = scan(lo, hi).collect()
-        inputs.update(frame["source_sha256"].unique().to_list())
-        return frame
+        return scan(lo, hi).select(wanted).collect()
 
     stage = RopeTensionStage(data, site=site, hoist=name)
+    # a block's rows are written while the next block is computed (at most one waits:
+    # memory stays bounded by two blocks; a writing error surfaces at the next block)
+    writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="stage")
     try:
         stints, trips = [], []
         carry = None
+        written: Future[None] | None = None
         for tensions in compensate_blocks(
             read,
             hoist,
@@ -209,10 +221,14 @@ def run_period(
             block=block,
         ):
             tensions = tensions.filter(pl.col("time_utc") >= period_start)
-            stage.add(tensions)
+            if written is not None:
+                written.result()
+            written = writer.submit(stage.add, tensions)
             part, carry = stint_partials(tensions, hoist, carry=carry)
             stints.append(part)
             trips.append(trip_partials(tensions))
+        if written is not None:
+            written.result()
         positions = summarise_positions_from_partials(
             pl.concat(stints, how="diagonal_relaxed"), hoist, run_id=run_id, payload_kg=payload_kg
         )
@@ -243,6 +259,7 @@ def run_period(
                 con, run, position_summary=positions, trip_summary=trip_summary, alarms=alarms
             )
     finally:
+        writer.shutdown(wait=True)
         stage.discard()
     logger.info(
         "run %s landed: %d trips, %d position visits, %d alarms",

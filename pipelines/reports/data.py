@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import datetime as dt
 import zoneinfo
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -301,13 +301,31 @@ def period_series(
             (pl.col("load_hi_n") / 1e3).cast(f32).alias("hi_kn"),
         ]
     start_utc, end_utc = start_utc.astimezone(dt.UTC), end_utc.astimezone(dt.UTC)
-    rows = (
-        lazy.with_columns(pl.col("time_utc").dt.convert_time_zone("UTC"))
-        .filter((pl.col("time_utc") >= start_utc) & (pl.col("time_utc") < end_utc))
-        .with_columns(shared)
-        .select(columns)
-    )
-    table, samples, (t0, t1) = _reduced_table(rows, buckets, chunk=chunk)
+    zone_of_column = lazy.collect_schema()["time_utc"].time_zone  # type: ignore[union-attr]
+
+    def between(lo: dt.datetime, hi: dt.datetime) -> pl.Expr:
+        """lo <= time_utc < hi on the column as stored (so the lake scan prunes by it)."""
+        if zone_of_column is None:
+            lo, hi = (t.astimezone(dt.UTC).replace(tzinfo=None) for t in (lo, hi))
+        else:
+            lo, hi = (t.astimezone(zoneinfo.ZoneInfo(zone_of_column)) for t in (lo, hi))
+        return (pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi)
+
+    period = lazy.filter(between(start_utc, end_utc))
+
+    def rows(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
+        return (
+            period.filter(between(lo, hi))
+            .with_columns(pl.col("time_utc").dt.convert_time_zone("UTC"))
+            .with_columns(shared)
+            .select(columns)
+            .collect()
+        )
+
+    extent = period.select(
+        pl.len(), pl.col("time_utc").min().alias("first"), pl.col("time_utc").max().alias("last")
+    ).collect()
+    table, samples, (t0, t1) = _reduced_table(rows, extent.row(0), buckets, chunk=chunk)
     out = PeriodSeries(start_utc=start_utc, end_utc=end_utc, samples=samples)
     if table.height == 0:
         return out
@@ -346,32 +364,40 @@ def period_series(
 
 
 def _reduced_table(
-    rows: pl.LazyFrame, buckets: int, *, chunk: dt.timedelta | None
+    rows: Callable[[dt.datetime, dt.datetime], pl.DataFrame],
+    extent: tuple[int, dt.datetime | None, dt.datetime | None],
+    buckets: int,
+    *,
+    chunk: dt.timedelta | None,
 ) -> tuple[pl.DataFrame, int, tuple[int, int]]:
-    """The rows of ``rows`` (columns ``t``, ``trip_id`` and values) that the plot lines,
-    extremes, band and per-trip worst rope need, how many rows there were, and the
-    buckets' span (first sample's time, last sample's time + 1) [us].
+    """The rows (columns ``t``, ``trip_id`` and values) that the plot lines, extremes,
+    band and per-trip worst rope need, how many rows there were, and the buckets' span
+    (first sample's time, last sample's time + 1) [us].
 
-    Buckets span the samples' first to last time (as in :func:`period_series`); per
-    chunk of ``chunk`` and value column the rows holding a bucket's first smallest and
-    first largest value are kept, and per trip the rows holding each rope's largest
-    deviation. Every bucket's and trip's extremes over the whole period are among them,
-    so the lines drawn from the kept rows are those of all rows.
+    ``rows(lo, hi)`` gives the rows of ``lo <= t < hi``; ``extent`` is (count, first
+    time, last time) of the period. Buckets span the samples' first to last time (as
+    in :func:`period_series`); per chunk of ``chunk`` and value column the rows holding
+    a bucket's first smallest and first largest value are kept, and per trip the rows
+    holding each rope's largest deviation. Every bucket's and trip's extremes over the
+    whole period are among them, so the lines drawn from the kept rows are those of all
+    rows.
     """
-    extent = rows.select(
-        pl.len(), pl.col("t").min().alias("first"), pl.col("t").max().alias("last")
-    )
-    extent = extent.collect()
-    samples, first, last = extent.row(0)
-    if not samples:
-        return rows.collect(), 0, (0, 0)
-    t0, t1 = int(first), int(last) + 1
+    samples, first, last = extent
+    if not samples or first is None or last is None:
+        return rows(_EPOCH, _EPOCH), 0, (0, 0)  # no rows, but the columns
+    first_utc, last_utc = first.astimezone(dt.UTC), last.astimezone(dt.UTC)
+    t0 = (first_utc - _EPOCH) // dt.timedelta(microseconds=1)
+    t1 = (last_utc - _EPOCH) // dt.timedelta(microseconds=1) + 1
+    end = last_utc + dt.timedelta(microseconds=1)
     if chunk is None:
-        return rows.sort("t").collect(), samples, (t0, t1)
+        return rows(first_utc, end).sort("t"), samples, (t0, t1)
     step = int(chunk.total_seconds() * 1e6)
     kept = []
     for lo in range(t0, t1, step):
-        part = rows.filter((pl.col("t") >= lo) & (pl.col("t") < lo + step)).collect()
+        part = rows(
+            _EPOCH + dt.timedelta(microseconds=lo),
+            min(_EPOCH + dt.timedelta(microseconds=lo + step), end),
+        )
         if part.height == 0:
             continue
         if not part["t"].is_sorted():

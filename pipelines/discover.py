@@ -19,6 +19,10 @@ with re-tuning, BIC + trip bootstrap, iteration) and writes
     ``bootstrap_share``), ``retuned`` (what the calibrated parameters moved to while
     scoring), ``noise_pa``, ``variance_ratio``, and for ``ambiguous``
     ``ambiguous_between`` (two names) and ``excitation`` (what would separate them);
+  - ``"unexplained_gap_pa"`` (contract 5, optional): present when the gap after every
+    found effect (or after none) stays above :data:`UNEXPLAINED_FACTOR` times the
+    noise: the model misses something the library does not name, or the replay cannot
+    reproduce the record (issue 14); also on the last iteration's object;
   - ``"plot"``: the before / after PNG written beside the JSON;
   - ``"residual_trace"``: the worst trip's residual before / after, downsampled
     (:func:`residual_trace`), which the HTML reports draw;
@@ -50,9 +54,32 @@ from sims.replay import plan_replay
 from warehouse.landing import land_discovery_findings, land_run
 from warehouse.store import DataRoot, open_writer
 
-__all__ = ["DiscoveryReport", "discover_period", "report_objects", "residual_trace", "write_plot"]
+__all__ = [
+    "UNEXPLAINED_FACTOR",
+    "DiscoveryReport",
+    "discover_period",
+    "report_objects",
+    "residual_trace",
+    "unexplained_gap_pa",
+    "write_plot",
+]
 
 logger = logging.getLogger(__name__)
+
+#: A gap left after discovery above this many noise sigmas is reported as unexplained
+#: (``unexplained_gap_pa``): the replay target of issue 14 is 3 x the noise.
+UNEXPLAINED_FACTOR = 3.0
+
+
+def unexplained_gap_pa(gap_after_pa: float, noise_pa: float) -> float | None:
+    """The gap left [Pa] when it is above :data:`UNEXPLAINED_FACTOR` x ``noise_pa``, else None.
+
+    >>> unexplained_gap_pa(48_600.0, 4_800.0), unexplained_gap_pa(5_500.0, 4_800.0)
+    (48600.0, None)
+    """
+    if not (np.isfinite(gap_after_pa) and np.isfinite(noise_pa)) or noise_pa <= 0:
+        return None
+    return round(float(gap_after_pa), 1) if gap_after_pa > UNEXPLAINED_FACTOR * noise_pa else None
 
 
 @dataclass(frozen=True)
@@ -114,6 +141,10 @@ def report_objects(
         "trips_in_period": result.plan.trips_found,
         "findings": per,
     }
+    left = unexplained_gap_pa(report["gap_after_pa"], report["noise_pa"])
+    if left is not None:
+        report["unexplained_gap_pa"] = left
+        per[-1]["unexplained_gap_pa"] = left
     return report, per
 
 

@@ -64,6 +64,9 @@ def test_discover_period_writes_report_plot_and_lands(lake_with_offset, tmp_path
         assert key in report
     assert report["effect"] == "sensor_offset"
     assert report["gap_after_pa"] < report["gap_before_pa"]
+    # the offset explains the gap down to the noise: nothing left unexplained (contract 5)
+    assert report["gap_after_pa"] <= 3.0 * report["noise_pa"]
+    assert "unexplained_gap_pa" not in report
     assert (tmp_path / "r.png").stat().st_size > 1000
     assert out.landed_rows == len(report["findings"])
     con = open_reader(DataRoot.resolve(root))

@@ -76,6 +76,8 @@ if TYPE_CHECKING:
     from pipelines.sanity import SanityOutcome
 
 __all__ = [
+    "PROCESS_BASE_BYTES",
+    "WORKER_BYTES_PER_BLOCK_SAMPLE",
     "BackfillPlan",
     "BackfillReport",
     "HoistSource",
@@ -103,6 +105,7 @@ __all__ = [
     "run_partition",
     "run_partition_with_retries",
     "run_partitions",
+    "workers_within_budget",
 ]
 
 logger = logging.getLogger(__name__)
@@ -1096,6 +1099,33 @@ class StderrProgress:
             f"{self.done}/{self.total} {self.label}, {self.failed} failed, {elapsed:.0f} s\n"
         )
         self._stream.flush()
+
+
+#: Memory of a backfill or night (``benchmarks/bench_day.py --backfill 4``, 100 Hz
+#: hoist-days, hour blocks): one worker's process peaks at ~1.3 GB, each further worker
+#: adds ~0.4 GB (four: 2.46 GB). A worker's share grows with its block's samples.
+PROCESS_BASE_BYTES = 0.9e9
+WORKER_BYTES_PER_BLOCK_SAMPLE = 0.4e9 / 360_000
+
+
+def workers_within_budget(
+    workers: int,
+    budget_bytes: float,
+    *,
+    block: dt.timedelta = dt.timedelta(hours=1),
+    sample_rate_hz: float = 100.0,
+) -> int:
+    """The most workers (at most ``workers``, at least 1) whose memory fits ``budget_bytes``.
+
+    Estimate: :data:`PROCESS_BASE_BYTES` + workers x :data:`WORKER_BYTES_PER_BLOCK_SAMPLE`
+    x the samples of a block (``sample_rate_hz`` x ``block``).
+
+    >>> [workers_within_budget(8, gb * 1e9) for gb in (8.0, 2.5, 2.4, 1.0)]
+    [8, 4, 3, 1]
+    """
+    per_worker = WORKER_BYTES_PER_BLOCK_SAMPLE * sample_rate_hz * block.total_seconds()
+    fit = int((budget_bytes - PROCESS_BASE_BYTES) / per_worker + 1e-9)  # 1.6 / 0.4 is 4
+    return max(1, min(workers, fit))
 
 
 def run_partitions(

@@ -149,6 +149,14 @@ def _fleet_options(parser: argparse.ArgumentParser) -> None:
         "--workers", type=int, default=2, help="hoist-days processed at a time (default 2)"
     )
     parser.add_argument(
+        "--memory-budget-gb",
+        type=_positive_gb,
+        default=None,
+        metavar="G",
+        help="use fewer --workers if their estimated memory (about 0.9 GB + 0.4 GB a "
+        "worker at 100 Hz) exceeds G GB",
+    )
+    parser.add_argument(
         "--dask",
         metavar="ADDRESS",
         default=None,
@@ -170,6 +178,13 @@ def _parse_day(text: str):
     import datetime as dt
 
     return dt.date.fromisoformat(text)
+
+
+def _positive_gb(text: str) -> float:
+    value = float(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be a positive number of GB, got {text}")
+    return value
 
 
 def _positive_minutes(text: str) -> float:
@@ -228,6 +243,16 @@ def _fleet(args: argparse.Namespace, run_plain, run_flow) -> int:
     from warehouse.store import DataRoot
 
     data = DataRoot.resolve(args.data)
+    if args.memory_budget_gb is not None:
+        from pipelines.backfill import workers_within_budget
+
+        fit = workers_within_budget(args.workers, args.memory_budget_gb * 1e9)
+        if fit < args.workers:
+            sys.stderr.write(
+                f"ropeload {args.command}: --workers {args.workers} -> {fit}, to stay within "
+                f"--memory-budget-gb {args.memory_budget_gb:g}\n"
+            )
+            args.workers = fit
     if args.prefect or args.dask:
         from pipelines.flows import PartitionsFailed
 

@@ -209,6 +209,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             end=args.end,
             payload_kg=args.payload_kg,
             sanity=not args.no_sanity,
+            block_minutes=args.block_minutes,
         )
         report = run_report_path(DataRoot.resolve(args.data), result)
     else:

@@ -180,8 +180,16 @@ def run_period_task(
     start: dt.datetime | None,
     end: dt.datetime | None,
     payload_kg: float | None,
+    block_minutes: float = 60.0,
 ) -> RunResult:
-    return run_period(hoist_path=hoist_path, data=data, start=start, end=end, payload_kg=payload_kg)
+    return run_period(
+        hoist_path=hoist_path,
+        data=data,
+        start=start,
+        end=end,
+        payload_kg=payload_kg,
+        block=dt.timedelta(minutes=block_minutes),
+    )
 
 
 @task(name="sanity-check", **_TRANSIENT)
@@ -325,12 +333,13 @@ def run_flow(
     end: dt.datetime | None = None,
     payload_kg: float | None = None,
     sanity: bool = True,
+    block_minutes: float = 60.0,
 ) -> RunResult:
     """``ropeload run``: compensate, reconcile, alarm and sanity-check a period of one hoist."""
     from pipelines.reports import Step, sanity_step
 
     root = DataRoot.resolve(data)
-    result = run_period_task(hoist, root, start, end, payload_kg)
+    result = run_period_task(hoist, root, start, end, payload_kg, block_minutes)
     reason = "not asked for (sanity=False)" if not sanity else "no trip in the period"
     steps = [sanity_step(None, reason=reason)]
     if sanity and result.trip_summary.height:

@@ -166,10 +166,20 @@ def alarm_id(site: str, hoist: str, rule: str, rope: int | None, start_utc: dt.d
 
 
 # -- vectorised event detection ----------------------------------------------------------
-def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """First and last (inclusive) index of every run of True in ``mask``."""
-    edges = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
-    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+def _runs(mask: np.ndarray, breaks: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """First and last (inclusive) index of every run of True in ``mask``; ``breaks[i]``
+    True ends a run between samples i and i + 1 (a logger gap).
+
+    >>> _runs(np.array([True, True, False, True, True, True]), np.array([0, 0, 0, 1, 0], bool))
+    (array([0, 3, 4]), array([1, 3, 5]))
+    """
+    if breaks is None or mask.size < 2:
+        edges = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
+        return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+    joined = mask[:-1] & mask[1:] & ~breaks  # sample i and i + 1 in one run
+    starts = np.flatnonzero(mask & ~np.concatenate(([False], joined)))
+    ends = np.flatnonzero(mask & ~np.concatenate((joined, [False])))
+    return starts, ends
 
 
 def _merge(
@@ -196,16 +206,19 @@ def _debounced(
 
     An event starts where a run of ``trigger`` lasting ``min_duration_s`` begins and
     ends with the run of ``hold`` (the released condition, ``trigger`` implies it) that
-    contains it; events closer than ``merge_gap_s`` merge.
+    contains it; events closer than ``merge_gap_s`` merge. A run does not continue
+    through a logger gap longer than ``merge_gap_s``: nothing is known in it (the gap
+    is the dropout rule's), and the events on either side stay apart.
     """
     hold = hold | trigger
-    ts, te = _runs(trigger)
+    breaks = np.diff(t_s) > merge_gap_s
+    ts, te = _runs(trigger, breaks)
     keep = (t_s[te] - t_s[ts] + dt_s) >= min_duration_s - 1e-9
     ts = ts[keep]
     if ts.size == 0:
         empty = np.empty(0, dtype=np.int64)
         return empty, empty
-    hs, he = _runs(hold)
+    hs, he = _runs(hold, breaks)
     which = np.searchsorted(hs, ts, side="right") - 1
     held, first = np.unique(which, return_index=True)
     return _merge(t_s, ts[first], he[held], merge_gap_s)
@@ -573,16 +586,21 @@ def evaluate_alarms_in_blocks(
         window = read(lo - margin, hi + margin)
         if window.height == 0:
             continue
-        parts = [window]
-        if tail is not None and window["time_utc"][0] > tail["time_utc"][0]:
-            parts.append(pl.concat([tail, window.head(1)], how="vertical_relaxed"))
-        tail = window.tail(1)
-        pieces += [
+        pieces.append(
             evaluate_alarms(
-                part, hoist, run_id=run_id, trip_payloads=trip_payloads, payload_kg=payload_kg
+                window, hoist, run_id=run_id, trip_payloads=trip_payloads, payload_kg=payload_kg
             )
-            for part in parts
-        ]
+        )
+        if tail is not None and window["time_utc"][0] > tail["time_utc"][0]:
+            # only the gap itself: two samples say nothing else (their spacing would
+            # pass any single sample as lasting the debounce time)
+            pair = pl.concat([tail, window.head(1)], how="vertical_relaxed")
+            pieces.append(
+                evaluate_alarms(pair, hoist, run_id=run_id).filter(
+                    (pl.col("rule") == "sensor_dropout") & pl.col("rope").is_null()
+                )
+            )
+        tail = window.tail(1)
     if not pieces:
         return conform(pl.DataFrame(), ALARMS)
     return merge_alarm_pieces(pl.concat(pieces), site=hoist.hoist.site, hoist=hoist.hoist.name)

@@ -44,7 +44,7 @@ import pyarrow as pa
 
 from schemas.tables import ROPE_TENSIONS, RUNS, TABLES
 from transforms.reconciliation import conform
-from warehouse.parquet_files import write_parquet_atomic
+from warehouse.parquet_files import write_parquet_atomic, writer_alive
 from warehouse.store import DataRoot
 
 __all__ = [
@@ -227,6 +227,18 @@ def _hour_file(root: DataRoot, site: str, hoist: str, hour: dt.datetime) -> Path
     return directory / f"hour-{hour:%H}.parquet"
 
 
+def _remove_stale_stages(table: Path) -> None:
+    """Remove the staging folders of runs that died (their pid is gone or reused)."""
+    for folder in table.glob(".staging-*"):
+        try:
+            pid = int(folder.name.split("-")[1])
+            alive = writer_alive(pid, folder.stat().st_mtime)
+        except (ValueError, IndexError, OSError):
+            continue  # not ours, or gone meanwhile
+        if not alive:
+            shutil.rmtree(folder, ignore_errors=True)
+
+
 def _fsync_folder(folder: Path) -> None:
     handle = os.open(folder, os.O_RDONLY)
     try:
@@ -254,7 +266,8 @@ class RopeTensionStage:
         self.root, self.site, self.hoist = root, site, hoist
         # partition_dir checks the names: nothing from the data leaves the lake
         table = root.partition_dir("rope_tensions", site=site, hoist=hoist).parent.parent
-        self.folder = table / f".staging-{uuid.uuid4().hex}"
+        _remove_stale_stages(table)
+        self.folder = table / f".staging-{os.getpid()}-{uuid.uuid4().hex}"
         self.parts: dict[dt.datetime, list[Path]] = {}
 
     def add(self, frame: pl.DataFrame) -> None:
@@ -286,17 +299,21 @@ class RopeTensionStage:
         end = period_end_utc.astimezone(dt.UTC)
         hour = start.replace(minute=0, second=0, microsecond=0)
         inside = (pl.col("time_utc") >= start) & (pl.col("time_utc") < end)
-        touched_days = set()
-        written = []
+        hours = []
         while hour < end:
-            touched_days.add(hour.date())
+            hours.append(hour)
+            hour += dt.timedelta(hours=1)
+        written = []
+        # a day file of the earlier layout is split into hour files first, whole: from
+        # then on an hour file is the only home of its rows (after a crash in between,
+        # the hour files written supersede the day file's rows of their hour)
+        for day in sorted({h.date() for h in hours}):
+            written += self._retire_day_file(day)
+        for hour in hours:
             whole = start <= hour and hour + dt.timedelta(hours=1) <= end
             written += self._replace_hour(
                 hour, self.parts.get(hour, []), inside=inside, whole=whole
             )
-            hour += dt.timedelta(hours=1)
-        for day in sorted(touched_days):
-            written += self._retire_day_file(day)
         return written
 
     def _replace_hour(
@@ -304,13 +321,12 @@ class RopeTensionStage:
     ) -> list[Path]:
         """Replace the period's rows of one hour; ``whole``: the period covers the hour."""
         target = _hour_file(self.root, self.site, self.hoist, hour)
-        legacy = target.with_name("data.parquet")
         if whole and len(staged) == 1:  # nothing of the old hour is kept: a rename
             target.parent.mkdir(parents=True, exist_ok=True)
             staged[0].replace(target)
             _fsync_folder(target.parent)
             return [target]
-        old = [p for p in (target, legacy) if p.exists() and not (whole and p == target)]
+        old = [target] if target.exists() and not whole else []
         in_hour = (pl.col("time_utc") >= hour) & (pl.col("time_utc") < hour + dt.timedelta(hours=1))
         frames = [
             conform(pl.read_parquet(path, hive_partitioning=False).filter(in_hour & ~inside),
@@ -328,7 +344,9 @@ class RopeTensionStage:
         return [target]
 
     def _retire_day_file(self, day: dt.date) -> list[Path]:
-        """Split a day's ``data.parquet`` (the layout before hour files) into hour files."""
+        """Split a day's ``data.parquet`` (the layout before hour files) into hour files.
+
+        Until the day file is removed a reader sees its rows twice (once per day)."""
         legacy = (
             self.root.partition_dir("rope_tensions", site=self.site, hoist=self.hoist, date=day)
             / "data.parquet"
@@ -341,7 +359,7 @@ class RopeTensionStage:
             hour = midnight + dt.timedelta(hours=k)
             target = _hour_file(self.root, self.site, self.hoist, hour)
             if target.exists():
-                continue  # replaced above: already holds the day file's rows it keeps
+                continue  # written before a crash: it holds the day file's rows of its hour
             in_hour = (pl.col("time_utc") >= hour) & (
                 pl.col("time_utc") < hour + dt.timedelta(hours=1)
             )

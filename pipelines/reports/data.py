@@ -414,12 +414,15 @@ def _reduced_table(
         trips = part.with_row_index("_i").filter(pl.col("trip_id").is_not_null())
         for i in ROPES:
             deviation = pl.col(f"deviation{i}_pct").abs()
-            worst = (
-                trips.filter(deviation.is_not_null())
-                .group_by("trip_id")
-                .agg(pl.col("_i").sort_by(deviation, descending=True).first())
-            )
-            keep[worst["_i"].to_numpy()] = True
+            # the largest number, and one NaN (a missing pressure) if any: a trip's
+            # maximum over the kept rows is then its maximum over all, however NaN counts
+            largest = trips.filter(deviation.fill_nan(None).is_not_null()).group_by("trip_id")
+            nan = trips.filter(deviation.is_nan()).group_by("trip_id")
+            for worst in (
+                largest.agg(pl.col("_i").sort_by(deviation, descending=True).first()),
+                nan.agg(pl.col("_i").first()),
+            ):
+                keep[worst["_i"].to_numpy()] = True
         keep[[0, -1]] = True  # the samples' extent (the time axes)
         kept.append(part.filter(pl.Series(keep)))
     return pl.concat(kept), samples, (t0, t1)

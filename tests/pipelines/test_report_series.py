@@ -1,8 +1,8 @@
 """The report's plot lines read chunk by chunk equal those of the whole period (issue 16).
 
-A random record of 3.5 h at 10 Hz (noise, a spike, trips, a gap, ties): reduced an hour
-at a time, :func:`period_series` must give the lines, band, extremes and per-trip worst
-rope it gives when the whole period is one chunk.
+A random record of 3.5 h at 10 Hz (noise, a spike, trips, a gap, ties, NaN tensions):
+reduced an hour at a time, :func:`period_series` must give the lines, band, extremes and
+per-trip worst rope it gives when every sample is read at once.
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ def _record() -> pl.DataFrame:
         for i in ROPES
     }
     tensions["tension2_n"][70_000] = 90_000.0  # a spike
+    tensions["tension3_n"][40_000:40_050] = np.nan  # a missing pressure inside a trip
     load = sum(tensions.values())
     frame = pl.DataFrame(
         {

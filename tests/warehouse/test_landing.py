@@ -247,3 +247,68 @@ def test_sanity_checks_and_findings_are_replaced_not_duplicated(tmp_path):
         con.close()
     assert sanity == [("b", 2)]
     assert findings == [("b", 1)]
+
+
+def _legacy_day(root: DataRoot, minutes: list[int]) -> tuple[object, pl.DataFrame]:
+    """A day file of the layout before hour files, rows at the given minutes of the day."""
+    frame = pl.DataFrame(
+        {"time_utc": [DAY + dt.timedelta(minutes=m) for m in minutes],
+         "load_n": [float(m) for m in minutes]},
+        schema={"time_utc": pl.Datetime("us", "UTC"), "load_n": pl.Float64},
+    )  # fmt: skip
+    day_dir = root.partition_dir("rope_tensions", site="s", hoist="h", date=DAY.date())
+    day_dir.mkdir(parents=True, exist_ok=True)
+    conform(frame, ROPE_TENSIONS).write_parquet(day_dir / "data.parquet")
+    return day_dir, frame
+
+
+def _landed(day_dir) -> list[float]:
+    files = sorted(day_dir.glob("*.parquet"))
+    return pl.read_parquet(files, hive_partitioning=False)["load_n"].to_list()
+
+
+def test_a_rerun_without_rows_in_an_hour_of_a_day_file_removes_its_old_rows(tmp_path):
+    root = DataRoot(tmp_path / "data")
+    day_dir, _ = _legacy_day(root, [540, 600, 640, 660, 700, 760])  # 09:00 .. 12:40
+    new = pl.DataFrame(
+        {"time_utc": [DAY + dt.timedelta(minutes=635)], "load_n": [-1.0]},
+        schema={"time_utc": pl.Datetime("us", "UTC"), "load_n": pl.Float64},
+    )
+    with open_writer(root):  # re-run 10:30-12:00: nothing new in hour 11
+        land_rope_tensions(root, new, site="s", hoist="h",
+                           period_start_utc=DAY + dt.timedelta(minutes=630),
+                           period_end_utc=DAY + dt.timedelta(hours=12))  # fmt: skip
+    assert _landed(day_dir) == [540.0, 600.0, -1.0, 760.0]
+
+
+def test_a_publish_interrupted_while_splitting_a_day_file_is_healed_without_duplicates(tmp_path):
+    root = DataRoot(tmp_path / "data")
+    day_dir, frame = _legacy_day(root, [600, 640])  # 10:00, 10:40
+    # the crash: hour 10 was split out of the day file, which was not yet removed
+    ten = frame.filter(pl.col("time_utc") < DAY + dt.timedelta(hours=11))
+    conform(ten, ROPE_TENSIONS).write_parquet(day_dir / "hour-10.parquet")
+    new = pl.DataFrame(
+        {"time_utc": [DAY + dt.timedelta(minutes=645)], "load_n": [-1.0]},
+        schema={"time_utc": pl.Datetime("us", "UTC"), "load_n": pl.Float64},
+    )
+    with open_writer(root):  # re-run 10:30-11:00
+        land_rope_tensions(root, new, site="s", hoist="h",
+                           period_start_utc=DAY + dt.timedelta(minutes=630),
+                           period_end_utc=DAY + dt.timedelta(hours=11))  # fmt: skip
+    assert sorted(p.name for p in day_dir.iterdir()) == ["hour-10.parquet"]
+    assert _landed(day_dir) == [600.0, -1.0]
+
+
+def test_staging_folders_of_dead_runs_are_removed(tmp_path):
+    from warehouse.landing import RopeTensionStage
+
+    root = DataRoot(tmp_path / "data")
+    table = root.table_dir("rope_tensions")
+    dead = table / ".staging-999999999-0123abcd"  # no such pid
+    (dead / "x").mkdir(parents=True)
+    live = RopeTensionStage(root, site="s", hoist="h")
+    live.folder.mkdir(parents=True)
+    assert not dead.exists()
+    RopeTensionStage(root, site="s", hoist="h")  # a second run does not remove a live one
+    assert live.folder.exists()
+    live.discard()

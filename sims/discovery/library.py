@@ -156,13 +156,22 @@ def _length_set(h: HoistDescription, x: np.ndarray) -> dict[str, Any]:
     }
 
 
+#: The loss coefficients a ``local_loss`` candidate scales when the description declares
+#: none (all K = 0): an open DN10 globe valve, Crane TP-410 K = 340 f_T ~ 9, beside the
+#: sensor (issue 14: a K of 0 in the TOML made the candidate identically zero).
+NOMINAL_VALVE_LOSS_COEFFICIENT = 9.0
+
+
 def _k_base(h: HoistDescription) -> tuple[float, float, float]:
+    """The loss coefficients the ``local_loss`` scale multiplies: the description's,
+    or :data:`NOMINAL_VALVE_LOSS_COEFFICIENT` on the valve when they are all zero."""
     pp = h.piping
-    return (
+    base = (
         pp.valve_loss_coefficient,
         pp.fittings_loss_coefficient_chamber_to_sensor,
         pp.fittings_loss_coefficient_sensor_to_manifold,
     )
+    return base if sum(base) > 0 else (NOMINAL_VALVE_LOSS_COEFFICIENT, 0.0, 0.0)
 
 
 def _loss_scale(h: HoistDescription, p: Mapping[str, Any]) -> np.ndarray:

@@ -150,3 +150,44 @@ def test_bad_hyperparameters_raise():
     plan, _ = hidden_case(None)
     with pytest.raises(ValueError, match="variance_threshold"):
         discover_effects(plan, variance_threshold=0.9)
+
+
+def test_local_loss_candidate_is_not_null_when_the_description_declares_no_loss(tmp_path):
+    """A description with every loss coefficient 0 (issue 14): the candidate's scale
+    still moves the valve's K (from a nominal open globe valve), so its simulated
+    column is not identically zero and discovery can estimate it from a zero start."""
+    import re
+
+    from schemas.hoist import EXAMPLE_HOIST, load_hoist
+    from sims.device import simulate
+    from sims.discovery.library import NOMINAL_VALVE_LOSS_COEFFICIENT
+    from sims.trips import hold
+
+    text = EXAMPLE_HOIST.read_text()
+    for key in ("valve_loss_coefficient", "fittings_loss_coefficient_chamber_to_sensor",
+                "fittings_loss_coefficient_sensor_to_manifold"):  # fmt: skip
+        text = re.sub(rf"^{key} = .*$", f"{key} = 0", text, flags=re.M)
+    path = tmp_path / "no_loss.toml"
+    path.write_text(text)
+    hoist = load_hoist(path)
+    assert hoist.piping.valve_loss_coefficient == 0.0
+    term = EFFECT_LIBRARY["local_loss"]
+    declared = {
+        "valve_loss_coefficient": 0.0,
+        "fittings_chamber_to_sensor": 0.0,
+        "fittings_sensor_to_manifold": 0.0,
+    }
+    assert term.get(hoist, declared).tolist() == [0.0]  # the zero start
+    scaled = term.set(hoist, np.array([100.0]))
+    assert scaled["valve_loss_coefficient"] == pytest.approx(100 * NOMINAL_VALVE_LOSS_COEFFICIENT)
+    assert term.get(hoist, scaled).tolist() == pytest.approx([100.0])
+
+    def drop(parameters: dict) -> np.ndarray:
+        profile = hold(depth_m=320.0, duration_s=8.0, payload_time_s=[1.0, 4.0],
+                       payload_kg=[0.0, 6000.0])  # fmt: skip
+        fx = {"tail_rope_weight", "oil_compressibility", "pipe_laminar_loss", "local_loss"}
+        frame = simulate(hoist, profile, effects=fx, parameters={"local_loss": parameters}).frame
+        return (frame["p_sensor1_pa"] - frame["p_chamber1_pa"]).to_numpy()
+
+    # the candidate's column: what the scaled valve adds to the sensor's reading
+    assert np.max(np.abs(drop(scaled) - drop(declared))) > 0.1

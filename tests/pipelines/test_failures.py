@@ -35,26 +35,6 @@ def _one_line(err: str, command: str) -> str:
     return err
 
 
-def _csv(path: Path, rows: int = 20, start: str = "2026-03-02 06:00:00") -> Path:
-    """A small contract-1a CSV of the paper's field-test hoist (UTC, 100 Hz)."""
-    import datetime as dt
-
-    t0 = dt.datetime.fromisoformat(start)
-    lines = [
-        "# site: paper-field-test",
-        "# hoist: main-shaft",
-        "# timezone: UTC",
-        "# sample_rate_hz: 100",
-        "# units: p=MPa, x=mm, depth=m, speed=m/s, oil_temp=degC",
-        "timestamp,p1,p2,p3,p4,x1,x2,x3,x4,depth,speed,oil_temp",
-    ]
-    for i in range(rows):
-        t = (t0 + dt.timedelta(milliseconds=10 * i)).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3]
-        lines.append(f"{t},4.812,4.792,4.832,4.802,12.1,-3.4,0.2,7.9,{i * 0.5:.2f},1.000,31.2")
-    path.write_text("\n".join(lines) + "\n")
-    return path
-
-
 # ------------------------------------------------------------------ missing data
 
 
@@ -67,9 +47,11 @@ def test_run_without_landed_data_names_hoist_and_says_ingest(tmp_path, capsys):
     assert str(data) in err
 
 
-def test_run_for_a_period_without_data_names_the_period_and_the_landed_days(tmp_path, capsys):
+def test_run_for_a_period_without_data_names_the_period_and_the_landed_days(
+    tmp_path, capsys, small_csv
+):
     data = tmp_path / "data"
-    assert main(["ingest", "--data", str(data), str(_csv(tmp_path / "day.csv"))]) == 0
+    assert main(["ingest", "--data", str(data), str(small_csv(tmp_path / "day.csv"))]) == 0
     capsys.readouterr()
     status = main(
         ["run", "--data", str(data), "--hoist", str(HOIST), "--from", "2020-01-01",
@@ -97,10 +79,10 @@ def test_run_for_a_period_without_data_names_the_period_and_the_landed_days(tmp_
     ],
     ids=lambda a: a[0],
 )
-def test_data_root_that_is_a_file(args, tmp_path, capsys):
+def test_data_root_that_is_a_file(args, tmp_path, capsys, small_csv):
     afile = tmp_path / "afile"
     afile.write_text("not a folder\n")
-    args = [str(_csv(tmp_path / "in.csv")) if a == "IN.csv" else a for a in args]
+    args = [str(small_csv(tmp_path / "in.csv")) if a == "IN.csv" else a for a in args]
     assert main([*args, "--data", str(afile)]) == 1
     err = _one_line(capsys.readouterr().err, args[0])
     assert f"data root {afile} (--data) is a file, not a folder" in err
@@ -108,11 +90,13 @@ def test_data_root_that_is_a_file(args, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("command", ["ingest", "demo"])
-def test_data_root_under_a_file_cannot_be_created(command, tmp_path, capsys, monkeypatch):
+def test_data_root_under_a_file_cannot_be_created(
+    command, tmp_path, capsys, monkeypatch, small_csv
+):
     afile = tmp_path / "afile"
     afile.write_text("")
     monkeypatch.setenv("ROPELOAD_DATA", str(afile / "data"))
-    args = [command, str(_csv(tmp_path / "in.csv"))] if command == "ingest" else [command]
+    args = [command, str(small_csv(tmp_path / "in.csv"))] if command == "ingest" else [command]
     assert main(args) == 1
     err = _one_line(capsys.readouterr().err, command)
     assert f"data root {afile / 'data'} ($ROPELOAD_DATA) cannot be created: {afile} is a" in err
@@ -122,13 +106,13 @@ def test_data_root_under_a_file_cannot_be_created(command, tmp_path, capsys, mon
     os.geteuid() == 0, reason="as root, permission bits do not stop writes (nothing to refuse)"
 )
 @pytest.mark.parametrize("command", ["ingest", "run", "demo"])
-def test_read_only_data_root(command, tmp_path, capsys):
+def test_read_only_data_root(command, tmp_path, capsys, small_csv):
     data = tmp_path / "data"
     data.mkdir()
     data.chmod(0o555)
     try:
         args = {
-            "ingest": ["ingest", str(_csv(tmp_path / "in.csv"))],
+            "ingest": ["ingest", str(small_csv(tmp_path / "in.csv"))],
             "run": ["run", "--hoist", str(HOIST)],
             "demo": ["demo"],
         }[command]
@@ -140,12 +124,12 @@ def test_read_only_data_root(command, tmp_path, capsys):
         data.chmod(0o755)
 
 
-def test_unwritable_file_inside_the_data_root_is_one_line(tmp_path, capsys):
+def test_unwritable_file_inside_the_data_root_is_one_line(tmp_path, capsys, small_csv):
     """A user-caused OSError deep inside a command names the file (root or not)."""
     data = tmp_path / "data"
     (data / "lake").mkdir(parents=True)
     (data / "lake" / "field_samples").write_text("a file where the table folder belongs")
-    status = main(["ingest", "--data", str(data), str(_csv(tmp_path / "in.csv"))])
+    status = main(["ingest", "--data", str(data), str(small_csv(tmp_path / "in.csv"))])
     assert status == 1
     err = capsys.readouterr().err
     assert "Traceback" not in err
@@ -175,7 +159,7 @@ HOLDER = textwrap.dedent(
 )
 
 
-def test_lock_timeout_names_the_holder(tmp_path, capsys, monkeypatch):
+def test_lock_timeout_names_the_holder(tmp_path, capsys, monkeypatch, small_csv):
     data = tmp_path / "data"
     env = {k: v for k, v in os.environ.items() if k != INVOCATION_ENV}  # another command
     holder = subprocess.Popen(
@@ -189,7 +173,7 @@ def test_lock_timeout_names_the_holder(tmp_path, capsys, monkeypatch):
         assert holder.stdout.readline() == "held\n"
         monkeypatch.setenv("ROPELOAD_LOCK_TIMEOUT", "0.5")
         t0 = time.monotonic()
-        status = main(["ingest", "--data", str(data), str(_csv(tmp_path / "in.csv"))])
+        status = main(["ingest", "--data", str(data), str(small_csv(tmp_path / "in.csv"))])
         waited = time.monotonic() - t0
     finally:
         holder.stdin.close()

@@ -29,29 +29,11 @@ def _quiet_afterwards(monkeypatch):
     configure_logging("WARNING")
 
 
-def _csv(path: Path, rows: int = 20, start: str = "2026-03-02 06:00:00") -> Path:
-    """A small contract-1a CSV of the paper's field-test hoist (UTC, 100 Hz)."""
-    t0 = dt.datetime.fromisoformat(start)
-    lines = [
-        "# site: paper-field-test",
-        "# hoist: main-shaft",
-        "# timezone: UTC",
-        "# sample_rate_hz: 100",
-        "# units: p=MPa, x=mm, depth=m, speed=m/s, oil_temp=degC",
-        "timestamp,p1,p2,p3,p4,x1,x2,x3,x4,depth,speed,oil_temp",
-    ]
-    for i in range(rows):
-        t = (t0 + dt.timedelta(milliseconds=10 * i)).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3]
-        lines.append(f"{t},4.812,4.792,4.832,4.802,12.1,-3.4,0.2,7.9,{i * 0.5:.2f},1.000,31.2")
-    path.write_text("\n".join(lines) + "\n")
-    return path
-
-
 # ------------------------------------------------------------------ the CLI
 
 
-def test_log_level_adds_lines_on_stderr_only(tmp_path, capsys, monkeypatch):
-    csv = _csv(tmp_path / "day.csv")
+def test_log_level_adds_lines_on_stderr_only(tmp_path, capsys, monkeypatch, small_csv):
+    csv = small_csv(tmp_path / "day.csv")
     assert main(["ingest", "--data", str(tmp_path / "quiet"), str(csv)]) == 0
     quiet = capsys.readouterr()
     assert quiet.err == ""  # default WARNING: nothing but refusals
@@ -196,12 +178,12 @@ def _flow_logs(flow_run_id, *, want: str, timeout_s: float = 20.0) -> list:
 
 @pytest.mark.prefect
 @pytest.mark.usefixtures("prefect_harness")
-def test_library_log_lines_reach_the_flow_run_logs(tmp_path):
+def test_library_log_lines_reach_the_flow_run_logs(tmp_path, small_csv):
     """A line logged by library code (pipelines.ingest, no Prefect import) inside a real
     ingest flow run is in that run's logs, under the task run that logged it."""
     from pipelines.flows import ingest_flow
 
-    csv = _csv(tmp_path / "day.csv")
+    csv = small_csv(tmp_path / "day.csv")
     state = ingest_flow(paths=[str(csv)], data=str(tmp_path / "data"), return_state=True)
     assert state.is_completed()
     logs = _flow_logs(state.state_details.flow_run_id, want=f"landed {csv}")

@@ -619,10 +619,13 @@ class CompensationContext:
 
 
 def _calibrated(frame: pl.DataFrame, column: str, hoist: HoistDescription) -> np.ndarray:
+    """A column as a new float64 array; a pressure with its sensor's calibration
+    applied, p = (reading - offset) / gain (hoist ``[[sensors]]``), in place."""
     values = _float_column(frame[column])
     for sensor in hoist.sensors:
         if column == f"p{sensor.cylinder}_pa":
-            values = (values - sensor.offset_pa) / sensor.gain
+            np.subtract(values, sensor.offset_pa, out=values)
+            np.divide(values, sensor.gain, out=values)
     return values
 
 
@@ -876,17 +879,12 @@ def compensate_window(
             arrays[name] = np.empty(size)
         return arrays[name][:size]
 
-    gains = {f"p{s.cylinder}_pa": (s.offset_pa, s.gain) for s in hoist.sensors}
     cutoff = settings.pressure_cutoff_hz
     n_sigmas = settings.spike_sigmas
 
     def pressure(column: str) -> np.ndarray:
         """Calibrated, despiked and low-passed, all in one new array."""
-        values = _float_column(frame[column])
-        if column in gains:
-            offset, gain = gains[column]
-            np.subtract(values, offset, out=values)
-            np.divide(values, gain, out=values)
+        values = _calibrated(frame, column, hoist)
         sigma = context.spike_sigma.get(column)
         despike_median3(values, segment, n_sigmas=n_sigmas, out=values, sigma=sigma)
         return lowpass(

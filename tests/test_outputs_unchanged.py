@@ -1,0 +1,214 @@
+"""Outputs of the physics paths are unchanged by moving the physics (issue 17).
+
+The physics moved into one home per paper equation (:mod:`physics`); ``compensate``,
+the device and rig simulations, a synthetic field day, a replay and discovery must give
+what they gave before the move. ``tests/data/outputs_before_physics.json`` holds
+digests of those results computed at commit 1d546ca, before the move (regenerate only
+for an intended change of results: ``uv run python tests/test_outputs_unchanged.py``):
+per numeric column the row count, the count of non-finite values, the sum, the sum of absolute values
+and the values at 24 evenly spaced rows. They must agree within 1e-9 relative to the
+column's scale: the moved arithmetic may be reordered, not changed.
+
+The compensation's input is written here with numpy (two trips, a payload step at a
+stop, a ringing rope, a logger gap, a warming oil), not by the simulation, so a change
+of the simulation cannot hide in it.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+import pytest
+
+from schemas.hoist import EXAMPLE_HOIST, load_hoist
+from schemas.tables import ROPES
+
+HOIST = load_hoist(EXAMPLE_HOIST)
+STORED = Path(__file__).parent / "data" / "outputs_before_physics.json"
+RTOL = 1e-9
+PICKS = 24
+
+
+def synthetic_record(seconds: float = 240.0, rate_hz: float = 100.0) -> pl.DataFrame:
+    """Two trapezoid trips (0 -> 300 m -> 0), a 0.5 MPa payload step at the bottom stop,
+    ropes ringing at 0.4 Hz after each stop, pistons that move with the trips, a 2 s logger
+    gap and a few missing samples; sensor noise from a fixed seed."""
+    rng = np.random.default_rng(17)
+    t = np.arange(0.0, seconds, 1.0 / rate_hz)
+    t = t[(t < 150.0) | (t >= 152.0)]  # a logger dropout
+    depth = np.interp(t, [0, 20, 30, 70, 80, 140, 160, 170, 210, 220, 300],
+                      [0, 0, 25, 275, 300, 300, 300, 275, 25, 0, 0])  # fmt: skip
+    speed = np.gradient(depth, t)
+    payload = np.where(t > 110.0, 0.5e6, 0.0)
+    ring = sum(
+        np.where(t > stop, 3e4 * np.exp(-(t - stop) / 6.0) * np.sin(2.5 * (t - stop)), 0.0)
+        for stop in (80.0, 220.0)
+    )
+    moving = np.abs(speed) > 0.0
+    frame: dict[str, object] = {
+        "time_utc": [
+            dt.datetime(2026, 3, 2, 6, tzinfo=dt.UTC) + dt.timedelta(seconds=float(s)) for s in t
+        ]
+    }
+    for i in ROPES:
+        p = 5.2e6 + 4e4 * (i - 2.5) + payload + ring + 3e3 * np.sin(0.05 * t + i)
+        frame[f"p{i}_pa"] = p + rng.normal(0.0, 5e3, t.size)
+        x = 0.05 + 2e-3 * i + 1.5e-3 * np.sin(2.0 * math.pi * t / 40.0 + i) * moving
+        frame[f"x{i}_m"] = x + 2e-9 * (p - 5.2e6) + rng.normal(0.0, 1e-5, t.size)
+    frame["p3_pa"][500:503] = np.nan  # type: ignore[index]
+    frame["depth_m"] = depth
+    frame["speed_m_s"] = speed
+    frame["oil_temp_c"] = 30.0 + 2.0 * t / seconds
+    return pl.DataFrame(frame).with_columns(
+        pl.col("time_utc").dt.cast_time_unit("us"),
+        source_sha256=pl.lit("0" * 64),
+        source_line=pl.int_range(pl.len(), dtype=pl.Int64),
+    )
+
+
+def digest(frame: pl.DataFrame) -> dict[str, dict[str, object]]:
+    """Non-finite count, sum, sum of |x| and 24 evenly spaced values of each numeric column."""
+    out: dict[str, dict[str, object]] = {}
+    rows = np.unique(np.linspace(0, max(frame.height - 1, 0), PICKS).astype(int))
+    for name, dtype in frame.schema.items():
+        if not dtype.is_numeric():
+            continue
+        values = frame[name].cast(pl.Float64).fill_null(np.nan).to_numpy()
+        finite = np.isfinite(values)
+        out[name] = {
+            "rows": int(values.size),
+            "nonfinite": int((~finite).sum()),
+            "sum": float(values[finite].sum()),
+            "sum_abs": float(np.abs(values[finite]).sum()),
+            "picks": [float(v) if math.isfinite(v) else None for v in values[rows]],
+        }
+    return out
+
+
+def _compensations() -> dict[str, pl.DataFrame]:
+    from transforms.compensation import compensate
+
+    record = synthetic_record()
+    tiny_pipe = HOIST.model_copy(
+        update={"piping": HOIST.piping.model_copy(update={"bore_m": 0.0015})}
+    )
+    lugre = {"seal_friction", "pipe_laminar_loss", "local_loss"}
+    return {
+        "compensate_default": compensate(record, HOIST),
+        "compensate_lugre": compensate(record, HOIST, effects=lugre),
+        "compensate_turbulent_branch": compensate(record, tiny_pipe, effects=lugre),
+        "compensate_pressure_only": compensate(
+            record.with_columns(pl.lit(None, dtype=pl.Float64).alias(f"x{i}_m") for i in ROPES),
+            HOIST,
+        ),
+    }
+
+
+def _simulations() -> dict[str, pl.DataFrame]:
+    from schemas.effects import EFFECT_NAMES
+    from sims.device import simulate
+    from sims.field_day import generate_field_day
+    from sims.rig import simulate_rig, small_friction_test_program
+    from sims.trips import trip
+
+    profile = trip(HOIST, start_depth_m=0.0, end_depth_m=320.0, rest_after_s=10.0)
+    device = simulate(HOIST, profile, effects=set(EFFECT_NAMES))
+    assert device.ok, device.message
+    day = generate_field_day(HOIST, date="2026-03-02", seed=5, trips=2, hours=0.1)
+    rig = simulate_rig(small_friction_test_program())
+    return {
+        "device_all_effects": device.frame,
+        "field_day_sensors": day.sensors,
+        "rig": rig.frame,
+    }
+
+
+def _discovery() -> dict[str, pl.DataFrame]:
+    from sims.discovery import discover_effects
+    from sims.discovery.cases import hidden_case
+
+    plan, _ = hidden_case("sensor_offset")
+    result = discover_effects(plan, bootstrap=20, max_iterations=1)
+    rows = [
+        {
+            "rank": k,
+            "effect": f.effect,
+            "gap_before_pa": f.gap_before_pa,
+            "gap_after_pa": f.gap_after_pa,
+            "confidence": f.confidence,
+            "variance_ratio": f.variance_ratio,
+        }
+        for k, f in enumerate(result.findings)
+    ]
+    ranking = [
+        {"rank": k, "effect": r["effect"], **{key: float(v) for key, v in r.items()
+                                               if isinstance(v, int | float)}}
+        for k, r in enumerate(result.findings[0].ranking)
+    ]  # fmt: skip
+    return {"discovery_findings": pl.DataFrame(rows), "discovery_ranking": pl.DataFrame(ranking)}
+
+
+def _assert_close(name: str, now: dict, before: dict) -> None:
+    assert now.keys() == before.keys(), f"{name}: columns {sorted(now)} != {sorted(before)}"
+    for col, was in before.items():
+        got = now[col]
+        scale = max(was["sum_abs"] / max(was["rows"], 1), 1e-300)  # a typical |value|
+        assert (got["rows"], got["nonfinite"]) == (was["rows"], was["nonfinite"]), (
+            f"{name}.{col}: rows, non-finite count"
+        )
+        for key in ("sum", "sum_abs"):
+            assert got[key] == pytest.approx(was[key], rel=RTOL, abs=RTOL * was["sum_abs"]), (
+                f"{name}.{col}: {key} {got[key]!r} != {was[key]!r}"
+            )
+        for k, (a, b) in enumerate(zip(got["picks"], was["picks"], strict=True)):
+            if b is None:
+                assert a is None, f"{name}.{col}: pick {k} {a} was not finite"
+            else:
+                assert a == pytest.approx(b, rel=RTOL, abs=RTOL * scale), (
+                    f"{name}.{col}: pick {k} {a!r} != {b!r}"
+                )
+
+
+def _stored() -> dict:
+    return json.loads(STORED.read_text())
+
+
+def test_compensation_unchanged() -> None:
+    stored = _stored()
+    for name, frame in _compensations().items():
+        _assert_close(name, digest(frame), stored[name])
+
+
+def test_simulations_unchanged() -> None:
+    stored = _stored()
+    for name, frame in _simulations().items():
+        _assert_close(name, digest(frame), stored[name])
+
+
+@pytest.mark.slow
+def test_discovery_unchanged() -> None:
+    stored = _stored()
+    for name, frame in _discovery().items():
+        _assert_close(name, digest(frame), stored[name])
+
+
+def test_digest_tells_a_changed_column_apart() -> None:
+    """The comparison fails for a change of one part in 1e8 at one row."""
+    values = np.linspace(1.0, 2.0, 1000)
+    frame = pl.DataFrame({"a": values})
+    values[-1] *= 1.0 + 1e-8
+    changed = pl.DataFrame({"a": values})
+    with pytest.raises(AssertionError):
+        _assert_close("a", digest(changed), digest(frame))
+
+
+if __name__ == "__main__":
+    results = {**_compensations(), **_simulations(), **_discovery()}
+    STORED.parent.mkdir(exist_ok=True)
+    STORED.write_text(json.dumps({k: digest(v) for k, v in results.items()}, indent=0) + "\n")
+    print(f"wrote {STORED}: {', '.join(results)}")

@@ -5,8 +5,8 @@ the device and rig simulations, a synthetic field day, a replay and discovery mu
 what they gave before the move. ``tests/data/outputs_before_physics.json`` holds
 digests of those results computed at commit 1d546ca, before the move (regenerate only
 for an intended change of results: ``uv run python tests/test_outputs_unchanged.py``):
-per numeric column the row count, the count of non-finite values, the sum, the sum of absolute values
-and the values at 24 evenly spaced rows. They must agree within 1e-9 relative to the
+per numeric column the row count, the count of non-finite values, the sum, the sum of
+absolute values and the values at 24 evenly spaced rows. They must agree within 1e-9 relative to the
 column's scale: the moved arithmetic may be reordered, not changed.
 
 The compensation's input is written here with numpy (two trips, a payload step at a
@@ -200,7 +200,7 @@ def test_discovery_unchanged() -> None:
 def test_digest_tells_a_changed_column_apart() -> None:
     """The comparison fails for a change of one part in 1e8 at one row."""
     values = np.linspace(1.0, 2.0, 1000)
-    frame = pl.DataFrame({"a": values})
+    frame = pl.DataFrame({"a": values.copy()})
     values[-1] *= 1.0 + 1e-8
     changed = pl.DataFrame({"a": values})
     with pytest.raises(AssertionError):

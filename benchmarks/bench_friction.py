@@ -1,8 +1,8 @@
-"""Throughput of the seal-friction state updates (transforms.friction).
+"""Throughput of the seal-friction state updates (physics.lugre, physics.maxwell_slip).
 
 Run: ``uv run python benchmarks/bench_friction.py [steps]``. Prints steps per second of
 
-* the LuGre state update (:func:`transforms.friction.lugre_friction`, per-sample
+* the LuGre state update (:func:`physics.lugre.lugre_friction`, per-sample
   pressure-dependent parameters, exact exponential update), 10 M+ steps, in chunks of
   2 M with the state carried across chunks (as a pipeline would process a day);
 * the Maxwell-slip model with 4 elements (:func:`maxwell_slip_friction`);
@@ -19,14 +19,10 @@ import time
 
 import numpy as np
 
+from physics.friction_law import friction_parameters, stribeck_friction
+from physics.lugre import lugre_friction
+from physics.maxwell_slip import maxwell_slip_elements, maxwell_slip_friction
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
-from transforms.friction import (
-    friction_parameters,
-    lugre_friction,
-    maxwell_slip_elements,
-    maxwell_slip_friction,
-    stribeck_friction,
-)
 
 CHUNK = 2_000_000
 

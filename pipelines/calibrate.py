@@ -191,7 +191,7 @@ def seal_friction_samples(
     Velocity and acceleration are Savitzky-Golay derivatives of ``x_m`` (quadratic,
     windows ``smooth_s`` and ``2 smooth_s``), computed per contiguous block (a gap
     longer than ``max_gap_s`` starts a new block: another recording). The sign
-    convention is that of :mod:`transforms.friction`: friction is positive while the
+    convention is that of :mod:`physics.friction_law`: friction is positive while the
     rod moves out (v > 0), opposing the motion.
 
     Parameters

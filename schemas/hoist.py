@@ -423,25 +423,6 @@ class HoistDescription(_Section):
     def ropes_n(self) -> int:
         return self.conveyance.head_ropes
 
-    def tail_rope_length_m(self, depth_m: float) -> float:
-        """Hanging tail-rope length below the conveyance at ``depth_m``.
-
-        Table 2: 620 m at the pithead (depth 0) of a 620 m shaft, 20 m at the bottom.
-        """
-        return self.shaft.depth_m - depth_m + self.shaft.tail_rope_loop_m
-
-    def tail_rope_mass_kg(self, depth_m: float) -> float:
-        """Mass of all tail ropes hanging below the conveyance (Table 2's last column)."""
-        return (
-            self.conveyance.tail_ropes
-            * self.ropes.tail_rope_mass_per_length_kg_m
-            * self.tail_rope_length_m(depth_m)
-        )
-
-    def static_load_n(self, depth_m: float, payload_kg: float = 0.0) -> float:
-        """Static load on the head-rope attachments: (conveyance + payload + tail) g."""
-        return (self.conveyance.mass_kg + payload_kg + self.tail_rope_mass_kg(depth_m)) * G_STANDARD
-
     @cached_property
     def friction_law(self) -> FrictionLaw:
         return self.friction.law(self.cylinders.bore_area_m2)

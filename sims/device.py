@@ -26,7 +26,7 @@ Per cylinder i (bore area A, chamber volume ``V_i = V_mid - A x_i``):
   ``oil_volume_m3``). The pipe oil is incompressible at reference density.
   ``oil_compressibility`` off: beta x 1000 (1.5 TPa for mineral oil), i.e. practically
   rigid oil, integrated by the same L-stable scheme. Entrained air: beta is replaced by
-  the effective bulk modulus (:func:`transforms.oil.effective_bulk_modulus`) at the
+  the effective bulk modulus (:func:`physics.oil.effective_bulk_modulus`) at the
   initial static pressure, held constant.
 * Branch flow (paper eq 7, divided by the pipe area a), chamber -> globe valve + part 1
   -> sensor tee -> part 2 -> manifold, one oil column of length l1 + l2:
@@ -36,7 +36,7 @@ Per cylinder i (bore area A, chamber volume ``V_i = V_mid - A x_i``):
 
   ``Delta p_k`` = loss along the pipe (laminar eq 6, turbulent eq 12 with Blasius) +
   local loss (eq 13, K rho v|v|/2; K_1 = globe valve + fittings of part 1), see
-  :func:`sims.hydraulics.line_loss_pa`. The sensor reads the pressure at the tee,
+  :func:`physics.branch_loss.pipe_loss_pa`. The sensor reads the pressure at the tee,
 
   .. math:: p_{sensor,i} = p_i - \\frac{\\rho l_1}{a} \\frac{dq_i}{dt} - \\Delta p_1(q_i)
 
@@ -50,11 +50,11 @@ Per cylinder i (bore area A, chamber volume ``V_i = V_mid - A x_i``):
   moves out. The piston's weight is counted in the conveyance mass. End stops at
   +-stroke/2 are stiff penalty spring-dampers (1e9 N/m, critically damped).
 * Seal friction (``seal_friction``): LuGre, paper eq 15, parameters from the pressure
-  law eq 17 (the hoist's ``FrictionLaw``), using :func:`transforms.friction.stribeck_g`,
-  :func:`~transforms.friction.lugre_z_step` (exact exponential bristle update) and
-  :func:`~transforms.friction.lugre_force`. With ``presliding_hysteresis`` the bristle
+  law eq 17 (the hoist's ``FrictionLaw``), using :func:`physics.friction_law.stribeck_g`,
+  :func:`physics.lugre.lugre_z_step` (exact exponential bristle update) and
+  :func:`~physics.lugre.lugre_force`. With ``presliding_hysteresis`` the bristle
   is replaced by Maxwell-slip elements with capacities ``alpha_j g(v)`` (the Leuven /
-  Generalized Maxwell-Slip structure, :func:`~transforms.friction.maxwell_slip_step`)
+  Generalized Maxwell-Slip structure, :func:`physics.maxwell_slip.maxwell_slip_step`)
   plus the viscous term; ``presliding_hysteresis`` needs ``seal_friction``.
 * Head rope i: massless spring-damper (paper 2.1 neglects rope mass), stiffness
   ``k = EA / (h_headframe + depth)`` and damping ``c = 2 zeta sqrt(k M / n)``:
@@ -109,31 +109,27 @@ import numpy as np
 import polars as pl
 from numba import njit
 
-from schemas.hoist import EXAMPLE_HOIST, G_STANDARD, Cylinders, HoistDescription, Piping, load_hoist
-from sims.effects import ResolvedEffects, resolve_effects
-from sims.hydraulics import ROS2_GAMMA, line_loss_pa, lu_factor, lu_solve
-from sims.trips import TripProfile
-from transforms.friction import (
-    STRIBECK_SPEED_FLOOR_M_S,
-    lugre_force,
-    lugre_z_step,
-    maxwell_slip_elements,
-    maxwell_slip_step,
-    stribeck_g,
-)
-from transforms.oil import (
+from physics.branch_loss import BLASIUS, pipe_loss_pa
+from physics.friction_law import friction_law_at, stribeck_g
+from physics.lugre import lugre_force, lugre_z_step
+from physics.maxwell_slip import maxwell_slip_elements, maxwell_slip_step
+from physics.oil import (
     ATMOSPHERIC_PRESSURE_PA,
     effective_bulk_modulus,
     kinematic_viscosity_walther,
     walther_coefficients,
 )
+from physics.tension import tail_rope_length_m
+from schemas.hoist import EXAMPLE_HOIST, G_STANDARD, Cylinders, HoistDescription, Piping, load_hoist
+from sims.effects import ResolvedEffects, resolve_effects
+from sims.hydraulics import ROS2_GAMMA, lu_factor, lu_solve
+from sims.trips import TripProfile
 
 __all__ = [
     "CONTINUATION_DEPTH_TOLERANCE_M",
     "OUTPUT_COLUMNS",
     "DeviceState",
     "SimulationResult",
-    "friction_law_at",
     "paper_scenario_3_2",
     "simulate",
 ]
@@ -284,21 +280,6 @@ class SimulationResult:
 # njit kernels
 # ---------------------------------------------------------------------------------------
 @njit(cache=True)
-def friction_law_at(p_pa: float, par: np.ndarray) -> tuple[float, float, float, float]:
-    """Fc, Fs, vs, Kv at chamber pressure ``p_pa`` from the eq 17 law in ``par``.
-
-    The same law and clipping as :func:`transforms.friction.friction_parameters`
-    (forces and Kv clipped at 0, vs at ``STRIBECK_SPEED_FLOOR_M_S``), as a numba scalar
-    kernel for the integrator; ``tests/sims/test_device.py`` checks they agree.
-    """
-    fc = max(par[_FC0] + par[_FC1] * p_pa, 0.0)
-    fs = max(par[_FS0] + par[_FS1] * p_pa, 0.0)
-    vs = max(par[_VS0] + par[_VS1] * p_pa, STRIBECK_SPEED_FLOOR_M_S)
-    kv = max(par[_KV0] + par[_KV1] * p_pa, 0.0)
-    return fc, fs, vs, kv
-
-
-@njit(cache=True)
 def _profile(t: float, seg: np.ndarray) -> tuple[float, float, float]:
     k = 0
     for j in range(seg.shape[0]):
@@ -342,26 +323,40 @@ def _friction(
 ) -> tuple[float, float]:
     """Seal friction over a step with displacement increment ``dx``; (force, z_new).
 
-    ``commit=False`` leaves ``deltas`` untouched (works on a copy in ``cap``'s twin).
+    The eq 17 law at the chamber pressure (:func:`physics.friction_law.friction_law_at`),
+    then Maxwell-slip (:func:`physics.maxwell_slip.maxwell_slip_step`) plus Kv v, or
+    LuGre (:mod:`physics.lugre`). ``commit=False`` leaves ``deltas`` untouched (works
+    on a copy in the scratch array ``cap``).
     """
     if par[_FRIC_ON] == 0.0:
         return 0.0, z
     v = dx / h
-    fc, fs, vs, kv = friction_law_at(max(p, 0.0), par)
+    fc, fs, vs, kv = friction_law_at(max(p, 0.0), par[_FC0 : _KV1 + 1])
     g = stribeck_g(v, fc, fs, vs)
     if par[_PRE_ON] != 0.0:
         n_el = ms_k.shape[0]
-        for j in range(n_el):
-            cap[j] = ms_w[j] * g
         if commit:
-            force = maxwell_slip_step(deltas, dx, ms_k, cap[:n_el])
+            force = maxwell_slip_step(deltas, dx, ms_k, ms_w, g)
         else:
-            trial = cap[n_el:]
+            trial = cap[:n_el]
             trial[:] = deltas
-            force = maxwell_slip_step(trial, dx, ms_k, cap[:n_el])
+            force = maxwell_slip_step(trial, dx, ms_k, ms_w, g)
         return force + kv * v, z
     z_new = lugre_z_step(z, v, h, par[_SIG0], g)
     return lugre_force(z, z_new, v, h, par[_SIG0], par[_SIG1], kv), z_new
+
+
+@njit(cache=True)
+def _line_loss(q: float, length_m: float, k_local: float, par: np.ndarray) -> float:
+    """Loss of one branch part at flow ``q`` [m3/s], signed with it (paper eq 6, 12-14:
+    :func:`physics.branch_loss.pipe_loss_pa`, Blasius when turbulent, smooth pipe);
+    ``pipe_laminar_loss`` / ``local_loss`` off drop the part along the pipe / at the
+    fittings."""
+    bore = par[_DLOSS]
+    u = q / (0.25 * math.pi * bore * bore)
+    length = length_m if par[_LAM_ON] != 0.0 else 0.0
+    k = k_local if par[_LOC_ON] != 0.0 else 0.0
+    return pipe_loss_pa(u, bore, length, par[_MU] / par[_RHO], par[_RHO], k, 0.0, BLASIUS)
 
 
 @njit(cache=True)
@@ -427,26 +422,8 @@ def _rhs(
         volume = par[_VMID] - area * x
         out[b] = beta / volume * (area * v - q * math.exp(-p / beta))
         out[b + 1] = v
-        loss1 = line_loss_pa(
-            q,
-            par[_L1],
-            par[_DLOSS],
-            par[_MU],
-            par[_RHO],
-            par[_K1],
-            par[_LAM_ON] != 0.0,
-            par[_LOC_ON] != 0.0,
-        )
-        loss2 = line_loss_pa(
-            q,
-            par[_L2],
-            par[_DLOSS],
-            par[_MU],
-            par[_RHO],
-            par[_K2],
-            par[_LAM_ON] != 0.0,
-            par[_LOC_ON] != 0.0,
-        )
+        loss1 = _line_loss(q, par[_L1], par[_K1], par)
+        loss2 = _line_loss(q, par[_L2], par[_K2], par)
         qdot = (p - pm - loss1 - loss2) / par[_INERT]
         out[b + 3] = qdot
         sum_q += q
@@ -1037,7 +1014,7 @@ def simulate(
     tail0 = (
         eff.parameters["tail_rope_weight"]["tail_ropes"]
         * eff.parameters["tail_rope_weight"]["mass_per_length_kg_m"]
-        * max(hoist.tail_rope_length_m(u0), 0.0)
+        * max(tail_rope_length_m(hoist, u0), 0.0)
         if eff.on("tail_rope_weight")
         else 0.0
     )

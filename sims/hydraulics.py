@@ -1,11 +1,7 @@
-"""Hydraulic building blocks and the stiff integrator shared by the ropeload sims.
+"""Dense linear algebra and the stiff integrator shared by the ropeload sims.
 
 Contents
 --------
-Line losses (njit, scalar)
-    :func:`laminar_resistance` -- Hagen-Poiseuille resistance, paper eq 6.
-    :func:`line_loss_pa` -- laminar / turbulent (Blasius) loss along a pipe (paper eq 6,
-    12) plus local losses (paper eq 13), signed with the flow.
 Dense linear algebra (njit, small systems)
     :func:`lu_factor`, :func:`lu_solve` -- LU with partial pivoting, in place.
 Stiff fixed-step integrator (njit)
@@ -57,8 +53,6 @@ from numba import njit
 
 __all__ = [
     "ROS2_GAMMA",
-    "laminar_resistance",
-    "line_loss_pa",
     "lu_factor",
     "lu_solve",
     "ros2_integrate",
@@ -66,101 +60,6 @@ __all__ = [
 
 #: ROS2 stage parameter gamma = 1 + 1/sqrt(2) (L-stable choice, Verwer et al. 1999).
 ROS2_GAMMA = 1.0 + 1.0 / math.sqrt(2.0)
-
-_RE_LAMINAR = 2000.0
-_RE_TURBULENT = 4000.0
-
-
-@njit(cache=True)
-def laminar_resistance(mu_pa_s: float, length_m: float, bore_m: float) -> float:
-    """Hagen-Poiseuille resistance of a round pipe (paper eq 6).
-
-    .. math:: R = \\frac{128 \\mu l}{\\pi d^4}, \\qquad \\Delta p = R q
-
-    Parameters
-    ----------
-    mu_pa_s : dynamic viscosity [Pa s]
-    length_m : pipe length [m]
-    bore_m : pipe bore [m]
-
-    Returns
-    -------
-    R : [Pa s/m3]
-
-    Notes
-    -----
-    Paper eq 6 writes the friction force on the oil column, ``f = 128 mu l a^2 u /
-    (pi d^4)``; dividing by the area ``a`` and writing ``q = a u`` gives the pressure
-    drop ``R q``. Valid for laminar flow, Re below about 2000.
-
-    >>> round(laminar_resistance(0.0414, 1.0, 0.006) / 1e9, 4)  # paper 2.2 pipe
-    1.3015
-    """
-    return 128.0 * mu_pa_s * length_m / (math.pi * bore_m**4)
-
-
-@njit(cache=True)
-def line_loss_pa(
-    q_m3_s: float,
-    length_m: float,
-    bore_m: float,
-    mu_pa_s: float,
-    rho_kg_m3: float,
-    k_local: float,
-    along_on: bool,
-    local_on: bool,
-) -> float:
-    """Pressure loss of a pipe run with fittings, signed with the flow [Pa].
-
-    .. math::
-
-        \\Delta p = \\lambda(Re) \\frac{l}{d} \\frac{\\rho v |v|}{2}
-                  + K \\frac{\\rho v |v|}{2}, \\qquad v = \\frac{4 q}{\\pi d^2}
-
-    the first term the loss along the pipe (paper eq 12; with ``lambda = 64/Re`` it is
-    exactly the Hagen-Poiseuille drop of eq 6), the second the local loss of valves and
-    fittings (paper eq 13), both added as in eq 14.
-
-    Parameters
-    ----------
-    q_m3_s : volume flow, positive in the direction of the loss [m3/s]
-    length_m, bore_m : pipe length and bore [m]
-    mu_pa_s : dynamic viscosity [Pa s]
-    rho_kg_m3 : density [kg/m3]
-    k_local : sum of local loss coefficients, referred to v [-]
-    along_on, local_on : include the loss along the pipe / the local loss
-
-    Notes
-    -----
-    Laminar (``lambda = 64/Re``) below Re = 2000, Blasius' smooth-pipe law
-    ``lambda = 0.3164 Re^-0.25`` above Re = 4000, and lambda interpolated linearly in
-    Re in between, so the loss is continuous in q (the Newton iterations of an implicit
-    integrator need that). The laminar branch is written as ``R q`` so it is smooth at
-    q = 0. The hoist's bores are hydraulically smooth (1.5 um in 10 mm).
-
-    >>> round(line_loss_pa(1e-6, 1.0, 0.006, 0.0414, 900.0, 0.0, True, False), 1)
-    1301.5
-    """
-    area = math.pi * bore_m * bore_m / 4.0
-    v = q_m3_s / area
-    loss = 0.0
-    if along_on:
-        resistance = laminar_resistance(mu_pa_s, length_m, bore_m)
-        reynolds = rho_kg_m3 * abs(v) * bore_m / mu_pa_s
-        if reynolds <= _RE_LAMINAR:
-            loss += resistance * q_m3_s
-        else:
-            if reynolds >= _RE_TURBULENT:
-                lam = 0.3164 * reynolds**-0.25
-            else:
-                lam_lo = 64.0 / _RE_LAMINAR
-                lam_hi = 0.3164 * _RE_TURBULENT**-0.25
-                frac = (reynolds - _RE_LAMINAR) / (_RE_TURBULENT - _RE_LAMINAR)
-                lam = lam_lo + frac * (lam_hi - lam_lo)
-            loss += lam * length_m / bore_m * 0.5 * rho_kg_m3 * v * abs(v)
-    if local_on:
-        loss += k_local * 0.5 * rho_kg_m3 * v * abs(v)
-    return loss
 
 
 @njit(cache=True)

@@ -70,6 +70,7 @@ import numpy as np
 import polars as pl
 from scipy import ndimage, optimize
 
+from physics.tension import tail_rope_length_m
 from schemas.hoist import G_STANDARD, HoistDescription
 from sims.device import simulate
 from sims.effects import resolve_effects
@@ -890,7 +891,7 @@ def payload_from_pressure(
     tail = 0.0
     if eff.on("tail_rope_weight"):
         prm = eff.parameters["tail_rope_weight"]
-        tail = prm["tail_ropes"] * prm["mass_per_length_kg_m"] * hoist.tail_rope_length_m(depth_m)
+        tail = prm["tail_ropes"] * prm["mass_per_length_kg_m"] * tail_rope_length_m(hoist, depth_m)
     area = hoist.cylinders.bore_area_m2
     return max(p * hoist.ropes_n * area / G_STANDARD - hoist.conveyance.mass_kg - tail, 0.0)
 

@@ -50,9 +50,17 @@ import polars as pl
 from mcap.writer import Writer
 from numba import njit
 
+from physics.branch_loss import laminar_resistance
+from physics.friction_law import (
+    friction_law_at,
+    friction_parameters,
+    law_array,
+    stribeck_friction,
+    stribeck_g,
+)
+from physics.lugre import lugre_force_at, lugre_z_rate
 from schemas.hoist import EXAMPLE_HOIST, FrictionLaw, load_hoist
 from schemas.rig_topics import schema_bytes
-from transforms.friction import friction_parameters, stribeck_friction, stribeck_g
 
 __all__ = [
     "PAPER_LOSS_PA",
@@ -140,7 +148,7 @@ class RigDesign:
         """
         mu = self.kinematic_viscosity_m2_s * self.density_kg_m3
         area = math.pi * self.line_bore_m**2 / 4.0
-        r_lam = 128.0 * mu * self.line_length_m / (math.pi * self.line_bore_m**4)
+        r_lam = laminar_resistance(mu, self.line_length_m, self.line_bore_m)
         r_loc = self.line_k_local * self.density_kg_m3 / (2.0 * area**2)
         return r_lam, r_loc
 
@@ -261,8 +269,8 @@ def _line_flow(dp, r_lam, r_loc):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _rhs(y, out, c, law_p, law_tab, seg):  # pragma: no cover - compiled
-    # c: constants; seg: current segment values; law_tab: [fc, fs, vs, kv] on law_p grid
+def _rhs(y, out, c, law, seg):  # pragma: no cover - compiled
+    # c: constants; seg: current segment values; law: physics.friction_law.law_array
     x, v, z, pa, pb, pl_, ya, yb = y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7]
     ab, aa, al, m, stroke, v_dead, beta = c[0], c[1], c[2], c[3], c[4], c[5], c[6]
     r_lam, r_loc, q_rated, dp_ov, tau_v = c[7], c[8], c[9], c[10], c[11]
@@ -280,13 +288,9 @@ def _rhs(y, out, c, law_p, law_tab, seg):  # pragma: no cover - compiled
     )
     # --- seal friction, LuGre (eq 15) with eq 17 parameters at p_A
     if has_friction > 0.5:
-        fc = np.interp(pa, law_p, law_tab[0])
-        fs = np.interp(pa, law_p, law_tab[1])
-        vs = np.interp(pa, law_p, law_tab[2])
-        kv = np.interp(pa, law_p, law_tab[3])
-        g = stribeck_g(v, fc, fs, vs)
-        zdot = v - sigma0 * abs(v) * z / g
-        friction = sigma0 * z + sigma1 * zdot + kv * v
+        fc, fs, vs, kv = friction_law_at(pa, law)
+        zdot = lugre_z_rate(z, v, sigma0, stribeck_g(v, fc, fs, vs))
+        friction = lugre_force_at(z, zdot, v, sigma0, sigma1, kv)
     else:
         zdot = -z * 1e3
         friction = 0.0
@@ -378,8 +382,7 @@ def _solve(a, b):  # pragma: no cover - compiled
 def _integrate(  # pragma: no cover - compiled
     y0,
     c,
-    law_p,
-    law_tab,
+    law,
     t_start,
     v_set,
     mode_a,
@@ -422,7 +425,7 @@ def _integrate(  # pragma: no cover - compiled
         seg[5] = v_cmd
         seg[6] = x_ref
         seg[7] = coupled
-        friction = _rhs(y, f0, c, law_p, law_tab, seg)
+        friction = _rhs(y, f0, c, law, seg)
         if n % every == 0 and row < out.shape[0]:
             out[row, 0] = t
             for i in range(_N):
@@ -438,7 +441,7 @@ def _integrate(  # pragma: no cover - compiled
             for i in range(_N):
                 yp[i] = y[i]
             yp[j] = y[j] + h
-            _rhs(yp, f1, c, law_p, law_tab, seg)
+            _rhs(yp, f1, c, law, seg)
             for i in range(_N):
                 jac[i, j] = -dt * (f1[i] - f0[i]) / h
             jac[j, j] += 1.0
@@ -460,14 +463,6 @@ def _integrate(  # pragma: no cover - compiled
         else:
             x_ref += v_cmd * dt
     return row
-
-
-def _law_table(law: FrictionLaw | None) -> tuple[np.ndarray, np.ndarray]:
-    p = np.linspace(-1e6, 40e6, 83)
-    if law is None:
-        return p, np.ones((4, p.size))
-    fc, fs, vs, kv = friction_parameters(p, law)
-    return p, np.vstack([fc, fs, vs, kv]).astype(np.float64)
 
 
 def simulate_rig(
@@ -534,7 +529,7 @@ def simulate_rig(
             design.servo_position_gain_1_s,
         ]
     )
-    law_p, law_tab = _law_table(friction_law)
+    law = law_array(friction_law) if has_friction else np.ones(8)
     y0 = np.zeros(_N)
     y0[0] = program.x0_m
     y0[3] = program.p0_a_pa
@@ -546,8 +541,7 @@ def simulate_rig(
     rows = _integrate(
         y0,
         c,
-        law_p,
-        law_tab,
+        law,
         program.t_start_s.astype(np.float64),
         program.velocity_setpoint_m_s.astype(np.float64),
         program.mode_a.astype(np.int64),

@@ -44,91 +44,15 @@ import numpy as np
 from numba import njit
 from scipy.optimize import curve_fit
 
-from sims.hydraulics import laminar_resistance, ros2_integrate
+from physics.branch_loss import laminar_resistance
+from physics.two_cylinder import PAPER_2_2, TwoCylinderConstants
+from sims.hydraulics import ros2_integrate
 
 __all__ = [
-    "PAPER_2_2",
     "StepResponse",
-    "TwoCylinderConstants",
-    "damping_ratio",
     "fit_second_order_step",
-    "natural_frequency",
     "simulate_step",
-    "transfer_function",
 ]
-
-
-@dataclass(frozen=True)
-class TwoCylinderConstants:
-    """Constants of the two-cylinder model, SI."""
-
-    density_kg_m3: float = 900.0
-    dynamic_viscosity_pa_s: float = 0.0414
-    piston_diameter_m: float = 0.080
-    cylinder_length_m: float = 0.800
-    pipe_bore_m: float = 0.006
-    pipe_length_m: float = 1.000
-    bulk_modulus_pa: float = 1.5e9  # not given in the paper; NOTES.md
-
-    @property
-    def volume2_m3(self) -> float:
-        """Chamber volume of cylinder 2, pi D^2 / 4 x L [m3]."""
-        return math.pi * self.piston_diameter_m**2 / 4.0 * self.cylinder_length_m
-
-
-#: The constants of paper section 2.2 with a 1.5 GPa bulk modulus.
-PAPER_2_2 = TwoCylinderConstants()
-
-
-def natural_frequency(c: TwoCylinderConstants = PAPER_2_2) -> float:
-    """Undamped natural frequency, paper eq 9 [rad/s].
-
-    .. math:: \\omega_n = \\frac{d}{2} \\sqrt{\\frac{\\pi \\beta}{\\rho l V_2}}
-
-    >>> round(natural_frequency(), 2)
-    108.25
-    """
-    return (
-        c.pipe_bore_m
-        / 2.0
-        * math.sqrt(
-            math.pi * c.bulk_modulus_pa / (c.density_kg_m3 * c.pipe_length_m * c.volume2_m3)
-        )
-    )
-
-
-def damping_ratio(c: TwoCylinderConstants = PAPER_2_2) -> float:
-    """Damping ratio, paper eq 10 in its corrected form (NOTES.md errata) [-].
-
-    .. math:: \\xi = \\frac{32 \\mu}{d^3} \\sqrt{\\frac{l V_2}{\\pi \\beta \\rho}}
-
-    The printed eq 10 has ``pi d beta`` under the root; that does not follow from eq 8
-    (and is not even dimensionless).
-
-    >>> round(damping_ratio(), 4)
-    0.1889
-    """
-    return (
-        32.0
-        * c.dynamic_viscosity_pa_s
-        / c.pipe_bore_m**3
-        * math.sqrt(
-            c.pipe_length_m * c.volume2_m3 / (math.pi * c.bulk_modulus_pa * c.density_kg_m3)
-        )
-    )
-
-
-def transfer_function(s: complex | np.ndarray, c: TwoCylinderConstants = PAPER_2_2):
-    """P2(s)/P1(s), paper eq 11 with the corrected ``1/omega_n^2`` coefficient [-].
-
-    .. math:: G(s) = \\frac{1}{s^2/\\omega_n^2 + 2 \\xi s/\\omega_n + 1}
-
-    >>> abs(transfer_function(0.0))
-    1.0
-    """
-    wn = natural_frequency(c)
-    xi = damping_ratio(c)
-    return 1.0 / (s * s / wn**2 + 2.0 * xi * s / wn + 1.0)
 
 
 @dataclass(frozen=True)

@@ -56,6 +56,8 @@ def _rtol(name: str, col: str) -> float:
         return name.startswith(result) and col.startswith(column)
 
     return RTOL[max(filter(matches, RTOL), key=len)]
+
+
 PICKS = 24
 
 
@@ -193,8 +195,9 @@ def _demo() -> dict[str, pl.DataFrame]:
         assert main(["demo", "--data", data, "--hours", "0.25", "--seed", "3"]) == 0
         con = duckdb.connect(str(Path(data) / "warehouse.duckdb"), read_only=True)
         try:
+            query = "select * exclude (run_id) from {} order by all"
             return {
-                f"demo_{table}": con.sql(f"select * exclude (run_id) from {table} order by all").pl()
+                f"demo_{table}": con.sql(query.format(table)).pl()
                 for table in ("position_summary", "trip_summary")
             }
         finally:

@@ -61,6 +61,7 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
+from physics.tension import expected_load_n
 from schemas.hoist import G_STANDARD, HoistDescription
 from schemas.tables import ALARMS, ROPES
 from transforms.reconciliation import conform, expected_load_expr, tail_rope_weight_expr
@@ -136,7 +137,7 @@ def rule_thresholds(hoist: HoistDescription) -> RuleThresholds:
     n = hoist.ropes_n
     empty_share_n = hoist.conveyance.mass_kg * G_STANDARD / n
     max_static_per_rope_n = (
-        hoist.static_load_n(0.0, hoist.conveyance.rated_payload_kg) / n
+        expected_load_n(hoist, 0.0, hoist.conveyance.rated_payload_kg) / n
     )  # pithead: longest hanging tail rope
     sensors = sorted(hoist.sensors, key=lambda s: s.cylinder)
     return RuleThresholds(

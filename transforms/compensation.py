@@ -54,6 +54,14 @@ import numpy as np
 import polars as pl
 from numba import njit
 
+from physics.branch_loss import sensor_branch, sensor_minus_chamber_at
+from physics.closed_volume import COMMON_MODE_STATE_SIZE, common_mode_displacement
+from physics.friction_law import friction_law_at, law_array, stribeck_g
+from physics.lugre import lugre_force, lugre_z_step
+from physics.maxwell_slip import maxwell_slip_elements, maxwell_slip_step
+from physics.oil import kinematic_viscosity
+from physics.tension import rope_tension_n
+from physics.trip_rule import LABEL_STATE_SIZE, trip_label_columns
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPE_TENSIONS, ROPES
 from transforms.filtering import (
@@ -67,38 +75,14 @@ from transforms.filtering import (
     lowpass_work_size,
     segment_ids,
 )
-from transforms.friction import (
-    STRIBECK_SPEED_FLOOR_M_S,
-    _linear_law,
-    lugre_force,
-    lugre_z_step,
-    maxwell_slip_elements,
-    stribeck_g,
-)
-from transforms.kinematics import (
-    PHASES,
-    TRIP_BRIDGE_S,
-    TRIP_BRIDGE_SPEED_FRACTION,
-    smoothed_derivative,
-)
-from transforms.oil import (
-    ATMOSPHERIC_PRESSURE_PA,
-    effective_bulk_modulus_at,
-    kinematic_viscosity,
-)
+from transforms.kinematics import smoothed_derivative
 from transforms.piston_motion import share_out_common_motion, share_state
-from transforms.pressure_loss import (
-    RE_LAMINAR,
-    _branch_constants,
-    sensor_minus_chamber_pa,
-)
 from transforms.uncertainty import load_band, rope_band
 
 __all__ = [
     "CompensationCarry",
     "CompensationContext",
     "CompensationSettings",
-    "common_mode_displacement",
     "compensate",
     "compensate_window",
     "compensation_context",
@@ -111,9 +95,6 @@ __all__ = [
 ]
 
 _OUTPUT_SCHEMA = pl.Schema(pl.from_arrow(ROPE_TENSIONS.empty_table()).schema)
-_ACCELERATE, _RUN, _DECELERATE, _CREEP, _STANDSTILL = (
-    PHASES.index(name) for name in ("accelerate", "run", "decelerate", "creep", "standstill")
-)
 
 
 @dataclass(frozen=True)
@@ -183,91 +164,6 @@ def logger_rate_hz(time_s: np.ndarray, *, default_hz: float = 100.0) -> float:
     if steps.size == 0:
         return default_hz
     return float(stride / np.median(steps))
-
-
-def common_mode_displacement(
-    p_mean_pa: np.ndarray,
-    segment_id: np.ndarray,
-    hoist: HoistDescription,
-    *,
-    state: np.ndarray | None = None,
-) -> np.ndarray:
-    r"""Piston displacement implied by oil compression when x is not logged [m].
-
-    The four chambers, pipes and manifold are one closed oil volume V, so a change of
-    the common pressure dp moves every piston by the same amount (NOTES.md):
-
-    .. math::
-        n A_{bore}\, dx = \frac{V}{\beta_e(p)}\, dp
-
-    with beta_e the effective bulk modulus (entrained air included,
-    :func:`transforms.oil.effective_bulk_modulus`). A rising load squeezes oil out of
-    the chambers, so x grows (rod out) while p rises. Differential piston motion is not
-    observable this way and is taken as zero. Integrated per segment from 0.
-    ``state``: carried from the previous block of the same record (:func:`fresh_state`).
-    """
-    p = np.ascontiguousarray(p_mean_pa, dtype=np.float64)
-    x = np.empty_like(p)
-    if p.size:
-        _common_mode_kernel(
-            p,
-            np.ascontiguousarray(segment_id, dtype=np.int64),
-            *_common_mode_constants(hoist),
-            x,
-            fresh_state(COMMON_MODE_STATE_SIZE) if state is None else state,
-        )
-    return x
-
-
-def _common_mode_constants(hoist: HoistDescription) -> tuple[float, float, np.ndarray]:
-    """Oil volume [m3], n A_bore [m2] and (beta_liquid, air fraction, p_ref) of the hoist."""
-    return (
-        float(hoist.oil_volume_m3),
-        hoist.ropes_n * hoist.cylinders.bore_area_m2,
-        np.array([hoist.oil.bulk_modulus_pa, hoist.oil.air_fraction, ATMOSPHERIC_PRESSURE_PA]),
-    )
-
-
-#: Length of the resumable state of :func:`_common_mode_kernel` (:func:`fresh_state`).
-COMMON_MODE_STATE_SIZE = 6
-
-
-@njit(cache=True, nogil=True)
-def _common_mode_kernel(p, segment_id, volume, n_area, oil, x, state):  # pragma: no cover - numba
-    """n A dx = V / beta_e(p) dp integrated per segment from 0 (:func:`common_mode_displacement`).
-
-    beta_e at max(p, 1 bar), 10 bar where p is unknown (NaN), isothermal
-    (:func:`transforms.oil.effective_bulk_modulus_at`; ``oil`` = liquid bulk modulus,
-    air fraction, reference pressure). The arithmetic of the array version: a running
-    sum over the whole record, minus its value at the segment's start. ``state`` =
-    [ran, continues segment, running sum, its value and dx at the segment's start,
-    last p] (:func:`transforms.filtering.fresh_state`).
-    """
-    ran = state[0] != 0.0
-    resume = ran and state[1] != 0.0
-    total, total_at_start, dx_at_start, p_last = state[2], state[3], state[4], state[5]
-    for i in range(p.shape[0]):
-        p_beta = p[i]
-        if np.isnan(p_beta):
-            p_beta = 1e6
-        elif np.isinf(p_beta):
-            p_beta = 1.7976931348623157e308 if p_beta > 0 else -1.7976931348623157e308
-        beta = effective_bulk_modulus_at(max(p_beta, 1e5), oil[0], oil[1], oil[2], 1.0)
-        start = (i == 0 and not resume) or (i > 0 and segment_id[i] != segment_id[i - 1])
-        dp = 0.0
-        if not start:
-            dp = p[i] - (p[i - 1] if i > 0 else p_last)
-            if not np.isfinite(dp):
-                dp = 0.0
-        dx = volume / (n_area * beta) * dp
-        total = dx if (i == 0 and not ran) else total + dx
-        if start:
-            total_at_start = total
-            dx_at_start = dx
-        x[i] = total - total_at_start + dx_at_start
-    if p.shape[0]:
-        state[0] = 1.0
-        state[2], state[3], state[4], state[5] = total, total_at_start, dx_at_start, p[-1]
 
 
 def displacement_noise_sigma(x: np.ndarray) -> float:
@@ -420,19 +316,6 @@ def _viscosity(t_oil_c: np.ndarray | None, hoist: HoistDescription) -> np.ndarra
     return np.interp(t_oil_c, grid, kinematic_viscosity(grid, hoist.oil))
 
 
-@njit(inline="always", error_model="numpy")
-def _laminar_loss_at(v, nu, area_ratio, d, length, rho, k_local):  # pragma: no cover - numba
-    """(sensor minus chamber pressure [Pa], Reynolds number) of one sample, laminar
-    (paper eq 12-14 with lambda = 64 / Re); (0, 0) where the oil is still or v unknown."""
-    if not np.isfinite(v) or v == 0.0:
-        return 0.0, 0.0
-    u = v * area_ratio
-    re = abs(u) * d / nu
-    lam = 64.0 / (re if re > 0.0 else 1.0)
-    dynamic = 0.5 * rho * u * abs(u)
-    return 0.0 - (lam * length / d + k_local) * dynamic, re
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
 def _rope_kernel(
     x,
@@ -440,13 +323,11 @@ def _rope_kernel(
     gap_s,
     nominal_dt_s,
     p_sensor,
-    loss_mode,
-    loss,
+    with_loss,
     v_flow,
     nu,
     branch,
-    coefficients,
-    floors,
+    law,
     mode,
     stiffness,
     weights,
@@ -459,23 +340,21 @@ def _rope_kernel(
     tension,
     state,
 ):  # pragma: no cover - numba
-    """Increments, friction law, seal friction and tensions of one rope in one pass.
+    """Increments, branch loss, seal friction and tensions of one rope in one pass.
 
-    Velocity v = (x[i] - x[i-1]) / dt[i] (0 at a segment's start or where unknown), then
-    the arithmetic of :func:`transforms.friction.friction_parameters` and
-    :func:`transforms.friction.maxwell_slip_friction` (``mode`` 1) or
-    :func:`transforms.friction.lugre_friction` (``mode`` 2); ``mode`` 0: no friction.
-    Step lengths and segment starts come from ``time_s``: a step above ``gap_s``
-    starts a segment and counts ``nominal_dt_s``. The branch loss (sensor minus
-    chamber) is ``loss`` (``loss_mode`` 0), the laminar loss of ``v_flow`` (1:
-    :func:`_laminar_loss_at`, ``branch`` = area ratio, bore, length, density, local
-    loss coefficient, laminar Reynolds limit) or none (2). The tests check it against
-    those functions.
-    Returns False, with the outputs incomplete, when a Reynolds number exceeds the
-    laminar limit in mode 1 (the caller then computes ``loss`` in general; ``state`` is
-    then also incomplete: pass a copy). ``state`` = [ran, last x, last time, LuGre z,
-    Maxwell-slip deflections...] carries the friction state from the previous block
-    (:func:`transforms.filtering.fresh_state`, :data:`ROPE_STATE_BASE` + elements).
+    Velocity v = (x[i] - x[i-1]) / dt[i] (0 at a segment's start or where unknown). Step
+    lengths and segment starts come from ``time_s``: a step above ``gap_s`` starts a
+    segment and counts ``nominal_dt_s``. Per sample, the physics kernels:
+    p_chamber = p_sensor - :func:`physics.branch_loss.sensor_minus_chamber_at` of the
+    branch flow ``v_flow`` if ``with_loss`` (``branch`` from
+    :func:`~physics.branch_loss.sensor_branch`); the eq 17 law at p_chamber
+    (:func:`physics.friction_law.friction_law_at`); friction by Maxwell-slip
+    (``mode`` 1, :func:`physics.maxwell_slip.maxwell_slip_step` plus Kv v) or LuGre
+    (``mode`` 2, :func:`physics.lugre.lugre_z_step`, :func:`~physics.lugre.lugre_force`),
+    none for ``mode`` 0; tension by :func:`physics.tension.rope_tension_n` (eq 2).
+    ``state`` = [ran, last x, last time, LuGre z, Maxwell-slip deflections...] carries
+    the friction state from the previous block (:func:`transforms.filtering.fresh_state`,
+    :data:`ROPE_STATE_BASE` + elements).
     """
     n_el = weights.shape[0]
     ran = state[0] != 0.0
@@ -486,9 +365,6 @@ def _rope_kernel(
         for j in range(n_el):
             deltas[j] = state[4 + j]
     per_sample = nu.shape[0] > 1
-    area_ratio, d, length, rho, k_local, re_laminar = (
-        branch[0], branch[1], branch[2], branch[3], branch[4], branch[5]
-    )  # fmt: skip
     for i in range(x.shape[0]):
         # step length and segment start (the caller's segments)
         same_segment = False
@@ -499,17 +375,9 @@ def _rope_kernel(
             same_segment = not dt_i > gap_s
             if not same_segment:
                 dt_i = nominal_dt_s
-        if loss_mode == 1:
-            value = _laminar_loss_at(
-                v_flow[i], nu[i] if per_sample else nu[0], area_ratio, d, length, rho, k_local
-            )
-            if value[1] > re_laminar:
-                return False
-            pc = p_sensor[i] - value[0]
-        elif loss_mode == 0:
-            pc = p_sensor[i] - loss[i]
-        else:
-            pc = p_sensor[i] - 0.0
+        pc = p_sensor[i]
+        if with_loss and np.isfinite(v_flow[i]):  # an unknown flow: no loss taken
+            pc -= sensor_minus_chamber_at(v_flow[i], nu[i] if per_sample else nu[0], branch)
         p_chamber[i] = pc
         f = 0.0
         if mode != 0:
@@ -518,37 +386,19 @@ def _rope_kernel(
                 step = (x[i] - x_before) / dt_i
                 if same_segment and np.isfinite(step):
                     v = step
-            p = pc if np.isfinite(pc) else 0.0
-            fc = _linear_law(coefficients, floors, 0, p)
-            fs = _linear_law(coefficients, floors, 1, p)
-            vs = _linear_law(coefficients, floors, 2, p)
-            kv = _linear_law(coefficients, floors, 3, p)
+            fc, fs, vs, kv = friction_law_at(pc if np.isfinite(pc) else 0.0, law)
             if mode == 1:
                 # at standstill g(0) = Fs exactly: no exp needed
                 g = fs if v == 0.0 else stribeck_g(v, fc, fs, vs)
-                # transforms.friction.maxwell_slip_step with capacity w_j = weights_j g,
-                # written out: the capacities stay in registers (a call with a capacity
-                # array is ~18 % slower per step); same arithmetic, same order
-                dx = v * dt_i
-                total = 0.0
-                for j in range(n_el):
-                    limit = weights[j] * g / stiffness[j]
-                    dj = deltas[j] + dx
-                    if dj > limit:
-                        dj = limit
-                    elif dj < -limit:
-                        dj = -limit
-                    deltas[j] = dj
-                    total += stiffness[j] * dj
-                f = total + kv * v
+                f = maxwell_slip_step(deltas, v * dt_i, stiffness, weights, g) + kv * v
             else:
                 z_before = z
                 if v != 0.0 and dt_i > 0.0:
                     z = lugre_z_step(z, v, dt_i, sigma0, stribeck_g(v, fc, fs, vs))
                 f = lugre_force(z_before, z, v, dt_i, sigma0, sigma1, kv)
         friction[i] = f
-        tension_raw[i] = p_sensor[i] * area
-        tension[i] = pc * area + f
+        tension_raw[i] = rope_tension_n(p_sensor[i], area, 0.0)
+        tension[i] = rope_tension_n(pc, area, f)
     if x.shape[0]:
         state[0] = 1.0
         state[1] = x[x.shape[0] - 1]
@@ -556,7 +406,6 @@ def _rope_kernel(
         state[3] = z
         for j in range(n_el):
             state[4 + j] = deltas[j]
-    return True
 
 
 #: Length of :func:`_rope_kernel`'s state before its Maxwell-slip elements.
@@ -912,7 +761,7 @@ def compensate_window(
         state = carry.labels.copy()
         state[1] = _continues(segment, core_lo)
         window = slice(core_lo, core_hi)
-        labels = _trip_labels(
+        labels = trip_label_columns(
             time_s[window], speed[window], depth[window], accel[window], segment[window],
             hoist, state,
         )  # fmt: skip
@@ -931,17 +780,10 @@ def compensate_window(
 
     with_branch_loss = bool({"pipe_laminar_loss", "local_loss"} & effects)
     with_friction = "seal_friction" in effects
-    coefficients = np.array(
-        [law.coulomb_n, law.static_n, law.stribeck_speed_m_s, law.viscous_n_s_m],
-        dtype=np.float64,
-    )
-    floors = np.array([0.0, 0.0, STRIBECK_SPEED_FLOOR_M_S, 0.0])
+    law_lines = law_array(law)
     mode = 0 if not with_friction else (1 if presliding else 2)
     area = hoist.cylinders.bore_area_m2
-    area_ratio, d_pipe, length, _, k_local = _branch_constants(hoist)
-    branch = np.array(
-        [area_ratio, d_pipe, length, hoist.oil.density_kg_m3, k_local, RE_LAMINAR], dtype=float
-    )
+    branch = sensor_branch(hoist)
     gap_s = settings.gap_factor * dt_nominal
     no_array = np.zeros(1)
 
@@ -1002,7 +844,7 @@ def compensate_window(
     presliding_range_m = 0.0
     if mode != 0 and law.bristle_stiffness_n_m > 0:
         p_typical = context.typical_pressure_pa
-        static = _linear_law(coefficients, floors, 1, p_typical if np.isfinite(p_typical) else 0.0)
+        static = friction_law_at(p_typical if np.isfinite(p_typical) else 0.0, law_lines)[1]
         presliding_range_m = static / float(law.bristle_stiffness_n_m)
 
     def rope(k: int) -> dict[str, np.ndarray]:
@@ -1034,47 +876,31 @@ def compensate_window(
                 out=buffer("work_a", stage_hi - stage_lo),
             )
         window = slice(core_lo, core_hi)
-        start_state = carry.rope[k]
-
-        def run(loss_mode: int, loss: np.ndarray) -> bool:
-            state = start_state.copy()
-            done = _rope_kernel(
-                played[window],
-                time_s[window],
-                gap_s,
-                dt_nominal,
-                p_sensor[window],
-                loss_mode,
-                loss[window] if loss.size == n else loss,
-                v_flow[window] if v_flow.size == n else v_flow,
-                nu_arr[window] if nu_arr.size == n else nu_arr,
-                branch,
-                coefficients,
-                floors,
-                mode,
-                stiffness,
-                weights,
-                float(law.bristle_stiffness_n_m),
-                float(law.bristle_damping_n_s_m),
-                area,
-                out["p_chamber"][window],
-                out["friction"][window],
-                out["tension_raw"][window],
-                out["tension"][window],
-                state,
-            )
-            nxt.rope[k] = state
-            return done
-
-        if not run(1 if with_branch_loss else 2, no_array):
-            # turbulent somewhere: the branch loss by the general (numpy) path
-            v_known = np.where(np.isfinite(v_flow), v_flow, 0.0)
-            flowing = v_known != 0.0
-            loss = np.zeros(n)
-            loss[flowing] = sensor_minus_chamber_pa(
-                v_known[flowing], hoist, nu_m2_s=nu if np.ndim(nu) == 0 else nu[flowing]
-            )
-            run(0, loss)
+        state = carry.rope[k].copy()
+        _rope_kernel(
+            played[window],
+            time_s[window],
+            gap_s,
+            dt_nominal,
+            p_sensor[window],
+            with_branch_loss,
+            v_flow[window] if v_flow.size == n else v_flow,
+            nu_arr[window] if nu_arr.size == n else nu_arr,
+            branch,
+            law_lines,
+            mode,
+            stiffness,
+            weights,
+            float(law.bristle_stiffness_n_m),
+            float(law.bristle_damping_n_s_m),
+            area,
+            out["p_chamber"][window],
+            out["friction"][window],
+            out["tension_raw"][window],
+            out["tension"][window],
+            state,
+        )
+        nxt.rope[k] = state
         estimates, blind = motion_share.result()
         # rope k's estimate is consumed (played above) and its blind motion is read
         # before each hi is written: they take the band, unless shared by the ropes
@@ -1229,176 +1055,3 @@ def _mean_horizontal_kernel(arrays, out):  # pragma: no cover - numba
                 total += v
                 count += 1
         out[i] = total / count if count else np.nan
-
-
-def _trip_labels(
-    time_s: np.ndarray,
-    speed: np.ndarray,
-    depth: np.ndarray,
-    accel: np.ndarray,
-    segment: np.ndarray,
-    hoist: HoistDescription,
-    state: np.ndarray | None = None,
-) -> dict[str, pl.Series]:
-    """``phase``, ``direction``, ``trip_id`` (:func:`transforms.kinematics.with_trip_phases`
-    on the null-filled speed) and ``position`` (:func:`~transforms.kinematics.with_position`),
-    computed on arrays, each string column gathered from its few names."""
-    codes, direction, trip_id, position = _label_arrays(
-        time_s, speed, accel, segment, depth, hoist, state=state
-    )
-    position_names = [name for name, _ in _ordered_positions(hoist)]
-
-    def strings(name: str, values: np.ndarray, categories: list[str]) -> pl.Series:
-        if values.size == 0:
-            return pl.Series(name, [], dtype=pl.String)
-        if not categories:
-            return pl.Series(name, [None], dtype=pl.String).extend_constant(None, values.size - 1)
-        # code -1 becomes a null index, which gathers a null
-        index = pl.Series(values).cast(pl.UInt32, strict=False)
-        return pl.Series(name, categories, dtype=pl.String).gather(index)
-
-    return {
-        "trip_id": pl.Series("trip_id", trip_id, dtype=pl.Int64).set(pl.Series(trip_id < 0), None),
-        "phase": strings("phase", codes, list(PHASES)),
-        "direction": strings("direction", direction, ["down", "up"]),
-        "position": strings("position", position, position_names),
-    }
-
-
-def _ordered_positions(hoist: HoistDescription) -> list[tuple[str, float]]:
-    return sorted(hoist.shaft.positions_m.items(), key=lambda item: item[1])
-
-
-def _label_arrays(
-    time_s: np.ndarray,
-    speed: np.ndarray,
-    accel: np.ndarray,
-    segment: np.ndarray,
-    depth: np.ndarray,
-    hoist: HoistDescription,
-    *,
-    standstill_speed_m_s: float = 0.02,
-    acceleration_fraction: float = 0.3,
-    creep_factor: float = 1.5,
-    state: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Integer codes (-1: null) of phase (index in PHASES), direction (0 down, 1 up),
-    trip id, and position (index in the depth-ordered positions): the rules of
-    :func:`transforms.kinematics.with_trip_phases` and ``position_expr``. ``state``:
-    carried from the previous block (:func:`_label_kernel`)."""
-    winder = hoist.winder
-    ordered = _ordered_positions(hoist)
-    phase = np.empty(speed.size, dtype=np.int8)
-    direction = np.empty(speed.size, dtype=np.int8)
-    trip_id = np.empty(speed.size, dtype=np.int64)
-    position = np.empty(speed.size, dtype=np.int8)
-    _label_kernel(
-        np.ascontiguousarray(time_s, dtype=np.float64),
-        np.ascontiguousarray(speed, dtype=np.float64),
-        np.ascontiguousarray(accel, dtype=np.float64),
-        np.ascontiguousarray(segment, dtype=np.int64),
-        np.ascontiguousarray(depth, dtype=np.float64),
-        TRIP_BRIDGE_S,
-        TRIP_BRIDGE_SPEED_FRACTION,
-        standstill_speed_m_s,
-        creep_factor * winder.creep_speed_m_s,
-        -acceleration_fraction * winder.deceleration_m_s2,
-        acceleration_fraction * winder.acceleration_m_s2,
-        np.array([d for _, d in ordered], dtype=np.float64),
-        float(hoist.shaft.position_window_m),
-        phase,
-        direction,
-        trip_id,
-        position,
-        fresh_state(LABEL_STATE_SIZE) if state is None else state,
-    )
-    return phase, direction, trip_id, position
-
-
-@njit(cache=True, nogil=True)
-def _label_kernel(
-    time_s,
-    speed,
-    accel,
-    segment,
-    depth,
-    bridge_s,
-    bridge_fraction,
-    standstill,
-    creep,
-    decelerating,
-    accelerating,
-    positions,
-    window,
-    phase,
-    direction,
-    trip_id,
-    position,
-    state,
-):  # pragma: no cover - numba
-    """The rules of :func:`_label_arrays` (later rules override earlier ones) in one pass.
-
-    ``state`` = [ran, continues segment, last trip id, was moving, last speed, time,
-    depth] (:func:`transforms.filtering.fresh_state`, :data:`LABEL_STATE_SIZE`).
-    """
-    ran = state[0] != 0.0
-    resume = ran and state[1] != 0.0
-    trips = int(state[2]) if ran else -1
-    was_moving = ran and state[3] != 0.0
-    for i in range(speed.shape[0]):
-        v = speed[i]
-        abs_v = abs(v)
-        a_t = accel[i] * np.sign(v)
-        moving = abs_v >= standstill
-        code = _RUN
-        if abs_v <= creep:
-            code = _CREEP
-        if a_t < decelerating:
-            code = _DECELERATE
-        if a_t > accelerating:
-            code = _ACCELERATE
-        if not moving:
-            code = _STANDSTILL
-        phase[i] = code
-        direction[i] = -1
-        if moving and v > 0:
-            direction[i] = 0
-        elif moving and v < 0:
-            direction[i] = 1
-        new_segment = not resume if i == 0 else segment[i] != segment[i - 1]
-        if moving and ((i == 0 and not ran) or not was_moving):
-            trips += 1
-        elif moving and new_segment:
-            # a logger gap inside a motion: the same trip if it kept moving the same way
-            v_before = speed[i - 1] if i > 0 else state[4]
-            gap = time_s[i] - (time_s[i - 1] if i > 0 else state[5])
-            advance = (depth[i] - (depth[i - 1] if i > 0 else state[6])) * np.sign(v)
-            slower = min(abs_v, abs(v_before))
-            faster = max(abs_v, abs(v_before))
-            kept_moving = (
-                advance >= bridge_fraction * slower * gap
-                and advance <= faster / bridge_fraction * gap
-            )
-            if not (np.sign(v) == np.sign(v_before) and (gap <= bridge_s or kept_moving)):
-                trips += 1
-        trip_id[i] = trips if moving else -1
-        was_moving = moving
-        position[i] = -1
-        if positions.shape[0] and not np.isnan(depth[i]):
-            best = abs(depth[i] - positions[0])
-            for k in range(1, positions.shape[0]):
-                best = min(best, abs(depth[i] - positions[k]))
-            for k in range(positions.shape[0]):
-                dist = abs(depth[i] - positions[k])
-                if dist == best and dist <= window:
-                    position[i] = k
-    n = speed.shape[0]
-    if n:
-        state[0] = 1.0
-        state[2] = trips
-        state[3] = 1.0 if was_moving else 0.0
-        state[4], state[5], state[6] = speed[n - 1], time_s[n - 1], depth[n - 1]
-
-
-#: Length of :func:`_label_kernel`'s state.
-LABEL_STATE_SIZE = 7

@@ -29,8 +29,8 @@ import numpy as np
 import polars as pl
 from scipy import optimize, stats
 
+from physics.friction_law import stribeck_friction
 from schemas.hoist import FrictionLaw
-from transforms.friction import stribeck_friction
 
 __all__ = [
     "EQ17",

@@ -31,11 +31,18 @@ import polars as pl
 from numba import njit
 from scipy import signal
 
+from physics.trip_rule import (
+    DIRECTIONS,
+    PHASES,
+    named_codes,
+    ordered_positions,
+    position_codes,
+    trip_label_codes,
+)
 from schemas.hoist import HoistDescription
 from transforms.filtering import seconds_expr
 
 __all__ = [
-    "PHASES",
     "position_expr",
     "smoothed_derivative",
     "with_acceleration",
@@ -45,9 +52,6 @@ __all__ = [
 ]
 
 Frame = TypeVar("Frame", pl.DataFrame, pl.LazyFrame)
-
-#: Trip phase labels.
-PHASES = ("accelerate", "run", "decelerate", "creep", "standstill")
 
 
 def smoothed_derivative(
@@ -265,16 +269,6 @@ def with_acceleration(
     )
 
 
-#: A logger gap of at most this long inside a motion in one direction continues the
-#: trip [s] (the replay merges motions 2 s apart the same way).
-TRIP_BRIDGE_S = 2.0
-#: ... as does a longer gap over which the depth advanced, in the direction of motion,
-#: at a mean speed between this fraction of the slower speed either side of it and the
-#: faster speed over this fraction: the conveyance kept moving, so no stop (and no
-#: unseen round trip) can have hidden in the gap.
-TRIP_BRIDGE_SPEED_FRACTION = 0.5
-
-
 def with_trip_phases(
     frame: Frame,
     hoist: HoistDescription,
@@ -290,83 +284,58 @@ def with_trip_phases(
 ) -> Frame:
     """Label each sample with trip ``phase``, ``direction`` and ``trip_id``.
 
-    Rules, first match wins (|v| speed, a_t = a sgn(v) the tangential acceleration):
-
-    ==============  ===================================================================
-    standstill      |v| < ``standstill_speed_m_s``
-    accelerate      a_t >  ``acceleration_fraction`` x the winder's acceleration
-    decelerate      a_t < -``acceleration_fraction`` x the winder's deceleration
-    creep           |v| <= ``creep_factor`` x the winder's creep speed
-    run             otherwise
-    ==============  ===================================================================
-
-    ``direction`` is ``"down"`` for speed > 0 and ``"up"`` for speed < 0 (null at
-    standstill). A trip is a maximal run of non-standstill samples; ``trip_id`` numbers
-    them from 0 in time order (null at standstill; a direction reversal without a stop
-    would stay one trip). A logger gap (a new segment) inside a motion continues the
-    trip when the motion has the same direction on both sides and the gap is at most
-    :data:`TRIP_BRIDGE_S`, or the depth advanced across it, in that direction, at a mean
-    speed between :data:`TRIP_BRIDGE_SPEED_FRACTION` x the slower speed and the faster
-    speed / that fraction (``depth_col``, when the frame has it); otherwise the motion
-    after the gap is a new trip. A dropout of a fraction of a second mid-shaft is not a
-    second trip.
+    The trip rule of :mod:`physics.trip_rule` (:func:`~physics.trip_rule.trip_label_codes`
+    with the thresholds given here) on the frame's columns; a null speed gives nulls.
+    ``depth_col`` is optional (without it a logger gap longer than
+    :data:`~physics.trip_rule.TRIP_BRIDGE_S` inside a motion starts a new trip).
 
     Adds columns ``phase`` (String), ``direction`` (String) and ``trip_id`` (Int64).
-    Needs ``acceleration_col`` (:func:`with_acceleration`).
+    Needs ``acceleration_col`` (:func:`with_acceleration`); a LazyFrame is collected.
     """
-    winder = hoist.winder
-    v = pl.col(speed_col)
-    a_t = pl.col(acceleration_col) * v.sign()
-    moving = v.abs() >= standstill_speed_m_s
-    phase = (
-        pl.when(v.is_null())
-        .then(pl.lit(None, dtype=pl.String))
-        .when(~moving)
-        .then(pl.lit("standstill"))
-        .when(a_t > acceleration_fraction * winder.acceleration_m_s2)
-        .then(pl.lit("accelerate"))
-        .when(a_t < -acceleration_fraction * winder.deceleration_m_s2)
-        .then(pl.lit("decelerate"))
-        .when(v.abs() <= creep_factor * winder.creep_speed_m_s)
-        .then(pl.lit("creep"))
-        .otherwise(pl.lit("run"))
-    )
-    direction = (
-        pl.when(moving & (v > 0))
-        .then(pl.lit("down"))
-        .when(moving & (v < 0))
-        .then(pl.lit("up"))
-        .otherwise(pl.lit(None, dtype=pl.String))
-    )
-    moving_filled = moving.fill_null(False)
     schema = frame.collect_schema()
     if time_col not in schema:
         raise ValueError(f"{time_col}: no such column (logger gaps inside a trip need times)")
-    gap_s = seconds_expr(schema, time_col).diff()
-    v_before = v.shift(1)
-    kept_moving = pl.lit(False)
-    if depth_col in schema:
-        advance = pl.col(depth_col).diff() * v.sign()
-        slower = pl.min_horizontal(v.abs(), v_before.abs())
-        faster = pl.max_horizontal(v.abs(), v_before.abs())
-        kept_moving = (advance >= TRIP_BRIDGE_SPEED_FRACTION * slower * gap_s) & (
-            advance <= faster / TRIP_BRIDGE_SPEED_FRACTION * gap_s
-        )
-    same_direction = v.sign() == v_before.sign()
-    continues = (same_direction & ((gap_s <= TRIP_BRIDGE_S) | kept_moving)).fill_null(False)
-    new_segment = (pl.col(segment_col) != pl.col(segment_col).shift(1)).fill_null(True)
-    start = moving_filled & (~moving_filled.shift(1, fill_value=False) | (new_segment & ~continues))
-    trip_id = pl.when(moving_filled).then(start.cast(pl.Int64).cum_sum() - 1)
-    return frame.with_columns(
-        phase.alias("phase"), direction.alias("direction"), trip_id.alias("trip_id")
+    depth = pl.col(depth_col).cast(pl.Float64) if depth_col in schema else pl.lit(np.nan)
+    columns = frame.select(
+        seconds_expr(schema, time_col).alias("t"),
+        pl.col(speed_col).cast(pl.Float64).alias("v"),
+        pl.col(acceleration_col).cast(pl.Float64).fill_null(np.nan).alias("a"),
+        pl.col(segment_col).cast(pl.Int64).alias("segment"),
+        depth.fill_null(np.nan).alias("depth"),
     )
+    columns = columns.collect() if isinstance(columns, pl.LazyFrame) else columns
+    speed = columns["v"]
+    phase, direction, trip_id = trip_label_codes(
+        columns["t"].to_numpy(),
+        speed.fill_null(0.0).to_numpy(),
+        columns["a"].to_numpy(),
+        columns["segment"].to_numpy(),
+        columns["depth"].to_numpy(),
+        hoist,
+        standstill_speed_m_s=standstill_speed_m_s,
+        acceleration_fraction=acceleration_fraction,
+        creep_factor=creep_factor,
+    )
+    unknown = speed.is_null().to_numpy()
+    phase[unknown], direction[unknown], trip_id[unknown] = -1, -1, -1
+    labels = pl.DataFrame(
+        [
+            named_codes("phase", phase, PHASES),
+            named_codes("direction", direction, DIRECTIONS),
+            pl.Series("trip_id", trip_id, dtype=pl.Int64).set(pl.Series(trip_id < 0), None),
+        ]
+    )
+    if isinstance(frame, pl.LazyFrame):
+        return pl.concat([frame, labels.lazy()], how="horizontal")
+    return frame.with_columns(labels)
 
 
 def position_expr(depth: pl.Expr, hoist: HoistDescription) -> pl.Expr:
     """Named shaft position at ``depth`` [m] within the hoist's ``position_window``.
 
-    The nearest named position (``shaft.positions``) whose depth is within
-    ``shaft.position_window`` of ``depth``; null elsewhere (String).
+    :func:`physics.trip_rule.position_codes` as an expression: the nearest named
+    position (``shaft.positions``) whose depth is within ``shaft.position_window`` of
+    ``depth``; null elsewhere (String).
 
     >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
     >>> hoist = load_hoist(EXAMPLE_HOIST)
@@ -374,14 +343,13 @@ def position_expr(depth: pl.Expr, hoist: HoistDescription) -> pl.Expr:
     >>> df.select(position_expr(pl.col("depth_m"), hoist))["position"].to_list()
     ['pithead', None, 'middle', 'bottom']
     """
-    window = hoist.shaft.position_window_m
-    ordered = sorted(hoist.shaft.positions_m.items(), key=lambda item: item[1])
-    distance = [(depth - d).abs() for _, d in ordered]
-    best = pl.min_horizontal(distance)
-    expr = pl.lit(None, dtype=pl.String)
-    for (name, _), dist in zip(ordered, distance, strict=True):
-        expr = pl.when((dist == best) & (dist <= window)).then(pl.lit(name)).otherwise(expr)
-    return expr.alias("position")
+    names = [name for name, _ in ordered_positions(hoist)]
+
+    def batch(depth_m: pl.Series) -> pl.Series:
+        codes = position_codes(depth_m.cast(pl.Float64).fill_null(np.nan).to_numpy(), hoist)
+        return named_codes("position", codes, names)
+
+    return depth.map_batches(batch, return_dtype=pl.String).alias("position")
 
 
 def with_position(frame: Frame, hoist: HoistDescription, *, depth_col: str = "depth_m") -> Frame:

@@ -6,7 +6,7 @@ piston's displacement, not just the four pistons' mean. Two observables carry it
 
 - the oil: the chambers, pipes and manifold are one closed volume V, so the *sum* of the
   four displacements follows the common pressure, A sum_i dx_i = V dp / beta_e(p)
-  (NOTES.md; :func:`transforms.compensation.common_mode_displacement` gives the per-piston
+  (NOTES.md; :func:`physics.closed_volume.common_mode_displacement` gives the per-piston
   mean). With 5 kPa of pressure noise that is a micrometre-class sensor of the sum,
   fast;
 - the logged x_i: each piston's own position, but to a 0.1 mm step with ~0.02 mm of
@@ -86,7 +86,7 @@ def share_out_common_motion(
     ----------
     common_m : ndarray
         Mean piston displacement from the closed oil volume [m] (per sample, restarting
-        at segment starts; :func:`transforms.compensation.common_mode_displacement`).
+        at segment starts; :func:`physics.closed_volume.common_mode_displacement`).
     logged : tuple of ndarray
         Smoothed and played logged displacement of each piston [m] (NaN where unknown).
     segment_id : ndarray of int

@@ -50,6 +50,7 @@ from typing import NamedTuple
 import polars as pl
 import pyarrow as pa
 
+from physics.tension import expected_load_n, tail_rope_length_m, tail_rope_mass_kg
 from schemas.hoist import G_STANDARD, HoistDescription
 from schemas.tables import POSITION_SUMMARY, ROPES, TRIP_SUMMARY
 
@@ -98,21 +99,10 @@ def conform(frame: pl.DataFrame, schema: pa.Schema) -> pl.DataFrame:
     )
 
 
-def _tail_rope_length_expr(hoist: HoistDescription, depth: pl.Expr) -> pl.Expr:
-    """Hanging tail-rope length below the conveyance [m] (as HoistDescription's)."""
-    return hoist.shaft.depth_m - depth + hoist.shaft.tail_rope_loop_m
-
-
-def _tail_rope_mass_expr(hoist: HoistDescription, depth: pl.Expr) -> pl.Expr:
-    """Tail-rope mass below the conveyance [kg] (as HoistDescription.tail_rope_mass_kg)."""
-    per_length_kg_m = hoist.conveyance.tail_ropes * hoist.ropes.tail_rope_mass_per_length_kg_m
-    return per_length_kg_m * _tail_rope_length_expr(hoist, depth)
-
-
 def tail_rope_weight_expr(hoist: HoistDescription, depth_m: pl.Expr | None = None) -> pl.Expr:
     """Weight of the tail ropes hanging below the conveyance [N], m_t(z) g."""
     depth = pl.col("depth_m") if depth_m is None else depth_m
-    return _tail_rope_mass_expr(hoist, depth) * G_STANDARD
+    return tail_rope_mass_kg(hoist, depth) * G_STANDARD
 
 
 def expected_load_expr(
@@ -122,7 +112,7 @@ def expected_load_expr(
     depth_m: pl.Expr | None = None,
     acceleration_up_m_s2: pl.Expr | None = None,
 ) -> pl.Expr:
-    """Expected head-rope load [N]: (m_c + m_p + m_t(z))(g + a) (module docstring).
+    """Expected head-rope load [N] of the columns (:func:`physics.tension.expected_load_n`).
 
     ``depth_m`` and ``acceleration_up_m_s2`` default to the columns of that name; a null
     acceleration counts as zero.
@@ -130,14 +120,13 @@ def expected_load_expr(
     depth = pl.col("depth_m") if depth_m is None else depth_m
     accel = pl.col("acceleration_up_m_s2") if acceleration_up_m_s2 is None else acceleration_up_m_s2
     payload = payload_kg if isinstance(payload_kg, pl.Expr) else pl.lit(float(payload_kg))
-    moving_mass_kg = hoist.conveyance.mass_kg + payload + _tail_rope_mass_expr(hoist, depth)
-    return moving_mass_kg * (G_STANDARD + accel.fill_null(0.0))
+    return expected_load_n(hoist, depth, payload, accel.fill_null(0.0))
 
 
 def _inferred_payload_expr(hoist: HoistDescription) -> pl.Expr:
     """Per-sample payload [kg] implied by the compensated load ``load_n``."""
     accel = pl.col("acceleration_up_m_s2").fill_null(0.0)
-    tail_mass_kg = _tail_rope_mass_expr(hoist, pl.col("depth_m"))
+    tail_mass_kg = tail_rope_mass_kg(hoist, pl.col("depth_m"))
     return pl.col("load_n") / (G_STANDARD + accel) - hoist.conveyance.mass_kg - tail_mass_kg
 
 
@@ -415,7 +404,7 @@ def summarise_positions_from_partials(
             run_id=pl.lit(run_id),
             site=pl.lit(site or hoist.hoist.site),
             hoist=pl.lit(hoist_name or hoist.hoist.name),
-            tail_rope_length_m=_tail_rope_length_expr(hoist, pl.col("depth_m")),
+            tail_rope_length_m=tail_rope_length_m(hoist, pl.col("depth_m")),
             expected_load_n=expected,
             imbalance_after_fraction=_imbalance_expr("tension_after"),
         )
@@ -590,7 +579,6 @@ def table2_check(table2: pl.DataFrame, hoist: HoistDescription) -> pl.DataFrame:
         return pl.max_horizontal([(c - mean).abs() for c in cols]) / mean
 
     depth = hoist.shaft.depth_m + hoist.shaft.tail_rope_loop_m - pl.col("tail_rope_length_m")
-    tail_mass = hoist.conveyance.tail_ropes * hoist.ropes.tail_rope_mass_per_length_kg_m
     return table2.select(
         pl.col("position"),
         pl.col("tail_rope_length_m").cast(pl.Float64),
@@ -605,7 +593,7 @@ def table2_check(table2: pl.DataFrame, hoist: HoistDescription) -> pl.DataFrame:
         ).alias("expected_from_hoist_n"),
         imbalance(before).alias("imbalance_before_fraction"),
         imbalance(after).alias("imbalance_after_fraction"),
-        (tail_mass * pl.col("tail_rope_length_m")).alias("tail_rope_mass_kg"),
+        tail_rope_mass_kg(hoist, depth).alias("tail_rope_mass_kg"),
         (pl.col("tail_rope_mass_t") * 1e3).alias("table_tail_rope_mass_kg"),
     ).with_columns(
         error_before_fraction=pl.col("sum_before_n") / pl.col("expected_load_n") - 1.0,

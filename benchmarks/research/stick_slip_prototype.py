@@ -53,10 +53,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import eval_compensation as ev
 
+from physics.friction_law import friction_law_at, law_array, stribeck_g
+from physics.oil import ATMOSPHERIC_PRESSURE_PA, effective_bulk_modulus_at
 from schemas.hoist import HoistDescription, load_hoist
 from transforms.filtering import lowpass, segment_ids
-from transforms.friction import _linear_law, stribeck_g
-from transforms.oil import ATMOSPHERIC_PRESSURE_PA, effective_bulk_modulus_at
 
 #: Rope constants fitted to the validation truth windows (for --oracle only).
 ORACLE_A = (1.0, 1.0785, 1.0492, 1.0328)
@@ -90,8 +90,7 @@ def _kernel(
     ea,
     headframe,
     sigma0,
-    coef,
-    floors,
+    law,
     a,
     c,
     xout,
@@ -114,7 +113,7 @@ def _kernel(
                 num += p_each[i, j] * area + a[i] * k * (x[i] + c[i])
                 den += a[i] * k
             s = num / den  # zero mean friction at a start: unknown
-            g0 = _linear_law(coef, floors, 1, pj)
+            g0 = friction_law_at(pj, law)[1]
             for i in range(m):
                 f[i] = min(max(a[i] * k * (s - x[i] - c[i]) - p_each[i, j] * area, -g0), g0)
                 v[i] = 0.0
@@ -127,10 +126,7 @@ def _kernel(
         if seg[j] != seg[j - 1]:
             for i in range(m):
                 v[i] = 0.0  # at rest across a gap: static capacity
-        fc = _linear_law(coef, floors, 0, pj)
-        fs = _linear_law(coef, floors, 1, pj)
-        vs = _linear_law(coef, floors, 2, pj)
-        kv = _linear_law(coef, floors, 3, pj)
+        fc, fs, vs, kv = friction_law_at(pj, law)
         for i in range(m):
             cap[i] = stribeck_g(v[i], fc, fs, vs) + kv * abs(v[i])
         ds = 0.0
@@ -182,7 +178,6 @@ def run_model(frame: pl.DataFrame, hoist: HoistDescription, a, c, *, every: int 
     depth = frame["depth_m"].fill_null(0.0).to_numpy().astype(float)[::every]
     seg = np.ascontiguousarray(seg[::every])
     law = hoist.friction_law
-    coef = np.array([law.coulomb_n, law.static_n, law.stribeck_speed_m_s, law.viscous_n_s_m])
     n = depth.size
     x, f = np.empty((4, n)), np.empty((4, n))
     _kernel(
@@ -199,8 +194,7 @@ def run_model(frame: pl.DataFrame, hoist: HoistDescription, a, c, *, every: int 
         hoist.ropes.head_rope_axial_stiffness_n,
         hoist.shaft.headframe_height_m,
         float(law.bristle_stiffness_n_m),
-        coef,
-        np.array([0.0, 0.0, 1e-6, 0.0]),
+        law_array(law),
         np.asarray(a, float),
         np.asarray(c, float),
         x,

@@ -21,19 +21,17 @@ from pathlib import Path
 
 import numpy as np
 
+from physics.two_cylinder import (
+    PAPER_2_2,
+    TwoCylinderConstants,
+    damping_ratio,
+    natural_frequency,
+    transfer_function,
+)
 from pipelines.paper import data
 from pipelines.paper.report import PaperSection, Row, new_figure, save_figure
 from sims.rig import RigDesign, default_friction_law, pressure_loss_test
-from sims.two_cylinder import (
-    PAPER_2_2,
-    StepResponse,
-    TwoCylinderConstants,
-    damping_ratio,
-    fit_second_order_step,
-    natural_frequency,
-    simulate_step,
-    transfer_function,
-)
+from sims.two_cylinder import StepResponse, fit_second_order_step, simulate_step
 
 __all__ = ["eq9_10_section", "section_3_1_section"]
 

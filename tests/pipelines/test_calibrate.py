@@ -18,6 +18,7 @@ import numpy as np
 import polars as pl
 import pytest
 
+from physics.friction_law import friction_parameters
 from pipelines.calibrate import (
     LINE_NAMES,
     CalibrationError,
@@ -27,7 +28,6 @@ from pipelines.calibrate import (
 from pipelines.cli import main
 from schemas.hoist import Friction
 from sims.rig import default_friction_law, simulate_rig, small_friction_test_program, write_rig_mcap
-from transforms.friction import friction_parameters
 from warehouse.store import DataRoot, open_reader
 
 TABLE1_CSV = Path("/work/shared/paper/table1_leuven_parameters.csv")

@@ -6,19 +6,18 @@ import numpy as np
 import polars as pl
 import pytest
 
+from physics.friction_law import friction_parameters
 from schemas.effects import EFFECT_NAMES
 from schemas.hoist import EXAMPLE_HOIST, G_STANDARD, load_hoist
 from sims.device import (
     OUTPUT_COLUMNS,
     SCENARIO_3_2_LOAD_N,
     DeviceState,
-    friction_law_at,
     paper_scenario_3_2,
     simulate,
 )
 from sims.effects import EFFECT_REGISTRY, resolve_effects
 from sims.trips import hold, trip
-from transforms.friction import friction_parameters
 
 ALL = set(EFFECT_NAMES)
 
@@ -55,17 +54,6 @@ def test_unknown_effect_name_lists_valid_ones(hoist):
 
 def test_default_effects_are_the_hoists(hoist):
     assert resolve_effects(hoist).enabled == frozenset(hoist.model.effects)
-
-
-def test_friction_law_kernel_agrees_with_transforms(hoist):
-    from sims.device import _build_par
-
-    eff = resolve_effects(hoist, {"seal_friction"})
-    par, _, _ = _build_par(hoist, eff, oil_temp_c=40.0, p_static_pa=4e6)
-    for p in (0.0, 2e6, 7e6, 12e6, 30e6):
-        ours = friction_law_at(p, par)
-        theirs = [float(a) for a in friction_parameters(p, hoist.friction_law)]
-        assert ours == pytest.approx(theirs, rel=1e-12)
 
 
 # --- outputs and conservation ----------------------------------------------------------

@@ -8,10 +8,10 @@ import numpy as np
 import polars as pl
 import pytest
 
+from physics.friction_law import friction_parameters
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from sims.field_day import generate_field_day, write_field_day
 from sims.noise import NoiseModel
-from transforms.friction import friction_parameters
 
 HOIST = load_hoist(EXAMPLE_HOIST)
 G = 9.80665

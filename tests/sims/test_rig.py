@@ -10,6 +10,8 @@ import pytest
 from mcap.decoder import DecoderFactory
 from mcap.reader import make_reader
 
+from physics.branch_loss import pipe_pressure_loss
+from physics.friction_law import friction_parameters, stribeck_friction
 from schemas.rig_topics import RIG_TOPICS
 from sims.rig import (
     PAPER_LOSS_PA,
@@ -20,8 +22,6 @@ from sims.rig import (
     small_friction_test_program,
     write_rig_mcap,
 )
-from transforms.friction import friction_parameters, stribeck_friction
-from transforms.pressure_loss import pipe_pressure_loss
 
 L_MIN = 1e-3 / 60.0
 
@@ -50,7 +50,7 @@ def test_loss_is_independent_of_load_pressure(loss_runs):
 
 
 def test_loss_matches_eq_12_to_14_computed_independently(loss_runs):
-    """Steady loss = branch loss (eq 12-14, transforms.pressure_loss) + valve override."""
+    """Steady loss = branch loss (eq 12-14, physics.branch_loss) + valve override."""
     d = RigDesign()
     q = 20 * L_MIN * d.bore_area_m2 / d.loading_area_m2  # expelled by the tested piston
     u = q / (math.pi * d.line_bore_m**2 / 4)

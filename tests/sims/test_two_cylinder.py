@@ -6,14 +6,8 @@ import math
 
 import pytest
 
-from sims.two_cylinder import (
-    PAPER_2_2,
-    damping_ratio,
-    fit_second_order_step,
-    natural_frequency,
-    simulate_step,
-    transfer_function,
-)
+from physics.two_cylinder import PAPER_2_2, damping_ratio, natural_frequency, transfer_function
+from sims.two_cylinder import fit_second_order_step, simulate_step
 
 # Hand-computed from the paper 2.2 constants (rho 900, mu 0.0414, d 6 mm, l 1 m,
 # V2 = pi 0.08^2/4 x 0.8 m) with beta = 1.5 GPa, independent of the module:

@@ -59,7 +59,7 @@ def _payload_change(n: int, at: int, dp: float, p0: float = 4e6) -> np.ndarray:
 
 def _slide_volume(dp: float) -> float:
     """Sum of the piston displacements the oil gives for dp [m] (closed volume)."""
-    from transforms.oil import effective_bulk_modulus_at
+    from physics.oil import effective_bulk_modulus_at
 
     beta = effective_bulk_modulus_at(
         4e6, HOIST.oil.bulk_modulus_pa, HOIST.oil.air_fraction, 1e5, 1.0

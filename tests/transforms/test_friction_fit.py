@@ -8,7 +8,7 @@ import numpy as np
 import polars as pl
 import pytest
 
-from transforms.friction import stribeck_friction
+from physics.friction_law import stribeck_friction
 from transforms.friction_fit import (
     EQ17,
     compare_with_eq17,

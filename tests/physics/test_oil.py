@@ -1,4 +1,4 @@
-"""Tests for transforms.oil: ASTM D341 viscosity and entrained-air bulk modulus."""
+"""Tests for physics.oil: ASTM D341 viscosity and entrained-air bulk modulus."""
 
 from __future__ import annotations
 
@@ -7,14 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from schemas.hoist import EXAMPLE_HOIST, load_hoist
-from transforms.oil import (
+from physics.oil import (
     dynamic_viscosity,
     effective_bulk_modulus,
     kinematic_viscosity,
     kinematic_viscosity_walther,
     walther_coefficients,
 )
+from schemas.hoist import EXAMPLE_HOIST, load_hoist
 
 
 def test_walther_reproduces_reference_points():
@@ -83,7 +83,7 @@ def test_bulk_modulus_rejects_bad_fraction():
 def test_effective_bulk_modulus_scalar_kernel_is_the_array_formula():
     """The numba scalar form used inside kernels gives the array function's values,
     written out here from Merritt's formula."""
-    from transforms.oil import ATMOSPHERIC_PRESSURE_PA, effective_bulk_modulus_at
+    from physics.oil import ATMOSPHERIC_PRESSURE_PA, effective_bulk_modulus_at
 
     p = np.linspace(1e5, 1e7, 101)
     for x0, n in [(0.0, 1.0), (0.01, 1.0), (0.02, 1.4)]:

@@ -1,4 +1,4 @@
-"""Tests for transforms.pressure_loss (paper eq 12-14, contract section 1a)."""
+"""Tests for physics.branch_loss (paper eq 12-14, contract section 1a)."""
 
 from __future__ import annotations
 
@@ -9,9 +9,7 @@ import numpy as np
 import polars as pl
 import pytest
 
-from schemas.hoist import EXAMPLE_HOIST, load_hoist
-from transforms.oil import kinematic_viscosity
-from transforms.pressure_loss import (
+from physics.branch_loss import (
     darcy_friction_factor,
     globe_valve_k,
     pipe_pressure_loss,
@@ -19,6 +17,8 @@ from transforms.pressure_loss import (
     sensor_minus_chamber_expr,
     sensor_minus_chamber_pa,
 )
+from physics.oil import kinematic_viscosity
+from schemas.hoist import EXAMPLE_HOIST, load_hoist
 
 HOIST = load_hoist(EXAMPLE_HOIST)
 

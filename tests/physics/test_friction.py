@@ -1,4 +1,4 @@
-"""Tests for transforms.friction: Stribeck map, LuGre and Maxwell-slip.
+"""Tests for physics.friction_law, .lugre and .maxwell_slip: Stribeck, LuGre, Maxwell-slip.
 
 The LuGre cases reproduce Canudas de Wit, Olsson, Astrom, Lischinsky (1995), "A new
 model for control of systems with friction", IEEE TAC 40(3) 419-425, with the
@@ -18,19 +18,15 @@ import pytest
 from numba import njit
 from scipy.integrate import solve_ivp
 
-from schemas.hoist import EXAMPLE_HOIST, FrictionLaw, load_hoist
-from transforms.friction import (
+from physics.friction_law import (
     STRIBECK_SPEED_FLOOR_M_S,
     friction_parameters,
-    lugre_force,
-    lugre_friction,
-    lugre_z_step,
-    maxwell_slip_elements,
-    maxwell_slip_friction,
-    maxwell_slip_step,
     stribeck_friction,
     stribeck_g,
 )
+from physics.lugre import lugre_force, lugre_friction, lugre_z_step
+from physics.maxwell_slip import maxwell_slip_elements, maxwell_slip_friction, maxwell_slip_step
+from schemas.hoist import EXAMPLE_HOIST, FrictionLaw, load_hoist
 
 SIGMA0 = 1e5
 SIGMA1 = math.sqrt(1e5)
@@ -271,7 +267,8 @@ def test_lugre_stick_slip_cycles():
 
 # --- Maxwell-slip -------------------------------------------------------------------------
 K_ELEM, W_ELEM = maxwell_slip_elements(4, 2.5e7)
-CAP = W_ELEM * 1200.0  # N
+G_SLIDING = 1200.0  # N
+CAP = W_ELEM * G_SLIDING  # N
 
 
 def _virgin(x: np.ndarray) -> np.ndarray:
@@ -283,7 +280,7 @@ def _drive(path: np.ndarray) -> np.ndarray:
     out = np.empty(path.size)
     prev = 0.0
     for i, xi in enumerate(path):
-        out[i] = maxwell_slip_step(deltas, xi - prev, K_ELEM, CAP)
+        out[i] = maxwell_slip_step(deltas, xi - prev, K_ELEM, W_ELEM, G_SLIDING)
         prev = xi
     return out
 

@@ -1,0 +1,272 @@
+"""The trip rule: phase, direction and trip of each sample, and the shaft position.
+
+Not an equation of the paper; the rule every step that speaks of trips uses (the
+compensation's labels, the reconciliation's stints, :func:`transforms.kinematics.with_trip_phases`).
+
+Functions
+    :func:`trip_label_codes` -- phase, direction and trip id per sample as integer codes,
+    resumable block by block (numba kernel).
+    :func:`position_codes` -- the nearest named shaft position within the window.
+    :func:`trip_label_columns` -- both as the string / Int64 columns of the tables.
+
+Rules, first match wins (|v| the speed, a_t = a sgn(v) the tangential acceleration):
+
+==============  ===================================================================
+standstill      |v| < ``standstill_speed_m_s`` (default 0.02 m/s)
+accelerate      a_t >  ``acceleration_fraction`` (0.3) x the winder's acceleration
+decelerate      a_t < -``acceleration_fraction`` x the winder's deceleration
+creep           |v| <= ``creep_factor`` (1.5) x the winder's creep speed
+run             otherwise
+==============  ===================================================================
+
+``direction`` is down for speed > 0 and up for speed < 0 (none at standstill). A trip is
+a maximal run of non-standstill samples, numbered from 0 in time order (a direction
+reversal without a stop stays one trip). A logger gap (a new segment) inside a motion
+continues the trip when the motion has the same direction on both sides and the gap is
+at most :data:`TRIP_BRIDGE_S`, or the depth advanced across it, in that direction, at a
+mean speed between :data:`TRIP_BRIDGE_SPEED_FRACTION` x the slower speed and the faster
+speed / that fraction; otherwise the motion after the gap is a new trip.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import polars as pl
+from numba import njit
+
+from schemas.hoist import HoistDescription
+
+__all__ = [
+    "DIRECTIONS",
+    "LABEL_STATE_SIZE",
+    "PHASES",
+    "TRIP_BRIDGE_S",
+    "TRIP_BRIDGE_SPEED_FRACTION",
+    "named_codes",
+    "ordered_positions",
+    "position_codes",
+    "trip_label_codes",
+    "trip_label_columns",
+]
+
+#: Trip phase labels; a phase code is an index into it.
+PHASES = ("accelerate", "run", "decelerate", "creep", "standstill")
+#: Direction labels; a direction code is an index into it.
+DIRECTIONS = ("down", "up")
+#: A logger gap of at most this many seconds inside a motion does not end the trip [s] ...
+TRIP_BRIDGE_S = 2.0
+#: ... as does a longer gap over which the depth advanced, in the direction of motion,
+#: at a mean speed between this fraction of the slower speed either side of it and the
+#: faster speed over this fraction: the conveyance kept moving, so no stop (and no
+#: unseen round trip) can have hidden in the gap.
+TRIP_BRIDGE_SPEED_FRACTION = 0.5
+#: Length of :func:`trip_label_codes`' state.
+LABEL_STATE_SIZE = 7
+
+_ACCELERATE, _RUN, _DECELERATE, _CREEP, _STANDSTILL = (
+    PHASES.index(name) for name in ("accelerate", "run", "decelerate", "creep", "standstill")
+)
+
+
+def trip_label_codes(
+    time_s: np.ndarray,
+    speed: np.ndarray,
+    accel: np.ndarray,
+    segment: np.ndarray,
+    depth: np.ndarray,
+    hoist: HoistDescription,
+    *,
+    standstill_speed_m_s: float = 0.02,
+    acceleration_fraction: float = 0.3,
+    creep_factor: float = 1.5,
+    state: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Integer codes of the module's rule: phase (index in :data:`PHASES`), direction
+    (index in :data:`DIRECTIONS`, -1 at standstill) and trip id (-1 at standstill).
+
+    ``time_s`` [s], ``speed`` [m/s] positive down (no NaN: fill before), ``accel``
+    [m/s2] in the speed's sense, ``segment`` the logger's gap-free segment ids, ``depth``
+    [m] (NaN where unknown: a longer gap then ends the trip). ``state``: carried from the
+    previous block (:data:`LABEL_STATE_SIZE`; None for the record's first).
+
+    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
+    >>> t = np.arange(6.0)
+    >>> v = np.array([0.0, 1.0, 1.0, 0.0, -1.0, 0.0])
+    >>> phase, direction, trip = trip_label_codes(t, v, np.zeros(6), np.zeros(6, np.int64),
+    ...                                           np.zeros(6), load_hoist(EXAMPLE_HOIST))
+    >>> trip.tolist(), direction.tolist()
+    ([-1, 0, 0, -1, 1, -1], [-1, 0, 0, -1, 1, -1])
+    """
+    winder = hoist.winder
+    phase = np.empty(speed.size, dtype=np.int8)
+    direction = np.empty(speed.size, dtype=np.int8)
+    trip_id = np.empty(speed.size, dtype=np.int64)
+    _label_kernel(
+        np.ascontiguousarray(time_s, dtype=np.float64),
+        np.ascontiguousarray(speed, dtype=np.float64),
+        np.ascontiguousarray(accel, dtype=np.float64),
+        np.ascontiguousarray(segment, dtype=np.int64),
+        np.ascontiguousarray(depth, dtype=np.float64),
+        TRIP_BRIDGE_S,
+        TRIP_BRIDGE_SPEED_FRACTION,
+        standstill_speed_m_s,
+        creep_factor * winder.creep_speed_m_s,
+        -acceleration_fraction * winder.deceleration_m_s2,
+        acceleration_fraction * winder.acceleration_m_s2,
+        phase,
+        direction,
+        trip_id,
+        np.zeros(LABEL_STATE_SIZE) if state is None else state,
+    )
+    return phase, direction, trip_id
+
+
+@njit(cache=True, nogil=True)
+def _label_kernel(
+    time_s,
+    speed,
+    accel,
+    segment,
+    depth,
+    bridge_s,
+    bridge_fraction,
+    standstill,
+    creep,
+    decelerating,
+    accelerating,
+    phase,
+    direction,
+    trip_id,
+    state,
+):  # pragma: no cover - numba
+    """The rules of :func:`trip_label_codes` (later rules override earlier ones), one pass.
+
+    ``state`` = [ran, continues segment, last trip id, was moving, last speed, time,
+    depth] (:data:`LABEL_STATE_SIZE`; all 0 before the first call).
+    """
+    ran = state[0] != 0.0
+    resume = ran and state[1] != 0.0
+    trips = int(state[2]) if ran else -1
+    was_moving = ran and state[3] != 0.0
+    for i in range(speed.shape[0]):
+        v = speed[i]
+        abs_v = abs(v)
+        a_t = accel[i] * np.sign(v)
+        moving = abs_v >= standstill
+        code = _RUN
+        if abs_v <= creep:
+            code = _CREEP
+        if a_t < decelerating:
+            code = _DECELERATE
+        if a_t > accelerating:
+            code = _ACCELERATE
+        if not moving:
+            code = _STANDSTILL
+        phase[i] = code
+        direction[i] = -1
+        if moving and v > 0:
+            direction[i] = 0
+        elif moving and v < 0:
+            direction[i] = 1
+        new_segment = not resume if i == 0 else segment[i] != segment[i - 1]
+        if moving and ((i == 0 and not ran) or not was_moving):
+            trips += 1
+        elif moving and new_segment:
+            # a logger gap inside a motion: the same trip if it kept moving the same way
+            v_before = speed[i - 1] if i > 0 else state[4]
+            gap = time_s[i] - (time_s[i - 1] if i > 0 else state[5])
+            advance = (depth[i] - (depth[i - 1] if i > 0 else state[6])) * np.sign(v)
+            slower = min(abs_v, abs(v_before))
+            faster = max(abs_v, abs(v_before))
+            kept_moving = (
+                advance >= bridge_fraction * slower * gap
+                and advance <= faster / bridge_fraction * gap
+            )
+            if not (np.sign(v) == np.sign(v_before) and (gap <= bridge_s or kept_moving)):
+                trips += 1
+        trip_id[i] = trips if moving else -1
+        was_moving = moving
+    n = speed.shape[0]
+    if n:
+        state[0] = 1.0
+        state[2] = trips
+        state[3] = 1.0 if was_moving else 0.0
+        state[4], state[5], state[6] = speed[n - 1], time_s[n - 1], depth[n - 1]
+
+
+#: Length of :func:`_label_kernel`'s state.
+
+
+def ordered_positions(hoist: HoistDescription) -> list[tuple[str, float]]:
+    """The hoist's named shaft positions (name, depth [m]) by depth."""
+    return sorted(hoist.shaft.positions_m.items(), key=lambda item: item[1])
+
+
+@njit(cache=True, nogil=True)
+def _position_kernel(depth, positions, window, position):  # pragma: no cover - numba
+    for i in range(depth.shape[0]):
+        position[i] = -1
+        if positions.shape[0] and not np.isnan(depth[i]):
+            best = abs(depth[i] - positions[0])
+            for k in range(1, positions.shape[0]):
+                best = min(best, abs(depth[i] - positions[k]))
+            for k in range(positions.shape[0]):
+                dist = abs(depth[i] - positions[k])
+                if dist == best and dist <= window:
+                    position[i] = k
+
+
+def position_codes(depth: np.ndarray, hoist: HoistDescription) -> np.ndarray:
+    """Index in :func:`ordered_positions` of the nearest named position within the hoist's
+    ``position_window`` of ``depth`` [m]; -1 elsewhere (and where depth is NaN).
+
+    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
+    >>> position_codes(np.array([1.0, 100.0, 318.0, 604.0]), load_hoist(EXAMPLE_HOIST)).tolist()
+    [0, -1, 1, 2]
+    """
+    position = np.empty(np.size(depth), dtype=np.int8)
+    _position_kernel(
+        np.ascontiguousarray(depth, dtype=np.float64),
+        np.array([d for _, d in ordered_positions(hoist)], dtype=np.float64),
+        float(hoist.shaft.position_window_m),
+        position,
+    )
+    return position
+
+
+def named_codes(name: str, codes: np.ndarray, names: list[str] | tuple[str, ...]) -> pl.Series:
+    """Integer codes as a String column of their names (-1: null).
+
+    >>> named_codes("direction", np.array([0, -1, 1], dtype=np.int8), DIRECTIONS).to_list()
+    ['down', None, 'up']
+    """
+    if codes.size == 0:
+        return pl.Series(name, [], dtype=pl.String)
+    if not names:
+        return pl.Series(name, [None], dtype=pl.String).extend_constant(None, codes.size - 1)
+    index = pl.Series(codes).cast(pl.UInt32, strict=False)  # -1 becomes a null index
+    return pl.Series(name, list(names), dtype=pl.String).gather(index)
+
+
+def trip_label_columns(
+    time_s: np.ndarray,
+    speed: np.ndarray,
+    depth: np.ndarray,
+    accel: np.ndarray,
+    segment: np.ndarray,
+    hoist: HoistDescription,
+    state: np.ndarray | None = None,
+) -> dict[str, pl.Series]:
+    """``trip_id`` (Int64), ``phase``, ``direction`` and ``position`` (String) columns of
+    :func:`trip_label_codes` and :func:`position_codes` (nulls where the code is -1)."""
+    codes, direction, trip_id = trip_label_codes(
+        time_s, speed, accel, segment, depth, hoist, state=state
+    )
+    position = position_codes(depth, hoist)
+    names = [name for name, _ in ordered_positions(hoist)]
+    return {
+        "trip_id": pl.Series("trip_id", trip_id, dtype=pl.Int64).set(pl.Series(trip_id < 0), None),
+        "phase": named_codes("phase", codes, list(PHASES)),
+        "direction": named_codes("direction", direction, list(DIRECTIONS)),
+        "position": named_codes("position", position, names),
+    }

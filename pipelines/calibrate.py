@@ -1,30 +1,20 @@
 """``ropeload calibrate``: friction-rig recordings -> a seal-friction parameter set.
 
-The friction test of paper section 4.2.1 drives the tested cylinder at controlled
-speeds against a set back-pressure at oil pressures 2..12 MPa. At a steady speed the
-LuGre state (paper eq 15) is at rest (dz/dt = 0), so the measured friction is the
-steady-state Stribeck curve (eq 16/18)::
+The friction test of paper section 4.2.1 measures the steady-state Stribeck curve
+(eq 16/18) per oil pressure (Table 1) and its parameters as straight lines in pressure
+(eq 17). The physics lives in transforms: the force balance and the steady steps
+(:mod:`transforms.rig_friction`), the Stribeck fits and the lines
+(:mod:`transforms.friction_fit`). This module is the command around them (contract 3):
 
-    F(v) = [Fc + (Fs - Fc) exp(-(v/vs)^2)] sgn(v) + Kv v
-
-whose four parameters the paper tabulates per pressure (Table 1) and fits as straight
-lines in pressure (eq 17). This module does the same on rig recordings (contract 3):
-
-Steps (plain functions, no I/O except in :func:`calibrate_rig` and :func:`read_rig_info`)
+Inputs
     :func:`read_rig_info` -- ``/rig/info`` of an MCAP recording (bore, rod, moving mass).
-    :func:`seal_friction_samples` -- piston velocity and acceleration from displacement
-    (Savitzky-Golay derivatives) and the seal friction per sample,
-    ``F = p_rodless A_bore - p_rod (A_bore - A_rod) - m a`` (contract 3).
-    :func:`steady_steps` -- per ``/rig/step``: the steady part (acceleration and
-    bristle transient dropped), its mean speed and mean friction.
-    :func:`fit_pressure_levels` -- a Stribeck fit per pressure level with 1-sigma
-    uncertainties: the analogue of Table 1.
-    :func:`friction_toml` -- the ``[friction]`` section of a hoist description.
+    The rig samples are read from the lake (``rig_samples``).
 
-Orchestration and reports
-    :func:`calibrate_rig` -- ingest (optional), read the lake, fit, land a
-    ``friction_parameter_sets`` row and a ``runs`` row; returns a
+Orchestration and outputs
+    :func:`calibrate_rig` -- ingest (optional), read the lake, call the transforms, land
+    a ``friction_parameter_sets`` row and a ``runs`` row; returns a
     :class:`CalibrationResult`.
+    :func:`friction_toml` -- the ``[friction]`` section of a hoist description.
     :func:`format_calibration` -- the printed report of ``ropeload calibrate``.
     :func:`table1_report` -- OLS lines through paper Table 1 with residuals, and where
     they differ from the printed eq 17 (``ropeload calibrate --table1``).
@@ -46,8 +36,6 @@ from pathlib import Path
 
 import numpy as np
 import polars as pl
-from scipy.ndimage import uniform_filter1d
-from scipy.signal import savgol_filter
 
 from pipelines.lake import lake_partitions, scan_lake
 from pipelines.provenance import code_version, utc_now
@@ -58,9 +46,9 @@ from transforms.friction_fit import (
     StribeckFit,
     compare_with_eq17,
     fit_friction_law,
-    fit_stribeck,
     fit_table1,
 )
+from transforms.rig_friction import fit_pressure_levels, seal_friction_samples, steady_steps
 from warehouse.store import DataRoot
 
 __all__ = [
@@ -72,12 +60,9 @@ __all__ = [
     "eq17_coefficient_verdict",
     "eq17_line_verdict",
     "eq17_summary",
-    "fit_pressure_levels",
     "format_calibration",
     "friction_toml",
     "read_rig_info",
-    "seal_friction_samples",
-    "steady_steps",
     "table1_report",
 ]
 
@@ -164,262 +149,6 @@ def read_rig_info(path: str | Path) -> RigInfo:
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise CalibrationError(f"{path}: /rig/info is missing or has a bad field ({exc})") from None
-
-
-# ---------------------------------------------------------------------------------------
-# Samples -> friction -> steady steps
-# ---------------------------------------------------------------------------------------
-def _odd(n: float) -> int:
-    k = max(round(n), 5)
-    return k if k % 2 else k + 1
-
-
-def seal_friction_samples(
-    samples: pl.DataFrame,
-    *,
-    bore_m: float,
-    rod_m: float,
-    moving_mass_kg: float,
-    smooth_s: float = 0.05,
-    max_gap_s: float = 0.5,
-) -> pl.DataFrame:
-    r"""Piston velocity, acceleration and seal friction per rig sample (contract 3).
-
-    .. math::
-        F = p_{rodless} A_{bore} - p_{rod} (A_{bore} - A_{rod}) - m \ddot x
-
-    Velocity and acceleration are Savitzky-Golay derivatives of ``x_m`` (quadratic,
-    windows ``smooth_s`` and ``2 smooth_s``), computed per contiguous block (a gap
-    longer than ``max_gap_s`` starts a new block: another recording). The sign
-    convention is that of :mod:`physics.friction_law`: friction is positive while the
-    rod moves out (v > 0), opposing the motion.
-
-    Parameters
-    ----------
-    samples : polars.DataFrame
-        ``rig_samples`` rows (schema :data:`schemas.tables.RIG_SAMPLES`), any order.
-    bore_m, rod_m : float
-        Piston and rod diameters [m].
-    moving_mass_kg : float
-        Piston, rod and attached mass [kg].
-    smooth_s : float
-        Derivative window [s].
-    max_gap_s : float
-        Longest time gap inside one recording [s].
-
-    Returns
-    -------
-    polars.DataFrame
-        The samples sorted by time plus ``t_s`` (from the first sample), ``block``,
-        ``segment`` (a new one at each step change or gap), ``v_m_s``, ``a_m_s2`` and
-        ``friction_n``.
-    """
-    if samples.height == 0:
-        raise CalibrationError("no rig samples")
-    area_bore = math.pi * bore_m**2 / 4.0
-    area_annulus = math.pi * (bore_m**2 - rod_m**2) / 4.0
-    frame = samples.sort("time_utc").with_columns(
-        t_s=(pl.col("time_utc") - pl.col("time_utc").first()).dt.total_microseconds() / 1e6
-    )
-    gap = (pl.col("t_s").diff() > max_gap_s).fill_null(False)
-    changed = pl.col("step").ne_missing(pl.col("step").shift()).fill_null(False)
-    frame = frame.with_columns(
-        block=gap.cum_sum().cast(pl.Int64),
-        segment=(gap | changed).cum_sum().cast(pl.Int64),
-        x_filled=pl.col("x_m").interpolate().forward_fill().backward_fill(),
-    )
-    velocity = np.full(frame.height, np.nan)
-    acceleration = np.full(frame.height, np.nan)
-    t_all = frame["t_s"].to_numpy()
-    x_all = frame["x_filled"].to_numpy()
-    bounds = np.flatnonzero(np.diff(frame["block"].to_numpy())) + 1
-    for lo, hi in zip(np.r_[0, bounds], np.r_[bounds, frame.height], strict=True):
-        t, x = t_all[lo:hi], x_all[lo:hi]
-        if t.size < 11 or not np.isfinite(x).all():
-            continue
-        dt_s = float(np.median(np.diff(t)))
-        w1 = min(_odd(smooth_s / dt_s), t.size - (1 - t.size % 2))
-        w2 = min(_odd(2 * smooth_s / dt_s), t.size - (1 - t.size % 2))
-        velocity[lo:hi] = savgol_filter(x, w1, 2, deriv=1, delta=dt_s, mode="interp")
-        acceleration[lo:hi] = savgol_filter(x, w2, 2, deriv=2, delta=dt_s, mode="interp")
-    return (
-        frame.drop("x_filled")
-        .with_columns(
-            v_m_s=pl.Series(velocity),
-            a_m_s2=pl.Series(acceleration),
-        )
-        .with_columns(
-            friction_n=pl.col("p_rodless_pa") * area_bore
-            - pl.col("p_rod_pa") * area_annulus
-            - moving_mass_kg * pl.col("a_m_s2")
-        )
-    )
-
-
-_STEP_SCHEMA = {
-    "segment": pl.Int64,
-    "step": pl.Int32,
-    "pressure_setpoint_pa": pl.Float64,
-    "velocity_setpoint_m_s": pl.Float64,
-    "steady_start_s": pl.Float64,
-    "steady_end_s": pl.Float64,
-    "samples": pl.Int64,
-    "p_rodless_pa": pl.Float64,
-    "velocity_m_s": pl.Float64,
-    "friction_n": pl.Float64,
-    "friction_sem_n": pl.Float64,
-}
-
-
-def _steady_start(
-    v: np.ndarray, force: np.ndarray, window: int, velocity_tol: float, force_tol: float
-) -> int:
-    """First index from which speed and friction stay at their end-of-step values."""
-    tail = slice(3 * v.size // 4, None)
-    v_end = float(np.median(v[tail]))
-    f_end = float(np.mean(force[tail]))
-    f_smooth = uniform_filter1d(force, window, mode="nearest")
-    noise = float(np.median(np.abs(np.diff(force)))) / (0.6745 * math.sqrt(2.0))
-    band = max(5.0 * noise / math.sqrt(window), force_tol * abs(f_end))
-    v_noise = 1.4826 * float(np.median(np.abs(v[tail] - v_end)))
-    v_band = max(velocity_tol * abs(v_end), 5.0 * v_noise)
-    unsettled = (np.abs(v - v_end) > v_band) | (np.abs(f_smooth - f_end) > band)
-    bad = np.flatnonzero(unsettled)
-    return int(bad[-1]) + 1 if bad.size else 0
-
-
-def steady_steps(
-    frame: pl.DataFrame,
-    *,
-    smooth_s: float = 0.05,
-    velocity_tol: float = 0.05,
-    force_tol: float = 0.01,
-    min_steady_s: float = 0.1,
-) -> pl.DataFrame:
-    """Mean speed and friction over the steady part of each moving step (paper 4.2.1).
-
-    A step (segment of :func:`seal_friction_samples`) with a non-zero velocity setpoint
-    starts with the speed ramp and the bristle transient of the LuGre state (eq 15: z
-    relaxes over a travel of about F/sigma0). Its steady part is where, from some sample
-    on to the end of the step, the smoothed speed stays within ``velocity_tol`` of the
-    end-of-step speed (median of the last quarter; or within 5 robust standard
-    deviations of the speed there, whichever is wider) and the ``smooth_s`` running mean
-    of the friction within max(5 standard errors, ``force_tol`` relative) of the
-    end-of-step friction (mean of the last quarter). What is left of the transient
-    biases the step mean far less than the band: it decays exponentially with travel.
-    The last ``smooth_s`` of a step is left out (the derivative windows there reach
-    into the next step's speed ramp). Steps with less than ``min_steady_s`` of steady
-    data are
-    dropped. The step's speed is the least-squares slope of x over the steady part
-    (the derivative averaged without the Savitzky-Golay edge effects); its friction
-    the mean of ``friction_n`` there, with its standard error.
-
-    Returns one row per kept step: ``segment, step, pressure_setpoint_pa,
-    velocity_setpoint_m_s, steady_start_s, steady_end_s, samples, p_rodless_pa,
-    velocity_m_s, friction_n, friction_sem_n``.
-    """
-    rows = []
-    moving = frame.filter(
-        pl.col("velocity_setpoint_m_s").is_not_null()
-        & (pl.col("velocity_setpoint_m_s") != 0)
-        & pl.col("v_m_s").is_not_nan()
-        & pl.col("x_m").is_not_null()
-    )
-    for whole in moving.partition_by("segment", maintain_order=True):
-        # the derivative windows reach into the next step's ramp: trim one window
-        part = whole.filter(pl.col("t_s") <= pl.col("t_s").max() - smooth_s)
-        t = part["t_s"].to_numpy()
-        if t.size < 20 or t[-1] - t[0] < min_steady_s:
-            continue
-        dt_s = float(np.median(np.diff(t)))
-        window = max(round(smooth_s / dt_s), 3)
-        force = part["friction_n"].to_numpy()
-        start = _steady_start(part["v_m_s"].to_numpy(), force, window, velocity_tol, force_tol)
-        keep = slice(start, None)
-        if t.size - start < 10 or t[-1] - t[start] < min_steady_s:
-            continue
-        tk, xk, fk = t[keep], part["x_m"].to_numpy()[keep], force[keep]
-        slope = float(np.polyfit(tk - tk.mean(), xk, 1)[0])
-        first = part.row(0, named=True)
-        rows.append(
-            {
-                "segment": int(first["segment"]),
-                "step": first["step"],
-                "pressure_setpoint_pa": first["pressure_setpoint_pa"],
-                "velocity_setpoint_m_s": first["velocity_setpoint_m_s"],
-                "steady_start_s": float(tk[0]),
-                "steady_end_s": float(tk[-1]),
-                "samples": int(tk.size),
-                "p_rodless_pa": float(part["p_rodless_pa"].to_numpy()[keep].mean()),
-                "velocity_m_s": slope,
-                "friction_n": float(fk.mean()),
-                "friction_sem_n": float(fk.std(ddof=1) / math.sqrt(fk.size)),
-            }
-        )
-    return pl.DataFrame(rows, schema=_STEP_SCHEMA)
-
-
-_LEVEL_SCHEMA = {
-    "pressure_setpoint_pa": pl.Float64,
-    "p_rodless_pa": pl.Float64,
-    "steps": pl.Int64,
-    "coulomb_n": pl.Float64,
-    "coulomb_sigma_n": pl.Float64,
-    "static_n": pl.Float64,
-    "static_sigma_n": pl.Float64,
-    "stribeck_speed_m_s": pl.Float64,
-    "stribeck_speed_sigma_m_s": pl.Float64,
-    "viscous_n_s_m": pl.Float64,
-    "viscous_sigma_n_s_m": pl.Float64,
-    "rms_n": pl.Float64,
-    "converged": pl.Boolean,
-}
-
-
-def fit_pressure_levels(
-    steps: pl.DataFrame, *, level_resolution_pa: float = 1e4, min_points: int = 5
-) -> tuple[pl.DataFrame, list[StribeckFit]]:
-    """Stribeck fit (eq 16/18) per pressure level, both directions together.
-
-    Steps are grouped by their pressure setpoint (rounded to ``level_resolution_pa``);
-    each level's fit is assigned to the mean measured rodless pressure of its steps,
-    the pressure the eq-17 lines are functions of. Levels with fewer than
-    ``min_points`` steps are skipped. This is the analogue of paper Table 1, in SI with
-    1-sigma uncertainties (:func:`transforms.friction_fit.fit_stribeck`).
-
-    Returns the per-pressure frame (ascending pressure; columns ``pressure_setpoint_pa,
-    p_rodless_pa, steps``, each parameter with its ``*_sigma_*``, ``rms_n``,
-    ``converged``) and the fits in the same order.
-    """
-    levels = (
-        steps.with_columns(level=(pl.col("pressure_setpoint_pa") / level_resolution_pa).round(0))
-        .filter(pl.col("level").is_not_null())
-        .sort("level", "segment")
-    )
-    rows, fits = [], []
-    for part in levels.partition_by("level", maintain_order=True):
-        if part.height < min_points:
-            continue
-        fit = fit_stribeck(part["velocity_m_s"].to_numpy(), part["friction_n"].to_numpy())
-        fits.append(fit)
-        rows.append(
-            {
-                "pressure_setpoint_pa": float(part["pressure_setpoint_pa"].mean()),  # type: ignore[arg-type]
-                "p_rodless_pa": float(part["p_rodless_pa"].mean()),  # type: ignore[arg-type]
-                "steps": part.height,
-                "coulomb_n": fit.fc,
-                "coulomb_sigma_n": fit.sigma[0],
-                "static_n": fit.fs,
-                "static_sigma_n": fit.sigma[1],
-                "stribeck_speed_m_s": fit.vs,
-                "stribeck_speed_sigma_m_s": fit.sigma[2],
-                "viscous_n_s_m": fit.kv,
-                "viscous_sigma_n_s_m": fit.sigma[3],
-                "rms_n": fit.rms,
-                "converged": fit.success,
-            }
-        )
-    return pl.DataFrame(rows, schema=_LEVEL_SCHEMA), fits
 
 
 # ---------------------------------------------------------------------------------------
@@ -540,6 +269,17 @@ def _ingest(
     return [f.sha256 for f in report.files], infos, notes
 
 
+def _recorded_infos(data: DataRoot, inputs: Sequence[str], rig_id: str) -> list[RigInfo]:
+    """``/rig/info`` of the ingested recordings still at their manifest source paths."""
+    infos: list[RigInfo] = []
+    for row in _manifest_rows(data, inputs).iter_rows(named=True):
+        if Path(row["source_path"]).is_file():
+            info = read_rig_info(row["source_path"])
+            if info.rig_id == rig_id:
+                infos.append(info)
+    return infos
+
+
 def _geometry(
     infos: Sequence[RigInfo],
     rig_id: str,
@@ -576,58 +316,19 @@ def _geometry(
     )
 
 
-def calibrate_rig(
-    *,
-    data: DataRoot,
-    rig_id: str | None = None,
-    recordings: Sequence[str | Path] = (),
-    parameter_set: str | None = None,
-    bore_m: float | None = None,
-    rod_m: float | None = None,
-    moving_mass_kg: float | None = None,
-    bristle_stiffness_n_m: float = DEFAULT_BRISTLE_STIFFNESS_N_M,
-    bristle_damping_n_s_m: float = DEFAULT_BRISTLE_DAMPING_N_S_M,
-    presliding_elements: int = DEFAULT_PRESLIDING_ELEMENTS,
-    smooth_s: float = 0.05,
-) -> CalibrationResult:
-    """Calibrate the seal-friction law from friction-rig recordings (paper 4.2.1, eq 15-18).
-
-    1. ``recordings`` (MCAP, contract 3), if given, are ingested first
-       (:func:`pipelines.ingest.ingest_paths`; already-ingested content is skipped) and
-       only their samples are used; without them, every rig sample of ``rig_id`` in the
-       lake is used. ``rig_id`` defaults to the recordings' (or the lake's only) rig.
-    2. Seal friction per sample (:func:`seal_friction_samples`), with bore, rod and
-       moving mass from ``/rig/info`` of the recordings (read from the files: the lake
-       does not keep it; for lake-only runs, from the manifest's source paths), unless
-       given explicitly.
-    3. Steady part of each step (:func:`steady_steps`), a Stribeck fit per pressure
-       level (:func:`fit_pressure_levels`, Table 1 analogue), weighted lines in pressure
-       (:func:`transforms.friction_fit.fit_friction_law`, eq 17 analogue).
-    4. Lands one ``friction_parameter_sets`` row (replaced by name) and one ``runs``
-       row (command ``calibrate``, inputs = source sha256) in one
-       :func:`warehouse.store.open_writer` block. The default ``parameter_set`` name is
-       ``<rig_id>-<hash of the inputs>`` and the run id ``calibrate-<parameter_set>``,
-       so calibrating the same data again replaces both rows, never duplicates them.
-
-    The bristle parameters (``bristle_*``, ``presliding_elements``) are not identified
-    by steady-speed data; they are carried into the law as given.
-
-    Raises
-    ------
-    CalibrationError
-        A refused recording, no rig samples, missing geometry, or fewer than three
-        pressure levels with at least five steady steps each.
-    """
-    from warehouse.landing import RunRecord, land_friction_parameter_sets, land_run
-    from warehouse.store import open_writer
-
-    started = utc_now()
+def _check_names(rig_id: str | None, parameter_set: str | None) -> None:
     try:  # a rig id is a lake folder, a parameter set a hoist description's name
         for key, value in (("--rig", rig_id), ("--parameter-set", parameter_set)):
             if value is not None:
                 safe_name(value, key=key, source="ropeload calibrate")
     except UnsafeNameError as exc:
         raise CalibrationError(str(exc)) from None
+
+
+def _select_rig(
+    data: DataRoot, recordings: Sequence[str | Path], rig_id: str | None
+) -> tuple[str, list[str], list[RigInfo], list[str]]:
+    """The rig to calibrate, the given recordings' sha256 and ``/rig/info``, and notes."""
     notes: list[str] = []
     given_shas: list[str] = []
     infos: list[RigInfo] = []
@@ -652,7 +353,11 @@ def calibrate_rig(
                 "ingest MCAP recordings or pass them, and name the rig when there are several"
             )
         rig_id = ids[0]
+    return rig_id, given_shas, infos, notes
 
+
+def _rig_samples(data: DataRoot, rig_id: str, given_shas: Sequence[str]) -> pl.DataFrame:
+    """The rig's samples in the lake: those of the given recordings, or all of them."""
     if given_shas:
         manifest = _manifest_rows(data, given_shas).filter(pl.col("hoist") == rig_id)
         parts = [
@@ -677,16 +382,22 @@ def calibrate_rig(
             f"no rig samples for rig {rig_id!r} in {data.path}: ingest its MCAP recordings "
             "first (ropeload ingest FILE.mcap) or pass them to calibrate"
         )
-    inputs = tuple(sorted(set(samples["source_sha256"].unique().to_list()) | set(given_shas)))
+    return samples
 
-    if not infos and None in (bore_m, rod_m, moving_mass_kg):
-        for row in _manifest_rows(data, inputs).iter_rows(named=True):
-            if Path(row["source_path"]).is_file():
-                info = read_rig_info(row["source_path"])
-                if info.rig_id == rig_id:
-                    infos.append(info)
-    rig = _geometry(infos, rig_id, bore_m=bore_m, rod_m=rod_m, moving_mass_kg=moving_mass_kg)
 
+def _fit(
+    samples: pl.DataFrame,
+    rig: RigInfo,
+    notes: list[str],
+    *,
+    smooth_s: float,
+    bristle_stiffness_n_m: float,
+    bristle_damping_n_s_m: float,
+    presliding_elements: int,
+) -> tuple[pl.DataFrame, pl.DataFrame, list[StribeckFit], FrictionLaw, dict[str, LinearFit]]:
+    """The transforms: friction per sample (eq 1), steady steps, Table 1 analogue (eq
+    16/18 per pressure), eq-17 lines. Returns ``steps, per_pressure, fits, law, lines``;
+    appends a note on the moving steps left out to ``notes``."""
     frame = seal_friction_samples(
         samples, bore_m=rig.bore_m, rod_m=rig.rod_m, moving_mass_kg=rig.moving_mass_kg,
         smooth_s=smooth_s,
@@ -699,15 +410,16 @@ def calibrate_rig(
     per_pressure, fits = fit_pressure_levels(steps)
     logger.info(
         "calibrate rig %s: %d samples, %d steady steps, %d pressure level(s) fitted",
-        rig_id,
+        rig.rig_id,
         samples.height,
         steps.height,
         per_pressure.height,
     )
     if per_pressure.height < 3:
         raise CalibrationError(
-            f"rig {rig_id!r}: {per_pressure.height} pressure level(s) with at least 5 steady "
-            f"steps ({steps.height} steady steps in all); need 3 levels for the eq-17 lines"
+            f"rig {rig.rig_id!r}: {per_pressure.height} pressure level(s) with at least 5 "
+            f"steady steps ({steps.height} steady steps in all); need 3 levels for the eq-17 "
+            "lines"
         )
     law, lines = fit_friction_law(
         per_pressure["p_rodless_pa"].to_numpy(),
@@ -716,24 +428,29 @@ def calibrate_rig(
         bristle_damping_n_s_m=bristle_damping_n_s_m,
         presliding_elements=presliding_elements,
     )
-    if parameter_set is None:
-        digest = hashlib.sha256("\n".join(inputs).encode()).hexdigest()[:12]
-        parameter_set = f"{rig_id[:51]}-{digest}"  # a safe name: at most 64 characters
-    run_id = f"calibrate-{parameter_set}"
-    source = f"ropeload calibrate: rig {rig_id}, {len(inputs)} recording(s), run {run_id}"
-    toml = friction_toml(law, bore_m=rig.bore_m, parameter_set=parameter_set, source=source)
+    return steps, per_pressure, fits, law, lines
 
+
+def _land(
+    data: DataRoot, result: CalibrationResult, samples: pl.DataFrame, *, source: str,
+    started: dt.datetime,
+) -> None:  # fmt: skip
+    """One ``friction_parameter_sets`` row and one ``runs`` row, in one writer block."""
+    from warehouse.landing import RunRecord, land_friction_parameter_sets, land_run
+    from warehouse.store import open_writer
+
+    law, lines, inputs = result.law, result.lines, result.inputs
     residual_rms = {
         name: float(np.sqrt(np.mean(lines[name].residuals ** 2))) for name in LINE_NAMES
     }
-    residual_rms["stribeck_curve_n"] = float(np.sqrt(np.mean([f.rms**2 for f in fits])))
+    residual_rms["stribeck_curve_n"] = float(np.sqrt(np.mean([f.rms**2 for f in result.fits])))
     row = pl.DataFrame(
         [
             {
-                "parameter_set": parameter_set,
+                "parameter_set": result.parameter_set,
                 "created_at_utc": started,
                 "source": source,
-                "bore_m": rig.bore_m,
+                "bore_m": result.rig.bore_m,
                 **{name: getattr(law, name)[0] for name in LINE_NAMES},
                 **{f"{name}_per_pa": getattr(law, name)[1] for name in LINE_NAMES},
                 "residual_rms": [{"key": k, "value": v} for k, v in residual_rms.items()],
@@ -743,23 +460,89 @@ def calibrate_rig(
     )
     times = samples["time_utc"]
     run = RunRecord(
-        run_id=run_id,
+        run_id=result.run_id,
         command="calibrate",
         code_version=code_version(),
         started_at_utc=started,
-        parameter_set=parameter_set,
+        parameter_set=result.parameter_set,
         site=_SITE,
-        hoist=rig_id,
+        hoist=result.rig_id,
         period_start_utc=times.min(),  # type: ignore[arg-type]
         period_end_utc=times.max(),  # type: ignore[arg-type]
         inputs=inputs,
         finished_at_utc=utc_now(),
-        message=f"{per_pressure.height} pressure levels, {steps.height} steady steps",
+        message=f"{result.per_pressure.height} pressure levels, {result.steps.height} steady steps",
     )
     with open_writer(data) as con:
         land_friction_parameter_sets(con, row)
         land_run(con, run)
-    return CalibrationResult(
+
+
+def calibrate_rig(
+    *,
+    data: DataRoot,
+    rig_id: str | None = None,
+    recordings: Sequence[str | Path] = (),
+    parameter_set: str | None = None,
+    bore_m: float | None = None,
+    rod_m: float | None = None,
+    moving_mass_kg: float | None = None,
+    bristle_stiffness_n_m: float = DEFAULT_BRISTLE_STIFFNESS_N_M,
+    bristle_damping_n_s_m: float = DEFAULT_BRISTLE_DAMPING_N_S_M,
+    presliding_elements: int = DEFAULT_PRESLIDING_ELEMENTS,
+    smooth_s: float = 0.05,
+) -> CalibrationResult:
+    """Calibrate the seal-friction law from friction-rig recordings (paper 4.2.1, eq 15-18).
+
+    1. ``recordings`` (MCAP, contract 3), if given, are ingested first
+       (:func:`pipelines.ingest.ingest_paths`; already-ingested content is skipped) and
+       only their samples are used; without them, every rig sample of ``rig_id`` in the
+       lake is used. ``rig_id`` defaults to the recordings' (or the lake's only) rig.
+    2. Seal friction per sample by the force balance of eq 1
+       (:func:`transforms.rig_friction.seal_friction_samples`), with bore, rod and
+       moving mass from ``/rig/info`` of the recordings (read from the files: the lake
+       does not keep it; for lake-only runs, from the manifest's source paths), unless
+       given explicitly.
+    3. Steady part of each step (:func:`transforms.rig_friction.steady_steps`), a
+       Stribeck fit per pressure level (:func:`transforms.rig_friction.fit_pressure_levels`,
+       Table 1 analogue), weighted lines in pressure
+       (:func:`transforms.friction_fit.fit_friction_law`, eq 17 analogue).
+    4. Lands one ``friction_parameter_sets`` row (replaced by name) and one ``runs``
+       row (command ``calibrate``, inputs = source sha256) in one
+       :func:`warehouse.store.open_writer` block. The default ``parameter_set`` name is
+       ``<rig_id>-<hash of the inputs>`` and the run id ``calibrate-<parameter_set>``,
+       so calibrating the same data again replaces both rows, never duplicates them.
+
+    The bristle parameters (``bristle_*``, ``presliding_elements``) are not identified
+    by steady-speed data; they are carried into the law as given.
+
+    Raises
+    ------
+    CalibrationError
+        A refused recording, no rig samples, missing geometry, or fewer than three
+        pressure levels with at least five steady steps each.
+    """
+    started = utc_now()
+    _check_names(rig_id, parameter_set)
+    rig_id, given_shas, infos, notes = _select_rig(data, recordings, rig_id)
+    samples = _rig_samples(data, rig_id, given_shas)
+    inputs = tuple(sorted(set(samples["source_sha256"].unique().to_list()) | set(given_shas)))
+
+    if not infos and None in (bore_m, rod_m, moving_mass_kg):
+        infos = _recorded_infos(data, inputs, rig_id)
+    rig = _geometry(infos, rig_id, bore_m=bore_m, rod_m=rod_m, moving_mass_kg=moving_mass_kg)
+
+    steps, per_pressure, fits, law, lines = _fit(
+        samples, rig, notes, smooth_s=smooth_s, bristle_stiffness_n_m=bristle_stiffness_n_m,
+        bristle_damping_n_s_m=bristle_damping_n_s_m, presliding_elements=presliding_elements,
+    )  # fmt: skip
+    if parameter_set is None:
+        digest = hashlib.sha256("\n".join(inputs).encode()).hexdigest()[:12]
+        parameter_set = f"{rig_id[:51]}-{digest}"  # a safe name: at most 64 characters
+    run_id = f"calibrate-{parameter_set}"
+    source = f"ropeload calibrate: rig {rig_id}, {len(inputs)} recording(s), run {run_id}"
+    toml = friction_toml(law, bore_m=rig.bore_m, parameter_set=parameter_set, source=source)
+    result = CalibrationResult(
         rig_id=rig_id,
         parameter_set=parameter_set,
         run_id=run_id,
@@ -773,6 +556,8 @@ def calibrate_rig(
         inputs=inputs,
         notes=tuple(notes),
     )
+    _land(data, result, samples, source=source, started=started)
+    return result
 
 
 # ---------------------------------------------------------------------------------------

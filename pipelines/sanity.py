@@ -38,9 +38,8 @@ import polars as pl
 
 from pipelines.steps import StepOutcome
 from schemas.hoist import HoistDescription
-from schemas.tables import SANITY_CHECKS
+from schemas.tables import SANITY_CHECKS, conform
 from sims.replay import plan_replay, replay_fitted
-from transforms.reconciliation import conform
 
 __all__ = ["SanityOutcome", "sanity_check", "sanity_step"]
 

@@ -24,8 +24,7 @@ from typing import Literal
 import duckdb
 import polars as pl
 
-from schemas.tables import RUN_STEPS
-from transforms.reconciliation import conform
+from schemas.tables import RUN_STEPS, conform
 from warehouse.landing import insert_frame
 from warehouse.store import DataRoot, open_reader, open_writer
 

@@ -13,6 +13,7 @@ Warehouse tables (DuckDB):
 
 from __future__ import annotations
 
+import polars as pl
 import pyarrow as pa
 
 __all__ = [
@@ -32,6 +33,7 @@ __all__ = [
     "SANITY_CHECKS",
     "TABLES",
     "TRIP_SUMMARY",
+    "conform",
     "duckdb_columns",
 ]
 
@@ -369,3 +371,19 @@ def duckdb_columns(schema: pa.Schema) -> str:
         sql_type = _DUCKDB_TYPES[field.type]
         parts.append(f"{field.name} {sql_type}{'' if field.nullable else ' NOT NULL'}")
     return ",\n    ".join(parts)
+
+
+def conform(frame: pl.DataFrame, schema: pa.Schema) -> pl.DataFrame:
+    """Select and cast ``frame``'s columns to ``schema`` (missing columns become null).
+
+    >>> conform(pl.DataFrame({"rule": ["x"], "extra": [1]}), ALARMS).columns == ALARMS.names
+    True
+    """
+    empty = pl.from_arrow(schema.empty_table())
+    if frame.width == 0:
+        return empty
+    target = empty.schema
+    return frame.select(
+        (pl.col(name) if name in frame.columns else pl.lit(None)).cast(dtype).alias(name)
+        for name, dtype in target.items()
+    )

@@ -63,8 +63,8 @@ import polars as pl
 
 from physics.tension import expected_load_n
 from schemas.hoist import G_STANDARD, HoistDescription
-from schemas.tables import ALARMS, ROPES
-from transforms.reconciliation import conform, expected_load_expr, tail_rope_weight_expr
+from schemas.tables import ALARMS, ROPES, conform
+from transforms.reconciliation import expected_load_expr, tail_rope_weight_expr
 
 __all__ = [
     "ALARM_MARGIN_S",

@@ -48,18 +48,16 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import polars as pl
-import pyarrow as pa
 
 from physics.tension import expected_load_n, tail_rope_length_m, tail_rope_mass_kg
 from schemas.hoist import G_STANDARD, HoistDescription
-from schemas.tables import POSITION_SUMMARY, ROPES, TRIP_SUMMARY
+from schemas.tables import POSITION_SUMMARY, ROPES, TRIP_SUMMARY, conform
 
 __all__ = [
     "G_STANDARD",
     "PAPER_TEXT_PITHEAD_BEFORE_N",
     "Reconciliation",
     "StintCarry",
-    "conform",
     "expected_load_expr",
     "reconcile",
     "stint_partials",
@@ -85,18 +83,6 @@ class Reconciliation(NamedTuple):
 
     position_summary: pl.DataFrame
     trip_summary: pl.DataFrame
-
-
-def conform(frame: pl.DataFrame, schema: pa.Schema) -> pl.DataFrame:
-    """Select and cast ``frame``'s columns to ``schema`` (missing columns become null)."""
-    empty = pl.from_arrow(schema.empty_table())
-    if frame.width == 0:
-        return empty
-    target = empty.schema
-    return frame.select(
-        (pl.col(name) if name in frame.columns else pl.lit(None)).cast(dtype).alias(name)
-        for name, dtype in target.items()
-    )
 
 
 def tail_rope_weight_expr(hoist: HoistDescription, depth_m: pl.Expr | None = None) -> pl.Expr:

@@ -42,8 +42,7 @@ import duckdb
 import polars as pl
 import pyarrow as pa
 
-from schemas.tables import ROPE_TENSIONS, RUNS, TABLES
-from transforms.reconciliation import conform
+from schemas.tables import ROPE_TENSIONS, RUNS, TABLES, conform
 from warehouse.parquet_files import write_parquet_atomic, writer_alive
 from warehouse.store import DataRoot
 

@@ -22,8 +22,7 @@ import pytest
 
 from pipelines.cli import main
 from pipelines.query import format_result
-from schemas.tables import POSITION_SUMMARY
-from transforms.reconciliation import conform
+from schemas.tables import POSITION_SUMMARY, conform
 from warehouse.landing import RunRecord, land_results, land_rope_tensions
 from warehouse.store import DataRoot, open_reader, open_writer
 

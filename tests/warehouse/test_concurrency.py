@@ -20,8 +20,7 @@ from pathlib import Path
 import polars as pl
 import pytest
 
-from schemas.tables import POSITION_SUMMARY, TRIP_SUMMARY
-from transforms.reconciliation import conform
+from schemas.tables import POSITION_SUMMARY, TRIP_SUMMARY, conform
 from warehouse.landing import RunRecord, insert_frame, land_run
 from warehouse.lock import INVOCATION_ENV, LockTimeoutError, lock_timeout_s, read_holder
 from warehouse.store import DataRoot, open_writer

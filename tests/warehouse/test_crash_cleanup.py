@@ -36,7 +36,7 @@ WRITER = textwrap.dedent(
     import polars as pl
     import pyarrow.parquet as pq
     from schemas.tables import ROPE_TENSIONS
-    from transforms.reconciliation import conform
+    from schemas.tables import conform
     from warehouse.parquet_files import write_parquet_atomic
     from warehouse.store import DataRoot, open_writer
 

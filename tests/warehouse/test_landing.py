@@ -8,8 +8,7 @@ import duckdb
 import polars as pl
 import pytest
 
-from schemas.tables import ALARMS, POSITION_SUMMARY, ROPE_TENSIONS, TRIP_SUMMARY
-from transforms.reconciliation import conform
+from schemas.tables import ALARMS, POSITION_SUMMARY, ROPE_TENSIONS, TRIP_SUMMARY, conform
 from warehouse.landing import RunRecord, land_results, land_rope_tensions
 from warehouse.store import DataRoot, open_reader, open_writer
 from warehouse.views import refresh_views
@@ -68,7 +67,7 @@ def _alarms(run_id: str, starts_min: list[int]) -> pl.DataFrame:
 
 
 def _conform(frame: pl.DataFrame, schema) -> pl.DataFrame:
-    from transforms.reconciliation import conform
+    from schemas.tables import conform
 
     return conform(frame, schema)
 

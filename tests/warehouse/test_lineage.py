@@ -12,9 +12,9 @@ import polars as pl
 import pytest
 
 from schemas.hoist import EXAMPLE_HOIST, hoist_sha256, load_hoist
-from schemas.tables import FIELD_SAMPLES, MANIFEST
+from schemas.tables import FIELD_SAMPLES, MANIFEST, conform
 from transforms.alarms import evaluate_alarms
-from transforms.reconciliation import conform, reconcile
+from transforms.reconciliation import reconcile
 from warehouse.landing import (
     RunRecord,
     insert_frame,

@@ -21,7 +21,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import polars as pl
 
@@ -76,18 +76,11 @@ def run_partition(
     first run without ``sanity``) gets only the check.
 
     Raises whatever ingest or :func:`~pipelines.run_period.run_period` raise (the
-    callers decide about retries, :func:`is_transient`); a day without samples is an
-    ``empty`` outcome, not an error.
+    callers decide about retries, :func:`~pipelines.executors.is_transient`); a day
+    without samples is an ``empty`` outcome, not an error.
     """
     t0 = time.perf_counter()
-    notes: list[str] = []
-    ingested = 0
-    if partition.files:
-        report = ingest_paths(
-            partition.files, data=data, hoist_lookup=hoist_lookup(partition.source)
-        )
-        ingested = sum(f.status in ("landed", "partial") for f in report)
-        notes += [f"refused {f.path.name}: {f.message}" for f in report.refused]
+    ingested, notes = _ingest(partition, data)
     t1 = time.perf_counter()
     if not partition.has_samples(data):
         return new_outcome(
@@ -127,22 +120,9 @@ def run_partition(
             return new_outcome(partition, "empty", message=str(exc), ingest_s=t1 - t0)
         run_id, trips, samples = result.run_id, result.trip_summary.height, result.samples
         head = f"{trips} trips, {result.alarms.height} alarms"
-    checks = failed_checks = skipped_checks = 0
-    findings: list[str] = []
+    checks: dict[str, Any] = {}
     if sanity and trips:
-        checked = check_sanity(
-            hoist_path=partition.source.path,
-            data=data,
-            run_id=run_id,
-            start=partition.start,
-            end=partition.end,
-            max_trips=sanity_trips,
-        )
-        checks, failed_checks = checked.compared, checked.count("failed")
-        skipped_checks = checked.count("skipped")
-        if checked.step.failed:
-            findings.append(checked.words())
-        notes.insert(0, checked.words())
+        checks = _checked(partition, data, run_id=run_id, max_trips=sanity_trips, notes=notes)
     t2 = time.perf_counter()
     return new_outcome(
         partition,
@@ -151,13 +131,41 @@ def run_partition(
         run_id=run_id,
         samples=samples,
         files_ingested=ingested,
-        checks=checks,
-        checks_failed=failed_checks,
-        checks_skipped=skipped_checks,
-        findings=tuple(findings),
         ingest_s=t1 - t0,
         run_s=t2 - t1,
+        **checks,
     )
+
+
+def _ingest(partition: Partition, data: DataRoot) -> tuple[int, list[str]]:
+    """The partition's new files into the lake: how many landed, a note per refused one."""
+    if not partition.files:
+        return 0, []
+    report = ingest_paths(partition.files, data=data, hoist_lookup=hoist_lookup(partition.source))
+    ingested = sum(f.status in ("landed", "partial") for f in report)
+    return ingested, [f"refused {f.path.name}: {f.message}" for f in report.refused]
+
+
+def _checked(
+    partition: Partition, data: DataRoot, *, run_id: str, max_trips: int, notes: list[str]
+) -> dict[str, Any]:
+    """The day's sanity check (:func:`check_sanity`): its counts and findings as fields of
+    the day's outcome; what it found goes first in ``notes``."""
+    checked = check_sanity(
+        hoist_path=partition.source.path,
+        data=data,
+        run_id=run_id,
+        start=partition.start,
+        end=partition.end,
+        max_trips=max_trips,
+    )
+    notes.insert(0, checked.words())
+    return {
+        "checks": checked.compared,
+        "checks_failed": checked.count("failed"),
+        "checks_skipped": checked.count("skipped"),
+        "findings": (checked.words(),) if checked.step.failed else (),
+    }
 
 
 def run_partitions(

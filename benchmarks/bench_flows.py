@@ -34,8 +34,10 @@ from pipelines.prefect_env import apply_prefect_defaults
 
 apply_prefect_defaults()
 
-from pipelines.backfill import backfill, fingerprint, load_hoists  # noqa: E402
+from pipelines.backfill import backfill  # noqa: E402
 from pipelines.deploy import write_example_mine  # noqa: E402
+from pipelines.hoists import load_hoists  # noqa: E402
+from pipelines.ledger import fingerprint  # noqa: E402
 from pipelines.nightly import nightly  # noqa: E402
 from pipelines.reports import build_report  # noqa: E402
 from warehouse.store import DataRoot  # noqa: E402

@@ -240,12 +240,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 def _fleet(args: argparse.Namespace, run_plain, run_flow) -> int:
     """Shared tail of backfill / nightly: plain functions or the flow; summary; status."""
-    from pipelines.backfill import StderrProgress, load_hoists
+    from pipelines.hoists import load_hoists
+    from pipelines.progress import StderrProgress
     from warehouse.store import DataRoot
 
     data = DataRoot.resolve(args.data)
     if args.memory_budget_gb is not None:
-        from pipelines.backfill import workers_within_budget
+        from pipelines.executors import workers_within_budget
 
         fit = workers_within_budget(args.workers, args.memory_budget_gb * 1e9)
         if fit < args.workers:

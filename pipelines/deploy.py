@@ -36,7 +36,7 @@ from collections.abc import Sequence  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
-from pipelines.backfill import load_hoists  # noqa: E402
+from pipelines.hoists import load_hoists  # noqa: E402
 from schemas.hoist import EXAMPLE_HOIST, load_hoist  # noqa: E402
 from warehouse.store import DataRoot  # noqa: E402
 
@@ -109,7 +109,8 @@ def serve_nightly(
     sanity: bool = True,
 ) -> None:
     """Register the nightly deployment with its schedule and serve it (blocks)."""
-    from pipelines.flows import nightly_flow, task_runner
+    from pipelines.flows import nightly_flow
+    from pipelines.tasks import task_runner
 
     zone = timezone or mine_timezone(hoists, data=DataRoot.resolve(data))
     parameters = nightly_parameters(

@@ -20,11 +20,11 @@ Two ways out, set up once per process:
   refusal; ``--log-level info`` adds what happened, on stderr.
 - Prefect's run logs: :mod:`pipelines.prefect_env` names these namespaces in
   ``PREFECT_LOGGING_EXTRA_LOGGERS``, so Prefect attaches its API handler to them when
-  it is imported, and :func:`enable_run_logs` (called when :mod:`pipelines.flows` is
-  imported) lets INFO through to it. A record logged inside a flow or task run (its
-  thread) then appears in that run's logs in the UI and ``prefect flow-run logs``;
-  outside a run Prefect's handler drops it (``PREFECT_LOGGING_TO_API_WHEN_MISSING_FLOW
-  =ignore``).
+  it is imported, and :func:`enable_run_logs` (called when :mod:`pipelines.tasks` is
+  imported, as :mod:`pipelines.flows` does) lets INFO through to it. A record logged
+  inside a flow or task run (its thread) then appears in that run's logs in the UI and
+  ``prefect flow-run logs``; outside a run Prefect's handler drops it
+  (``PREFECT_LOGGING_TO_API_WHEN_MISSING_FLOW =ignore``).
 
 The namespace loggers do not propagate to the root logger: ropeload's records take
 exactly these two ways, never also the root's console handler (Prefect installs one),

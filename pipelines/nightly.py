@@ -2,18 +2,21 @@
 
 Contents
 --------
-:func:`find_new_files`, :func:`watermarks`
-    What is new for a hoist, and how far its landed data reach.
+:func:`watermarks`
+    How far each hoist's landed data reach (what is new:
+    :func:`pipelines.hoists.find_new_files`).
 :func:`ingest_new_files`
     One hoist's new files into the lake (:func:`pipelines.ingest.ingest_paths`).
 :func:`nightly_partitions`
     The hoist-days to (re)run after that ingest.
 :func:`nightly`
-    The whole night as plain functions: ingest per hoist, then the hoist-days on a
-    bounded thread pool (:func:`pipelines.backfill.run_partitions`, the backfill's
-    unit of work, so a night and a backfill land identical rows).
+    The night, written once: ingest per hoist, then the hoist-days on an executor
+    (:func:`pipelines.hoist_day.run_partitions`, the backfill's unit of work, so a night
+    and a backfill land identical rows), discovery, the report. The executor -- a
+    thread pool or Prefect tasks (:mod:`pipelines.executors`) -- is the only difference
+    between ``ropeload nightly`` and its flow.
 
-Hoists and incoming folders follow :mod:`pipelines.backfill`'s convention
+Hoists and incoming folders follow :mod:`pipelines.hoists`' convention
 (``<hoists>/*.toml``, ``<incoming>/<site>/<hoist>/**``).
 
 Watermark. The ingest manifest *is* the watermark: a raw file is new when its path
@@ -27,12 +30,12 @@ not mark done (a failed or interrupted earlier night heals itself). Re-running a
 changes nothing: no file is new, every day is done.
 
 Simulation sanity check and discovery. Each hoist-day run by a night is also checked
-against the hoist's simulation (:func:`pipelines.backfill.check_sanity`, landed in
+against the hoist's simulation (:func:`pipelines.hoist_day.check_sanity`, landed in
 ``sanity_checks``, its outcome in ``run_steps``; a day counts as done once the check has
 an outcome). For each hoist with a failed check, discovery
 (:func:`pipelines.discover.discover_period`) runs over its latest failed day and writes
 ``<data>/reports/discovery/<site>_<hoist>_<day>.json`` (and a plot), landing its
-findings in ``discovery_findings``.
+findings in ``discovery_findings`` (:mod:`pipelines.night_discovery`).
 
 Optional steps never fail a night (:mod:`pipelines.steps`): a sanity check, discovery or
 report that fails is landed as that step's outcome with the day's run and said on
@@ -47,65 +50,40 @@ from __future__ import annotations
 
 import datetime as dt
 import importlib.util
-import json
 import logging
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import polars as pl
 
-from pipelines.backfill import (
-    BackfillReport,
-    HoistSource,
-    Partition,
-    PartitionOutcome,
-    _has_samples_or_error,
-    completed_partitions,
-    hoist_lookup,
-    incoming_notes,
-    known_files,
-    record_failures,
-    run_partitions,
-)
+from pipelines.backfill import has_samples_or_error
+from pipelines.executors import PlainExecutor
+from pipelines.hoist_day import run_partitions
+from pipelines.hoists import HoistSource, find_new_files, hoist_lookup, incoming_notes, known_files
 from pipelines.ingest import IngestReport, ingest_paths
-from pipelines.ingest.sources import expand_paths
-from pipelines.steps import StepOutcome, one_line, record_steps, report_failed
+from pipelines.ledger import completed_partitions, record_failures
+from pipelines.night_discovery import discover_days, discovery_words
+from pipelines.partitions import BackfillReport, Partition, PartitionOutcome, fleet_report
 from warehouse.store import DataRoot, open_reader
+
+if TYPE_CHECKING:
+    from pipelines.executors import Executor
 
 __all__ = [
     "HoistNight",
     "NightlyReport",
-    "days_to_discover",
-    "discover_day",
-    "discover_days",
-    "discovery_outcome",
-    "discovery_words",
     "failed_night",
-    "find_new_files",
     "ingest_new_files",
-    "land_discoveries",
     "nightly",
     "nightly_partitions",
     "sanity_available",
     "watermarks",
 ]
 
-_RAW_SUFFIXES = {".csv", ".tdms"}
-
 logger = logging.getLogger(__name__)
-
-
-def find_new_files(source: HoistSource, known: set[tuple[str, int]]) -> list[Path]:
-    """Raw files (CSV, TDMS) under ``source.incoming`` whose (path, size) is not in ``known``."""
-    if not source.incoming.is_dir():
-        return []
-    return [
-        path
-        for path in expand_paths([source.incoming])
-        if path.suffix.lower() in _RAW_SUFFIXES and (str(path), path.stat().st_size) not in known
-    ]
 
 
 def watermarks(data: DataRoot) -> dict[tuple[str, str], dt.datetime]:
@@ -202,15 +180,6 @@ def failed_night(source: HoistSource, exc: BaseException) -> HoistNight:
     return HoistNight(source, [], None, None, None, error=f"{type(exc).__name__}: {reason}")
 
 
-def _ingest_or_error(
-    source: HoistSource, *, data: DataRoot, known: set[tuple[str, int]]
-) -> HoistNight:
-    try:
-        return ingest_new_files(source, data=data, known=known)
-    except Exception as exc:
-        return failed_night(source, exc)
-
-
 def nightly_partitions(
     nights: Sequence[HoistNight], *, data: DataRoot, lookback_days: int = 3, sanity: bool = True
 ) -> list[Partition]:
@@ -224,7 +193,7 @@ def nightly_partitions(
             last = night.watermark_after.date()
             days |= {last - dt.timedelta(days=k) for k in range(max(lookback_days, 0))}
         candidates += [Partition(night.source, day) for day in sorted(days)]
-    candidates = [p for p in candidates if _has_samples_or_error(p, data)]
+    candidates = [p for p in candidates if has_samples_or_error(p, data)]
     done = completed_partitions(data, candidates, sanity=sanity)
     todo = [p for p in candidates if p.key not in done]
     logger.info("%d hoist-day(s) to run: %s", len(todo), ", ".join(p.key for p in todo))
@@ -242,7 +211,7 @@ class NightlyReport:
     #: The night's HTML report (pipelines.reports), if written.
     report_path: Path | None = None
     #: One line each: incoming folders no hoist claims, hoists without a folder or raw
-    #: files (:func:`pipelines.backfill.incoming_notes`), an optional step's failure.
+    #: files (:func:`pipelines.hoists.incoming_notes`), an optional step's failure.
     #: Said, landed where there is a day to land it with, never a failed night.
     notes: list[str] = field(default_factory=list)
 
@@ -287,88 +256,22 @@ def sanity_available() -> bool:
     return importlib.util.find_spec("pipelines.sanity") is not None
 
 
-def days_to_discover(outcomes: Sequence[PartitionOutcome]) -> list[tuple[str, str, dt.date]]:
-    """(site, hoist, day): each hoist's latest day with a failed sanity check."""
-    latest: dict[tuple[str, str], dt.date] = {}
-    for outcome in outcomes:
-        if outcome.checks_failed:
-            key = (outcome.site, outcome.hoist)
-            latest[key] = max(outcome.day, latest.get(key, outcome.day))
-    return [(site, hoist, day) for (site, hoist), day in sorted(latest.items())]
-
-
-def discover_day(source: HoistSource, day: dt.date, *, data: DataRoot) -> Path:
-    """Discovery over one hoist-day after a failed sanity check; returns the JSON path."""
-    from pipelines.discover import discover_period
-
-    start = dt.datetime.combine(day, dt.time(0), tzinfo=dt.UTC)
-    target = data.under("reports", "discovery", f"{source.site}_{source.hoist}_{day}.json")
-    discover_period(
-        hoist_path=source.path,
-        data=data,
-        start=start,
-        end=start + dt.timedelta(days=1),
-        json_path=target,
-    )
-    logger.info("discovery of %s %s (a sanity check failed): %s", source.key, day, target)
-    return target
-
-
-def discovery_outcome(path: Path | None, exc: BaseException | None = None) -> StepOutcome:
-    """The discovery step of a day: its report (and the effect named), or why it failed."""
-    if exc is not None:
-        return StepOutcome("discovery", "failed", one_line(exc))
-    assert path is not None
-    try:
-        effect = json.loads(path.read_text(encoding="utf-8")).get("effect", "?")
-    except (OSError, ValueError):
-        effect = "?"
-    return StepOutcome("discovery", "done", f"effect {effect}; report {path}")
-
-
-def land_discoveries(
-    outcomes: Sequence[PartitionOutcome], found: dict[str, StepOutcome], data: DataRoot
-) -> None:
-    """Land each discovery's outcome as a step of the day's run it analysed (never
-    raises: the outcome is said on stdout anyway)."""
-    runs = {o.key: o for o in outcomes if o.run_id}
-    for key, step in found.items():
-        outcome = runs.get(key)
-        if outcome is None or outcome.run_id is None:
-            continue
-        try:
-            record_steps(
-                data, run_id=outcome.run_id, site=outcome.site, hoist=outcome.hoist,
-                outcomes=[step],
-            )  # fmt: skip
-        except Exception as exc:
-            logger.warning("%s: discovery outcome not landed: %s", key, one_line(exc))
-
-
-def discovery_words(step: StepOutcome) -> str:
-    """What a night prints per discovery: the report's path, or why it failed."""
-    if step.failed:
-        return f"discovery failed: {step.message}"
-    return step.message.rsplit("report ", 1)[-1]
-
-
-def discover_days(
-    sources: Sequence[HoistSource], outcomes: Sequence[PartitionOutcome], data: DataRoot
-) -> dict[str, StepOutcome]:
-    """Discovery over each hoist's latest day with a failed check (:func:`discover_day`);
-    its outcome per ``site/hoist/day``, also landed with the day's run. An optional step:
-    a discovery that fails is a finding, it never fails the night."""
-    by_key = {(s.site, s.hoist): s for s in sources}
-    found: dict[str, StepOutcome] = {}
-    for site, hoist, day in days_to_discover(outcomes):
-        key = f"{site}/{hoist}/{day}"
-        try:
-            found[key] = discovery_outcome(discover_day(by_key[(site, hoist)], day, data=data))
-        except Exception as exc:
-            logger.warning("discovery of %s failed (a finding): %s", key, one_line(exc))
-            found[key] = discovery_outcome(None, exc)
-    land_discoveries(outcomes, found, data)
-    return found
+def _ingest(
+    executor: Executor, sources: Sequence[HoistSource], *, data: DataRoot
+) -> list[HoistNight]:
+    """Each hoist's new files (:func:`ingest_new_files` on ``executor``), in the order of
+    ``sources``; a hoist whose ingest raised is a failed night, the others go on."""
+    known = known_files(data)
+    done = {d.item.key: d for d in executor.map(ingest_new_files, sources, data=data, known=known)}
+    nights = []
+    for source in sources:
+        result = done[source.key]
+        if result.error is not None:
+            nights.append(failed_night(source, result.error))
+        else:
+            assert result.value is not None
+            nights.append(result.value)
+    return nights
 
 
 def nightly(
@@ -382,52 +285,42 @@ def nightly(
     progress: Callable[[PartitionOutcome], None] | None = None,
     on_plan: Callable[[list[Partition]], None] | None = None,
     write_report: bool = True,
+    executor: Executor | None = None,
 ) -> NightlyReport:
     """One night for ``sources``: ingest new files per hoist, run the affected days.
+
+    ``executor`` runs the steps (:mod:`pipelines.executors`); by default a
+    :class:`~pipelines.executors.PlainExecutor` of ``max_workers`` threads and
+    ``retries`` (the Prefect flow passes its own and ignores those two).
 
     Never raises for a failed partition or a refused file: see ``report.ok``.
     ``on_plan(partitions)`` is called once the hoist-days to run are known. With
     ``write_report`` the night's HTML report is written under ``<data>/reports/``
-    (:func:`pipelines.reports.write_fleet_report`; ``report.report_path``).
+    (:func:`pipelines.reports.write_fleet_report`; ``report.report_path``; published as
+    ``nightly-report`` by a Prefect executor).
     """
+    if executor is None:
+        executor = PlainExecutor(max_workers, retries)
     t0 = time.perf_counter()
     notes = incoming_notes(sources)
-    known = known_files(data)
-    nights = [_ingest_or_error(source, data=data, known=known) for source in sources]
+    nights = _ingest(executor, sources, data=data)
     partitions = nightly_partitions(nights, data=data, lookback_days=lookback_days, sanity=sanity)
     if on_plan is not None:
         on_plan(partitions)
     outcomes = run_partitions(
-        partitions,
-        data=data,
-        max_workers=max_workers,
-        retries=retries,
-        progress=progress,
-        command="nightly",
-        sanity=sanity,
+        executor, partitions, data=data, command="nightly", sanity=sanity, progress=progress
     )
-    record_failures(data, outcomes, command="nightly")
-    t_discover = time.perf_counter()
-    found = discover_days(sources, outcomes, data)
+    executor.call(record_failures, data, outcomes, command="nightly")
+    found, discover_s = discover_days(executor, sources, outcomes, data)
     discoveries = {key: discovery_words(step) for key, step in found.items()}
-    discover_s = time.perf_counter() - t_discover
     runs = BackfillReport(outcomes=outcomes, wall_s=time.perf_counter() - t0)
     night = NightlyReport(
         hoists=nights, runs=runs, discoveries=discoveries, discover_s=discover_s, notes=notes
     )
     if write_report:
-        try:  # optional: a report that cannot be written is a finding, not a failed night
-            from pipelines.reports import write_fleet_report
-
-            night.report_path = write_fleet_report(
-                data,
-                kind="nightly",
-                outcomes=outcomes,
-                sources=sources,
-                sanity=sanity,
-                hoist_rows=[n.row() for n in nights],
-                discoveries=discoveries,
-            ).path
-        except Exception as exc:
-            night.notes.append(report_failed(data, outcomes, exc))
+        night.report_path = fleet_report(
+            executor, data, key="nightly-report", notes=night.notes, kind="nightly",
+            outcomes=outcomes, sources=sources, sanity=sanity,
+            hoist_rows=[n.row() for n in nights], discoveries=discoveries,
+        )  # fmt: skip
     return night

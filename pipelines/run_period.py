@@ -328,7 +328,7 @@ def _block_alarms(
 class CheckedRun:
     """A run, its simulation sanity check and the HTML report of both (:func:`run_checked`).
 
-    ``sanity`` is what :func:`pipelines.backfill.check_sanity` returned, None when the
+    ``sanity`` is what :func:`pipelines.hoist_day.check_sanity` returned, None when the
     check did not run; ``sanity_error`` an error it raised (then said in the report and
     for the caller to raise); ``sanity_words`` how it went; ``report`` the HTML file.
     """
@@ -360,7 +360,7 @@ def run_checked(
     said in the report, never raised (``sanity_error`` stays None; kept for callers).
     Errors of the run itself propagate (nothing was landed, there is nothing to report).
     """
-    from pipelines.backfill import check_sanity
+    from pipelines.hoist_day import check_sanity
     from pipelines.reports import Step, sanity_step, write_run_report
 
     hoist = hoist or load_hoist(hoist_path)

@@ -6,7 +6,7 @@ check, discovery after a failed check, the report. Such a step can fail (data it
 replay, a discovery that finds nothing to fit, a figure that cannot be drawn); that is
 landed as the step's outcome in the ``run_steps`` table -- ``done``, ``skipped`` or
 ``failed`` with a one-line reason -- under the day's ``run_id``, and the day stays done:
-the completion ledger (:func:`pipelines.backfill.completed_partitions`) does not send
+the completion ledger (:func:`pipelines.ledger.completed_partitions`) does not send
 it back to be recomputed the next night.
 
 ``ropeload query "select * from run_steps where status = 'failed'"`` lists the steps

@@ -141,7 +141,7 @@ def _check(work: Path, data: Path) -> int:
     )
     from prefect.deployments import run_deployment
 
-    from pipelines.backfill import fingerprint
+    from pipelines.ledger import fingerprint
     from warehouse.store import DataRoot
 
     failures: list[str] = []

@@ -34,7 +34,8 @@ from transforms.alarms import rule_thresholds
 from warehouse.store import DataRoot
 
 if TYPE_CHECKING:
-    from pipelines.backfill import HoistSource, PartitionOutcome
+    from pipelines.hoists import HoistSource
+    from pipelines.partitions import PartitionOutcome
     from pipelines.run_period import RunResult
 
 __all__ = [
@@ -59,7 +60,7 @@ def write_report(report: Report, data: DataRoot) -> Path:
 def sanity_step(checks: object, *, error: BaseException | None = None, reason: str = "") -> Step:
     """The sanity check as a :class:`Step`: its result, why it was skipped, or its error.
 
-    ``checks``: what :func:`pipelines.backfill.check_sanity` returned (its outcome with
+    ``checks``: what :func:`pipelines.hoist_day.check_sanity` returned (its outcome with
     the step's words, or the ``sanity_checks`` rows), None when it did not run.
     """
     if error is not None:

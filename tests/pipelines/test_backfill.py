@@ -15,18 +15,12 @@ from pathlib import Path
 import duckdb
 import pytest
 
-from pipelines.backfill import (
-    Partition,
-    backfill,
-    completed_partitions,
-    file_days,
-    fingerprint,
-    is_transient,
-    load_hoists,
-    partition_ledger,
-    plan_backfill,
-)
+from pipelines.backfill import backfill, plan_backfill
 from pipelines.deploy import write_example_mine
+from pipelines.executors import is_transient
+from pipelines.hoists import file_days, load_hoists
+from pipelines.ledger import completed_partitions, fingerprint, partition_ledger
+from pipelines.partitions import Partition
 from warehouse.store import DataRoot, open_reader
 
 REPO = Path(__file__).resolve().parents[2]

@@ -12,8 +12,10 @@ from pathlib import Path
 
 import pytest
 
-from pipelines.backfill import backfill, fingerprint, load_hoists
+from pipelines.backfill import backfill
 from pipelines.deploy import write_example_mine
+from pipelines.hoists import load_hoists
+from pipelines.ledger import fingerprint
 from warehouse.store import DataRoot
 
 FIRST, LAST = dt.date(2026, 3, 1), dt.date(2026, 3, 4)
@@ -133,7 +135,7 @@ def test_ingest_and_run_flows_share_the_plain_implementation(mine, tmp_path):
 def test_only_transient_failures_are_retried():
     from prefect.states import Failed
 
-    from pipelines.flows import _retry_transient
+    from pipelines.tasks import _retry_transient
 
     assert _retry_transient(None, None, Failed(data=OSError(5, "I/O error")))
     assert not _retry_transient(None, None, Failed(data=ValueError("bad data")))

@@ -14,9 +14,10 @@ from pathlib import Path
 
 import pytest
 
-from pipelines.backfill import PartitionOutcome, StderrProgress
 from pipelines.cli import main
 from pipelines.log import LEVEL_ENV, configure_logging
+from pipelines.partitions import PartitionOutcome
+from pipelines.progress import StderrProgress
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -13,20 +13,16 @@ from pathlib import Path
 import polars as pl
 import pytest
 
-from pipelines.backfill import (
-    check_sanity,
-    fingerprint,
-    known_files,
-    load_hoists,
-    partition_ledger,
-)
 from pipelines.cli import build_parser as build_cli_parser
 from pipelines.cli import main
 from pipelines.deploy import build_parser, nightly_parameters, write_example_mine
 from pipelines.flows import nightly_flow
+from pipelines.hoist_day import check_sanity
+from pipelines.hoists import find_new_files, known_files, load_hoists
 from pipelines.lake import scan_lake
+from pipelines.ledger import fingerprint, partition_ledger
 from pipelines.night_options import add_night_options
-from pipelines.nightly import find_new_files, nightly, watermarks
+from pipelines.nightly import nightly, watermarks
 from pipelines.steps import steps_of
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from sims.field_day import generate_field_day, write_field_day

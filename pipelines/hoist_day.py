@@ -1,0 +1,307 @@
+"""One hoist-day's work: ingest its new files, run it, check it against the simulation.
+
+Contents
+--------
+:func:`run_partition`
+    The unit of work of a backfill and a night: ingest the day's new files, then
+    compensate, reconcile and alarm the UTC day (:func:`pipelines.run_period.run_period`)
+    unless the ledger (:mod:`pipelines.ledger`) says the day is already done with exactly
+    the inputs now landed; the sanity check on request.
+:func:`run_partitions`
+    Many partitions on an executor (:mod:`pipelines.executors`), outcomes as they complete.
+:func:`check_sanity`, :func:`land_sanity_checks`
+    The simulation sanity check of a run's period, landed with its outcome.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import logging
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import polars as pl
+
+from pipelines.hoists import hoist_lookup
+from pipelines.ingest import ingest_paths
+from pipelines.lake import scan_lake
+from pipelines.ledger import partition_states
+from pipelines.partitions import Partition, PartitionOutcome, failed_outcome, new_outcome
+from pipelines.run_period import NoSamplesError, run_period
+from pipelines.steps import StepOutcome, land_steps, one_line
+from schemas.hoist import HoistDescription, load_hoist
+from warehouse.landing import insert_frame
+from warehouse.store import DataRoot, open_writer
+
+if TYPE_CHECKING:
+    from pipelines.executors import Executor
+    from pipelines.sanity import SanityOutcome
+
+__all__ = [
+    "SANITY_LEAD_IN",
+    "SANITY_LEAD_OUT",
+    "SANITY_TRIPS",
+    "check_sanity",
+    "land_sanity_checks",
+    "run_partition",
+    "run_partitions",
+]
+
+# The lines of a backfill's and a night's partitions keep the name they always had.
+logger = logging.getLogger("pipelines.backfill")
+
+#: Trips per hoist-day the simulation sanity check replays at most (spread over the day).
+SANITY_TRIPS = 20
+
+
+def run_partition(
+    partition: Partition,
+    *,
+    data: DataRoot,
+    force: bool = False,
+    command: str = "backfill",
+    sanity: bool = False,
+    sanity_trips: int = SANITY_TRIPS,
+) -> PartitionOutcome:
+    """Ingest the partition's new files, then run its UTC day unless already done.
+
+    With ``sanity`` the simulation sanity check (:func:`check_sanity`, at most
+    ``sanity_trips`` trips) runs on the day's samples and is landed under the run's id.
+    It is an optional step: whatever it finds, and also when it fails, its outcome is
+    landed and the day succeeds (the failure is in ``findings``). A day whose
+    compensation is done but whose check is missing (a crash between the two, or a day
+    first run without ``sanity``) gets only the check.
+
+    Raises whatever ingest or :func:`~pipelines.run_period.run_period` raise (the
+    callers decide about retries, :func:`~pipelines.executors.is_transient`); a day
+    without samples is an ``empty`` outcome, not an error.
+    """
+    t0 = time.perf_counter()
+    ingested, notes = _ingest(partition, data)
+    t1 = time.perf_counter()
+    if not partition.has_samples(data):
+        return new_outcome(
+            partition,
+            "empty",
+            message="; ".join(["no landed samples", *notes]),
+            files_ingested=ingested,
+            ingest_s=t1 - t0,
+        )
+    state, row = "todo", None
+    if not force:
+        state, row = partition_states(data, [partition], sanity=sanity)[partition.key]
+    if state == "done":
+        return new_outcome(
+            partition,
+            "skipped",
+            message="; ".join(["done: same inputs and hoist description", *notes]),
+            files_ingested=ingested,
+            ingest_s=t1 - t0,
+        )
+    if state == "sanity":
+        assert row is not None
+        run_id = str(row["run_id"])
+        head = f"compensation already landed (run {run_id}); its sanity check run now"
+        trips = int(row["trips"] or 0)  # type: ignore[call-overload]
+        samples = 0
+    else:
+        try:
+            result = run_period(
+                hoist_path=partition.source.path,
+                data=data,
+                start=partition.start,
+                end=partition.end,
+                command=command,
+            )
+        except NoSamplesError as exc:
+            return new_outcome(partition, "empty", message=str(exc), ingest_s=t1 - t0)
+        run_id, trips, samples = result.run_id, result.trip_summary.height, result.samples
+        head = f"{trips} trips, {result.alarms.height} alarms"
+    checks: dict[str, Any] = {}
+    if sanity and trips:
+        checks = _checked(partition, data, run_id=run_id, max_trips=sanity_trips, notes=notes)
+    t2 = time.perf_counter()
+    return new_outcome(
+        partition,
+        "succeeded",
+        message="; ".join([head, *notes]),
+        run_id=run_id,
+        samples=samples,
+        files_ingested=ingested,
+        ingest_s=t1 - t0,
+        run_s=t2 - t1,
+        **checks,
+    )
+
+
+def _ingest(partition: Partition, data: DataRoot) -> tuple[int, list[str]]:
+    """The partition's new files into the lake: how many landed, a note per refused one."""
+    if not partition.files:
+        return 0, []
+    report = ingest_paths(partition.files, data=data, hoist_lookup=hoist_lookup(partition.source))
+    ingested = sum(f.status in ("landed", "partial") for f in report)
+    return ingested, [f"refused {f.path.name}: {f.message}" for f in report.refused]
+
+
+def _checked(
+    partition: Partition, data: DataRoot, *, run_id: str, max_trips: int, notes: list[str]
+) -> dict[str, Any]:
+    """The day's sanity check (:func:`check_sanity`): its counts and findings as fields of
+    the day's outcome; what it found goes first in ``notes``."""
+    checked = check_sanity(
+        hoist_path=partition.source.path,
+        data=data,
+        run_id=run_id,
+        start=partition.start,
+        end=partition.end,
+        max_trips=max_trips,
+    )
+    notes.insert(0, checked.words())
+    return {
+        "checks": checked.compared,
+        "checks_failed": checked.count("failed"),
+        "checks_skipped": checked.count("skipped"),
+        "findings": (checked.words(),) if checked.step.failed else (),
+    }
+
+
+def run_partitions(
+    executor: Executor,
+    partitions: Sequence[Partition],
+    *,
+    data: DataRoot,
+    force: bool = False,
+    command: str = "backfill",
+    sanity: bool = False,
+    progress: Callable[[PartitionOutcome], None] | None = None,
+) -> list[PartitionOutcome]:
+    """:func:`run_partition` of each partition on ``executor``; outcomes in completion order.
+
+    A partition whose last attempt raised is a failed outcome with the reason
+    (:func:`~pipelines.partitions.failed_outcome`); ``progress(outcome)`` per outcome.
+    """
+    outcomes: list[PartitionOutcome] = []
+    if not partitions:
+        return outcomes
+    for done in executor.map(
+        run_partition,
+        list(partitions),
+        pooled=True,
+        data=data,
+        force=force,
+        command=command,
+        sanity=sanity,
+    ):
+        if done.error is not None:
+            outcome = failed_outcome(done.item, done.error, attempts=done.attempts)
+        else:
+            assert done.value is not None
+            outcome = done.value
+            if done.attempts > 1:
+                outcome = replace(outcome, attempts=done.attempts)
+        outcomes.append(outcome)
+        if progress is not None:
+            progress(outcome)
+    return outcomes
+
+
+#: Samples before a period that the sanity check replays to warm up the friction state.
+SANITY_LEAD_IN = dt.timedelta(hours=6)
+#: Samples after a period it reads so that a trip running across the period's end (a trip
+#: across UTC midnight) is checked whole, in the period it started in.
+SANITY_LEAD_OUT = dt.timedelta(minutes=15)
+
+
+def check_sanity(
+    *,
+    hoist_path: str | Path,
+    data: DataRoot,
+    run_id: str,
+    start: dt.datetime,
+    end: dt.datetime,
+    max_trips: int = SANITY_TRIPS,
+    hoist: HoistDescription | None = None,
+    threshold: float = 1.5,
+) -> SanityOutcome:
+    """Simulation sanity check of a run's period (:func:`pipelines.sanity.sanity_check`):
+    the trips that start moving in ``[start, end)``, landed under ``run_id`` with the
+    step's outcome (:func:`land_sanity_checks`). A trip passes when its RMS gap is at
+    most ``threshold`` x the pressure noise.
+
+    An optional step: an error of the check itself (data it cannot replay, a numerical
+    failure, a lake file it cannot read) is landed as a ``failed`` outcome with the
+    reason and returned, not raised. Only an error landing the outcome is raised (the
+    warehouse is unavailable: the caller's retry runs the check alone again, since the
+    day's compensation is already done).
+    """
+    from pipelines.sanity import SanityOutcome, sanity_check, sanity_step
+
+    description = hoist or load_hoist(hoist_path)
+    site, name = description.hoist.site, description.hoist.name
+    try:
+        # hours before the period: the replay of an earlier trip loads the seals' state;
+        # minutes after it: the period's last trip ends in the record
+        samples = scan_lake(
+            data,
+            "field_samples",
+            site=site,
+            hoist=name,
+            start=start - SANITY_LEAD_IN,
+            end=end + SANITY_LEAD_OUT,
+        )
+        frame = sanity_check(
+            samples,
+            description,
+            run_id=run_id,
+            max_trips=max_trips,
+            report_from=start,
+            report_to=end,
+            threshold=threshold,
+        )
+        step = sanity_step(frame)
+    except Exception as exc:
+        logger.warning(
+            "sanity check of %s failed (landed as its finding; the run stands): %s",
+            run_id,
+            one_line(exc),
+            exc_info=logger.isEnabledFor(logging.DEBUG),
+        )
+        frame = _empty_checks()
+        step = StepOutcome("sanity_check", "failed", one_line(exc))
+    land_sanity_checks(data, frame, site=site, hoist=name, run_id=run_id, step=step)
+    logger.info("sanity check of %s: %s", run_id, step.line())
+    return SanityOutcome(frame, step)
+
+
+def _empty_checks() -> pl.DataFrame:
+    from schemas.tables import SANITY_CHECKS
+    from transforms.reconciliation import conform
+
+    return conform(pl.DataFrame(), SANITY_CHECKS).clear()
+
+
+def land_sanity_checks(
+    data: DataRoot,
+    frame: pl.DataFrame,
+    *,
+    site: str,
+    hoist: str,
+    run_id: str | None = None,
+    step: StepOutcome | None = None,
+) -> int:
+    """Land a run's sanity checks (and, with ``step``, the check's outcome in
+    ``run_steps``, same transaction); drop the hoist's checks whose run was replaced."""
+    run_ids = sorted(set(frame["run_id"].to_list()) | ({run_id} if run_id else set()))
+    with open_writer(data) as con:
+        con.execute(
+            "DELETE FROM sanity_checks WHERE list_contains(?, run_id) OR (site = ? AND hoist = ? "
+            "AND run_id NOT IN (SELECT run_id FROM trip_summary))",
+            [run_ids, site, hoist],
+        )
+        landed = insert_frame(con, "sanity_checks", frame)
+        if step is not None and run_id is not None:
+            land_steps(con, run_id=run_id, site=site, hoist=hoist, outcomes=[step])
+        return landed

@@ -277,8 +277,7 @@ def check_sanity(
 
 
 def _empty_checks() -> pl.DataFrame:
-    from schemas.tables import SANITY_CHECKS
-    from transforms.reconciliation import conform
+    from schemas.tables import SANITY_CHECKS, conform
 
     return conform(pl.DataFrame(), SANITY_CHECKS).clear()
 

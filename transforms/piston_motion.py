@@ -11,8 +11,8 @@ piston's displacement, not just the four pistons' mean. Two observables carry it
   fast;
 - the logged x_i: each piston's own position, but to a 0.1 mm step with ~0.02 mm of
   noise, so only its slow, millimetre-scale part is usable (Gaussian-smoothed, then a
-  play operator of three noise sigmas, as :func:`transforms.compensation._differential_one`
-  computes it).
+  play operator of three noise sigmas, as
+  :func:`transforms.compensation_kernels.differential_smooth` computes it).
 
 How the sum is shared out is the crux. A real hoist's pistons stick and slip: at a
 payload change at rest one piston usually slides millimetres while the others stick

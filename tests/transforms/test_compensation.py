@@ -241,7 +241,7 @@ def test_a_failing_stage_raises_instead_of_hanging(monkeypatch):
     that fails, they must fail too, and compensate must raise, not wait for ever."""
     import threading
 
-    import transforms.compensation as module
+    import transforms.compensation_block as module
 
     def broken(*args, **kwargs):
         raise RuntimeError("common mode failed")

@@ -8,7 +8,7 @@ import polars as pl
 from physics.closed_volume import common_mode_displacement
 from physics.oil import effective_bulk_modulus
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
-from transforms.compensation import _mean_horizontal
+from transforms.compensation_record import mean_horizontal as _mean_horizontal
 
 HOIST = load_hoist(EXAMPLE_HOIST)
 

@@ -1,0 +1,445 @@
+"""One call of :func:`transforms.compensation.compensate_window`: the steps on a block.
+
+:class:`BlockCompensation` holds a block's arrays and runs the compensation's steps
+(module docstring of :mod:`transforms.compensation`) as jobs on a thread pool: the
+pressure filters, the displacements, the trip labels and the viscosity first; the
+oil's common mode on the calling thread; each rope (its share of the piston motion,
+play operator, branch flow, friction and tensions) as soon as its inputs are ready.
+The numba kernels and large numpy operations release the GIL, so the jobs run side by
+side. Each first-stage kernel runs twice, up to the hand-over of the next block and
+beyond it (:meth:`BlockCompensation.staged`), so the carried state is the one the next
+block resumes from.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import os
+import threading
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import replace
+
+import numpy as np
+import polars as pl
+
+from physics.branch_loss import sensor_branch
+from physics.closed_volume import common_mode_displacement
+from physics.friction_law import friction_law_at, law_array
+from physics.maxwell_slip import maxwell_slip_elements
+from physics.trip_rule import trip_label_columns
+from schemas.hoist import HoistDescription
+from schemas.tables import ROPES
+from transforms.compensation_kernels import (
+    differential_smooth,
+    long_segments,
+    rope_kernel,
+    smoothed_noise,
+    viscosity,
+)
+from transforms.compensation_output import block_frame
+from transforms.compensation_record import (
+    CompensationCarry,
+    CompensationContext,
+    CompensationSettings,
+    calibrated,
+    compensation_margins_s,
+    float_column,
+    mean_horizontal,
+    rope_cols,
+)
+from transforms.filtering import (
+    _play_kernel,
+    despike_median3,
+    lowpass,
+    lowpass_work_size,
+    segment_ids,
+)
+from transforms.kinematics import smoothed_derivative
+from transforms.piston_motion import share_out_common_motion
+from transforms.uncertainty import rope_band
+
+__all__ = ["BlockCompensation", "epoch_us"]
+
+Kernel = Callable[[int, int, np.ndarray], None]
+
+
+def epoch_us(at: dt.datetime) -> int:
+    """Microseconds since the epoch of a datetime (naive: UTC)."""
+    at = at.replace(tzinfo=dt.UTC) if at.tzinfo is None else at
+    delta = at - dt.datetime(1970, 1, 1, tzinfo=dt.UTC)
+    return (delta.days * 86_400 + delta.seconds) * 1_000_000 + delta.microseconds
+
+
+def _continues(segment: np.ndarray, at: int) -> float:
+    """1.0 when sample ``at`` continues the gap-free segment of sample ``at - 1``."""
+    return 1.0 if 0 < at < segment.size and segment[at] == segment[at - 1] else 0.0
+
+
+class BlockCompensation:
+    """The compensation of one block: its arrays, its steps and their scheduling.
+
+    ``frame`` holds the block and its margins (time-sorted, the columns
+    :func:`transforms.compensation.compensate_window` reads, at least one row);
+    ``carry`` the state the previous block left (None: the record's first block).
+    :meth:`run` returns the block's ``ROPE_TENSIONS`` rows and the state for the next.
+    """
+
+    def __init__(
+        self,
+        frame: pl.DataFrame,
+        hoist: HoistDescription,
+        *,
+        context: CompensationContext,
+        settings: CompensationSettings,
+        effects: set[str],
+        carry: CompensationCarry | None,
+        block_start_utc: dt.datetime | None,
+        block_end_utc: dt.datetime | None,
+    ) -> None:
+        self.frame, self.hoist, self.context, self.n = frame, hoist, context, frame.height
+        self.law = hoist.friction_law
+        if settings.displacement_deadband_m < 0:
+            raise ValueError(
+                f"displacement_deadband_m must be >= 0, got {settings.displacement_deadband_m}"
+            )
+        self._friction_setup(effects)
+        self.resuming = carry is not None  # a block after the record's first
+        self.carry = carry or CompensationCarry.fresh(self.weights.shape[0])
+        self.nxt = replace(
+            self.carry,
+            differential=list(self.carry.differential),
+            played=list(self.carry.played),
+            rope=list(self.carry.rope),
+        )
+        rate_hz = context.sample_rate_hz
+        self.settings = replace(
+            settings,
+            sample_rate_hz=rate_hz,
+            pressure_cutoff_hz=min(settings.pressure_cutoff_hz, 0.4 * rate_hz),
+        )
+        self.dt_nominal = 1.0 / rate_hz
+        self._time_setup(block_start_utc, block_end_utc)
+        self.t_oil = self._oil_temperature(effects)
+        self.with_branch_loss = bool({"pipe_laminar_loss", "local_loss"} & effects)
+        self.branch = sensor_branch(hoist)
+        self.local = threading.local()
+        self.presliding_range_m = self._presliding_range_m()
+
+    # -- set-up ---------------------------------------------------------------------------
+    def _friction_setup(self, effects: set[str]) -> None:
+        """Friction mode (0 none, 1 Maxwell-slip, 2 LuGre), the law and the elements."""
+        law = self.law
+        presliding = "presliding_hysteresis" in effects
+        if presliding:
+            self.stiffness, self.weights = maxwell_slip_elements(
+                law.presliding_elements, law.bristle_stiffness_n_m
+            )
+        else:
+            self.stiffness, self.weights = np.ones(1), np.ones(1)
+        self.mode = 0 if "seal_friction" not in effects else (1 if presliding else 2)
+        self.law_lines = law_array(law)
+
+    def _time_setup(self, start: dt.datetime | None, end: dt.datetime | None) -> None:
+        """Times, segments and the block's bounds: the core [core_lo, core_hi) whose rows
+        are returned, the first stage's span [stage_lo, stage_hi) and its hand-over."""
+        # epoch microseconds x 1e-6 (the arithmetic of .astype(float) * 1e-6), by chunk
+        epoch = self.frame["time_utc"].dt.cast_time_unit("us").to_physical()
+        self.time_s = float_column(epoch, scale=1e-6)
+        resume_s, _ = compensation_margins_s(self.settings)
+        micros = epoch.to_numpy()
+
+        def index(at: dt.datetime | None, shift_s: float, default: int) -> int:
+            if at is None:
+                return default
+            target = epoch_us(at) + round(shift_s * 1e6)
+            return int(np.searchsorted(micros, target, side="left"))
+
+        n = self.n
+        self.core_lo, self.core_hi = index(start, 0.0, 0), index(end, 0.0, n)
+        self.stage_lo = index(start, -resume_s, 0) if self.resuming else 0
+        self.handover = index(end, -resume_s, n)
+        self.stage_hi = index(end, resume_s, n)
+        self.segment = segment_ids(
+            self.time_s, gap_factor=self.settings.gap_factor, nominal_dt_s=self.dt_nominal
+        )
+        self.long_segment, self.long_bounds = long_segments(
+            self.time_s, self.settings.differential_bridge_s
+        )
+
+    def _oil_temperature(self, effects: set[str]) -> np.ndarray | None:
+        """The logged oil temperature (gaps filled), when the viscosity follows it."""
+        frame = self.frame
+        if "viscosity_temperature" not in effects or frame["oil_temp_c"].null_count() == self.n:
+            return None
+        temperature = frame["oil_temp_c"]
+        if temperature.null_count():
+            temperature = temperature.fill_null(strategy="forward").fill_null(strategy="backward")
+        return float_column(temperature)
+
+    def _presliding_range_m(self) -> float:
+        """F_s / sigma_0 at the record's median pressure: one seal's presliding range."""
+        if self.mode == 0 or not self.law.bristle_stiffness_n_m > 0:
+            return 0.0
+        p_typical = self.context.typical_pressure_pa
+        static = friction_law_at(p_typical if np.isfinite(p_typical) else 0.0, self.law_lines)[1]
+        return static / float(self.law.bristle_stiffness_n_m)
+
+    # -- helpers --------------------------------------------------------------------------
+    def buffer(self, name: str, size: int) -> np.ndarray:
+        """A work array reused per thread: every fresh 70 MB array costs page faults, and
+        freeing one interrupts the other thread (TLB shootdown), which cost more than the
+        arithmetic of a rope."""
+        arrays = self.local.__dict__.setdefault("arrays", {})
+        if name not in arrays or arrays[name].size < size:
+            arrays[name] = np.empty(size)
+        return arrays[name][:size]
+
+    def staged(self, run: Kernel, seg: np.ndarray, state: np.ndarray) -> np.ndarray:
+        """Run a first-stage kernel over [stage_lo, stage_hi) resuming ``state``; returns
+        its state at the hand-over to the next block."""
+        state = state.copy()
+        state[1] = _continues(seg, self.stage_lo)
+        run(self.stage_lo, self.handover, state)
+        saved = state.copy()
+        state[1] = _continues(seg, self.handover)
+        run(self.handover, self.stage_hi, state)
+        return saved
+
+    # -- steps ----------------------------------------------------------------------------
+    def pressure(self, column: str) -> np.ndarray:
+        """Calibrated, despiked and low-passed, all in one new array."""
+        values = calibrated(self.frame, column, self.hoist)
+        rate, cutoff = self.context.sample_rate_hz, self.settings.pressure_cutoff_hz
+        sigma = self.context.spike_sigma.get(column)
+        despike_median3(
+            values, self.segment, n_sigmas=self.settings.spike_sigmas, out=values, sigma=sigma
+        )
+        work = self.buffer(
+            "work_a", lowpass_work_size(self.n, sample_rate_hz=rate, cutoff_hz=cutoff)
+        )
+        return lowpass(
+            values, self.segment, sample_rate_hz=rate, cutoff_hz=cutoff, out=values, work=work
+        )  # the work array: the rope jobs reuse it on this thread
+
+    def displacement(self, column: str) -> np.ndarray:
+        """A logged displacement, despiked (NaN where not logged)."""
+        frame = self.frame
+        values = float_column(frame[column]) if column in frame.columns else np.full(self.n, np.nan)
+        sigma = self.context.spike_sigma.get(column)
+        n_sigmas = self.settings.spike_sigmas
+        return despike_median3(values, self.segment, n_sigmas=n_sigmas, out=values, sigma=sigma)[0]
+
+    def kinematics(self) -> tuple[np.ndarray, dict[str, pl.Series]]:
+        """Conveyance acceleration, then the trip labels that depend on it."""
+        speed = float_column(self.frame["speed_m_s"], fill=0.0)
+        accel = smoothed_derivative(
+            speed, self.segment, dt_s=self.dt_nominal, window_s=self.settings.acceleration_window_s
+        )
+        depth = float_column(self.frame["depth_m"])
+        state = self.carry.labels.copy()
+        state[1] = _continues(self.segment, self.core_lo)
+        core = slice(self.core_lo, self.core_hi)
+        labels = trip_label_columns(
+            self.time_s[core], speed[core], depth[core], accel[core], self.segment[core],
+            self.hoist, state,
+        )  # fmt: skip
+        self.nxt.labels = state
+        return accel, labels
+
+    def smoothed_logged(self, k: int) -> np.ndarray | None:
+        """Rope k's logged displacement, smoothed and played (None without a logged x)."""
+        if not self.context.has_x:
+            return None
+        smooth = differential_smooth(
+            self.x_jobs[k].result(), self.long_bounds, self.settings, buffer=self.buffer
+        )
+        # the result is a per-thread work array: played into a copy of its own
+        played = np.empty(self.n)
+        sigma = self.context.displacement_sigma_m[k]
+        half_width = 3.0 * sigma * smoothed_noise(self.settings)
+        long_segment = self.long_segment
+
+        def run(lo: int, hi: int, state: np.ndarray) -> None:
+            _play_kernel(smooth[lo:hi], long_segment[lo:hi], half_width, played[lo:hi], state)
+
+        self.nxt.differential[k] = self.staged(run, long_segment, self.carry.differential[k])
+        return played
+
+    def piston_motion(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+        """Each piston's displacement (the common mode shared out by the logged motion)
+        and its blind motion since last seen sliding (:mod:`transforms.piston_motion`)."""
+        logged = [job.result() for job in self.smooth_jobs]
+        common = self.common_mode.result()
+        n = self.n
+        if any(d is None for d in logged):
+            never_seen = np.full(n, np.inf)  # pressure only: no piston is seen sliding
+            # shared by the ropes: not overwritten
+            return tuple(common for _ in ROPES), tuple(never_seen for _ in ROPES)
+        blind = tuple(np.empty(n) for _ in ROPES)
+        presliding_range_m, segment = self.presliding_range_m, self.segment
+
+        def run(lo: int, hi: int, state: np.ndarray) -> None:
+            _, parts = share_out_common_motion(
+                common[lo:hi],
+                tuple(d[lo:hi] for d in logged),
+                segment[lo:hi],
+                overwrite_logged=True,  # the smoothed copies are this job's own
+                elastic_half_width_m=len(ROPES) * presliding_range_m,
+                # from any state, a seal saturates once it has moved 2 F_s / sigma_0
+                seen_reset_m=2.0 * presliding_range_m,
+                state=state,
+            )
+            for whole, part in zip(blind, parts, strict=True):
+                whole[lo:hi] = part
+
+        self.nxt.share = self.staged(run, segment, self.carry.share)
+        return tuple(logged), blind
+
+    def played_motion(self, k: int) -> np.ndarray:
+        """Rope k's piston displacement through the play operator of half-width
+        ``displacement_deadband_m`` (:func:`transforms.filtering.play_operator`)."""
+        played = self.buffer("work_b", self.n)
+        estimate = self.motion_share.result()[0][k]  # not overwritten
+        deadband, segment = self.settings.displacement_deadband_m, self.segment
+
+        def run(lo: int, hi: int, state: np.ndarray) -> None:
+            _play_kernel(estimate[lo:hi], segment[lo:hi], deadband, played[lo:hi], state)
+
+        self.nxt.played[k] = self.staged(run, segment, self.carry.played[k])
+        return played
+
+    def branch_flow(self, played: np.ndarray) -> np.ndarray:
+        """Piston velocity driving the branch flow (Savitzky-Golay of the played motion)."""
+        if not self.with_branch_loss:
+            return np.zeros(1)
+        lo, hi = self.stage_lo, self.stage_hi
+        v_flow = np.zeros(self.n)
+        v_flow[lo:hi] = smoothed_derivative(
+            played[lo:hi],
+            self.segment[lo:hi],
+            dt_s=self.dt_nominal,
+            window_s=self.settings.velocity_window_s,
+            out=self.buffer("work_a", hi - lo),
+        )
+        return v_flow
+
+    def rope(self, k: int) -> dict[str, np.ndarray]:
+        """Tensions of rope k and their band; its inputs are futures of earlier jobs."""
+        n, core, law = self.n, slice(self.core_lo, self.core_hi), self.law
+        played = self.played_motion(k)
+        p_sensor = np.ascontiguousarray(self.p_jobs[k].result())
+        nu = np.ascontiguousarray(np.atleast_1d(np.asarray(self.nu_job.result(), dtype=float)))
+        out = {name: np.empty(n) for name in ("p_chamber", "tension_raw", "tension")}
+        # this rope's despiked displacement is consumed (the differential is done): its
+        # array takes the friction, one fresh day-long array fewer
+        out["friction"] = self.x_jobs[k].result() if self.context.has_x else np.empty(n)
+        v_flow = self.branch_flow(played)
+        state = self.carry.rope[k].copy()
+        rope_kernel(
+            played[core], self.time_s[core], self.settings.gap_factor * self.dt_nominal,
+            self.dt_nominal, p_sensor[core], self.with_branch_loss,
+            v_flow[core] if v_flow.size == n else v_flow, nu[core] if nu.size == n else nu,
+            self.branch, self.law_lines, self.mode, self.stiffness, self.weights,
+            float(law.bristle_stiffness_n_m), float(law.bristle_damping_n_s_m),
+            self.hoist.cylinders.bore_area_m2,
+            out["p_chamber"][core], out["friction"][core], out["tension_raw"][core],
+            out["tension"][core], state,
+        )  # fmt: skip
+        self.nxt.rope[k] = state
+        lo, hi = self.rope_band(k, out)
+        i = ROPES[k]
+        return {
+            f"p_chamber{i}_pa": out["p_chamber"][core],
+            f"friction{i}_n": out["friction"][core],
+            f"tension_raw{i}_n": out["tension_raw"][core],
+            f"tension{i}_n": out["tension"][core],
+            f"tension{i}_lo_n": lo,
+            f"tension{i}_hi_n": hi,
+        }
+
+    def pressure_noise_n(self) -> float:
+        """The sensor's noise after the low-pass, as a force on the piston [N] (the band)."""
+        settings = self.settings
+        share = min(1.0, 2.0 * settings.pressure_cutoff_hz / self.context.sample_rate_hz)
+        return settings.pressure_sigma_pa * np.sqrt(share) * self.hoist.cylinders.bore_area_m2
+
+    def rope_band(self, k: int, out: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """The 95 % band of rope k's tension (:func:`transforms.uncertainty.rope_band`)."""
+        core, law, friction = slice(self.core_lo, self.core_hi), self.law, self.mode != 0
+        estimates, blind = self.motion_share.result()
+        # rope k's estimate is consumed (played above) and its blind motion is read
+        # before each hi is written: they take the band, unless shared by the ropes
+        own = estimates[k] is not estimates[(k + 1) % len(ROPES)]
+        return rope_band(
+            out["tension"][core],
+            out["friction"][core] if friction else np.zeros(self.core_hi - self.core_lo),
+            out["p_chamber"][core],
+            blind[k][core],
+            static_law_n=tuple(law.static_n) if friction else (0.0, 0.0),
+            bristle_stiffness_n_m=float(law.bristle_stiffness_n_m) if friction else 0.0,
+            gaussian_sigma_n=(
+                self.settings.friction_relative_sigma if friction else 0.0,
+                self.pressure_noise_n(),
+            ),
+            out=(estimates[k][core], blind[k][core]) if own else None,
+        )
+
+    def common_mode_into(self, pressures: list[np.ndarray]) -> np.ndarray:
+        """The mean pressure; its common mode (:mod:`physics.closed_volume`) is set as the
+        result of ``self.common_mode``, which the piston motion waits for."""
+        p_mean = mean_horizontal(pressures)
+        common = np.empty(self.n)
+        segment, hoist = self.segment, self.hoist
+
+        def run(lo: int, hi: int, state: np.ndarray) -> None:
+            if hi > lo:
+                common[lo:hi] = common_mode_displacement(
+                    p_mean[lo:hi], segment[lo:hi], hoist, state=state
+                )
+
+        self.nxt.common = self.staged(run, segment, self.carry.common)
+        self.common_mode.set_result(common)
+        return p_mean
+
+    # -- scheduling -----------------------------------------------------------------------
+    def run(self) -> tuple[pl.DataFrame, CompensationCarry]:
+        """All steps on a pool; the block's rows and the state for the next block.
+
+        Every job waits only for jobs queued before it or for the common mode, which this
+        thread computes. The trip labels go first: they are the longest job that does
+        not wait for the pressures, so they overlap the pressure filters instead of
+        running alone after the ropes. The ropes are queued right away: each starts on
+        its differential displacement while the common mode is still being integrated.
+        """
+        self.common_mode: Future[np.ndarray] = Future()
+        workers = min(len(ROPES), os.cpu_count() or 1)
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            kinematics_job = pool.submit(self.kinematics)
+            self.p_jobs = [pool.submit(self.pressure, c) for c in rope_cols("p{i}_pa")]
+            self.x_jobs = [pool.submit(self.displacement, c) for c in rope_cols("x{i}_m")]
+            self.nu_job = pool.submit(viscosity, self.t_oil, self.hoist)
+            self.smooth_jobs = [pool.submit(self.smoothed_logged, k) for k in range(len(ROPES))]
+            self.motion_share = pool.submit(self.piston_motion)
+            rope_jobs = [pool.submit(self.rope, k) for k in range(len(ROPES))]
+            try:
+                # NaN stands for null from here on (the frame version filled NaN with null)
+                pressures = [job.result() for job in self.p_jobs]
+                p_mean = self.common_mode_into(pressures)
+            except BaseException as error:
+                self.common_mode.set_exception(error)  # the rope jobs fail, not wait
+                raise
+            accel, labels = kinematics_job.result()
+            per_rope = [job.result() for job in rope_jobs]
+        columns = {name: values for part in per_rope for name, values in part.items()}
+        core = slice(self.core_lo, self.core_hi)
+        rows = self.frame.slice(self.core_lo, self.core_hi - self.core_lo)
+        sigma_n = (
+            self.settings.friction_relative_sigma if self.mode != 0 else 0.0,
+            self.pressure_noise_n(),
+        )
+        pressures = [p[core] for p in pressures]
+        # the mean pressure's array takes the raw load sum
+        frame = block_frame(rows, np.negative(accel[core]), labels, pressures, columns,
+                            p_mean[core], sigma_n)  # fmt: skip
+        return frame, self.nxt

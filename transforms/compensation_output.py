@@ -1,0 +1,83 @@
+"""The rows a compensated block returns: rope tensions, loads and their bands.
+
+:func:`block_frame` sums the ropes into the load (paper eq 3-4, before and after the
+compensation), adds the load's 95 % band (:func:`transforms.uncertainty.load_band`) and
+lays the columns out as ``ROPE_TENSIONS``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import polars as pl
+
+from schemas.tables import ROPE_TENSIONS
+from transforms.compensation_kernels import load_kernel
+from transforms.compensation_record import rope_cols
+from transforms.uncertainty import load_band
+
+__all__ = ["OUTPUT_SCHEMA", "block_frame"]
+
+#: The polars schema of a ``ROPE_TENSIONS`` frame.
+OUTPUT_SCHEMA = pl.Schema(pl.from_arrow(ROPE_TENSIONS.empty_table()).schema)
+
+
+def _nullable(name: str, values: np.ndarray, dtype: type = pl.Float64) -> pl.Series:
+    series = pl.Series(name, values, dtype=dtype)
+    return series.fill_nan(None) if np.isnan(values).any() else series
+
+
+def block_frame(
+    rows: pl.DataFrame,
+    accel_up: np.ndarray,
+    labels: dict[str, pl.Series],
+    pressures: list[np.ndarray],
+    columns: dict[str, np.ndarray],
+    load_raw: np.ndarray,
+    gaussian_sigma_n: tuple[float, float],
+) -> pl.DataFrame:
+    """The block's ``ROPE_TENSIONS`` rows.
+
+    ``rows`` the block's input rows (time, depth, speed), ``accel_up`` the conveyance's
+    acceleration [m/s2] up, ``labels`` the trip columns, ``pressures`` the filtered
+    pressures, ``columns`` each rope's output arrays by column name; ``load_raw`` is
+    overwritten with the raw load; ``gaussian_sigma_n`` = (relative friction sigma,
+    pressure noise [N]) of the band.
+    """
+    load = np.empty(rows.height)
+    load_kernel(
+        tuple(columns[c] for c in rope_cols("tension_raw{i}_n")),
+        tuple(columns[c] for c in rope_cols("tension{i}_n")),
+        load_raw,
+        load,
+    )
+    load_lo, load_hi = load_band(
+        load,
+        [columns[c] for c in rope_cols("tension{i}_lo_n")],
+        [columns[c] for c in rope_cols("tension{i}_hi_n")],
+        [columns[c] for c in rope_cols("tension{i}_n")],
+        [columns[c] for c in rope_cols("friction{i}_n")],
+        gaussian_sigma_n=gaussian_sigma_n,
+    )
+    p_cols = rope_cols("p{i}_pa")
+    out: dict[str, pl.Series] = {
+        "time_utc": rows["time_utc"],
+        "depth_m": rows["depth_m"],
+        "speed_m_s": rows["speed_m_s"],
+        "acceleration_up_m_s2": _nullable("acceleration_up_m_s2", accel_up),
+        **labels,
+        **{c: _nullable(c, v) for c, v in zip(p_cols, pressures, strict=True)},
+        **{
+            name: _nullable(name, values, pl.Float32)  # the band (schemas.tables)
+            if name.endswith(("_lo_n", "_hi_n"))
+            else pl.Series(name, values, dtype=pl.Float64)
+            for name, values in columns.items()
+        },
+        "load_raw_n": pl.Series("load_raw_n", load_raw, dtype=pl.Float64),
+        "load_n": pl.Series("load_n", load, dtype=pl.Float64),
+        "load_lo_n": _nullable("load_lo_n", load_lo, pl.Float32),
+        "load_hi_n": _nullable("load_hi_n", load_hi, pl.Float32),
+    }
+    result = pl.DataFrame([out[name] for name in OUTPUT_SCHEMA])
+    if result.schema != OUTPUT_SCHEMA:
+        result = result.cast(dict(OUTPUT_SCHEMA))
+    return result

@@ -1,0 +1,345 @@
+"""What a record gives the compensation before and between its blocks.
+
+:class:`CompensationSettings` (the signal-processing choices), the record's statistics
+(:class:`CompensationContext`, read once from a sparse sample of the whole record) and
+the sequential state carried from one block to the next (:class:`CompensationCarry`),
+with the block margins they imply (:func:`compensation_margins_s`). The compensation
+itself: :mod:`transforms.compensation`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import polars as pl
+from numba import njit
+
+from physics.closed_volume import COMMON_MODE_STATE_SIZE
+from physics.trip_rule import LABEL_STATE_SIZE
+from schemas.hoist import HoistDescription
+from schemas.tables import ROPES
+from transforms.filtering import PLAY_STATE_SIZE, first_difference_sigma, fresh_state
+from transforms.piston_motion import share_state
+
+__all__ = [
+    "CONTEXT_ROWS",
+    "ROPE_STATE_BASE",
+    "CompensationCarry",
+    "CompensationContext",
+    "CompensationSettings",
+    "calibrated",
+    "compensation_context",
+    "compensation_margins_s",
+    "context_sample",
+    "context_stride",
+    "displacement_noise_sigma",
+    "float_column",
+    "logger_rate_hz",
+    "mean_horizontal",
+    "rope_cols",
+    "second_difference_sigma",
+]
+
+#: Length of the rope kernel's state before its Maxwell-slip elements
+#: (:func:`transforms.compensation_kernels.rope_kernel`).
+ROPE_STATE_BASE = 4
+
+
+@dataclass(frozen=True)
+class CompensationSettings:
+    """Signal-processing choices of :func:`compensate` (documented defaults).
+
+    Attributes
+    ----------
+    sample_rate_hz : float or None
+        Nominal logger rate [Hz]; spacing above ``gap_factor`` / rate starts a segment.
+        None (the default): the record's own rate, :func:`logger_rate_hz`.
+    pressure_cutoff_hz : float
+        Zero-phase low-pass on the pressures [Hz] (4th-order Butterworth, filtfilt);
+        at most 0.4 x the sample rate (below Nyquist) for slow loggers.
+    spike_sigmas : float
+        A sample further than this many noise sigmas from the median of itself and its
+        neighbours is a spike (:func:`transforms.filtering.despike_median3`).
+    velocity_window_s : float
+        Savitzky-Golay window for the piston velocity [s].
+    acceleration_window_s : float
+        Savitzky-Golay window for the conveyance acceleration [s].
+    differential_cutoff_hz : float
+        Half-power frequency of the Gaussian smoothing of each logged displacement [Hz],
+        which says which pistons move (:mod:`transforms.piston_motion`); the oil gives
+        the fast motion of their sum. The transducer's noise and step are not slow.
+    differential_bridge_s : float
+        Logger gaps up to this long [s] are bridged for the differential displacement
+        (pistons do not jump while the logger drops samples); longer gaps restart it.
+    displacement_deadband_m : float
+        Half-width of the play operator on the estimated piston displacement [m]: the
+        residual noise of the estimate, well inside the seal's presliding range.
+    friction_relative_sigma : float
+        Relative standard uncertainty of the hoist's calibrated friction law, for the
+        95 % band (:mod:`transforms.uncertainty`).
+    pressure_sigma_pa : float
+        White noise of a raw pressure reading [Pa] (1 sigma), for the band.
+    """
+
+    sample_rate_hz: float | None = None
+    gap_factor: float = 3.0
+    pressure_cutoff_hz: float = 10.0
+    spike_sigmas: float = 6.0
+    velocity_window_s: float = 0.2
+    acceleration_window_s: float = 0.5
+    differential_cutoff_hz: float = 0.1
+    differential_bridge_s: float = 120.0
+    displacement_deadband_m: float = 5e-6
+    friction_relative_sigma: float = 0.10
+    pressure_sigma_pa: float = 5e3
+
+
+def rope_cols(template: str) -> list[str]:
+    """``template`` formatted with each rope number, e.g. ``p{i}_pa`` -> p1_pa ... p4_pa."""
+    return [template.format(i=i) for i in ROPES]
+
+
+def logger_rate_hz(time_s: np.ndarray, *, default_hz: float = 100.0) -> float:
+    """A record's nominal sample rate [Hz]: 1 / the median positive time step.
+
+    The median ignores logger gaps and jitter. Filters, windows and segmentation depend
+    on it, so a 20 Hz log must not be treated as a 100 Hz one (every step would look like
+    a gap). ``default_hz`` when the record has fewer than two distinct times.
+    """
+    # every stride-th time (200 k steps are plenty): a step then spans stride samples
+    stride = max(1, len(time_s) // 200_000)
+    steps = np.diff(np.asarray(time_s, dtype=np.float64)[::stride])
+    steps = steps[steps > 0]
+    if steps.size == 0:
+        return default_hz
+    return float(stride / np.median(steps))
+
+
+def displacement_noise_sigma(x: np.ndarray) -> float:
+    """Robust white-noise sigma of a sampled signal from its second differences [unit of x].
+
+    For white noise of variance s^2, the second difference has variance 6 s^2; the
+    median absolute deviation (x 1.4826) makes the estimate ignore real motion and steps.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    # every step-th second difference (the median of 200 k of them is plenty), as
+    # np.diff(x, 2)[::step] without differencing the whole record
+    step = max(1, (x.size - 2) // 200_000)
+    at = np.arange(0, max(x.size - 2, 0), step)
+    return second_difference_sigma((x[at + 2] - x[at + 1]) - (x[at + 1] - x[at]))
+
+
+def second_difference_sigma(d2: np.ndarray) -> float:
+    """White-noise sigma from second differences: 1.4826 MAD / sqrt 6 (non-finite ignored)."""
+    d2 = np.asarray(d2, dtype=np.float64)
+    d2 = d2[np.isfinite(d2)]
+    if d2.size == 0:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
+
+
+def float_column(series: pl.Series, *, fill: float = np.nan, scale: float = 1.0) -> np.ndarray:
+    """A column as a new float64 array (null -> ``fill``), times ``scale`` if not 1.
+
+    Copied chunk by chunk: a day read from Parquet comes as one chunk per row group, and
+    ``to_numpy`` would first concatenate them into a polars array of its own.
+    """
+    out = np.empty(series.len())
+    start = 0
+    for chunk in series.get_chunks():
+        part = chunk.to_numpy()  # a view of the chunk's buffer when it has no nulls
+        stop = start + part.shape[0]
+        if scale != 1.0:
+            np.multiply(part, scale, out=out[start:stop])
+        else:
+            out[start:stop] = part
+        if chunk.null_count():
+            out[start:stop][chunk.is_null().to_numpy()] = fill
+        start = stop
+    return out
+
+
+#: Rows the record-wide statistics of :class:`CompensationContext` are read from (about).
+CONTEXT_ROWS = 200_000
+
+
+def context_stride(rows: int) -> int:
+    """Every how many rows :func:`compensation_context` looks (row counts from 0)."""
+    return max(1, rows // CONTEXT_ROWS)
+
+
+def context_sample(
+    samples: pl.DataFrame | pl.LazyFrame, stride: int, *, offset: int = 0
+) -> pl.LazyFrame:
+    """Rows i, i + 1, i + 2 of every i divisible by ``stride`` (time-sorted samples), with
+    their row number ``_row`` (the first row is number ``offset``: a block of a longer
+    record): what :func:`compensation_context` reads, about 3 / ``stride`` of the rows."""
+    return (
+        samples.lazy()
+        .with_row_index("_row", offset=offset)
+        .filter(pl.col("_row") % stride < 3)
+        .with_columns(pl.col("_row").cast(pl.Int64))
+    )
+
+
+@dataclass(frozen=True)
+class CompensationContext:
+    """Record-wide statistics of :func:`compensate`, measured once for the whole record.
+
+    A block of a day (issue 16) must be compensated with the day's statistics, not its
+    own, to give the day's result; :func:`compensation_context` reads them from a sparse,
+    evenly spread sample of the record (:func:`context_sample`).
+
+    Attributes
+    ----------
+    sample_rate_hz : float
+        The logger's rate [Hz] (1 / the median step between neighbouring samples), or
+        ``settings.sample_rate_hz`` when set.
+    spike_sigma : dict of str to float
+        White-noise sigma of each calibrated pressure and logged displacement column
+        (:func:`transforms.filtering.first_difference_sigma`), for the despiking.
+    displacement_sigma_m : tuple of float
+        White-noise sigma of each rope's logged displacement from second differences
+        [m] (:func:`second_difference_sigma`), for the differential's play band.
+    typical_pressure_pa : float
+        Median of the ropes' mean calibrated pressure [Pa] (the presliding range's F_s).
+    has_x : bool
+        Every rope's displacement is logged somewhere in the record.
+    """
+
+    sample_rate_hz: float
+    spike_sigma: dict[str, float]
+    displacement_sigma_m: tuple[float, ...]
+    typical_pressure_pa: float
+    has_x: bool
+
+
+def calibrated(frame: pl.DataFrame, column: str, hoist: HoistDescription) -> np.ndarray:
+    """A column as a new float64 array; a pressure with its sensor's calibration
+    applied, p = (reading - offset) / gain (hoist ``[[sensors]]``), in place."""
+    values = float_column(frame[column])
+    for sensor in hoist.sensors:
+        if column == f"p{sensor.cylinder}_pa":
+            np.subtract(values, sensor.offset_pa, out=values)
+            np.divide(values, sensor.gain, out=values)
+    return values
+
+
+def compensation_context(
+    sample: pl.DataFrame, hoist: HoistDescription, settings: CompensationSettings, stride: int
+) -> CompensationContext:
+    """:class:`CompensationContext` from a :func:`context_sample` of the record."""
+    row = sample["_row"].to_numpy()
+    first = row % stride == 0
+    pair = np.flatnonzero(first[:-1] & (row[1:] == row[:-1] + 1))
+    triple = pair[(pair + 2 < row.size)]
+    triple = triple[row[np.minimum(triple + 2, row.size - 1)] == row[triple] + 2]
+    epoch_us = sample["time_utc"].dt.cast_time_unit("us").to_physical().to_numpy()
+    steps = (epoch_us[pair + 1] - epoch_us[pair]) * 1e-6
+    steps = steps[steps > 0]
+    rate_hz = settings.sample_rate_hz or (float(1.0 / np.median(steps)) if steps.size else 100.0)
+    spike_sigma: dict[str, float] = {}
+    p_cols, x_cols = rope_cols("p{i}_pa"), rope_cols("x{i}_m")
+    pressures = []
+    for column in (*p_cols, *x_cols):
+        values = (
+            calibrated(sample, column, hoist)
+            if column in sample.columns
+            else np.full(row.size, np.nan)
+        )
+        spike_sigma[column] = first_difference_sigma(values[pair + 1] - values[pair])
+        if column in p_cols:
+            pressures.append(values[first])
+    displacement_sigma = []
+    has_x = True
+    for column in x_cols:
+        x = float_column(sample[column]) if column in sample.columns else np.full(row.size, np.nan)
+        has_x = has_x and bool(np.isfinite(x).any())
+        d2 = (x[triple + 2] - x[triple + 1]) - (x[triple + 1] - x[triple])
+        displacement_sigma.append(second_difference_sigma(d2))
+    mean = mean_horizontal(pressures) if pressures and row.size else np.empty(0)
+    typical = float(np.nanmedian(mean)) if np.isfinite(mean).any() else 0.0
+    return CompensationContext(
+        sample_rate_hz=rate_hz,
+        spike_sigma=spike_sigma,
+        displacement_sigma_m=tuple(displacement_sigma),
+        typical_pressure_pa=typical,
+        has_x=has_x,
+    )
+
+
+@dataclass
+class CompensationCarry:
+    """The sequential state of :func:`compensate_window` from one block to the next.
+
+    Each array is a resumable kernel's state (:func:`transforms.filtering.fresh_state`).
+    The filters before them are not causal, so a block is compensated on a window with a
+    margin either side (:func:`compensation_margins_s`); the kernels that feed a second
+    filter (the oil's common mode, the pistons' share-out, the play operators) resume
+    ``resume_s`` before the block's start, the friction and trip labels at its start.
+    """
+
+    common: np.ndarray
+    differential: list[np.ndarray]
+    share: np.ndarray
+    played: list[np.ndarray]
+    rope: list[np.ndarray]
+    labels: np.ndarray
+
+    @classmethod
+    def fresh(cls, elements: int) -> CompensationCarry:
+        ropes = range(len(ROPES))
+        return cls(
+            common=fresh_state(COMMON_MODE_STATE_SIZE),
+            differential=[fresh_state(PLAY_STATE_SIZE) for _ in ropes],
+            share=share_state(len(ROPES)),
+            played=[fresh_state(PLAY_STATE_SIZE) for _ in ropes],
+            rope=[fresh_state(ROPE_STATE_BASE + elements) for _ in ropes],
+            labels=fresh_state(LABEL_STATE_SIZE),
+        )
+
+
+def compensation_margins_s(settings: CompensationSettings) -> tuple[float, float]:
+    """(resume, halo) [s] of block processing (:func:`compensate_window`).
+
+    ``resume``: the first-stage kernels restart this long before a block, so the piston
+    velocity filter (``velocity_window_s``) has exact input at the block's edges.
+    ``halo``: samples this far beyond (resume + block + resume) are read so that the
+    zero-phase filters have forgotten the window's edges: 10 periods of the pressure
+    low-pass, the differential smoother's 4 sigma plus its median-padded edge, twice
+    each Savitzky-Golay window, and at least 30 s.
+    """
+    resume = max(1.0, 2.0 * settings.velocity_window_s)
+    smoother_s = 4.0 * 0.1325 / settings.differential_cutoff_hz
+    halo = max(
+        30.0,
+        10.0 / settings.pressure_cutoff_hz,
+        2.0 * (smoother_s + 1.0 / settings.differential_cutoff_hz),
+        2.0 * settings.acceleration_window_s,
+        2.0 * settings.velocity_window_s,
+    )
+    return resume, halo
+
+
+def mean_horizontal(arrays: list[np.ndarray]) -> np.ndarray:
+    """polars ``mean_horizontal`` of NaN-for-null arrays (nulls ignored), as an array."""
+    out = np.empty(arrays[0].shape[0]) if arrays else np.empty(0)
+    if arrays:
+        columns = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in arrays)
+        _mean_horizontal_kernel(columns, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _mean_horizontal_kernel(arrays, out):  # pragma: no cover - numba
+    """Row mean of the non-NaN values (sum in column order / count), NaN if none."""
+    for i in range(out.shape[0]):
+        total = 0.0
+        count = 0
+        for k in range(len(arrays)):
+            v = arrays[k][i]
+            if not np.isnan(v):
+                total += v
+                count += 1
+        out[i] = total / count if count else np.nan

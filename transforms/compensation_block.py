@@ -48,14 +48,9 @@ from transforms.compensation_record import (
     mean_horizontal,
     rope_cols,
 )
-from transforms.filtering import (
-    _play_kernel,
-    despike_median3,
-    lowpass,
-    lowpass_work_size,
-    segment_ids,
-)
+from transforms.filtering import despike_median3, play_kernel, segment_ids
 from transforms.kinematics import smoothed_derivative
+from transforms.lowpass import lowpass, lowpass_work_size
 from transforms.piston_motion import share_out_common_motion
 from transforms.uncertainty import rope_band
 
@@ -261,7 +256,7 @@ class BlockCompensation:
         long_segment = self.long_segment
 
         def run(lo: int, hi: int, state: np.ndarray) -> None:
-            _play_kernel(smooth[lo:hi], long_segment[lo:hi], half_width, played[lo:hi], state)
+            play_kernel(smooth[lo:hi], long_segment[lo:hi], half_width, played[lo:hi], state)
 
         self.nxt.differential[k] = self.staged(run, long_segment, self.carry.differential[k])
         return played
@@ -304,7 +299,7 @@ class BlockCompensation:
         deadband, segment = self.settings.displacement_deadband_m, self.segment
 
         def run(lo: int, hi: int, state: np.ndarray) -> None:
-            _play_kernel(estimate[lo:hi], segment[lo:hi], deadband, played[lo:hi], state)
+            play_kernel(estimate[lo:hi], segment[lo:hi], deadband, played[lo:hi], state)
 
         self.nxt.played[k] = self.staged(run, segment, self.carry.played[k])
         return played

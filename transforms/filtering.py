@@ -5,13 +5,16 @@ Segments
     :func:`with_segment_id` -- the same as a column of a LazyFrame/DataFrame.
     :func:`seconds_expr` -- a time column as float seconds (expression).
 
-Spikes
-    :func:`hampel` -- Hampel identifier per segment (numpy in, numpy out; numba).
-    :func:`remove_spikes` -- the same on frame columns.
+Spikes and noise
+    :func:`despike_median3` -- single-sample spikes against a 3-point median (numba).
+    :func:`first_difference_sigma` -- white-noise sigma from first differences.
 
-Low-pass
-    :func:`lowpass` -- zero-phase Butterworth (``scipy.signal.sosfiltfilt``) per segment.
-    :func:`lowpass_columns` -- the same on frame columns.
+Smoothing and play
+    :func:`box_smooth` / :func:`box_smooth_into` -- near-Gaussian, monotone smoothing.
+    :func:`play_operator` -- a play (backlash) operator per segment, resumable
+    (:func:`play_kernel`, :func:`fresh_state`).
+
+The zero-phase low-pass is :mod:`transforms.lowpass`.
 
 A *gap* is a sample spacing larger than ``gap_factor`` times the nominal spacing (the
 median spacing unless given). Every filter runs on each contiguous segment on its own,
@@ -21,14 +24,11 @@ may be off for hours).
 
 from __future__ import annotations
 
-import itertools
-from collections.abc import Sequence
 from typing import TypeVar
 
 import numpy as np
 import polars as pl
 from numba import njit
-from scipy import signal
 
 __all__ = [
     "MAD_TO_SIGMA",
@@ -37,12 +37,8 @@ __all__ = [
     "despike_median3",
     "first_difference_sigma",
     "fresh_state",
-    "hampel",
-    "lowpass",
-    "lowpass_columns",
-    "lowpass_work_size",
+    "play_kernel",
     "play_operator",
-    "remove_spikes",
     "seconds_expr",
     "segment_ids",
     "with_segment_id",
@@ -130,364 +126,7 @@ def with_segment_id(
     return frame.with_columns(gap.cast(pl.Int64).cum_sum().alias(name))
 
 
-@njit(cache=True, nogil=True)
-def _sorted_median(a, m):  # pragma: no cover - numba
-    """Median of a[:m], sorting a[:m] in place (insertion sort: m is a small window)."""
-    for i in range(1, m):
-        key = a[i]
-        j = i - 1
-        while j >= 0 and a[j] > key:
-            a[j + 1] = a[j]
-            j -= 1
-        a[j + 1] = key
-    if m % 2 == 1:
-        return a[m // 2]
-    return 0.5 * (a[m // 2 - 1] + a[m // 2])
-
-
-@njit(cache=True, nogil=True)
-def _hampel_kernel(x, seg, half, threshold):  # pragma: no cover
-    n = x.shape[0]
-    out = x.copy()
-    buf = np.empty(2 * half + 1)
-    dev = np.empty(2 * half + 1)
-    for i in range(n):
-        if not np.isfinite(x[i]):
-            continue
-        m = 0
-        for j in range(max(0, i - half), min(n, i + half + 1)):
-            if seg[j] == seg[i] and np.isfinite(x[j]):
-                buf[m] = x[j]
-                m += 1
-        med = _sorted_median(buf, m)
-        distance = abs(x[i] - med)
-        if distance == 0.0:
-            continue
-        for k in range(m):
-            dev[k] = abs(buf[k] - med)
-        mad = _sorted_median(dev, m)
-        if distance > threshold * mad:
-            out[i] = med
-    return out
-
-
-def hampel(
-    x: np.ndarray,
-    segment_id: np.ndarray | None = None,
-    *,
-    window: int = 7,
-    n_sigmas: float = 4.0,
-) -> tuple[np.ndarray, np.ndarray]:
-    r"""Hampel identifier per segment: replace spikes by the local median.
-
-    Sample i is a spike when
-
-    .. math::
-        |x_i - m_i| > n_\sigma \cdot 1.4826 \cdot
-        \operatorname{median}_{j \in W_i} |x_j - m_i|,
-        \qquad m_i = \operatorname{median}_{j \in W_i} x_j
-
-    with W_i the centred window of ``window`` samples, cut at segment boundaries (so a
-    window never reaches across a gap). NaN samples are ignored and stay NaN.
-
-    Parameters
-    ----------
-    x : numpy.ndarray
-        Signal.
-    segment_id : numpy.ndarray or None
-        Segment id per sample (:func:`segment_ids`); None: one segment.
-    window : int
-        Odd window length [samples].
-    n_sigmas : float
-        Threshold in robust standard deviations [-].
-
-    Returns
-    -------
-    cleaned, is_spike : numpy.ndarray
-        Cleaned signal and a Boolean spike mask.
-
-    Notes
-    -----
-    Where the window is flat (MAD 0, e.g. a quantised signal at rest) any deviation
-    from the median counts as a spike.
-
-    References
-    ----------
-    Pearson, R. K. (2002), Outliers in process modeling and identification, IEEE
-    Trans. Control Syst. Technol. 10(1), 55-63, doi:10.1109/87.974338.
-
-    >>> y, spikes = hampel(np.array([1.0, 1.1, 0.9, 50.0, 1.0, 1.1, 0.9]))
-    >>> float(y[3]), spikes.tolist()
-    (1.0, [False, False, False, True, False, False, False])
-    """
-    x = np.ascontiguousarray(x, dtype=np.float64)
-    seg = (
-        np.zeros(x.size, dtype=np.int64)
-        if segment_id is None
-        else np.ascontiguousarray(segment_id, dtype=np.int64)
-    )
-    cleaned = _hampel_kernel(x, seg, window // 2, n_sigmas * MAD_TO_SIGMA)
-    return cleaned, cleaned != x
-
-
-def remove_spikes(
-    frame: Frame,
-    columns: Sequence[str],
-    *,
-    segment_col: str = "segment_id",
-    window: int = 7,
-    n_sigmas: float = 4.0,
-    flag_suffix: str | None = "_spike",
-) -> Frame:
-    """Apply :func:`hampel` to frame columns (replaced in place), per segment.
-
-    Sequential, so it runs in ``map_batches`` over the whole column with the segment
-    ids beside it. If ``flag_suffix`` is given, a Boolean column
-    ``<column><flag_suffix>`` marks the replaced samples. Nulls stay null.
-    """
-
-    def make(column: str) -> pl.Expr:
-        def _batch(s: pl.Series) -> pl.Series:
-            parts = s.struct.unnest()
-            y, _ = hampel(
-                parts["x"].cast(pl.Float64).to_numpy(),
-                parts["seg"].to_numpy(),
-                window=window,
-                n_sigmas=n_sigmas,
-            )
-            return pl.Series(y, dtype=pl.Float64).fill_nan(None)
-
-        return pl.struct(x=pl.col(column), seg=pl.col(segment_col)).map_batches(
-            _batch, return_dtype=pl.Float64
-        )
-
-    if flag_suffix is None:
-        return frame.with_columns(make(c).alias(c) for c in columns)
-    tmp = {c: f"__{c}_hampel" for c in columns}
-    frame = frame.with_columns(make(c).alias(tmp[c]) for c in columns)
-    frame = frame.with_columns(
-        [(pl.col(tmp[c]) != pl.col(c)).fill_null(False).alias(c + flag_suffix) for c in columns]
-        + [pl.col(tmp[c]).alias(c) for c in columns]
-    )
-    return frame.drop(list(tmp.values()))
-
-
-def _fill_nan_linear(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    bad = ~np.isfinite(x)
-    if bad.any() and (~bad).any():
-        idx = np.arange(x.size)
-        x = x.copy()
-        x[bad] = np.interp(idx[bad], idx[~bad], x[~bad])
-    return x, bad
-
-
-def lowpass(
-    x: np.ndarray,
-    segment_id: np.ndarray | None,
-    *,
-    sample_rate_hz: float,
-    cutoff_hz: float,
-    order: int = 4,
-    out: np.ndarray | None = None,
-    work: np.ndarray | None = None,
-) -> np.ndarray:
-    r"""Zero-phase Butterworth low-pass, each segment filtered on its own.
-
-    Forward-backward filtering (``scipy.signal.sosfiltfilt``) of an order-``order``
-    Butterworth section cascade: magnitude response
-
-    .. math:: |H(f)|^2 = \frac{1}{1 + (f/f_c)^{2N}}
-
-    applied twice (squared), no phase lag. Each segment is padded by odd extension of
-    three cut-off periods (scipy's default pad is shorter and leaves ~3 % edge error
-    on a sine at a fifth of the cut-off). NaN samples inside a segment are bridged
-    linearly for the filter and returned as NaN. Segments too short for the
-    edge padding use a shorter pad; segments of fewer than ``3 * order`` samples are
-    returned unfiltered.
-
-    Parameters
-    ----------
-    x : numpy.ndarray
-        Signal, uniformly sampled within each segment.
-    segment_id : numpy.ndarray or None
-        Segment id per sample (:func:`segment_ids`); None: one segment.
-    sample_rate_hz, cutoff_hz : float
-        Nominal sampling rate and -3 dB (one pass) cut-off [Hz].
-    order : int
-        Butterworth order (per pass).
-    out : numpy.ndarray, optional
-        Float64 array of ``x``'s length to write into; may be ``x`` itself (filtered in
-        place: each segment is read whole before it is written).
-    work : numpy.ndarray, optional
-        A float64 scratch array for the forward pass (a reused buffer), used when it
-        holds the longest segment plus twice the pad (:func:`lowpass_work_size`);
-        otherwise one is allocated.
-
-    Returns
-    -------
-    numpy.ndarray
-        Filtered signal, same shape.
-
-    >>> t = np.arange(0, 2, 0.01)
-    >>> y = lowpass(np.sin(2 * np.pi * t), None, sample_rate_hz=100, cutoff_hz=10)
-    >>> bool(np.max(np.abs(y - np.sin(2 * np.pi * t))) < 0.01)
-    True
-    """
-    x = np.asarray(x, dtype=np.float64)
-    seg = np.zeros(x.size, dtype=np.int64) if segment_id is None else np.asarray(segment_id)
-    sos = signal.butter(order, cutoff_hz, btype="low", fs=sample_rate_hz, output="sos")
-    default_pad = _lowpass_pad(sample_rate_hz, cutoff_hz, order)
-    zi = signal.sosfilt_zi(sos)
-    if out is None:
-        out = x.copy()
-    elif out is not x:
-        out[:] = x
-    starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]])) if x.size else []
-    bounds = [*list(starts), x.size]
-    longest = max((b - a for a, b in itertools.pairwise(bounds)), default=0)
-    size = longest + 2 * default_pad
-    # the forward pass, reused per segment
-    work = np.empty(size) if work is None or work.size < size else work[:size]
-    for a, b in itertools.pairwise(bounds):
-        part, bad = _fill_nan_linear(x[a:b])
-        if b - a < 3 * order or bad.all():
-            continue
-        kernel = _sosfiltfilt_two_kernel if sos.shape[0] == 2 else _sosfiltfilt_kernel
-        kernel(sos, zi, np.ascontiguousarray(part), min(default_pad, b - a - 1), work, out[a:b])
-        if bad.any():
-            out[a:b][bad] = np.nan
-    return out
-
-
-def _lowpass_pad(sample_rate_hz: float, cutoff_hz: float, order: int) -> int:
-    """Odd-extension pad of :func:`lowpass` [samples]: three cut-off periods (scipy's
-    default, 3 (2 sections + 1) samples, leaves a start-up transient of a few % at the
-    edges), at least scipy's."""
-    sections = (order + 1) // 2
-    return max(3 * (2 * sections + 1), int(3 * sample_rate_hz / cutoff_hz))
-
-
-def lowpass_work_size(n: int, *, sample_rate_hz: float, cutoff_hz: float, order: int = 4) -> int:
-    """Samples of the scratch array :func:`lowpass` needs for a segment of ``n`` samples."""
-    return n + 2 * _lowpass_pad(sample_rate_hz, cutoff_hz, order)
-
-
-@njit(inline="always")
-def _sos_sections(sos, state, x_cur):  # pragma: no cover - numba
-    """One sample through the second-order sections (scipy's transposed direct form II)."""
-    for s in range(sos.shape[0]):
-        x_new = sos[s, 0] * x_cur + state[s, 0]
-        state[s, 0] = sos[s, 1] * x_cur - sos[s, 4] * x_new + state[s, 1]
-        state[s, 1] = sos[s, 2] * x_cur - sos[s, 5] * x_new
-        x_cur = x_new
-    return x_cur
-
-
-@njit(cache=True, nogil=True)
-def _sosfiltfilt_kernel(sos, zi, x, pad, work, out):  # pragma: no cover - numba
-    """``scipy.signal.sosfiltfilt(sos, x, padlen=pad)`` into ``out``, bit for bit.
-
-    The same steps (odd extension by ``pad``, forward pass from ``zi x_ext[0]``,
-    backward pass from ``zi y[-1]``) and the same arithmetic order as scipy's
-    ``_sosfilt``, without materialising the extension or the reversed copies: two
-    passes over memory instead of about eight. ``work`` holds at least
-    ``len(x) + 2 pad`` samples.
-    """
-    m = x.shape[0]
-    n_sec = sos.shape[0]
-    total = m + 2 * pad
-    state = np.empty((n_sec, 2))
-    x_first = 2.0 * x[0] - x[pad]
-    for s in range(n_sec):
-        state[s, 0] = zi[s, 0] * x_first
-        state[s, 1] = zi[s, 1] * x_first
-    for j in range(pad):
-        work[j] = _sos_sections(sos, state, 2.0 * x[0] - x[pad - j])
-    for j in range(m):
-        work[pad + j] = _sos_sections(sos, state, x[j])
-    for k in range(pad):
-        work[pad + m + k] = _sos_sections(sos, state, 2.0 * x[m - 1] - x[m - 2 - k])
-    y_last = work[total - 1]
-    for s in range(n_sec):
-        state[s, 0] = zi[s, 0] * y_last
-        state[s, 1] = zi[s, 1] * y_last
-    for j in range(total - 1, pad + m - 1, -1):
-        _sos_sections(sos, state, work[j])
-    for j in range(pad + m - 1, pad - 1, -1):
-        out[j - pad] = _sos_sections(sos, state, work[j])
-
-
-@njit(inline="always")
-def _two_sections(sos, state, x_cur):  # pragma: no cover - numba
-    """:func:`_sos_sections` for two sections (order 4) with the state in a tuple: the
-    same arithmetic, kept in registers instead of memory (1.75x faster)."""
-    x1 = sos[0, 0] * x_cur + state[0]
-    s0 = sos[0, 1] * x_cur - sos[0, 4] * x1 + state[1]
-    s1 = sos[0, 2] * x_cur - sos[0, 5] * x1
-    x2 = sos[1, 0] * x1 + state[2]
-    s2 = sos[1, 1] * x1 - sos[1, 4] * x2 + state[3]
-    s3 = sos[1, 2] * x1 - sos[1, 5] * x2
-    return x2, (s0, s1, s2, s3)
-
-
-@njit(cache=True, nogil=True)
-def _sosfiltfilt_two_kernel(sos, zi, x, pad, work, out):  # pragma: no cover - numba
-    """:func:`_sosfiltfilt_kernel` for two sections, bit for bit (:func:`_two_sections`)."""
-    m = x.shape[0]
-    total = m + 2 * pad
-    x_first = 2.0 * x[0] - x[pad]
-    state = (zi[0, 0] * x_first, zi[0, 1] * x_first, zi[1, 0] * x_first, zi[1, 1] * x_first)
-    for j in range(pad):
-        work[j], state = _two_sections(sos, state, 2.0 * x[0] - x[pad - j])
-    for j in range(m):
-        work[pad + j], state = _two_sections(sos, state, x[j])
-    for k in range(pad):
-        work[pad + m + k], state = _two_sections(sos, state, 2.0 * x[m - 1] - x[m - 2 - k])
-    y_last = work[total - 1]
-    state = (zi[0, 0] * y_last, zi[0, 1] * y_last, zi[1, 0] * y_last, zi[1, 1] * y_last)
-    for j in range(total - 1, pad + m - 1, -1):
-        _, state = _two_sections(sos, state, work[j])
-    for j in range(pad + m - 1, pad - 1, -1):
-        out[j - pad], state = _two_sections(sos, state, work[j])
-
-
-def lowpass_columns(
-    frame: Frame,
-    columns: Sequence[str],
-    *,
-    segment_col: str = "segment_id",
-    sample_rate_hz: float,
-    cutoff_hz: float,
-    order: int = 4,
-) -> Frame:
-    """Apply :func:`lowpass` to frame columns (replaced in place), per segment.
-
-    The filter is sequential, so it runs in ``map_batches`` over the whole column
-    (with the segment ids beside it), once per column. Nulls stay null.
-    """
-
-    def make(column: str) -> pl.Expr:
-        def _batch(s: pl.Series) -> pl.Series:
-            parts = s.struct.unnest()
-            y = lowpass(
-                parts["x"].cast(pl.Float64).to_numpy(),
-                parts["seg"].to_numpy(),
-                sample_rate_hz=sample_rate_hz,
-                cutoff_hz=cutoff_hz,
-                order=order,
-            )
-            return pl.Series(y, dtype=pl.Float64).fill_nan(None)
-
-        return (
-            pl.struct(x=pl.col(column), seg=pl.col(segment_col))
-            .map_batches(_batch, return_dtype=pl.Float64)
-            .alias(column)
-        )
-
-    return frame.with_columns([make(c) for c in columns])
-
-
-#: Length of the resumable state of :func:`_play_kernel`.
+#: Length of the resumable state of :func:`play_kernel`.
 PLAY_STATE_SIZE = 3
 
 
@@ -508,7 +147,7 @@ def fresh_state(size: int) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _play_kernel(x, seg, half_width, out, state):  # pragma: no cover - numba
+def play_kernel(x, seg, half_width, out, state):  # pragma: no cover - numba
     """The play operator over a block; ``state`` = [ran, continues segment, y]
     (:func:`fresh_state`)."""
     resume = state[0] != 0.0 and state[1] != 0.0
@@ -570,7 +209,7 @@ def play_operator(
         else np.ascontiguousarray(segment_id, dtype=np.int64)
     )
     out = np.empty_like(values)
-    _play_kernel(values, seg, float(half_width), out, fresh_state(PLAY_STATE_SIZE))
+    play_kernel(values, seg, float(half_width), out, fresh_state(PLAY_STATE_SIZE))
     return out
 
 
@@ -675,7 +314,7 @@ def despike_median3(
     median passes every feature at least two samples wide (steps, pressure shocks), so
     only isolated outliers go; at 100 Hz, peaks of ringing above ~10 Hz may be clipped,
     which a following 10 Hz low-pass removes anyway. Linear in n, a few ns per sample:
-    the cheap alternative to :func:`hampel` for pressures that are low-passed next.
+    the cheap despiker for pressures that are low-passed next.
 
     Returns the despiked signal and the sigma used. ``out``: a float64 array of x's
     length to write into; may be ``x`` itself (despiked in place). ``sigma``: the

@@ -56,7 +56,8 @@ import eval_compensation as ev
 from physics.friction_law import friction_law_at, law_array, stribeck_g
 from physics.oil import ATMOSPHERIC_PRESSURE_PA, effective_bulk_modulus_at
 from schemas.hoist import HoistDescription, load_hoist
-from transforms.filtering import lowpass, segment_ids
+from transforms.filtering import segment_ids
+from transforms.lowpass import lowpass
 
 #: Rope constants fitted to the validation truth windows (for --oracle only).
 ORACLE_A = (1.0, 1.0785, 1.0492, 1.0328)

@@ -1,0 +1,196 @@
+"""Vectorised event detection of the alarms: run lengths, debounce, one row per event.
+
+A condition must hold ``min_duration`` before an alarm starts (the reported start is
+where it began); once started, the alarm lasts while the condition holds with a
+hysteresis band, and events of the same rule and rope closer than ``merge_gap_s``
+merge. Numpy run lengths over the samples; Python loops only over detected events.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass
+
+import numpy as np
+import polars as pl
+
+from transforms.alarm_rules import ALARM_RULES, alarm_id
+
+__all__ = [
+    "EventContext",
+    "column",
+    "debounced",
+    "event_rows",
+    "merge_events",
+    "runs",
+    "threshold_events",
+    "unchanged",
+]
+
+
+def runs(mask: np.ndarray, breaks: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """First and last (inclusive) index of every run of True in ``mask``; ``breaks[i]``
+    True ends a run between samples i and i + 1 (a logger gap).
+
+    >>> runs(np.array([True, True, False, True, True, True]), np.array([0, 0, 0, 1, 0], bool))
+    (array([0, 3, 4]), array([1, 3, 5]))
+    """
+    if breaks is None or mask.size < 2:
+        edges = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
+        return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+    joined = mask[:-1] & mask[1:] & ~breaks  # sample i and i + 1 in one run
+    starts = np.flatnonzero(mask & ~np.concatenate(([False], joined)))
+    ends = np.flatnonzero(mask & ~np.concatenate((joined, [False])))
+    return starts, ends
+
+
+def merge_events(
+    t_s: np.ndarray, starts: np.ndarray, ends: np.ndarray, merge_gap_s: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Merge events (sorted) whose gap is at most ``merge_gap_s``."""
+    if starts.size == 0:
+        return starts, ends
+    new = np.concatenate(([True], t_s[starts[1:]] - t_s[ends[:-1]] > merge_gap_s))
+    last = np.concatenate((new[1:], [True]))
+    return starts[new], ends[last]
+
+
+def debounced(
+    t_s: np.ndarray,
+    trigger: np.ndarray,
+    hold: np.ndarray,
+    *,
+    min_duration_s: float,
+    merge_gap_s: float,
+    dt_s: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Events of a Schmitt trigger with a minimum on-time.
+
+    An event starts where a run of ``trigger`` lasting ``min_duration_s`` begins and
+    ends with the run of ``hold`` (the released condition, ``trigger`` implies it) that
+    contains it; events closer than ``merge_gap_s`` merge. A run does not continue
+    through a logger gap longer than ``merge_gap_s``: nothing is known in it (the gap
+    is the dropout rule's), and the events on either side stay apart.
+    """
+    hold = hold | trigger
+    breaks = np.diff(t_s) > merge_gap_s
+    ts, te = runs(trigger, breaks)
+    keep = (t_s[te] - t_s[ts] + dt_s) >= min_duration_s - 1e-9
+    ts = ts[keep]
+    if ts.size == 0:
+        empty = np.empty(0, dtype=np.int64)
+        return empty, empty
+    hs, he = runs(hold, breaks)
+    which = np.searchsorted(hs, ts, side="right") - 1
+    held, first = np.unique(which, return_index=True)
+    return merge_events(t_s, ts[first], he[held], merge_gap_s)
+
+
+def threshold_events(
+    t_s: np.ndarray,
+    value: np.ndarray,
+    threshold: np.ndarray | float,
+    *,
+    above: bool,
+    hysteresis_fraction: float,
+    min_duration_s: float,
+    merge_gap_s: float,
+    dt_s: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Events where ``value`` is above (or below) ``threshold``, with hysteresis."""
+    finite = np.isfinite(value)
+    band = np.abs(threshold) * hysteresis_fraction
+    with np.errstate(invalid="ignore"):
+        if above:
+            trigger, hold = value > threshold, value > threshold - band
+        else:
+            trigger, hold = value < threshold, value < threshold + band
+    return debounced(
+        t_s,
+        trigger & finite,
+        hold & finite,
+        min_duration_s=min_duration_s,
+        merge_gap_s=merge_gap_s,
+        dt_s=dt_s,
+    )
+
+
+@dataclass(frozen=True)
+class EventContext:
+    """Where the events are: the alarm rows' site, hoist and run, and the sample times."""
+
+    site: str
+    hoist: str
+    run_id: str
+    time: np.ndarray  # datetime64[us], UTC
+    t_s: np.ndarray
+
+
+def event_rows(
+    ctx: EventContext,
+    rule: str,
+    rope: int | None,
+    starts: np.ndarray,
+    ends: np.ndarray,
+    *,
+    peak_of: np.ndarray | None,
+    peak_max: bool,
+    threshold: np.ndarray | float,
+    message: str,
+    peak_values: np.ndarray | None = None,
+    report: np.ndarray | None = None,
+) -> list[dict[str, object]]:
+    """Alarm rows for detected events (loop over events, not samples).
+
+    The peak is where ``peak_of`` is largest (``peak_max``) or smallest; its value is
+    read from ``report`` (default ``peak_of``). Without ``peak_of`` the peak is the start
+    and ``peak_values`` gives one value per event.
+    """
+    rows = []
+    thresholds = np.broadcast_to(np.asarray(threshold, dtype=float), ctx.t_s.shape)
+    for k, (s, e) in enumerate(zip(starts.tolist(), ends.tolist(), strict=True)):
+        if peak_of is not None:
+            segment = peak_of[s : e + 1]
+            offset = int(np.nanargmax(segment) if peak_max else np.nanargmin(segment))
+            peak_index = s + offset
+            peak_value = float((peak_of if report is None else report)[peak_index])
+        else:
+            peak_index = s
+            peak_value = float(peak_values[k]) if peak_values is not None else float("nan")
+        start = ctx.time[s].astype("datetime64[us]").item().replace(tzinfo=dt.UTC)
+        rule_info = ALARM_RULES[rule]
+        rows.append(
+            {
+                "alarm_id": alarm_id(ctx.site, ctx.hoist, rule, rope, start),
+                "run_id": ctx.run_id,
+                "site": ctx.site,
+                "hoist": ctx.hoist,
+                "rule": rule,
+                "rope": rope,
+                "start_utc": start,
+                "end_utc": ctx.time[e].astype("datetime64[us]").item().replace(tzinfo=dt.UTC),
+                "peak_time_utc": ctx.time[peak_index]
+                .astype("datetime64[us]")
+                .item()
+                .replace(tzinfo=dt.UTC),
+                "peak_value": peak_value,
+                "threshold": float(thresholds[peak_index]),
+                "unit": rule_info.unit,
+                "message": f"{message} [{rule_info.citation}]",
+            }
+        )
+    return rows
+
+
+def column(frame: pl.DataFrame, name: str) -> np.ndarray:
+    """A column as float64 with NaN for null; all NaN when the frame lacks it."""
+    if name not in frame.columns:
+        return np.full(frame.height, np.nan)
+    return frame.get_column(name).cast(pl.Float64).fill_null(np.nan).to_numpy()
+
+
+def unchanged(x: np.ndarray) -> np.ndarray:
+    """True where a sample repeats the previous one exactly (flat-line evidence)."""
+    same = np.zeros(x.shape, dtype=bool)
+    same[1:] = x[1:] == x[:-1]
+    return same

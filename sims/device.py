@@ -90,6 +90,15 @@ not adapted). Failure -- a non-finite state, a singular iteration matrix, a cham
 pressure below zero gauge (cavitation, not modelled) -- ends the run with
 ``status="failed"``, the reason and the frame up to the last good sample.
 
+Code
+----
+This module holds :func:`simulate` and its continuation checks; the parts live in
+private submodules: :mod:`sims.device_params` (the parameter vector and state layout,
+packed from the hoist description), :mod:`sims.device_model` (the compiled right-hand
+side and its kernels), :mod:`sims.device_solver` (the ROS2 loop),
+:mod:`sims.device_results` (:class:`SimulationResult`, :class:`DeviceState`,
+:data:`OUTPUT_COLUMNS`) and :mod:`sims.device_scenarios` (paper section 3.2).
+
 References
 ----------
 Song et al., Research on dynamic characteristics and compensation of wire rope tension

@@ -95,15 +95,9 @@ def paper_scenario_3_2(
         sensor_offset=np.zeros(n),
         oil_temp_c=40.0,
     )
-    y0 = np.zeros(_CYL0 + _PER * n)
-    y0[_PM] = p0
-    for i in range(n):
-        b = _CYL0 + _PER * i
-        y0[b] = p0
-        y0[b + 1] = (loads[0, i] - loads[0].mean()) / rope_stiffness_n_m
     return _integrate(
         setup,
-        y0,
+        _scenario_start(p0, rope_stiffness_n_m),
         duration_s=duration_s,
         dt_s=dt_s,
         output_rate_hz=output_rate_hz,
@@ -131,3 +125,17 @@ def _scenario_hoist(stop_valve_loss_coefficient: float) -> HoistDescription:
     hoist = base.model_copy(update={"cylinders": cylinders, "piping": piping})
     hoist.__dict__.pop("friction_law", None)  # cached for the base bore; recompute
     return hoist
+
+
+def _scenario_start(p0: float, rope_stiffness_n_m: float) -> np.ndarray:
+    """The scenario's start: pressures at the mean initial load, each piston at
+    ``(load_i - mean load) / k``, everything at rest."""
+    n = 4
+    loads = SCENARIO_3_2_LOAD_N
+    y0 = np.zeros(_CYL0 + _PER * n)
+    y0[_PM] = p0
+    for i in range(n):
+        b = _CYL0 + _PER * i
+        y0[b] = p0
+        y0[b + 1] = (loads[0, i] - loads[0].mean()) / rope_stiffness_n_m
+    return y0

@@ -36,6 +36,12 @@ finite-difference Jacobian every step, L-stable: a bulk modulus of 1.5 GPa on a
 stay stable at any step; accuracy of transients is first order in dt, steady states
 are exact. Compiled with numba: ~0.27 M steps/s on one core, ~70x real time at the
 default 0.25 ms step.
+
+Code: this module is the public face; the parts live in :mod:`sims.rig_design`
+(:class:`RigDesign`, :class:`RigProgram`, :class:`RigRecording`), :mod:`sims.rig_model`
+(port modes, the compiled right-hand side), :mod:`sims.rig_solver` (the integrator,
+:func:`simulate_rig`), :mod:`sims.rig_programs` (the paper's tests) and
+:mod:`sims.rig_mcap` (:func:`write_rig_mcap`).
 """
 
 from __future__ import annotations

@@ -1,0 +1,253 @@
+"""The device simulation's compiled model: the right-hand side and its kernels.
+
+The equations (chamber continuity, branch flow with the sensor tee, pistons with seal
+friction and end stops, head ropes, conveyance) are written out in :mod:`sims.device`;
+here they are the numba kernels :func:`_rhs` (dy/dt), :func:`_friction` (LuGre or
+Maxwell-slip over a step), :func:`_line_loss` (branch part loss) and
+:func:`_oil_volume` (the conserved oil inventory), reading the flat parameter vector
+of :mod:`sims.device_params`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from physics.branch_loss import BLASIUS, pipe_loss_pa
+from physics.friction_law import friction_law_at, stribeck_g
+from physics.lugre import lugre_force, lugre_z_step
+from physics.maxwell_slip import maxwell_slip_step
+from sims.device_params import (
+    _A,
+    _BETA,
+    _CROPE,
+    _CSTOP,
+    _CYL0,
+    _DLOSS,
+    _EA,
+    _ETA,
+    _ETAD,
+    _FC0,
+    _FIXED,
+    _FRIC_ON,
+    _G,
+    _INERT,
+    _INERT1,
+    _INERTIA_ON,
+    _K1,
+    _K2,
+    _KSTOP,
+    _KV1,
+    _L1,
+    _L2,
+    _LAM_ON,
+    _LBASE,
+    _LOC_ON,
+    _LOOP,
+    _MCONV,
+    _MINERT,
+    _MP,
+    _MU,
+    _PER,
+    _PM,
+    _PRE_ON,
+    _RDRUM,
+    _RHO,
+    _SHAFT,
+    _SIG0,
+    _SIG1,
+    _T,
+    _TAIL_KG_M,
+    _TAIL_ON,
+    _VM,
+    _VMID,
+    _VPIPES,
+    _XMAX,
+    _ZETA,
+)
+
+
+@njit(cache=True)
+def _profile(t: float, seg: np.ndarray) -> tuple[float, float, float]:
+    k = 0
+    for j in range(seg.shape[0]):
+        if seg[j, 0] <= t:
+            k = j
+    tau = max(t - seg[k, 0], 0.0)
+    a = seg[k, 3]
+    return seg[k, 1] + seg[k, 2] * tau + 0.5 * a * tau * tau, seg[k, 2] + a * tau, a
+
+
+@njit(cache=True)
+def _interp(t: float, knots_t: np.ndarray, values: np.ndarray) -> tuple[float, float]:
+    """Piecewise-linear value and slope, constant outside the knots."""
+    m = knots_t.shape[0]
+    if t <= knots_t[0]:
+        return values[0], 0.0
+    if t >= knots_t[m - 1]:
+        return values[m - 1], 0.0
+    j = 0
+    while knots_t[j + 1] < t:
+        j += 1
+    span = knots_t[j + 1] - knots_t[j]
+    if span <= 0.0:
+        return values[j + 1], 0.0
+    slope = (values[j + 1] - values[j]) / span
+    return values[j] + slope * (t - knots_t[j]), slope
+
+
+@njit(cache=True)
+def _friction(
+    p: float,
+    dx: float,
+    h: float,
+    par: np.ndarray,
+    z: float,
+    deltas: np.ndarray,
+    ms_k: np.ndarray,
+    ms_w: np.ndarray,
+    cap: np.ndarray,
+    commit: bool,
+) -> tuple[float, float]:
+    """Seal friction over a step with displacement increment ``dx``; (force, z_new).
+
+    The eq 17 law at the chamber pressure (:func:`physics.friction_law.friction_law_at`),
+    then Maxwell-slip (:func:`physics.maxwell_slip.maxwell_slip_step`) plus Kv v, or
+    LuGre (:mod:`physics.lugre`). ``commit=False`` leaves ``deltas`` untouched (works
+    on a copy in the scratch array ``cap``).
+    """
+    if par[_FRIC_ON] == 0.0:
+        return 0.0, z
+    v = dx / h
+    fc, fs, vs, kv = friction_law_at(max(p, 0.0), par[_FC0 : _KV1 + 1])
+    g = stribeck_g(v, fc, fs, vs)
+    if par[_PRE_ON] != 0.0:
+        n_el = ms_k.shape[0]
+        if commit:
+            force = maxwell_slip_step(deltas, dx, ms_k, ms_w, g)
+        else:
+            trial = cap[:n_el]
+            trial[:] = deltas
+            force = maxwell_slip_step(trial, dx, ms_k, ms_w, g)
+        return force + kv * v, z
+    z_new = lugre_z_step(z, v, h, par[_SIG0], g)
+    return lugre_force(z, z_new, v, h, par[_SIG0], par[_SIG1], kv), z_new
+
+
+@njit(cache=True)
+def _line_loss(q: float, length_m: float, k_local: float, par: np.ndarray) -> float:
+    """Loss of one branch part at flow ``q`` [m3/s], signed with it (paper eq 6, 12-14:
+    :func:`physics.branch_loss.pipe_loss_pa`, Blasius when turbulent, smooth pipe);
+    ``pipe_laminar_loss`` / ``local_loss`` off drop the part along the pipe / at the
+    fittings."""
+    bore = par[_DLOSS]
+    u = q / (0.25 * math.pi * bore * bore)
+    length = length_m if par[_LAM_ON] != 0.0 else 0.0
+    k = k_local if par[_LOC_ON] != 0.0 else 0.0
+    return pipe_loss_pa(u, bore, length, par[_MU] / par[_RHO], par[_RHO], k, 0.0, BLASIUS)
+
+
+@njit(cache=True)
+def _rhs(
+    y: np.ndarray,
+    par: np.ndarray,
+    groove: np.ndarray,
+    seg: np.ndarray,
+    pay: np.ndarray,
+    src_t: np.ndarray,
+    src_s: np.ndarray,
+    ms_k: np.ndarray,
+    ms_w: np.ndarray,
+    z: np.ndarray,
+    deltas: np.ndarray,
+    x_start: np.ndarray,
+    h: float,
+    cap: np.ndarray,
+    out: np.ndarray,
+    aux: np.ndarray,
+) -> None:
+    """dy/dt of the device; ``aux[i] = (friction, tension, dq/dt, sensor drop)``.
+
+    Longer than 80 lines on purpose: it is the compiled right-hand side the ROS2 loop
+    calls 2 + n_state times per Jacobian step; the two passes over the cylinders (forces
+    and hydraulics, then the piston accelerations once the conveyance's is known) share
+    their locals and stay one function for speed.
+    """
+    n = groove.shape[0]
+    t = y[_T]
+    eta = y[_ETA]
+    etad = y[_ETAD]
+    pm = y[_PM]
+    beta = par[_BETA]
+    area = par[_A]
+    u, ud, ua = _profile(t, seg)
+    payload, _ = _interp(t, pay[:, 0], pay[:, 1])
+    tail_kg = 0.0
+    if par[_TAIL_ON] != 0.0:
+        tail_kg = par[_TAIL_KG_M] * max(par[_SHAFT] - u + par[_LOOP], 0.0)
+    weight = (par[_MCONV] + payload + tail_kg) * par[_G]
+    m_in = par[_MINERT] + payload + tail_kg
+    k_rope = par[_EA] / (par[_LBASE] + u)
+    c_rope = par[_CROPE]
+    if c_rope <= 0.0:
+        c_rope = 2.0 * par[_ZETA] * math.sqrt(k_rope * m_in / n)
+    sum_g = 0.0
+    sum_q = 0.0
+    out[_T] = 1.0
+    # first pass: forces piston -> body, rope tensions, hydraulics
+    for i in range(n):
+        b = _CYL0 + _PER * i
+        p = y[b]
+        x = y[b + 1]
+        v = y[b + 2]
+        q = y[b + 3]
+        s_off, s_rate = _interp(t, src_t, src_s[:, i])
+        e = eta - x - u * groove[i] / par[_RDRUM] - s_off
+        ed = etad - v - ud * groove[i] / par[_RDRUM] - s_rate
+        tension = k_rope * e + c_rope * ed
+        ff, _ = _friction(p, x - x_start[i], h, par, z[i], deltas[i], ms_k, ms_w, cap, False)
+        f_stop = 0.0
+        if x > par[_XMAX]:
+            f_stop = par[_KSTOP] * (x - par[_XMAX]) + par[_CSTOP] * v
+        elif x < -par[_XMAX]:
+            f_stop = par[_KSTOP] * (x + par[_XMAX]) + par[_CSTOP] * v
+        g_i = p * area + ff + f_stop
+        sum_g += g_i
+        volume = par[_VMID] - area * x
+        out[b] = beta / volume * (area * v - q * math.exp(-p / beta))
+        out[b + 1] = v
+        loss1 = _line_loss(q, par[_L1], par[_K1], par)
+        loss2 = _line_loss(q, par[_L2], par[_K2], par)
+        qdot = (p - pm - loss1 - loss2) / par[_INERT]
+        out[b + 3] = qdot
+        sum_q += q
+        aux[i, 0] = ff
+        aux[i, 1] = tension
+        aux[i, 2] = qdot
+        aux[i, 3] = par[_INERT1] * qdot + loss1
+        out[b + 2] = tension - g_i  # divided by m_p and body acceleration added below
+    out[_PM] = beta / par[_VM] * sum_q * math.exp(-pm / beta)
+    if par[_FIXED] != 0.0:
+        out[_ETA] = 0.0
+        out[_ETAD] = 0.0
+        body_acc = 0.0
+    else:
+        etadd = (weight - sum_g) / m_in - par[_INERTIA_ON] * ua
+        out[_ETA] = etad
+        out[_ETAD] = etadd
+        body_acc = etadd + par[_INERTIA_ON] * ua
+    for i in range(n):
+        b = _CYL0 + _PER * i
+        out[b + 2] = out[b + 2] / par[_MP] + body_acc
+
+
+@njit(cache=True)
+def _oil_volume(y: np.ndarray, par: np.ndarray, n: int) -> float:
+    beta = par[_BETA]
+    total = par[_VPIPES] + par[_VM] * math.exp(y[_PM] / beta)
+    for i in range(n):
+        b = _CYL0 + _PER * i
+        total += (par[_VMID] - par[_A] * y[b + 1]) * math.exp(y[b] / beta)
+    return total

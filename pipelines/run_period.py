@@ -21,12 +21,11 @@ import polars as pl
 from pipelines.lake import scan_lake
 from pipelines.provenance import hoist_run, new_run_id, utc_now
 from schemas.hoist import HoistDescription, load_hoist
-from schemas.tables import ALARMS, ROPES
+from schemas.tables import ALARMS, ROPES, conform
 from transforms.alarms import evaluate_alarms_in_blocks
 from transforms.blocks import DEFAULT_BLOCK, block_edges, compensate_blocks, record_context
 from transforms.compensation import CompensationSettings
 from transforms.reconciliation import (
-    conform,
     stint_partials,
     summarise_positions_from_partials,
     summarise_trips_from_partials,

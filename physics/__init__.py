@@ -41,7 +41,7 @@ eq 12, Darcy friction factor lambda
     Colebrook, solved by Clamond, or Blasius) -- tests/physics/test_branch_loss.py
 eq 12-14, branch loss (lambda l / d + xi) rho v |v| / 2
     :func:`physics.branch_loss.pipe_loss_pa`; the hoist's sensor branch (contract 1a):
-    :func:`~physics.branch_loss.sensor_minus_chamber_at` --
+    :func:`physics.sensor_branch.sensor_minus_chamber_at` --
     tests/physics/test_branch_loss.py
 eq 15, LuGre (printed as "Leuven")
     :func:`physics.lugre.lugre_z_rate` and :func:`~physics.lugre.lugre_force_at` (the

@@ -10,10 +10,7 @@ Vectorised
     :func:`reynolds_number`, :func:`darcy_friction_factor`, :func:`pipe_pressure_loss`.
     :func:`globe_valve_k` -- Crane TP-410 K of a fully open globe valve (``fluids``).
 
-The hoist's sensor branch (contract 1a)
-    :func:`sensor_branch` -- its constants as the kernels take them.
-    :func:`sensor_minus_chamber_pa` / :func:`sensor_minus_chamber_expr` -- p_sensor -
-    p_chamber from the piston velocity (numpy / polars).
+The hoist's sensor branch (contract 1a) applies them: :mod:`physics.sensor_branch`.
 
 Sign: a loss is positive in the direction of flow (pressure falls along the flow), so
 the signed loss has the sign of the velocity and is 0 at rest.
@@ -25,12 +22,9 @@ import math
 
 import fluids
 import numpy as np
-import polars as pl
 from numba import njit
 
 from physics._samples import one_or_per_sample
-from physics.oil import kinematic_viscosity
-from schemas.hoist import HoistDescription
 
 __all__ = [
     "BLASIUS",
@@ -45,9 +39,6 @@ __all__ = [
     "pipe_loss_pa",
     "pipe_pressure_loss",
     "reynolds_number",
-    "sensor_branch",
-    "sensor_minus_chamber_expr",
-    "sensor_minus_chamber_pa",
 ]
 
 #: Upper Reynolds number of the laminar law lambda = 64/Re [-].
@@ -289,124 +280,3 @@ def globe_valve_k(d_m: float) -> float:
     Crane Co. (2009), Flow of Fluids Through Valves, Fittings, and Pipe, TP-410, A-27.
     """
     return float(fluids.K_globe_valve_Crane(d_m, d_m))
-
-
-def sensor_branch(hoist: HoistDescription) -> np.ndarray:
-    """The chamber-to-sensor branch as the kernels take it [-, m, m, kg/m3, -, -].
-
-    ``[A_bore / A_pipe, bore, length chamber -> sensor, density, K valve + K fittings
-    (chamber -> sensor), relative roughness]`` (contract 1a).
-
-    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
-    >>> sensor_branch(load_hoist(EXAMPLE_HOIST)).shape
-    (6,)
-    """
-    piping = hoist.piping
-    return np.array(
-        [
-            hoist.cylinders.bore_area_m2 / piping.area_m2,
-            piping.bore_m,
-            piping.length_chamber_to_sensor_m,
-            hoist.oil.density_kg_m3,
-            piping.valve_loss_coefficient + piping.fittings_loss_coefficient_chamber_to_sensor,
-            piping.roughness_m / piping.bore_m,
-        ],
-        dtype=np.float64,
-    )
-
-
-@njit(cache=True, nogil=True, inline="always")
-def sensor_minus_chamber_at(v_piston_m_s: float, nu_m2_s: float, branch: np.ndarray) -> float:
-    """p_sensor - p_chamber of one sample [Pa]: minus :func:`pipe_loss_pa` of the
-    branch flow u = (A_bore / A_pipe) v (``branch`` from :func:`sensor_branch`)."""
-    u = v_piston_m_s * branch[0]
-    bore, length, rho, k_local, roughness = branch[1], branch[2], branch[3], branch[4], branch[5]
-    loss = pipe_loss_pa(u, bore, length, nu_m2_s, rho, k_local, roughness, COLEBROOK)
-    return 0.0 - loss  # not -loss: no -0.0 at rest
-
-
-@njit(cache=True, nogil=True)
-def _sensor_minus_chamber(v, nu, branch, out):  # pragma: no cover - numba
-    per_sample = nu.shape[0] > 1
-    for i in range(v.shape[0]):
-        out[i] = sensor_minus_chamber_at(v[i], nu[i] if per_sample else nu[0], branch)
-
-
-def sensor_minus_chamber_pa(
-    v_piston_m_s: np.ndarray | float,
-    hoist: HoistDescription,
-    t_oil_c: np.ndarray | float | None = None,
-    *,
-    nu_m2_s: np.ndarray | float | None = None,
-) -> np.ndarray:
-    r"""Sensor minus chamber pressure of a cylinder branch (contract 1a; eq 12-14) [Pa].
-
-    Oil leaves the rodless chamber at Q = A_bore v (v > 0: rod pulled out) and passes
-    the globe valve and the first branch part before the sensor tee:
-
-    .. math::
-        p_{sensor} - p_{chamber} = -\left(\lambda \frac{l_{cs}}{d} + K_{valve}
-        + K_{fittings,cs}\right) \frac{\rho u |u|}{2}, \qquad u = \frac{A_{bore}}{A_{pipe}} v
-
-    so the sensor reads low while oil flows out, high while it flows in, and equal at
-    rest. Turbulent lambda by Colebrook (:data:`COLEBROOK`).
-
-    Parameters
-    ----------
-    v_piston_m_s : array_like
-        Piston velocity [m/s], positive rod out.
-    hoist : HoistDescription
-        Supplies bore, ``piping`` (bore, ``length_chamber_to_sensor``, roughness,
-        ``valve_loss_coefficient``, ``fittings_loss_coefficient_chamber_to_sensor``)
-        and ``oil``.
-    t_oil_c : array_like, optional
-        Oil temperature [degC] for the viscosity (ASTM D341); default the oil's
-        ``reference_temperature``.
-    nu_m2_s : array_like, optional
-        Kinematic viscosity [m2/s] already computed for ``t_oil_c``; overrides it.
-
-    Returns
-    -------
-    numpy.ndarray
-        p_sensor - p_chamber [Pa].
-
-    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
-    >>> hoist = load_hoist(EXAMPLE_HOIST)
-    >>> [float(x) < 0 for x in sensor_minus_chamber_pa(np.array([0.01, -0.01]), hoist)]
-    [True, False]
-    """
-    if nu_m2_s is None:
-        t = hoist.oil.reference_temperature_c if t_oil_c is None else t_oil_c
-        nu_m2_s = kinematic_viscosity(t, hoist.oil)
-    v = np.asarray(v_piston_m_s, dtype=np.float64)
-    flat = np.ascontiguousarray(v.ravel())
-    nu = one_or_per_sample(nu_m2_s, flat.size)
-    out = np.empty(flat.size)
-    _sensor_minus_chamber(flat, nu, sensor_branch(hoist), out)
-    return out.reshape(v.shape)
-
-
-def sensor_minus_chamber_expr(
-    v_piston_m_s: pl.Expr, hoist: HoistDescription, t_oil_c: pl.Expr | None = None
-) -> pl.Expr:
-    """Polars expression for :func:`sensor_minus_chamber_pa` (Float64, Pa).
-
-    ``v_piston_m_s`` and the optional ``t_oil_c`` are expressions (columns); the
-    numpy function runs once per batch via ``map_batches``. Null velocity gives null.
-
-    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
-    >>> hoist = load_hoist(EXAMPLE_HOIST)
-    >>> df = pl.DataFrame({"v_m_s": [0.0, None]})
-    >>> df.select(sensor_minus_chamber_expr(pl.col("v_m_s"), hoist).alias("dp"))["dp"].to_list()
-    [0.0, None]
-    """
-    t_expr = pl.lit(hoist.oil.reference_temperature_c) if t_oil_c is None else t_oil_c
-
-    def _batch(s: pl.Series) -> pl.Series:
-        frame = s.struct.unnest()
-        v = frame["v"].cast(pl.Float64).to_numpy()
-        t = frame["t"].cast(pl.Float64).to_numpy()
-        out = sensor_minus_chamber_pa(v, hoist, t)
-        return pl.Series(out, dtype=pl.Float64).fill_nan(None)
-
-    return pl.struct(v=v_piston_m_s, t=t_expr).map_batches(_batch, return_dtype=pl.Float64)

@@ -23,10 +23,10 @@ from dataclasses import replace
 import numpy as np
 import polars as pl
 
-from physics.branch_loss import sensor_branch
 from physics.closed_volume import common_mode_displacement
 from physics.friction_law import friction_law_at, law_array
 from physics.maxwell_slip import maxwell_slip_elements
+from physics.sensor_branch import sensor_branch
 from physics.trip_rule import trip_label_columns
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPES

@@ -14,11 +14,11 @@ from collections.abc import Callable
 import numpy as np
 from numba import njit
 
-from physics.branch_loss import sensor_minus_chamber_at
 from physics.friction_law import friction_law_at, stribeck_g
 from physics.lugre import lugre_force, lugre_z_step
 from physics.maxwell_slip import maxwell_slip_step
 from physics.oil import kinematic_viscosity
+from physics.sensor_branch import sensor_minus_chamber_at
 from physics.tension import rope_tension_n
 from schemas.hoist import HoistDescription
 from transforms.compensation_record import CompensationSettings
@@ -170,9 +170,9 @@ def rope_kernel(
     Velocity v = (x[i] - x[i-1]) / dt[i] (0 at a segment's start or where unknown). Step
     lengths and segment starts come from ``time_s``: a step above ``gap_s`` starts a
     segment and counts ``nominal_dt_s``. Per sample, the physics kernels:
-    p_chamber = p_sensor - :func:`physics.branch_loss.sensor_minus_chamber_at` of the
+    p_chamber = p_sensor - :func:`physics.sensor_branch.sensor_minus_chamber_at` of the
     branch flow ``v_flow`` if ``with_loss`` (``branch`` from
-    :func:`~physics.branch_loss.sensor_branch`); the eq 17 law at p_chamber
+    :func:`~physics.sensor_branch.sensor_branch`); the eq 17 law at p_chamber
     (:func:`physics.friction_law.friction_law_at`); friction by Maxwell-slip
     (``mode`` 1, :func:`physics.maxwell_slip.maxwell_slip_step` plus Kv v) or LuGre
     (``mode`` 2, :func:`physics.lugre.lugre_z_step`, :func:`~physics.lugre.lugre_force`),

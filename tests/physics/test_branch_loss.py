@@ -14,10 +14,9 @@ from physics.branch_loss import (
     globe_valve_k,
     pipe_pressure_loss,
     reynolds_number,
-    sensor_minus_chamber_expr,
-    sensor_minus_chamber_pa,
 )
 from physics.oil import kinematic_viscosity
+from physics.sensor_branch import sensor_minus_chamber_expr, sensor_minus_chamber_pa
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 
 HOIST = load_hoist(EXAMPLE_HOIST)

@@ -180,6 +180,9 @@ def rope_kernel(
     ``state`` = [ran, last x, last time, LuGre z, Maxwell-slip deflections...] carries
     the friction state from the previous block (:func:`transforms.filtering.fresh_state`,
     :data:`transforms.compensation_record.ROPE_STATE_BASE` + elements).
+    One function over 80 lines on purpose: the
+    per-sample loop of the run's hot path (5 M rope-samples/s) calls the physics kernels
+    inline; its friction state stays in registers between samples.
     """
     n_el = weights.shape[0]
     ran = state[0] != 0.0

@@ -181,6 +181,8 @@ def _share_kernel(
     piston's seen motion last exceeded ``seen_reset`` (inf before). ``state`` = [ran,
     continues segment, slide, elastic, then per piston: last logged value, position,
     seen, unseen, played, path] (:func:`transforms.filtering.fresh_state`).
+    One function over 80 lines on purpose: the per-sample, per-piston loop of a numba
+    kernel whose running sums stay in registers; split into calls it passes them all.
     """
     m = len(out)
     n = common.shape[0]

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+from physics.tension import expected_load_n
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from schemas.tables import FIELD_SAMPLES, ROPE_TENSIONS
 from transforms.compensation import compensate
@@ -52,7 +53,7 @@ def synthetic_day(hours: float, rate_hz: float = 100.0, seed: int = 1) -> pl.Dat
     speed = np.where((tau > 60.0) & (tau < 60.0 + run_time), np.maximum(speed, 0), 0.0)
     depth = np.cumsum(np.where(going_down, speed, -speed)) / rate_hz
     depth = np.clip(depth - depth.min(), 0, depth_max)
-    load = np.array([hoist.static_load_n(d) for d in depth[:: int(rate_hz)]])
+    load = np.array([expected_load_n(hoist, d) for d in depth[:: int(rate_hz)]])
     load = np.repeat(load, int(rate_hz))[:n]
     p = load / (4 * hoist.cylinders.bore_area_m2)
     x = (p - p.mean()) * 2e-10

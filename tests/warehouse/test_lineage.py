@@ -11,6 +11,7 @@ import numpy as np
 import polars as pl
 import pytest
 
+from physics.tension import expected_load_n
 from schemas.hoist import EXAMPLE_HOIST, hoist_sha256, load_hoist
 from schemas.tables import FIELD_SAMPLES, MANIFEST, conform
 from transforms.alarms import evaluate_alarms
@@ -33,7 +34,7 @@ def _samples(hoist) -> pl.DataFrame:
     n = int(600 * FS_HZ)
     t = np.arange(n) / FS_HZ
     rng = np.random.default_rng(0)
-    load = hoist.static_load_n(0.0)
+    load = expected_load_n(hoist, 0.0)
     tensions = {f"tension{i}_n": load / 4 * (1 + rng.normal(0, 0.003, n)) for i in range(1, 5)}
     slack = (t >= 420.0) & (t < 425.0)
     tensions["tension3_n"] = np.where(slack, 0.2 * tensions["tension3_n"], tensions["tension3_n"])
@@ -178,7 +179,7 @@ def test_alarm_row_leads_to_raw_files_run_and_parameter_set(landed):
     assert path == paths[1]
     assert first_line == 2 + 100 * 120  # header line 1; 07:02:00 is 120 s into the file
     assert count == 500  # 5 s at 100 Hz
-    assert p3_min * hoist.cylinders.bore_area_m2 < 0.3 * hoist.static_load_n(0.0) / 4
+    assert p3_min * hoist.cylinders.bore_area_m2 < 0.3 * expected_load_n(hoist, 0.0) / 4
     # the position summary of the whole 10 min reaches both files
     assert position_audit == [(paths[0],), (paths[1],)]
 
@@ -259,5 +260,5 @@ def test_rope_trip_extremes_name_the_file_of_each_ropes_worst_sample(tmp_path):
     assert peak3[2] == pytest.approx(0.75, abs=0.02)
     # rope 1 at 1.5 x: mean 1.125, 0.375 / 1.125 = 1/3
     assert peak1[2] == pytest.approx(1 / 3, abs=0.02)
-    assert peak1[5] == pytest.approx(1.5 * hoist.static_load_n(0.0) / 4, rel=0.02)
+    assert peak1[5] == pytest.approx(1.5 * expected_load_n(hoist, 0.0) / 4, rel=0.02)
     assert trip == [(3, peak3[2])]

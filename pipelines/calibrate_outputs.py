@@ -18,10 +18,7 @@ import polars as pl
 from pipelines.calibrate_inputs import RIG_SITE, RigInfo
 from pipelines.provenance import code_version, utc_now
 from schemas.hoist import FrictionLaw
-from transforms.friction_fit import (
-    LinearFit,
-    StribeckFit,
-)
+from transforms.friction_fit import LinearFit, StribeckFit
 from warehouse.store import DataRoot
 
 __all__ = ["LINE_NAMES", "CalibrationResult", "friction_toml", "land_calibration"]
@@ -33,7 +30,7 @@ LINE_NAMES = ("coulomb_n", "static_n", "stribeck_speed_m_s", "viscous_n_s_m")
 
 @dataclass(frozen=True)
 class CalibrationResult:
-    """What :func:`calibrate_rig` found and landed.
+    """What :func:`pipelines.calibrate.calibrate_rig` found and landed.
 
     ``per_pressure`` is the analogue of paper Table 1 (SI, 1-sigma), ``lines`` the
     eq-17 lines (keys :data:`LINE_NAMES`, SI per Pa, residuals per pressure), ``law``

@@ -13,10 +13,7 @@ import numpy as np
 import polars as pl
 
 from pipelines.calibrate_outputs import LINE_NAMES, CalibrationResult
-from transforms.friction_fit import (
-    compare_with_eq17,
-    fit_table1,
-)
+from transforms.friction_fit import compare_with_eq17, fit_table1
 
 __all__ = [
     "eq17_coefficient_verdict",

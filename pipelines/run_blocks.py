@@ -20,12 +20,7 @@ from pipelines.lake import scan_lake
 from schemas.hoist import HoistDescription
 from schemas.tables import ALARMS, ROPES
 from transforms.alarms import evaluate_alarms_in_blocks
-from transforms.blocks import (
-    CompensationContext,
-    block_edges,
-    compensate_blocks,
-    record_context,
-)
+from transforms.blocks import CompensationContext, block_edges, compensate_blocks, record_context
 from transforms.compensation import CompensationSettings
 from transforms.reconciliation import (
     conform,

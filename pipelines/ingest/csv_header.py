@@ -16,9 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pipelines.ingest.batch import RefusedFile
-from pipelines.ingest.field_checks import (
-    CHANNELS,
-)
+from pipelines.ingest.field_checks import CHANNELS
 from pipelines.ingest.local_time import formats_for
 from schemas.names import UnsafeNameError, safe_name
 from schemas.quantities import QuantityError, unit_factor

@@ -163,7 +163,8 @@ def write_fleet_report(
     discoveries: Mapping[str, str] | None = None,
     max_detailed: int | None = None,
 ) -> Report:
-    """:func:`fleet_report`, written under ``<data>/reports/`` (``report.path``).
+    """:func:`~pipelines.reports.fleet.fleet_report`, written under ``<data>/reports/``
+    (``report.path``).
 
     The report is an optional step of every hoist-day it covers: its outcome is landed
     in ``run_steps`` (``report: done`` with the path). Should building it fail, a short

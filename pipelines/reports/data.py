@@ -93,9 +93,6 @@ class Zone:
         return series.dt.convert_time_zone(self.name).dt.replace_time_zone(None).to_numpy()
 
 
-# ----------------------------------------------------------------------- warehouse
-
-
 @dataclass
 class RunTables:
     """The marts of a set of runs (empty frames with their columns when none)."""

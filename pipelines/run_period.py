@@ -5,14 +5,15 @@ landed samples from the lake, computes rope tensions (:mod:`transforms.compensat
 per-position / per-trip reconciliation (:mod:`transforms.reconciliation`) and alarms
 (:mod:`transforms.alarms`), and lands them with a ``runs`` row that names the hoist
 description's hash, the friction parameter set and every source file read. Re-running
-the same period replaces what it landed before: no duplicates.
+the same period replaces what it landed before: no duplicates. The block pipeline
+(extent, context pass, compensation staged by a background writer, partials,
+alarms) is :mod:`pipelines.run_blocks`.
 """
 
 from __future__ import annotations
 
 import datetime as dt
 import logging
-from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,18 +21,19 @@ import polars as pl
 
 from pipelines.lake import scan_lake
 from pipelines.provenance import hoist_run, new_run_id, utc_now
-from schemas.hoist import HoistDescription, load_hoist
-from schemas.tables import ALARMS, ROPES, conform
-from transforms.alarms import evaluate_alarms_in_blocks
-from transforms.blocks import DEFAULT_BLOCK, block_edges, compensate_blocks, record_context
-from transforms.compensation import CompensationSettings
-from transforms.reconciliation import (
-    stint_partials,
-    summarise_positions_from_partials,
-    summarise_trips_from_partials,
-    trip_partials,
+from pipelines.run_blocks import (
+    Extent,
+    FieldSamples,
+    block_alarms,
+    compensate_and_stage,
+    period_extent,
+    read_context,
+    summarise_partials,
 )
-from warehouse.landing import RopeTensionStage, land_results
+from schemas.hoist import HoistDescription, load_hoist
+from transforms.blocks import DEFAULT_BLOCK
+from transforms.compensation import CompensationSettings
+from warehouse.landing import RopeTensionStage, RunRecord, land_results
 from warehouse.store import DataRoot, open_writer
 
 __all__ = ["LEAD_IN", "CheckedRun", "NoSamplesError", "RunResult", "run_checked", "run_period"]
@@ -111,6 +113,9 @@ def run_period(
 ) -> RunResult:
     """Compensate, reconcile and alarm ``start <= t < end`` of one hoist; land the results.
 
+    The steps are those of :mod:`pipelines.run_blocks`, in order (long only by the
+    documentation of its parameters).
+
     Parameters
     ----------
     hoist_path : path
@@ -146,181 +151,82 @@ def run_period(
     started = utc_now()
     hoist = hoist or load_hoist(hoist_path)
     settings = settings or CompensationSettings()
-    site, name = hoist.hoist.site, hoist.hoist.name
+    samples = FieldSamples(data, hoist.hoist.site, hoist.hoist.name)
     start, end = (None if t is None else _utc(t) for t in (start, end))
     scan_start = None if start is None else start - lead_in
-
-    def scan(lo: dt.datetime | None, hi: dt.datetime | None) -> pl.LazyFrame:
-        return scan_lake(data, "field_samples", site=site, hoist=name, start=lo, end=hi)
-
-    record = scan(scan_start, end)
-    extent = record.select(
-        pl.len().alias("rows"),
-        pl.col("time_utc").min().alias("first"),
-        pl.col("time_utc").max().alias("last"),
-        ((pl.col("time_utc") >= start).sum() if start is not None else pl.len()).alias("in_period"),
-    ).collect()
-    rows, first, last, in_period = extent.row(0)
-    if not rows or not in_period:
-        raise NoSamplesError(_no_samples_message(data, site, name, start, end))
-    period_start = (start or first).astimezone(dt.UTC)
-    period_end = (end or last + dt.timedelta(microseconds=1)).astimezone(dt.UTC)
+    extent = period_extent(samples.scan(scan_start, end), start, end)
+    if extent is None:
+        raise NoSamplesError(_no_samples_message(data, samples.site, samples.hoist, start, end))
     run_id = new_run_id(command)
     logger.info(
         "run %s: %s/%s %s .. %s UTC, %d samples (and %d of lead-in), blocks of %s",
-        run_id,
-        site,
-        name,
-        period_start,
-        period_end,
-        in_period,
-        rows - in_period,
-        block,
-    )
-    columns = ["time_utc", *(f"p{i}_pa" for i in ROPES), *(f"x{i}_m" for i in ROPES)]
-    context = record_context(
-        lambda lo, hi: scan(lo, hi).select(columns).collect(),
-        hoist,
-        start=first,
-        end=last + dt.timedelta(microseconds=1),
-        rows=rows,
-        settings=settings,
-        block=block,
-    )
-
-    # the source files read (runs.inputs), without sorting the period's rows
-    inputs = set(
-        scan_lake(
-            data, "field_samples", site=site, hoist=name, start=scan_start, end=end, sort=False
-        )
-        .select(pl.col("source_sha256").unique())
-        .collect(engine="streaming")["source_sha256"]
-        .to_list()
-    )
-    wanted = ["time_utc", "depth_m", "speed_m_s", "oil_temp_c", *columns[1:]]
-
-    def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
-        return scan(lo, hi).select(wanted).collect()
-
-    stage = RopeTensionStage(data, site=site, hoist=name)
-    # a block's rows are written while the next block is computed (at most one waits:
-    # memory stays bounded by two blocks; a writing error surfaces at the next block)
-    writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="stage")
+        run_id, samples.site, samples.hoist, extent.period_start, extent.period_end,
+        extent.in_period, extent.rows - extent.in_period, block,
+    )  # fmt: skip
+    context = read_context(samples, hoist, extent, settings=settings, block=block)
+    inputs = tuple(sorted(samples.source_files(scan_start, end)))
+    stage = RopeTensionStage(data, site=samples.site, hoist=samples.hoist)
     try:
-        stints, trips = [], []
-        carry = None
-        written: Future[None] | None = None
-        for tensions in compensate_blocks(
-            read,
-            hoist,
-            start=first,
-            end=last + dt.timedelta(microseconds=1),
-            context=context,
-            settings=settings,
-            block=block,
-        ):
-            tensions = tensions.filter(pl.col("time_utc") >= period_start)
-            if written is not None:
-                written.result()
-            written = writer.submit(stage.add, tensions)
-            part, carry = stint_partials(tensions, hoist, carry=carry)
-            stints.append(part)
-            trips.append(trip_partials(tensions))
-        if written is not None:
-            written.result()
-        positions = summarise_positions_from_partials(
-            pl.concat(stints, how="diagonal_relaxed"), hoist, run_id=run_id, payload_kg=payload_kg
+        stints, trips = compensate_and_stage(
+            samples, hoist, stage, extent, context=context, settings=settings, block=block
         )
-        trip_summary = summarise_trips_from_partials(
-            pl.concat(trips, how="diagonal_relaxed"),
-            positions,
-            run_id=run_id,
-            site=site,
-            hoist_name=name,
+        positions, trip_summary = summarise_partials(
+            stints, trips, hoist, run_id=run_id, payload_kg=payload_kg
         )
-        alarms = _block_alarms(
+        alarms = block_alarms(
             stage, hoist, run_id=run_id, trips=trip_summary, payload_kg=payload_kg,
-            start=period_start, end=period_end, block=block,
+            start=extent.period_start, end=extent.period_end, block=block,
         )  # fmt: skip
         run = hoist_run(
-            run_id=run_id,
-            command=command,
-            started_at_utc=started,
-            hoist=hoist,
-            hoist_path=hoist_path,
-            period=(period_start, period_end),
-            inputs=tuple(sorted(inputs)),
-            message=f"{in_period} samples, {alarms.height} alarms",
-        )
-        with open_writer(data) as con:
-            stage.publish(period_start, period_end)
-            land_results(
-                con, run, position_summary=positions, trip_summary=trip_summary, alarms=alarms
-            )
+            run_id=run_id, command=command, started_at_utc=started, hoist=hoist,
+            hoist_path=hoist_path, period=(extent.period_start, extent.period_end),
+            inputs=inputs, message=f"{extent.in_period} samples, {alarms.height} alarms",
+        )  # fmt: skip
+        _publish(data, stage, run, extent, positions, trip_summary, alarms)
     finally:
-        writer.shutdown(wait=True)
         stage.discard()
     logger.info(
         "run %s landed: %d trips, %d position visits, %d alarms",
-        run_id,
-        trip_summary.height,
-        positions.height,
-        alarms.height,
-    )
-    return RunResult(
-        run_id=run_id,
-        site=site,
-        hoist=name,
-        period_start_utc=period_start,
-        period_end_utc=period_end,
-        samples=in_period,
-        rope_tensions=scan_lake(
-            data, "rope_tensions", site=site, hoist=name, start=period_start, end=period_end
-        ),
-        position_summary=positions,
-        trip_summary=trip_summary,
-        alarms=alarms,
-        inputs=tuple(sorted(inputs)),
-    )
+        run_id, trip_summary.height, positions.height, alarms.height,
+    )  # fmt: skip
+    return _result(run_id, samples, extent, positions, trip_summary, alarms, inputs)
 
 
-#: What :func:`transforms.alarms.evaluate_alarms` reads of the rope tensions.
-_ALARM_COLUMNS = [
-    "time_utc", "trip_id", "depth_m", "speed_m_s", "acceleration_up_m_s2", "load_n",
-    *(f"p{i}_pa" for i in ROPES), *(f"tension{i}_n" for i in ROPES),
-    *(f"tension_raw{i}_n" for i in ROPES),
-]  # fmt: skip
-
-
-def _block_alarms(
+def _publish(
+    data: DataRoot,
     stage: RopeTensionStage,
-    hoist: HoistDescription,
-    *,
+    run: RunRecord,
+    extent: Extent,
+    positions: pl.DataFrame,
+    trip_summary: pl.DataFrame,
+    alarms: pl.DataFrame,
+) -> None:
+    """The staged rope tensions and the run's tables, in one writer block."""
+    with open_writer(data) as con:
+        stage.publish(extent.period_start, extent.period_end)
+        land_results(con, run, position_summary=positions, trip_summary=trip_summary, alarms=alarms)
+
+
+def _result(
     run_id: str,
-    trips: pl.DataFrame,
-    payload_kg: float | None,
-    start: dt.datetime,
-    end: dt.datetime,
-    block: dt.timedelta,
-) -> pl.DataFrame:
-    """Alarms of the staged rope tensions, block by block
-    (:func:`transforms.alarms.evaluate_alarms_in_blocks`)."""
-    files = stage.files()
-    if not files:
-        return conform(pl.DataFrame(), ALARMS)
-    staged = pl.scan_parquet(files).select(_ALARM_COLUMNS)
-
-    def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
-        return staged.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi)).collect()
-
-    return evaluate_alarms_in_blocks(
-        read,
-        block_edges(start, end, block),
-        hoist,
-        run_id=run_id,
-        trip_payloads=trips,
-        payload_kg=payload_kg,
-    )
+    samples: FieldSamples,
+    extent: Extent,
+    positions: pl.DataFrame,
+    trip_summary: pl.DataFrame,
+    alarms: pl.DataFrame,
+    inputs: tuple[str, ...],
+) -> RunResult:
+    """The :class:`RunResult` of a landed run (its rope tensions a scan of the lake)."""
+    return RunResult(
+        run_id=run_id, site=samples.site, hoist=samples.hoist,
+        period_start_utc=extent.period_start, period_end_utc=extent.period_end,
+        samples=extent.in_period,
+        rope_tensions=scan_lake(
+            samples.data, "rope_tensions", site=samples.site, hoist=samples.hoist,
+            start=extent.period_start, end=extent.period_end,
+        ),
+        position_summary=positions, trip_summary=trip_summary, alarms=alarms, inputs=inputs,
+    )  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,8 @@ Public API::
     report.ok              # False when a file was refused
     report.refusal_lines() # one "<file>: <reason>" per refused file (the CLI's stderr)
 
-Modules: :mod:`.sources` (what and which format), :mod:`.field_csv`,
+Modules: :mod:`.sources` (what and which format), :mod:`.field_csv` (with
+:mod:`.csv_header`, :mod:`.csv_chunks`, :mod:`.csv_scan`),
 :mod:`.field_tdms`, :mod:`.rig_mcap` (readers), :mod:`.local_time` (timestamps, DST),
 :mod:`.field_checks` (channels, SI, impossible values), :mod:`.landing` (partitions,
 dedup, atomic Parquet), :mod:`.manifest`, :mod:`.quarantine`, :mod:`.report`,

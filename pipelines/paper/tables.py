@@ -4,7 +4,7 @@ Table 1 / eq 17
     OLS lines through Table 1 (:func:`transforms.friction_fit.fit_table1`) against
     eq 17 as printed, with standard errors, z-scores and the verdicts of
     :func:`transforms.friction_fit.compare_with_eq17` in the words of
-    :mod:`pipelines.calibrate` (the same as ``ropeload calibrate --table1``).
+    :mod:`pipelines.calibrate_report` (the same as ``ropeload calibrate --table1``).
 Table 2
     The field test (section 5.2) through :func:`transforms.reconciliation.table2_check`
     with the example hoist (``schemas/hoists/paper_field_test.toml``: 8.2 t cage,
@@ -21,7 +21,7 @@ import numpy as np
 import polars as pl
 from scipy import stats
 
-from pipelines.calibrate import eq17_coefficient_verdict, eq17_line_verdict, eq17_summary
+from pipelines.calibrate_report import eq17_coefficient_verdict, eq17_line_verdict, eq17_summary
 from pipelines.paper import data
 from pipelines.paper.report import PaperSection, Row, new_figure, save_figure
 from schemas.hoist import EXAMPLE_HOIST, G_STANDARD, load_hoist

@@ -16,10 +16,15 @@ payload, worst imbalance and its rope); the sanity check and the discovery findi
 with their residual plots; and, in words, every step that failed or was skipped.
 
 Modules: :mod:`~pipelines.reports.downsample` (min/max per pixel bucket),
-:mod:`~pipelines.reports.data` (what is read), :mod:`~pipelines.reports.figures`
-(plotly), :mod:`~pipelines.reports.sections` (one hoist-period),
-:mod:`~pipelines.reports.build` (per command), :mod:`~pipelines.reports.document`
-(HTML / markdown), :mod:`~pipelines.reports.static` (PNG for artifacts).
+:mod:`~pipelines.reports.data` (what is read from the warehouse),
+:mod:`~pipelines.reports.series` (what is read from the lake),
+:mod:`~pipelines.reports.figures`, :mod:`~pipelines.reports.check_figures` and
+:mod:`~pipelines.reports.figure_style` (plotly), :mod:`~pipelines.reports.sections` (one
+hoist-period: :mod:`~pipelines.reports.period`,
+:mod:`~pipelines.reports.series_sections`, :mod:`~pipelines.reports.check_sections`),
+:mod:`~pipelines.reports.build` and :mod:`~pipelines.reports.fleet` (per command),
+:mod:`~pipelines.reports.document` (HTML / markdown), :mod:`~pipelines.reports.static`
+(PNG for artifacts).
 
 Only the downsampling is imported eagerly; the rest (plotly) on first use.
 """
@@ -32,7 +37,6 @@ from pipelines.reports.downsample import bucket_extremes, downsample_minmax
 
 if TYPE_CHECKING:
     from pipelines.reports.build import (
-        fleet_report,
         run_report,
         run_report_path,
         sanity_step,
@@ -41,7 +45,8 @@ if TYPE_CHECKING:
         write_run_report,
     )
     from pipelines.reports.document import Report, Section, Table
-    from pipelines.reports.sections import HoistPeriod, Step
+    from pipelines.reports.fleet import fleet_report
+    from pipelines.reports.period import HoistPeriod, Step
     from pipelines.reports.static import figure_png
 
 __all__ = [
@@ -63,7 +68,7 @@ __all__ = [
 ]
 
 _LAZY = {
-    "fleet_report": "build",
+    "fleet_report": "fleet",
     "run_report": "build",
     "sanity_step": "build",
     "write_report": "build",
@@ -73,8 +78,8 @@ _LAZY = {
     "Report": "document",
     "Section": "document",
     "Table": "document",
-    "HoistPeriod": "sections",
-    "Step": "sections",
+    "HoistPeriod": "period",
+    "Step": "period",
     "figure_png": "static",
 }
 

@@ -3,7 +3,9 @@
 Conventions: time axes in the hoist's local time with the zone in the axis title;
 thresholds and limits are dashed lines that appear in the legend with their value;
 "before" is the uncompensated ``p x A`` (grey), "after" the compensated value (blue);
-rope i has the same colour in every figure.
+rope i has the same colour in every figure (:mod:`pipelines.reports.figure_style`).
+This module draws a hoist-period's series and summaries; the checks and trends are
+:mod:`pipelines.reports.check_figures`.
 """
 
 from __future__ import annotations
@@ -16,105 +18,30 @@ import plotly.graph_objects as go
 import polars as pl
 from plotly.subplots import make_subplots
 
-from pipelines.reports.data import PeriodSeries, Zone
+from pipelines.reports.data import Zone
+from pipelines.reports.figure_style import (
+    AFTER,
+    BAND,
+    BEFORE,
+    EXPECTED,
+    ROPE_COLOURS,
+    RULE_COLOURS,
+    WARN,
+    layout,
+    limit_line,
+    symmetric_range,
+)
+from pipelines.reports.series import PeriodSeries
 from transforms.alarms import RuleThresholds
 
 __all__ = [
     "alarm_timeline",
-    "discovery_regions_figure",
-    "discovery_trace_figure",
     "load_figure",
+    "peak_text",
     "reconciliation_figure",
     "ropes_figure",
-    "sanity_figure",
-    "trend_figure",
     "trips_figure",
 ]
-
-ROPE_COLOURS = {1: "#1f77b4", 2: "#ff7f0e", 3: "#2ca02c", 4: "#9467bd"}
-BEFORE = "#8c8c8c"
-AFTER = "#1f4e9c"
-EXPECTED = "#111111"
-LIMIT = "#d62728"
-WARN = "#e69500"
-BAND = "rgba(31, 78, 156, 0.18)"
-RULE_COLOURS = [
-    "#d62728",
-    "#e69500",
-    "#8c564b",
-    "#e377c2",
-    "#17becf",
-    "#bcbd22",
-    "#7f7f7f",
-    "#9467bd",
-    "#2ca02c",
-]
-
-
-def _layout(fig: go.Figure, title: str, height: int, *, legend: bool = True) -> go.Figure:
-    fig.update_layout(
-        template="plotly_white",
-        title={"text": title, "x": 0.01, "xanchor": "left", "font": {"size": 16}},
-        height=height,
-        margin={"l": 70, "r": 20, "t": 60, "b": 60},
-        font={"size": 12},
-        showlegend=legend,
-        legend={"orientation": "v", "yanchor": "top", "y": 1.0, "x": 1.01, "xanchor": "left",
-                "font": {"size": 11}, "tracegroupgap": 4},
-        hovermode="closest",
-    )  # fmt: skip
-    return fig
-
-
-def _symmetric_range(
-    fig: go.Figure, worst: float, limit: float, *, row: int | None = None, what: str
-) -> None:
-    """A y range that shows the data: up to the limit when the data come near it (at
-    least 30 % of it), else around the data, saying that the limit is off the scale."""
-    if worst >= 0.3 * limit:
-        top = 1.15 * max(limit, worst)
-    else:
-        top = max(1.3 * worst, 0.05 * limit)
-        fig.add_annotation(
-            text=f"the {what} (+-{limit:g} %) is off this scale: largest {worst:.2f} %",
-            xref="x domain" if row in (None, 1) else f"x{row} domain",
-            yref="y domain" if row in (None, 1) else f"y{row} domain",
-            x=0.995, y=0.98, xanchor="right", yanchor="top", showarrow=False,
-            font={"size": 11, "color": LIMIT}, bgcolor="rgba(255,255,255,0.8)",
-        )  # fmt: skip
-    if row is None:
-        fig.update_yaxes(range=[-top, top])
-    else:
-        fig.update_yaxes(range=[-top, top], row=row, col=1)
-
-
-def _limit(
-    fig: go.Figure,
-    x: Sequence[object],
-    y: float,
-    name: str,
-    *,
-    row: int | None = None,
-    col: int | None = None,
-    colour: str = LIMIT,
-    legend: bool = True,
-    group: str | None = None,
-) -> None:
-    """A dashed horizontal limit line over ``x[0] .. x[-1]`` that shows in the legend."""
-    trace = go.Scatter(
-        x=[x[0], x[-1]],
-        y=[y, y],
-        mode="lines",
-        line={"color": colour, "dash": "dash", "width": 1.5},
-        name=name,
-        legendgroup=group or name,
-        showlegend=legend,
-        hoverinfo="name+y",
-    )
-    if row is None:
-        fig.add_trace(trace)
-    else:
-        fig.add_trace(trace, row=row, col=col or 1)
 
 
 def _line(
@@ -199,15 +126,15 @@ def load_figure(
         if trace is not None:
             fig.add_trace(trace, row=2, col=1)
     tol = tolerance_fraction * 100
-    _limit(fig, span, tol, f"tolerance +-{tol:g} %", row=2, col=1)
-    _limit(fig, span, -tol, f"tolerance +-{tol:g} %", row=2, col=1, legend=False)
+    limit_line(fig, span, tol, f"tolerance +-{tol:g} %", row=2, col=1)
+    limit_line(fig, span, -tol, f"tolerance +-{tol:g} %", row=2, col=1, legend=False)
     fig.update_yaxes(title_text="load on the four ropes [kN]", row=1, col=1)
     fig.update_yaxes(title_text="% of expected", row=2, col=1)
     fig.update_xaxes(range=span)
     fig.update_xaxes(title_text=zone.axis_title(*series.span_utc), row=2, col=1)
     if series.band is None:
         title += " (no uncertainty band yet)"
-    return _layout(fig, title, 620)
+    return layout(fig, title, 620)
 
 
 def ropes_figure(
@@ -229,8 +156,8 @@ def ropes_figure(
         trace = _line(series, f"deviation{rope}_pct", f"rope {rope}", colour, 1.0)
         if trace is not None:
             fig.add_trace(trace, row=1, col=1)
-    _limit(fig, span, limit, f"imbalance limit +-{limit:g} %", row=1, col=1)
-    _limit(fig, span, -limit, f"imbalance limit +-{limit:g} %", row=1, col=1, legend=False)
+    limit_line(fig, span, limit, f"imbalance limit +-{limit:g} %", row=1, col=1)
+    limit_line(fig, span, -limit, f"imbalance limit +-{limit:g} %", row=1, col=1, legend=False)
     for key, name, colour in (
         ("highest_kn", "highest rope", "#444444"),
         ("lowest_kn", "lowest rope", "#9a9a9a"),
@@ -238,24 +165,24 @@ def ropes_figure(
         trace = _line(series, key, name, colour, 1.0)
         if trace is not None:
             fig.add_trace(trace, row=2, col=1)
-    _limit(fig, span, thresholds.tight_n / 1e3, f"tight rope {thresholds.tight_n / 1e3:.1f} kN",
+    limit_line(fig, span, thresholds.tight_n / 1e3, f"tight rope {thresholds.tight_n / 1e3:.1f} kN",
            row=2, col=1)  # fmt: skip
-    _limit(fig, span, thresholds.slack_n / 1e3, f"slack rope {thresholds.slack_n / 1e3:.1f} kN",
+    limit_line(fig, span, thresholds.slack_n / 1e3, f"slack rope {thresholds.slack_n / 1e3:.1f} kN",
            row=2, col=1, colour=WARN)  # fmt: skip
     deviation = max(
         (abs(series.extremes.get(f"deviation{r}_pct_{e}", 0.0)) for r in ROPE_COLOURS
          for e in ("min", "max")),
         default=0.0,
     )  # fmt: skip
-    _symmetric_range(fig, deviation, limit, row=1, what="imbalance limit")
+    symmetric_range(fig, deviation, limit, row=1, what="imbalance limit")
     fig.update_yaxes(title_text="rope minus mean of four [%]", row=1, col=1)
     fig.update_yaxes(title_text="kN", rangemode="tozero", row=2, col=1)
     fig.update_xaxes(range=span)
     fig.update_xaxes(title_text=zone.axis_title(*series.span_utc), row=2, col=1)
-    return _layout(fig, title, 600)
+    return layout(fig, title, 600)
 
 
-def _peak_text(value: float | None, unit: str | None) -> str:
+def peak_text(value: float | None, unit: str | None) -> str:
     if value is None or not np.isfinite(value):
         return ""
     match unit:
@@ -303,8 +230,8 @@ def alarm_timeline(
         texts = [
             f"{row['rule']} {row['lane']}<br>{zone.text(row['start_utc'])} .. "
             f"{zone.text(row['end_utc'], '%H:%M:%S')}<br>peak "
-            f"{_peak_text(row['peak_value'], row['unit'])} (limit "
-            f"{_peak_text(row['threshold'], row['unit'])})"
+            f"{peak_text(row['peak_value'], row['unit'])} (limit "
+            f"{peak_text(row['threshold'], row['unit'])})"
             for row in part.iter_rows(named=True)
         ]
         fig.add_trace(
@@ -323,7 +250,7 @@ def alarm_timeline(
         )  # fmt: skip
     fig.update_yaxes(categoryorder="array", categoryarray=lanes, range=[-0.6, len(lanes) - 0.4])
     fig.update_xaxes(range=span, title_text=zone.axis_title(start, end))
-    return _layout(fig, title, 330)
+    return layout(fig, title, 330)
 
 
 def reconciliation_figure(
@@ -368,13 +295,13 @@ def reconciliation_figure(
                 row=1,
                 col=k,
             )
-        _limit(fig, span, tol, f"tolerance +-{tol:g} %", row=1, col=k, legend=k == 1,
+        limit_line(fig, span, tol, f"tolerance +-{tol:g} %", row=1, col=k, legend=k == 1,
                group="tolerance")  # fmt: skip
-        _limit(fig, span, -tol, "tolerance", row=1, col=k, legend=False, group="tolerance")
+        limit_line(fig, span, -tol, "tolerance", row=1, col=k, legend=False, group="tolerance")
         fig.update_xaxes(range=span, row=1, col=k, tickformat="%H:%M")
     fig.update_yaxes(title_text="load minus expected [% of expected]", row=1, col=1)
     fig.update_xaxes(title_text=zone.axis_title(start, end), row=1, col=(len(positions) + 1) // 2)
-    return _layout(fig, title, 400)
+    return layout(fig, title, 400)
 
 
 def trips_figure(trips: pl.DataFrame, *, imbalance_fraction: float, title: str) -> go.Figure:
@@ -391,135 +318,10 @@ def trips_figure(trips: pl.DataFrame, *, imbalance_fraction: float, title: str) 
             )  # fmt: skip
     limit = imbalance_fraction * 100
     if labels:
-        _limit(fig, labels, limit, f"imbalance limit {limit:g} %")
+        limit_line(fig, labels, limit, f"imbalance limit {limit:g} %")
     worst = float(trips["worst_pct"].max() or 0.0)
-    _symmetric_range(fig, worst, limit, what="imbalance limit")
+    symmetric_range(fig, worst, limit, what="imbalance limit")
     fig.update_yaxes(range=[0, fig.layout.yaxis.range[1]])
     fig.update_xaxes(categoryorder="array", categoryarray=labels, title_text="trip")
     fig.update_yaxes(title_text="worst |rope - mean| [% of mean]")
-    return _layout(fig, title, 360)
-
-
-def sanity_figure(checks: pl.DataFrame, *, title: str) -> go.Figure:
-    """RMS of measured minus simulated sensor pressure per trip, and its pass limit."""
-    fig = go.Figure()
-    for status, name, colour in (("passed", "passed", "#2ca02c"), ("failed", "failed", LIMIT)):
-        part = checks.filter(pl.col("status") == status)
-        if part.height:
-            fig.add_trace(
-                go.Bar(x=part["label"], y=part["rms_gap_pa"] / 1e3, name=f"trip {name}",
-                       marker_color=colour, width=0.5,
-                       hovertemplate="%{x}: %{y:.2f} kPa<extra></extra>")
-            )  # fmt: skip
-    fig.add_trace(
-        go.Scatter(x=checks["label"], y=checks["noise_pa"] / 1e3, mode="markers",
-                   marker={"symbol": "line-ew-open", "size": 30, "color": "#333"},
-                   name="sensor noise (estimated)")
-    )  # fmt: skip
-    if checks["limit_pa"].is_not_null().any():
-        fig.add_trace(
-            go.Scatter(x=checks["label"], y=checks["limit_pa"] / 1e3, mode="markers",
-                       marker={"symbol": "line-ew-open", "size": 30, "color": LIMIT,
-                               "line": {"width": 2}},
-                       name="pass limit")
-        )  # fmt: skip
-    fig.update_xaxes(categoryorder="array", categoryarray=checks["label"].to_list())
-    fig.update_yaxes(title_text="RMS of measured - simulated [kPa]", rangemode="tozero")
-    return _layout(fig, title, 360)
-
-
-def discovery_regions_figure(
-    regions: Sequence[dict[str, object]],
-    *,
-    noise_pa: float | None,
-    effect: str | None,
-    title: str,
-) -> go.Figure:
-    """RMS gap per regime before and after one iteration's effect (``None``: none added)."""
-    labels = [str(r.get("regime", "?")) for r in regions]
-    before = [float(r.get("gap_pa") or np.nan) / 1e3 for r in regions]  # type: ignore[arg-type]
-    after = [
-        float(r.get("gap_after_pa") or r.get("gap_pa") or np.nan) / 1e3  # type: ignore[arg-type]
-        for r in regions
-    ]
-    bars = [go.Bar(x=labels, y=before, name="before this iteration", marker_color=BEFORE)]
-    if effect is not None:
-        bars.append(go.Bar(x=labels, y=after, name=f"after adding {effect}", marker_color=AFTER))
-    fig = go.Figure(bars)
-    if noise_pa and labels:
-        _limit(fig, labels, noise_pa / 1e3, f"sensor noise {noise_pa / 1e3:.1f} kPa",
-               colour="#333")  # fmt: skip
-    fig.update_layout(barmode="group")
-    fig.update_yaxes(title_text="RMS of measured - simulated [kPa]", rangemode="tozero")
-    return _layout(fig, title, 360)
-
-
-def discovery_trace_figure(trace: dict[str, object], *, title: str) -> go.Figure:
-    """The worst trip's residual over time, before and after the effects found."""
-    fig = go.Figure()
-    for key, name, colour in (
-        ("before", "before (the hoist's model)", BEFORE),
-        ("after", "after adding the effects found", AFTER),
-    ):
-        part = trace.get(key)
-        if not isinstance(part, dict):
-            continue
-        t = np.asarray(part.get("time_s", []), dtype=float)
-        y = np.array([np.nan if v is None else v for v in part.get("pa", [])], dtype=float)
-        if y.size == t.size and y.size:
-            fig.add_trace(go.Scatter(x=t, y=y / 1e3, mode="lines", name=name,
-                                     line={"color": colour, "width": 1.2}))  # fmt: skip
-    fig.update_xaxes(title_text="time since the trip started [s]")
-    fig.update_yaxes(title_text="measured - simulated [kPa]")
-    return _layout(fig, title, 360)
-
-
-def trend_figure(
-    daily: pl.DataFrame, *, imbalance_fraction: float, tolerance_fraction: float, title: str
-) -> go.Figure:
-    """Day by day over a backfill: worst load error before / after, worst imbalance,
-    alarms. ``daily`` has ``day`` and the columns below (null where a day had none)."""
-    fig = make_subplots(
-        rows=3,
-        cols=1,
-        shared_xaxes=True,
-        vertical_spacing=0.07,
-        subplot_titles=(
-            "worst |load minus expected| of the day's position visits [%]",
-            "",
-            "alarms per day",
-        ),
-    )
-    days = daily["day"].to_list()
-    if not days:
-        return _layout(fig, title, 300)
-    for column, name, colour in (
-        ("worst_error_before_pct", "before compensation", BEFORE),
-        ("worst_error_after_pct", "after compensation", AFTER),
-    ):
-        fig.add_trace(
-            go.Scatter(x=days, y=daily[column], mode="lines+markers", name=name,
-                       line={"color": colour}),
-            row=1, col=1,
-        )  # fmt: skip
-    _limit(fig, days, tolerance_fraction * 100, f"tolerance {tolerance_fraction * 100:g} %",
-           row=1, col=1)  # fmt: skip
-    fig.add_trace(
-        go.Scatter(x=days, y=daily["worst_imbalance_pct"], mode="lines+markers",
-                   name="worst imbalance", line={"color": "#444"}),
-        row=2, col=1,
-    )  # fmt: skip
-    fig.update_yaxes(title_text="worst imbalance [%]", row=2, col=1)
-    fig.update_yaxes(rangemode="tozero", row=3, col=1)
-    limit = imbalance_fraction * 100
-    _limit(fig, days, limit, f"imbalance limit {limit:g} %", row=2, col=1)
-    _symmetric_range(fig, float(daily["worst_imbalance_pct"].max() or 0.0), limit, row=2,
-                     what="imbalance limit")  # fmt: skip
-    fig.update_yaxes(range=[0, fig.layout.yaxis2.range[1]], row=2, col=1)
-    fig.add_trace(go.Bar(x=days, y=daily["alarms"], name="alarms", marker_color=WARN),
-                  row=3, col=1)  # fmt: skip
-    fig.update_xaxes(
-        type="date", tickformat="%Y-%m-%d", dtick=86_400_000.0 * max(1, len(days) // 12)
-    )
-    fig.update_xaxes(title_text="day (UTC, as the backfill's hoist-days)", row=3, col=1)
-    return _layout(fig, title, 640)
+    return layout(fig, title, 360)

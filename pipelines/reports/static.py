@@ -4,7 +4,8 @@ Prefect's UI shows markdown artifacts without running scripts, so an interactive
 figure cannot live there. :func:`figure_png` redraws a report figure with matplotlib
 (headless Agg, already a dependency) from the figure's own data: the same traces,
 limits, titles and axis labels, at a fixed size. It understands what
-:mod:`pipelines.reports.figures` draws (lines, markers, bands, bars, subplots,
+:mod:`pipelines.reports.figures` and :mod:`pipelines.reports.check_figures` draw (lines,
+markers, bands, bars, subplots,
 categorical and time axes), not every plotly figure.
 """
 

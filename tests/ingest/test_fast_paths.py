@@ -18,9 +18,10 @@ from polars.testing import assert_frame_equal
 
 from pipelines.ingest import field_csv, ingest_paths
 from pipelines.ingest.batch import Batch
+from pipelines.ingest.csv_header import read_header
 from pipelines.ingest.csv_scan import NUMBER_BYTES, scan_chunk
 from pipelines.ingest.field_checks import depth_limits_m
-from pipelines.ingest.field_csv import _BatchParser, read_header
+from pipelines.ingest.field_csv import _BatchParser
 from pipelines.ingest.local_time import AmbiguityState, _constant_offset, _localise
 
 GOOD = ["4.812", "4.792", "4.832", "4.802", "12.1", "-3.4", "0.2", "7.9", "1.50", "1.000", "31.2"]

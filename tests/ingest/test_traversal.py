@@ -210,7 +210,8 @@ def test_lake_writer_refuses_a_planted_symlink_out_of_the_lake(tmp_path, root):
 
 @pytest.mark.parametrize(("option", "value"), [("rig_id", ESCAPE), ("parameter_set", "a/b")])
 def test_calibrate_refuses_unsafe_rig_and_parameter_set_names(option, value, root):
-    from pipelines.calibrate import CalibrationError, calibrate_rig
+    from pipelines.calibrate import calibrate_rig
+    from pipelines.calibrate_inputs import CalibrationError
 
     flag = "--rig" if option == "rig_id" else "--parameter-set"
     with pytest.raises(CalibrationError) as info:

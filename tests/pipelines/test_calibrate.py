@@ -19,12 +19,10 @@ import polars as pl
 import pytest
 
 from physics.friction_law import friction_parameters
-from pipelines.calibrate import (
-    LINE_NAMES,
-    CalibrationError,
-    calibrate_rig,
-    table1_report,
-)
+from pipelines.calibrate import calibrate_rig
+from pipelines.calibrate_inputs import CalibrationError
+from pipelines.calibrate_outputs import LINE_NAMES
+from pipelines.calibrate_report import table1_report
 from pipelines.cli import main
 from schemas.hoist import Friction
 from sims.rig import default_friction_law, simulate_rig, small_friction_test_program, write_rig_mcap

@@ -13,8 +13,8 @@ from pathlib import Path
 import polars as pl
 import pytest
 
-from pipelines.cli import build_parser as build_cli_parser
 from pipelines.cli import main
+from pipelines.cli_parser import build_parser as build_cli_parser
 from pipelines.deploy import build_parser, nightly_parameters, write_example_mine
 from pipelines.flows import nightly_flow
 from pipelines.hoist_day import check_sanity

@@ -16,7 +16,8 @@ import numpy as np
 import polars as pl
 import pytest
 
-from pipelines.cli import PAPER_SECTIONS, main
+from pipelines.cli import main
+from pipelines.cli_parser import PAPER_SECTIONS
 from pipelines.paper import SECTIONS, data
 
 G = 9.80665

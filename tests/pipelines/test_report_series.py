@@ -13,7 +13,8 @@ import numpy as np
 import polars as pl
 from polars.testing import assert_frame_equal
 
-from pipelines.reports.data import Zone, period_series
+from pipelines.reports.data import Zone
+from pipelines.reports.series import period_series
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from schemas.tables import ROPES
 

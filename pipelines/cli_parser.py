@@ -1,0 +1,271 @@
+"""The argument parser of the ``ropeload`` console script (contract section 6).
+
+:func:`build_parser` declares every command, its options and its handler (in
+:mod:`pipelines.cli_commands`); it imports nothing heavy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+from pathlib import Path
+
+from pipelines.cli_commands import (
+    cmd_backfill,
+    cmd_calibrate,
+    cmd_demo,
+    cmd_discover,
+    cmd_ingest,
+    cmd_nightly,
+    cmd_paper,
+    cmd_query,
+    cmd_run,
+)
+from pipelines.log import add_log_level_option
+
+__all__ = ["PAPER_SECTIONS", "build_parser"]
+
+
+def _data_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--data",
+        metavar="DIR",
+        default=None,
+        help="data root with the Parquet lake and warehouse.duckdb "
+        "(default: $ROPELOAD_DATA, else ./ropeload-data)",
+    )
+
+
+def _hoist_option(parser: argparse.ArgumentParser, *, required: bool) -> None:
+    parser.add_argument(
+        "--hoist",
+        metavar="FILE",
+        type=Path,
+        required=required,
+        help="hoist description TOML (layout: schemas/hoists/README.md)",
+    )
+
+
+def _prefect_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--prefect",
+        action="store_true",
+        help="run as the Prefect flow of the same name (a flow run, task runs, artifacts); "
+        "without PREFECT_API_URL a temporary local server is started (~15 s)",
+    )
+
+
+def _fleet_options(parser: argparse.ArgumentParser) -> None:
+    """Options of the many-hoist commands (backfill, nightly)."""
+    _data_option(parser)
+    parser.add_argument(
+        "--hoists",
+        metavar="DIR",
+        type=Path,
+        action="append",
+        required=True,
+        help="folder of hoist descriptions (*.toml), or one file; repeatable",
+    )
+    parser.add_argument(
+        "--incoming",
+        metavar="DIR",
+        type=Path,
+        default=None,
+        help="raw logs as <incoming>/<site>/<hoist>/... (default <data>/incoming)",
+    )
+    parser.add_argument(
+        "--workers", type=int, default=2, help="hoist-days processed at a time (default 2)"
+    )
+    parser.add_argument(
+        "--memory-budget-gb",
+        type=_positive_gb,
+        default=None,
+        metavar="G",
+        help="use fewer --workers if their estimated memory (about 0.9 GB + 0.4 GB a "
+        "worker at 100 Hz) exceeds G GB",
+    )
+    parser.add_argument(
+        "--dask",
+        metavar="ADDRESS",
+        default=None,
+        help="run the flow on a Dask cluster: a scheduler address or 'local' "
+        "(a LocalCluster of --workers processes); implies --prefect",
+    )
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    _prefect_option(parser)
+
+
+def _parse_time(text: str):
+
+    value = dt.datetime.fromisoformat(text)
+    return value.replace(tzinfo=dt.UTC) if value.tzinfo is None else value
+
+
+def _parse_day(text: str):
+
+    return dt.date.fromisoformat(text)
+
+
+def _positive_gb(text: str) -> float:
+    value = float(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be a positive number of GB, got {text}")
+    return value
+
+
+def _positive_minutes(text: str) -> float:
+    value = float(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be a positive number of minutes, got {text}")
+    return value
+
+
+def _add_flow_commands(commands) -> None:
+    """``run``, ``backfill`` and ``nightly`` (issue 7); ``--prefect`` runs their flows."""
+    from pipelines.night_options import add_night_options
+
+    run = commands.add_parser(
+        "run", help="compensate + reconcile + alarm a period of one hoist, and land it"
+    )
+    _data_option(run)
+    _hoist_option(run, required=True)
+    run.add_argument("--from", dest="start", type=_parse_time, metavar="T", help="UTC if no offset")
+    run.add_argument("--to", dest="end", type=_parse_time, metavar="T", help="exclusive")
+    run.add_argument("--payload-kg", type=float, default=None, help="known payload at standstill")
+    run.add_argument("--no-sanity", action="store_true", help="skip the simulation sanity check")
+    run.add_argument(
+        "--block-minutes",
+        type=_positive_minutes,
+        default=60.0,
+        metavar="M",
+        help="samples are processed M minutes at a time: memory grows with M, not with "
+        "the period (default 60; results do not depend on it)",
+    )
+    _prefect_option(run)
+    run.set_defaults(handler=cmd_run)
+
+    backfill = commands.add_parser(
+        "backfill", help="every hoist-day of a date range: resumable, bounded concurrency"
+    )
+    _fleet_options(backfill)
+    backfill.add_argument(
+        "--from", dest="start", type=_parse_day, required=True, metavar="DAY", help="UTC day"
+    )
+    backfill.add_argument(
+        "--to", dest="end", type=_parse_day, required=True, metavar="DAY", help="UTC day, included"
+    )
+    backfill.add_argument("--force", action="store_true", help="re-run days the ledger marks done")
+    backfill.add_argument(
+        "--sanity", action="store_true", help="also run the simulation sanity check per day"
+    )
+    backfill.set_defaults(handler=cmd_backfill)
+
+    nightly = commands.add_parser(
+        "nightly", help="every hoist's new raw files since its watermark, processed and landed"
+    )
+    _fleet_options(nightly)
+    add_night_options(nightly)  # shared with python -m pipelines.deploy serve|pool
+    nightly.set_defaults(handler=cmd_nightly)
+
+
+#: ``ropeload paper`` sections (the keys of :data:`pipelines.paper.SECTIONS`, named here
+#: so that building the parser imports nothing heavy) and ``all``.
+PAPER_SECTIONS = ("table1", "table2", "eq9-10", "section3.1", "all")
+
+
+def _add_paper_command(commands) -> None:
+    paper = commands.add_parser(
+        "paper",
+        help="the paper's tables, eq 9/10 and section 3.1 beside ropeload's numbers, with figures",
+    )
+    _data_option(paper)
+    paper.add_argument(
+        "section",
+        nargs="?",
+        default="all",
+        choices=PAPER_SECTIONS,
+        help="table1: OLS vs eq 17; table2: the field test; eq9-10: section 2.2 by formula "
+        "and simulation; section3.1: the rig's pressure loss (default: all)",
+    )
+    paper.add_argument(
+        "--out",
+        metavar="DIR",
+        type=Path,
+        default=None,
+        help="folder for the figures (PNG) and rows (CSV) (default: <data>/reports/paper)",
+    )
+    paper.set_defaults(handler=cmd_paper)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="ropeload",
+        description="Rope tensions and hoist loads from hydraulic rope-attachment pressures.",
+    )
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    demo = commands.add_parser(
+        "demo", help="the whole job on built-in synthetic data, nothing to configure"
+    )
+    _data_option(demo)
+    demo.add_argument("--seed", type=int, default=7, help="random seed of the synthetic day")
+    demo.add_argument("--hours", type=float, default=1.0, help="hours of logs to generate")
+    demo.set_defaults(handler=cmd_demo)
+
+    ingest = commands.add_parser(
+        "ingest", help="land raw field logs (CSV, TDMS) and rig recordings (MCAP)"
+    )
+    _data_option(ingest)
+    ingest.add_argument("paths", nargs="+", type=Path, metavar="PATH", help="files or folders")
+    ingest.add_argument(
+        "--hoist",
+        metavar="FILE",
+        type=Path,
+        action="append",
+        help="hoist description TOML of the logs' hoist (repeatable, one per hoist): depth "
+        "outside its shaft is quarantined; without one only depth above the pithead is",
+    )
+    _prefect_option(ingest)
+    ingest.set_defaults(handler=cmd_ingest)
+
+    calibrate = commands.add_parser(
+        "calibrate", help="friction-rig recordings (MCAP) -> seal-friction parameter set"
+    )
+    _data_option(calibrate)
+    calibrate.add_argument(
+        "--rig", metavar="RIG_ID", help="rig to calibrate (default: the only one)"
+    )
+    calibrate.add_argument("--parameter-set", metavar="NAME", help="name of the parameter set")
+    calibrate.add_argument(
+        "--table1", metavar="FILE", type=Path, help="report OLS lines through paper Table 1 (CSV)"
+    )
+    calibrate.add_argument(
+        "recordings", nargs="*", type=Path, metavar="MCAP", help="recordings to ingest and use"
+    )
+    calibrate.set_defaults(handler=cmd_calibrate)
+
+    _add_flow_commands(commands)
+
+    discover = commands.add_parser(
+        "discover", help="name the effect missing from a hoist's model (contract section 5)"
+    )
+    _data_option(discover)
+    _hoist_option(discover, required=True)
+    discover.add_argument(
+        "--from", dest="start", type=_parse_time, metavar="T", help="UTC if no offset"
+    )
+    discover.add_argument("--to", dest="end", type=_parse_time, metavar="T", help="exclusive")
+    discover.add_argument(
+        "--json", type=Path, required=True, metavar="FILE", help="report to write"
+    )
+    discover.set_defaults(handler=cmd_discover)
+
+    query = commands.add_parser("query", help="SQL on the warehouse, read-only")
+    _data_option(query)
+    query.add_argument("sql", help='e.g. "select * from position_summary"')
+    query.add_argument("--format", choices=["table", "csv", "json"], default="table")
+    query.set_defaults(handler=cmd_query)
+    _add_paper_command(commands)
+    for subcommand in commands.choices.values():
+        add_log_level_option(subcommand)
+    return parser

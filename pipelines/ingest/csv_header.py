@@ -1,0 +1,254 @@
+"""The header of a CSV field log (contract 1a): ``#`` lines, column line, units.
+
+:func:`read_header` reads the ``# key: value`` lines (``site``, ``hoist``, ``units``
+required; ``timezone``, ``sample_rate_hz``), the column line (delimiter: comma,
+semicolon or tab), the unit of every known channel, and from the first data rows
+whether numbers have a decimal comma and the shape of the timestamps. A file it cannot
+read is refused (:class:`~pipelines.ingest.batch.RefusedFile`) naming file and line.
+The rows are :mod:`.field_csv`'s.
+"""
+
+from __future__ import annotations
+
+import re
+import zoneinfo
+from dataclasses import dataclass
+from pathlib import Path
+
+from pipelines.ingest.batch import RefusedFile
+from pipelines.ingest.field_checks import CHANNELS
+from pipelines.ingest.local_time import formats_for
+from schemas.names import UnsafeNameError, safe_name
+from schemas.quantities import QuantityError, unit_factor
+
+__all__ = ["CsvHeader", "read_header"]
+
+
+_HEADER_LIMIT = 1 << 16
+_BOM = b"\xef\xbb\xbf"
+_REQUIRED_KEYS = ("site", "hoist", "units")
+_SEPARATORS = (",", ";", "\t")
+_DECIMAL_COMMA = re.compile(r"^[-+]?\d*,\d+$")
+_KELVIN = {"K": -273.15}
+_CONTROL_BYTES = re.compile(rb"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
+
+
+@dataclass(frozen=True)
+class CsvHeader:
+    """What the ``#`` header and the column line of a CSV field log say."""
+
+    site: str
+    hoist: str
+    timezone: str
+    sample_rate_hz: float | None
+    columns: tuple[str, ...]
+    separator: str
+    decimal_comma: bool
+    #: raw channel name -> (factor, offset) to SI, for the channels present
+    units: dict[str, tuple[float, float]]
+    #: byte offset and 1-based line number of the first data line
+    data_offset: int
+    data_line: int
+    timestamp_formats: tuple[str, ...]
+    notes: tuple[str, ...] = ()
+
+
+def read_header(path: Path) -> CsvHeader:
+    """Parse the header of ``path``; raise :class:`RefusedFile` naming file and line."""
+    with path.open("rb") as handle:
+        head = handle.read(_HEADER_LIMIT)
+    if not head:
+        raise RefusedFile(f"{path}: empty file (0 bytes)")
+    meta, notes, (col_no, col_text), pos = _header_lines(path, head)
+    missing = [k for k in _REQUIRED_KEYS if k not in meta]
+    if missing:
+        have = ", ".join(sorted(meta)) or "none"
+        where = f"lines 1-{col_no - 1}" if col_no > 1 else "line 1"
+        raise RefusedFile(
+            f"{path}: {where}: header lacks required key(s) "
+            f"{', '.join(repr(k) for k in missing)} (found: {have})"
+        )
+    for key in ("site", "hoist"):  # they become lake folders: safe names only
+        try:
+            safe_name(meta[key][1], key=key, source=f"{path}: line {meta[key][0]}")
+        except UnsafeNameError as exc:
+            raise RefusedFile(str(exc)) from None
+    separator = max(_SEPARATORS, key=col_text.count)
+    if col_text.count(separator) == 0:
+        raise RefusedFile(
+            f"{path}: line {col_no}: cannot find the delimiter (comma, semicolon or tab) "
+            f"in the column line {col_text[:80]!r}"
+        )
+    columns = tuple(c.strip() for c in col_text.split(separator))
+    _check_columns(path, col_no, columns, notes)
+    zone = meta.get("timezone", (0, "UTC"))
+    try:
+        zoneinfo.ZoneInfo(zone[1])
+    except (zoneinfo.ZoneInfoNotFoundError, ValueError):
+        raise RefusedFile(f"{path}: line {zone[0]}: unknown time zone {zone[1]!r}") from None
+    rate: float | None = None
+    if "sample_rate_hz" in meta:
+        try:
+            rate = float(meta["sample_rate_hz"][1])
+        except ValueError:
+            notes.append(f"line {meta['sample_rate_hz'][0]}: sample_rate_hz not a number, ignored")
+    units = _units(path, meta["units"], columns)
+    first_rows = _first_data_fields(head[pos:], separator)
+    decimal_comma = separator == ";" and any(
+        _DECIMAL_COMMA.match(v) for fields in first_rows for v in fields[1:]
+    )
+    example = first_rows[0][0].strip() if first_rows else ""
+    return CsvHeader(
+        site=meta["site"][1],
+        hoist=meta["hoist"][1],
+        timezone=zone[1],
+        sample_rate_hz=rate,
+        columns=columns,
+        separator=separator,
+        decimal_comma=decimal_comma,
+        units=units,
+        data_offset=pos,
+        data_line=col_no + 1,
+        timestamp_formats=formats_for(example),
+        notes=tuple(notes),
+    )
+
+
+def _header_lines(
+    path: Path, head: bytes
+) -> tuple[dict[str, tuple[int, str]], list[str], tuple[int, str], int]:
+    """The ``# key: value`` lines of ``head`` (key -> (line, value)), notes on them, the
+    column line (its number and text) and the byte offset just after it."""
+    pos = len(_BOM) if head.startswith(_BOM) else 0
+    meta: dict[str, tuple[int, str]] = {}
+    notes: list[str] = []
+    line_no = 0
+    column_line: tuple[int, str] | None = None
+    while pos < len(head):
+        end = head.find(b"\n", pos)
+        terminated = end >= 0
+        raw = head[pos : end if terminated else len(head)].rstrip(b"\r")
+        line_no += 1
+        text = _header_text(path, raw, line_no, notes)
+        next_pos = end + 1 if terminated else len(head)
+        if not text.strip():
+            pos = next_pos
+            continue
+        if text.startswith("#"):
+            if not terminated and len(head) == _HEADER_LIMIT:
+                break
+            body = text[1:].strip()
+            key, colon, value = body.partition(":")
+            if colon:
+                meta[key.strip().lower()] = (line_no, value.strip())
+            else:
+                notes.append(f"line {line_no}: header line without 'key: value' ignored")
+            pos = next_pos
+            continue
+        if not terminated:
+            raise RefusedFile(
+                f"{path}: line {line_no}: header only, no data rows "
+                "(the column line is not even complete)"
+            )
+        column_line = (line_no, text)
+        pos = next_pos
+        break
+    if column_line is None:
+        if len(head) == _HEADER_LIMIT:
+            raise RefusedFile(f"{path}: no column line within the first {_HEADER_LIMIT} bytes")
+        raise RefusedFile(f"{path}: line {line_no}: header only, no column line and no data")
+    return meta, notes, column_line, pos
+
+
+def _header_text(path: Path, raw: bytes, line_no: int, notes: list[str]) -> str:
+    if b"\x00" in raw:
+        if raw.startswith(b"#"):  # a header value with a NUL: show the line, key and all
+            raise RefusedFile(f"{path}: line {line_no}: NUL byte in header line {raw[:80]!r}")
+        raise RefusedFile(f"{path}: line {line_no}: binary data (NUL bytes), not a text log")
+    header_line = raw.lstrip().startswith(b"#")
+    if not header_line and (found := _CONTROL_BYTES.search(raw)):
+        # the column line (or whatever stands first) holds no control bytes in a text log
+        raise RefusedFile(
+            f"{path}: line {line_no}: binary data (control byte {found.group()!r} at byte "
+            f"{found.start()}), not a text log"
+        )
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        if not header_line:  # column names are ASCII
+            raise RefusedFile(
+                f"{path}: line {line_no}: binary data or not a column line (not UTF-8 text "
+                f"at byte {exc.start}), not a text log"
+            ) from None
+    # A '#' line that is not UTF-8: a LabVIEW export on a Windows PC writes its code
+    # page. Read it as cp1252, else Latin-1 (never fails): an operator comment in
+    # Latin-1 must not refuse the rows, and what matters keeps its meaning ('°C' in
+    # units; site and hoist must be ASCII safe names anyway, checked after this).
+    try:
+        text, encoding = raw.decode("cp1252"), "cp1252"
+    except UnicodeDecodeError:
+        text, encoding = raw.decode("latin-1"), "Latin-1"
+    notes.append(f"line {line_no}: not UTF-8 text, read as {encoding}")
+    return text
+
+
+def _check_columns(path: Path, line: int, columns: tuple[str, ...], notes: list[str]) -> None:
+    if columns[0].lower() != "timestamp":
+        raise RefusedFile(
+            f"{path}: line {line}: first column must be 'timestamp', got {columns[0][:40]!r}"
+        )
+    seen = set()
+    for name in columns:
+        if name in seen:
+            raise RefusedFile(f"{path}: line {line}: column {name!r} appears twice")
+        seen.add(name)
+    lacking = [c for c in ("p1", "p2", "p3", "p4") if c not in seen]
+    if lacking:
+        raise RefusedFile(
+            f"{path}: line {line}: column line lacks required channel(s) {', '.join(lacking)}"
+        )
+    unknown = [c for c in columns[1:] if c not in CHANNELS]
+    if unknown:
+        notes.append(f"line {line}: unknown column(s) {', '.join(unknown)} ignored")
+
+
+def _units(
+    path: Path, units_line: tuple[int, str], columns: tuple[str, ...]
+) -> dict[str, tuple[float, float]]:
+    line, text = units_line
+    given: dict[str, str] = {}
+    for item in re.split(r"[,;]", text):
+        if not item.strip():
+            continue
+        key, eq, unit = item.partition("=")
+        if not eq:
+            raise RefusedFile(f"{path}: line {line}: units item {item.strip()!r} is not key=unit")
+        given[key.strip()] = unit.strip()
+    result: dict[str, tuple[float, float]] = {}
+    for name in columns[1:]:
+        channel = CHANNELS.get(name)
+        if channel is None:
+            continue
+        unit = given.get(name) or given.get(channel.unit_key) or channel.default_unit
+        if unit is None:
+            raise RefusedFile(
+                f"{path}: line {line}: units line gives no unit for {name} "
+                f"(write e.g. '{channel.unit_key}={'MPa' if channel.unit_key == 'p' else 'mm'}')"
+            )
+        if channel.dimension == "temperature" and unit in _KELVIN:
+            result[name] = (1.0, _KELVIN[unit])
+            continue
+        try:
+            result[name] = (unit_factor(unit, channel.dimension), 0.0)
+        except QuantityError as exc:
+            raise RefusedFile(f"{path}: line {line}: units: {name}: {exc}") from None
+    return result
+
+
+def _first_data_fields(rest: bytes, separator: str) -> list[list[str]]:
+    rows = []
+    for raw in rest.split(b"\n")[:50]:
+        text = raw.rstrip(b"\r").decode("utf-8", errors="replace")
+        if text.strip():
+            rows.append(text.split(separator))
+    return rows[:-1] if len(rows) > 1 else rows  # the last may be cut by the head limit

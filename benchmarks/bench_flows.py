@@ -39,7 +39,7 @@ from pipelines.deploy import write_example_mine  # noqa: E402
 from pipelines.hoists import load_hoists  # noqa: E402
 from pipelines.ledger import fingerprint  # noqa: E402
 from pipelines.nightly import nightly  # noqa: E402
-from pipelines.reports import build_report  # noqa: E402
+from pipelines.reports import write_fleet_report  # noqa: E402
 from warehouse.store import DataRoot  # noqa: E402
 
 
@@ -86,9 +86,10 @@ def bench_nightly(root: Path, hours: float, workers: int) -> None:
     flowed = run_nightly_flow(hoists, data=flow_data, incoming=incoming, max_workers=workers)
     flow_wall = time.perf_counter() - t0
     t1 = time.perf_counter()
-    build_report(
-        DataRoot.resolve(flow_data), flowed.runs.outcomes, title="bench", out_dir=root / "r1"
-    )
+    write_fleet_report(
+        DataRoot.resolve(flow_data), kind="nightly", outcomes=flowed.runs.outcomes,
+        sources=sources, sanity=True,
+    )  # fmt: skip
     report_s = time.perf_counter() - t1
     print(_line("nightly flow", flow_wall, rows, flowed.work_s + report_s))
     print(
@@ -125,7 +126,10 @@ def bench_backfill(root: Path, days: int, minutes: float, workers: int) -> None:
     )
     flow_wall = time.perf_counter() - t0
     t1 = time.perf_counter()
-    build_report(DataRoot.resolve(flow_data), flowed.outcomes, title="bench", out_dir=root / "r2")
+    write_fleet_report(
+        DataRoot.resolve(flow_data), kind="backfill", outcomes=flowed.outcomes,
+        sources=sources, sanity=False,
+    )  # fmt: skip
     report_s = time.perf_counter() - t1
     print(_line("backfill flow", flow_wall, rows, flowed.work_s + report_s))
     print(f"  ({flowed.count('succeeded')} partitions run, report + plots {report_s:.2f} s)")

@@ -153,112 +153,13 @@ def generate_field_day(
     speeds = None if max_speeds_m_s is None else [float(v) for v in max_speeds_m_s]
     if speeds is not None and (not speeds or min(speeds) <= 0.0):
         raise ValueError(f"max_speeds_m_s: need positive speeds, got {max_speeds_m_s!r}")
-    rng = np.random.default_rng(seed)
-    period_s = hours * 3600.0 / max(trips, 1)
-    n_total = round(hours * 3600.0 * sample_rate_hz)
-    top = hoist.shaft.positions_m.get("pithead", 0.0)
-    bottom = hoist.shaft.positions_m.get("bottom", hoist.shaft.depth_m)
-    rated = hoist.conveyance.rated_payload_kg
-
-    pieces: list[pl.DataFrame] = []
-    trip_rows: list[dict[str, Any]] = []
-    resolved = None
-    payload_before = 0.0
-    state = None  # the previous trip's final state: the next trip continues from it
-    for k in range(trips):
-        down = k % 2 == 0
-        payload = (
-            float(rng.uniform(0.0, 0.05) * rated) if down else float(rng.uniform(0.6, 1.0) * rated)
-        )
-        start_s = k * period_s
-        temp = oil_temp_c[0] + (oil_temp_c[1] - oil_temp_c[0]) * (start_s + 0.5 * period_s) / (
-            hours * 3600.0
-        )
-        base = trip(
-            hoist,
-            start_depth_m=top if down else bottom,
-            end_depth_m=bottom if down else top,
-            rest_before_s=loading_s + 5.0,
-            rest_after_s=rest_after_s,
-            max_speed_m_s=None if speeds is None else speeds[k % len(speeds)],
-            oil_temp_c=temp,
-            start_time_s=start_s,
-        )
-        profile: TripProfile = dataclasses.replace(
-            base,
-            payload_time_s=np.array([0.0, loading_s]),
-            payload_kg=np.array([payload_before, payload]),
-        )
-        if profile.duration_s > period_s:
-            raise ValueError(
-                f"trips: {trips} trips of {profile.duration_s:.0f} s do not fit in "
-                f"{hours:g} h (period {period_s:.0f} s)"
-            )
-        result = simulate(
-            hoist,
-            profile,
-            effects=effects,
-            parameters=parameters,
-            output_rate_hz=sample_rate_hz,
-            dt_s=dt_s,
-            initial_state=state,
-        )
-        if not result.ok:
-            raise RuntimeError(f"trip {k}: device simulation failed: {result.message}")
-        resolved = result.effects
-        state = result.final_state
-        i0 = round(start_s * sample_rate_hz)
-        frame = result.frame.with_columns(
-            (pl.int_range(pl.len(), dtype=pl.Int64) + i0).alias("sample"),
-            pl.lit(k, dtype=pl.Int64).alias("trip_id"),
-            pl.lit(profile.direction).alias("direction"),
-        ).drop("time_s")
-        pieces.append(frame)
-        trip_rows.append(
-            {
-                "trip_id": k,
-                "direction": profile.direction,
-                "start_s": start_s,
-                "duration_s": profile.duration_s,
-                "payload_before_kg": payload_before,
-                "payload_kg": payload,
-                "oil_temp_c": temp,
-                "start_depth_m": float(profile.segment_depth_m[0]),
-                "end_depth_m": float(profile.segment_depth_m[-1]),
-            }
-        )
-        payload_before = payload
-
-    stitched = pl.concat(pieces, how="vertical").filter(pl.col("sample") < n_total)
-    grid = pl.DataFrame({"sample": np.arange(n_total, dtype=np.int64)})
-    value_cols = [c for c in stitched.columns if c not in ("sample", "trip_id", "direction")]
-    truth = grid.join(stitched, on="sample", how="left")
-    in_trip = truth["trip_id"].is_not_null()
-    truth = truth.with_columns(pl.col(value_cols).forward_fill())
-    # standstill between trips: hold the last state, nothing moves
-    moving = [c for c in value_cols if c in _MOVING or c.startswith(("v", "q"))]
-    truth = truth.with_columns(
-        [pl.when(pl.Series(in_trip)).then(pl.col(c)).otherwise(0.0).alias(c) for c in moving]
-    )
+    rng = np.random.default_rng(seed)  # payloads first, then the sensor noise
+    plan = _DayPlan(hours, trips, loading_s, rest_after_s, oil_temp_c, speeds)
+    run = {"effects": effects, "parameters": parameters, "output_rate_hz": sample_rate_hz}
+    pieces, trip_rows, resolved = _simulate_trips(hoist, plan, rng, dict(run, dt_s=dt_s))
     start = _start_utc(hoist, date, start_hour)
-    t_ns = (truth["sample"].to_numpy() * (1e9 / sample_rate_hz)).round().astype(np.int64)
-    start_ns = int(start.timestamp()) * 1_000_000_000 + start.microsecond * 1000
-    time_utc = pl.Series("time_utc", start_ns + t_ns).cast(pl.Datetime("ns", "UTC"))
-    truth = truth.with_columns(
-        time_utc.cast(pl.Datetime("us", "UTC")),
-        pl.col("direction").fill_null("rest"),
-    )
-    truth = truth.with_columns(
-        pl.when(pl.col("speed_m_s").abs() < 1e-6)
-        .then(pl.lit("rest"))
-        .otherwise(pl.col("direction"))
-        .alias("direction"),
-        _phase_expr(hoist.winder.creep_speed_m_s),
-    )
+    truth = _truth(hoist, pieces, start, round(hours * 3600.0 * sample_rate_hz), sample_rate_hz)
     n = hoist.ropes_n
-    front = ["time_utc", "trip_id", "phase", "direction"]
-    truth = truth.select(front + [c for c in truth.columns if c not in front and c != "sample"])
-
     sensor = truth.select(
         "time_utc",
         *[pl.col(f"p_sensor{i}_pa").alias(f"p{i}_pa") for i in range(1, n + 1)],
@@ -268,7 +169,6 @@ def generate_field_day(
         "oil_temp_c",
     )
     sensor = apply_sensor_noise(sensor, noise, rng, sample_rate_hz=sample_rate_hz)
-
     info: dict[str, Any] = {
         "site": hoist.hoist.site,
         "hoist": hoist.hoist.name,
@@ -286,6 +186,137 @@ def generate_field_day(
         "friction_law_si": dataclasses.asdict(hoist.friction_law),
     }
     return FieldDay(hoist=hoist, sensors=sensor, truth=truth, info=info)
+
+
+@dataclasses.dataclass(frozen=True)
+class _DayPlan:
+    """The day's trips: how many in how long, loading and rest, oil warming, speeds."""
+
+    hours: float
+    trips: int
+    loading_s: float
+    rest_after_s: float
+    oil_temp_c: tuple[float, float]
+    speeds: list[float] | None
+
+    @property
+    def period_s(self) -> float:
+        return self.hours * 3600.0 / max(self.trips, 1)
+
+
+def _trip_profile(
+    hoist: HoistDescription, plan: _DayPlan, k: int, payload_before: float, payload: float
+) -> TripProfile:
+    """Trip k: down from the pithead (even k) or up from the bottom, at its start time,
+    with the payload changed over ``loading_s`` at its start and the oil's temperature."""
+    down = k % 2 == 0
+    top = hoist.shaft.positions_m.get("pithead", 0.0)
+    bottom = hoist.shaft.positions_m.get("bottom", hoist.shaft.depth_m)
+    start_s = k * plan.period_s
+    t0, t1 = plan.oil_temp_c
+    temp = t0 + (t1 - t0) * (start_s + 0.5 * plan.period_s) / (plan.hours * 3600.0)
+    base = trip(
+        hoist,
+        start_depth_m=top if down else bottom,
+        end_depth_m=bottom if down else top,
+        rest_before_s=plan.loading_s + 5.0,
+        rest_after_s=plan.rest_after_s,
+        max_speed_m_s=None if plan.speeds is None else plan.speeds[k % len(plan.speeds)],
+        oil_temp_c=temp,
+        start_time_s=start_s,
+    )
+    profile: TripProfile = dataclasses.replace(
+        base,
+        payload_time_s=np.array([0.0, plan.loading_s]),
+        payload_kg=np.array([payload_before, payload]),
+    )
+    if profile.duration_s > plan.period_s:
+        raise ValueError(
+            f"trips: {plan.trips} trips of {profile.duration_s:.0f} s do not fit in "
+            f"{plan.hours:g} h (period {plan.period_s:.0f} s)"
+        )
+    return profile
+
+
+def _simulate_trips(
+    hoist: HoistDescription, plan: _DayPlan, rng: np.random.Generator, run: dict[str, Any]
+) -> tuple[list[pl.DataFrame], list[dict[str, Any]], Any]:
+    """Each trip simulated from the previous one's final state: the frames (numbered by
+    output sample), one row per trip, and the resolved effects."""
+    rated = hoist.conveyance.rated_payload_kg
+    pieces: list[pl.DataFrame] = []
+    trip_rows: list[dict[str, Any]] = []
+    resolved, state, payload_before = None, None, 0.0
+    for k in range(plan.trips):
+        low, high = (0.0, 0.05) if k % 2 == 0 else (0.6, 1.0)
+        payload = float(rng.uniform(low, high) * rated)
+        profile = _trip_profile(hoist, plan, k, payload_before, payload)
+        result = simulate(hoist, profile, initial_state=state, **run)
+        if not result.ok:
+            raise RuntimeError(f"trip {k}: device simulation failed: {result.message}")
+        resolved, state = result.effects, result.final_state
+        start_s = k * plan.period_s
+        i0 = round(start_s * run["output_rate_hz"])
+        pieces.append(
+            result.frame.with_columns(
+                (pl.int_range(pl.len(), dtype=pl.Int64) + i0).alias("sample"),
+                pl.lit(k, dtype=pl.Int64).alias("trip_id"),
+                pl.lit(profile.direction).alias("direction"),
+            ).drop("time_s")
+        )
+        trip_rows.append(
+            {
+                "trip_id": k,
+                "direction": profile.direction,
+                "start_s": start_s,
+                "duration_s": profile.duration_s,
+                "payload_before_kg": payload_before,
+                "payload_kg": payload,
+                "oil_temp_c": float(profile.oil_temp_c),
+                "start_depth_m": float(profile.segment_depth_m[0]),
+                "end_depth_m": float(profile.segment_depth_m[-1]),
+            }
+        )
+        payload_before = payload
+    return pieces, trip_rows, resolved
+
+
+def _truth(
+    hoist: HoistDescription,
+    pieces: list[pl.DataFrame],
+    start: dt.datetime,
+    n_total: int,
+    sample_rate_hz: float,
+) -> pl.DataFrame:
+    """The trips on the day's sample grid: the state held between trips, times in UTC,
+    direction and phase labels."""
+    stitched = pl.concat(pieces, how="vertical").filter(pl.col("sample") < n_total)
+    grid = pl.DataFrame({"sample": np.arange(n_total, dtype=np.int64)})
+    value_cols = [c for c in stitched.columns if c not in ("sample", "trip_id", "direction")]
+    truth = grid.join(stitched, on="sample", how="left")
+    in_trip = truth["trip_id"].is_not_null()
+    truth = truth.with_columns(pl.col(value_cols).forward_fill())
+    # standstill between trips: hold the last state, nothing moves
+    moving = [c for c in value_cols if c in _MOVING or c.startswith(("v", "q"))]
+    truth = truth.with_columns(
+        [pl.when(pl.Series(in_trip)).then(pl.col(c)).otherwise(0.0).alias(c) for c in moving]
+    )
+    t_ns = (truth["sample"].to_numpy() * (1e9 / sample_rate_hz)).round().astype(np.int64)
+    start_ns = int(start.timestamp()) * 1_000_000_000 + start.microsecond * 1000
+    time_utc = pl.Series("time_utc", start_ns + t_ns).cast(pl.Datetime("ns", "UTC"))
+    truth = truth.with_columns(
+        time_utc.cast(pl.Datetime("us", "UTC")),
+        pl.col("direction").fill_null("rest"),
+    )
+    truth = truth.with_columns(
+        pl.when(pl.col("speed_m_s").abs() < 1e-6)
+        .then(pl.lit("rest"))
+        .otherwise(pl.col("direction"))
+        .alias("direction"),
+        _phase_expr(hoist.winder.creep_speed_m_s),
+    )
+    front = ["time_utc", "trip_id", "phase", "direction"]
+    return truth.select(front + [c for c in truth.columns if c not in front and c != "sample"])
 
 
 def write_field_day(

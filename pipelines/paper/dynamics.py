@@ -30,7 +30,7 @@ from physics.two_cylinder import (
 )
 from pipelines.paper import data
 from pipelines.paper.report import PaperSection, Row, new_figure, save_figure
-from sims.rig import RigDesign, default_friction_law, pressure_loss_test
+from sims.rig import LossTestResult, RigDesign, default_friction_law, pressure_loss_test
 from sims.two_cylinder import StepResponse, fit_second_order_step, simulate_step
 
 __all__ = ["eq9_10_section", "section_3_1_section"]
@@ -210,7 +210,6 @@ def section_3_1_section(out_dir: Path) -> PaperSection:
     }
     top = loads[max(loads)]
     settle = _settling_time(top.time_s, top.p_rodless_pa, top.steady_pa, SETTLED_PA)
-    losses = np.array([r.loss_pa for r in loads.values()]) / 1e6
     section = PaperSection(
         key="section3.1",
         title="Paper section 3.1: single-cylinder rig, pressure loss and start overshoot",
@@ -229,8 +228,22 @@ def section_3_1_section(out_dir: Path) -> PaperSection:
             f"run); settled: within {SETTLED_PA / 1e6:g} MPa of steady from then on.",
         ],
     )
+    section.rows += _section_3_1_rows(paper, loads, flows, top, settle)
+    section.notes += _section_3_1_notes(paper, flows, top, settle)
+    _section_3_1_figure(section, loads, flows, out_dir)
+    section.write_rows(out_dir)
+    return section
+
+
+def _section_3_1_rows(
+    paper: dict, loads: dict, flows: dict, top: LossTestResult, settle: float
+) -> list[Row]:
+    """Section 3.1's rows: the loss at each load, the overshoot and timing at the
+    highest load, and the flow dependence."""
+    rows: list[Row] = []
+    losses = np.array([r.loss_pa for r in loads.values()]) / 1e6
     for load, run in loads.items():
-        section.rows.append(
+        rows.append(
             Row(
                 f"loss at {load:g} MPa load",
                 "MPa",
@@ -240,7 +253,7 @@ def section_3_1_section(out_dir: Path) -> PaperSection:
                 "paper: 0.36 MPa at every load",
             )
         )
-    section.rows += [
+    rows += [
         Row("loss spread over the loads (max - min)", "MPa", 0.0,
             float(losses.max() - losses.min()), ".4f", "paper: independent of load pressure"),
         Row(f"{max(loads):g} MPa: peak pressure", "MPa", paper["peak_mpa"], top.peak_pa / 1e6,
@@ -255,7 +268,7 @@ def section_3_1_section(out_dir: Path) -> PaperSection:
             "paper: 'stable ... after 0.3 s'"),
     ]  # fmt: skip
     for q, run in flows.items():
-        section.rows += [
+        rows += [
             Row(f"{paper['flow_load_mpa']:g} MPa, {q:g} L/min: loss", "MPa", None,
                 run.loss_pa / 1e6, ".3f", "paper Fig. 7: varies with flow"),
             Row(f"{paper['flow_load_mpa']:g} MPa, {q:g} L/min: overshoot", "MPa", None,
@@ -263,10 +276,16 @@ def section_3_1_section(out_dir: Path) -> PaperSection:
             Row(f"{paper['flow_load_mpa']:g} MPa, {q:g} L/min: time of the peak", "s", None,
                 run.peak_time_s, ".3f", "paper Fig. 7: inversely proportional to flow"),
         ]  # fmt: skip
+    return rows
+
+
+def _section_3_1_notes(paper: dict, flows: dict, top: LossTestResult, settle: float) -> list[str]:
+    """Section 3.1's notes: what is calibrated, the timing and the flow dependence."""
+    notes: list[str] = []
     per_flow = [r.overshoot_pa / 1e6 / q for q, r in flows.items()]
     times_flow = [r.peak_time_s * q for q, r in flows.items()]
     reached = float(top.time_s[np.argmax(top.p_rodless_pa >= top.load_pressure_pa)])
-    section.notes += [
+    notes += [
         "Calibrated, not predicted: the rig's branch line and overflow-valve override are set "
         "so that the steady loss at 20 L/min is 0.36 MPa, and the valve's time constant so "
         "that the 11 MPa overshoot is near the paper's (sims.rig.RigDesign). Agreement at "
@@ -284,9 +303,7 @@ def section_3_1_section(out_dir: Path) -> PaperSection:
         f"{min(times_flow):.2f}..{max(times_flow):.2f} s L/min: roughly proportional and "
         "inversely proportional to the flow, as the paper says (Fig. 7, no numbers).",
     ]
-    _section_3_1_figure(section, loads, flows, out_dir)
-    section.write_rows(out_dir)
-    return section
+    return notes
 
 
 def _section_3_1_figure(section, loads, flows, out_dir: Path) -> None:

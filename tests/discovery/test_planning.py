@@ -1,4 +1,5 @@
-"""sims.replay: trips segmented from a synthetic log and replayed against known truth."""
+"""discovery.planning and sims.replay: trips segmented from a synthetic log and replayed
+against known truth."""
 
 from __future__ import annotations
 
@@ -8,8 +9,11 @@ import numpy as np
 import polars as pl
 import pytest
 
-from sims.discovery.cases import hidden_case
-from sims.replay import estimate_noise_sigma, plan_replay, replay_fitted, replay_frame
+from discovery.cases import hidden_case
+from discovery.planning import plan_replay
+from discovery.segmentation import estimate_noise_sigma
+from sims.replay import replay_fitted
+from sims.replay_plan import replay_frame
 
 
 @pytest.fixture(scope="module")

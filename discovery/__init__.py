@@ -1,8 +1,8 @@
 """Model-discrepancy discovery: which named effect (contract section 4) is missing.
 
 :mod:`discovery.planning` -- the measured trips of a record prepared for replay through
-the device simulation (:mod:`sims.replay`), with :mod:`discovery.segmentation` and
-:mod:`discovery.rope_damping`.
+the device simulation (:mod:`sims.replay`), with :mod:`discovery.record`,
+:mod:`discovery.segmentation` and :mod:`discovery.rope_damping`.
 :mod:`discovery.library` -- one candidate term per contract effect, each able to
 switch its effect on in the device simulation and to move its parameters.
 :mod:`discovery.selection` -- residual test against the noise, scoring with

@@ -26,7 +26,12 @@ from schemas.effects import NO_EFFECT
 from sims.effects import parameters_json
 from sims.replay_plan import ReplayPlan, ReplayResult
 
-__all__: list[str] = []
+#: A BIC difference above which the evidence for the better of two candidates is "very
+#: strong" (Kass and Raftery 1995, J. Am. Stat. Assoc. 90(430), 773-795, section 3.2;
+#: on the effective sample count, so autocorrelated residuals do not inflate it).
+DECISIVE_DBIC = 10.0
+
+__all__ = ["DECISIVE_DBIC"]
 
 
 @dataclass(frozen=True)
@@ -222,6 +227,8 @@ def _verdict(
         and scores[runner]["dbic"] > 0
         and (scores[runner]["rss"] - scores[top]["rss"])
         < fit.opts.ambiguity * (bl.rss0 - scores[top]["rss"])
+        # explained alike, but the evidence may still be decisive (selection, step 5)
+        and scores[top]["dbic"] - scores[runner]["dbic"] < DECISIVE_DBIC
     )
     split = share[top] < fit.opts.stability
     if not (close or split):

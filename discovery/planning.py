@@ -189,11 +189,7 @@ def _planned_trips(
     motions = rec.motions
     trips: list[ReplayTrip] = []
     skipped: list[SkippedTrip] = []
-    # Only the first trip prepared is driven by the logged motion: the code this was
-    # split from reused the name ``motion`` for a span after that trip's knots, so
-    # ``motion == "logged"`` held for it alone. Kept so the plans stay the same (issue 17
-    # moves code without changing results); a fix is a change of its own.
-    logged = motion == "logged"
+    logged = motion == "logged"  # every planned trip follows the logged speed
     for b, block in enumerate(chosen):
         restart = True  # the next planned trip starts the block's history
         for k in block:
@@ -209,7 +205,6 @@ def _planned_trips(
                     rec, hoist, k, tm, (b, restart), win_end, score_rate_hz, logged, notes
                 )
             )
-            logged = False
             restart = False
     return trips, skipped
 

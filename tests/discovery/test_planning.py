@@ -41,6 +41,17 @@ def test_plan_recovers_trip_inputs(null_case):
         assert tr.motion_start_s == pytest.approx(truth["start_s"] + 10.0, abs=0.01)
 
 
+def test_logged_motion_drives_every_planned_trip(null_case):
+    """``motion="logged"``: each trip follows the encoder's logged speed, not only the
+    first (a reused name once left the others on the winder profile)."""
+    _, info = null_case
+    plan = plan_replay(info["day"].sensors, info["day"].hoist, motion="logged")
+    assert len(plan.trips) == 3
+    assert all(tr.motion_knots is not None for tr in plan.trips)
+    winder = plan_replay(info["day"].sensors, info["day"].hoist)
+    assert all(tr.motion_knots is None for tr in winder.trips)
+
+
 def test_replay_of_the_true_model_leaves_the_noise(null_case):
     plan, info = null_case
     result = replay_fitted(plan, passes=3)

@@ -1,12 +1,12 @@
 """Evaluate the discovery workflow on many seeded synthetic trials (issue 8).
 
 Not a unit test: a script. Each trial generates a short field day of the example hoist
-(:func:`sims.discovery.cases.hidden_case`; the pipe, valve and viscosity effects in the
+(:func:`discovery.cases.hidden_case`; the pipe, valve and viscosity effects in the
 scenarios with differential branch flow that excite them, see
-:mod:`sims.discovery.cases`) with one effect hidden from the model (at
+:mod:`discovery.cases`) with one effect hidden from the model (at
 several sensor-noise levels, so the effect's RMS spans ~1-20 x the noise), with no
 effect hidden (null trials), or with two hidden (two-effect trials), and runs
-:func:`sims.discovery.discover_effects`. Prints the confusion matrix (truth x first
+:func:`discovery.discover_effects`. Prints the confusion matrix (truth x first
 answer), top-1 accuracy where the effect's RMS >= 2 x the noise, the false-alarm rate
 on null trials, the median gap reduction (excess over noise) when the right effect was
 added, the two-effect recovery rate, and the wall time of one hoist-day analysed
@@ -49,12 +49,12 @@ from typing import Any
 
 import numpy as np
 
+from discovery import discover_effects
+from discovery.cases import EXTRA, hidden_case
+from discovery.planning import plan_replay
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
-from sims.discovery import discover_effects
-from sims.discovery.cases import EXTRA, hidden_case
 from sims.field_day import generate_field_day
 from sims.noise import NoiseModel
-from sims.replay import plan_replay
 
 EFFECTS = [
     "tail_rope_weight",
@@ -76,7 +76,7 @@ NULL_SCENARIOS = ("plain", "differential", "orifice")
 
 def trial(hidden: list[str], seed: int, noise_pa: float, scenario: str | None = None):
     """One seeded trial: the scenario that excites the (first) hidden effect
-    (:data:`sims.discovery.cases.SCENARIO_FOR`) unless ``scenario`` is given."""
+    (:data:`discovery.cases.SCENARIO_FOR`) unless ``scenario`` is given."""
     plan, _ = hidden_case(
         hidden,
         seed=seed,

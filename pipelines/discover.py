@@ -45,12 +45,12 @@ from typing import Any
 import numpy as np
 import polars as pl
 
+from discovery import DiscoveryResult, Finding, discover_effects
+from discovery.planning import plan_replay
 from pipelines.lake import scan_lake
 from pipelines.provenance import hoist_run, new_run_id, utc_now
 from schemas.effects import NO_EFFECT
 from schemas.hoist import HoistDescription, load_hoist
-from sims.discovery import DiscoveryResult, Finding, discover_effects
-from sims.replay import plan_replay
 from warehouse.landing import land_discovery_findings, land_run
 from warehouse.store import DataRoot, open_writer
 

@@ -36,10 +36,11 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
+from discovery.planning import plan_replay
 from pipelines.steps import StepOutcome
 from schemas.hoist import HoistDescription
 from schemas.tables import SANITY_CHECKS, conform
-from sims.replay import plan_replay, replay_fitted
+from sims.replay import replay_fitted
 
 __all__ = ["SanityOutcome", "sanity_check", "sanity_step"]
 

@@ -29,7 +29,7 @@ the record: the common-mode pressure after each stop, band-passed around the bou
 frequencies, against the same band at quiet standstill. Where the ringing is not above
 the noise 3-7 s after the stops, the ropes are damped at ~0.2 or more (a model that rings
 where the data does not leaves a gap of ~0.1 MPa, see issue 14) and the replay chooses
-among 0.1 / 0.3 / 1.0 by its gap (:func:`sims.replay.plan_replay`); where it is, the
+among 0.1 / 0.3 / 1.0 by its gap (:func:`discovery.planning.plan_replay`); where it is, the
 damping ratio comes from the decay of its envelope (logarithmic decrement,
 ``zeta = lambda / (2 pi f)``, small-damping form).
 """
@@ -170,8 +170,8 @@ def rope_damping_from_record(
     -------
     (zeta, how) : ``zeta`` is 1.0 when no ringing is above the noise 3-7 s after the
         stops (a lower bound in fact: damping ratios from ~0.2 up leave nothing there;
-        :func:`sims.replay.plan_replay` decides among them by replay), the ratio read from
-        the envelope decay (ringing seen), or None (not enough record to tell: keep the
+        :func:`discovery.planning.plan_replay` decides among them by replay), the ratio
+        read from the envelope decay (ringing seen), or None (not enough record to tell: keep the
         hoist description's). ``how`` says it in words.
     """
     if t_s.size < 100 or not stops_s:

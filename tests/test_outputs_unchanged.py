@@ -159,8 +159,8 @@ def _simulations() -> dict[str, pl.DataFrame]:
 
 
 def _discovery() -> dict[str, pl.DataFrame]:
-    from sims.discovery import discover_effects
-    from sims.discovery.cases import hidden_case
+    from discovery import discover_effects
+    from discovery.cases import hidden_case
 
     plan, _ = hidden_case("sensor_offset")
     result = discover_effects(plan, bootstrap=20, max_iterations=1)

@@ -7,10 +7,10 @@ import json
 import polars as pl
 import pytest
 
+from discovery.cases import hidden_case
 from pipelines.cli import main
 from pipelines.discover import discover_period
 from schemas.hoist import EXAMPLE_HOIST
-from sims.discovery.cases import hidden_case
 from warehouse.store import DataRoot, open_reader
 
 

@@ -7,10 +7,10 @@ import datetime as dt
 import polars as pl
 import pytest
 
+from discovery.cases import hidden_case, hoist_with
 from pipelines.sanity import sanity_check, sanity_step
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from schemas.tables import SANITY_CHECKS
-from sims.discovery.cases import hidden_case, hoist_with
 from sims.field_day import generate_field_day
 
 

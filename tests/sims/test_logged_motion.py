@@ -11,10 +11,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from sims.discovery.cases import scenario_hoist
+from discovery.cases import scenario_hoist
+from discovery.planning import plan_replay
 from sims.field_day import generate_field_day
 from sims.logged_motion import motion_knots, profile_from_knots, rope_damping_from_record
-from sims.replay import plan_replay, replay_fitted
+from sims.replay import replay_fitted
 
 
 def _trapezoid(t: np.ndarray, a: float = 0.8, vmax: float = 9.7, t0: float = 5.0):

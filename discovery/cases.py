@@ -48,10 +48,11 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any
 
+from discovery.planning import plan_replay
 from schemas.hoist import EXAMPLE_HOIST, HoistDescription, load_hoist
 from sims.field_day import FieldDay, generate_field_day
 from sims.noise import NoiseModel
-from sims.replay import ReplayPlan, plan_replay
+from sims.replay_plan import ReplayPlan
 
 __all__ = [
     "COUPLED",

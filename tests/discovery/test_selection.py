@@ -4,7 +4,7 @@ Known truth: every case is a synthetic field day (sims.field_day) of the example
 with one effect hidden from the model; discovery must name it and shrink the gap, and
 report ``none`` when the model is the data's. The pipe, valve and viscosity effects are
 hidden in the scenarios with differential branch flow that excite them (drum-groove
-wear in the hoist's description, a cold start; :mod:`sims.discovery.cases`).
+wear in the hoist's description, a cold start; :mod:`discovery.cases`).
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sims.discovery import EFFECT_LIBRARY, discover_effects
-from sims.discovery.cases import hidden_case
+from discovery import EFFECT_LIBRARY, discover_effects
+from discovery.cases import hidden_case
 from sims.noise import NoiseModel
 
 #: Effects found in the plain two-trip scenario (full-shaft trips, loading at the stops)
@@ -158,9 +158,9 @@ def test_local_loss_candidate_is_not_null_when_the_description_declares_no_loss(
     column is not identically zero and discovery can estimate it from a zero start."""
     import re
 
+    from discovery.library import NOMINAL_VALVE_LOSS_COEFFICIENT
     from schemas.hoist import EXAMPLE_HOIST, load_hoist
     from sims.device import simulate
-    from sims.discovery.library import NOMINAL_VALVE_LOSS_COEFFICIENT
     from sims.trips import hold
 
     text = EXAMPLE_HOIST.read_text()

@@ -1,4 +1,5 @@
-"""sims.replay: trips segmented from a synthetic log and replayed against known truth."""
+"""discovery.planning and sims.replay: trips segmented from a synthetic log and replayed
+against known truth."""
 
 from __future__ import annotations
 
@@ -8,8 +9,11 @@ import numpy as np
 import polars as pl
 import pytest
 
-from sims.discovery.cases import hidden_case
-from sims.replay import estimate_noise_sigma, plan_replay, replay_fitted, replay_frame
+from discovery.cases import hidden_case
+from discovery.planning import plan_replay
+from discovery.segmentation import estimate_noise_sigma
+from sims.replay import replay_fitted
+from sims.replay_plan import replay_frame
 
 
 @pytest.fixture(scope="module")
@@ -35,6 +39,17 @@ def test_plan_recovers_trip_inputs(null_case):
         assert tr.oil_temp_c == pytest.approx(truth["oil_temp_c"], abs=0.05)
         # motion starts 5 s loading + 5 s rest after the trip's start
         assert tr.motion_start_s == pytest.approx(truth["start_s"] + 10.0, abs=0.01)
+
+
+def test_logged_motion_drives_every_planned_trip(null_case):
+    """``motion="logged"``: each trip follows the encoder's logged speed, not only the
+    first (a reused name once left the others on the winder profile)."""
+    _, info = null_case
+    plan = plan_replay(info["day"].sensors, info["day"].hoist, motion="logged")
+    assert len(plan.trips) == 3
+    assert all(tr.motion_knots is not None for tr in plan.trips)
+    winder = plan_replay(info["day"].sensors, info["day"].hoist)
+    assert all(tr.motion_knots is None for tr in winder.trips)
 
 
 def test_replay_of_the_true_model_leaves_the_noise(null_case):

@@ -7,7 +7,7 @@ knows its terms (:meth:`EffectLibrary.get_feature_names`), libraries combine wit
 state but a physical effect of the device simulation (:mod:`sims.device`): it switches
 its effect on (:attr:`EffectTerm.name` in the ``effects`` set) and maps a small vector of
 coordinates to the effect's parameters (:meth:`EffectTerm.parameters`), so the
-selection (:mod:`sims.discovery.selection`) can fit it by Gauss-Newton on finite-
+selection (:mod:`discovery.selection`) can fit it by Gauss-Newton on finite-
 difference columns of the simulated pressures.
 
 Coordinates are chosen so the simulated pressures are close to linear in them:
@@ -72,7 +72,7 @@ class EffectTerm:
         so a finite-difference column at zero deviation sees only the presliding
         stiffness), the amplitudes of a coarse scan along the data's differential
         signature that gives the fit a non-zero start (see
-        :mod:`sims.discovery.selection`).
+        :mod:`discovery.selection`).
     """
 
     name: str
@@ -204,6 +204,11 @@ def _groove_set(h: HoistDescription, x: np.ndarray) -> dict[str, Any]:
 
 
 def _terms() -> dict[str, EffectTerm]:
+    """Every contract effect's term, by name.
+
+    Long on purpose (~120 lines): a table, one ``EffectTerm`` of ~10 lines per effect,
+    read in one place like the module docstring's table; splitting it would scatter it.
+    """
     ln = math.log
     terms = [
         EffectTerm(

@@ -1,0 +1,33 @@
+"""Model-discrepancy discovery: which named effect (contract section 4) is missing.
+
+:mod:`discovery.planning` -- the measured trips of a record prepared for replay through
+the device simulation (:mod:`sims.replay`), with :mod:`discovery.record`,
+:mod:`discovery.segmentation` and :mod:`discovery.rope_damping`.
+:mod:`discovery.library` -- one candidate term per contract effect, each able to
+switch its effect on in the device simulation and to move its parameters.
+:mod:`discovery.selection` -- residual test against the noise, scoring with
+re-tuning, information criterion + trip bootstrap, ambiguity, iteration: the
+:class:`EffectSelector` (pysindy-like ``fit`` / ``coef_`` / ``support_`` /
+``complexity``) and :func:`discover_effects`; its steps in :mod:`discovery.iteration`,
+:mod:`discovery.columns`, :mod:`discovery.normal_equations`, :mod:`discovery.ranking`,
+:mod:`discovery.bootstrap`, :mod:`discovery.refit`, :mod:`discovery.gap`.
+:mod:`discovery.cases` -- synthetic hidden-effect cases for tests and benchmarks.
+
+``discovery`` imports ``sims``; ``sims`` never imports ``discovery``.
+"""
+
+from discovery.library import EFFECT_LIBRARY, EffectLibrary, EffectTerm
+from discovery.planning import plan_replay
+from discovery.results import DiscoveryResult, Finding
+from discovery.selection import EffectSelector, discover_effects
+
+__all__ = [
+    "EFFECT_LIBRARY",
+    "DiscoveryResult",
+    "EffectLibrary",
+    "EffectSelector",
+    "EffectTerm",
+    "Finding",
+    "discover_effects",
+    "plan_replay",
+]

@@ -1,0 +1,342 @@
+"""Replays with fixed payloads and the least-squares columns built from them.
+
+:class:`_Engine` replays the planned trips with the base replay's payloads and loading
+ramps (shifted by what a changed model implies statically), and builds, per effect
+term, its columns (:class:`_Columns`): the finite-difference derivatives ``ds/dphi`` of
+the simulated pressures in the term's coordinates and the change ``Delta`` of switching
+it on; the sensor terms' columns are analytic. For a term null and strongly nonlinear at
+its default (groove wear) it first finds a non-zero start along the residual's
+differential signature (:meth:`_Engine.start`). :func:`_refit` replays with payloads and
+ramps fitted.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize
+
+from discovery.layout import _layout
+from discovery.library import EffectLibrary, EffectTerm, term_parameters
+from discovery.normal_equations import _normal, _solve
+from discovery.results import Params, _merge
+from sims.effects import resolve_effects
+from sims.replay import payload_from_pressure, replay, replay_fitted
+from sims.replay_plan import ReplayPlan, ReplayResult
+
+__all__: list[str] = []
+
+#: The groove-wear start scan runs when a sensor's direction-signed differential
+#: residual is at least this many standard errors from zero ...
+_SIGNATURE_Z = 5.0
+#: ... the standard error taken with this autocorrelation time [samples] (white sensor
+#: noise gives 1; the margin covers filtered loggers).
+_SIGNATURE_TAU = 2.0
+
+
+@dataclass
+class _Columns:
+    name: str
+    jac: np.ndarray  # (N, k) d s / d coordinate
+    delta: np.ndarray  # (N,) switching the effect on at its default coordinates
+    theta0: np.ndarray  # coordinates the columns are taken at
+    ok: bool = True
+    note: str = ""
+
+
+class _Engine:
+    """Replays with fixed payloads / ramps and the columns built from them."""
+
+    def __init__(self, plan: ReplayPlan, library: EffectLibrary, base: ReplayResult) -> None:
+        self.plan = plan
+        self.hoist = plan.hoist
+        self.lib = library
+        self.base = base
+        self.layout = _layout(plan, base)
+        self.replays = 0
+        self.cache: dict[str, _Columns] = {}
+        self.base_static = np.zeros((len(plan.trips), 2))
+
+    def _static_payloads(self, effects: list[str], params: Params) -> np.ndarray:
+        prm = term_parameters(self.hoist, params, effects)
+        return np.array(
+            [
+                [
+                    payload_from_pressure(
+                        self.hoist, effects, prm, tr.p_after_pa, tr.start_depth_m
+                    ),
+                    payload_from_pressure(
+                        self.hoist, effects, prm, tr.p_before_pa, tr.start_depth_m
+                    ),
+                ]
+                for tr in self.plan.trips
+            ]
+        )
+
+    def sim(self, effects: Iterable[str], params: Params) -> np.ndarray:
+        """Replay with the base's payloads and ramps, the payloads shifted by what the
+        changed model implies statically (tail rope at the start depth, sensor
+        calibration), so a column shows the effect, not a payload mismatch."""
+        self.replays += 1
+        eff = list(effects)
+        shift = self._static_payloads(eff, params) - self.base_static
+        res = replay(
+            self.plan,
+            effects=eff,
+            parameters=term_parameters(self.hoist, params, eff),
+            payload_kg=np.maximum(self.base.payload_kg + shift[:, 0], 0.0),
+            payload_before_kg=np.maximum(self.base.payload_before_kg + shift[:, 1], 0.0),
+            ramps_s=self.base.ramps_s,
+        )
+        return self.layout.flat(res.simulated)
+
+    def rebase(self, base: ReplayResult, effects: list[str], params: Params) -> None:
+        self.base = base
+        self.base_static = self._static_payloads(effects, params)
+
+    def analytic(self, term: EffectTerm, s0: np.ndarray, params: Params, on: bool) -> _Columns:
+        lay = self.layout
+        n = self.hoist.ropes_n
+        eff = resolve_effects(
+            self.hoist, [term.name], term_parameters(self.hoist, params, [term.name])
+        )
+        theta = term.coordinates(self.hoist, params)
+        gains = np.ones(n)
+        offs = np.zeros(n)
+        if term.name == "sensor_gain":
+            gains = np.asarray(eff.parameters["sensor_gain"]["gains"], float)
+        else:
+            offs = np.asarray(eff.parameters["sensor_offset"]["offsets_pa"], float)
+        jac = np.zeros((s0.size, n))
+        delta = np.zeros(s0.size)
+        for i in range(n):
+            sel = lay.sensor == i
+            if term.name == "sensor_offset":
+                jac[sel, i] = 1.0
+                if not on:
+                    delta[sel] = offs[i]
+            else:
+                p_raw = s0[sel] / (gains[i] if on else 1.0)
+                jac[sel, i] = p_raw
+                if not on:
+                    delta[sel] = (gains[i] - 1.0) * s0[sel]
+        return _Columns(term.name, jac, delta, theta)
+
+    def fd(
+        self, term: EffectTerm, effects: list[str], params: Params, s_at: np.ndarray
+    ) -> _Columns:
+        theta = term.coordinates(self.hoist, params)
+        cols = []
+        for j, step in enumerate(term.steps):
+            th = theta.copy()
+            th[j] += step
+            p2 = {k: dict(v) for k, v in params.items()}
+            p2[term.name] = {**p2.get(term.name, {}), **term.parameters(self.hoist, th)}
+            s = self.sim(effects, p2)
+            if not np.all(np.isfinite(s)):
+                return _Columns(
+                    term.name,
+                    np.zeros((s_at.size, 0)),
+                    np.zeros(s_at.size),
+                    theta,
+                    ok=False,
+                    note="simulation failed at a finite-difference step",
+                )
+            cols.append((s - s_at) / step)
+        return _Columns(term.name, np.column_stack(cols), np.zeros(s_at.size), theta)
+
+    def retune(self, name: str, effects: list[str], params: Params, s0: np.ndarray) -> _Columns:
+        term = self.lib[name]
+        if term.analytic:
+            return self.analytic(term, s0, params, on=True)
+        if name not in self.cache:
+            self.cache[name] = self.fd(term, effects, params, s0)
+        return self.cache[name]
+
+    def _rss_trip_offsets(self, resid: np.ndarray) -> float:
+        """Residual sum of squares after a per-trip common offset (the payload)."""
+        if not np.all(np.isfinite(resid)):
+            return np.inf
+        trip = self.layout.trip
+        m = int(trip.max()) + 1 if trip.size else 0
+        mean = np.bincount(trip, resid, m) / np.maximum(np.bincount(trip, minlength=m), 1)
+        return float(np.sum((resid - mean[trip]) ** 2))
+
+    def start(
+        self, term: EffectTerm, effects: list[str], params: Params, s0: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """A non-zero start for a term that is null and nonlinear at its default.
+
+        Direction: the differential signature of the residual while the conveyance
+        moves -- per sensor, the mean of ``direction x (r_i - mean_j r_j)`` (groove wear
+        makes the pistons drift apart one way going down and back going up, and each
+        sliding piston's seal friction offsets its sensor by the sign of its motion);
+        the coordinates (ropes 2..n relative to rope 1) along it, largest 1. Scan:
+        both signs times ``term.start_amplitudes``, the best amplitude (per-trip offsets
+        removed) refined between its grid neighbours (Brent), then up to three damped
+        Gauss-Newton steps on all coordinates. None when the signature is within
+        ``_SIGNATURE_Z`` standard errors of zero (a fixed fraction of the noise would
+        ignore a signature that many samples make certain), or when nothing beats zero by
+        more than 25 noise variances.
+        """
+        g = self._signature(term, s0)
+        if g is None:
+            return None
+        found = self._scan(term, effects, params, s0, g)
+        if found is None:
+            return None
+        return self._gauss_newton(term, effects, params, *found)
+
+    def _signature(self, term: EffectTerm, s0: np.ndarray) -> np.ndarray | None:
+        """The direction of :meth:`start`'s scan (ropes 2..n, largest 1), or None."""
+        lay = self.layout
+        n = self.hoist.ropes_n
+        r = lay.y - s0
+        moving = lay.direction != "rest"
+        if term.name != "groove_wear" or moving.sum() < 10 * n:
+            return None
+        sgn = np.where(lay.direction == "down", 1.0, -1.0)
+        sig = np.array(
+            [np.mean((sgn * r)[moving & (lay.sensor == i)]) for i in range(n)], dtype=float
+        )
+        sig -= sig.mean()
+        # no differential signature beyond its standard error: nothing for a scan to find.
+        # The signature is a mean over n_i moving samples of a sensor's deviation from
+        # the mean of the sensors, whose noise variance is (1 - 1/n) sigma^2; the
+        # standard error allows an autocorrelation time of _SIGNATURE_TAU samples.
+        counts = np.array([np.sum(moving & (lay.sensor == i)) for i in range(n)])
+        se = self.plan.noise_sigma_pa * np.sqrt(
+            _SIGNATURE_TAU * (1.0 - 1.0 / n) / np.maximum(counts, 1)
+        )
+        if np.max(np.abs(sig) / se) < _SIGNATURE_Z:
+            return None
+        g = sig[1:] - sig[0]
+        if not np.any(g) or not np.all(np.isfinite(g)):
+            return None
+        return g / np.max(np.abs(g))
+
+    def _scan(
+        self, term: EffectTerm, effects: list[str], params: Params, s0: np.ndarray, g: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, float] | None:
+        """:meth:`start`'s scan along ``g``: (coordinates, simulated, RSS) of the best
+        amplitude, or None when it does not beat zero by 25 noise variances."""
+        lay = self.layout
+        r = lay.y - s0
+        r0 = self._rss_trip_offsets(r)
+        tried: dict[float, tuple[float, np.ndarray]] = {0.0: (r0, s0)}
+
+        def along(a: float) -> float:
+            """RSS (per-trip offsets removed) at coordinates ``a g``; remembered."""
+            if a not in tried:
+                s = self.sim(effects, _merge(params, term.name, term.parameters(self.hoist, a * g)))
+                tried[a] = (self._rss_trip_offsets(lay.y - s), s)
+            return tried[a][0]
+
+        grid = sorted({sign * amp for amp in term.start_amplitudes for sign in (1.0, -1.0)})
+        for a in grid:
+            along(a)
+        # refine between the grid neighbours of the best amplitude (Brent's bounded
+        # method): the RSS along the signature is V-shaped about the true deviation
+        points = sorted(tried)
+        k = points.index(min(tried, key=lambda a: tried[a][0]))
+        if points[k] != 0.0:
+            lo, hi = points[max(k - 1, 0)], points[min(k + 1, len(points) - 1)]
+            optimize.minimize_scalar(
+                along,
+                bounds=(lo, hi),
+                method="bounded",
+                options={"maxiter": 6, "xatol": 0.02 * (hi - lo)},
+            )
+        a_best = min(tried, key=lambda a: tried[a][0])
+        best_rss, best_s = tried[a_best]
+        best_theta = a_best * g
+        # nothing beats zero by more than a few noise variances: no start (the plain
+        # finite-difference column at zero is then as good as any)
+        if a_best == 0.0 or r0 - best_rss < 25.0 * self.plan.noise_sigma_pa**2:
+            return None
+        return best_theta, best_s, best_rss
+
+    def _gauss_newton(
+        self,
+        term: EffectTerm,
+        effects: list[str],
+        params: Params,
+        best_theta: np.ndarray,
+        best_s: np.ndarray,
+        best_rss: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Up to three damped Gauss-Newton steps of :meth:`start` from the scan's best."""
+        lay = self.layout
+        m = int(lay.trip.max()) + 1
+        nuis = np.zeros((lay.y.size, m))
+        nuis[np.arange(lay.y.size), lay.trip] = 1.0
+        for _ in range(3):
+            p_at = _merge(params, term.name, term.parameters(self.hoist, best_theta))
+            cols = self.fd(term, effects, p_at, best_s)
+            if not cols.ok:
+                break
+            x = np.column_stack([cols.jac, nuis])
+            _, b = _solve(_normal(x, lay.y - best_s, lay.trip, m), np.ones(m))
+            step = b[: cols.jac.shape[1]]
+            # the response is piecewise (seal friction flips as pistons drift apart):
+            # a full step can overshoot, so it is halved up to twice before giving up
+            for fraction in (1.0, 0.5, 0.25):
+                th = best_theta + fraction * step
+                s = self.sim(effects, _merge(params, term.name, term.parameters(self.hoist, th)))
+                rss = self._rss_trip_offsets(lay.y - s)
+                if rss < best_rss:
+                    break
+            if not rss < best_rss:
+                break
+            improved = (best_rss - rss) / best_rss
+            best_theta, best_s, best_rss = th, s, rss
+            if improved < 0.02:
+                break
+        return best_theta, best_s
+
+    def candidate(self, name: str, effects: list[str], params: Params, s0: np.ndarray) -> _Columns:
+        term = self.lib[name]
+        if term.analytic:
+            return self.analytic(term, s0, params, on=False)
+        if name in self.cache:
+            return self.cache[name]
+        eff = [*effects, name]
+        start = None
+        if term.null_at_default(self.hoist):
+            s_on = s0
+            if term.start_amplitudes:
+                start = self.start(term, eff, params, s0)
+        else:
+            s_on = self.sim(eff, params)
+        if start is not None:
+            params = _merge(params, name, term.parameters(self.hoist, start[0]))
+            s_on = start[1]
+        if not np.all(np.isfinite(s_on)):
+            cols = _Columns(
+                name,
+                np.zeros((s0.size, 0)),
+                np.zeros(s0.size),
+                term.coordinates(self.hoist, params),
+                ok=False,
+                note="simulation failed with the effect switched on",
+            )
+        else:
+            cols = self.fd(term, eff, params, s_on)
+            cols.delta = s_on - s0
+        self.cache[name] = cols
+        return cols
+
+
+def _refit(
+    plan: ReplayPlan, eng: _Engine, effects: list[str], params: Params, start: ReplayResult
+) -> ReplayResult:
+    eng.replays += 3
+    return replay_fitted(
+        plan,
+        effects=effects,
+        parameters=term_parameters(plan.hoist, params, effects),
+        passes=3,
+        ramps_s=start.ramps_s,
+    )

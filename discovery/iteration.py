@@ -1,0 +1,303 @@
+"""One iteration of the selection: re-tuning, scoring, ranking, the decision, adding.
+
+The steps of :mod:`discovery.selection`'s method on the running state of one fit
+(:class:`_Fit`): :func:`_baseline` (steps 1-2: re-tuning fit, variance ratio),
+:func:`_score` (step 3: every candidate's joint fit), :func:`_iterate` (BIC, the trip
+bootstrap of step 4, the ranking), :func:`_verdict` (step 5: ``none`` / ``ambiguous``)
+and :func:`_add` (step 6: the winner added and refitted, the finding reported).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from discovery.bootstrap import _bootstrap_shares
+from discovery.columns import _Columns, _Engine
+from discovery.gap import _rms, locate_gap
+from discovery.library import EffectLibrary
+from discovery.normal_equations import _Normal, _normal, _solve
+from discovery.ranking import _autocorrelation_time, _excitation, _ranking, _score_bic
+from discovery.refit import _add_winner, _winner_parameters
+from discovery.results import AMBIGUOUS, Finding, Params
+from schemas.effects import NO_EFFECT
+from sims.effects import parameters_json
+from sims.replay_plan import ReplayPlan, ReplayResult
+
+#: A BIC difference above which the evidence for the better of two candidates is "very
+#: strong" (Kass and Raftery 1995, J. Am. Stat. Assoc. 90(430), 773-795, section 3.2;
+#: on the effective sample count, so autocorrelated residuals do not inflate it).
+DECISIVE_DBIC = 10.0
+
+__all__ = ["DECISIVE_DBIC"]
+
+
+@dataclass(frozen=True)
+class _Options:
+    """The decision's thresholds (:class:`~discovery.selection.EffectSelector`)."""
+
+    variance_threshold: float
+    explain_fraction: float
+    stability: float
+    ambiguity: float
+
+
+@dataclass
+class _Fit:
+    """What one :meth:`~discovery.selection.EffectSelector.fit` works with: the
+    decision's thresholds, the plan, the sized library, the replay engine, the per-trip
+    nuisance columns, the bootstrap's trip weights, the candidates ``allowed``, the base
+    replay ``first`` and the model as it grows (``model``, ``params``, the replay
+    ``current`` and its flat simulated pressures ``s0``), with the findings and notes."""
+
+    opts: _Options
+    plan: ReplayPlan
+    lib: EffectLibrary
+    eng: _Engine
+    allowed: set[str]
+    nuis: np.ndarray
+    weights: np.ndarray
+    model: list[str]
+    params: Params
+    first: ReplayResult
+    current: ReplayResult
+    s0: np.ndarray
+    findings: list[Finding] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def m(self) -> int:
+        return len(self.plan.trips)
+
+
+@dataclass
+class _Baseline:
+    """One iteration's re-tuning fit (steps 1-2): residual ``r``, re-tuning columns, the
+    design ``x0`` with its prior ``pen0``, normal equations, RSS_0 and its fit, the
+    variance ratio and the gap; ``tau`` and ``where`` as the iteration's answer says."""
+
+    iteration: int
+    r: np.ndarray
+    retune_cols: list[_Columns]
+    x0: np.ndarray
+    pen0: np.ndarray
+    ne0: _Normal
+    rss0: float
+    beta0: np.ndarray
+    ratio: float
+    gap_before: float
+    tau: float = 1.0
+    where: list[dict[str, Any]] = field(default_factory=list)
+
+
+def _baseline(fit: _Fit, iteration: int) -> _Baseline:
+    """Steps 1-2: the residual fitted by re-tuning and the per-trip payloads."""
+    lib, eng, m = fit.lib, fit.eng, fit.m
+    lay = eng.layout
+    sigma2 = fit.plan.noise_sigma_pa**2
+    r = lay.y - fit.s0
+    retune_names = [e for e in fit.model if e in lib]
+    retune_cols = [eng.retune(e, fit.model, fit.params, fit.s0) for e in retune_names]
+    retune_cols = [c for c in retune_cols if c.ok and c.jac.shape[1]]
+    x0 = np.column_stack([*(c.jac for c in retune_cols), fit.nuis])
+    pen0 = np.concatenate(
+        [*(sigma2 / lib[c.name].prior(c.theta0) ** 2 for c in retune_cols), np.zeros(m)]
+    )
+    ne0 = _normal(x0, r, lay.trip, m, pen0)
+    rss0, beta0 = _solve(ne0, np.ones(m))
+    ratio = rss0 / (lay.y.size * sigma2)
+    return _Baseline(iteration, r, retune_cols, x0, pen0, ne0, rss0, beta0, ratio, _rms(r))
+
+
+def _score(fit: _Fit, bl: _Baseline) -> dict[str, dict[str, Any]]:
+    """Step 3: every candidate's joint fit with re-tuning (none below the threshold)."""
+    lay, m = fit.eng.layout, fit.m
+    cand = [c for c in fit.lib.candidates(fit.model) if c in fit.allowed]
+    scores: dict[str, dict[str, Any]] = {}
+    for name in cand if bl.ratio >= fit.opts.variance_threshold else []:
+        cols = fit.eng.candidate(name, fit.model, fit.params, fit.s0)
+        if not cols.ok:
+            fit.notes.append(f"iteration {bl.iteration}: candidate {name} skipped: {cols.note}")
+            continue
+        x = np.column_stack([cols.jac, bl.x0])
+        target = bl.r - cols.delta
+        pen = np.concatenate([np.zeros(x.shape[1] - bl.pen0.size), bl.pen0])
+        ne = _normal(x, target, lay.trip, m, pen)
+        rss, beta = _solve(ne, np.ones(m))
+        scores[name] = {
+            "rss": rss,
+            "beta": beta,
+            "ne": ne,
+            "cols": cols,
+            "k": cols.jac.shape[1],
+        }
+    return scores
+
+
+def _no_addition(
+    fit: _Fit,
+    bl: _Baseline,
+    effect: str,
+    confidence: float,
+    ranked: list[dict[str, Any]],
+    message: str,
+    **extra: Any,
+) -> Finding:
+    """A finding that adds nothing (none / ambiguous) at this iteration's state."""
+    return Finding(
+        bl.iteration,
+        effect,
+        {},
+        {},
+        confidence,
+        bl.gap_before,
+        bl.gap_before,
+        fit.plan.noise_sigma_pa,
+        bl.ratio,
+        bl.tau,
+        ranked,
+        bl.where,
+        message=message,
+        **extra,
+    )
+
+
+def _iterate(fit: _Fit, iteration: int) -> bool:
+    """One iteration (steps 1-6); False when the loop ends here."""
+    bl = _baseline(fit, iteration)
+    scores = _score(fit, bl)
+    lay = fit.eng.layout
+    n_entries = lay.y.size
+    bl.tau = _autocorrelation_time(bl.r - bl.x0 @ bl.beta0, lay)
+    bl.where = locate_gap(fit.plan, lay, bl.r)
+    if not scores:
+        msg = (
+            f"residual variance {bl.ratio:.2f} x the noise variance: nothing missing"
+            if bl.ratio < fit.opts.variance_threshold
+            else "the residual exceeds the noise but no candidate could be scored"
+        )
+        confidence = 1.0 - min(1.0, max(bl.ratio - 1.0, 0.0))
+        fit.findings.append(_no_addition(fit, bl, NO_EFFECT, confidence, [], msg))
+        return False
+    best = scores[min(scores, key=lambda c: scores[c]["rss"])]
+    fitted = np.column_stack([best["cols"].jac, bl.x0]) @ best["beta"]
+    bl.tau = _autocorrelation_time(bl.r - best["cols"].delta - fitted, lay)
+    n_eff = max(n_entries / bl.tau, 2.0)
+    _score_bic(scores, bl.rss0, n_eff)
+    share = _bootstrap_shares(bl.ne0, scores, fit.weights, lay.trip, n_eff, n_entries)
+    ranking = _ranking(scores, bl.rss0, n_entries, share)
+    excess = max(bl.rss0 - n_entries * fit.plan.noise_sigma_pa**2, 1e-30)
+    explained = (bl.rss0 - best["rss"]) / excess
+    refusal = _verdict(fit, bl, scores, share, ranking, explained)
+    if refusal is not None:
+        fit.findings.append(refusal)
+        return False
+    return _add(fit, bl, best, ranking, share, explained)
+
+
+def _verdict(
+    fit: _Fit,
+    bl: _Baseline,
+    scores: dict[str, dict[str, Any]],
+    share: dict[str, float],
+    ranking: list[dict[str, Any]],
+    explained: float,
+) -> Finding | None:
+    """Step 5: ``none`` or ``ambiguous`` when the best candidate does not pass; None
+    when it does."""
+    top = ranking[0]["effect"]
+    runner = ranking[1]["effect"] if len(ranking) > 1 else None
+    ratio = bl.ratio
+    if (
+        ratio < fit.opts.variance_threshold
+        or scores[top]["dbic"] <= 0
+        or (explained < fit.opts.explain_fraction)
+    ):
+        msg = (
+            f"residual variance {ratio:.2f} x the noise variance: nothing missing"
+            if ratio < fit.opts.variance_threshold
+            else f"residual variance {ratio:.2f} x the noise variance, but the best candidate "
+            f"({top}) explains only {explained:.0%} of the excess"
+        )
+        return _no_addition(fit, bl, NO_EFFECT, 1.0 - share.get(top, 0.0), ranking, msg)
+    close = (
+        runner is not None
+        and scores[runner]["dbic"] > 0
+        and (scores[runner]["rss"] - scores[top]["rss"])
+        < fit.opts.ambiguity * (bl.rss0 - scores[top]["rss"])
+        # explained alike, but the evidence may still be decisive (selection, step 5)
+        and scores[top]["dbic"] - scores[runner]["dbic"] < DECISIVE_DBIC
+    )
+    split = share[top] < fit.opts.stability
+    if not (close or split):
+        return None
+    other = runner if runner is not None else NO_EFFECT
+    if split and not close:
+        others = {c: v for c, v in share.items() if c != top}
+        other = max(others, key=others.get) if others else NO_EFFECT
+    pair = (top, other)
+    lib = fit.lib
+    return _no_addition(
+        fit,
+        bl,
+        AMBIGUOUS,
+        share[top],
+        ranking,
+        f"{top} and {other} cannot be told apart on these trips",
+        ambiguous_between=pair,
+        excitation=_excitation(lib, *pair) if other in lib else lib[top].excitation,
+    )
+
+
+def _add(
+    fit: _Fit,
+    bl: _Baseline,
+    best: dict[str, Any],
+    ranking: list[dict[str, Any]],
+    share: dict[str, float],
+    explained: float,
+) -> bool:
+    """Step 6: add the winner at its fitted coordinates, refit, report; False when it
+    does not shrink the gap or no candidate is left."""
+    plan, lib, eng = fit.plan, fit.lib, fit.eng
+    lay = eng.layout
+    top = ranking[0]["effect"]
+    theta, winner_only, retuned = _winner_parameters(
+        lib, plan.hoist, top, best, bl.retune_cols, fit.params
+    )
+    predicted = np.sqrt(best["rss"] / lay.y.size)
+    after, gap_after, new_params = _add_winner(
+        plan, eng, fit.nuis, lib[top], theta, best["cols"].theta0, fit.model, fit.params,
+        winner_only, fit.current, predicted,
+    )  # fmt: skip
+    if not after.ok or not gap_after < bl.gap_before:
+        msg = (
+            f"{top} scored best but adding it did not shrink the gap "
+            f"({bl.gap_before:.0f} -> {gap_after:.0f} Pa)"
+        )
+        fit.findings.append(_no_addition(fit, bl, NO_EFFECT, 0.0, ranking, msg))
+        return False
+    s_after = lay.flat(after.simulated)
+    where = locate_gap(plan, lay, bl.r, lay.y - s_after)
+    fit.findings.append(
+        Finding(
+            bl.iteration,
+            top,
+            parameters_json(new_params.get(top, {}), significant_digits=6),
+            {k: parameters_json(v, significant_digits=6) for k, v in retuned.items()},
+            float(share[top]),
+            bl.gap_before,
+            gap_after,
+            plan.noise_sigma_pa,
+            bl.ratio,
+            bl.tau,
+            ranking,
+            where,
+            message=f"added {top}; explains {explained:.0%} of the excess variance",
+        )
+    )
+    fit.model, fit.params, fit.current, fit.s0 = [*fit.model, top], new_params, after, s_after
+    eng.rebase(after, fit.model, fit.params)
+    return bool([c for c in lib.candidates(fit.model) if c in fit.allowed])

@@ -1,0 +1,289 @@
+"""Planning the replay of measured hoist trips: the trips of a record, ready to simulate.
+
+Discovery (:mod:`discovery.selection`) and the nightly sanity check compare what the
+pressure sensors logged with what the device simulation predicts for the same trips
+(:func:`sims.replay.replay`). The simulation needs its inputs -- commanded motion,
+payload, oil temperature -- and these come from the log itself:
+
+:func:`plan_replay`
+    Segments a landed sample frame (``FIELD_SAMPLES`` columns: ``time_utc``,
+    ``p{i}_pa``, ``depth_m``, ``speed_m_s``, ``oil_temp_c``) into trips and builds, per
+    trip, everything a simulation needs: start and stop depth (median encoder depth at
+    the standstills), motion start (least squares on the encoder speed of the
+    accelerating phase: ``|v| = a (t - t_m)``), top speed, oil temperature (median),
+    the loading ramp before the motion (from the common-mode pressure) and the samples
+    to score (sub-sampled to ``score_rate_hz``, loading ramps masked, spikes masked).
+    The logger's pressure noise is estimated from second differences of the
+    pressures at standstill (:func:`discovery.segmentation.estimate_noise_sigma`).
+
+Records are cut anywhere (a logger stops mid-trip, a day ends at UTC midnight), and a
+replay never crashes on that: a trip the record starts or ends in is completed by the
+winder profile fitted to its logged depth (:func:`sims.trips.fit_cut_trip`) and marked
+``cut``; cut at its end it is simulated and scored up to the record's end, cut at its
+start it is simulated from rest before the record and only loads the seals' state. A
+trip that cannot be prepared is listed in ``ReplayPlan.skipped`` with the reason, one
+the simulation refuses gets its reason in ``ReplayResult.trip_messages``. A load change
+after the last stop (loading for a trip the record does not hold) ends the last window.
+
+The ropes' ringing is read off the record, not taken on trust from the description
+(whose ``head_rope_damping_ratio`` is a default a mine cannot know): a model that rings
+at ~1 Hz where the hoist does not leaves a common-mode gap of ~0.1 MPa. The description's
+ratio stays unless the record contradicts it; then the ratio read from the ringing's decay
+(or, with no ringing seen 3-7 s after the stops, 0.1 / 0.3 / 1.0) is chosen by the replay
+gap (:mod:`sims.logged_motion`, ``ReplayPlan.rope_bounce``). The trips can also be driven
+by the encoder's logged speed instead of the winder profile (``plan_replay(motion=
+"logged")``).
+
+Long records are analysed on at most ``max_trips`` trips in ``blocks`` blocks of
+consecutive trips spread evenly over the record (temperature and payload ranges
+covered, simulation cost bounded: ~0.2 s per 2-minute trip at ``dt_s = 2 ms``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import polars as pl
+
+from discovery.record import _RAMP_MARGIN_S, _Record, _record, _trailing_ramp, _trip_timing
+from discovery.rope_damping import _with_rope_damping
+from discovery.segmentation import (
+    _CUT_WORDS,
+    _chosen_trips,
+    _median_in,
+    _phases,
+    _ramp_samples,
+    _scored_samples,
+    _span,
+)
+from schemas.hoist import HoistDescription
+from sims.logged_motion import motion_knots, profile_from_knots, rope_damping_from_record
+from sims.replay import replay_profile
+from sims.replay_plan import ReplayPlan, ReplayTrip, SkippedTrip
+from sims.trips import TripProfile
+
+__all__ = ["plan_replay"]
+
+
+def _driving_motion(
+    rec: _Record,
+    tm: dict[str, Any],
+    profile: TripProfile,
+    win_end: float,
+    logged: bool,
+) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray] | None, TripProfile]:
+    """(logged motion knots or None, the profile the simulation follows) of a trip with
+    pass-1 timing ``tm`` and winder ``profile``; ``logged``: driven by the logged speed."""
+    t = rec.t
+    r0, d0, d1 = tm["r0"], tm["d0"], tm["d1"]
+    # the logged motion drives the simulation (sims.logged_motion); a trip cut at
+    # its start is simulated from rest before the record: the fitted profile
+    knots = None
+    if logged and tm["cut"] != "start":
+        knots = motion_knots(
+            t,
+            rec.speed,
+            tm["a_t"] - 1.5,
+            rec.end_t + 1e-6 if tm["cut"] == "end" else min(tm["b_t"] + 1.5, rec.end_t + 1e-6),
+            d0,
+            d1,
+            at_rest_after=tm["cut"] != "end",
+        )
+    driven = profile
+    if knots is not None:
+        driven = profile_from_knots(
+            *knots,
+            start_s=r0,
+            duration_s=max(win_end - r0, 1.0),
+            payload_time_s=np.array([0.0]),
+            payload_kg=np.array([0.0]),
+            oil_temp_c=None,
+            direction="down" if d1 > d0 else "up",
+        )
+    return knots, driven
+
+
+def _planned_trip(
+    rec: _Record,
+    hoist: HoistDescription,
+    k: int,
+    tm: dict[str, Any],
+    block: tuple[int, bool],
+    win_end: float,
+    score_rate_hz: float,
+    logged: bool,
+    notes: list[str],
+) -> ReplayTrip:
+    """Pass 2, analysed trip ``k`` (its pass-1 timing ``tm``; ``block``: its block and
+    whether it starts the block's history; its window ending at ``win_end``): the scored
+    and ramp samples, the motion that drives it (``logged``: the logged speed) and its
+    phases; notes on its profile fit and cut."""
+    t, depth = rec.t, rec.depth
+    t_m, t_e, vmax_arg = tm["t_m"], tm["t_e"], tm["vmax"]
+    r0, r1, p_pre, p_post = tm["r0"], tm["r1"], tm["p_pre"], tm["p_post"]
+    d0, d1 = tm["d0"], tm["d1"]
+    # scored samples: after the ramp, within the window, every 1/score_rate s
+    idx, meas, valid = _scored_samples(
+        t, rec.p, rec.sigma, r1 + _RAMP_MARGIN_S, win_end, score_rate_hz, tm["cut"]
+    )
+    ridx = _ramp_samples(t, r0, r1, t_m, score_rate_hz)
+    profile = replay_profile(
+        hoist, d0, d1, t_m - r0, max(win_end - r0, 1.0), vmax_arg, 20.0, (0.0, 1.0), 0.0
+    )
+    knots, driven = _driving_motion(rec, tm, profile, win_end, logged)
+    tau = t[idx] - r0
+    motion = _span(t, t_m, t_e)
+    fit = float(np.sqrt(np.nanmean((profile.depth(t[motion] - r0) - depth[motion]) ** 2)))
+    if fit > 0.5:
+        notes.append(f"trip {k}: encoder depth departs {fit:.2f} m RMS from the winder profile")
+    if tm["cut"]:
+        notes.append(
+            f"trip {k}: {_CUT_WORDS[tm['cut']]}: completed by the winder profile "
+            f"fitted to the logged depth ({d0:.1f} -> {d1:.1f} m)"
+        )
+    oil = _median_in(t, rec.temp, max(r0, float(t[0])), win_end)
+    return ReplayTrip(
+        trip_id=k,
+        block=block[0],
+        first_in_block=block[1],
+        window_start_s=r0,
+        window_end_s=win_end,
+        ramp_start_s=r0,
+        ramp_end_s=r1,
+        motion_start_s=t_m,
+        motion_end_s=t_e,
+        start_depth_m=d0,
+        end_depth_m=d1,
+        max_speed_m_s=vmax_arg,
+        direction="down" if d1 > d0 else "up",
+        oil_temp_c=oil if np.isfinite(oil) else hoist.oil.reference_temperature_c,
+        p_before_pa=p_pre if np.isfinite(p_pre) else p_post,
+        p_after_pa=p_post,
+        time_s=t[idx],
+        measured_pa=meas,
+        valid=valid,
+        phase=_phases(driven, tau, hoist.winder.creep_speed_m_s),
+        depth_m=driven.depth(tau),
+        ramp_time_s=t[ridx],
+        ramp_measured_pa=np.nanmedian(rec.p[ridx], axis=1),
+        profile_fit_m=fit,
+        cut=tm["cut"],
+        motion_knots=knots,
+    )
+
+
+def _planned_trips(
+    rec: _Record,
+    hoist: HoistDescription,
+    timing: list[dict[str, Any]],
+    chosen: list[list[int]],
+    trailing_ramp: float,
+    rates: tuple[float, float],
+    motion: str,
+    notes: list[str],
+) -> tuple[list[ReplayTrip], list[SkippedTrip]]:
+    """Pass 2 over the ``chosen`` blocks: the planned trips and the skipped ones
+    (``rates``: ``settle_s`` and ``score_rate_hz`` of :func:`plan_replay`)."""
+    settle_s, score_rate_hz = rates
+    motions = rec.motions
+    trips: list[ReplayTrip] = []
+    skipped: list[SkippedTrip] = []
+    logged = motion == "logged"  # every planned trip follows the logged speed
+    for b, block in enumerate(chosen):
+        restart = True  # the next planned trip starts the block's history
+        for k in block:
+            tm = timing[k]
+            if tm["skip"]:
+                skipped.append(SkippedTrip(k, tm["t_m"], tm["skip"]))
+                restart = True
+                continue
+            next_ramp = timing[k + 1]["r0"] if k + 1 < len(motions) else trailing_ramp
+            win_end = min(tm["t_e"] + settle_s, next_ramp, rec.end_t)
+            trips.append(
+                _planned_trip(
+                    rec, hoist, k, tm, (b, restart), win_end, score_rate_hz, logged, notes
+                )
+            )
+            restart = False
+    return trips, skipped
+
+
+def plan_replay(
+    samples: pl.DataFrame,
+    hoist: HoistDescription,
+    *,
+    max_trips: int = 12,
+    blocks: int = 4,
+    score_rate_hz: float = 20.0,
+    settle_s: float = 30.0,
+    dt_s: float = 2e-3,
+    motion: str = "winder",
+) -> ReplayPlan:
+    """Segment ``samples`` of one hoist into trips and prepare their simulation.
+
+    Parameters
+    ----------
+    samples : polars.DataFrame
+        Landed field samples (``time_utc``, ``p{i}_pa``, ``depth_m``, ``speed_m_s``,
+        ``oil_temp_c``; SI), one hoist, any order.
+    hoist : HoistDescription
+        The hoist (winder limits, shaft, cylinders).
+    max_trips, blocks : int
+        Analyse at most ``max_trips`` trips in ``blocks`` runs of consecutive trips.
+    score_rate_hz : float
+        Rate of the scored samples and of the simulation output [Hz].
+    settle_s : float
+        Standstill simulated and scored after each stop [s].
+    dt_s : float
+        Integrator step of the replays [s].
+    motion : {"winder", "logged"}
+        What drives each trip's simulation: the hoist description's winder profile
+        (constant acceleration, the top speed logged when it is 5 % off the described
+        one) or the encoder's logged speed (:mod:`sims.logged_motion`; jerk, per-trip
+        acceleration and top speed as they were). "winder" is the default because it
+        replays the validation trials closer today (48 / 51 kPa against 60 / 56 kPa on
+        two records with nothing hidden): the gap left is the seal friction's state,
+        which the input motion moves either way (README, issue 14).
+
+    Raises
+    ------
+    ValueError
+        Required columns missing, or no trip (motion of >= 3 s) in the record.
+    """
+    if motion not in ("winder", "logged"):
+        raise ValueError(f"motion: 'winder' or 'logged', not {motion!r}")
+    rec = _record(samples, hoist)
+    motions, t = rec.motions, rec.t
+    # the ropes' damping as the record shows it (a hoist that rings and one that does not
+    # both replay to the noise; the description's ratio is a default a mine cannot know)
+    zeta, zeta_how = rope_damping_from_record(
+        t, rec.pc_filled, [float(t[b_i]) for _, b_i in motions], rec.quiet
+    )
+    notes: list[str] = []
+    chosen = _chosen_trips(len(motions), max_trips, blocks)
+    if len(motions) > max_trips:
+        notes.append(
+            f"{len(motions)} trips in the record; analysed {sum(map(len, chosen))} in "
+            f"{len(chosen)} blocks of consecutive trips"
+        )
+    # pass 1, every motion: start / stop times, top speed, loading ramp before it
+    timing = [_trip_timing(rec, hoist, k) for k in range(len(motions))]
+    trailing_ramp = _trailing_ramp(rec, timing, notes)
+    # pass 2, the analysed trips: windows, scored samples
+    trips, skipped = _planned_trips(
+        rec, hoist, timing, chosen, trailing_ramp, (settle_s, score_rate_hz), motion, notes
+    )
+    plan = ReplayPlan(
+        hoist=hoist,
+        t_ref=rec.t_ref,
+        trips=tuple(trips),
+        noise_sigma_pa=rec.sigma,
+        score_rate_hz=score_rate_hz,
+        dt_s=dt_s,
+        trips_found=len(motions),
+        notes=tuple(notes),
+        skipped=tuple(skipped),
+        rope_bounce=zeta_how,
+    )
+    return _with_rope_damping(plan, zeta)

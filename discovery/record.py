@@ -1,0 +1,208 @@
+"""Pass 1 of the replay planning: the record read, and every motion's timing.
+
+:func:`_record` reads a landed sample frame of one hoist into arrays (times in s after
+its first sample) with what :func:`discovery.planning.plan_replay` needs of the whole
+record: the motions, the quiet standstill and the pressure noise, the common-mode
+pressure (gaps interpolated, 1-s mean), the depths at the standstills. For each motion,
+:func:`_trip_timing` finds its start and stop, top speed, depths (completed by the
+winder profile when the record cuts it), the loading ramp before it and the pressure
+levels around it; :func:`_trailing_ramp` a load change after the last stop.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import polars as pl
+from scipy import ndimage
+
+from discovery.segmentation import (
+    _CUT_WORDS,
+    _complete_cut_trip,
+    _loading_ramp,
+    _median_in,
+    _motion_times,
+    _motions,
+    _plateau_median,
+    _span,
+    estimate_noise_sigma,
+)
+from schemas.hoist import HoistDescription
+
+__all__: list[str] = []
+
+_RAMP_MARGIN_S = 2.0  # scored samples start this long after a loading ramp ends
+
+
+@dataclass(frozen=True)
+class _Record:
+    """One hoist's record as arrays (times ``t`` in s after ``t_ref``) and what is read
+    off it: the motions (index ranges), the quiet standstill, the pressure noise, the
+    common-mode pressure (``pc``; gaps interpolated: ``pc_filled``; its 1-s mean:
+    ``pcs``), the depths at the standstills between the motions and the pressure
+    change that counts as a loading ramp."""
+
+    t_ref: dt.datetime
+    t: np.ndarray
+    p: np.ndarray
+    depth: np.ndarray
+    speed: np.ndarray
+    temp: np.ndarray
+    motions: list[tuple[int, int]]
+    quiet: np.ndarray
+    sigma: float
+    pc: np.ndarray
+    pc_filled: np.ndarray
+    pcs: np.ndarray
+    stops: list[float]
+    ramp_threshold: float
+
+    @property
+    def end_t(self) -> float:
+        return float(self.t[-1])
+
+
+def _record(samples: pl.DataFrame, hoist: HoistDescription) -> _Record:
+    """The record's arrays, motions, noise and common-mode pressure; raises ValueError
+    for missing columns or a record without a trip."""
+    n = hoist.ropes_n
+    pcols = [f"p{i}_pa" for i in range(1, n + 1)]
+    need = {"time_utc", "depth_m", "speed_m_s", *pcols}
+    missing = need - set(samples.columns)
+    if missing:
+        raise ValueError(f"samples: missing columns {sorted(missing)}")
+    frame = samples.sort("time_utc").unique("time_utc", keep="first", maintain_order=True)
+    t_ref = frame["time_utc"][0]
+    t = (frame["time_utc"].dt.epoch("us").to_numpy() - int(t_ref.timestamp() * 1e6)) / 1e6
+    p = frame.select(pcols).to_numpy().astype(float)
+    depth = frame["depth_m"].to_numpy().astype(float)
+    speed = frame["speed_m_s"].to_numpy().astype(float)
+    temp = (
+        frame["oil_temp_c"].to_numpy().astype(float)
+        if "oil_temp_c" in frame.columns
+        else np.full(t.size, np.nan)
+    )
+    motions = _motions(t, speed)
+    if not motions:
+        raise ValueError("samples: no trip (no encoder motion of at least 3 s) in the record")
+    # noise from quiet standstill: >= 25 s after a stop (the rope bounce has decayed)
+    quiet = np.ones(t.size, dtype=bool)
+    for a_i, b_i in motions:
+        quiet[_span(t, t[a_i] - 1.0, t[b_i] + 25.0)] = False
+    if quiet.sum() < 50:
+        quiet = np.abs(np.nan_to_num(speed)) < 0.02
+    sigma = estimate_noise_sigma(p, ~quiet)
+    pc = np.nanmean(p, axis=1)
+    rate = 1.0 / max(float(np.median(np.diff(t))), 1e-6)
+    # 1-s moving average of the common-mode pressure (O(n); a median over a day at 100 Hz
+    # costs tens of seconds); spikes are rare and the ramp fit below is robust to them
+    # missing values (dropped samples) interpolated in time, not filled with a constant
+    known = np.isfinite(pc)
+    pc_filled = np.interp(t, t[known], pc[known]) if known.any() else np.zeros_like(pc)
+    pcs = ndimage.uniform_filter1d(pc_filled, size=max(3, int(rate) | 1))
+    ramp_threshold = max(10.0 * sigma, 2e4) if np.isfinite(sigma) else 2e4
+    stops = _stop_depths(t, depth, motions, hoist.shaft.depth_m)
+    return _Record(
+        t_ref, t, p, depth, speed, temp, motions, quiet, sigma, pc, pc_filled, pcs, stops,
+        ramp_threshold,
+    )  # fmt: skip
+
+
+def _stop_depths(
+    t: np.ndarray, depth: np.ndarray, motions: list[tuple[int, int]], shaft: float
+) -> list[float]:
+    """Standstill depths between motions: shared by the trip before and after (chaining);
+    NaN where the record holds no standstill (it starts or ends while moving)."""
+    stops = []
+    bounds = (
+        [(-np.inf, t[motions[0][0]])]
+        + [(t[motions[k][1]], t[motions[k + 1][0]]) for k in range(len(motions) - 1)]
+        + [(t[motions[-1][1]], np.inf)]
+    )
+    for lo, hi in bounds:
+        d = _median_in(t, depth, lo + 1.0, hi - 0.5)
+        if not np.isfinite(d):  # a standstill shorter than 1.5 s at the record's edge
+            d = _median_in(t, depth, lo + 0.05, hi - 0.05)
+        stops.append(float(np.clip(d, 0.0, shaft)) if np.isfinite(d) else float("nan"))
+    return stops
+
+
+def _trip_timing(rec: _Record, hoist: HoistDescription, k: int) -> dict[str, Any]:
+    """Pass 1, motion ``k`` of the record: start / stop times and depths, top speed, the
+    loading ramp before it and the pressure levels around it; ``cut`` and ``skip`` say
+    whether the record cuts it and why it cannot be prepared."""
+    t, pc, pcs, motions = rec.t, rec.pc, rec.pcs, rec.motions
+    a_i, b_i = motions[k]
+    prev_end = float(t[motions[k - 1][1]]) if k > 0 else float(t[0]) - 2.0
+    next_start = float(t[motions[k + 1][0]]) if k + 1 < len(motions) else rec.end_t
+    t_m, t_e, vmax_arg = _motion_times(t, rec.speed, hoist.winder, a_i, b_i)
+    d0, d1 = rec.stops[k], rec.stops[k + 1]
+    cut, skip = "", ""
+    if not (np.isfinite(d0) and np.isfinite(d1)):
+        # the record starts or ends while the conveyance moves (or the encoder depth
+        # is missing at a stop): the winder profile fitted to the logged depth
+        # completes the trip; both ends unknown: nothing anchors it
+        cut = "start" if not np.isfinite(d0) else "end"
+        try:
+            t_m, t_e, d0, d1, vmax_arg = _complete_cut_trip(
+                hoist, t, rec.depth, a_i, b_i, d0, d1, t_m, t_e, vmax_arg
+            )
+        except ValueError as exc:
+            skip = f"{_CUT_WORDS[cut]}: {exc}"
+    if cut == "start":
+        # no loading seen: the simulation starts at rest shortly before the motion
+        r0, r1 = t_m - 2.0, t_m - 1.5
+        p_pre = p_post = float("nan")
+    else:
+        s_lo = max(prev_end + 2.0, float(t[0]))
+        r0, r1, p_pre, p_post = _loading_ramp(t, pc, pcs, s_lo, t_m - 0.3, rec.ramp_threshold)
+    if not np.isfinite(p_post):
+        # no standstill before the motion in the record: the payload does not change
+        # during a trip, so the level after its stop (or, cut there too, while moving)
+        p_post = _plateau_median(t, pcs, t_e + 2.0, next_start - 0.3, 2.0, from_start=True)
+        if not np.isfinite(p_post):
+            p_post = _median_in(t, pc, t[a_i], t[b_i])
+        if not np.isfinite(p_post) and not skip:
+            skip = "no pressure logged to infer the payload from"
+    return {
+        "t_m": t_m,
+        "t_e": t_e,
+        "vmax": vmax_arg,
+        "r0": r0,
+        "r1": r1,
+        "p_pre": p_pre,
+        "p_post": p_post,
+        "d0": d0,
+        "d1": d1,
+        "cut": cut,
+        "skip": skip,
+        "a_t": float(t[a_i]),
+        "b_t": float(t[b_i]),
+    }
+
+
+def _trailing_ramp(rec: _Record, timing: list[dict[str, Any]], notes: list[str]) -> float:
+    """Where the last trip's window ends for a payload change after the last stop
+    (loading for a trip the record does not hold); inf without one."""
+    if timing and not timing[-1]["cut"]:
+        r0, _, p_a, p_b = _loading_ramp(
+            rec.t,
+            rec.pc,
+            rec.pcs,
+            timing[-1]["t_e"] + 2.0,
+            rec.end_t,
+            rec.ramp_threshold,
+            fallback=False,
+        )
+        if np.isfinite(r0) and abs(p_b - p_a) > rec.ramp_threshold:
+            # the pressure shows the load change late (seal friction, rope bounce): stop
+            # short of the fitted ramp start, as scoring starts after a ramp's end
+            notes.append(
+                f"the payload changes after the last stop (from {r0:.0f} s): "
+                "the last trip's window ends there"
+            )
+            return r0 - 0.5 * _RAMP_MARGIN_S
+    return np.inf

@@ -1,0 +1,166 @@
+"""Adding the winner: its fitted coordinates, the refitted replay, the nonlinear fixes.
+
+Step 6 of the method (:mod:`discovery.selection`): the winning term is switched on at
+the coordinates of its linear fit (sensor offsets relative to their median, gains to
+theirs: the common part is the payload's) and the trips re-simulated with payloads and
+ramps refitted (:func:`discovery.columns._refit`). A term null and strongly nonlinear at
+its default (groove wear) is then fitted along its coordinates with payloads refitted
+(Brent, :func:`_refine_along`) while the gap is above the noise; a Gauss-Newton step on
+the winner's coordinates follows when the re-simulated gap is more than 10 % above the
+linear prediction (:func:`_gauss_newton_step`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from scipy import optimize
+
+from discovery.columns import _Columns, _Engine, _refit
+from discovery.gap import _rms
+from discovery.library import EffectLibrary, EffectTerm
+from discovery.normal_equations import _normal, _solve
+from discovery.results import Params, _merge
+from schemas.hoist import HoistDescription
+from sims.replay_plan import ReplayPlan, ReplayResult
+
+__all__: list[str] = []
+
+
+def _winner_parameters(
+    lib: EffectLibrary,
+    hoist: HoistDescription,
+    top: str,
+    best: dict[str, Any],
+    retune_cols: list[_Columns],
+    params: Params,
+) -> tuple[np.ndarray, Params, Params]:
+    """(winner's coordinates, parameters with the winner set, what re-tuning moved while
+    scoring -- reported, not applied) from the linear fit ``best`` of candidate ``top``."""
+    cols: _Columns = best["cols"]
+    k_c = cols.jac.shape[1]
+    beta = best["beta"]
+    term = lib[top]
+    theta = cols.theta0 + beta[:k_c]
+    if top == "sensor_offset":  # the common part is the payload's: relative to the median
+        theta = theta - np.median(theta)
+    elif top == "sensor_gain":
+        theta = theta / np.median(theta)
+    winner_only = _merge(params, top, term.parameters(hoist, theta))
+    retuned: Params = {}  # what re-tuning moved while scoring (reported, not applied)
+    pos = k_c
+    for c in retune_cols:
+        kk = c.jac.shape[1]
+        t_new = c.theta0 + beta[pos : pos + kk]
+        pos += kk
+        values = lib[c.name].parameters(hoist, t_new)
+        retuned[c.name] = values
+    return theta, winner_only, retuned
+
+
+def _add_winner(
+    plan: ReplayPlan,
+    eng: _Engine,
+    nuis: np.ndarray,
+    term: EffectTerm,
+    theta: np.ndarray,
+    theta0: np.ndarray,
+    model: list[str],
+    params: Params,
+    winner_only: Params,
+    current: ReplayResult,
+    predicted: float,
+) -> tuple[ReplayResult, float, Params]:
+    """(replay, gap, parameters) with ``term`` added at ``theta`` to ``model``, refitted;
+    ``predicted`` is the gap the linear fit promised."""
+    lay = eng.layout
+    new_model = [*model, term.name]
+    new_params = winner_only
+    after = _refit(plan, eng, new_model, new_params, current)
+    gap_after = _rms(lay.y - lay.flat(after.simulated)) if after.ok else np.inf
+    if term.start_amplitudes and gap_after > 1.1 * plan.noise_sigma_pa:
+        after, gap_after, new_params = _refine_along(
+            plan, eng, new_model, params, term, [theta, theta0], current
+        )
+    if gap_after > 1.1 * predicted and not term.analytic:
+        after, gap_after, new_params = _gauss_newton_step(
+            plan, eng, nuis, term, new_model, new_params, after, gap_after, current
+        )
+    return after, gap_after, new_params
+
+
+def _gauss_newton_step(
+    plan: ReplayPlan,
+    eng: _Engine,
+    nuis: np.ndarray,
+    term: EffectTerm,
+    new_model: list[str],
+    new_params: Params,
+    after: ReplayResult,
+    gap_after: float,
+    current: ReplayResult,
+) -> tuple[ReplayResult, float, Params]:
+    """A Gauss-Newton step on the winner's coordinates at the refitted point, kept when
+    it shrinks the refitted gap."""
+    lay = eng.layout
+    m = nuis.shape[1]
+    eng.rebase(after, new_model, new_params)
+    s_new = lay.flat(after.simulated)
+    g_cols = eng.fd(term, new_model, new_params, s_new)
+    if g_cols.ok:
+        xg = np.column_stack([g_cols.jac, nuis])
+        _, bg = _solve(_normal(xg, lay.y - s_new, lay.trip, m), np.ones(m))
+        th2 = g_cols.theta0 + bg[: g_cols.jac.shape[1]]
+        p2 = _merge(new_params, term.name, term.parameters(plan.hoist, th2))
+        alt = _refit(plan, eng, new_model, p2, current)
+        gap_alt = _rms(lay.y - lay.flat(alt.simulated)) if alt.ok else np.inf
+        if gap_alt < gap_after:
+            after, gap_after, new_params = alt, gap_alt, p2
+    return after, gap_after, new_params
+
+
+def _refine_along(
+    plan: ReplayPlan,
+    eng: _Engine,
+    effects: list[str],
+    params: Params,
+    term: EffectTerm,
+    starts: list[np.ndarray],
+    current: ReplayResult,
+    *,
+    evaluations: int = 8,
+) -> tuple[ReplayResult, float, Params]:
+    """Refitted gap minimised along the coordinates of a strongly nonlinear term.
+
+    A linear step from the scan's start (``term.start_amplitudes``) can land on the far
+    side of a kink in the response (seal friction flipping as the pistons drift apart)
+    and the payloads fitted without the term are biased; so the gap with payloads and
+    ramps refitted (:func:`_refit`) is minimised over the scale ``c`` of the better of
+    ``starts`` (Brent's bounded method on ``0.5 <= c <= 1.5``). Returns the best replay,
+    its gap and parameters.
+    """
+    lay = eng.layout
+    seen: dict[float, tuple[float, ReplayResult, Params]] = {}
+
+    def at(theta: np.ndarray) -> tuple[float, ReplayResult, Params]:
+        prm = _merge(params, term.name, term.parameters(plan.hoist, theta))
+        res = _refit(plan, eng, effects, prm, current)
+        gap = _rms(lay.y - lay.flat(res.simulated)) if res.ok else np.inf
+        return gap, res, prm
+
+    first = [at(np.asarray(t, float)) for t in starts]
+    k = int(np.argmin([f[0] for f in first]))
+    direction = np.asarray(starts[k], float)
+    seen[1.0] = first[k]
+
+    def gap_of(c: float) -> float:
+        if c not in seen:
+            seen[c] = at(c * direction)
+        return seen[c][0]
+
+    optimize.minimize_scalar(
+        gap_of, bounds=(0.5, 1.5), method="bounded", options={"maxiter": evaluations}
+    )
+    gap, res, prm = seen[min(seen, key=lambda c: seen[c][0])]
+    return res, gap, prm

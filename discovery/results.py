@@ -1,0 +1,67 @@
+"""What discovery answers: one :class:`Finding` per iteration, the :class:`DiscoveryResult`.
+
+Also the parameter overrides' shape (``Params``: ``{effect: {parameter: value}}``) and
+:func:`_merge` (one effect's values set in a copy of them), shared by the package.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from schemas.effects import NO_EFFECT
+from sims.replay_plan import ReplayPlan, ReplayResult
+
+__all__ = ["AMBIGUOUS", "DiscoveryResult", "Finding"]
+
+#: What a finding says when two candidates cannot be told apart.
+AMBIGUOUS = "ambiguous"
+
+Params = dict[str, dict[str, Any]]
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One iteration's answer (one row of ``discovery_findings``)."""
+
+    iteration: int
+    effect: str
+    parameters: dict[str, Any]
+    retuned: dict[str, dict[str, Any]]
+    confidence: float
+    gap_before_pa: float
+    gap_after_pa: float
+    noise_pa: float
+    variance_ratio: float
+    autocorrelation_time: float
+    ranking: list[dict[str, Any]]
+    where: list[dict[str, Any]]
+    ambiguous_between: tuple[str, ...] = ()
+    excitation: str = ""
+    message: str = ""
+
+
+@dataclass
+class DiscoveryResult:
+    """All iterations of :func:`discover_effects` and the model they lead to."""
+
+    plan: ReplayPlan
+    findings: list[Finding]
+    effects_before: tuple[str, ...]
+    effects_after: tuple[str, ...]
+    parameters_after: Params
+    before: ReplayResult
+    after: ReplayResult
+    replays: int = 0
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def effects_found(self) -> list[str]:
+        return [f.effect for f in self.findings if f.effect not in (NO_EFFECT, AMBIGUOUS)]
+
+
+def _merge(params: Params, name: str, values: Mapping[str, Any]) -> Params:
+    out = {k: dict(v) for k, v in params.items()}
+    out[name] = {**out.get(name, {}), **values}
+    return out

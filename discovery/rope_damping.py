@@ -1,0 +1,70 @@
+"""The head ropes' damping ratio a replay uses: the description's, or the record's.
+
+The description's ``head_rope_damping_ratio`` is a default a mine cannot know; what the
+record shows of the ropes' ringing (:func:`sims.logged_motion.rope_damping_from_record`)
+can contradict it, and then the replay gap decides (:func:`_with_rope_damping`, used by
+:func:`discovery.planning.plan_replay`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from schemas.hoist import HoistDescription
+from sims.replay import replay_fitted
+from sims.replay_plan import ReplayPlan
+
+__all__: list[str] = []
+
+
+def _with_damping(hoist: HoistDescription, zeta: float) -> HoistDescription:
+    ropes = hoist.ropes.model_copy(update={"head_rope_damping_ratio": zeta})
+    return hoist.model_copy(update={"ropes": ropes})
+
+
+def _with_rope_damping(plan: ReplayPlan, zeta_read: float | None) -> ReplayPlan:
+    """The plan with the head ropes' damping ratio the record supports.
+
+    The description's ratio stays unless the record contradicts it: ringing read at a
+    ratio more than a factor 2 off it, or no ringing 3-7 s after the stops where the
+    description's ropes would still ring (``zeta_read`` 1.0, which only bounds the
+    ratio from below: 0.3 and 1.0 both leave nothing after 3 s). Then the candidates
+    (the description's, the read one or 0.1 / 0.3 / 1.0 above the description's) are
+    replayed on the first block's first three trips (payloads fitted, two passes) and
+    the one with the smallest gap is used if it beats the description's by 10 %.
+    """
+    described = plan.hoist.ropes.head_rope_damping_ratio
+    if zeta_read is None or not plan.trips:
+        return plan
+    if zeta_read < 1.0:
+        if 0.5 <= zeta_read / max(described, 1e-9) <= 2.0:
+            how = f"{plan.rope_bounce}; consistent with the description's {described:g}"
+            return dataclasses.replace(plan, rope_bounce=how)
+        candidates = [described, zeta_read]
+    else:
+        candidates = [described] + [c for c in (0.1, 0.3, 1.0) if c > 1.5 * described]
+        if len(candidates) == 1:
+            return plan
+    block = [tr for tr in plan.trips if tr.block == plan.trips[0].block][:3]
+    gaps = []
+    for zeta in candidates:
+        trial = dataclasses.replace(plan, hoist=_with_damping(plan.hoist, zeta), trips=block)
+        gap = replay_fitted(trial, passes=2).rms_gap_pa(trial)
+        gaps.append(gap if np.isfinite(gap) else np.inf)
+    best = int(np.argmin(gaps))
+    said = ", ".join(f"{z:g}: {g / 1e3:.1f} kPa" for z, g in zip(candidates, gaps, strict=True))
+    if best == 0 or not gaps[best] < 0.9 * gaps[0]:
+        how = f"{plan.rope_bounce}; the description's {described:g} kept (replay gap {said})"
+        return dataclasses.replace(plan, rope_bounce=how)
+    how = (
+        f"{plan.rope_bounce}; damping ratio {candidates[best]:g} replaces the "
+        f"description's {described:g} (replay gap on {len(block)} trips {said})"
+    )
+    return dataclasses.replace(
+        plan,
+        hoist=_with_damping(plan.hoist, candidates[best]),
+        rope_bounce=how,
+        notes=(*plan.notes, f"rope bounce: {how}"),
+    )

@@ -1,0 +1,310 @@
+"""Selecting the missing effect: residual test, scoring with re-tuning, BIC + bootstrap.
+
+Problem. Measured sensor pressures y (trips x samples x sensors, scored at
+``score_rate_hz``) and the device simulation s(E, theta) of the same trips
+(:func:`sims.replay.replay`) with the hoist's model effects E and parameters theta. Is an
+effect of contract section 4 missing from E, and which?
+
+Method (one iteration)
+----------------------
+1. *Nuisance and re-tuning.* The residual r = y - s is fitted by least squares on the
+   columns of a design matrix: one common-mode column per trip (the payload, the log's
+   free input) and the finite-difference columns ``ds/dphi`` of every coordinate phi of
+   the effects already in the model (:mod:`discovery.library`): the calibrated
+   parameters may re-adjust. Its residual sum of squares is RSS_0.
+2. *Is anything missing?* With the noise variance sigma^2 estimated from the data
+   (second differences at standstill,
+   :func:`discovery.segmentation.estimate_noise_sigma`), the variance ratio
+   ``RSS_0 / (N sigma^2)`` is ~1 when the model is complete (the residual is the
+   sensor noise). Below ``variance_threshold`` the answer is ``none``.
+   The residual's integrated autocorrelation time tau (whiteness; 1 for white noise)
+   is reported and sets the effective sample count ``N_eff = N / tau`` used below.
+3. *Scoring.* Every candidate c (an effect not in the model, its requirements in it)
+   is switched on at its default parameters (a fixed column Delta_c = s_c - s) and its
+   coordinates get finite-difference columns J_c; the joint least squares of r -
+   Delta_c on [re-tuning, J_c, nuisance] gives RSS_c. A candidate is credited only for
+   what re-tuning cannot explain: its score is the BIC difference (Schwarz 1978, Ann.
+   Stat. 6(2) 461-464)
+
+   .. math:: \\Delta BIC_c = N_{eff} \\ln(RSS_0 / RSS_c) - k_c \\ln N_{eff}
+
+   with k_c its number of coordinates.
+4. *Stability.* Trips are resampled with replacement (``bootstrap`` times; Efron 1979)
+   and the winner counted per resample from the per-trip normal equations; the
+   winner's share is the reported confidence.
+5. *Decision.* The best candidate wins when its score is positive, it explains at least
+   ``explain_fraction`` of the excess variance ``RSS_0 - N sigma^2`` and it wins at
+   least ``stability`` of the resamples. When the runner-up's RSS is within
+   ``ambiguity`` of the best's explained variance and their BIC scores differ by less
+   than :data:`discovery.iteration.DECISIVE_DBIC` (10, "very strong" evidence: Kass and
+   Raftery 1995), or the resamples split between the two, the answer is ``ambiguous``
+   with both names and the excitations that would separate them. (Two candidates can
+   explain nearly the same variance of a long record and still be told apart by the
+   information criterion: tail-rope weight and groove wear, 5 % apart in RSS, are
+   ~4400 apart in BIC on the plain two-trip case.)
+6. *Add, refit, re-simulate.* The winner is switched on at its fitted coordinates (and
+   the re-tuned parameters updated), the trips re-simulated with payloads re-fitted,
+   and the gap (RMS of y - s) before and after reported overall and per region (trip
+   phase, direction, shaft position, oil temperature, pressure level, cylinder). A
+   term that is null and strongly nonlinear at its default (groove wear: it starts from
+   a scan along the residual's differential signature, ``_Engine.start``) is then
+   fitted along its coordinates with payloads refitted (Brent,
+   :func:`discovery.refit._refine_along`)
+   while the gap is above the noise: payloads fitted without it are biased, so the
+   linear step alone stops short. A Gauss-Newton step on the winner's coordinates
+   follows when the re-simulated gap is more than 10 % above the linear prediction.
+
+The loop repeats while a further effect passes (``max_iterations``); the columns of
+candidates are linearisations around the first base and are reused (each costs one
+chained replay per coordinate).
+
+Where each step lives
+---------------------
+:mod:`discovery.columns` (replays and columns, step 1 and 3), :mod:`discovery.layout`
+(the flat scored entries), :mod:`discovery.normal_equations` (the per-trip least
+squares), :mod:`discovery.ranking` (BIC, ranking; step 3), :mod:`discovery.bootstrap`
+(step 4), :mod:`discovery.refit` (step 6), :mod:`discovery.gap` (the regions of the
+gap), :mod:`discovery.iteration` (one iteration: the steps in order, the decision of
+step 2 and 5). This module holds the loop and its pysindy-like face.
+
+In the shape of a pysindy model (``SINDy`` / its optimizers): :class:`EffectSelector`
+takes the library and the hyperparameters, :meth:`EffectSelector.fit` takes the planned
+trips and returns the selector, which then holds ``coef_`` (the fitted coordinates of
+each selected term), ``support_`` (which library terms the fitted model holds),
+``complexity`` (their number of coordinates) and ``findings_`` / ``result_``.
+:func:`discover_effects` is the same as a function.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+import numpy as np
+
+from discovery.bootstrap import _trip_weights
+from discovery.columns import _Engine
+from discovery.gap import locate_gap
+from discovery.iteration import _Fit, _iterate, _Options
+from discovery.library import EFFECT_LIBRARY, EffectLibrary, term_parameters
+from discovery.results import AMBIGUOUS, DiscoveryResult, Finding, Params
+from sims.replay import replay_fitted
+from sims.replay_plan import ReplayPlan
+
+__all__ = [
+    "AMBIGUOUS",
+    "DiscoveryResult",
+    "EffectSelector",
+    "Finding",
+    "discover_effects",
+    "locate_gap",
+]
+
+
+class EffectSelector:
+    """Select the effects missing from a hoist's model (pysindy-like; module docstring).
+
+    Parameters
+    ----------
+    library : EffectLibrary
+        Candidate terms (default :data:`~discovery.library.EFFECT_LIBRARY`).
+    effects, parameters
+        The model: effect names (default the hoist's ``[model] effects``) and parameter
+        overrides ``{effect: {parameter: value}}``.
+    candidates : names, optional
+        Restrict the candidates (default every library term not in the model).
+    max_iterations : int
+        Effects added at most.
+    bootstrap, seed : int
+        Trip resamples for the stability and their random seed.
+    variance_threshold : float
+        Residual variance / noise variance above which something is missing.
+    explain_fraction : float
+        Share of the excess variance the winner must explain.
+    stability : float
+        Share of bootstrap resamples the winner must win.
+    ambiguity : float
+        Runner-up within this share of the winner's explained variance: ambiguous.
+    passes : int
+        Payload / loading-ramp fitting passes of the base replays.
+
+    Attributes (after :meth:`fit`)
+    ------------------------------
+    library_ : EffectLibrary
+        The library sized to the plan's hoist.
+    result_ : DiscoveryResult
+        Every iteration and the model they lead to.
+    findings_ : list of Finding
+        One per iteration (``result_.findings``).
+    coef_ : dict of str to numpy.ndarray
+        The coordinates (:meth:`~discovery.library.EffectTerm.coordinates`) of every
+        selected term at the fitted parameters, in library order.
+    support_ : numpy.ndarray of bool
+        Which terms of ``library_.get_feature_names()`` the fitted model holds (the
+        model's effects and the ones found).
+    complexity : int
+        The number of coordinates in ``coef_``.
+    """
+
+    def __init__(
+        self,
+        library: EffectLibrary | None = None,
+        *,
+        effects: Iterable[str] | None = None,
+        parameters: Mapping[str, Mapping[str, Any]] | None = None,
+        candidates: Iterable[str] | None = None,
+        max_iterations: int = 3,
+        bootstrap: int = 200,
+        seed: int = 0,
+        variance_threshold: float = 1.3,
+        explain_fraction: float = 0.5,
+        stability: float = 0.6,
+        ambiguity: float = 0.05,
+        passes: int = 3,
+    ) -> None:
+        self.library = library
+        self.effects = effects
+        self.parameters = parameters
+        self.candidates = candidates
+        self.max_iterations = max_iterations
+        self.bootstrap = bootstrap
+        self.seed = seed
+        self.variance_threshold = variance_threshold
+        self.explain_fraction = explain_fraction
+        self.stability = stability
+        self.ambiguity = ambiguity
+        self.passes = passes
+
+    # -- the pysindy-like surface ------------------------------------------------------
+    def fit(self, plan: ReplayPlan) -> EffectSelector:
+        """Run the discovery on the planned trips (:func:`discovery.planning.plan_replay`);
+        returns self. Raises ValueError for bad hyperparameters, RuntimeError when the
+        hoist's model does not simulate the trips."""
+        self._check()
+        fit = self._start(plan)
+        for iteration in range(1, self.max_iterations + 1):
+            if not _iterate(fit, iteration):
+                break
+        hoist = plan.hoist
+        self.library_ = fit.lib
+        self.result_ = DiscoveryResult(
+            plan=plan,
+            findings=fit.findings,
+            effects_before=tuple(hoist.model.effects if self.effects is None else self.effects),
+            effects_after=tuple(fit.model),
+            parameters_after=fit.params,
+            before=fit.first,
+            after=fit.current,
+            replays=fit.eng.replays + 0,
+            notes=fit.notes,
+        )
+        return self
+
+    @property
+    def findings_(self) -> list[Finding]:
+        return self.result_.findings
+
+    def get_feature_names(self) -> list[str]:
+        """The candidate library's term names (fitted: sized to the hoist)."""
+        return self.library_.get_feature_names()
+
+    @property
+    def support_(self) -> np.ndarray:
+        held = set(self.result_.effects_after)
+        return np.array([name in held for name in self.get_feature_names()], dtype=bool)
+
+    @property
+    def coef_(self) -> dict[str, np.ndarray]:
+        hoist = self.result_.plan.hoist
+        params = self.result_.parameters_after
+        names = self.get_feature_names()
+        return {
+            name: self.library_[name].coordinates(hoist, params)
+            for name, on in zip(names, self.support_, strict=True)
+            if on
+        }
+
+    @property
+    def complexity(self) -> int:
+        """Number of fitted coordinates of the selected terms (pysindy: nonzero
+        coefficients)."""
+        return int(sum(c.size for c in self.coef_.values()))
+
+    # -- the method, step by step ------------------------------------------------------
+    def _check(self) -> None:
+        if not 0 < self.explain_fraction <= 1 or not 0 < self.stability <= 1:
+            raise ValueError("explain_fraction and stability must be in (0, 1]")
+        if self.variance_threshold <= 1.0:
+            raise ValueError("variance_threshold must exceed 1 (the noise alone gives 1)")
+        if self.max_iterations < 1 or self.bootstrap < 1:
+            raise ValueError("max_iterations and bootstrap must be at least 1")
+
+    def _start(self, plan: ReplayPlan) -> _Fit:
+        """The base replay (payloads and ramps fitted), its engine and layout."""
+        hoist = plan.hoist
+        lib = (self.library or EFFECT_LIBRARY).fit(hoist)
+        model = list(hoist.model.effects if self.effects is None else self.effects)
+        params: Params = {k: dict(v) for k, v in (self.parameters or {}).items()}
+        allowed = set(lib.get_feature_names() if self.candidates is None else self.candidates)
+        base = replay_fitted(
+            plan,
+            effects=model,
+            parameters=term_parameters(hoist, params, model),
+            passes=self.passes,
+        )
+        if not base.ok:
+            raise RuntimeError(
+                f"the hoist's model does not simulate the measured trips: {base.message}"
+            )
+        eng = _Engine(plan, lib, base)
+        eng.rebase(base, model, params)
+        lay = eng.layout
+        m = len(plan.trips)
+        n_entries = lay.y.size
+        nuis = np.zeros((n_entries, m))
+        nuis[np.arange(n_entries), lay.trip] = 1.0
+        s0 = lay.flat(base.simulated)
+        weights = _trip_weights(self.seed, m, self.bootstrap)
+        opts = _Options(
+            self.variance_threshold, self.explain_fraction, self.stability, self.ambiguity
+        )
+        return _Fit(opts, plan, lib, eng, allowed, nuis, weights, model, params, base, base, s0)
+
+
+def discover_effects(
+    plan: ReplayPlan,
+    *,
+    effects: Iterable[str] | None = None,
+    parameters: Mapping[str, Mapping[str, Any]] | None = None,
+    library: EffectLibrary | None = None,
+    candidates: Iterable[str] | None = None,
+    max_iterations: int = 3,
+    bootstrap: int = 200,
+    seed: int = 0,
+    variance_threshold: float = 1.3,
+    explain_fraction: float = 0.5,
+    stability: float = 0.6,
+    ambiguity: float = 0.05,
+    passes: int = 3,
+) -> DiscoveryResult:
+    """Find the effects missing from a hoist's model (module docstring for the method).
+
+    ``EffectSelector(library, ...).fit(plan).result_``: the parameters are the
+    :class:`EffectSelector`'s; ``plan`` the measured trips
+    (:func:`discovery.planning.plan_replay`).
+    """
+    selector = EffectSelector(
+        library,
+        effects=effects,
+        parameters=parameters,
+        candidates=candidates,
+        max_iterations=max_iterations,
+        bootstrap=bootstrap,
+        seed=seed,
+        variance_threshold=variance_threshold,
+        explain_fraction=explain_fraction,
+        stability=stability,
+        ambiguity=ambiguity,
+        passes=passes,
+    )
+    return selector.fit(plan).result_

@@ -1,0 +1,167 @@
+"""What a replay of measured trips is given and what it gives back.
+
+A :class:`ReplayPlan` (the trips of one hoist's record prepared for simulation, built by
+:func:`discovery.planning.plan_replay`) goes into :func:`sims.replay.replay`, which
+returns a :class:`ReplayResult` (the simulated sensor pressures at the plan's scored
+samples); :func:`replay_frame` lays both out as one frame.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import polars as pl
+
+from schemas.hoist import HoistDescription
+
+__all__ = ["ReplayPlan", "ReplayResult", "ReplayTrip", "SkippedTrip", "replay_frame"]
+
+
+@dataclass(frozen=True)
+class ReplayTrip:
+    """One measured trip prepared for simulation (times in s after ``ReplayPlan.t_ref``).
+
+    ``time_s``, ``measured_pa`` ((m, n)), ``valid`` ((m, n)), ``phase``, ``direction``,
+    ``depth_m`` are the scored samples; the rest are the simulation inputs. ``cut`` is
+    ``"start"`` or ``"end"`` for a trip the record cuts (it starts or ends while the
+    conveyance moves; the unseen end is fitted, :func:`sims.trips.fit_cut_trip`): a trip
+    cut at its start is simulated from rest before the record but none of its samples is
+    valid (it only loads the seals' state for the next trip); one cut at its end is
+    simulated and scored up to the record's end. ``motion_knots`` (time [s after
+    ``t_ref``], speed [m/s, + down], depth [m]) is the logged motion that drives the
+    simulation (:mod:`sims.logged_motion`); None for a trip cut at its start (driven by
+    the fitted winder profile).
+    """
+
+    trip_id: int
+    block: int
+    first_in_block: bool
+    window_start_s: float
+    window_end_s: float
+    ramp_start_s: float
+    ramp_end_s: float
+    motion_start_s: float
+    motion_end_s: float
+    start_depth_m: float
+    end_depth_m: float
+    max_speed_m_s: float | None
+    direction: str
+    oil_temp_c: float
+    p_before_pa: float
+    p_after_pa: float
+    time_s: np.ndarray
+    measured_pa: np.ndarray
+    valid: np.ndarray
+    phase: np.ndarray
+    depth_m: np.ndarray
+    ramp_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    ramp_measured_pa: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    profile_fit_m: float = 0.0
+    cut: str = ""
+    motion_knots: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+
+@dataclass(frozen=True)
+class SkippedTrip:
+    """A trip of the record that :func:`discovery.planning.plan_replay` could not prepare,
+    and why."""
+
+    trip_id: int
+    motion_start_s: float
+    reason: str
+
+
+@dataclass(frozen=True)
+class ReplayPlan:
+    """Trips of one hoist's record prepared for replay (:func:`discovery.planning.plan_replay`).
+
+    ``skipped`` lists the analysed trips that could not be prepared, with the reason;
+    the trip after a skipped one starts its block's history again. ``rope_bounce`` says
+    what the record shows of the ropes' ringing (:func:`sims.logged_motion.
+    rope_damping_from_record`); ``hoist`` carries the damping ratio the replay uses
+    (the description's unless the record contradicts it, also said in ``notes``).
+    """
+
+    hoist: HoistDescription
+    t_ref: dt.datetime
+    trips: tuple[ReplayTrip, ...]
+    noise_sigma_pa: float
+    score_rate_hz: float
+    dt_s: float
+    trips_found: int
+    notes: tuple[str, ...] = ()
+    skipped: tuple[SkippedTrip, ...] = ()
+    rope_bounce: str = ""
+
+    @property
+    def n_sensors(self) -> int:
+        return self.hoist.ropes_n
+
+    def time_utc(self, seconds: np.ndarray) -> pl.Series:
+        """Absolute UTC timestamps of ``seconds`` after ``t_ref``."""
+        base = int(self.t_ref.timestamp() * 1e6)
+        return pl.Series(
+            "time_utc", base + np.round(np.asarray(seconds) * 1e6).astype(np.int64)
+        ).cast(pl.Datetime("us", "UTC"))
+
+
+@dataclass(frozen=True)
+class ReplayResult:
+    """Simulated sensor pressures at the scored samples of each planned trip.
+
+    ``simulated[k]`` is (m_k, n) [Pa] (NaN where the simulation failed);
+    ``payload_kg[k]`` the payload after trip k's loading, ``payload_before_kg[k]``
+    before it; ``status`` "success" or "failed" with ``message``; ``trip_messages[k]``
+    says why trip k was not simulated ("" when it was).
+    """
+
+    simulated: tuple[np.ndarray, ...]
+    payload_kg: np.ndarray
+    payload_before_kg: np.ndarray
+    effects: frozenset[str]
+    parameters: dict[str, dict[str, Any]] = field(default_factory=dict)
+    status: str = "success"
+    message: str = ""
+    ramp_simulated: tuple[np.ndarray, ...] = ()
+    ramps_s: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    trip_messages: tuple[str, ...] = ()
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "success"
+
+    def residuals(self, plan: ReplayPlan) -> tuple[np.ndarray, ...]:
+        """Measured minus simulated [Pa] per trip, NaN where not valid."""
+        return tuple(
+            np.where(tr.valid, tr.measured_pa - sim, np.nan)
+            for tr, sim in zip(plan.trips, self.simulated, strict=True)
+        )
+
+    def rms_gap_pa(self, plan: ReplayPlan) -> float:
+        """RMS of measured minus simulated over every valid sample [Pa]; NaN if none."""
+        r = np.concatenate([x[np.isfinite(x)] for x in self.residuals(plan)])
+        return float(np.sqrt(np.mean(r**2))) if r.size else float("nan")
+
+
+def replay_frame(plan: ReplayPlan, result: ReplayResult) -> pl.DataFrame:
+    """Scored samples as a frame: ``time_utc, trip_id, phase, direction, depth_m,
+    oil_temp_c, p{i}_pa`` (measured, NaN where masked) and ``p_sim{i}_pa``."""
+    n = plan.n_sensors
+    parts = []
+    for tr, sim in zip(plan.trips, result.simulated, strict=True):
+        cols: dict[str, Any] = {
+            "time_utc": plan.time_utc(tr.time_s),
+            "trip_id": np.full(tr.time_s.size, tr.trip_id, dtype=np.int64),
+            "phase": tr.phase.astype(str),
+            "direction": np.where(tr.phase == "standstill", "rest", tr.direction),
+            "depth_m": tr.depth_m,
+            "oil_temp_c": np.full(tr.time_s.size, tr.oil_temp_c),
+        }
+        for i in range(n):
+            cols[f"p{i + 1}_pa"] = np.where(tr.valid[:, i], tr.measured_pa[:, i], np.nan)
+            cols[f"p_sim{i + 1}_pa"] = sim[:, i]
+        parts.append(pl.DataFrame(cols))
+    return pl.concat(parts) if parts else pl.DataFrame()

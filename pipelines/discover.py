@@ -3,7 +3,7 @@
 The plain function behind the CLI command and the Prefect ``discover`` flow. Reads the
 hoist's landed samples for the period from the lake, replays its trips through the
 device simulation with the hoist's ``[model] effects`` (:mod:`sims.replay`), runs the
-discovery (:func:`sims.discovery.discover_effects`: residual test, candidate scoring
+discovery (:func:`discovery.discover_effects`: residual test, candidate scoring
 with re-tuning, BIC + trip bootstrap, iteration) and writes
 
 * the report JSON (``json_path``): one object per hoist and period, the contract
@@ -275,12 +275,7 @@ def discover_period(
     report, per = report_objects(result, period)
     json_out = plot_out = None
     if json_path is not None:
-        json_out = Path(json_path)
-        json_out.parent.mkdir(parents=True, exist_ok=True)
-        plot_out = write_plot(result, json_out.with_suffix(".png"))
-        report["plot"] = plot_out.name
-        report["residual_trace"] = residual_trace(result)
-        json_out.write_text(json.dumps(report, indent=2, default=str))
+        json_out, plot_out = _write_report_files(result, report, Path(json_path))
     run_id = new_run_id("discover")
     landed = 0
     if land:
@@ -296,24 +291,7 @@ def discover_period(
             else (),
             message=f"effects found: {', '.join(result.effects_found) or NO_EFFECT}",
         )
-        rows = pl.DataFrame(
-            [
-                {
-                    "run_id": run_id,
-                    "site": site,
-                    "hoist": name,
-                    "iteration": obj["iteration"],
-                    "period_start_utc": p_start,
-                    "period_end_utc": p_end,
-                    "effect": obj["effect"],
-                    "confidence": obj["confidence"],
-                    "gap_before_pa": obj["gap_before_pa"],
-                    "gap_after_pa": obj["gap_after_pa"],
-                    "report_json": json.dumps(obj, default=str),
-                }
-                for obj in per
-            ]
-        )
+        rows = _finding_rows(run_id, site, name, (p_start, p_end), per)
         with open_writer(data) as con:
             land_run(con, run)
             landed = land_discovery_findings(con, run, rows)
@@ -324,4 +302,38 @@ def discover_period(
         json_path=json_out,
         plot_path=plot_out,
         landed_rows=landed,
+    )
+
+
+def _write_report_files(result: DiscoveryResult, report: dict, json_out: Path) -> tuple[Path, Path]:
+    """The report as JSON at ``json_out`` with its plot (PNG) and residual trace beside."""
+    json_out.parent.mkdir(parents=True, exist_ok=True)
+    plot_out = write_plot(result, json_out.with_suffix(".png"))
+    report["plot"] = plot_out.name
+    report["residual_trace"] = residual_trace(result)
+    json_out.write_text(json.dumps(report, indent=2, default=str))
+    return json_out, plot_out
+
+
+def _finding_rows(
+    run_id: str, site: str, name: str, period: tuple[dt.datetime, dt.datetime], per: list[dict]
+) -> pl.DataFrame:
+    """One ``discovery_findings`` row per iteration's finding."""
+    return pl.DataFrame(
+        [
+            {
+                "run_id": run_id,
+                "site": site,
+                "hoist": name,
+                "iteration": obj["iteration"],
+                "period_start_utc": period[0],
+                "period_end_utc": period[1],
+                "effect": obj["effect"],
+                "confidence": obj["confidence"],
+                "gap_before_pa": obj["gap_before_pa"],
+                "gap_after_pa": obj["gap_after_pa"],
+                "report_json": json.dumps(obj, default=str),
+            }
+            for obj in per
+        ]
     )

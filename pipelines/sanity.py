@@ -5,7 +5,7 @@ measured sensor pressures are compared with the device simulation of the same tr
 (:func:`sims.replay.replay_fitted`: motion, payload and oil temperature from the log,
 the hoist's ``[model] effects``), and the RMS of measured minus simulated pressure is
 set against the logger's pressure noise estimated from the data
-(:func:`sims.replay.estimate_noise_sigma`). A trip passes when
+(:func:`discovery.segmentation.estimate_noise_sigma`). A trip passes when
 
 .. math:: RMS(p_{meas} - p_{sim}) \\le k \\, \\sigma_{noise}
 
@@ -41,6 +41,7 @@ from pipelines.steps import StepOutcome
 from schemas.hoist import HoistDescription
 from schemas.tables import SANITY_CHECKS, conform
 from sims.replay import replay_fitted
+from sims.replay_plan import ReplayTrip
 
 __all__ = ["SanityOutcome", "sanity_check", "sanity_step"]
 
@@ -142,7 +143,6 @@ def sanity_check(
     result = replay_fitted(plan, passes=3)
     sigma = plan.noise_sigma_pa
     messages = result.trip_messages or ("",) * len(plan.trips)
-    rows = []
 
     def reported(seconds: float) -> bool:
         started = plan.t_ref + dt.timedelta(seconds=seconds)
@@ -150,49 +150,54 @@ def sanity_check(
             report_to is None or started < report_to
         )
 
-    def row(trip_id: int, status: str, message: str, rms: float = float("nan")) -> None:
-        rows.append(
-            {
-                "run_id": run_id,
-                "site": hoist.hoist.site,
-                "hoist": hoist.hoist.name,
-                "trip_id": trip_id,
-                "rms_gap_pa": rms,
-                "noise_pa": sigma,
-                "passed": None if status == "skipped" else status == "passed",
-                "message": message,
-                "status": status,
-            }
-        )
-
+    verdicts: list[tuple[int, str, str, float]] = []
     for tr, res, why in zip(plan.trips, result.residuals(plan), messages, strict=True):
-        if not reported(tr.motion_start_s):
-            continue
-        if not (np.isfinite(sigma) and sigma > 0):
-            row(tr.trip_id, "skipped", "the pressure noise could not be estimated")
-            continue
-        if tr.cut == "start":
-            row(tr.trip_id, "skipped", "the record starts during this trip: it only loads "
-                "the seals' state for the next one")  # fmt: skip
-            continue
-        if tr.first_in_block:
-            continue  # warm-up: the seals' friction state is being loaded
-        finite = res[np.isfinite(res)]
-        if not finite.size:
-            row(tr.trip_id, "skipped", why or "no sample of the trip could be compared")
-            continue
-        rms = float(np.sqrt(np.mean(finite**2)))
-        ok = bool(rms <= threshold * sigma)
-        cut = ", cut by the end of the record" if tr.cut == "end" else ""
-        row(
-            tr.trip_id,
-            "passed" if ok else "failed",
-            f"{tr.direction} trip{cut}, oil {tr.oil_temp_c:.1f} degC: gap {rms / 1e3:.1f} kPa "
-            f"vs noise {sigma / 1e3:.1f} kPa ({rms / sigma:.2f} x, limit {threshold:g} x)",
-            rms,
-        )
-    for gone in plan.skipped:
-        if reported(gone.motion_start_s):
-            row(gone.trip_id, "skipped", gone.reason)
-    rows.sort(key=lambda r: r["trip_id"])
+        verdict = _trip_verdict(tr, res, why, sigma, threshold)
+        if reported(tr.motion_start_s) and verdict is not None:
+            verdicts.append((tr.trip_id, *verdict))
+    verdicts += [
+        (gone.trip_id, "skipped", gone.reason, float("nan"))
+        for gone in plan.skipped
+        if reported(gone.motion_start_s)
+    ]
+    rows = [
+        {
+            "run_id": run_id,
+            "site": hoist.hoist.site,
+            "hoist": hoist.hoist.name,
+            "trip_id": trip_id,
+            "rms_gap_pa": rms,
+            "noise_pa": sigma,
+            "passed": None if status == "skipped" else status == "passed",
+            "message": message,
+            "status": status,
+        }
+        for trip_id, status, message, rms in sorted(verdicts, key=lambda v: v[0])
+    ]
     return conform(pl.DataFrame(rows), SANITY_CHECKS) if rows else empty
+
+
+def _trip_verdict(
+    tr: ReplayTrip, res: np.ndarray, why: str, sigma: float, threshold: float
+) -> tuple[str, str, float] | None:
+    """(status, message, RMS gap [Pa]) of one replayed trip; None for a warm-up trip,
+    which only loads the seals' friction state."""
+    nan = float("nan")
+    if not (np.isfinite(sigma) and sigma > 0):
+        return "skipped", "the pressure noise could not be estimated", nan
+    if tr.cut == "start":
+        return "skipped", ("the record starts during this trip: it only loads "
+                           "the seals' state for the next one"), nan  # fmt: skip
+    if tr.first_in_block:
+        return None
+    finite = res[np.isfinite(res)]
+    if not finite.size:
+        return "skipped", why or "no sample of the trip could be compared", nan
+    rms = float(np.sqrt(np.mean(finite**2)))
+    ok = bool(rms <= threshold * sigma)
+    cut = ", cut by the end of the record" if tr.cut == "end" else ""
+    message = (
+        f"{tr.direction} trip{cut}, oil {tr.oil_temp_c:.1f} degC: gap {rms / 1e3:.1f} kPa "
+        f"vs noise {sigma / 1e3:.1f} kPa ({rms / sigma:.2f} x, limit {threshold:g} x)"
+    )
+    return ("passed" if ok else "failed"), message, rms

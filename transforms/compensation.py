@@ -135,20 +135,6 @@ def _input_frame(samples: pl.DataFrame | pl.LazyFrame) -> pl.DataFrame:
     return frame
 
 
-def _input_frame(samples: pl.DataFrame | pl.LazyFrame) -> pl.DataFrame:
-    """The columns :func:`compensate_window` reads, collected and sorted by time."""
-    lazy = samples.lazy()
-    available = set(lazy.collect_schema().names())
-    # only the columns used below (a landed frame also carries e.g. long provenance
-    # strings, which sorting would otherwise have to move)
-    wanted = ["time_utc", "depth_m", "speed_m_s", "oil_temp_c", *rope_cols("p{i}_pa")]
-    wanted += rope_cols("x{i}_m")
-    frame = lazy.select(c for c in wanted if c in available).collect()
-    if frame.height and not frame["time_utc"].is_sorted():
-        frame = frame.sort("time_utc")
-    return frame
-
-
 def compensate_window(
     samples: pl.DataFrame | pl.LazyFrame,
     hoist: HoistDescription,

@@ -14,38 +14,9 @@ from numba import njit
 
 from physics.friction_law import law_array
 from schemas.hoist import FrictionLaw
+from sims.hydraulics import lu_factor, lu_solve
 from sims.rig_design import RigDesign, RigProgram, RigRecording
 from sims.rig_model import _N, _P_FLOOR, PORT_PRESSURE, _rhs
-
-
-@njit(cache=True)
-def _solve(a, b):  # pragma: no cover - compiled
-    # Gaussian elimination with partial pivoting, in place; returns b (the solution).
-    n = b.shape[0]
-    for k in range(n):
-        piv = k
-        big = abs(a[k, k])
-        for i in range(k + 1, n):
-            if abs(a[i, k]) > big:
-                big = abs(a[i, k])
-                piv = i
-        if piv != k:
-            for j in range(n):
-                a[k, j], a[piv, j] = a[piv, j], a[k, j]
-            b[k], b[piv] = b[piv], b[k]
-        inv = 1.0 / a[k, k]
-        for i in range(k + 1, n):
-            f = a[i, k] * inv
-            if f != 0.0:
-                for j in range(k, n):
-                    a[i, j] -= f * a[k, j]
-                b[i] -= f * b[k]
-    for i in range(n - 1, -1, -1):
-        s = b[i]
-        for j in range(i + 1, n):
-            s -= a[i, j] * b[j]
-        b[i] = s / a[i, i]
-    return b
 
 
 @njit(cache=True)
@@ -79,6 +50,7 @@ def _integrate(  # pragma: no cover - compiled
     f1 = np.empty(_N)
     yp = np.empty(_N)
     jac = np.empty((_N, _N))
+    piv = np.empty(_N, dtype=np.int64)
     seg = np.empty(8)
     scale = np.array([1e-6, 1e-6, 1e-9, 1.0, 1.0, 1.0, 1e-6, 1e-6])
     k = 0
@@ -124,9 +96,10 @@ def _integrate(  # pragma: no cover - compiled
             jac[j, j] += 1.0
         for i in range(_N):
             f1[i] = dt * f0[i]
-        dy = _solve(jac, f1)
+        lu_factor(jac, piv)  # (I - dt J) dy = dt f, LU with partial pivoting
+        lu_solve(jac, piv, f1)
         for i in range(_N):
-            y[i] += dy[i]
+            y[i] += f1[i]
         if y[3] < _P_FLOOR:
             y[3] = _P_FLOOR
         if y[4] < _P_FLOOR:

@@ -17,18 +17,3 @@ def per_sample(value: np.ndarray | float, n: int, name: str) -> np.ndarray:
     if arr.shape != (n,):
         raise ValueError(f"{name}: expected a scalar or shape ({n},), got {arr.shape}")
     return np.ascontiguousarray(arr)
-
-
-def one_or_per_sample(value: np.ndarray | float, n: int) -> np.ndarray:
-    """``value`` as a contiguous float64 array of one element (a scalar, for the kernels
-    to broadcast) or of n (one per sample).
-
-    >>> one_or_per_sample(2.0, 3).tolist(), one_or_per_sample([1.0, 2.0, 3.0], 3).tolist()
-    ([2.0], [1.0, 2.0, 3.0])
-    """
-    arr = np.asarray(value, dtype=np.float64).ravel()
-    if arr.size == n and n > 1:
-        return np.ascontiguousarray(arr)
-    if arr.size != 1:
-        raise ValueError(f"expected a scalar or {n} values, got {arr.size}")
-    return np.ascontiguousarray(arr)

@@ -24,8 +24,6 @@ import fluids
 import numpy as np
 from numba import njit
 
-from physics._samples import one_or_per_sample
-
 __all__ = [
     "BLASIUS",
     "COLEBROOK",
@@ -106,7 +104,7 @@ def _turbulent(re: float, relative_roughness: float, method: int) -> float:
     return clamond_friction_factor(re, relative_roughness)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def darcy_friction_factor_at(re: float, relative_roughness: float, method: int) -> float:
     r"""Darcy friction factor lambda of paper eq 12, laminar to turbulent [-].
 
@@ -136,7 +134,7 @@ def darcy_friction_factor_at(re: float, relative_roughness: float, method: int) 
     return (1.0 - weight) * (64.0 / RE_LAMINAR) + weight * start
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def pipe_loss_pa(
     u_m_s: float,
     bore_m: float,
@@ -209,7 +207,7 @@ def reynolds_number(
     return np.abs(np.asarray(v_m_s, dtype=np.float64)) * d_m / np.asarray(nu_m2_s)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _friction_factors(re, relative_roughness, method, out):  # pragma: no cover - numba
     for i in range(re.shape[0]):
         out[i] = darcy_friction_factor_at(re[i], relative_roughness, method)
@@ -231,7 +229,7 @@ def darcy_friction_factor(
     return out.reshape(re_arr.shape)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _pipe_losses(u, bore, length, nu, rho, k_local, rr, method, out):  # pragma: no cover
     per_sample = nu.shape[0] > 1
     for i in range(u.shape[0]):
@@ -258,11 +256,15 @@ def pipe_pressure_loss(
     >>> round(float(dp), 3)   # 32 mu l v / d^2 = 32 * 0.0414 / 1e-4
     13248.0
     """
-    v = np.asarray(v_m_s, dtype=np.float64)
-    flat = np.ascontiguousarray(v.ravel())
-    nu = one_or_per_sample(nu_m2_s, flat.size)
+    v, nu = np.broadcast_arrays(
+        np.asarray(v_m_s, dtype=np.float64), np.asarray(nu_m2_s, dtype=np.float64)
+    )
+    flat, nu_flat = np.ascontiguousarray(v.ravel()), np.ascontiguousarray(nu.ravel())
     out = np.empty(flat.size)
-    _pipe_losses(flat, d_m, length_m, nu, rho_kg_m3, k_local, roughness_m / d_m, method, out)
+    if flat.size:
+        _pipe_losses(
+            flat, d_m, length_m, nu_flat, rho_kg_m3, k_local, roughness_m / d_m, method, out
+        )
     return out.reshape(v.shape)
 
 

@@ -16,7 +16,6 @@ import numpy as np
 import polars as pl
 from numba import njit
 
-from physics._samples import one_or_per_sample
 from physics.branch_loss import COLEBROOK, pipe_loss_pa
 from physics.oil import kinematic_viscosity
 from schemas.hoist import HoistDescription
@@ -63,7 +62,7 @@ def sensor_minus_chamber_at(v_piston_m_s: float, nu_m2_s: float, branch: np.ndar
     return 0.0 - loss  # not -loss: no -0.0 at rest
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _sensor_minus_chamber(v, nu, branch, out):  # pragma: no cover - numba
     per_sample = nu.shape[0] > 1
     for i in range(v.shape[0]):
@@ -116,11 +115,13 @@ def sensor_minus_chamber_pa(
     if nu_m2_s is None:
         t = hoist.oil.reference_temperature_c if t_oil_c is None else t_oil_c
         nu_m2_s = kinematic_viscosity(t, hoist.oil)
-    v = np.asarray(v_piston_m_s, dtype=np.float64)
-    flat = np.ascontiguousarray(v.ravel())
-    nu = one_or_per_sample(nu_m2_s, flat.size)
+    v, nu = np.broadcast_arrays(
+        np.asarray(v_piston_m_s, dtype=np.float64), np.asarray(nu_m2_s, dtype=np.float64)
+    )
+    flat, nu_flat = np.ascontiguousarray(v.ravel()), np.ascontiguousarray(nu.ravel())
     out = np.empty(flat.size)
-    _sensor_minus_chamber(flat, nu, sensor_branch(hoist), out)
+    if flat.size:
+        _sensor_minus_chamber(flat, nu_flat, sensor_branch(hoist), out)
     return out.reshape(v.shape)
 
 

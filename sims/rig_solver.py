@@ -96,7 +96,8 @@ def _integrate(  # pragma: no cover - compiled
             jac[j, j] += 1.0
         for i in range(_N):
             f1[i] = dt * f0[i]
-        lu_factor(jac, piv)  # (I - dt J) dy = dt f, LU with partial pivoting
+        if not lu_factor(jac, piv):  # (I - dt J) dy = dt f, LU with partial pivoting
+            raise ZeroDivisionError("rig step: singular Jacobian")
         lu_solve(jac, piv, f1)
         for i in range(_N):
             y[i] += f1[i]

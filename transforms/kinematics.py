@@ -292,6 +292,13 @@ def with_trip_phases(
     Adds columns ``phase`` (String), ``direction`` (String) and ``trip_id`` (Int64).
     Needs ``acceleration_col`` (:func:`with_acceleration`); a LazyFrame is collected.
     """
+    if isinstance(frame, pl.LazyFrame):  # one evaluation of the plan
+        return with_trip_phases(
+            frame.collect(), hoist, speed_col=speed_col, acceleration_col=acceleration_col,
+            segment_col=segment_col, time_col=time_col, depth_col=depth_col,
+            standstill_speed_m_s=standstill_speed_m_s,
+            acceleration_fraction=acceleration_fraction, creep_factor=creep_factor,
+        ).lazy()  # fmt: skip
     schema = frame.collect_schema()
     if time_col not in schema:
         raise ValueError(f"{time_col}: no such column (logger gaps inside a trip need times)")
@@ -303,7 +310,6 @@ def with_trip_phases(
         pl.col(segment_col).cast(pl.Int64).alias("segment"),
         depth.fill_null(np.nan).alias("depth"),
     )
-    columns = columns.collect() if isinstance(columns, pl.LazyFrame) else columns
     speed = columns["v"]
     phase, direction, trip_id = trip_label_codes(
         columns["t"].to_numpy(),
@@ -325,8 +331,6 @@ def with_trip_phases(
             pl.Series("trip_id", trip_id, dtype=pl.Int64).set(pl.Series(trip_id < 0), None),
         ]
     )
-    if isinstance(frame, pl.LazyFrame):
-        return pl.concat([frame, labels.lazy()], how="horizontal")
     return frame.with_columns(labels)
 
 

@@ -135,7 +135,7 @@ def table2_check(table2: pl.DataFrame, hoist: HoistDescription) -> pl.DataFrame:
     - ``sum_before_n``/``sum_after_n``: the four ropes summed here (the printed sums are
       kept as ``table_sum_*_n`` to show they agree);
     - ``expected_load_n`` = total_mass_t x 1000 x g; ``expected_from_hoist_n`` =
-      ``hoist.static_load_n`` at the position's depth (cage + tail rope from the
+      :func:`physics.tension.expected_load_n` at the position's depth (cage + tail rope from the
       description), an independent route to the same number;
     - ``error_before_fraction``/``error_after_fraction`` = sum / expected - 1;
     - ``gain_fraction`` = after / before - 1 (the paper's "compensation rate");

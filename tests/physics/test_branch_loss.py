@@ -104,3 +104,17 @@ def test_sensor_branch_polars_expression():
     assert out["dp"][2] is None
     lazy = df.lazy().with_columns(sensor_minus_chamber_expr(pl.col("v"), HOIST).alias("dp"))
     assert lazy.collect()["dp"].dtype == pl.Float64
+
+
+def test_vectorised_losses_broadcast_and_accept_empty_input():
+    """A scalar velocity with one viscosity per sample, empty arrays and an empty
+    frame give what elementwise calls give (review of the physics move)."""
+    nu = np.array([46e-6, 30e-6])
+    both = pipe_pressure_loss(1.0, 0.01, 1.0, nu, 900.0)
+    one = [float(pipe_pressure_loss(1.0, 0.01, 1.0, n, 900.0)) for n in nu]
+    np.testing.assert_allclose(both, one, rtol=1e-15)
+    assert pipe_pressure_loss(np.array([]), 0.01, 1.0, np.array([]), 900.0).shape == (0,)
+    assert float(darcy_friction_factor(0.0)) == np.inf  # no ZeroDivisionError
+    empty = pl.DataFrame({"v": []}, schema={"v": pl.Float64})
+    out = empty.select(sensor_minus_chamber_expr(pl.col("v"), HOIST).alias("dp"))
+    assert out.height == 0

@@ -163,3 +163,18 @@ def test_a_logger_gap_inside_a_motion(gap_s, depth_after_m, trips):
         .pipe(with_trip_phases, HOIST, time_col="t_s")
     )
     assert out["trip_id"].n_unique() == trips
+
+
+def test_trip_phases_of_a_lazy_frame_replace_existing_labels():
+    """A LazyFrame that already has the label columns gets them replaced, as a
+    DataFrame does (one evaluation of the plan)."""
+    t = np.arange(0.0, 20.0, 0.1)
+    v = np.where((t > 5) & (t < 15), 2.0, 0.0)
+    frame = pl.DataFrame(
+        {"t_s": t, "speed_m_s": v, "acceleration_m_s2": np.zeros(t.size), "segment_id": 0,
+         "phase": "x", "direction": "x", "trip_id": 7}
+    )  # fmt: skip
+    eager = with_trip_phases(frame, HOIST, time_col="t_s")
+    lazy = with_trip_phases(frame.lazy(), HOIST, time_col="t_s").collect()
+    assert lazy.equals(eager)
+    assert set(eager["trip_id"].drop_nulls().to_list()) == {0}

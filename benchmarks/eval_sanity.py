@@ -122,6 +122,15 @@ def main() -> None:
         for gz in days:
             day = check_day(gz, Path(tmp), args.max_trips, args.motion)
             print(_line(day), flush=True)
+            skipped = day["checks"].filter(pl.col("status") == "skipped")
+            for reason, count in (
+                skipped.group_by(pl.col("message").str.slice(0, 110))
+                .len()
+                .sort("len", descending=True)
+                .head(3)
+                .iter_rows()
+            ):
+                print(f"    skipped {count:3d} x: {reason}")
             compared = day["checks"].filter(pl.col("status") != "skipped")
             total += compared.height
             passed += int((compared["status"] == "passed").sum())

@@ -16,6 +16,13 @@ discovery fits parameters and scores to those runs (measured 4e-6 on the gaps, 9
 the BIC scores, effect names and bootstrap shares equal): their tolerances are
 :data:`RTOL`.
 
+The ``rig`` entry alone was re-stored after issue 17 moved the rig from a first-order
+Rosenbrock-Euler step to ROS2 (a deliberate change of results; the other entries are
+byte-identical): the ideal-seal small friction test moved by up to 1.8e-3 of a column's
+typical value in x, v and the pressures (sums 1e-5..1e-3) and 3.8e-2 in the
+acceleration, the first-order error it no longer has (tests/sims/test_rig.py measures
+the order).
+
 The compensation's input is written here with numpy (two trips, a payload step at a
 stop, a ringing rope, a logger gap, a warming oil), not by the simulation, so a change
 of the simulation cannot hide in it.
@@ -40,7 +47,7 @@ STORED = Path(__file__).parent / "data" / "outputs_before_physics.json"
 #: Relative tolerance by the result's name prefix and, after a colon, a column prefix.
 RTOL = {
     "compensate": 1e-9,
-    "rig": 1e-9,
+    "rig": 1e-9,  # re-stored after the ROS2 change (issue 17), see the module docstring
     "field_day": 1e-8,
     "device": 1e-8,
     "device:q": 1e-6,

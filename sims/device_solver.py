@@ -4,7 +4,7 @@
 1999, the shared :func:`sims.hydraulics.ros2_matrix` / :func:`~sims.hydraulics.ros2_step`;
 finite-difference Jacobian every ``jacobian_every`` steps, friction memory frozen over a
 step and committed with the accepted increment; see :mod:`sims.device` for the scheme
-and its tolerances); :func:`_integrate` checks the step grid and the friction
+and its tolerances); :func:`integrate` checks the step grid and the friction
 memory, runs it and turns the record into a :class:`~sims.device.SimulationResult`.
 """
 
@@ -17,9 +17,9 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from sims.device_model import _friction, _oil_volume, _rhs
-from sims.device_params import _BETA, _CYL0, _PER, _T, _XMAX, _Setup
-from sims.device_results import SimulationResult, _final_state, _frame
+from sims.device_model import friction_step, oil_volume, rhs
+from sims.device_params import BETA, CYL0, PER, XMAX, Setup, T
+from sims.device_results import SimulationResult, device_state, result_frame
 from sims.effects import ResolvedEffects
 from sims.hydraulics import ros2_matrix, ros2_step
 from sims.trips import TripProfile
@@ -27,10 +27,10 @@ from sims.trips import TripProfile
 
 @njit(cache=True)
 def _model_rhs(y, args, out):  # pragma: no cover - compiled
-    """:func:`sims.device_model._rhs` as the ``rhs(y, args, out)`` of the ROS2 functions;
+    """:func:`sims.device_model.rhs` as the ``rhs(y, args, out)`` of the ROS2 functions;
     ``args`` is the tuple of its other arguments (see :func:`_run`), ``aux`` last."""
     par, groove, seg, pay, src_t, src_s, ms_k, ms_w, z, deltas, x_start, dt, cap, aux = args
-    _rhs(y, par, groove, seg, pay, src_t, src_s, ms_k, ms_w, z, deltas, x_start, dt, cap, out, aux)
+    rhs(y, par, groove, seg, pay, src_t, src_s, ms_k, ms_w, z, deltas, x_start, dt, cap, out, aux)
 
 
 @njit(cache=True)
@@ -39,14 +39,14 @@ def _commit(y, par, z, deltas, x_start, dt, ms_k, ms_w, cap, aux, stop_hits):  #
     end-stop contacts; True when a chamber pressure fell below zero gauge."""
     cavitation = False
     for i in range(x_start.shape[0]):
-        b = _CYL0 + _PER * i
-        ff, z_new = _friction(
+        b = CYL0 + PER * i
+        ff, z_new = friction_step(
             y[b], y[b + 1] - x_start[i], dt, par, z[i], deltas[i], ms_k, ms_w, cap, True
         )
         z[i] = z_new
         aux[i, 0] = ff
         x_start[i] = y[b + 1]
-        if abs(y[b + 1]) > par[_XMAX]:
+        if abs(y[b + 1]) > par[XMAX]:
             stop_hits[i] += 1
         if y[b] < 0.0:
             cavitation = True
@@ -73,7 +73,7 @@ def _run(
     atol,
     rtol,
 ):  # pragma: no cover - compiled
-    """Integrate ``n_steps`` ROS2 steps of :func:`sims.device_model._rhs` from ``y0``.
+    """Integrate ``n_steps`` ROS2 steps of :func:`sims.device_model.rhs` from ``y0``.
 
     Returns the recorded states, aux values and oil volumes (every ``record_every``
     steps; NaN rows after a failure), the largest error ratio and where, the status code
@@ -93,7 +93,7 @@ def _run(
     y = y0.copy()
     z = z0.copy()  # friction memory carried in (zero from static equilibrium)
     deltas = deltas0.copy()
-    x_start = y[_CYL0 + 1 :: _PER].copy()
+    x_start = y[CYL0 + 1 :: PER].copy()
     cap = np.empty(2 * max(ms_k.shape[0], 1))
     aux = np.zeros((n, 4))
     args = (par, groove, seg, pay, src_t, src_s, ms_k, ms_w, z, deltas, x_start, dt, cap, aux)
@@ -105,7 +105,7 @@ def _run(
     err_at = np.zeros(2, dtype=np.int64)  # step and state index of the largest error
     stop_hits = np.zeros(n, dtype=np.int64)
     _model_rhs(y, args, f0)  # record the initial state
-    rec_y[0], rec_aux[0], rec_vol[0] = y, aux, _oil_volume(y, par, n)
+    rec_y[0], rec_aux[0], rec_vol[0] = y, aux, oil_volume(y, par, n)
     code = 0  # 0 ok, 1 singular, 2 non-finite, 3 cavitation
     fail_step = -1
     for step in range(n_steps):
@@ -129,7 +129,7 @@ def _run(
             _model_rhs(y, args, work[3])
             aux[:, 0] = committed
             kr = (step + 1) // record_every
-            rec_y[kr], rec_aux[kr], rec_vol[kr] = y, aux, _oil_volume(y, par, n)
+            rec_y[kr], rec_aux[kr], rec_vol[kr] = y, aux, oil_volume(y, par, n)
     if code != 0:
         fail_step = step
     return rec_y, rec_aux, rec_vol, err_max, err_at, code, fail_step, stop_hits, y, z, deltas
@@ -161,7 +161,7 @@ def _step_counts(
 
 
 def _friction_memory(
-    setup: _Setup, z0: np.ndarray | None, deltas0: np.ndarray | None
+    setup: Setup, z0: np.ndarray | None, deltas0: np.ndarray | None
 ) -> tuple[np.ndarray, np.ndarray]:
     """The starting LuGre z and Maxwell-slip deflections (zero unless carried in)."""
     n = setup.groove.shape[0]
@@ -176,8 +176,8 @@ def _friction_memory(
     return z0, deltas0
 
 
-def _integrate(
-    setup: _Setup,
+def integrate(
+    setup: Setup,
     y0: np.ndarray,
     *,
     duration_s: float,
@@ -228,12 +228,12 @@ def _integrate(
     )
     wall = time.perf_counter() - wall0
     good = np.isfinite(rec_vol)
-    frame = _frame(setup, rec_y[good], rec_aux[good], rec_vol[good], profile)
+    frame = result_frame(setup, rec_y[good], rec_aux[good], rec_vol[good], profile)
     message, solver = _report(
         code=code,
         fail_step=fail_step,
         n_steps=n_steps,
-        t0_s=y0[_T],
+        t0_s=y0[T],
         dt_s=dt_s,
         stop_hits=stop_hits,
         err_max=err_max,
@@ -245,7 +245,7 @@ def _integrate(
     )
     final_state = None
     if code == 0:
-        final_state = _final_state(y_end, z_end, deltas_end, float(setup.par[_BETA]), eff, profile)
+        final_state = device_state(y_end, z_end, deltas_end, float(setup.par[BETA]), eff, profile)
     return SimulationResult(
         status="success" if code == 0 else "failed",
         message=message,

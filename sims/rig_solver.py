@@ -2,7 +2,7 @@
 
 ROS2 (the shared :func:`sims.hydraulics.ros2_matrix` / :func:`~sims.hydraulics.ros2_step`:
 two-stage, second-order, L-stable Rosenbrock-W) at a fixed step with a finite-difference
-Jacobian every step, compiled with numba, around :func:`sims.rig_model._rhs` on the state
+Jacobian every step, compiled with numba, around :func:`sims.rig_model.rhs` on the state
 extended by time and the servo reference; a step is split at a segment start inside it,
 and the state floors (vacuum, closed valves) are applied after each step. Until issue 17
 this was a first-order linearly implicit (Rosenbrock-)Euler step.
@@ -20,20 +20,20 @@ from physics.friction_law import law_array
 from schemas.hoist import FrictionLaw
 from sims.hydraulics import ros2_matrix, ros2_step
 from sims.rig_design import RigDesign, RigProgram, RigRecording
-from sims.rig_model import _N, _P_FLOOR, PORT_PRESSURE, _rhs
+from sims.rig_model import N_STATE, P_FLOOR, PORT_PRESSURE, rhs
 
 #: Absolute tolerances of the extended state (t, x, v, z, p_A, p_B, p_L, y_A, y_B, x_ref)
 #: [s, m, m/s, m, Pa, Pa, Pa, -, -, m]: they set the finite-difference steps
 #: (1e-4 of these below the state's size) and weigh the error estimate.
 _ATOL = np.array([1e-9, 1e-9, 1e-9, 1e-12, 1e-3, 1e-3, 1e-3, 1e-9, 1e-9, 1e-9])
 _RTOL = 1e-6
-_NY = _N + 2  # the extended state: time, the model state, the servo reference x_ref
-_XREF = _N + 1
+_NY = N_STATE + 2  # the extended state: time, the model state, the servo reference x_ref
+_XREF = N_STATE + 1
 
 
 @njit(cache=True)
 def _step_rhs(y, args, out):  # pragma: no cover - compiled
-    """:func:`sims.rig_model._rhs` on the extended state, as the ROS2 ``rhs``.
+    """:func:`sims.rig_model.rhs` on the extended state, as the ROS2 ``rhs``.
 
     ``args = (c, law, prog, ctrl, seg, aux)``: ``prog`` the program rows (t_start, v_set,
     mode_a, mode_b, set_a, set_b, q_pump), ``ctrl`` = (segment k, previous segment's
@@ -56,7 +56,7 @@ def _step_rhs(y, args, out):  # pragma: no cover - compiled
     seg[5] = v_cmd
     seg[6] = y[1] if pressure else y[_XREF]
     seg[7] = ctrl[2]
-    aux[0] = _rhs(y[1:_XREF], out[1:_XREF], c, law, seg)
+    aux[0] = rhs(y[1:_XREF], out[1:_XREF], c, law, seg)
     aux[1] = v_cmd
     out[0] = 1.0
     out[_XREF] = y[2] if pressure else v_cmd
@@ -77,8 +77,8 @@ def _to_segment(t, prog, ctrl, dt):  # pragma: no cover - compiled
 def _floors(y, prog, k):  # pragma: no cover - compiled
     """State floors after a step: vacuum gauge pressure, closed valves; x_ref on the rod
     while a port is pressure-regulated."""
-    y[4] = max(y[4], _P_FLOOR)
-    y[5] = max(y[5], _P_FLOOR)
+    y[4] = max(y[4], P_FLOOR)
+    y[5] = max(y[5], P_FLOOR)
     y[7] = max(y[7], 0.0)
     y[8] = max(y[8], 0.0)
     if prog[k, 2] == PORT_PRESSURE or prog[k, 3] == PORT_PRESSURE:
@@ -113,7 +113,7 @@ def _integrate(y0, c, law, prog, ctrl, dt, n_steps, every, atol, out):  # pragma
         _step_rhs(y, args, f0)
         if n % every == 0 and row < out.shape[0]:
             out[row, 0] = y[0]
-            out[row, 1 : 1 + _N] = y[1:_XREF]
+            out[row, 1 : 1 + N_STATE] = y[1:_XREF]
             out[row, 9], out[row, 10], out[row, 11], out[row, 12] = f0[2], aux[0], ctrl[0], aux[1]
             row += 1
         while True:
@@ -172,7 +172,7 @@ def simulate_rig(
     has_friction = friction_law is not None
     c = _constants(design, program, friction_law)
     law = law_array(friction_law) if has_friction else np.ones(8)
-    y0 = np.zeros(_N)
+    y0 = np.zeros(N_STATE)
     y0[0] = program.x0_m
     y0[3] = program.p0_a_pa
     y0[4] = program.p0_b_pa
@@ -216,7 +216,7 @@ def simulate_rig(
 def _constants(
     design: RigDesign, program: RigProgram, friction_law: FrictionLaw | None
 ) -> np.ndarray:
-    """The constant vector ``c`` that :func:`sims.rig_model._rhs` reads."""
+    """The constant vector ``c`` that :func:`sims.rig_model.rhs` reads."""
     r_lam, r_loc = design.line_coefficients()
     has_friction = friction_law is not None
     sigma0 = friction_law.bristle_stiffness_n_m if has_friction else 1.0

@@ -55,25 +55,11 @@ def _commit(y, par, z, deltas, x_start, dt, ms_k, ms_w, cap, aux, stop_hits):  #
 
 @njit(cache=True)
 def _run(
-    y0,
-    par,
-    groove,
-    seg,
-    pay,
-    src_t,
-    src_s,
-    ms_k,
-    ms_w,
-    z0,
-    deltas0,
-    dt,
-    n_steps,
-    record_every,
-    jacobian_every,
-    atol,
-    rtol,
-):  # pragma: no cover - compiled
-    """Integrate ``n_steps`` ROS2 steps of :func:`sims.device_model.rhs` from ``y0``.
+    y0, model, z0, deltas0, dt, n_steps, record_every, jacobian_every, atol, rtol
+):  # pragma: no cover
+    """Integrate ``n_steps`` ROS2 steps of :func:`sims.device_model.rhs` from ``y0``;
+    ``model`` is the tuple (par, groove, seg, pay, src_t, src_s, ms_k, ms_w) of a
+    :class:`~sims.device_params.Setup`, ``z0``, ``deltas0`` the friction memory.
 
     Returns the recorded states, aux values and oil volumes (every ``record_every``
     steps; NaN rows after a failure), the largest error ratio and where, the status code
@@ -84,6 +70,7 @@ def _run(
     :func:`sims.hydraulics.ros2_step`; the friction memory is frozen over a step and
     committed with the accepted increment (:func:`_commit`).
     """
+    par, groove, ms_k, ms_w = model[0], model[1], model[6], model[7]
     n_state = y0.shape[0]
     n = groove.shape[0]
     n_rec = n_steps // record_every + 1
@@ -96,7 +83,7 @@ def _run(
     x_start = y[CYL0 + 1 :: PER].copy()
     cap = np.empty(2 * max(ms_k.shape[0], 1))
     aux = np.zeros((n, 4))
-    args = (par, groove, seg, pay, src_t, src_s, ms_k, ms_w, z, deltas, x_start, dt, cap, aux)
+    args = (*model, z, deltas, x_start, dt, cap, aux)
     f0 = np.empty(n_state)
     work = np.empty((4, n_state))
     w = np.empty((n_state, n_state))
@@ -209,14 +196,16 @@ def integrate(
         deltas_end,
     ) = _run(
         y0,
-        setup.par,
-        setup.groove,
-        setup.seg,
-        setup.pay,
-        setup.src_t,
-        setup.src_s,
-        setup.ms_k,
-        setup.ms_w,
+        (
+            setup.par,
+            setup.groove,
+            setup.seg,
+            setup.pay,
+            setup.src_t,
+            setup.src_s,
+            setup.ms_k,
+            setup.ms_w,
+        ),
         np.ascontiguousarray(z0),
         np.ascontiguousarray(deltas0),
         dt_s,

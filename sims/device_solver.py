@@ -25,7 +25,7 @@ from sims.hydraulics import ros2_matrix, ros2_step
 from sims.trips import TripProfile
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _model_rhs(y, args, out):  # pragma: no cover - compiled
     """:func:`sims.device_model.rhs` as the ``rhs(y, args, out)`` of the ROS2 functions;
     ``args`` is the tuple of its other arguments (see :func:`_run`), ``aux`` last."""

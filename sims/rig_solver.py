@@ -23,8 +23,9 @@ from sims.rig_design import RigDesign, RigProgram, RigRecording
 from sims.rig_model import N_STATE, P_FLOOR, PORT_PRESSURE, rhs
 
 #: Absolute tolerances of the extended state (t, x, v, z, p_A, p_B, p_L, y_A, y_B, x_ref)
-#: [s, m, m/s, m, Pa, Pa, Pa, -, -, m]: they set the finite-difference steps
-#: (1e-4 of these below the state's size) and weigh the error estimate.
+#: [s, m, m/s, m, Pa, Pa, Pa, -, -, m]: they set the finite-difference steps,
+#: 1e-7 max(|y|, 1e3 atol) (the first-order step's scales before issue 17), and weigh
+#: the error estimate reported as ``meta["error_ratio_max"]`` (with rtol 1e-6).
 _ATOL = np.array([1e-9, 1e-9, 1e-9, 1e-12, 1e-3, 1e-3, 1e-3, 1e-9, 1e-9, 1e-9])
 _RTOL = 1e-6
 _NY = N_STATE + 2  # the extended state: time, the model state, the servo reference x_ref

@@ -116,22 +116,22 @@ import numpy as np
 from physics.tension import tail_rope_length_m
 from schemas.hoist import G_STANDARD, HoistDescription
 from sims.device_params import (
-    _BETA,
-    _CYL0,
-    _EA,
-    _ETA,
-    _LBASE,
-    _PER,
-    _PM,
-    _RDRUM,
-    _T,
-    _build_par,
-    _sensor_calibration,
-    _Setup,
+    BETA,
+    CYL0,
+    EA,
+    ETA,
+    LBASE,
+    PER,
+    PM,
+    RDRUM,
+    Setup,
+    T,
+    build_par,
+    sensor_calibration,
 )
 from sims.device_results import OUTPUT_COLUMNS, DeviceState, SimulationResult
 from sims.device_scenarios import SCENARIO_3_2_LOAD_N, SCENARIO_3_2_TIME_S, paper_scenario_3_2
-from sims.device_solver import _integrate
+from sims.device_solver import integrate
 from sims.effects import ResolvedEffects, resolve_effects
 from sims.trips import TripProfile
 
@@ -208,12 +208,12 @@ def simulate(
     if initial_state is not None:
         # continue: every state, the friction memory and the oil's bulk modulus carry over
         y0 = initial_state._vector(profile.t0_s)
-        setup.par[_BETA] = initial_state.bulk_modulus_pa
+        setup.par[BETA] = initial_state.bulk_modulus_pa
         z0 = initial_state.lugre_z_m
         deltas0 = initial_state.maxwell_slip_m
-    elif np.any(np.abs(y0[_CYL0 + 1 :: _PER]) > hoist.cylinders.stroke_m / 2):
+    elif np.any(np.abs(y0[CYL0 + 1 :: PER]) > hoist.cylinders.stroke_m / 2):
         raise ValueError("groove offsets at the start depth exceed the stroke")
-    return _integrate(
+    return integrate(
         setup,
         y0,
         duration_s=profile.duration_s,
@@ -229,7 +229,7 @@ def simulate(
 
 def _static_start(
     hoist: HoistDescription, eff: ResolvedEffects, profile: TripProfile
-) -> tuple[_Setup, np.ndarray]:
+) -> tuple[Setup, np.ndarray]:
     """The run's set-up and its static equilibrium at the profile's first depth and
     payload: equal chamber pressures ``W / (n A)``, pistons placed so that the ropes
     (with any groove offsets) carry equal tensions, oil at rest."""
@@ -250,7 +250,7 @@ def _static_start(
     weight0 = (hoist.conveyance.mass_kg + pay0 + tail0) * G_STANDARD
     area = hoist.cylinders.bore_area_m2
     p0 = weight0 / (n * area)
-    par, groove, (ms_k, ms_w) = _build_par(hoist, eff, oil_temp_c=oil_temp, p_static_pa=p0)
+    par, groove, (ms_k, ms_w) = build_par(hoist, eff, oil_temp_c=oil_temp, p_static_pa=p0)
     seg = np.column_stack(
         [
             profile.segment_start_s,
@@ -260,8 +260,8 @@ def _static_start(
         ]
     ).astype(float)
     pay = np.column_stack([profile.payload_time_s, profile.payload_kg]).astype(float)
-    gain, offset = _sensor_calibration(eff, n)
-    setup = _Setup(
+    gain, offset = sensor_calibration(eff, n)
+    setup = Setup(
         par=par,
         groove=groove,
         seg=np.ascontiguousarray(seg),
@@ -274,15 +274,15 @@ def _static_start(
         sensor_offset=offset,
         oil_temp_c=float(oil_temp),
     )
-    k0 = par[_EA] / (par[_LBASE] + u0)
-    offsets = u0 * groove / par[_RDRUM]
+    k0 = par[EA] / (par[LBASE] + u0)
+    offsets = u0 * groove / par[RDRUM]
     x0 = -(offsets - offsets.mean())
-    y0 = np.zeros(_CYL0 + _PER * n)
-    y0[_T] = t0
-    y0[_ETA] = weight0 / (n * k0) + offsets.mean()
-    y0[_PM] = p0
+    y0 = np.zeros(CYL0 + PER * n)
+    y0[T] = t0
+    y0[ETA] = weight0 / (n * k0) + offsets.mean()
+    y0[PM] = p0
     for i in range(n):
-        b = _CYL0 + _PER * i
+        b = CYL0 + PER * i
         y0[b] = p0
         y0[b + 1] = x0[i]
     return setup, y0

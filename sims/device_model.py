@@ -2,9 +2,9 @@
 
 The equations (chamber continuity, branch flow with the sensor tee, pistons with seal
 friction and end stops, head ropes, conveyance) are written out in :mod:`sims.device`;
-here they are the numba kernels :func:`_rhs` (dy/dt), :func:`_friction` (LuGre or
+here they are the numba kernels :func:`rhs` (dy/dt), :func:`friction_step` (LuGre or
 Maxwell-slip over a step), :func:`_line_loss` (branch part loss) and
-:func:`_oil_volume` (the conserved oil inventory), reading the flat parameter vector
+:func:`oil_volume` (the conserved oil inventory), reading the flat parameter vector
 of :mod:`sims.device_params`.
 """
 
@@ -20,52 +20,52 @@ from physics.friction_law import friction_law_at, stribeck_g
 from physics.lugre import lugre_force, lugre_z_step
 from physics.maxwell_slip import maxwell_slip_step
 from sims.device_params import (
-    _A,
-    _BETA,
-    _CROPE,
-    _CSTOP,
-    _CYL0,
-    _DLOSS,
-    _EA,
-    _ETA,
-    _ETAD,
-    _FC0,
-    _FIXED,
-    _FRIC_ON,
-    _G,
-    _INERT,
-    _INERT1,
-    _INERTIA_ON,
-    _K1,
-    _K2,
-    _KSTOP,
-    _KV1,
-    _L1,
-    _L2,
-    _LAM_ON,
-    _LBASE,
-    _LOC_ON,
-    _LOOP,
-    _MCONV,
-    _MINERT,
-    _MP,
-    _MU,
-    _PER,
-    _PM,
-    _PRE_ON,
-    _RDRUM,
-    _RHO,
-    _SHAFT,
-    _SIG0,
-    _SIG1,
-    _T,
-    _TAIL_KG_M,
-    _TAIL_ON,
-    _VM,
-    _VMID,
-    _VPIPES,
-    _XMAX,
-    _ZETA,
+    BETA,
+    CROPE,
+    CSTOP,
+    CYL0,
+    DLOSS,
+    EA,
+    ETA,
+    ETAD,
+    FC0,
+    FIXED,
+    FRIC_ON,
+    INERT,
+    INERT1,
+    INERTIA_ON,
+    K1,
+    K2,
+    KSTOP,
+    KV1,
+    L1,
+    L2,
+    LAM_ON,
+    LBASE,
+    LOC_ON,
+    LOOP,
+    MCONV,
+    MINERT,
+    MP,
+    MU,
+    PER,
+    PM,
+    PRE_ON,
+    RDRUM,
+    RHO,
+    SHAFT,
+    SIG0,
+    SIG1,
+    TAIL_KG_M,
+    TAIL_ON,
+    VM,
+    VMID,
+    VPIPES,
+    XMAX,
+    ZETA,
+    A,
+    G,
+    T,
 )
 
 
@@ -99,7 +99,7 @@ def _interp(t: float, knots_t: np.ndarray, values: np.ndarray) -> tuple[float, f
 
 
 @njit(cache=True)
-def _friction(
+def friction_step(
     p: float,
     dx: float,
     h: float,
@@ -118,12 +118,12 @@ def _friction(
     LuGre (:mod:`physics.lugre`). ``commit=False`` leaves ``deltas`` untouched (works
     on a copy in the scratch array ``cap``).
     """
-    if par[_FRIC_ON] == 0.0:
+    if par[FRIC_ON] == 0.0:
         return 0.0, z
     v = dx / h
-    fc, fs, vs, kv = friction_law_at(max(p, 0.0), par[_FC0 : _KV1 + 1])
+    fc, fs, vs, kv = friction_law_at(max(p, 0.0), par[FC0 : KV1 + 1])
     g = stribeck_g(v, fc, fs, vs)
-    if par[_PRE_ON] != 0.0:
+    if par[PRE_ON] != 0.0:
         n_el = ms_k.shape[0]
         if commit:
             force = maxwell_slip_step(deltas, dx, ms_k, ms_w, g)
@@ -132,8 +132,8 @@ def _friction(
             trial[:] = deltas
             force = maxwell_slip_step(trial, dx, ms_k, ms_w, g)
         return force + kv * v, z
-    z_new = lugre_z_step(z, v, h, par[_SIG0], g)
-    return lugre_force(z, z_new, v, h, par[_SIG0], par[_SIG1], kv), z_new
+    z_new = lugre_z_step(z, v, h, par[SIG0], g)
+    return lugre_force(z, z_new, v, h, par[SIG0], par[SIG1], kv), z_new
 
 
 @njit(cache=True)
@@ -142,15 +142,15 @@ def _line_loss(q: float, length_m: float, k_local: float, par: np.ndarray) -> fl
     :func:`physics.branch_loss.pipe_loss_pa`, Blasius when turbulent, smooth pipe);
     ``pipe_laminar_loss`` / ``local_loss`` off drop the part along the pipe / at the
     fittings."""
-    bore = par[_DLOSS]
+    bore = par[DLOSS]
     u = q / (0.25 * math.pi * bore * bore)
-    length = length_m if par[_LAM_ON] != 0.0 else 0.0
-    k = k_local if par[_LOC_ON] != 0.0 else 0.0
-    return pipe_loss_pa(u, bore, length, par[_MU] / par[_RHO], par[_RHO], k, 0.0, BLASIUS)
+    length = length_m if par[LAM_ON] != 0.0 else 0.0
+    k = k_local if par[LOC_ON] != 0.0 else 0.0
+    return pipe_loss_pa(u, bore, length, par[MU] / par[RHO], par[RHO], k, 0.0, BLASIUS)
 
 
 @njit(cache=True)
-def _rhs(
+def rhs(
     y: np.ndarray,
     par: np.ndarray,
     groove: np.ndarray,
@@ -176,78 +176,78 @@ def _rhs(
     their locals and stay one function for speed.
     """
     n = groove.shape[0]
-    t = y[_T]
-    eta = y[_ETA]
-    etad = y[_ETAD]
-    pm = y[_PM]
-    beta = par[_BETA]
-    area = par[_A]
+    t = y[T]
+    eta = y[ETA]
+    etad = y[ETAD]
+    pm = y[PM]
+    beta = par[BETA]
+    area = par[A]
     u, ud, ua = _profile(t, seg)
     payload, _ = _interp(t, pay[:, 0], pay[:, 1])
     tail_kg = 0.0
-    if par[_TAIL_ON] != 0.0:
-        tail_kg = par[_TAIL_KG_M] * max(par[_SHAFT] - u + par[_LOOP], 0.0)
-    weight = (par[_MCONV] + payload + tail_kg) * par[_G]
-    m_in = par[_MINERT] + payload + tail_kg
-    k_rope = par[_EA] / (par[_LBASE] + u)
-    c_rope = par[_CROPE]
+    if par[TAIL_ON] != 0.0:
+        tail_kg = par[TAIL_KG_M] * max(par[SHAFT] - u + par[LOOP], 0.0)
+    weight = (par[MCONV] + payload + tail_kg) * par[G]
+    m_in = par[MINERT] + payload + tail_kg
+    k_rope = par[EA] / (par[LBASE] + u)
+    c_rope = par[CROPE]
     if c_rope <= 0.0:
-        c_rope = 2.0 * par[_ZETA] * math.sqrt(k_rope * m_in / n)
+        c_rope = 2.0 * par[ZETA] * math.sqrt(k_rope * m_in / n)
     sum_g = 0.0
     sum_q = 0.0
-    out[_T] = 1.0
+    out[T] = 1.0
     # first pass: forces piston -> body, rope tensions, hydraulics
     for i in range(n):
-        b = _CYL0 + _PER * i
+        b = CYL0 + PER * i
         p = y[b]
         x = y[b + 1]
         v = y[b + 2]
         q = y[b + 3]
         s_off, s_rate = _interp(t, src_t, src_s[:, i])
-        e = eta - x - u * groove[i] / par[_RDRUM] - s_off
-        ed = etad - v - ud * groove[i] / par[_RDRUM] - s_rate
+        e = eta - x - u * groove[i] / par[RDRUM] - s_off
+        ed = etad - v - ud * groove[i] / par[RDRUM] - s_rate
         tension = k_rope * e + c_rope * ed
-        ff, _ = _friction(p, x - x_start[i], h, par, z[i], deltas[i], ms_k, ms_w, cap, False)
+        ff, _ = friction_step(p, x - x_start[i], h, par, z[i], deltas[i], ms_k, ms_w, cap, False)
         f_stop = 0.0
-        if x > par[_XMAX]:
-            f_stop = par[_KSTOP] * (x - par[_XMAX]) + par[_CSTOP] * v
-        elif x < -par[_XMAX]:
-            f_stop = par[_KSTOP] * (x + par[_XMAX]) + par[_CSTOP] * v
+        if x > par[XMAX]:
+            f_stop = par[KSTOP] * (x - par[XMAX]) + par[CSTOP] * v
+        elif x < -par[XMAX]:
+            f_stop = par[KSTOP] * (x + par[XMAX]) + par[CSTOP] * v
         g_i = p * area + ff + f_stop
         sum_g += g_i
-        volume = par[_VMID] - area * x
+        volume = par[VMID] - area * x
         out[b] = beta / volume * (area * v - q * math.exp(-p / beta))
         out[b + 1] = v
-        loss1 = _line_loss(q, par[_L1], par[_K1], par)
-        loss2 = _line_loss(q, par[_L2], par[_K2], par)
-        qdot = (p - pm - loss1 - loss2) / par[_INERT]
+        loss1 = _line_loss(q, par[L1], par[K1], par)
+        loss2 = _line_loss(q, par[L2], par[K2], par)
+        qdot = (p - pm - loss1 - loss2) / par[INERT]
         out[b + 3] = qdot
         sum_q += q
         aux[i, 0] = ff
         aux[i, 1] = tension
         aux[i, 2] = qdot
-        aux[i, 3] = par[_INERT1] * qdot + loss1
+        aux[i, 3] = par[INERT1] * qdot + loss1
         out[b + 2] = tension - g_i  # divided by m_p and body acceleration added below
-    out[_PM] = beta / par[_VM] * sum_q * math.exp(-pm / beta)
-    if par[_FIXED] != 0.0:
-        out[_ETA] = 0.0
-        out[_ETAD] = 0.0
+    out[PM] = beta / par[VM] * sum_q * math.exp(-pm / beta)
+    if par[FIXED] != 0.0:
+        out[ETA] = 0.0
+        out[ETAD] = 0.0
         body_acc = 0.0
     else:
-        etadd = (weight - sum_g) / m_in - par[_INERTIA_ON] * ua
-        out[_ETA] = etad
-        out[_ETAD] = etadd
-        body_acc = etadd + par[_INERTIA_ON] * ua
+        etadd = (weight - sum_g) / m_in - par[INERTIA_ON] * ua
+        out[ETA] = etad
+        out[ETAD] = etadd
+        body_acc = etadd + par[INERTIA_ON] * ua
     for i in range(n):
-        b = _CYL0 + _PER * i
-        out[b + 2] = out[b + 2] / par[_MP] + body_acc
+        b = CYL0 + PER * i
+        out[b + 2] = out[b + 2] / par[MP] + body_acc
 
 
 @njit(cache=True)
-def _oil_volume(y: np.ndarray, par: np.ndarray, n: int) -> float:
-    beta = par[_BETA]
-    total = par[_VPIPES] + par[_VM] * math.exp(y[_PM] / beta)
+def oil_volume(y: np.ndarray, par: np.ndarray, n: int) -> float:
+    beta = par[BETA]
+    total = par[VPIPES] + par[VM] * math.exp(y[PM] / beta)
     for i in range(n):
-        b = _CYL0 + _PER * i
-        total += (par[_VMID] - par[_A] * y[b + 1]) * math.exp(y[b] / beta)
+        b = CYL0 + PER * i
+        total += (par[VMID] - par[A] * y[b + 1]) * math.exp(y[b] / beta)
     return total

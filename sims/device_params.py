@@ -1,8 +1,8 @@
 """The device simulation's parameter vector and state layout, and their set-up in Python.
 
-:func:`_build_par` packs a hoist description and its resolved effects into the flat
+:func:`build_par` packs a hoist description and its resolved effects into the flat
 ``par`` vector the compiled kernels of :mod:`sims.device_model` read (slot indices are
-module constants, which numba reads as literals); :class:`_Setup` bundles it with the
+module constants, which numba reads as literals); :class:`Setup` bundles it with the
 forcing (profile segments, payload knots, load sources) one run of
 :mod:`sims.device_solver` integrates. The model itself is described in :mod:`sims.device`.
 """
@@ -25,24 +25,24 @@ from schemas.hoist import G_STANDARD, HoistDescription
 from sims.effects import ResolvedEffects
 
 # ---- parameter vector layout (numba reads these module constants as literals) --------
-_A, _VMID, _MP, _XMAX, _KSTOP, _CSTOP, _BETA, _VM, _RHO, _MU = range(10)
-_INERT, _L1, _L2, _DLOSS, _K1, _K2, _LAM_ON, _LOC_ON, _FRIC_ON, _PRE_ON = range(10, 20)
-_FC0, _FC1, _FS0, _FS1, _VS0, _VS1, _KV0, _KV1, _SIG0, _SIG1 = range(20, 30)
-_MINERT, _MCONV, _INERTIA_ON, _TAIL_ON, _TAIL_KG_M, _SHAFT, _LOOP, _G = range(30, 38)
-_EA, _LBASE, _ZETA, _RDRUM, _FIXED, _INERT1, _CROPE, _VPIPES = range(38, 46)
-_NPAR = 46
+A, VMID, MP, XMAX, KSTOP, CSTOP, BETA, VM, RHO, MU = range(10)
+INERT, L1, L2, DLOSS, K1, K2, LAM_ON, LOC_ON, FRIC_ON, PRE_ON = range(10, 20)
+FC0, FC1, FS0, FS1, VS0, VS1, KV0, KV1, SIG0, SIG1 = range(20, 30)
+MINERT, MCONV, INERTIA_ON, TAIL_ON, TAIL_KG_M, SHAFT, LOOP, G = range(30, 38)
+EA, LBASE, ZETA, RDRUM, FIXED, INERT1, CROPE, VPIPES = range(38, 46)
+NPAR = 46
 
 # state layout: [t, eta, deta/dt, p_manifold, (p, x, v, q) per cylinder]
-_T, _ETA, _ETAD, _PM = range(4)
-_CYL0 = 4
-_PER = 4
+T, ETA, ETAD, PM = range(4)
+CYL0 = 4
+PER = 4
 
 _STIFF_OIL_FACTOR = 1000.0
 _K_STOP_N_M = 1e9
 
 
 @dataclass(frozen=True)
-class _Setup:
+class Setup:
     par: np.ndarray
     groove: np.ndarray
     seg: np.ndarray
@@ -56,7 +56,7 @@ class _Setup:
     oil_temp_c: float
 
 
-def _build_par(
+def build_par(
     hoist: HoistDescription,
     eff: ResolvedEffects,
     *,
@@ -67,7 +67,7 @@ def _build_par(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(par, groove offsets, (Maxwell-slip stiffnesses, weights))`` of one run."""
     prm = eff.parameters
-    par = np.zeros(_NPAR)
+    par = np.zeros(NPAR)
     _pack_hydraulics(par, hoist, eff, oil_temp_c=oil_temp_c, p_static_pa=p_static_pa)
     _pack_mechanics(par, hoist, eff, fixed_body=fixed_body, rope_damping_n_s_m=rope_damping_n_s_m)
     groove = (
@@ -96,12 +96,12 @@ def _pack_hydraulics(
     """Cylinder, oil (bulk modulus, viscosity) and branch-line slots of ``par``."""
     prm = eff.parameters
     cyl, piping, oil = hoist.cylinders, hoist.piping, hoist.oil
-    par[_A] = cyl.bore_area_m2
-    par[_VMID] = cyl.chamber_volume_mid_m3
-    par[_MP] = cyl.piston_mass_kg
-    par[_XMAX] = cyl.stroke_m / 2.0
-    par[_KSTOP] = _K_STOP_N_M
-    par[_CSTOP] = 2.0 * math.sqrt(_K_STOP_N_M * cyl.piston_mass_kg)
+    par[A] = cyl.bore_area_m2
+    par[VMID] = cyl.chamber_volume_mid_m3
+    par[MP] = cyl.piston_mass_kg
+    par[XMAX] = cyl.stroke_m / 2.0
+    par[KSTOP] = _K_STOP_N_M
+    par[CSTOP] = 2.0 * math.sqrt(_K_STOP_N_M * cyl.piston_mass_kg)
     comp = prm["oil_compressibility"]
     beta = float(comp["bulk_modulus_pa"])
     if comp["air_fraction"] > 0.0:
@@ -112,11 +112,11 @@ def _pack_hydraulics(
         )
     if not eff.on("oil_compressibility"):
         beta *= _STIFF_OIL_FACTOR
-    par[_BETA] = beta
-    par[_VM] = piping.manifold_volume_m3
-    if par[_VM] <= 0.0:
+    par[BETA] = beta
+    par[VM] = piping.manifold_volume_m3
+    if par[VM] <= 0.0:
         raise ValueError("piping.manifold_volume must be positive for the device simulation")
-    par[_RHO] = oil.density_kg_m3
+    par[RHO] = oil.density_kg_m3
     visc = prm["viscosity_temperature"]
     if eff.on("viscosity_temperature"):
         a, b = walther_coefficients(
@@ -128,20 +128,20 @@ def _pack_hydraulics(
             oil.kinematic_viscosity_40c_m2_s, 40.0, oil.kinematic_viscosity_100c_m2_s, 100.0
         )
         nu = float(kinematic_viscosity_walther(oil.reference_temperature_c, a, b))
-    par[_MU] = nu * oil.density_kg_m3
+    par[MU] = nu * oil.density_kg_m3
     l1, l2 = piping.length_chamber_to_sensor_m, piping.length_sensor_to_manifold_m
-    par[_INERT] = oil.density_kg_m3 * (l1 + l2) / piping.area_m2
-    par[_INERT1] = oil.density_kg_m3 * l1 / piping.area_m2
-    par[_VPIPES] = hoist.ropes_n * piping.area_m2 * (l1 + l2)
+    par[INERT] = oil.density_kg_m3 * (l1 + l2) / piping.area_m2
+    par[INERT1] = oil.density_kg_m3 * l1 / piping.area_m2
+    par[VPIPES] = hoist.ropes_n * piping.area_m2 * (l1 + l2)
     lam = prm["pipe_laminar_loss"]
-    par[_L1] = lam["length_chamber_to_sensor_m"]
-    par[_L2] = lam["length_sensor_to_manifold_m"]
-    par[_DLOSS] = lam["bore_m"]
+    par[L1] = lam["length_chamber_to_sensor_m"]
+    par[L2] = lam["length_sensor_to_manifold_m"]
+    par[DLOSS] = lam["bore_m"]
     loc = prm["local_loss"]
-    par[_K1] = loc["valve_loss_coefficient"] + loc["fittings_chamber_to_sensor"]
-    par[_K2] = loc["fittings_sensor_to_manifold"]
-    par[_LAM_ON] = float(eff.on("pipe_laminar_loss"))
-    par[_LOC_ON] = float(eff.on("local_loss"))
+    par[K1] = loc["valve_loss_coefficient"] + loc["fittings_chamber_to_sensor"]
+    par[K2] = loc["fittings_sensor_to_manifold"]
+    par[LAM_ON] = float(eff.on("pipe_laminar_loss"))
+    par[LOC_ON] = float(eff.on("local_loss"))
 
 
 def _pack_mechanics(
@@ -154,38 +154,38 @@ def _pack_mechanics(
 ) -> None:
     """Seal friction, conveyance, tail rope and head rope slots of ``par``."""
     prm = eff.parameters
-    par[_FRIC_ON] = float(eff.on("seal_friction"))
-    par[_PRE_ON] = float(eff.on("presliding_hysteresis"))
+    par[FRIC_ON] = float(eff.on("seal_friction"))
+    par[PRE_ON] = float(eff.on("presliding_hysteresis"))
     if eff.on("presliding_hysteresis") and not eff.on("seal_friction"):
         raise ValueError(
             "effect 'presliding_hysteresis' needs 'seal_friction' (its element capacities "
             "are the seal's Stribeck friction g(v))"
         )
     fr = prm["seal_friction"]
-    par[_FC0], par[_FC1] = fr["coulomb_n"]
-    par[_FS0], par[_FS1] = fr["static_n"]
-    par[_VS0], par[_VS1] = fr["stribeck_speed_m_s"]
-    par[_KV0], par[_KV1] = fr["viscous_n_s_m"]
-    par[_SIG0] = fr["bristle_stiffness_n_m"]
-    par[_SIG1] = fr["bristle_damping_n_s_m"]
-    par[_MINERT] = prm["conveyance_inertia"]["mass_kg"]
-    par[_MCONV] = hoist.conveyance.mass_kg
-    par[_INERTIA_ON] = float(eff.on("conveyance_inertia"))
+    par[FC0], par[FC1] = fr["coulomb_n"]
+    par[FS0], par[FS1] = fr["static_n"]
+    par[VS0], par[VS1] = fr["stribeck_speed_m_s"]
+    par[KV0], par[KV1] = fr["viscous_n_s_m"]
+    par[SIG0] = fr["bristle_stiffness_n_m"]
+    par[SIG1] = fr["bristle_damping_n_s_m"]
+    par[MINERT] = prm["conveyance_inertia"]["mass_kg"]
+    par[MCONV] = hoist.conveyance.mass_kg
+    par[INERTIA_ON] = float(eff.on("conveyance_inertia"))
     tail = prm["tail_rope_weight"]
-    par[_TAIL_ON] = float(eff.on("tail_rope_weight"))
-    par[_TAIL_KG_M] = tail["tail_ropes"] * tail["mass_per_length_kg_m"]
-    par[_SHAFT] = hoist.shaft.depth_m
-    par[_LOOP] = hoist.shaft.tail_rope_loop_m
-    par[_G] = G_STANDARD
-    par[_EA] = hoist.ropes.head_rope_axial_stiffness_n
-    par[_LBASE] = hoist.shaft.headframe_height_m
-    par[_ZETA] = hoist.ropes.head_rope_damping_ratio
-    par[_RDRUM] = hoist.drum.radius_m
-    par[_FIXED] = float(fixed_body)
-    par[_CROPE] = rope_damping_n_s_m
+    par[TAIL_ON] = float(eff.on("tail_rope_weight"))
+    par[TAIL_KG_M] = tail["tail_ropes"] * tail["mass_per_length_kg_m"]
+    par[SHAFT] = hoist.shaft.depth_m
+    par[LOOP] = hoist.shaft.tail_rope_loop_m
+    par[G] = G_STANDARD
+    par[EA] = hoist.ropes.head_rope_axial_stiffness_n
+    par[LBASE] = hoist.shaft.headframe_height_m
+    par[ZETA] = hoist.ropes.head_rope_damping_ratio
+    par[RDRUM] = hoist.drum.radius_m
+    par[FIXED] = float(fixed_body)
+    par[CROPE] = rope_damping_n_s_m
 
 
-def _sensor_calibration(eff: ResolvedEffects, n: int) -> tuple[np.ndarray, np.ndarray]:
+def sensor_calibration(eff: ResolvedEffects, n: int) -> tuple[np.ndarray, np.ndarray]:
     gain = (
         np.array(eff.parameters["sensor_gain"]["gains"], dtype=float)
         if eff.on("sensor_gain")

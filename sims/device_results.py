@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from sims.device_params import _CYL0, _ETA, _ETAD, _PER, _PM, _T, _Setup
+from sims.device_params import CYL0, ETA, ETAD, PER, PM, Setup, T
 from sims.effects import ResolvedEffects
 from sims.trips import TripProfile
 
@@ -107,14 +107,14 @@ class DeviceState:
     def _vector(self, t_s: float) -> np.ndarray:
         """The integrator's state vector at time ``t_s``."""
         n = self.ropes_n
-        y = np.zeros(_CYL0 + _PER * n)
-        y[_T] = t_s
-        y[_ETA] = self.eta_m
-        y[_ETAD] = self.eta_rate_m_s
-        y[_PM] = self.p_manifold_pa
+        y = np.zeros(CYL0 + PER * n)
+        y[T] = t_s
+        y[ETA] = self.eta_m
+        y[ETAD] = self.eta_rate_m_s
+        y[PM] = self.p_manifold_pa
         for i in range(n):
-            b = _CYL0 + _PER * i
-            y[b : b + _PER] = (self.p_chamber_pa[i], self.x_m[i], self.v_m_s[i], self.q_m3_s[i])
+            b = CYL0 + PER * i
+            y[b : b + PER] = (self.p_chamber_pa[i], self.x_m[i], self.v_m_s[i], self.q_m3_s[i])
         return y
 
 
@@ -147,8 +147,8 @@ class SimulationResult:
         return self.status == "success"
 
 
-def _frame(
-    setup: _Setup,
+def result_frame(
+    setup: Setup,
     rec_y: np.ndarray,
     rec_aux: np.ndarray,
     rec_vol: np.ndarray,
@@ -156,7 +156,7 @@ def _frame(
 ) -> pl.DataFrame:
     """The :data:`OUTPUT_COLUMNS` frame of the recorded (finite) samples."""
     n = setup.groove.shape[0]
-    t = rec_y[:, _T]
+    t = rec_y[:, T]
     if profile is not None:
         depth = profile.depth(t)
         speed = profile.speed(t)
@@ -174,7 +174,7 @@ def _frame(
     }
     tensions = np.zeros_like(t)
     for i in range(n):
-        b = _CYL0 + _PER * i
+        b = CYL0 + PER * i
         p = rec_y[:, b]
         p_tee = p - rec_aux[:, i, 3]
         cols[f"p_chamber{i + 1}_pa"] = p
@@ -186,12 +186,12 @@ def _frame(
         cols[f"tension{i + 1}_n"] = rec_aux[:, i, 1]
         tensions = tensions + rec_aux[:, i, 1]
     cols["load_n"] = tensions
-    cols["p_manifold_pa"] = rec_y[:, _PM]
+    cols["p_manifold_pa"] = rec_y[:, PM]
     cols["oil_volume_m3"] = rec_vol
     return pl.DataFrame(cols)
 
 
-def _final_state(
+def device_state(
     y_end: np.ndarray,
     z_end: np.ndarray,
     deltas_end: np.ndarray,
@@ -201,19 +201,19 @@ def _final_state(
 ) -> DeviceState:
     """The :class:`DeviceState` at the end of a successful run."""
     n = z_end.shape[0]
-    t_end = float(y_end[_T])
+    t_end = float(y_end[T])
     return DeviceState(
         time_s=t_end,
         depth_m=float(profile.depth(t_end)) if profile is not None else 0.0,
         speed_m_s=float(profile.speed(t_end)) if profile is not None else 0.0,
         payload_kg=float(profile.payload(t_end)) if profile is not None else 0.0,
-        eta_m=float(y_end[_ETA]),
-        eta_rate_m_s=float(y_end[_ETAD]),
-        p_manifold_pa=float(y_end[_PM]),
-        p_chamber_pa=_frozen([y_end[_CYL0 + _PER * i] for i in range(n)]),
-        x_m=_frozen([y_end[_CYL0 + _PER * i + 1] for i in range(n)]),
-        v_m_s=_frozen([y_end[_CYL0 + _PER * i + 2] for i in range(n)]),
-        q_m3_s=_frozen([y_end[_CYL0 + _PER * i + 3] for i in range(n)]),
+        eta_m=float(y_end[ETA]),
+        eta_rate_m_s=float(y_end[ETAD]),
+        p_manifold_pa=float(y_end[PM]),
+        p_chamber_pa=_frozen([y_end[CYL0 + PER * i] for i in range(n)]),
+        x_m=_frozen([y_end[CYL0 + PER * i + 1] for i in range(n)]),
+        v_m_s=_frozen([y_end[CYL0 + PER * i + 2] for i in range(n)]),
+        q_m3_s=_frozen([y_end[CYL0 + PER * i + 3] for i in range(n)]),
         lugre_z_m=_frozen(z_end),
         maxwell_slip_m=_frozen(deltas_end),
         bulk_modulus_pa=bulk_modulus_pa,

@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from schemas.hoist import EXAMPLE_HOIST, Cylinders, HoistDescription, Piping, load_hoist
-from sims.device_params import _CYL0, _EA, _LBASE, _PER, _PM, _build_par, _Setup
+from sims.device_params import CYL0, EA, LBASE, PER, PM, Setup, build_par
 from sims.device_results import SimulationResult
-from sims.device_solver import _integrate
+from sims.device_solver import integrate
 from sims.effects import resolve_effects
 
 #: Load-source knots of the section 3.2 scenario (Figure 10): time [s] and load per
@@ -72,7 +72,7 @@ def paper_scenario_3_2(
     area = cylinders.bore_area_m2
     loads = SCENARIO_3_2_LOAD_N
     p0 = float(loads[0].mean() / area)
-    par, _groove, (ms_k, ms_w) = _build_par(
+    par, _groove, (ms_k, ms_w) = build_par(
         hoist,
         eff,
         oil_temp_c=40.0,
@@ -80,9 +80,9 @@ def paper_scenario_3_2(
         fixed_body=True,
         rope_damping_n_s_m=rope_damping_n_s_m,
     )
-    par[_EA] = rope_stiffness_n_m  # k = EA / (L_base + depth) with L_base = 1 m, depth 0
-    par[_LBASE] = 1.0
-    setup = _Setup(
+    par[EA] = rope_stiffness_n_m  # k = EA / (L_base + depth) with L_base = 1 m, depth 0
+    par[LBASE] = 1.0
+    setup = Setup(
         par=par,
         groove=np.zeros(n),
         seg=np.array([[0.0, 0.0, 0.0, 0.0]]),
@@ -95,7 +95,7 @@ def paper_scenario_3_2(
         sensor_offset=np.zeros(n),
         oil_temp_c=40.0,
     )
-    return _integrate(
+    return integrate(
         setup,
         _scenario_start(p0, rope_stiffness_n_m),
         duration_s=duration_s,
@@ -132,10 +132,10 @@ def _scenario_start(p0: float, rope_stiffness_n_m: float) -> np.ndarray:
     ``(load_i - mean load) / k``, everything at rest."""
     n = 4
     loads = SCENARIO_3_2_LOAD_N
-    y0 = np.zeros(_CYL0 + _PER * n)
-    y0[_PM] = p0
+    y0 = np.zeros(CYL0 + PER * n)
+    y0[PM] = p0
     for i in range(n):
-        b = _CYL0 + _PER * i
+        b = CYL0 + PER * i
         y0[b] = p0
         y0[b + 1] = (loads[0, i] - loads[0].mean()) / rope_stiffness_n_m
     return y0

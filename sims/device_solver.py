@@ -1,9 +1,10 @@
 """The device simulation's integrator: ROS2 at a fixed step around the compiled model.
 
 :func:`_run` is the compiled ROS2 loop (two-stage, L-stable Rosenbrock-W, Verwer et al.
-1999; finite-difference Jacobian every ``jacobian_every`` steps, friction memory frozen
-over a step and committed with the accepted increment; see :mod:`sims.device` for the
-scheme and its tolerances); :func:`_integrate` checks the step grid and the friction
+1999, the shared :func:`sims.hydraulics.ros2_matrix` / :func:`~sims.hydraulics.ros2_step`;
+finite-difference Jacobian every ``jacobian_every`` steps, friction memory frozen over a
+step and committed with the accepted increment; see :mod:`sims.device` for the scheme
+and its tolerances); :func:`integrate` checks the step grid and the friction
 memory, runs it and turns the record into a :class:`~sims.device.SimulationResult`.
 """
 
@@ -16,50 +17,62 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from sims.device_model import _friction, _oil_volume, _rhs
-from sims.device_params import _BETA, _CYL0, _PER, _T, _XMAX, _Setup
-from sims.device_results import SimulationResult, _final_state, _frame
+from sims.device_model import friction_step, oil_volume, rhs
+from sims.device_params import BETA, CYL0, PER, XMAX, Setup, T
+from sims.device_results import SimulationResult, device_state, result_frame
 from sims.effects import ResolvedEffects
-from sims.hydraulics import ROS2_GAMMA, lu_factor, lu_solve
+from sims.hydraulics import ros2_matrix, ros2_step
 from sims.trips import TripProfile
+
+
+@njit(cache=True, inline="always")
+def _model_rhs(y, args, out):  # pragma: no cover - compiled
+    """:func:`sims.device_model.rhs` as the ``rhs(y, args, out)`` of the ROS2 functions;
+    ``args`` is the tuple of its other arguments (see :func:`_run`), ``aux`` last."""
+    par, groove, seg, pay, src_t, src_s, ms_k, ms_w, z, deltas, x_start, dt, cap, aux = args
+    rhs(y, par, groove, seg, pay, src_t, src_s, ms_k, ms_w, z, deltas, x_start, dt, cap, out, aux)
+
+
+@njit(cache=True)
+def _commit(y, par, z, deltas, x_start, dt, ms_k, ms_w, cap, aux, stop_hits):  # pragma: no cover
+    """Commit the friction memory with the accepted displacement increments, count the
+    end-stop contacts; True when a chamber pressure fell below zero gauge."""
+    cavitation = False
+    for i in range(x_start.shape[0]):
+        b = CYL0 + PER * i
+        ff, z_new = friction_step(
+            y[b], y[b + 1] - x_start[i], dt, par, z[i], deltas[i], ms_k, ms_w, cap, True
+        )
+        z[i] = z_new
+        aux[i, 0] = ff
+        x_start[i] = y[b + 1]
+        if abs(y[b + 1]) > par[XMAX]:
+            stop_hits[i] += 1
+        if y[b] < 0.0:
+            cavitation = True
+    return cavitation
 
 
 @njit(cache=True)
 def _run(
-    y0,
-    par,
-    groove,
-    seg,
-    pay,
-    src_t,
-    src_s,
-    ms_k,
-    ms_w,
-    z0,
-    deltas0,
-    dt,
-    n_steps,
-    record_every,
-    jacobian_every,
-    atol,
-    rtol,
-):  # pragma: no cover - compiled
-    """Integrate ``n_steps`` ROS2 steps of :func:`sims.device_model._rhs` from ``y0``.
+    y0, model, z0, deltas0, dt, n_steps, record_every, jacobian_every, atol, rtol
+):  # pragma: no cover
+    """Integrate ``n_steps`` ROS2 steps of :func:`sims.device_model.rhs` from ``y0``;
+    ``model`` is the tuple (par, groove, seg, pay, src_t, src_s, ms_k, ms_w) of a
+    :class:`~sims.device_params.Setup`, ``z0``, ``deltas0`` the friction memory.
 
     Returns the recorded states, aux values and oil volumes (every ``record_every``
     steps; NaN rows after a failure), the largest error ratio and where, the status code
     (0 ok, 1 singular iteration matrix, 2 non-finite, 3 cavitation), the failing step,
     the end-stop hit counts and the final state with its friction memory.
 
-    Longer than 80 lines on purpose: it is the one compiled loop of the run (Jacobian
-    refresh, the two ROS2 stages, the error norm, the friction commit and the recording
-    share some twenty arrays and the state); kept whole so numba compiles it as one loop
-    without passing that state through calls, and so the arithmetic stays as validated.
-    Most of its length is the 16-argument ``_rhs`` calls written one argument a line.
+    The step is :func:`sims.hydraulics.ros2_matrix` (every ``jacobian_every`` steps) and
+    :func:`sims.hydraulics.ros2_step`; the friction memory is frozen over a step and
+    committed with the accepted increment (:func:`_commit`).
     """
+    par, groove, ms_k, ms_w = model[0], model[1], model[6], model[7]
     n_state = y0.shape[0]
     n = groove.shape[0]
-    n_el = ms_k.shape[0]
     n_rec = n_steps // record_every + 1
     rec_y = np.full((n_rec, n_state), np.nan)
     rec_aux = np.full((n_rec, n, 4), np.nan)
@@ -67,154 +80,45 @@ def _run(
     y = y0.copy()
     z = z0.copy()  # friction memory carried in (zero from static equilibrium)
     deltas = deltas0.copy()
-    x_start = np.empty(n)
-    for i in range(n):
-        x_start[i] = y[_CYL0 + _PER * i + 1]
-    cap = np.empty(2 * max(n_el, 1))
+    x_start = y[CYL0 + 1 :: PER].copy()
+    cap = np.empty(2 * max(ms_k.shape[0], 1))
     aux = np.zeros((n, 4))
+    args = (*model, z, deltas, x_start, dt, cap, aux)
     f0 = np.empty(n_state)
-    f1 = np.empty(n_state)
-    k1 = np.empty(n_state)
-    k2 = np.empty(n_state)
-    yt = np.empty(n_state)
+    work = np.empty((4, n_state))
     w = np.empty((n_state, n_state))
     piv = np.empty(n_state, dtype=np.int64)
     err_max = 0.0
     err_at = np.zeros(2, dtype=np.int64)  # step and state index of the largest error
     stop_hits = np.zeros(n, dtype=np.int64)
-    # record the initial state
-    _rhs(y, par, groove, seg, pay, src_t, src_s, ms_k, ms_w, z, deltas, x_start, dt, cap, f0, aux)
-    rec_y[0] = y
-    rec_aux[0] = aux
-    rec_vol[0] = _oil_volume(y, par, n)
+    _model_rhs(y, args, f0)  # record the initial state
+    rec_y[0], rec_aux[0], rec_vol[0] = y, aux, oil_volume(y, par, n)
     code = 0  # 0 ok, 1 singular, 2 non-finite, 3 cavitation
     fail_step = -1
     for step in range(n_steps):
-        _rhs(
-            y, par, groove, seg, pay, src_t, src_s, ms_k, ms_w, z, deltas, x_start, dt, cap, f0, aux
-        )
-        if step % jacobian_every == 0:
-            # column of t left zero: the forcing (profile, payload, load sources) is
-            # piecewise and an FD across a kink would poison W; any J is admissible
-            # for the W-method ROS2, which keeps its order.
-            for r in range(n_state):
-                w[r, _T] = 0.0
-            w[_T, _T] = 1.0
-            for j in range(1, n_state):
-                delta = 1e-7 * max(abs(y[j]), 1e3 * atol[j])
-                yt[:] = y
-                yt[j] += delta
-                _rhs(
-                    yt,
-                    par,
-                    groove,
-                    seg,
-                    pay,
-                    src_t,
-                    src_s,
-                    ms_k,
-                    ms_w,
-                    z,
-                    deltas,
-                    x_start,
-                    dt,
-                    cap,
-                    f1,
-                    aux,
-                )
-                for r in range(n_state):
-                    w[r, j] = -ROS2_GAMMA * dt * (f1[r] - f0[r]) / delta
-                w[j, j] += 1.0
-            if not lu_factor(w, piv):
-                code = 1
-                fail_step = step
-                break
-        k1[:] = f0
-        lu_solve(w, piv, k1)
-        for r in range(n_state):
-            yt[r] = y[r] + dt * k1[r]
-        _rhs(
-            yt,
-            par,
-            groove,
-            seg,
-            pay,
-            src_t,
-            src_s,
-            ms_k,
-            ms_w,
-            z,
-            deltas,
-            x_start,
-            dt,
-            cap,
-            f1,
-            aux,
-        )
-        for r in range(n_state):
-            k2[r] = f1[r] - 2.0 * k1[r]
-        lu_solve(w, piv, k2)
-        acc = 0.0
-        worst = 0
-        worst_e = 0.0
-        for r in range(n_state):
-            y_new = y[r] + 1.5 * dt * k1[r] + 0.5 * dt * k2[r]
-            e = 0.5 * dt * (k1[r] + k2[r]) / (atol[r] + rtol * abs(y_new))
-            acc += e * e
-            if abs(e) > worst_e:
-                worst_e = abs(e)
-                worst = r
-            y[r] = y_new
-        err = math.sqrt(acc / n_state)
+        _model_rhs(y, args, f0)
+        if step % jacobian_every == 0 and not ros2_matrix(
+            _model_rhs, args, y, f0, dt, atol, w, piv, work
+        ):
+            code = 1
+            break
+        err, worst = ros2_step(_model_rhs, args, y, f0, dt, atol, rtol, w, piv, work)
         if not math.isfinite(err):
             code = 2
-            fail_step = step
             break
         if err > err_max:
-            err_max = err
-            err_at[0] = step
-            err_at[1] = worst
-        # commit the friction memory with the accepted displacement increments
-        for i in range(n):
-            b = _CYL0 + _PER * i
-            ff, z_new = _friction(
-                y[b], y[b + 1] - x_start[i], dt, par, z[i], deltas[i], ms_k, ms_w, cap, True
-            )
-            z[i] = z_new
-            aux[i, 0] = ff
-            x_start[i] = y[b + 1]
-            if abs(y[b + 1]) > par[_XMAX]:
-                stop_hits[i] += 1
-            if y[b] < 0.0:
-                code = 3
-                fail_step = step
-        if code != 0:
+            err_max, err_at[0], err_at[1] = err, step, worst
+        if _commit(y, par, z, deltas, x_start, dt, ms_k, ms_w, cap, aux, stop_hits):
+            code = 3
             break
         if (step + 1) % record_every == 0:
             committed = aux[:, 0].copy()
-            _rhs(
-                y,
-                par,
-                groove,
-                seg,
-                pay,
-                src_t,
-                src_s,
-                ms_k,
-                ms_w,
-                z,
-                deltas,
-                x_start,
-                dt,
-                cap,
-                f1,
-                aux,
-            )
+            _model_rhs(y, args, work[3])
             aux[:, 0] = committed
             kr = (step + 1) // record_every
-            rec_y[kr] = y
-            rec_aux[kr] = aux
-            rec_vol[kr] = _oil_volume(y, par, n)
+            rec_y[kr], rec_aux[kr], rec_vol[kr] = y, aux, oil_volume(y, par, n)
+    if code != 0:
+        fail_step = step
     return rec_y, rec_aux, rec_vol, err_max, err_at, code, fail_step, stop_hits, y, z, deltas
 
 
@@ -244,7 +148,7 @@ def _step_counts(
 
 
 def _friction_memory(
-    setup: _Setup, z0: np.ndarray | None, deltas0: np.ndarray | None
+    setup: Setup, z0: np.ndarray | None, deltas0: np.ndarray | None
 ) -> tuple[np.ndarray, np.ndarray]:
     """The starting LuGre z and Maxwell-slip deflections (zero unless carried in)."""
     n = setup.groove.shape[0]
@@ -259,8 +163,8 @@ def _friction_memory(
     return z0, deltas0
 
 
-def _integrate(
-    setup: _Setup,
+def integrate(
+    setup: Setup,
     y0: np.ndarray,
     *,
     duration_s: float,
@@ -292,14 +196,16 @@ def _integrate(
         deltas_end,
     ) = _run(
         y0,
-        setup.par,
-        setup.groove,
-        setup.seg,
-        setup.pay,
-        setup.src_t,
-        setup.src_s,
-        setup.ms_k,
-        setup.ms_w,
+        (
+            setup.par,
+            setup.groove,
+            setup.seg,
+            setup.pay,
+            setup.src_t,
+            setup.src_s,
+            setup.ms_k,
+            setup.ms_w,
+        ),
         np.ascontiguousarray(z0),
         np.ascontiguousarray(deltas0),
         dt_s,
@@ -311,12 +217,12 @@ def _integrate(
     )
     wall = time.perf_counter() - wall0
     good = np.isfinite(rec_vol)
-    frame = _frame(setup, rec_y[good], rec_aux[good], rec_vol[good], profile)
+    frame = result_frame(setup, rec_y[good], rec_aux[good], rec_vol[good], profile)
     message, solver = _report(
         code=code,
         fail_step=fail_step,
         n_steps=n_steps,
-        t0_s=y0[_T],
+        t0_s=y0[T],
         dt_s=dt_s,
         stop_hits=stop_hits,
         err_max=err_max,
@@ -328,7 +234,7 @@ def _integrate(
     )
     final_state = None
     if code == 0:
-        final_state = _final_state(y_end, z_end, deltas_end, float(setup.par[_BETA]), eff, profile)
+        final_state = device_state(y_end, z_end, deltas_end, float(setup.par[BETA]), eff, profile)
     return SimulationResult(
         status="success" if code == 0 else "failed",
         message=message,

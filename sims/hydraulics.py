@@ -4,12 +4,20 @@ Contents
 --------
 Dense linear algebra (njit, small systems)
     :func:`lu_factor`, :func:`lu_solve` -- LU with partial pivoting, in place.
-Stiff fixed-step integrator (njit)
-    :data:`ROS2_GAMMA`, :func:`ros2_integrate` -- the two-stage, second-order,
+Stiff fixed-step integrator (njit), the one home of ROS2 in the sims
+    :data:`ROS2_GAMMA`; :func:`ros2_matrix` (build and factor ``W``) and
+    :func:`ros2_step` (one step, its error ratio) -- the two-stage, second-order,
     L-stable Rosenbrock-W method ROS2 of Verwer et al. (1999) with a finite-difference
-    Jacobian and an embedded first-order error estimate.
+    Jacobian and an embedded first-order error estimate; :func:`ros2_integrate`, a plain
+    fixed-step loop over them. The device (:mod:`sims.device_solver`), the rig
+    (:mod:`sims.rig_solver`) and the two-cylinder model call these two functions, each
+    with its model wrapped as ``rhs(y, args, out)`` and its own per-step work (friction
+    memory, end stops, segment lookup, state floors, recording) around them. Both are
+    compiled with ``inline="always"``: numba inlines them into the caller, so the call
+    to ``rhs`` is resolved statically and the caller stays cacheable (a function passed
+    as an argument to a non-inlined call is a dynamic global to numba's cache).
 
-The problem solved by :func:`ros2_integrate` is the initial value problem
+The problem solved is the initial value problem
 
 .. math::
 
@@ -56,6 +64,8 @@ __all__ = [
     "lu_factor",
     "lu_solve",
     "ros2_integrate",
+    "ros2_matrix",
+    "ros2_step",
 ]
 
 #: ROS2 stage parameter gamma = 1 + 1/sqrt(2) (L-stable choice, Verwer et al. 1999).
@@ -116,6 +126,96 @@ def lu_solve(lu: np.ndarray, piv: np.ndarray, b: np.ndarray) -> None:
         b[r] = s / lu[r, r]
 
 
+@njit(cache=True, inline="always")
+def ros2_matrix(rhs, args, y, f0, dt, atol, w, piv, work):  # pragma: no cover - compiled
+    """Build the ROS2 iteration matrix ``W = I - gamma dt J`` at ``y`` and LU-factor it.
+
+    ``J`` is the forward-difference Jacobian of ``rhs`` at ``y`` (``f0 = rhs(y)`` given),
+    step ``1e-7 max(|y_j|, 1e3 atol_j, 1e-12)`` in state ``j``; its t column (state 0) is
+    left zero (see the module docstring).
+
+    Parameters
+    ----------
+    rhs : njit function ``rhs(y, args, out)`` writing dy/dt into ``out``, ``out[0] = 1``
+    args : anything ``rhs`` takes (a tuple of arrays and floats), passed through
+    y, f0 : the state (``y[0]`` time) and ``rhs`` there
+    dt : step [s]
+    atol : per-state absolute tolerance, sets the difference steps
+    w : (n, n) output, the LU factors of ``W``; piv : (n,) int64 output, the pivots
+    work : (4, n) scratch (rows 2 and 3 are overwritten)
+
+    Returns
+    -------
+    ok : False when ``W`` is singular (a zero pivot).
+    """
+    n = y.shape[0]
+    ytmp = work[2]
+    f1 = work[3]
+    for i in range(n):
+        w[i, 0] = 0.0  # t column: forcing may be piecewise (see the module docstring)
+    w[0, 0] = 1.0
+    for j in range(1, n):
+        delta = 1e-7 * max(abs(y[j]), atol[j] * 1e3, 1e-12)
+        ytmp[:] = y
+        ytmp[j] += delta
+        rhs(ytmp, args, f1)
+        for i in range(n):
+            w[i, j] = -ROS2_GAMMA * dt * (f1[i] - f0[i]) / delta
+        w[j, j] += 1.0
+    return lu_factor(w, piv)
+
+
+@njit(cache=True, inline="always")
+def ros2_step(rhs, args, y, f0, dt, atol, rtol, w, piv, work):  # pragma: no cover - compiled
+    """Advance ``y`` in place by one ROS2 step of ``dt``; return the error ratio.
+
+    Solves ``W k1 = f(y)``, ``W k2 = f(y + dt k1) - 2 k1`` with the factors of
+    :func:`ros2_matrix` (possibly from an earlier step: a W-method keeps its order for
+    any ``W``) and sets ``y <- y + 3/2 dt k1 + 1/2 dt k2``.
+
+    Parameters
+    ----------
+    rhs, args : as for :func:`ros2_matrix`
+    y : (n,) state, ``y[0]`` time, updated in place; f0 : ``rhs`` at the incoming ``y``
+    dt : step [s]
+    atol, rtol : per-state absolute and scalar relative tolerance of the error estimate
+    w, piv : the factors from :func:`ros2_matrix`
+    work : (4, n) scratch; on return rows 0 and 1 hold ``k1`` and ``k2``
+
+    Returns
+    -------
+    err : weighted RMS norm of the embedded error estimate ``dt (k1 + k2) / 2``,
+        ``sqrt(mean((err_i / (atol_i + rtol |y_new_i|))**2))`` (below 1: within the
+        tolerances; not finite when the state went non-finite)
+    worst : the state index with the largest weighted error
+    """
+    n = y.shape[0]
+    k1 = work[0]
+    k2 = work[1]
+    ytmp = work[2]
+    f1 = work[3]
+    k1[:] = f0
+    lu_solve(w, piv, k1)
+    for i in range(n):
+        ytmp[i] = y[i] + dt * k1[i]
+    rhs(ytmp, args, f1)
+    for i in range(n):
+        k2[i] = f1[i] - 2.0 * k1[i]
+    lu_solve(w, piv, k2)
+    acc = 0.0
+    worst = 0
+    worst_e = 0.0
+    for i in range(n):
+        y_new = y[i] + 1.5 * dt * k1[i] + 0.5 * dt * k2[i]
+        e = 0.5 * dt * (k1[i] + k2[i]) / (atol[i] + rtol * abs(y_new))
+        acc += e * e
+        if abs(e) > worst_e:
+            worst_e = abs(e)
+            worst = i
+        y[i] = y_new
+    return math.sqrt(acc / n), worst
+
+
 @njit
 def ros2_integrate(rhs, y0, params, dt, n_steps, record_every, atol, rtol):
     """Integrate ``dy/dt = rhs(y, params, out)`` with ROS2 at a fixed step.
@@ -125,7 +225,7 @@ def ros2_integrate(rhs, y0, params, dt, n_steps, record_every, atol, rtol):
     rhs : njit function ``rhs(y, params, out)`` writing dy/dt into ``out``; ``y[0]`` is
         time and ``out[0]`` must be 1.
     y0 : initial state, ``y0[0]`` the start time [s]
-    params : float64 parameter array passed through to ``rhs``
+    params : parameters passed through to ``rhs`` (an array or a tuple)
     dt : step [s]
     n_steps : number of steps
     record_every : keep every ``record_every``-th state (the first is ``y0``)
@@ -139,7 +239,8 @@ def ros2_integrate(rhs, y0, params, dt, n_steps, record_every, atol, rtol):
     ok : False when the state went non-finite or W was singular; ``states`` then ends
         with the last finite record and the rest is NaN.
 
-    The Jacobian is refreshed by forward differences every step (these models are small).
+    The Jacobian is refreshed by forward differences every step (these models are small):
+    :func:`ros2_matrix` then :func:`ros2_step`.
     """
     n = y0.shape[0]
     n_rec = n_steps // record_every + 1
@@ -147,43 +248,15 @@ def ros2_integrate(rhs, y0, params, dt, n_steps, record_every, atol, rtol):
     y = y0.copy()
     states[0] = y
     f0 = np.empty(n)
-    f1 = np.empty(n)
-    k1 = np.empty(n)
-    k2 = np.empty(n)
-    ytmp = np.empty(n)
+    work = np.empty((4, n))
     w = np.empty((n, n))
     piv = np.empty(n, dtype=np.int64)
     err_max = 0.0
     for step in range(n_steps):
         rhs(y, params, f0)
-        for i in range(n):
-            w[i, 0] = 0.0  # t column: forcing may be piecewise (see the module docstring)
-        w[0, 0] = 1.0
-        for j in range(1, n):
-            delta = 1e-7 * max(abs(y[j]), atol[j] * 1e3, 1e-12)
-            ytmp[:] = y
-            ytmp[j] += delta
-            rhs(ytmp, params, f1)
-            for i in range(n):
-                w[i, j] = -ROS2_GAMMA * dt * (f1[i] - f0[i]) / delta
-            w[j, j] += 1.0
-        if not lu_factor(w, piv):
+        if not ros2_matrix(rhs, params, y, f0, dt, atol, w, piv, work):
             return states, err_max, False
-        k1[:] = f0
-        lu_solve(w, piv, k1)
-        for i in range(n):
-            ytmp[i] = y[i] + dt * k1[i]
-        rhs(ytmp, params, f1)
-        for i in range(n):
-            k2[i] = f1[i] - 2.0 * k1[i]
-        lu_solve(w, piv, k2)
-        acc = 0.0
-        for i in range(n):
-            y_new = y[i] + 1.5 * dt * k1[i] + 0.5 * dt * k2[i]
-            e = 0.5 * dt * (k1[i] + k2[i]) / (atol[i] + rtol * abs(y_new))
-            acc += e * e
-            y[i] = y_new
-        err = math.sqrt(acc / n)
+        err, _ = ros2_step(rhs, params, y, f0, dt, atol, rtol, w, piv, work)
         if not math.isfinite(err):
             return states, err_max, False
         err_max = max(err_max, err)

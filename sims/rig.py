@@ -30,12 +30,14 @@ outlet whose opening y lags its static characteristic by a first-order time cons
 ``Q = Q_rated y``, ``tau dy/dt = (p_port - p_set)/dp_override - y``. Branch lines are
 resistive: ``p_chamber - p_port = R_lam Q + R_loc Q|Q|`` (eq 6/12 laminar, eq 13 local).
 
-Integrator: linearly implicit (Rosenbrock-Euler / W-method) fixed step with a
-finite-difference Jacobian every step, L-stable: a bulk modulus of 1.5 GPa on a
-0.2 L dead volume (hydraulic stiffness ~5e8 N/m) and a bristle stiffness of 2.5e7 N/m
-stay stable at any step; accuracy of transients is first order in dt, steady states
-are exact. Compiled with numba: ~0.27 M steps/s on one core, ~70x real time at the
-default 0.25 ms step.
+Integrator: ROS2 (two-stage, second-order, L-stable Rosenbrock-W, Verwer et al. 1999;
+:func:`sims.hydraulics.ros2_step`) at a fixed step with a finite-difference Jacobian
+every step: a bulk modulus of 1.5 GPa on a 0.2 L dead volume (hydraulic stiffness
+~5e8 N/m) and a bristle stiffness of 2.5e7 N/m stay stable at any step; transients are
+second order in dt (a step is split where a program segment starts), steady states
+exact. Until issue 17 this was a first-order Rosenbrock-Euler step, whose numerical
+damping hid the stick-slip limit cycle of the rod at 2 MPa and 8 mm/s. Compiled with
+numba: ~0.33 M steps/s on one core, ~80x real time at the default 0.25 ms step.
 
 Code: this module is the public face; the parts live in :mod:`sims.rig_design`
 (:class:`RigDesign`, :class:`RigProgram`, :class:`RigRecording`), :mod:`sims.rig_model`

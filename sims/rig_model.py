@@ -2,7 +2,7 @@
 
 State ``y = (x, v, z, p_A, p_B, p_L, y_A, y_B)``: rod position and velocity, LuGre
 bristle deflection, rodless, rod-side and loading-cylinder pressures, the two overflow
-valves' openings. :func:`_rhs` is dy/dt for one program segment's port modes and
+valves' openings. :func:`rhs` is dy/dt for one program segment's port modes and
 settings; :mod:`sims.rig_solver` integrates it.
 """
 
@@ -21,8 +21,8 @@ PORT_RELIEF = 1  # outlet through the branch to an overflow / back-pressure valv
 PORT_TANK = 2  # open to tank (p = 0 gauge)
 PORT_PRESSURE = 3  # pressure-regulated supply through the branch (setting = its pressure)
 
-_N = 8  # state: x, v, z, pA, pB, pL, yA, yB
-_P_FLOOR = -0.09e6  # gauge pressure floor (vacuum): cavitation is not modelled
+N_STATE = 8  # state: x, v, z, pA, pB, pL, yA, yB
+P_FLOOR = -0.09e6  # gauge pressure floor (vacuum): cavitation is not modelled
 
 
 @njit(cache=True)
@@ -34,7 +34,7 @@ def _line_flow(dp, r_lam, r_loc):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _rhs(y, out, c, law, seg):  # pragma: no cover - compiled
+def rhs(y, out, c, law, seg):  # pragma: no cover - compiled
     """dy/dt into ``out``; returns the seal friction [N].
 
     Longer than 80 lines on purpose: the compiled right-hand side the integrator calls

@@ -1,7 +1,11 @@
 """The rig's integrator and :func:`simulate_rig` (public through :mod:`sims.rig`).
 
-A linearly implicit (Rosenbrock-Euler / W-method) fixed step with a finite-difference
-Jacobian every step, compiled with numba, around :func:`sims.rig_model._rhs`.
+ROS2 (the shared :func:`sims.hydraulics.ros2_matrix` / :func:`~sims.hydraulics.ros2_step`:
+two-stage, second-order, L-stable Rosenbrock-W) at a fixed step with a finite-difference
+Jacobian every step, compiled with numba, around :func:`sims.rig_model.rhs` on the state
+extended by time and the servo reference; a step is split at a segment start inside it,
+and the state floors (vacuum, closed valves) are applied after each step. Until issue 17
+this was a first-order linearly implicit (Rosenbrock-)Euler step.
 """
 
 from __future__ import annotations
@@ -14,106 +18,121 @@ from numba import njit
 
 from physics.friction_law import law_array
 from schemas.hoist import FrictionLaw
-from sims.hydraulics import lu_factor, lu_solve
+from sims.hydraulics import ros2_matrix, ros2_step
 from sims.rig_design import RigDesign, RigProgram, RigRecording
-from sims.rig_model import _N, _P_FLOOR, PORT_PRESSURE, _rhs
+from sims.rig_model import N_STATE, P_FLOOR, PORT_PRESSURE, rhs
+
+#: Absolute tolerances of the extended state (t, x, v, z, p_A, p_B, p_L, y_A, y_B, x_ref)
+#: [s, m, m/s, m, Pa, Pa, Pa, -, -, m]: they set the finite-difference steps,
+#: 1e-7 max(|y|, 1e3 atol) (the first-order step's scales before issue 17), and weigh
+#: the error estimate reported as ``meta["error_ratio_max"]`` (with rtol 1e-6).
+_ATOL = np.array([1e-9, 1e-9, 1e-9, 1e-12, 1e-3, 1e-3, 1e-3, 1e-9, 1e-9, 1e-9])
+_RTOL = 1e-6
+_NY = N_STATE + 2  # the extended state: time, the model state, the servo reference x_ref
+_XREF = N_STATE + 1
 
 
 @njit(cache=True)
-def _integrate(  # pragma: no cover - compiled
-    y0,
-    c,
-    law,
-    t_start,
-    v_set,
-    mode_a,
-    mode_b,
-    set_a,
-    set_b,
-    q_pump,
-    coupled,
-    ramp_s,
-    dt,
-    n_steps,
-    every,
-    out,
-):
-    """Integrate ``n_steps`` fixed steps from ``y0`` through the program's segments,
-    writing every ``every``-th state to ``out``; returns the rows written.
+def _step_rhs(y, args, out):  # pragma: no cover - compiled
+    """:func:`sims.rig_model.rhs` on the extended state, as the ROS2 ``rhs``.
 
-    Longer than 80 lines on purpose: the compiled step loop (segment and ramp lookup,
-    the finite-difference Jacobian, the linearly implicit solve and the state floors)
-    stays one numba function so the scratch arrays live across steps without calls.
+    ``args = (c, law, prog, ctrl, seg, aux)``: ``prog`` the program rows (t_start, v_set,
+    mode_a, mode_b, set_a, set_b, q_pump), ``ctrl`` = (segment k, previous segment's
+    velocity setpoint, coupled, ramp_s); ``seg`` scratch for the model's segment values;
+    ``aux`` receives the seal friction and the commanded velocity. The velocity ramp and
+    the pump start ramp are evaluated at the state's time ``y[0]``; the servo reference
+    ``x_ref`` integrates the commanded velocity, and follows the rod while a port is
+    pressure-regulated.
     """
-    y = y0.copy()
-    f0 = np.empty(_N)
-    f1 = np.empty(_N)
-    yp = np.empty(_N)
-    jac = np.empty((_N, _N))
-    piv = np.empty(_N, dtype=np.int64)
+    c, law, prog, ctrl, seg, aux = args
+    k = int(ctrl[0])
+    t = y[0]
+    ramp_s = ctrl[3]
+    frac = min(max((t - prog[k, 0]) / ramp_s, 0.0), 1.0) if ramp_s > 0 else 1.0
+    v_cmd = ctrl[1] + (prog[k, 1] - ctrl[1]) * frac
+    pressure = prog[k, 2] == PORT_PRESSURE or prog[k, 3] == PORT_PRESSURE
+    for i in range(4):
+        seg[i] = prog[k, 2 + i]
+    seg[4] = prog[k, 6] * min(t / 0.02, 1.0)
+    seg[5] = v_cmd
+    seg[6] = y[1] if pressure else y[_XREF]
+    seg[7] = ctrl[2]
+    aux[0] = rhs(y[1:_XREF], out[1:_XREF], c, law, seg)
+    aux[1] = v_cmd
+    out[0] = 1.0
+    out[_XREF] = y[2] if pressure else v_cmd
+
+
+@njit(cache=True)
+def _to_segment(t, prog, ctrl, dt):  # pragma: no cover - compiled
+    """Advance ``ctrl``'s segment to the one running at ``t`` (a start within 1e-6 dt
+    after ``t`` counts as reached)."""
+    k = int(ctrl[0])
+    while k + 1 < prog.shape[0] and t >= prog[k + 1, 0] - 1e-6 * dt:
+        ctrl[1] = prog[k, 1]
+        k += 1
+    ctrl[0] = k
+
+
+@njit(cache=True)
+def _floors(y, prog, k):  # pragma: no cover - compiled
+    """State floors after a step: vacuum gauge pressure, closed valves; x_ref on the rod
+    while a port is pressure-regulated."""
+    y[4] = max(y[4], P_FLOOR)
+    y[5] = max(y[5], P_FLOOR)
+    y[7] = max(y[7], 0.0)
+    y[8] = max(y[8], 0.0)
+    if prog[k, 2] == PORT_PRESSURE or prog[k, 3] == PORT_PRESSURE:
+        y[_XREF] = y[1]
+
+
+@njit(cache=True)
+def _integrate(y0, c, law, prog, ctrl, dt, n_steps, every, atol, out):  # pragma: no cover
+    """Integrate ``n_steps`` ROS2 steps from the model state ``y0`` through the program
+    rows ``prog``, writing every ``every``-th state to ``out``; returns the rows written
+    and the largest error ratio.
+
+    A step that a segment start falls inside is split there, so each (sub)step sees one
+    segment's port modes and settings (second order across the switches too).
+    """
+    y = np.empty(_NY)
+    y[1:_XREF] = y0
+    y[_XREF] = y0[0]
     seg = np.empty(8)
-    scale = np.array([1e-6, 1e-6, 1e-9, 1.0, 1.0, 1.0, 1e-6, 1e-6])
-    k = 0
-    n_seg = t_start.shape[0]
-    x_ref = y0[0]
-    v_prev_seg = 0.0
+    aux = np.zeros(2)
+    args = (c, law, prog, ctrl, seg, aux)
+    f0 = np.empty(_NY)
+    work = np.empty((4, _NY))
+    w = np.empty((_NY, _NY))
+    piv = np.empty(_NY, dtype=np.int64)
+    err_max = 0.0
     row = 0
     for n in range(n_steps):
-        t = n * dt
-        while k + 1 < n_seg and t >= t_start[k + 1]:
-            v_prev_seg = v_set[k]
-            k += 1
-        frac = min((t - t_start[k]) / ramp_s, 1.0) if ramp_s > 0 else 1.0
-        v_cmd = v_prev_seg + (v_set[k] - v_prev_seg) * frac
-        seg[0] = mode_a[k]
-        seg[1] = mode_b[k]
-        seg[2] = set_a[k]
-        seg[3] = set_b[k]
-        pump_ramp = min(t / 0.02, 1.0)
-        seg[4] = q_pump[k] * pump_ramp
-        seg[5] = v_cmd
-        seg[6] = x_ref
-        seg[7] = coupled
-        friction = _rhs(y, f0, c, law, seg)
+        y[0] = n * dt
+        t_end = (n + 1) * dt
+        _to_segment(y[0], prog, ctrl, dt)
+        _step_rhs(y, args, f0)
         if n % every == 0 and row < out.shape[0]:
-            out[row, 0] = t
-            for i in range(_N):
-                out[row, 1 + i] = y[i]
-            out[row, 9] = f0[1]
-            out[row, 10] = friction
-            out[row, 11] = k
-            out[row, 12] = v_cmd
+            out[row, 0] = y[0]
+            out[row, 1 : 1 + N_STATE] = y[1:_XREF]
+            out[row, 9], out[row, 10], out[row, 11], out[row, 12] = f0[2], aux[0], ctrl[0], aux[1]
             row += 1
-        # finite-difference Jacobian
-        for j in range(_N):
-            h = 1e-7 * max(abs(y[j]), scale[j]) + 1e-12
-            for i in range(_N):
-                yp[i] = y[i]
-            yp[j] = y[j] + h
-            _rhs(yp, f1, c, law, seg)
-            for i in range(_N):
-                jac[i, j] = -dt * (f1[i] - f0[i]) / h
-            jac[j, j] += 1.0
-        for i in range(_N):
-            f1[i] = dt * f0[i]
-        if not lu_factor(jac, piv):  # (I - dt J) dy = dt f, LU with partial pivoting
-            raise ZeroDivisionError("rig step: singular Jacobian")
-        lu_solve(jac, piv, f1)
-        for i in range(_N):
-            y[i] += f1[i]
-        if y[3] < _P_FLOOR:
-            y[3] = _P_FLOOR
-        if y[4] < _P_FLOOR:
-            y[4] = _P_FLOOR
-        if y[6] < 0.0:
-            y[6] = 0.0
-        if y[7] < 0.0:
-            y[7] = 0.0
-        if mode_a[k] == PORT_PRESSURE or mode_b[k] == PORT_PRESSURE:
-            x_ref = y[0]
-        else:
-            x_ref += v_cmd * dt
-    return row
+        while True:
+            k = int(ctrl[0])
+            t_next = prog[k + 1, 0] if k + 1 < prog.shape[0] else t_end
+            split = t_next < t_end - 1e-6 * dt
+            h = (t_next if split else t_end) - y[0]
+            if not ros2_matrix(_step_rhs, args, y, f0, h, atol, w, piv, work):
+                raise ZeroDivisionError("rig step: singular iteration matrix")
+            err, _ = ros2_step(_step_rhs, args, y, f0, h, atol, _RTOL, w, piv, work)
+            err_max = max(err_max, err)
+            _floors(y, prog, k)
+            if not split:
+                break
+            y[0] = t_next
+            _to_segment(t_next, prog, ctrl, dt)
+            _step_rhs(y, args, f0)
+    return row, err_max
 
 
 def simulate_rig(
@@ -138,8 +157,8 @@ def simulate_rig(
         Seal friction (LuGre, eq 15, parameters linear in the rodless pressure, eq 17);
         ``None`` for an ideal seal.
     dt_s : float
-        Fixed step of the linearly implicit integrator [s]; must divide the output
-        period. Stable at any step (L-stable); 2.5e-4 s resolves the 1 kHz output.
+        Fixed step of the ROS2 integrator [s]; must divide the output period. Stable at
+        any step (L-stable), second order; 2.5e-4 s resolves the 1 kHz output.
     output_rate_hz : float
         Rate of the returned frame [Hz].
     oil_temp_c : (float, float)
@@ -154,7 +173,7 @@ def simulate_rig(
     has_friction = friction_law is not None
     c = _constants(design, program, friction_law)
     law = law_array(friction_law) if has_friction else np.ones(8)
-    y0 = np.zeros(_N)
+    y0 = np.zeros(N_STATE)
     y0[0] = program.x0_m
     y0[3] = program.p0_a_pa
     y0[4] = program.p0_b_pa
@@ -162,24 +181,19 @@ def simulate_rig(
         y0[2] = 0.0
     out = np.empty((n_steps // every + 1, 13))
     start = time.perf_counter()
-    rows = _integrate(
-        y0,
-        c,
-        law,
-        program.t_start_s.astype(np.float64),
-        program.velocity_setpoint_m_s.astype(np.float64),
-        program.mode_a.astype(np.int64),
-        program.mode_b.astype(np.int64),
-        program.setting_a_pa.astype(np.float64),
-        program.setting_b_pa.astype(np.float64),
-        program.pump_flow_m3_s.astype(np.float64),
-        1.0 if program.loading_coupled else 0.0,
-        program.ramp_s,
-        dt_s,
-        n_steps,
-        every,
-        out,
-    )
+    prog = np.column_stack(
+        [
+            program.t_start_s,
+            program.velocity_setpoint_m_s,
+            program.mode_a,
+            program.mode_b,
+            program.setting_a_pa,
+            program.setting_b_pa,
+            program.pump_flow_m3_s,
+        ]
+    ).astype(np.float64)
+    ctrl = np.array([0.0, 0.0, 1.0 if program.loading_coupled else 0.0, program.ramp_s])
+    rows, err_max = _integrate(y0, c, law, prog, ctrl, dt_s, n_steps, every, _ATOL, out)
     wall = time.perf_counter() - start
     out = out[:rows]
     if not np.all(np.isfinite(out)):
@@ -192,14 +206,18 @@ def simulate_rig(
         friction_law=friction_law,
         dt_s=dt_s,
         wall_s=wall,
-        meta={"steps": n_steps, "sim_s_per_wall_s": program.total_s / max(wall, 1e-9)},
+        meta={
+            "steps": n_steps,
+            "sim_s_per_wall_s": program.total_s / max(wall, 1e-9),
+            "error_ratio_max": float(err_max),
+        },
     )
 
 
 def _constants(
     design: RigDesign, program: RigProgram, friction_law: FrictionLaw | None
 ) -> np.ndarray:
-    """The constant vector ``c`` that :func:`sims.rig_model._rhs` reads."""
+    """The constant vector ``c`` that :func:`sims.rig_model.rhs` reads."""
     r_lam, r_loc = design.line_coefficients()
     has_friction = friction_law is not None
     sigma0 = friction_law.bristle_stiffness_n_m if has_friction else 1.0

@@ -94,12 +94,17 @@ def test_recovers_true_parameters_at_each_pressure(rig):
         .agg(pl.col(*LINE_NAMES, "p_rodless_mean_pa").mean())
         .sort("pressure_setpoint_pa")
     )
+    at_level = friction_parameters(table["p_rodless_pa"].to_numpy(), recording.friction_law)
     for k, name in enumerate(LINE_NAMES):
         got = table[name].to_numpy()
-        np.testing.assert_allclose(got, truth[name].to_numpy(), rtol=0.05, err_msg=name)
-        # and the law evaluated at the measured level pressure
-        at_level = friction_parameters(table["p_rodless_pa"].to_numpy(), recording.friction_law)
-        np.testing.assert_allclose(got, at_level[k], rtol=0.05, err_msg=name)
+        # 2 MPa viscous coefficient: 8 %. The rod stick-slips at 8 mm/s there (a limit
+        # cycle of the model, see tests/sims/test_rig.py), so that window's mean friction
+        # lies below the Stribeck curve: measured +6.4 % with ROS2 at the default step,
+        # +6.7 % with the first-order integrator of before issue 17 at a 1/4 step (it
+        # passed at the default step only by damping the cycle numerically).
+        rtol = np.array([0.08 if name == "viscous_n_s_m" else 0.05, 0.05, 0.05])
+        for want in (truth[name].to_numpy(), at_level[k]):  # and at the measured pressure
+            assert (np.abs(got / want - 1.0) <= rtol).all(), (name, got, want)
     assert table["converged"].all()
     sigma_cols = ["coulomb_sigma_n", "static_sigma_n", "stribeck_speed_sigma_m_s"]
     assert (table.select(sigma_cols).to_numpy() > 0).all()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -84,7 +85,14 @@ def test_lower_flow_shrinks_loss_and_overshoot(loss_runs):
 
 
 def test_friction_test_reaches_true_stribeck_curve(recording):
-    """In every settled window, p_A A_b - p_B A_a - m a equals eq 16 at the true law."""
+    """In every settled window, p_A A_b - p_B A_a - m a equals eq 16 at the true law.
+
+    Except where the rod stick-slips: at 2 MPa and 8 mm/s (just above the Stribeck
+    speed, little viscous damping) the servo-driven rod on its oil spring runs into a
+    limit cycle (velocity std ~25 % of the setpoint, mean friction 3 % below the curve;
+    at 6 mm/s it starts with a finer step). ROS2 resolves it; the first-order step used
+    before issue 17 damped it numerically (it shows the same cycle at a 1/8 step).
+    """
     d = recording.design
     f = recording.frame
     t = f["time_s"].to_numpy()
@@ -96,16 +104,23 @@ def test_friction_test_reaches_true_stribeck_curve(recording):
     prog = recording.program
     law = recording.friction_law
     checked = 0
+    slipping = []
     for k in np.flatnonzero(prog.velocity_setpoint_m_s != 0):
         t0 = prog.t_start_s[k] + prog.ramp_s + prog.settle_s[k]
         window = (t >= t0) & (t < prog.t_start_s[k] + prog.duration_s[k])
         p = prog.pressure_setpoint_pa[k]
         v = prog.velocity_setpoint_m_s[k]
         expected = float(stribeck_friction(v, *friction_parameters(p, law)))
+        if f["v_m_s"].to_numpy()[window].std() > 0.1 * abs(v):
+            # stick-slip: the rod does not settle (a limit cycle of the model, damped
+            # away numerically by the first-order integrator before issue 17)
+            slipping.append((p, abs(v)))
+            continue
         assert force[window].mean() == pytest.approx(expected, rel=0.01), (p, v)
         assert f["v_m_s"].to_numpy()[window].mean() == pytest.approx(v, rel=0.01)
         checked += 1
-    assert checked == 54
+    assert checked == 52
+    assert sorted(slipping) == [(2e6, 8e-3)] * 2  # rod out and in
     speeds = np.abs(prog.velocity_setpoint_m_s)
     vs = friction_parameters(np.array([2e6, 12e6]), law)[2]
     assert ((speeds > 0.5 * vs.min()) & (speeds < 2 * vs.max())).sum() >= 5 * 6
@@ -120,6 +135,40 @@ def test_stiff_integrator_does_not_blow_up():
     assert frame.height > 40_000
     assert np.isfinite(frame.to_numpy()[:, 1:].astype(float)).all()
     assert frame["p_rod_pa"].max() < 25e6
+
+
+def test_integrator_is_second_order():
+    """ROS2 (issue 17; before, a first-order Rosenbrock-Euler step): halving the step
+    shrinks the error about 4x.
+
+    The first three rows of the small friction test (a dwell, two sweep speeds, 2.1 s;
+    the segment starts fall between steps) at 0.25 and 0.125 ms against a 1/32 step
+    reference, RMS over the 1 kHz record. Measured: observed orders 2.0 (x, pressures),
+    1.6 (velocity), 1.7 (friction, at the breakaway); at the default step RMS errors
+    3.2e-9 m, 6.4e-7 m/s, 9.9 Pa, 0.06 N, against 5.5e-7 m, 1.1e-5 m/s, 920 Pa, 1.4 N
+    of the first-order step it replaced.
+    """
+    law = default_friction_law()
+    full = small_friction_test_program(friction_law=law)
+    arrays = {
+        f.name: getattr(full, f.name)[:3]
+        for f in dataclasses.fields(full)
+        if isinstance(getattr(full, f.name), np.ndarray)
+    }
+    prog = dataclasses.replace(full, **arrays)
+    cols = ["x_m", "v_m_s", "p_rodless_pa", "p_rod_pa", "friction_n"]
+
+    def run(dt_s):
+        return simulate_rig(prog, friction_law=law, dt_s=dt_s).frame.select(cols).to_numpy()
+
+    ref = run(2.5e-4 / 32)
+    err = {dt: np.sqrt(np.mean((run(dt) - ref) ** 2, axis=0)) for dt in (2.5e-4, 1.25e-4)}
+    order = np.log2(err[2.5e-4] / err[1.25e-4])
+    assert (order > 1.5).all(), dict(zip(cols, order, strict=True))
+    assert order[[0, 2, 3]].min() > 1.9  # x and the pressures: 2
+    # and small at the default step: 10 Pa, 3 nm
+    assert err[2.5e-4][2] < 20.0
+    assert err[2.5e-4][0] < 1e-8
 
 
 def _read(path):

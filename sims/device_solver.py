@@ -21,8 +21,11 @@ from sims.device_model import friction_step, oil_volume, rhs
 from sims.device_params import BETA, CYL0, PER, XMAX, Setup, T
 from sims.device_results import SimulationResult, device_state, result_frame
 from sims.effects import ResolvedEffects
-from sims.hydraulics import ros2_matrix, ros2_step
+from sims.hydraulics import ros2_matrix, ros2_step_refreshing
 from sims.trips import TripProfile
+
+#: A step with an older Jacobian is retaken with a fresh one above this error ratio.
+_REFRESH_ERROR_RATIO = 10.0
 
 
 @njit(cache=True, inline="always")
@@ -68,7 +71,11 @@ def _run(
 
     The step is :func:`sims.hydraulics.ros2_matrix` (every ``jacobian_every`` steps) and
     :func:`sims.hydraulics.ros2_step`; the friction memory is frozen over a step and
-    committed with the accepted increment (:func:`_commit`).
+    committed with the accepted increment (:func:`_commit`). A step taken with an older
+    Jacobian whose error ratio exceeds :data:`_REFRESH_ERROR_RATIO` is taken again with
+    a fresh one (:func:`sims.hydraulics.ros2_step_refreshing`; on a validation day's
+    throttled valve, ``K = 2e4`` at 2 ms, a 10-step-old one let the replayed pressures
+    fall into cavitation).
     """
     par, groove, ms_k, ms_w = model[0], model[1], model[6], model[7]
     n_state = y0.shape[0]
@@ -89,20 +96,28 @@ def _run(
     w = np.empty((n_state, n_state))
     piv = np.empty(n_state, dtype=np.int64)
     err_max = 0.0
-    err_at = np.zeros(2, dtype=np.int64)  # step and state index of the largest error
+    # step and state index of the largest error, steps retaken with a fresh Jacobian
+    err_at = np.zeros(3, dtype=np.int64)
     stop_hits = np.zeros(n, dtype=np.int64)
     _model_rhs(y, args, f0)  # record the initial state
     rec_y[0], rec_aux[0], rec_vol[0] = y, aux, oil_volume(y, par, n)
     code = 0  # 0 ok, 1 singular, 2 non-finite, 3 cavitation
     fail_step = -1
+    y_before = np.empty(n_state)
     for step in range(n_steps):
         _model_rhs(y, args, f0)
-        if step % jacobian_every == 0 and not ros2_matrix(
-            _model_rhs, args, y, f0, dt, atol, w, piv, work
-        ):
+        fresh = step % jacobian_every == 0
+        if fresh and not ros2_matrix(_model_rhs, args, y, f0, dt, atol, w, piv, work):
             code = 1
             break
-        err, worst = ros2_step(_model_rhs, args, y, f0, dt, atol, rtol, w, piv, work)
+        err, worst, retaken = ros2_step_refreshing(
+            _model_rhs, args, y, f0, dt, atol, rtol, w, piv, work, y_before, fresh,
+            _REFRESH_ERROR_RATIO,
+        )  # fmt: skip
+        if retaken < 0:
+            code = 1
+            break
+        err_at[2] += retaken
         if not math.isfinite(err):
             code = 2
             break
@@ -293,6 +308,7 @@ def _report(
         "steps": n_steps if code == 0 else fail_step + 1,
         "error_ratio_max": float(err_max),
         "error_ratio_max_at": err_where,
+        "steps_retaken_fresh_jacobian": int(err_at[2]),
         "wall_s": wall_s,
     }
     return message, solver

@@ -66,6 +66,7 @@ __all__ = [
     "ros2_integrate",
     "ros2_matrix",
     "ros2_step",
+    "ros2_step_refreshing",
 ]
 
 #: ROS2 stage parameter gamma = 1 + 1/sqrt(2) (L-stable choice, Verwer et al. 1999).
@@ -214,6 +215,40 @@ def ros2_step(rhs, args, y, f0, dt, atol, rtol, w, piv, work):  # pragma: no cov
             worst = i
         y[i] = y_new
     return math.sqrt(acc / n), worst
+
+
+@njit(cache=True, inline="always")
+def ros2_step_refreshing(
+    rhs, args, y, f0, dt, atol, rtol, w, piv, work, y_before, fresh, refresh_ratio
+):  # pragma: no cover - compiled
+    """:func:`ros2_step`, taken again with a fresh ``W`` when the old one fails it.
+
+    A W-method keeps its order with any ``W`` but not its stability: when the Jacobian
+    has grown since ``W`` was built (a throttled valve's resistance ``2 K |q|`` rises
+    with the flow), a step with the old ``W`` can amplify the error instead of damping
+    it. A step taken with an older ``W`` (``fresh`` False) whose error ratio exceeds
+    ``refresh_ratio`` (or is not finite) is taken again from the same state with ``W``
+    rebuilt there (:func:`ros2_matrix`).
+
+    Parameters as for :func:`ros2_step`, and ``y_before`` an (n,) scratch array,
+    ``fresh`` whether ``W`` was built at this ``y``, ``refresh_ratio`` the error ratio
+    above which an older ``W`` is rebuilt.
+
+    Returns
+    -------
+    err, worst : as :func:`ros2_step`, of the step kept
+    retaken : 0 taken once, 1 taken again with a fresh ``W``, -1 the rebuilt ``W`` is
+        singular (``y`` is then the incoming state)
+    """
+    y_before[:] = y
+    err, worst = ros2_step(rhs, args, y, f0, dt, atol, rtol, w, piv, work)
+    if fresh or err <= refresh_ratio:
+        return err, worst, 0
+    y[:] = y_before
+    if not ros2_matrix(rhs, args, y, f0, dt, atol, w, piv, work):
+        return err, worst, -1
+    err, worst = ros2_step(rhs, args, y, f0, dt, atol, rtol, w, piv, work)
+    return err, worst, 1
 
 
 @njit

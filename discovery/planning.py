@@ -46,8 +46,14 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from discovery.record import _RAMP_MARGIN_S, _Record, _record, _trailing_ramp, _trip_timing
-from discovery.rope_damping import _with_rope_damping
+from discovery.record import (
+    RAMP_MARGIN_S,
+    RecordArrays,
+    read_record,
+    trailing_window_end,
+    trip_timing,
+)
+from discovery.rope_damping import with_rope_damping
 from discovery.segmentation import (
     _CUT_WORDS,
     _chosen_trips,
@@ -67,7 +73,7 @@ __all__ = ["plan_replay"]
 
 
 def _driving_motion(
-    rec: _Record,
+    rec: RecordArrays,
     tm: dict[str, Any],
     profile: TripProfile,
     win_end: float,
@@ -105,7 +111,7 @@ def _driving_motion(
 
 
 def _planned_trip(
-    rec: _Record,
+    rec: RecordArrays,
     hoist: HoistDescription,
     k: int,
     tm: dict[str, Any],
@@ -125,7 +131,7 @@ def _planned_trip(
     d0, d1 = tm["d0"], tm["d1"]
     # scored samples: after the ramp, within the window, every 1/score_rate s
     idx, meas, valid = _scored_samples(
-        t, rec.p, rec.sigma, r1 + _RAMP_MARGIN_S, win_end, score_rate_hz, tm["cut"]
+        t, rec.p, rec.sigma, r1 + RAMP_MARGIN_S, win_end, score_rate_hz, tm["cut"]
     )
     ridx = _ramp_samples(t, r0, r1, t_m, score_rate_hz)
     profile = replay_profile(
@@ -174,7 +180,7 @@ def _planned_trip(
 
 
 def _planned_trips(
-    rec: _Record,
+    rec: RecordArrays,
     hoist: HoistDescription,
     timing: list[dict[str, Any]],
     chosen: list[list[int]],
@@ -253,7 +259,7 @@ def plan_replay(
     """
     if motion not in ("winder", "logged"):
         raise ValueError(f"motion: 'winder' or 'logged', not {motion!r}")
-    rec = _record(samples, hoist)
+    rec = read_record(samples, hoist)
     motions, t = rec.motions, rec.t
     # the ropes' damping as the record shows it (a hoist that rings and one that does not
     # both replay to the noise; the description's ratio is a default a mine cannot know)
@@ -268,8 +274,8 @@ def plan_replay(
             f"{len(chosen)} blocks of consecutive trips"
         )
     # pass 1, every motion: start / stop times, top speed, loading ramp before it
-    timing = [_trip_timing(rec, hoist, k) for k in range(len(motions))]
-    trailing_ramp = _trailing_ramp(rec, timing, notes)
+    timing = [trip_timing(rec, hoist, k) for k in range(len(motions))]
+    trailing_ramp = trailing_window_end(rec, timing, notes)
     # pass 2, the analysed trips: windows, scored samples
     trips, skipped = _planned_trips(
         rec, hoist, timing, chosen, trailing_ramp, (settle_s, score_rate_hz), motion, notes
@@ -286,4 +292,4 @@ def plan_replay(
         skipped=tuple(skipped),
         rope_bounce=zeta_how,
     )
-    return _with_rope_damping(plan, zeta)
+    return with_rope_damping(plan, zeta)

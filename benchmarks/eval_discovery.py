@@ -370,46 +370,17 @@ def _mark(ok: bool | None) -> str:
 def trials_summary(outcomes: list[TrialOutcome], noise_pa: float) -> None:
     """Confusion matrix, accuracy by size, false alarms, variance removed, replay gap on
     ``none`` records, seconds per record, and the issue-14 targets."""
-    confusion: dict[str, Counter] = defaultdict(Counter)
-    for o in outcomes:
-        confusion[o.hidden][o.answer] += 1
-    answered = {o.answer for o in outcomes} - set(OTHER_ANSWERS)
-    columns = [e for e in EFFECTS if e in answered] + sorted(answered - set(EFFECTS))
-    columns += list(OTHER_ANSWERS)
-    rows = [e for e in EFFECTS if e in confusion] + sorted(set(confusion) - {*EFFECTS, "none"})
-    rows += ["none"] if "none" in confusion else []
-    print("\nconfusion matrix (rows hidden effect, columns answered effect)")
-    print(f"{'':24s}" + "".join(f"{c[:8]:>9s}" for c in columns))
-    for t in rows:
-        print(f"{t:24s}" + "".join(f"{confusion[t][c]:9d}" for c in columns))
-
+    _print_confusion(outcomes)
     crashes = [o for o in outcomes if o.answer == "crash"]
     hidden = [o for o in outcomes if o.hidden != "none"]
     nones = [o for o in outcomes if o.hidden == "none"]
-    print("\ntop-1 accuracy by effect size (rms_over_noise)")
-    band_ok: list[bool | None] = []
-    for label, lo, hi, target in SIZE_BANDS:
-        band = [o for o in hidden if lo <= o.rms_over_noise < hi]
-        hits = sum(o.answer == o.hidden for o in band)
-        goal = f" (target >= {target:.0%})" if target is not None else " (no target)"
-        print(f"  {label:12s} {_share(hits, len(band))}{goal}")
-        if target is not None:
-            band_ok.append(hits >= target * len(band) if band else None)
+    band_ok = _print_accuracy(hidden)
     alarms = [o for o in nones if o.answer not in ("none", "crash")]
     print(
         f"false alarms on none records: {_share(len(alarms), len(nones))}"
         + (" (" + ", ".join(f"{o.name}: {o.answer}" for o in alarms) + ")" if alarms else "")
     )
-    right = [o.variance_removed for o in hidden if o.answer == o.hidden]
-    right = [v for v in right if v is not None]
-    all_vr = [(o.variance_removed or 0.0) if o.answer == o.hidden else 0.0 for o in hidden]
-    med_right = float(np.median(right)) if right else float("nan")
-    print(
-        "median share of the hidden effect's variance removed by the added effect, "
-        "(gap_before^2 - gap_after^2) / effect_rms^2: "
-        + (f"{med_right:.0%} over the {len(right)} trials named right" if right else "no hits")
-        + (f"; {np.median(all_vr):.0%} over all {len(all_vr)} (miss = 0)" if all_vr else "")
-    )
+    med_right = _print_variance_removed(hidden)
     none_gaps = [float(o.report["gap_before_pa"]) for o in nones if o.answer != "crash"]
     if none_gaps:
         print(
@@ -421,15 +392,7 @@ def trials_summary(outcomes: list[TrialOutcome], noise_pa: float) -> None:
             )
             + f" (noise {noise_pa / 1e3:.1f} kPa, {max(none_gaps) / noise_pa:.1f}x at worst)"
         )
-    seconds = [o.discover_s for o in outcomes if np.isfinite(o.discover_s)]
-    cpu = [o.discover_cpu_s for o in outcomes if np.isfinite(o.discover_cpu_s)]
-    ingest = [o.ingest_s for o in outcomes if np.isfinite(o.ingest_s)]
-    if seconds:
-        print(
-            f"seconds per record (discover, wall): median {np.median(seconds):.1f}, max "
-            f"{max(seconds):.1f}; CPU median {np.median(cpu):.1f}, max {max(cpu):.1f}; "
-            f"ingest median {np.median(ingest):.1f} s"
-        )
+    seconds = _print_seconds(outcomes)
     if crashes:
         print(f"crashes: {len(crashes)}/{len(outcomes)}")
         for o in crashes:
@@ -450,7 +413,11 @@ def trials_summary(outcomes: list[TrialOutcome], noise_pa: float) -> None:
         ),
         (
             f"median variance removed >= {TARGET_VARIANCE_REMOVED:.0%}",
-            med_right >= TARGET_VARIANCE_REMOVED if right else (False if hidden else None),
+            (
+                med_right >= TARGET_VARIANCE_REMOVED
+                if med_right is not None
+                else (False if hidden else None)
+            ),
         ),
         (
             f"<= {TARGET_SECONDS:.0f} s per 2 h record",
@@ -459,6 +426,66 @@ def trials_summary(outcomes: list[TrialOutcome], noise_pa: float) -> None:
     ]
     for label, ok in targets:
         print(f"  {label}: {_mark(ok)}")
+
+
+def _print_confusion(outcomes: list[TrialOutcome]) -> None:
+    """The confusion matrix: rows the hidden effect, columns the answered one."""
+    confusion: dict[str, Counter] = defaultdict(Counter)
+    for o in outcomes:
+        confusion[o.hidden][o.answer] += 1
+    answered = {o.answer for o in outcomes} - set(OTHER_ANSWERS)
+    columns = [e for e in EFFECTS if e in answered] + sorted(answered - set(EFFECTS))
+    columns += list(OTHER_ANSWERS)
+    rows = [e for e in EFFECTS if e in confusion] + sorted(set(confusion) - {*EFFECTS, "none"})
+    rows += ["none"] if "none" in confusion else []
+    print("\nconfusion matrix (rows hidden effect, columns answered effect)")
+    print(f"{'':24s}" + "".join(f"{c[:8]:>9s}" for c in columns))
+    for t in rows:
+        print(f"{t:24s}" + "".join(f"{confusion[t][c]:9d}" for c in columns))
+
+
+def _print_accuracy(hidden: list[TrialOutcome]) -> list[bool | None]:
+    """Top-1 accuracy per effect-size band; whether each band with a target meets it."""
+    print("\ntop-1 accuracy by effect size (rms_over_noise)")
+    band_ok: list[bool | None] = []
+    for label, lo, hi, target in SIZE_BANDS:
+        band = [o for o in hidden if lo <= o.rms_over_noise < hi]
+        hits = sum(o.answer == o.hidden for o in band)
+        goal = f" (target >= {target:.0%})" if target is not None else " (no target)"
+        print(f"  {label:12s} {_share(hits, len(band))}{goal}")
+        if target is not None:
+            band_ok.append(hits >= target * len(band) if band else None)
+    return band_ok
+
+
+def _print_variance_removed(hidden: list[TrialOutcome]) -> float | None:
+    """The median share of the hidden effect's variance the added effect removed over
+    the trials named right (None without any)."""
+    right = [o.variance_removed for o in hidden if o.answer == o.hidden]
+    right = [v for v in right if v is not None]
+    all_vr = [(o.variance_removed or 0.0) if o.answer == o.hidden else 0.0 for o in hidden]
+    med_right = float(np.median(right)) if right else float("nan")
+    print(
+        "median share of the hidden effect's variance removed by the added effect, "
+        "(gap_before^2 - gap_after^2) / effect_rms^2: "
+        + (f"{med_right:.0%} over the {len(right)} trials named right" if right else "no hits")
+        + (f"; {np.median(all_vr):.0%} over all {len(all_vr)} (miss = 0)" if all_vr else "")
+    )
+    return med_right if right else None
+
+
+def _print_seconds(outcomes: list[TrialOutcome]) -> list[float]:
+    """Seconds per record (discover wall and CPU, ingest); the finite wall times."""
+    seconds = [o.discover_s for o in outcomes if np.isfinite(o.discover_s)]
+    cpu = [o.discover_cpu_s for o in outcomes if np.isfinite(o.discover_cpu_s)]
+    ingest = [o.ingest_s for o in outcomes if np.isfinite(o.ingest_s)]
+    if seconds:
+        print(
+            f"seconds per record (discover, wall): median {np.median(seconds):.1f}, max "
+            f"{max(seconds):.1f}; CPU median {np.median(cpu):.1f}, max {max(cpu):.1f}; "
+            f"ingest median {np.median(ingest):.1f} s"
+        )
+    return seconds
 
 
 def evaluate_trials(trials: Path, only: list[str] | None, work: Path) -> None:

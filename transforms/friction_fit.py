@@ -1,12 +1,9 @@
 """Fitting seal-friction parameters: Stribeck curves per pressure, lines in pressure.
 
-Straight lines (paper eq 17 form), in :mod:`transforms.friction_lines` and re-exported
-    :func:`fit_line` -- (weighted) least squares value = a + b p with standard errors.
-    :func:`fit_table1` -- OLS lines for every column of paper Table 1.
-    :func:`compare_with_eq17` -- OLS lines against the paper's printed eq 17: whether
-    eq 17 is the OLS value to its printed digits, and whether it is statistically
-    consistent with the data (per coefficient and as a whole line).
-    :data:`EQ17` -- eq 17 as printed (strings: the printed precision matters).
+Straight lines (paper eq 17 form)
+    :mod:`transforms.friction_lines`, re-exported here: :func:`fit_line` (weighted least
+    squares a + b p), :func:`fit_table1` and :func:`compare_with_eq17` (paper Table 1
+    against the printed eq 17, :data:`EQ17`).
 
 Stribeck curve at one pressure (paper eq 16/18)
     :func:`fit_stribeck` -- Fc, Fs, vs, Kv by ``scipy.optimize.least_squares`` with

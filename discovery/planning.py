@@ -41,6 +41,7 @@ covered, simulation cost bounded: ~0.2 s per 2-minute trip at ``dt_s = 2 ms``).
 
 from __future__ import annotations
 
+import datetime as dt
 from typing import Any
 
 import numpy as np
@@ -142,15 +143,17 @@ def _planned_trip(
     motion = _span(t, t_m, t_e)
     fit = float(np.sqrt(np.nanmean((profile.depth(t[motion] - r0) - depth[motion]) ** 2)))
     if fit > 0.5:
-        notes.append(f"trip {k}: encoder depth departs {fit:.2f} m RMS from the winder profile")
+        notes.append(
+            f"trip {tm['trip_id']}: encoder depth departs {fit:.2f} m RMS from the winder profile"
+        )
     if tm["cut"]:
         notes.append(
-            f"trip {k}: {_CUT_WORDS[tm['cut']]}: completed by the winder profile "
+            f"trip {tm['trip_id']}: {_CUT_WORDS[tm['cut']]}: completed by the winder profile "
             f"fitted to the logged depth ({d0:.1f} -> {d1:.1f} m)"
         )
     oil = _median_in(t, rec.temp, max(r0, float(t[0])), win_end)
     return ReplayTrip(
-        trip_id=k,
+        trip_id=tm["trip_id"],
         block=block[0],
         first_in_block=block[1],
         window_start_s=r0,
@@ -201,7 +204,7 @@ def _planned_trips(
         for k in block:
             tm = timing[k]
             if tm["skip"]:
-                skipped.append(SkippedTrip(k, tm["t_m"], tm["skip"]))
+                skipped.append(SkippedTrip(tm["trip_id"], tm["t_m"], tm["skip"]))
                 restart = True
                 continue
             next_ramp = timing[k + 1]["r0"] if k + 1 < len(motions) else trailing_ramp
@@ -215,6 +218,33 @@ def _planned_trips(
     return trips, skipped
 
 
+def _first_trip_id(rec: RecordArrays, number_from: dt.datetime | None) -> int:
+    """The trip rule's id of the first trip with a sample at or after ``number_from``
+    (the record's first trip without it; one past the last when none is)."""
+    if number_from is None:
+        return 0
+    since = (number_from - rec.t_ref).total_seconds()
+    spans = [(i, b) for (_, b), i in zip(rec.motions, rec.trip_ids, strict=True)]
+    spans += [(i, b) for _, b, i in rec.short_trips]
+    later = [i for i, b in spans if rec.t[b] >= since]
+    return min(later) if later else max(i for i, _ in spans) + 1
+
+
+def _short_trips(rec: RecordArrays, chosen: list[list[int]], first_id: int) -> list[SkippedTrip]:
+    """The trips too short to replay (a jog), skipped with the reason: all of them when
+    every trip is analysed, else those inside an analysed block."""
+    t, motions = rec.t, rec.motions
+    whole = sum(map(len, chosen)) == len(motions)
+    spans = [(t[motions[block[0]][0]], t[motions[block[-1]][1]]) for block in chosen]
+    return [
+        SkippedTrip(
+            trip_id - first_id, float(t[a]), f"moves {t[b] - t[a]:.1f} s: too short to replay"
+        )
+        for a, b, trip_id in rec.short_trips
+        if whole or any(lo <= t[a] <= hi for lo, hi in spans)
+    ]
+
+
 def plan_replay(
     samples: pl.DataFrame,
     hoist: HoistDescription,
@@ -225,6 +255,7 @@ def plan_replay(
     settle_s: float = 30.0,
     dt_s: float = 2e-3,
     motion: str = "winder",
+    number_from: dt.datetime | None = None,
 ) -> ReplayPlan:
     """Segment ``samples`` of one hoist into trips and prepare their simulation.
 
@@ -243,6 +274,12 @@ def plan_replay(
         Standstill simulated and scored after each stop [s].
     dt_s : float
         Integrator step of the replays [s].
+    number_from : datetime, optional
+        Number the trips as a run from this time numbers them: the first trip with a
+        sample at or after it is trip 0 (earlier ones get negative ids); default the
+        record's first sample. Either way the trips and their order are the pipeline's
+        trip rule's (:mod:`physics.trip_rule`), so a check of the period
+        ``[number_from, ...)`` names each trip as that period's ``trip_summary`` does.
     motion : {"winder", "logged"}
         What drives each trip's simulation: the hoist description's winder profile
         (constant acceleration, the top speed logged when it is 5 % off the described
@@ -275,11 +312,15 @@ def plan_replay(
         )
     # pass 1, every motion: start / stop times, top speed, loading ramp before it
     timing = [trip_timing(rec, hoist, k) for k in range(len(motions))]
+    first_id = _first_trip_id(rec, number_from)
+    for tm, trip_id in zip(timing, rec.trip_ids, strict=True):
+        tm["trip_id"] = trip_id - first_id
     trailing_ramp = trailing_window_end(rec, timing, notes)
     # pass 2, the analysed trips: windows, scored samples
     trips, skipped = _planned_trips(
         rec, hoist, timing, chosen, trailing_ramp, (settle_s, score_rate_hz), motion, notes
     )
+    skipped += _short_trips(rec, chosen, first_id)
     plan = ReplayPlan(
         hoist=hoist,
         t_ref=rec.t_ref,

@@ -25,9 +25,9 @@ from discovery.segmentation import (
     _loading_ramp,
     _median_in,
     _motion_times,
-    _motions,
     _plateau_median,
     _span,
+    _trips,
     estimate_noise_sigma,
 )
 from schemas.hoist import HoistDescription
@@ -40,10 +40,12 @@ RAMP_MARGIN_S = 2.0  # scored samples start this long after a loading ramp ends
 @dataclass(frozen=True)
 class RecordArrays:
     """One hoist's record as arrays (times ``t`` in s after ``t_ref``) and what is read
-    off it: the motions (index ranges), the quiet standstill, the pressure noise, the
-    common-mode pressure (``pc``; gaps interpolated: ``pc_filled``; its 1-s mean:
-    ``pcs``), the depths at the standstills between the motions and the pressure
-    change that counts as a loading ramp."""
+    off it: the motions (index ranges of the trips replayed; ``trip_ids`` their ids by
+    the trip rule; ``short_trips``: first, last and id of the trips too short to
+    replay), the quiet standstill, the pressure noise, the common-mode pressure
+    (``pc``; gaps interpolated: ``pc_filled``; its 1-s mean: ``pcs``), the depths at the
+    standstills between the motions and the pressure change that counts as a loading
+    ramp."""
 
     t_ref: dt.datetime
     t: np.ndarray
@@ -59,6 +61,8 @@ class RecordArrays:
     pcs: np.ndarray
     stops: list[float]
     ramp_threshold: float
+    trip_ids: list[int]
+    short_trips: list[tuple[int, int, int]]
 
     @property
     def end_t(self) -> float:
@@ -85,7 +89,7 @@ def read_record(samples: pl.DataFrame, hoist: HoistDescription) -> RecordArrays:
         if "oil_temp_c" in frame.columns
         else np.full(t.size, np.nan)
     )
-    motions = _motions(t, speed)
+    motions, trip_ids, short_trips = _trips(t, speed, depth, hoist)
     if not motions:
         raise ValueError("samples: no trip (no encoder motion of at least 3 s) in the record")
     # noise from quiet standstill: >= 25 s after a stop (the rope bounce has decayed)
@@ -107,7 +111,7 @@ def read_record(samples: pl.DataFrame, hoist: HoistDescription) -> RecordArrays:
     stops = _stop_depths(t, depth, motions, hoist.shaft.depth_m)
     return RecordArrays(
         t_ref, t, p, depth, speed, temp, motions, quiet, sigma, pc, pc_filled, pcs, stops,
-        ramp_threshold,
+        ramp_threshold, trip_ids, short_trips,
     )  # fmt: skip
 
 

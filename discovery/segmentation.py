@@ -3,7 +3,8 @@
 The pieces :func:`discovery.planning.plan_replay` segments a landed sample frame with
 (times in s after the record's first sample):
 
-* the motions (encoder speed above 5 cm/s, gaps under 2 s merged, at least 3 s long);
+* the trips, by the pipeline's trip rule (:mod:`physics.trip_rule`), those moving at
+  least 3 s replayed;
 * medians of a signal over a time span, or over the first / last seconds logged in it;
 * the loading ramp in a standstill: a change of the common-mode pressure located from
   its 10-90 % crossing and refined by a plateau-ramp-plateau least-squares fit;
@@ -21,12 +22,13 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage, optimize
 
+from physics.trip_rule import segment_ids, trip_label_codes
 from schemas.hoist import HoistDescription, Winder
 from sims.trips import TripProfile, fit_cut_trip
 
 __all__ = ["estimate_noise_sigma"]
 
-_MOVING_M_S = 0.05  # encoder speed above which the conveyance moves
+#: A trip moving less than this is numbered but not replayed [s].
 _MIN_MOTION_S = 3.0
 
 
@@ -58,23 +60,35 @@ def estimate_noise_sigma(pressures: np.ndarray, moving: np.ndarray) -> float:
     return float(mad / 0.6745 / np.sqrt(6.0))
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """(first, last) index of each run of True."""
-    m = np.concatenate([[False], mask, [False]]).astype(np.int8)
-    d = np.diff(m)
-    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1) - 1, strict=True))
+def _trips(
+    t: np.ndarray, speed: np.ndarray, depth: np.ndarray, hoist: HoistDescription
+) -> tuple[list[tuple[int, int]], list[int], list[tuple[int, int, int]]]:
+    """The record's trips by the pipeline's trip rule (:mod:`physics.trip_rule`: a trip
+    is a run of samples with ``|v| >= 0.02 m/s``, a short logger gap bridged), numbered
+    as the compensation numbers them from the record's first sample.
 
-
-def _motions(t: np.ndarray, speed: np.ndarray) -> list[tuple[int, int]]:
-    moving = np.abs(ndimage.median_filter(np.nan_to_num(speed), size=5)) >= _MOVING_M_S
-    runs = _runs(moving)
-    merged: list[tuple[int, int]] = []
-    for a, b in runs:
-        if merged and t[a] - t[merged[-1][1]] < 2.0:
-            merged[-1] = (merged[-1][0], b)
+    Returns the (first, last) sample of each trip moving at least :data:`_MIN_MOTION_S`
+    (the ones replayed), their trip ids, and (first, last, trip id) of the shorter ones
+    (a jog: numbered, not replayed).
+    """
+    segment = segment_ids(t)
+    speed0 = np.nan_to_num(speed)
+    _, _, trip = trip_label_codes(t, speed0, np.zeros(t.size), segment, depth, hoist)
+    moving = np.flatnonzero(trip >= 0)
+    if moving.size == 0:
+        return [], [], []
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(trip[moving])) + 1])
+    ends = np.concatenate([starts[1:] - 1, [moving.size - 1]])
+    motions: list[tuple[int, int]] = []
+    ids: list[int] = []
+    short: list[tuple[int, int, int]] = []
+    for first, last in zip(moving[starts], moving[ends], strict=True):
+        if t[last] - t[first] >= _MIN_MOTION_S:
+            motions.append((int(first), int(last)))
+            ids.append(int(trip[first]))
         else:
-            merged.append((a, b))
-    return [(a, b) for a, b in merged if t[b] - t[a] >= _MIN_MOTION_S]
+            short.append((int(first), int(last), int(trip[first])))
+    return motions, ids, short
 
 
 def _median_in(t: np.ndarray, values: np.ndarray, lo: float, hi: float) -> float:

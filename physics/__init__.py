@@ -59,8 +59,10 @@ Leuven / Generalized Maxwell-Slip (not printed), presliding hysteresis
 ASTM D341 (not printed), viscosity from temperature
     :func:`physics.oil.kinematic_viscosity` -- tests/physics/test_oil.py
 the trip rule (not printed), phase, direction, trip and shaft position
-    :func:`physics.trip_rule.trip_label_codes`, :func:`~physics.trip_rule.position_codes`
-    -- tests/physics/test_trip_rule.py, tests/transforms/test_kinematics.py
+    :func:`physics.trip_rule.trip_label_codes`, :func:`~physics.trip_rule.position_codes`,
+    the logger's gap segments :func:`~physics.trip_rule.segment_ids`
+    -- tests/physics/test_trip_rule.py, tests/transforms/test_kinematics.py,
+    tests/pipelines/test_sanity.py (the check names the run's trips)
 
 Errata are corrected where the equation is written: eq 10 and eq 11
 (:mod:`physics.two_cylinder`), the name of eq 15 (:mod:`physics.lugre`), eq 17's

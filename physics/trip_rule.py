@@ -1,13 +1,17 @@
 """The trip rule: phase, direction and trip of each sample, and the shaft position.
 
 Not an equation of the paper; the rule every step that speaks of trips uses (the
-compensation's labels, the reconciliation's stints, :func:`transforms.kinematics.with_trip_phases`).
+compensation's labels, the reconciliation's stints, :func:`transforms.kinematics.with_trip_phases`,
+the replay's trips in :mod:`discovery.segmentation`, so ``sanity_checks.trip_id`` names
+the trip ``trip_summary.trip_id`` does).
 
 Functions
     :func:`trip_label_codes` -- phase, direction and trip id per sample as integer codes,
     resumable block by block (numba kernel).
     :func:`position_codes` -- the nearest named shaft position within the window.
     :func:`trip_label_columns` -- both as the string / Int64 columns of the tables.
+    :func:`segment_ids` -- the logger's gap-free segments (a new segment after each gap),
+    the rule's ``segment`` input.
 
 Rules, first match wins (|v| the speed, a_t = a sgn(v) the tangential acceleration):
 
@@ -45,6 +49,7 @@ __all__ = [
     "named_codes",
     "ordered_positions",
     "position_codes",
+    "segment_ids",
     "trip_label_codes",
     "trip_label_columns",
 ]
@@ -270,3 +275,45 @@ def trip_label_columns(
         "direction": named_codes("direction", direction, list(DIRECTIONS)),
         "position": named_codes("position", position, names),
     }
+
+
+def segment_ids(
+    t_s: np.ndarray, *, gap_factor: float = 3.0, nominal_dt_s: float | None = None
+) -> np.ndarray:
+    """Number contiguous segments: a new segment starts after each gap.
+
+    Parameters
+    ----------
+    t_s : numpy.ndarray
+        Sample times [s], increasing.
+    gap_factor : float
+        A spacing above ``gap_factor * nominal_dt_s`` is a gap [-].
+    nominal_dt_s : float, optional
+        Nominal sample spacing [s]; default the median spacing.
+
+    Returns
+    -------
+    numpy.ndarray
+        int64 segment id per sample, starting at 0.
+
+    >>> segment_ids(np.array([0.0, 0.01, 0.02, 0.5, 0.51])).tolist()
+    [0, 0, 0, 1, 1]
+    """
+    t = np.ascontiguousarray(t_s, dtype=np.float64)
+    if t.size < 2:
+        return np.zeros(t.size, dtype=np.int64)
+    nominal = float(np.median(np.diff(t))) if nominal_dt_s is None else nominal_dt_s
+    out = np.empty(t.size, dtype=np.int64)
+    _segment_kernel(t, gap_factor * nominal, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _segment_kernel(t, max_step, out):  # pragma: no cover - numba
+    """out[i] = number of steps t[j] - t[j-1] > max_step for j <= i (cumsum of the breaks)."""
+    count = 0
+    out[0] = 0
+    for i in range(1, t.shape[0]):
+        if t[i] - t[i - 1] > max_step:
+            count += 1
+        out[i] = count

@@ -30,7 +30,7 @@ from pipelines.ingest import ingest_paths
 from pipelines.lake import scan_lake
 from pipelines.ledger import partition_states
 from pipelines.partitions import Partition, PartitionOutcome, failed_outcome, new_outcome
-from pipelines.run_period import NoSamplesError, run_period
+from pipelines.run_period import LEAD_IN, NoSamplesError, run_period
 from pipelines.steps import StepOutcome, land_steps, one_line
 from schemas.hoist import HoistDescription, load_hoist
 from warehouse.landing import insert_frame
@@ -225,11 +225,13 @@ def check_sanity(
     max_trips: int = SANITY_TRIPS,
     hoist: HoistDescription | None = None,
     threshold: float = 1.5,
+    motion: str = "winder",
 ) -> SanityOutcome:
     """Simulation sanity check of a run's period (:func:`pipelines.sanity.sanity_check`):
     the trips that start moving in ``[start, end)``, landed under ``run_id`` with the
     step's outcome (:func:`land_sanity_checks`). A trip passes when its RMS gap is at
-    most ``threshold`` x the pressure noise.
+    most ``threshold`` x the pressure noise; ``motion`` drives the replays
+    (:func:`discovery.planning.plan_replay`).
 
     An optional step: an error of the check itself (data it cannot replay, a numerical
     failure, a lake file it cannot read) is landed as a ``failed`` outcome with the
@@ -260,6 +262,8 @@ def check_sanity(
             report_from=start,
             report_to=end,
             threshold=threshold,
+            number_from=start - LEAD_IN,  # the run's trips count from its lead-in
+            motion=motion,
         )
         step = sanity_step(frame)
     except Exception as exc:

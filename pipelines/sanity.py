@@ -15,9 +15,11 @@ and should trigger discovery (:mod:`pipelines.discover`) for the hoist.
 
 Input: landed field samples (``FIELD_SAMPLES``) or rope tensions (``ROPE_TENSIONS``):
 both carry ``time_utc``, ``p{i}_pa``, ``depth_m``, ``speed_m_s`` and ``oil_temp_c``.
-``trip_id`` in the result is the trip's index in the record (the replay's
-segmentation; the same rule as :func:`transforms.kinematics.with_trip_phases`: a trip is
-a continuous motion).
+``trip_id`` in the result is the trip's number by the pipeline's trip rule
+(:mod:`physics.trip_rule`, the compensation's labels), counted from ``number_from`` as
+the run counts from the first sample it reads (its period start less its lead-in), so
+it names the trip ``trip_summary.trip_id`` names (:func:`pipelines.hoist_day.check_sanity`
+passes the run's).
 
 Every reported trip gets a ``status``: ``passed``, ``failed`` (the gap exceeds the limit)
 or ``skipped`` with the reason in ``message`` (``passed`` is then null): a trip the
@@ -94,6 +96,8 @@ def sanity_check(
     settle_s: float = 45.0,
     report_from: dt.datetime | None = None,
     report_to: dt.datetime | None = None,
+    number_from: dt.datetime | None = None,
+    motion: str = "winder",
 ) -> pl.DataFrame:
     """Per-trip RMS gap between measured and simulated sensor pressure (``SANITY_CHECKS``).
 
@@ -125,6 +129,13 @@ def sanity_check(
         Only trips that start moving in ``[report_from, report_to)`` are reported; the
         others are replayed (state warm-up, or a trip of the next period read so that
         the last one of this period ends in the record) but not reported.
+    number_from : datetime, optional
+        Trips are numbered by the trip rule from the first one with a sample at or after
+        this time (:func:`discovery.planning.plan_replay`): give the start of the run's
+        record (its period start less its lead-in) and ``trip_id`` names the run's
+        ``trip_summary`` rows. Default the first sample of ``samples``.
+    motion : {"winder", "logged"}
+        What drives each replayed trip (:func:`discovery.planning.plan_replay`).
 
     Returns
     -------
@@ -138,7 +149,15 @@ def sanity_check(
     if frame.height == 0:
         return empty
     try:
-        plan = plan_replay(frame, hoist, max_trips=max_trips, dt_s=dt_s, settle_s=settle_s)
+        plan = plan_replay(
+            frame,
+            hoist,
+            max_trips=max_trips,
+            dt_s=dt_s,
+            settle_s=settle_s,
+            number_from=number_from,
+            motion=motion,
+        )
     except ValueError as exc:
         if "no trip" in str(exc):
             return empty

@@ -66,8 +66,8 @@ class ReplayTrip:
 
 @dataclass(frozen=True)
 class SkippedTrip:
-    """A trip of the record that :func:`discovery.planning.plan_replay` could not prepare,
-    and why."""
+    """A trip of the record that :func:`discovery.planning.plan_replay` could not prepare
+    or does not replay, and why."""
 
     trip_id: int
     motion_start_s: float
@@ -78,8 +78,10 @@ class SkippedTrip:
 class ReplayPlan:
     """Trips of one hoist's record prepared for replay (:func:`discovery.planning.plan_replay`).
 
-    ``skipped`` lists the analysed trips that could not be prepared, with the reason;
-    the trip after a skipped one starts its block's history again. ``rope_bounce`` says
+    ``skipped`` lists the analysed trips that could not be prepared, with the reason
+    (the trip after such a one starts its block's history again), and the trips among
+    them too short to replay (a jog of under 3 s). ``trip_id`` is the trip rule's
+    (:mod:`physics.trip_rule`), so it names the trip as ``trip_summary`` does. ``rope_bounce`` says
     what the record shows of the ropes' ringing (:func:`sims.logged_motion.
     rope_damping_from_record`); ``hoist`` carries the damping ratio the replay uses
     (the description's unless the record contradicts it, also said in ``notes``).

@@ -1,7 +1,8 @@
 """Gap-aware signal conditioning for logged pressures, displacements and speeds.
 
 Segments
-    :func:`segment_ids` -- contiguous-segment numbers from sample times (numpy).
+    :func:`segment_ids` -- contiguous-segment numbers from sample times (numpy; its home
+    is :mod:`physics.trip_rule`, whose trips a logger gap may end).
     :func:`with_segment_id` -- the same as a column of a LazyFrame/DataFrame.
     :func:`seconds_expr` -- a time column as float seconds (expression).
 
@@ -30,6 +31,8 @@ import numpy as np
 import polars as pl
 from numba import njit
 
+from physics.trip_rule import segment_ids
+
 __all__ = [
     "MAD_TO_SIGMA",
     "box_smooth",
@@ -48,48 +51,6 @@ Frame = TypeVar("Frame", pl.DataFrame, pl.LazyFrame)
 
 #: Scale from median absolute deviation to standard deviation for Gaussian noise.
 MAD_TO_SIGMA = 1.4826
-
-
-def segment_ids(
-    t_s: np.ndarray, *, gap_factor: float = 3.0, nominal_dt_s: float | None = None
-) -> np.ndarray:
-    """Number contiguous segments: a new segment starts after each gap.
-
-    Parameters
-    ----------
-    t_s : numpy.ndarray
-        Sample times [s], increasing.
-    gap_factor : float
-        A spacing above ``gap_factor * nominal_dt_s`` is a gap [-].
-    nominal_dt_s : float, optional
-        Nominal sample spacing [s]; default the median spacing.
-
-    Returns
-    -------
-    numpy.ndarray
-        int64 segment id per sample, starting at 0.
-
-    >>> segment_ids(np.array([0.0, 0.01, 0.02, 0.5, 0.51])).tolist()
-    [0, 0, 0, 1, 1]
-    """
-    t = np.ascontiguousarray(t_s, dtype=np.float64)
-    if t.size < 2:
-        return np.zeros(t.size, dtype=np.int64)
-    nominal = float(np.median(np.diff(t))) if nominal_dt_s is None else nominal_dt_s
-    out = np.empty(t.size, dtype=np.int64)
-    _segment_kernel(t, gap_factor * nominal, out)
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _segment_kernel(t, max_step, out):  # pragma: no cover - numba
-    """out[i] = number of steps t[j] - t[j-1] > max_step for j <= i (cumsum of the breaks)."""
-    count = 0
-    out[0] = 0
-    for i in range(1, t.shape[0]):
-        if t[i] - t[i - 1] > max_step:
-            count += 1
-        out[i] = count
 
 
 def seconds_expr(frame_schema: pl.Schema, time_col: str) -> pl.Expr:

@@ -212,16 +212,25 @@ def test_a_trip_across_midnight_and_a_record_ending_mid_trip_are_a_done_night(mi
             "SELECT r.period_start_utc, c.trip_id, c.status, c.message FROM sanity_checks c "
             "JOIN runs r USING (run_id) ORDER BY 1"
         ).fetchall()
+        # each check names its run's trip: the direction it states is that trip's
+        named = con.sql(
+            "SELECT c.message, t.direction FROM sanity_checks c JOIN trip_summary t "
+            "USING (run_id, trip_id) ORDER BY t.time_start_utc"
+        ).fetchall()
         steps = con.sql(
             "SELECT s.step, s.status, s.message FROM run_steps s JOIN runs r USING (run_id) "
             "WHERE s.step = 'sanity_check' ORDER BY r.period_start_utc"
         ).fetchall()
     finally:
         con.close()
+    # each run numbers trips from its lead-in (30 min before its day): the cut trip is
+    # the 3 March run's trip 2 (trip 0 of its record ended before midnight)
     assert [(start.date(), trip, status) for start, trip, status, _ in checks] == [
         (dt.date(2026, 3, 2), 1, "passed"),
         (dt.date(2026, 3, 3), 2, "passed"),
     ]
+    assert [message.split()[0] for message, _ in named] == [d for _, d in named]
+    assert len(named) == 2
     assert "cut by the end of the record" in checks[1][3]
     assert steps == [("sanity_check", "done", "1 of 1 trips passed")] * 2
     # the next night: nothing is new, nothing is recomputed

@@ -12,6 +12,8 @@ from pipelines.sanity import sanity_check, sanity_step
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from schemas.tables import SANITY_CHECKS
 from sims.field_day import generate_field_day
+from transforms.compensation import compensate
+from transforms.reconciliation import reconcile
 
 
 def test_complete_model_passes_and_missing_effect_fails():
@@ -138,4 +140,47 @@ def test_only_trips_starting_in_the_reported_period_are_reported(ten_hz):
         report_from=_seconds(day, 100.0),
         report_to=_seconds(day, 300.0),
     )
-    assert checks["trip_id"].to_list() == [1]
+    assert checks["trip_id"].to_list() == [1]  # numbered from the record's first sample
+    assert checks["status"].to_list() == ["passed"]
+
+
+def _jogged(day, at_s: float) -> pl.DataFrame:
+    """The record with a 1-s encoder jog (0.05 m/s, depth unchanged) at ``at_s``."""
+    t = pl.col("time_utc")
+    jog = t.is_between(_seconds(day, at_s), _seconds(day, at_s + 1.0), closed="left")
+    return day.sensors.with_columns(
+        pl.when(jog).then(0.05).otherwise(pl.col("speed_m_s")).alias("speed_m_s")
+    )
+
+
+def test_trip_ids_name_the_trips_the_periods_trip_summary_names(ten_hz):
+    """The check of a period numbers trips as the run of that period does (the trip
+    rule of the compensation, counted from the run's first sample; here a run without
+    lead-in), a jog too short to replay included: each checked trip's id is the
+    trip_summary row of the same motion (the generator's truth says when it moved)."""
+    hoist, day = ten_hz
+    truth = day.truth.filter(pl.col("trip_id").is_not_null() & (pl.col("phase") != "standstill"))
+    moving = truth.group_by("trip_id").agg(
+        pl.col("time_utc").min().alias("start"), pl.col("time_utc").max().alias("end")
+    )
+    first_end = moving.filter(pl.col("trip_id") == 0)["end"][0]
+    jog_s = (first_end - day.sensors["time_utc"].min()).total_seconds() + 20.0
+    record = _jogged(day, jog_s)
+    start, end = _seconds(day, jog_s - 5.0), _seconds(day, 340.0)
+    checks = sanity_check(
+        record, hoist, run_id="r", settle_s=20.0, report_from=start, report_to=end,
+        number_from=start,
+    )  # fmt: skip
+    period = record.filter(pl.col("time_utc").is_between(start, end, closed="left"))
+    trips = reconcile(compensate(period, hoist), hoist, run_id="r").trip_summary
+    assert trips["trip_id"].to_list() == [0, 1, 2]  # the jog, the day's trips 1 and 2
+    assert checks["trip_id"].to_list() == [0, 1, 2]
+    assert checks["status"].to_list() == ["skipped", "passed", "passed"]
+    assert "too short to replay" in checks["message"][0]
+    for trip_id in (1, 2):
+        row = trips.filter(pl.col("trip_id") == trip_id)
+        true = moving.filter(pl.col("trip_id") == trip_id)  # the day's numbering = run's
+        late = abs((row["time_start_utc"][0] - true["start"][0]).total_seconds())
+        assert late < 0.5
+    jog = trips.filter(pl.col("trip_id") == 0)
+    assert abs((jog["time_start_utc"][0] - _seconds(day, jog_s)).total_seconds()) < 0.2

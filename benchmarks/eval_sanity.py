@@ -1,0 +1,136 @@
+"""Evaluate the simulation sanity check on the validation days (issue 14, "Must show").
+
+Not a unit test: a script. Each day of ``../shared/validation/days/`` (an independent
+simulator of the paper's hoist, described by ``<name>.hoist.toml``; **evaluation data**:
+nothing in ropeload is, or may be, tuned to them, see ``../shared/validation/README.md``)
+goes the way a mine's day goes: the CSV is ingested into a fresh data root
+(:func:`pipelines.ingest.ingest_paths`), the whole record is compensated and landed
+(:func:`pipelines.run_period.run_period`) and the sanity check of that run's period is
+landed beside it (:func:`pipelines.hoist_day.check_sanity`, every trip: ``--max-trips``).
+The days hide no effect: the hoist's model is complete, so a trip should pass
+(RMS(measured - simulated) <= 1.5 x the pressure noise). Target: >= 95 % of trips pass.
+
+Per day it prints the trips checked, passed / failed / skipped, the pass rate, the RMS
+gap over the noise (median, 90th percentile, largest), and whether each checked trip's
+``trip_id`` names the ``trip_summary`` row of the same motion (the direction the check
+states in its message against the run's). ``--motion logged`` drives the replays by the
+encoder's logged speed instead of the winder profile.
+
+    uv run python benchmarks/eval_sanity.py [--days DIR] [--only NAMES] [--motion M]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+
+from pipelines.hoist_day import check_sanity
+from pipelines.ingest import ingest_paths
+from pipelines.run_period import run_period
+from schemas.hoist import load_hoist
+from warehouse.store import DataRoot, open_reader
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from eval_compensation import DEFAULT_DAYS, validation_case
+
+#: Issue 14 target: share of a complete model's trips that pass.
+TARGET_PASS = 0.95
+
+
+def check_day(gz: Path, work: Path, max_trips: int, motion: str) -> dict:
+    """Ingest, run and sanity-check one validation day; the per-trip checks and figures."""
+    case = validation_case(gz, work)
+    data = DataRoot.resolve(work / f"{case.name}_data")
+    hoist = load_hoist(case.hoist_path)
+    report = ingest_paths([case.csv], data=data, hoist_lookup=lambda site, name: hoist)
+    if not report.ok:
+        raise RuntimeError(f"{case.csv.name} refused by ingest: {report}")
+    run = run_period(hoist_path=case.hoist_path, data=data, hoist=hoist, command="eval")
+    started = time.perf_counter()
+    outcome = check_sanity(
+        hoist_path=case.hoist_path,
+        data=data,
+        run_id=run.run_id,
+        start=run.period_start_utc,
+        end=run.period_end_utc,
+        max_trips=max_trips,
+        hoist=hoist,
+        motion=motion,
+    )
+    seconds = time.perf_counter() - started
+    with open_reader(data) as con:
+        joined = con.sql(
+            "SELECT c.trip_id, c.status, c.rms_gap_pa / c.noise_pa AS ratio, c.message, "
+            "t.direction FROM sanity_checks c LEFT JOIN trip_summary t "
+            "ON t.run_id = c.run_id AND t.trip_id = c.trip_id WHERE c.run_id = ? "
+            "ORDER BY c.trip_id",
+            params=[run.run_id],
+        ).pl()
+    return {
+        "name": case.name,
+        "step": outcome.step.line(),
+        "trips_run": run.trip_summary.height,
+        "checks": joined,
+        "seconds": seconds,
+    }
+
+
+def _line(day: dict) -> str:
+    checks: pl.DataFrame = day["checks"]
+    compared = checks.filter(pl.col("status") != "skipped")
+    passed = int((checks["status"] == "passed").sum())
+    ratio = compared["ratio"].to_numpy()
+    said = compared["message"].str.extract(r"^(down|up)\b")
+    named = int((said == compared["direction"]).sum())
+    rate = passed / compared.height if compared.height else float("nan")
+    figures = (
+        f"med {np.median(ratio):4.2f} p90 {np.percentile(ratio, 90):4.2f} max {ratio.max():5.2f}"
+        if ratio.size
+        else "no trip compared"
+    )
+    return (
+        f"{day['name']:14s} trips {day['trips_run']:3d} checked {checks.height:3d}: "
+        f"passed {passed:3d} failed {compared.height - passed:3d} "
+        f"skipped {checks.height - compared.height:2d}  pass {100 * rate:5.1f} % "
+        f"{'met' if rate >= TARGET_PASS else 'NOT met'}  gap/noise {figures}  "
+        f"ids name the run's trip {named}/{compared.height}  {day['seconds']:5.1f} s"
+    )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--days", type=Path, default=DEFAULT_DAYS)
+    ap.add_argument("--only", default=None, metavar="NAMES", help="e.g. mine_day101,mine_day104")
+    ap.add_argument("--max-trips", type=int, default=200)
+    ap.add_argument("--motion", choices=("winder", "logged"), default="winder")
+    args = ap.parse_args()
+    only = {n.strip() for n in args.only.split(",")} if args.only else None
+    days = [
+        gz
+        for gz in sorted(args.days.glob("*.csv.gz"))
+        if only is None or gz.name.removesuffix(".csv.gz") in only
+    ]
+    print(f"sanity check on {len(days)} validation days, replays driven by '{args.motion}'")
+    total = passed = 0
+    with tempfile.TemporaryDirectory(prefix="eval_sanity_") as tmp:
+        for gz in days:
+            day = check_day(gz, Path(tmp), args.max_trips, args.motion)
+            print(_line(day), flush=True)
+            compared = day["checks"].filter(pl.col("status") != "skipped")
+            total += compared.height
+            passed += int((compared["status"] == "passed").sum())
+    if total:
+        print(
+            f"all days: {passed}/{total} trips pass = {100 * passed / total:.1f} % "
+            f"(target >= {100 * TARGET_PASS:.0f} %)"
+        )
+
+
+if __name__ == "__main__":
+    main()

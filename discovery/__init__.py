@@ -4,7 +4,8 @@
 the device simulation (:mod:`sims.replay`), with :mod:`discovery.record`,
 :mod:`discovery.segmentation` and :mod:`discovery.rope_damping`.
 :mod:`discovery.library` -- one candidate term per contract effect, each able to
-switch its effect on in the device simulation and to move its parameters.
+switch its effect on in the device simulation and to move its parameters (the terms in
+:mod:`discovery.effect_terms`).
 :mod:`discovery.selection` -- residual test against the noise, scoring with
 re-tuning, information criterion + trip bootstrap, ambiguity, iteration: the
 :class:`EffectSelector` (pysindy-like ``fit`` / ``coef_`` / ``support_`` /
@@ -13,7 +14,10 @@ re-tuning, information criterion + trip bootstrap, ambiguity, iteration: the
 :mod:`discovery.bootstrap`, :mod:`discovery.refit`, :mod:`discovery.gap`.
 :mod:`discovery.cases` -- synthetic hidden-effect cases for tests and benchmarks.
 
-``discovery`` imports ``sims``; ``sims`` never imports ``discovery``.
+``discovery`` imports ``sims``; ``sims`` never imports ``discovery``. The package's
+interface is what this module exports; a name one module of the package imports from
+another has no leading underscore and is in that module's ``__all__`` (underscore names
+stay inside their module).
 """
 
 from discovery.library import EFFECT_LIBRARY, EffectLibrary, EffectTerm

@@ -13,20 +13,20 @@ from typing import Any
 
 import numpy as np
 
-from discovery.normal_equations import _Normal, _solve
+from discovery.normal_equations import NormalEquations, solve_normal
 from schemas.effects import NO_EFFECT
 
-__all__: list[str] = []
+__all__ = ["bootstrap_shares", "trip_weights"]
 
 
-def _trip_weights(seed: int, m: int, bootstrap: int) -> np.ndarray:
+def trip_weights(seed: int, m: int, bootstrap: int) -> np.ndarray:
     """(bootstrap, m) per-trip weights of the resamples (seeded)."""
     rng = np.random.default_rng(seed)
     return rng.multinomial(m, np.full(m, 1.0 / m), size=bootstrap).astype(float)
 
 
-def _bootstrap_shares(
-    ne0: _Normal,
+def bootstrap_shares(
+    ne0: NormalEquations,
     scores: dict[str, dict[str, Any]],
     weights: np.ndarray,
     trip: np.ndarray,
@@ -43,11 +43,11 @@ def _bootstrap_shares(
     wins = {c: 0 for c in scores}
     wins[NO_EFFECT] = 0
     for w in weights:
-        r0b, _ = _solve(ne0, w)
+        r0b, _ = solve_normal(ne0, w)
         nb = n_eff * float(w @ np.bincount(trip, minlength=m)) / n_entries
         best_b, best_v = NO_EFFECT, 0.0
         for c, sc in scores.items():
-            rb, _ = _solve(sc["ne"], w)
+            rb, _ = solve_normal(sc["ne"], w)
             v = nb * np.log(r0b / rb) - sc["k"] * np.log(max(nb, 2.0))
             if v > best_v:
                 best_b, best_v = c, v

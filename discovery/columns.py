@@ -1,12 +1,12 @@
 """Replays with fixed payloads and the least-squares columns built from them.
 
-:class:`_Engine` replays the planned trips with the base replay's payloads and loading
+:class:`FitEngine` replays the planned trips with the base replay's payloads and loading
 ramps (shifted by what a changed model implies statically), and builds, per effect
-term, its columns (:class:`_Columns`): the finite-difference derivatives ``ds/dphi`` of
+term, its columns (:class:`TermColumns`): the finite-difference derivatives ``ds/dphi`` of
 the simulated pressures in the term's coordinates and the change ``Delta`` of switching
 it on; the sensor terms' columns are analytic. For a term null and strongly nonlinear at
 its default (groove wear) it first finds a non-zero start along the residual's
-differential signature (:meth:`_Engine.start`). :func:`_refit` replays with payloads and
+differential signature (:meth:`FitEngine.start`). :func:`replay_refitted` replays with payloads and
 ramps fitted.
 """
 
@@ -18,15 +18,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
-from discovery.layout import _layout
+from discovery.layout import entry_layout
 from discovery.library import EffectLibrary, EffectTerm, term_parameters
-from discovery.normal_equations import _normal, _solve
-from discovery.results import Params, _merge
+from discovery.normal_equations import normal_equations, solve_normal
+from discovery.results import Params, merge_parameters
 from sims.effects import resolve_effects
 from sims.replay import payload_from_pressure, replay, replay_fitted
 from sims.replay_plan import ReplayPlan, ReplayResult
 
-__all__: list[str] = []
+__all__ = ["FitEngine", "TermColumns", "replay_refitted"]
 
 #: The groove-wear start scan runs when a sensor's direction-signed differential
 #: residual is at least this many standard errors from zero ...
@@ -37,7 +37,7 @@ _SIGNATURE_TAU = 2.0
 
 
 @dataclass
-class _Columns:
+class TermColumns:
     name: str
     jac: np.ndarray  # (N, k) d s / d coordinate
     delta: np.ndarray  # (N,) switching the effect on at its default coordinates
@@ -46,7 +46,7 @@ class _Columns:
     note: str = ""
 
 
-class _Engine:
+class FitEngine:
     """Replays with fixed payloads / ramps and the columns built from them."""
 
     def __init__(self, plan: ReplayPlan, library: EffectLibrary, base: ReplayResult) -> None:
@@ -54,9 +54,9 @@ class _Engine:
         self.hoist = plan.hoist
         self.lib = library
         self.base = base
-        self.layout = _layout(plan, base)
+        self.layout = entry_layout(plan, base)
         self.replays = 0
-        self.cache: dict[str, _Columns] = {}
+        self.cache: dict[str, TermColumns] = {}
         self.base_static = np.zeros((len(plan.trips), 2))
 
     def _static_payloads(self, effects: list[str], params: Params) -> np.ndarray:
@@ -96,7 +96,7 @@ class _Engine:
         self.base = base
         self.base_static = self._static_payloads(effects, params)
 
-    def analytic(self, term: EffectTerm, s0: np.ndarray, params: Params, on: bool) -> _Columns:
+    def analytic(self, term: EffectTerm, s0: np.ndarray, params: Params, on: bool) -> TermColumns:
         lay = self.layout
         n = self.hoist.ropes_n
         eff = resolve_effects(
@@ -122,11 +122,11 @@ class _Engine:
                 jac[sel, i] = p_raw
                 if not on:
                     delta[sel] = (gains[i] - 1.0) * s0[sel]
-        return _Columns(term.name, jac, delta, theta)
+        return TermColumns(term.name, jac, delta, theta)
 
     def fd(
         self, term: EffectTerm, effects: list[str], params: Params, s_at: np.ndarray
-    ) -> _Columns:
+    ) -> TermColumns:
         theta = term.coordinates(self.hoist, params)
         cols = []
         for j, step in enumerate(term.steps):
@@ -136,7 +136,7 @@ class _Engine:
             p2[term.name] = {**p2.get(term.name, {}), **term.parameters(self.hoist, th)}
             s = self.sim(effects, p2)
             if not np.all(np.isfinite(s)):
-                return _Columns(
+                return TermColumns(
                     term.name,
                     np.zeros((s_at.size, 0)),
                     np.zeros(s_at.size),
@@ -145,9 +145,9 @@ class _Engine:
                     note="simulation failed at a finite-difference step",
                 )
             cols.append((s - s_at) / step)
-        return _Columns(term.name, np.column_stack(cols), np.zeros(s_at.size), theta)
+        return TermColumns(term.name, np.column_stack(cols), np.zeros(s_at.size), theta)
 
-    def retune(self, name: str, effects: list[str], params: Params, s0: np.ndarray) -> _Columns:
+    def retune(self, name: str, effects: list[str], params: Params, s0: np.ndarray) -> TermColumns:
         term = self.lib[name]
         if term.analytic:
             return self.analytic(term, s0, params, on=True)
@@ -230,7 +230,9 @@ class _Engine:
         def along(a: float) -> float:
             """RSS (per-trip offsets removed) at coordinates ``a g``; remembered."""
             if a not in tried:
-                s = self.sim(effects, _merge(params, term.name, term.parameters(self.hoist, a * g)))
+                s = self.sim(
+                    effects, merge_parameters(params, term.name, term.parameters(self.hoist, a * g))
+                )
                 tried[a] = (self._rss_trip_offsets(lay.y - s), s)
             return tried[a][0]
 
@@ -273,18 +275,20 @@ class _Engine:
         nuis = np.zeros((lay.y.size, m))
         nuis[np.arange(lay.y.size), lay.trip] = 1.0
         for _ in range(3):
-            p_at = _merge(params, term.name, term.parameters(self.hoist, best_theta))
+            p_at = merge_parameters(params, term.name, term.parameters(self.hoist, best_theta))
             cols = self.fd(term, effects, p_at, best_s)
             if not cols.ok:
                 break
             x = np.column_stack([cols.jac, nuis])
-            _, b = _solve(_normal(x, lay.y - best_s, lay.trip, m), np.ones(m))
+            _, b = solve_normal(normal_equations(x, lay.y - best_s, lay.trip, m), np.ones(m))
             step = b[: cols.jac.shape[1]]
             # the response is piecewise (seal friction flips as pistons drift apart):
             # a full step can overshoot, so it is halved up to twice before giving up
             for fraction in (1.0, 0.5, 0.25):
                 th = best_theta + fraction * step
-                s = self.sim(effects, _merge(params, term.name, term.parameters(self.hoist, th)))
+                s = self.sim(
+                    effects, merge_parameters(params, term.name, term.parameters(self.hoist, th))
+                )
                 rss = self._rss_trip_offsets(lay.y - s)
                 if rss < best_rss:
                     break
@@ -296,7 +300,9 @@ class _Engine:
                 break
         return best_theta, best_s
 
-    def candidate(self, name: str, effects: list[str], params: Params, s0: np.ndarray) -> _Columns:
+    def candidate(
+        self, name: str, effects: list[str], params: Params, s0: np.ndarray
+    ) -> TermColumns:
         term = self.lib[name]
         if term.analytic:
             return self.analytic(term, s0, params, on=False)
@@ -311,10 +317,10 @@ class _Engine:
         else:
             s_on = self.sim(eff, params)
         if start is not None:
-            params = _merge(params, name, term.parameters(self.hoist, start[0]))
+            params = merge_parameters(params, name, term.parameters(self.hoist, start[0]))
             s_on = start[1]
         if not np.all(np.isfinite(s_on)):
-            cols = _Columns(
+            cols = TermColumns(
                 name,
                 np.zeros((s0.size, 0)),
                 np.zeros(s0.size),
@@ -329,8 +335,8 @@ class _Engine:
         return cols
 
 
-def _refit(
-    plan: ReplayPlan, eng: _Engine, effects: list[str], params: Params, start: ReplayResult
+def replay_refitted(
+    plan: ReplayPlan, eng: FitEngine, effects: list[str], params: Params, start: ReplayResult
 ) -> ReplayResult:
     eng.replays += 3
     return replay_fitted(

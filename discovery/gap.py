@@ -6,13 +6,13 @@ from typing import Any
 
 import numpy as np
 
-from discovery.layout import _Layout
+from discovery.layout import EntryLayout
 from sims.replay_plan import ReplayPlan
 
-__all__ = ["locate_gap"]
+__all__ = ["locate_gap", "rms"]
 
 
-def _rms(x: np.ndarray) -> float:
+def rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(x**2))) if x.size else float("nan")
 
 
@@ -32,7 +32,7 @@ def locate_gap(
     (e.g. ``"phase=accelerate"``), ``gap_pa`` (RMS before), ``gap_after_pa`` and
     ``entries``.
     """
-    lay: _Layout = layout_or_none
+    lay: EntryLayout = layout_or_none
     hoist = plan.hoist
     labels: dict[str, np.ndarray] = {
         "phase": lay.phase.astype(str),
@@ -71,8 +71,8 @@ def locate_gap(
                     "start": times.min().isoformat(),
                     "end": times.max().isoformat(),
                     "regime": f"{dim}={value}",
-                    "gap_pa": round(_rms(before[sel]), 1),
-                    "gap_after_pa": None if after is None else round(_rms(after[sel]), 1),
+                    "gap_pa": round(rms(before[sel]), 1),
+                    "gap_after_pa": None if after is None else round(rms(after[sel]), 1),
                     "entries": int(sel.sum()),
                 }
             )

@@ -1,8 +1,8 @@
 """One iteration of the selection: re-tuning, scoring, ranking, the decision, adding.
 
 The steps of :mod:`discovery.selection`'s method on the running state of one fit
-(:class:`_Fit`): :func:`_baseline` (steps 1-2: re-tuning fit, variance ratio),
-:func:`_score` (step 3: every candidate's joint fit), :func:`_iterate` (BIC, the trip
+(:class:`FitState`): :func:`_baseline` (steps 1-2: re-tuning fit, variance ratio),
+:func:`_score` (step 3: every candidate's joint fit), :func:`run_iteration` (BIC, the trip
 bootstrap of step 4, the ranking), :func:`_verdict` (step 5: ``none`` / ``ambiguous``)
 and :func:`_add` (step 6: the winner added and refitted, the finding reported).
 """
@@ -14,13 +14,18 @@ from typing import Any
 
 import numpy as np
 
-from discovery.bootstrap import _bootstrap_shares
-from discovery.columns import _Columns, _Engine
-from discovery.gap import _rms, locate_gap
+from discovery.bootstrap import bootstrap_shares
+from discovery.columns import FitEngine, TermColumns
+from discovery.gap import locate_gap, rms
 from discovery.library import EffectLibrary
-from discovery.normal_equations import _Normal, _normal, _solve
-from discovery.ranking import _autocorrelation_time, _excitation, _ranking, _score_bic
-from discovery.refit import _add_winner, _winner_parameters
+from discovery.normal_equations import NormalEquations, normal_equations, solve_normal
+from discovery.ranking import (
+    autocorrelation_time,
+    rank_candidates,
+    score_bic,
+    separating_excitation,
+)
+from discovery.refit import add_winner, winner_parameters
 from discovery.results import AMBIGUOUS, Finding, Params
 from schemas.effects import NO_EFFECT
 from sims.effects import parameters_json
@@ -31,11 +36,11 @@ from sims.replay_plan import ReplayPlan, ReplayResult
 #: on the effective sample count, so autocorrelated residuals do not inflate it).
 DECISIVE_DBIC = 10.0
 
-__all__ = ["DECISIVE_DBIC"]
+__all__ = ["DECISIVE_DBIC", "DecisionThresholds", "FitState", "run_iteration"]
 
 
 @dataclass(frozen=True)
-class _Options:
+class DecisionThresholds:
     """The decision's thresholds (:class:`~discovery.selection.EffectSelector`)."""
 
     variance_threshold: float
@@ -45,17 +50,17 @@ class _Options:
 
 
 @dataclass
-class _Fit:
+class FitState:
     """What one :meth:`~discovery.selection.EffectSelector.fit` works with: the
     decision's thresholds, the plan, the sized library, the replay engine, the per-trip
     nuisance columns, the bootstrap's trip weights, the candidates ``allowed``, the base
     replay ``first`` and the model as it grows (``model``, ``params``, the replay
     ``current`` and its flat simulated pressures ``s0``), with the findings and notes."""
 
-    opts: _Options
+    opts: DecisionThresholds
     plan: ReplayPlan
     lib: EffectLibrary
-    eng: _Engine
+    eng: FitEngine
     allowed: set[str]
     nuis: np.ndarray
     weights: np.ndarray
@@ -80,10 +85,10 @@ class _Baseline:
 
     iteration: int
     r: np.ndarray
-    retune_cols: list[_Columns]
+    retune_cols: list[TermColumns]
     x0: np.ndarray
     pen0: np.ndarray
-    ne0: _Normal
+    ne0: NormalEquations
     rss0: float
     beta0: np.ndarray
     ratio: float
@@ -92,7 +97,7 @@ class _Baseline:
     where: list[dict[str, Any]] = field(default_factory=list)
 
 
-def _baseline(fit: _Fit, iteration: int) -> _Baseline:
+def _baseline(fit: FitState, iteration: int) -> _Baseline:
     """Steps 1-2: the residual fitted by re-tuning and the per-trip payloads."""
     lib, eng, m = fit.lib, fit.eng, fit.m
     lay = eng.layout
@@ -105,13 +110,13 @@ def _baseline(fit: _Fit, iteration: int) -> _Baseline:
     pen0 = np.concatenate(
         [*(sigma2 / lib[c.name].prior(c.theta0) ** 2 for c in retune_cols), np.zeros(m)]
     )
-    ne0 = _normal(x0, r, lay.trip, m, pen0)
-    rss0, beta0 = _solve(ne0, np.ones(m))
+    ne0 = normal_equations(x0, r, lay.trip, m, pen0)
+    rss0, beta0 = solve_normal(ne0, np.ones(m))
     ratio = rss0 / (lay.y.size * sigma2)
-    return _Baseline(iteration, r, retune_cols, x0, pen0, ne0, rss0, beta0, ratio, _rms(r))
+    return _Baseline(iteration, r, retune_cols, x0, pen0, ne0, rss0, beta0, ratio, rms(r))
 
 
-def _score(fit: _Fit, bl: _Baseline) -> dict[str, dict[str, Any]]:
+def _score(fit: FitState, bl: _Baseline) -> dict[str, dict[str, Any]]:
     """Step 3: every candidate's joint fit with re-tuning (none below the threshold)."""
     lay, m = fit.eng.layout, fit.m
     cand = [c for c in fit.lib.candidates(fit.model) if c in fit.allowed]
@@ -124,8 +129,8 @@ def _score(fit: _Fit, bl: _Baseline) -> dict[str, dict[str, Any]]:
         x = np.column_stack([cols.jac, bl.x0])
         target = bl.r - cols.delta
         pen = np.concatenate([np.zeros(x.shape[1] - bl.pen0.size), bl.pen0])
-        ne = _normal(x, target, lay.trip, m, pen)
-        rss, beta = _solve(ne, np.ones(m))
+        ne = normal_equations(x, target, lay.trip, m, pen)
+        rss, beta = solve_normal(ne, np.ones(m))
         scores[name] = {
             "rss": rss,
             "beta": beta,
@@ -137,7 +142,7 @@ def _score(fit: _Fit, bl: _Baseline) -> dict[str, dict[str, Any]]:
 
 
 def _no_addition(
-    fit: _Fit,
+    fit: FitState,
     bl: _Baseline,
     effect: str,
     confidence: float,
@@ -164,13 +169,13 @@ def _no_addition(
     )
 
 
-def _iterate(fit: _Fit, iteration: int) -> bool:
+def run_iteration(fit: FitState, iteration: int) -> bool:
     """One iteration (steps 1-6); False when the loop ends here."""
     bl = _baseline(fit, iteration)
     scores = _score(fit, bl)
     lay = fit.eng.layout
     n_entries = lay.y.size
-    bl.tau = _autocorrelation_time(bl.r - bl.x0 @ bl.beta0, lay)
+    bl.tau = autocorrelation_time(bl.r - bl.x0 @ bl.beta0, lay)
     bl.where = locate_gap(fit.plan, lay, bl.r)
     if not scores:
         msg = (
@@ -183,11 +188,11 @@ def _iterate(fit: _Fit, iteration: int) -> bool:
         return False
     best = scores[min(scores, key=lambda c: scores[c]["rss"])]
     fitted = np.column_stack([best["cols"].jac, bl.x0]) @ best["beta"]
-    bl.tau = _autocorrelation_time(bl.r - best["cols"].delta - fitted, lay)
+    bl.tau = autocorrelation_time(bl.r - best["cols"].delta - fitted, lay)
     n_eff = max(n_entries / bl.tau, 2.0)
-    _score_bic(scores, bl.rss0, n_eff)
-    share = _bootstrap_shares(bl.ne0, scores, fit.weights, lay.trip, n_eff, n_entries)
-    ranking = _ranking(scores, bl.rss0, n_entries, share)
+    score_bic(scores, bl.rss0, n_eff)
+    share = bootstrap_shares(bl.ne0, scores, fit.weights, lay.trip, n_eff, n_entries)
+    ranking = rank_candidates(scores, bl.rss0, n_entries, share)
     excess = max(bl.rss0 - n_entries * fit.plan.noise_sigma_pa**2, 1e-30)
     explained = (bl.rss0 - best["rss"]) / excess
     refusal = _verdict(fit, bl, scores, share, ranking, explained)
@@ -198,7 +203,7 @@ def _iterate(fit: _Fit, iteration: int) -> bool:
 
 
 def _verdict(
-    fit: _Fit,
+    fit: FitState,
     bl: _Baseline,
     scores: dict[str, dict[str, Any]],
     share: dict[str, float],
@@ -247,12 +252,12 @@ def _verdict(
         ranking,
         f"{top} and {other} cannot be told apart on these trips",
         ambiguous_between=pair,
-        excitation=_excitation(lib, *pair) if other in lib else lib[top].excitation,
+        excitation=separating_excitation(lib, *pair) if other in lib else lib[top].excitation,
     )
 
 
 def _add(
-    fit: _Fit,
+    fit: FitState,
     bl: _Baseline,
     best: dict[str, Any],
     ranking: list[dict[str, Any]],
@@ -264,11 +269,11 @@ def _add(
     plan, lib, eng = fit.plan, fit.lib, fit.eng
     lay = eng.layout
     top = ranking[0]["effect"]
-    theta, winner_only, retuned = _winner_parameters(
+    theta, winner_only, retuned = winner_parameters(
         lib, plan.hoist, top, best, bl.retune_cols, fit.params
     )
     predicted = np.sqrt(best["rss"] / lay.y.size)
-    after, gap_after, new_params = _add_winner(
+    after, gap_after, new_params = add_winner(
         plan, eng, fit.nuis, lib[top], theta, best["cols"].theta0, fit.model, fit.params,
         winner_only, fit.current, predicted,
     )  # fmt: skip

@@ -1,7 +1,7 @@
 """The scored entries of a replay laid out flat: one row per (trip, sample, sensor).
 
 Discovery's least squares run over every valid scored entry of every planned trip at
-once; :class:`_Layout` keeps, per entry, its trip, sensor, time, trip phase, direction,
+once; :class:`EntryLayout` keeps, per entry, its trip, sensor, time, trip phase, direction,
 depth, oil temperature, pressure level and measured value, and flattens any per-trip
 (m_k, n) arrays (simulated pressures) in the same order.
 """
@@ -15,11 +15,11 @@ import numpy as np
 
 from sims.replay_plan import ReplayPlan, ReplayResult
 
-__all__: list[str] = []
+__all__ = ["EntryLayout", "entry_layout"]
 
 
 @dataclass(frozen=True)
-class _Layout:
+class EntryLayout:
     mask: tuple[np.ndarray, ...]  # per trip (m_k, n) entries used
     trip: np.ndarray
     sensor: np.ndarray
@@ -35,7 +35,7 @@ class _Layout:
         return np.concatenate([a[m] for a, m in zip(arrays, self.mask, strict=True)])
 
 
-def _layout(plan: ReplayPlan, base: ReplayResult) -> _Layout:
+def entry_layout(plan: ReplayPlan, base: ReplayResult) -> EntryLayout:
     masks, cols = [], {k: [] for k in ("trip", "sensor", "t", "ph", "dir", "d", "oil", "lvl")}
     for k, (tr, sim) in enumerate(zip(plan.trips, base.simulated, strict=True)):
         m = tr.valid & np.isfinite(sim) & np.isfinite(tr.measured_pa)
@@ -55,7 +55,7 @@ def _layout(plan: ReplayPlan, base: ReplayResult) -> _Layout:
         del n_s
     cat = {k: np.concatenate(v) if v else np.zeros(0) for k, v in cols.items()}
     y = np.concatenate([tr.measured_pa[m] for tr, m in zip(plan.trips, masks, strict=True)])
-    return _Layout(
+    return EntryLayout(
         tuple(masks),
         cat["trip"].astype(int),
         cat["sensor"].astype(int),

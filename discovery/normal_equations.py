@@ -2,9 +2,9 @@
 
 The fits of discovery (re-tuning, candidate scoring, Gauss-Newton steps) are linear
 least squares ``x b = target`` over the flat scored entries (:mod:`discovery.layout`).
-Their normal equations are kept per trip (:class:`_Normal`), so a resample of the trips
+Their normal equations are kept per trip (:class:`NormalEquations`), so a resample of the trips
 with weights ``w`` is solved from ``sum_k w_k X_k^T X_k`` without touching the entries
-again (:func:`_solve`); columns are scaled to unit RMS and re-tuned coordinates carry a
+again (:func:`solve_normal`); columns are scaled to unit RMS and re-tuned coordinates carry a
 Gaussian prior (ridge).
 """
 
@@ -14,11 +14,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__: list[str] = []
+__all__ = ["NormalEquations", "normal_equations", "solve_normal"]
 
 
 @dataclass(frozen=True)
-class _Normal:
+class NormalEquations:
     gram: np.ndarray  # (m, p, p) per trip
     rhs: np.ndarray  # (m, p)
     tt: np.ndarray  # (m,)
@@ -26,13 +26,13 @@ class _Normal:
     penalty: np.ndarray  # (p,) ridge on the scaled coefficients (Gaussian prior)
 
 
-def _normal(
+def normal_equations(
     x: np.ndarray,
     target: np.ndarray,
     trip: np.ndarray,
     m: int,
     penalty: np.ndarray | None = None,
-) -> _Normal:
+) -> NormalEquations:
     """Per-trip normal equations of ``x b = target`` with columns scaled to unit RMS.
 
     ``penalty`` (per column, in target units squared per coefficient unit squared:
@@ -52,10 +52,10 @@ def _normal(
         rhs[k] = xk.T @ tk
         tt[k] = tk @ tk
     pen = np.zeros(p) if penalty is None else np.asarray(penalty, float) / scale**2
-    return _Normal(gram, rhs, tt, scale, pen)
+    return NormalEquations(gram, rhs, tt, scale, pen)
 
 
-def _solve(ne: _Normal, w: np.ndarray) -> tuple[float, np.ndarray]:
+def solve_normal(ne: NormalEquations, w: np.ndarray) -> tuple[float, np.ndarray]:
     """Weighted (per trip) ridge solution: data RSS and coefficients (column units)."""
     g = np.tensordot(w, ne.gram, axes=1)
     b = w @ ne.rhs

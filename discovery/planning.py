@@ -47,8 +47,14 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from discovery.record import _RAMP_MARGIN_S, _Record, _record, _trailing_ramp, _trip_timing
-from discovery.rope_damping import _with_rope_damping
+from discovery.record import (
+    RAMP_MARGIN_S,
+    RecordArrays,
+    read_record,
+    trailing_window_end,
+    trip_timing,
+)
+from discovery.rope_damping import with_rope_damping
 from discovery.segmentation import (
     _CUT_WORDS,
     _chosen_trips,
@@ -68,7 +74,7 @@ __all__ = ["plan_replay"]
 
 
 def _driving_motion(
-    rec: _Record,
+    rec: RecordArrays,
     tm: dict[str, Any],
     profile: TripProfile,
     win_end: float,
@@ -106,7 +112,7 @@ def _driving_motion(
 
 
 def _planned_trip(
-    rec: _Record,
+    rec: RecordArrays,
     hoist: HoistDescription,
     k: int,
     tm: dict[str, Any],
@@ -126,7 +132,7 @@ def _planned_trip(
     d0, d1 = tm["d0"], tm["d1"]
     # scored samples: after the ramp, within the window, every 1/score_rate s
     idx, meas, valid = _scored_samples(
-        t, rec.p, rec.sigma, r1 + _RAMP_MARGIN_S, win_end, score_rate_hz, tm["cut"]
+        t, rec.p, rec.sigma, r1 + RAMP_MARGIN_S, win_end, score_rate_hz, tm["cut"]
     )
     ridx = _ramp_samples(t, r0, r1, t_m, score_rate_hz)
     profile = replay_profile(
@@ -177,7 +183,7 @@ def _planned_trip(
 
 
 def _planned_trips(
-    rec: _Record,
+    rec: RecordArrays,
     hoist: HoistDescription,
     timing: list[dict[str, Any]],
     chosen: list[list[int]],
@@ -212,7 +218,7 @@ def _planned_trips(
     return trips, skipped
 
 
-def _first_trip_id(rec: _Record, number_from: dt.datetime | None) -> int:
+def _first_trip_id(rec: RecordArrays, number_from: dt.datetime | None) -> int:
     """The trip rule's id of the first trip with a sample at or after ``number_from``
     (the record's first trip without it; one past the last when none is)."""
     if number_from is None:
@@ -224,7 +230,7 @@ def _first_trip_id(rec: _Record, number_from: dt.datetime | None) -> int:
     return min(later) if later else max(i for i, _ in spans) + 1
 
 
-def _short_trips(rec: _Record, chosen: list[list[int]], first_id: int) -> list[SkippedTrip]:
+def _short_trips(rec: RecordArrays, chosen: list[list[int]], first_id: int) -> list[SkippedTrip]:
     """The trips too short to replay (a jog), skipped with the reason: all of them when
     every trip is analysed, else those inside an analysed block."""
     t, motions = rec.t, rec.motions
@@ -252,6 +258,9 @@ def plan_replay(
     number_from: dt.datetime | None = None,
 ) -> ReplayPlan:
     """Segment ``samples`` of one hoist into trips and prepare their simulation.
+
+    Longer than 80 lines on purpose: most of it is this docstring (every parameter
+    documented); the code is its two passes over the trips, about 50 lines.
 
     Parameters
     ----------
@@ -290,7 +299,7 @@ def plan_replay(
     """
     if motion not in ("winder", "logged"):
         raise ValueError(f"motion: 'winder' or 'logged', not {motion!r}")
-    rec = _record(samples, hoist)
+    rec = read_record(samples, hoist)
     motions, t = rec.motions, rec.t
     # the ropes' damping as the record shows it (a hoist that rings and one that does not
     # both replay to the noise; the description's ratio is a default a mine cannot know)
@@ -305,11 +314,11 @@ def plan_replay(
             f"{len(chosen)} blocks of consecutive trips"
         )
     # pass 1, every motion: start / stop times, top speed, loading ramp before it
-    timing = [_trip_timing(rec, hoist, k) for k in range(len(motions))]
+    timing = [trip_timing(rec, hoist, k) for k in range(len(motions))]
     first_id = _first_trip_id(rec, number_from)
     for tm, trip_id in zip(timing, rec.trip_ids, strict=True):
         tm["trip_id"] = trip_id - first_id
-    trailing_ramp = _trailing_ramp(rec, timing, notes)
+    trailing_ramp = trailing_window_end(rec, timing, notes)
     # pass 2, the analysed trips: windows, scored samples
     trips, skipped = _planned_trips(
         rec, hoist, timing, chosen, trailing_ramp, (settle_s, score_rate_hz), motion, notes
@@ -327,4 +336,4 @@ def plan_replay(
         skipped=tuple(skipped),
         rope_bounce=zeta_how,
     )
-    return _with_rope_damping(plan, zeta)
+    return with_rope_damping(plan, zeta)

@@ -2,9 +2,9 @@
 
 A candidate's score is the BIC difference against re-tuning alone (Schwarz 1978, Ann.
 Stat. 6(2) 461-464), ``N_eff ln(RSS_0 / RSS_c) - k_c ln N_eff``, with ``N_eff = N / tau``
-and tau the residual's integrated autocorrelation time (:func:`_autocorrelation_time`;
-1 for white noise). :func:`_ranking` orders the candidates by score with what each
-explains and its bootstrap share; :func:`_excitation` says what would separate two.
+and tau the residual's integrated autocorrelation time (:func:`autocorrelation_time`;
+1 for white noise). :func:`rank_candidates` orders the candidates by score with what each
+explains and its bootstrap share; :func:`separating_excitation` says what would separate two.
 """
 
 from __future__ import annotations
@@ -13,13 +13,13 @@ from typing import Any
 
 import numpy as np
 
-from discovery.layout import _Layout
+from discovery.layout import EntryLayout
 from discovery.library import EffectLibrary
 
-__all__: list[str] = []
+__all__ = ["autocorrelation_time", "rank_candidates", "score_bic", "separating_excitation"]
 
 
-def _autocorrelation_time(resid: np.ndarray, layout: _Layout, max_lag: int = 40) -> float:
+def autocorrelation_time(resid: np.ndarray, layout: EntryLayout, max_lag: int = 40) -> float:
     """Integrated autocorrelation time 1 + 2 sum(rho_l), summed to the first rho < 0.05."""
     num = np.zeros(max_lag + 1)
     den = 0.0
@@ -44,13 +44,13 @@ def _autocorrelation_time(resid: np.ndarray, layout: _Layout, max_lag: int = 40)
     return float(tau)
 
 
-def _score_bic(scores: dict[str, dict[str, Any]], rss0: float, n_eff: float) -> None:
+def score_bic(scores: dict[str, dict[str, Any]], rss0: float, n_eff: float) -> None:
     """Set each candidate's ``dbic`` (BIC difference against re-tuning only)."""
     for sc in scores.values():
         sc["dbic"] = n_eff * np.log(rss0 / sc["rss"]) - sc["k"] * np.log(n_eff)
 
 
-def _ranking(
+def rank_candidates(
     scores: dict[str, dict[str, Any]], rss0: float, n_entries: int, share: dict[str, float]
 ) -> list[dict[str, Any]]:
     """The scored candidates, best score first: ``effect``, ``score`` (BIC difference),
@@ -69,5 +69,5 @@ def _ranking(
     )
 
 
-def _excitation(lib: EffectLibrary, a: str, b: str) -> str:
+def separating_excitation(lib: EffectLibrary, a: str, b: str) -> str:
     return f"to separate {a} from {b}: for {a}, {lib[a].excitation}; for {b}, {lib[b].excitation}"

@@ -1,12 +1,12 @@
 """Pass 1 of the replay planning: the record read, and every motion's timing.
 
-:func:`_record` reads a landed sample frame of one hoist into arrays (times in s after
+:func:`read_record` reads a landed sample frame of one hoist into arrays (times in s after
 its first sample) with what :func:`discovery.planning.plan_replay` needs of the whole
 record: the motions, the quiet standstill and the pressure noise, the common-mode
 pressure (gaps interpolated, 1-s mean), the depths at the standstills. For each motion,
-:func:`_trip_timing` finds its start and stop, top speed, depths (completed by the
+:func:`trip_timing` finds its start and stop, top speed, depths (completed by the
 winder profile when the record cuts it), the loading ramp before it and the pressure
-levels around it; :func:`_trailing_ramp` a load change after the last stop.
+levels around it; :func:`trailing_window_end` a load change after the last stop.
 """
 
 from __future__ import annotations
@@ -32,13 +32,13 @@ from discovery.segmentation import (
 )
 from schemas.hoist import HoistDescription
 
-__all__: list[str] = []
+__all__ = ["RAMP_MARGIN_S", "RecordArrays", "read_record", "trailing_window_end", "trip_timing"]
 
-_RAMP_MARGIN_S = 2.0  # scored samples start this long after a loading ramp ends
+RAMP_MARGIN_S = 2.0  # scored samples start this long after a loading ramp ends
 
 
 @dataclass(frozen=True)
-class _Record:
+class RecordArrays:
     """One hoist's record as arrays (times ``t`` in s after ``t_ref``) and what is read
     off it: the motions (index ranges of the trips replayed; ``trip_ids`` their ids by
     the trip rule; ``short_trips``: first, last and id of the trips too short to
@@ -69,7 +69,7 @@ class _Record:
         return float(self.t[-1])
 
 
-def _record(samples: pl.DataFrame, hoist: HoistDescription) -> _Record:
+def read_record(samples: pl.DataFrame, hoist: HoistDescription) -> RecordArrays:
     """The record's arrays, motions, noise and common-mode pressure; raises ValueError
     for missing columns or a record without a trip."""
     n = hoist.ropes_n
@@ -109,7 +109,7 @@ def _record(samples: pl.DataFrame, hoist: HoistDescription) -> _Record:
     pcs = ndimage.uniform_filter1d(pc_filled, size=max(3, int(rate) | 1))
     ramp_threshold = max(10.0 * sigma, 2e4) if np.isfinite(sigma) else 2e4
     stops = _stop_depths(t, depth, motions, hoist.shaft.depth_m)
-    return _Record(
+    return RecordArrays(
         t_ref, t, p, depth, speed, temp, motions, quiet, sigma, pc, pc_filled, pcs, stops,
         ramp_threshold, trip_ids, short_trips,
     )  # fmt: skip
@@ -134,7 +134,7 @@ def _stop_depths(
     return stops
 
 
-def _trip_timing(rec: _Record, hoist: HoistDescription, k: int) -> dict[str, Any]:
+def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str, Any]:
     """Pass 1, motion ``k`` of the record: start / stop times and depths, top speed, the
     loading ramp before it and the pressure levels around it; ``cut`` and ``skip`` say
     whether the record cuts it and why it cannot be prepared."""
@@ -188,7 +188,7 @@ def _trip_timing(rec: _Record, hoist: HoistDescription, k: int) -> dict[str, Any
     }
 
 
-def _trailing_ramp(rec: _Record, timing: list[dict[str, Any]], notes: list[str]) -> float:
+def trailing_window_end(rec: RecordArrays, timing: list[dict[str, Any]], notes: list[str]) -> float:
     """Where the last trip's window ends for a payload change after the last stop
     (loading for a trip the record does not hold); inf without one."""
     if timing and not timing[-1]["cut"]:
@@ -208,5 +208,5 @@ def _trailing_ramp(rec: _Record, timing: list[dict[str, Any]], notes: list[str])
                 f"the payload changes after the last stop (from {r0:.0f} s): "
                 "the last trip's window ends there"
             )
-            return r0 - 0.5 * _RAMP_MARGIN_S
+            return r0 - 0.5 * RAMP_MARGIN_S
     return np.inf

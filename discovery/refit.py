@@ -3,7 +3,7 @@
 Step 6 of the method (:mod:`discovery.selection`): the winning term is switched on at
 the coordinates of its linear fit (sensor offsets relative to their median, gains to
 theirs: the common part is the payload's) and the trips re-simulated with payloads and
-ramps refitted (:func:`discovery.columns._refit`). A term null and strongly nonlinear at
+ramps refitted (:func:`discovery.columns.replay_refitted`). A term null and strongly nonlinear at
 its default (groove wear) is then fitted along its coordinates with payloads refitted
 (Brent, :func:`_refine_along`) while the gap is above the noise; a Gauss-Newton step on
 the winner's coordinates follows when the re-simulated gap is more than 10 % above the
@@ -17,28 +17,28 @@ from typing import Any
 import numpy as np
 from scipy import optimize
 
-from discovery.columns import _Columns, _Engine, _refit
-from discovery.gap import _rms
+from discovery.columns import FitEngine, TermColumns, replay_refitted
+from discovery.gap import rms
 from discovery.library import EffectLibrary, EffectTerm
-from discovery.normal_equations import _normal, _solve
-from discovery.results import Params, _merge
+from discovery.normal_equations import normal_equations, solve_normal
+from discovery.results import Params, merge_parameters
 from schemas.hoist import HoistDescription
 from sims.replay_plan import ReplayPlan, ReplayResult
 
-__all__: list[str] = []
+__all__ = ["add_winner", "winner_parameters"]
 
 
-def _winner_parameters(
+def winner_parameters(
     lib: EffectLibrary,
     hoist: HoistDescription,
     top: str,
     best: dict[str, Any],
-    retune_cols: list[_Columns],
+    retune_cols: list[TermColumns],
     params: Params,
 ) -> tuple[np.ndarray, Params, Params]:
     """(winner's coordinates, parameters with the winner set, what re-tuning moved while
     scoring -- reported, not applied) from the linear fit ``best`` of candidate ``top``."""
-    cols: _Columns = best["cols"]
+    cols: TermColumns = best["cols"]
     k_c = cols.jac.shape[1]
     beta = best["beta"]
     term = lib[top]
@@ -47,7 +47,7 @@ def _winner_parameters(
         theta = theta - np.median(theta)
     elif top == "sensor_gain":
         theta = theta / np.median(theta)
-    winner_only = _merge(params, top, term.parameters(hoist, theta))
+    winner_only = merge_parameters(params, top, term.parameters(hoist, theta))
     retuned: Params = {}  # what re-tuning moved while scoring (reported, not applied)
     pos = k_c
     for c in retune_cols:
@@ -59,9 +59,9 @@ def _winner_parameters(
     return theta, winner_only, retuned
 
 
-def _add_winner(
+def add_winner(
     plan: ReplayPlan,
-    eng: _Engine,
+    eng: FitEngine,
     nuis: np.ndarray,
     term: EffectTerm,
     theta: np.ndarray,
@@ -77,8 +77,8 @@ def _add_winner(
     lay = eng.layout
     new_model = [*model, term.name]
     new_params = winner_only
-    after = _refit(plan, eng, new_model, new_params, current)
-    gap_after = _rms(lay.y - lay.flat(after.simulated)) if after.ok else np.inf
+    after = replay_refitted(plan, eng, new_model, new_params, current)
+    gap_after = rms(lay.y - lay.flat(after.simulated)) if after.ok else np.inf
     if term.start_amplitudes and gap_after > 1.1 * plan.noise_sigma_pa:
         after, gap_after, new_params = _refine_along(
             plan, eng, new_model, params, term, [theta, theta0], current
@@ -92,7 +92,7 @@ def _add_winner(
 
 def _gauss_newton_step(
     plan: ReplayPlan,
-    eng: _Engine,
+    eng: FitEngine,
     nuis: np.ndarray,
     term: EffectTerm,
     new_model: list[str],
@@ -110,11 +110,11 @@ def _gauss_newton_step(
     g_cols = eng.fd(term, new_model, new_params, s_new)
     if g_cols.ok:
         xg = np.column_stack([g_cols.jac, nuis])
-        _, bg = _solve(_normal(xg, lay.y - s_new, lay.trip, m), np.ones(m))
+        _, bg = solve_normal(normal_equations(xg, lay.y - s_new, lay.trip, m), np.ones(m))
         th2 = g_cols.theta0 + bg[: g_cols.jac.shape[1]]
-        p2 = _merge(new_params, term.name, term.parameters(plan.hoist, th2))
-        alt = _refit(plan, eng, new_model, p2, current)
-        gap_alt = _rms(lay.y - lay.flat(alt.simulated)) if alt.ok else np.inf
+        p2 = merge_parameters(new_params, term.name, term.parameters(plan.hoist, th2))
+        alt = replay_refitted(plan, eng, new_model, p2, current)
+        gap_alt = rms(lay.y - lay.flat(alt.simulated)) if alt.ok else np.inf
         if gap_alt < gap_after:
             after, gap_after, new_params = alt, gap_alt, p2
     return after, gap_after, new_params
@@ -122,7 +122,7 @@ def _gauss_newton_step(
 
 def _refine_along(
     plan: ReplayPlan,
-    eng: _Engine,
+    eng: FitEngine,
     effects: list[str],
     params: Params,
     term: EffectTerm,
@@ -136,7 +136,7 @@ def _refine_along(
     A linear step from the scan's start (``term.start_amplitudes``) can land on the far
     side of a kink in the response (seal friction flipping as the pistons drift apart)
     and the payloads fitted without the term are biased; so the gap with payloads and
-    ramps refitted (:func:`_refit`) is minimised over the scale ``c`` of the better of
+    ramps refitted (:func:`replay_refitted`) is minimised over the scale ``c`` of the better of
     ``starts`` (Brent's bounded method on ``0.5 <= c <= 1.5``). Returns the best replay,
     its gap and parameters.
     """
@@ -144,9 +144,9 @@ def _refine_along(
     seen: dict[float, tuple[float, ReplayResult, Params]] = {}
 
     def at(theta: np.ndarray) -> tuple[float, ReplayResult, Params]:
-        prm = _merge(params, term.name, term.parameters(plan.hoist, theta))
-        res = _refit(plan, eng, effects, prm, current)
-        gap = _rms(lay.y - lay.flat(res.simulated)) if res.ok else np.inf
+        prm = merge_parameters(params, term.name, term.parameters(plan.hoist, theta))
+        res = replay_refitted(plan, eng, effects, prm, current)
+        gap = rms(lay.y - lay.flat(res.simulated)) if res.ok else np.inf
         return gap, res, prm
 
     first = [at(np.asarray(t, float)) for t in starts]

@@ -1,7 +1,7 @@
 """What discovery answers: one :class:`Finding` per iteration, the :class:`DiscoveryResult`.
 
 Also the parameter overrides' shape (``Params``: ``{effect: {parameter: value}}``) and
-:func:`_merge` (one effect's values set in a copy of them), shared by the package.
+:func:`merge_parameters` (one effect's values set in a copy of them), shared by the package.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from typing import Any
 from schemas.effects import NO_EFFECT
 from sims.replay_plan import ReplayPlan, ReplayResult
 
-__all__ = ["AMBIGUOUS", "DiscoveryResult", "Finding"]
+__all__ = ["AMBIGUOUS", "DiscoveryResult", "Finding", "Params", "merge_parameters"]
 
 #: What a finding says when two candidates cannot be told apart.
 AMBIGUOUS = "ambiguous"
@@ -61,7 +61,7 @@ class DiscoveryResult:
         return [f.effect for f in self.findings if f.effect not in (NO_EFFECT, AMBIGUOUS)]
 
 
-def _merge(params: Params, name: str, values: Mapping[str, Any]) -> Params:
+def merge_parameters(params: Params, name: str, values: Mapping[str, Any]) -> Params:
     out = {k: dict(v) for k, v in params.items()}
     out[name] = {**out.get(name, {}), **values}
     return out

@@ -2,7 +2,7 @@
 
 The description's ``head_rope_damping_ratio`` is a default a mine cannot know; what the
 record shows of the ropes' ringing (:func:`sims.logged_motion.rope_damping_from_record`)
-can contradict it, and then the replay gap decides (:func:`_with_rope_damping`, used by
+can contradict it, and then the replay gap decides (:func:`with_rope_damping`, used by
 :func:`discovery.planning.plan_replay`).
 """
 
@@ -16,7 +16,7 @@ from schemas.hoist import HoistDescription
 from sims.replay import replay_fitted
 from sims.replay_plan import ReplayPlan
 
-__all__: list[str] = []
+__all__ = ["with_rope_damping"]
 
 
 def _with_damping(hoist: HoistDescription, zeta: float) -> HoistDescription:
@@ -24,7 +24,7 @@ def _with_damping(hoist: HoistDescription, zeta: float) -> HoistDescription:
     return hoist.model_copy(update={"ropes": ropes})
 
 
-def _with_rope_damping(plan: ReplayPlan, zeta_read: float | None) -> ReplayPlan:
+def with_rope_damping(plan: ReplayPlan, zeta_read: float | None) -> ReplayPlan:
     """The plan with the head ropes' damping ratio the record supports.
 
     The description's ratio stays unless the record contradicts it: ringing read at a

@@ -47,7 +47,7 @@ Method (one iteration)
    and the gap (RMS of y - s) before and after reported overall and per region (trip
    phase, direction, shaft position, oil temperature, pressure level, cylinder). A
    term that is null and strongly nonlinear at its default (groove wear: it starts from
-   a scan along the residual's differential signature, ``_Engine.start``) is then
+   a scan along the residual's differential signature, ``FitEngine.start``) is then
    fitted along its coordinates with payloads refitted (Brent,
    :func:`discovery.refit._refine_along`)
    while the gap is above the noise: payloads fitted without it are biased, so the
@@ -82,10 +82,10 @@ from typing import Any
 
 import numpy as np
 
-from discovery.bootstrap import _trip_weights
-from discovery.columns import _Engine
+from discovery.bootstrap import trip_weights
+from discovery.columns import FitEngine
 from discovery.gap import locate_gap
-from discovery.iteration import _Fit, _iterate, _Options
+from discovery.iteration import DecisionThresholds, FitState, run_iteration
 from discovery.library import EFFECT_LIBRARY, EffectLibrary, term_parameters
 from discovery.results import AMBIGUOUS, DiscoveryResult, Finding, Params
 from sims.replay import replay_fitted
@@ -183,7 +183,7 @@ class EffectSelector:
         self._check()
         fit = self._start(plan)
         for iteration in range(1, self.max_iterations + 1):
-            if not _iterate(fit, iteration):
+            if not run_iteration(fit, iteration):
                 break
         hoist = plan.hoist
         self.library_ = fit.lib
@@ -239,7 +239,7 @@ class EffectSelector:
         if self.max_iterations < 1 or self.bootstrap < 1:
             raise ValueError("max_iterations and bootstrap must be at least 1")
 
-    def _start(self, plan: ReplayPlan) -> _Fit:
+    def _start(self, plan: ReplayPlan) -> FitState:
         """The base replay (payloads and ramps fitted), its engine and layout."""
         hoist = plan.hoist
         lib = (self.library or EFFECT_LIBRARY).fit(hoist)
@@ -256,7 +256,7 @@ class EffectSelector:
             raise RuntimeError(
                 f"the hoist's model does not simulate the measured trips: {base.message}"
             )
-        eng = _Engine(plan, lib, base)
+        eng = FitEngine(plan, lib, base)
         eng.rebase(base, model, params)
         lay = eng.layout
         m = len(plan.trips)
@@ -264,11 +264,11 @@ class EffectSelector:
         nuis = np.zeros((n_entries, m))
         nuis[np.arange(n_entries), lay.trip] = 1.0
         s0 = lay.flat(base.simulated)
-        weights = _trip_weights(self.seed, m, self.bootstrap)
-        opts = _Options(
+        weights = trip_weights(self.seed, m, self.bootstrap)
+        opts = DecisionThresholds(
             self.variance_threshold, self.explain_fraction, self.stability, self.ambiguity
         )
-        return _Fit(opts, plan, lib, eng, allowed, nuis, weights, model, params, base, base, s0)
+        return FitState(opts, plan, lib, eng, allowed, nuis, weights, model, params, base, base, s0)
 
 
 def discover_effects(

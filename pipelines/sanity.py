@@ -43,7 +43,7 @@ from pipelines.steps import StepOutcome
 from schemas.hoist import HoistDescription
 from schemas.tables import SANITY_CHECKS, conform
 from sims.replay import replay_fitted
-from sims.replay_plan import ReplayTrip
+from sims.replay_plan import ReplayPlan, ReplayResult, ReplayTrip
 
 __all__ = ["SanityOutcome", "sanity_check", "sanity_step"]
 
@@ -160,6 +160,43 @@ def sanity_check(
             return empty
         raise
     result = replay_fitted(plan, passes=3)
+    verdicts = _reported_verdicts(plan, result, threshold, report_from, report_to)
+    rows = _rows(verdicts, run_id, hoist, plan.noise_sigma_pa)
+    return conform(pl.DataFrame(rows), SANITY_CHECKS) if rows else empty
+
+
+def _rows(
+    verdicts: list[tuple[int, str, str, float]],
+    run_id: str,
+    hoist: HoistDescription,
+    noise_pa: float,
+) -> list[dict[str, object]]:
+    """``SANITY_CHECKS`` rows of the verdicts, by trip id."""
+    return [
+        {
+            "run_id": run_id,
+            "site": hoist.hoist.site,
+            "hoist": hoist.hoist.name,
+            "trip_id": trip_id,
+            "rms_gap_pa": rms,
+            "noise_pa": noise_pa,
+            "passed": None if status == "skipped" else status == "passed",
+            "message": message,
+            "status": status,
+        }
+        for trip_id, status, message, rms in sorted(verdicts, key=lambda v: v[0])
+    ]
+
+
+def _reported_verdicts(
+    plan: ReplayPlan,
+    result: ReplayResult,
+    threshold: float,
+    report_from: dt.datetime | None,
+    report_to: dt.datetime | None,
+) -> list[tuple[int, str, str, float]]:
+    """(trip id, status, message, RMS gap) of the replayed and the skipped trips that
+    start moving in ``[report_from, report_to)``."""
     sigma = plan.noise_sigma_pa
     messages = result.trip_messages or ("",) * len(plan.trips)
 
@@ -179,21 +216,7 @@ def sanity_check(
         for gone in plan.skipped
         if reported(gone.motion_start_s)
     ]
-    rows = [
-        {
-            "run_id": run_id,
-            "site": hoist.hoist.site,
-            "hoist": hoist.hoist.name,
-            "trip_id": trip_id,
-            "rms_gap_pa": rms,
-            "noise_pa": sigma,
-            "passed": None if status == "skipped" else status == "passed",
-            "message": message,
-            "status": status,
-        }
-        for trip_id, status, message, rms in sorted(verdicts, key=lambda v: v[0])
-    ]
-    return conform(pl.DataFrame(rows), SANITY_CHECKS) if rows else empty
+    return verdicts
 
 
 def _trip_verdict(

@@ -129,20 +129,26 @@ def main() -> int:
 
 
 def _check(work: Path, data: Path) -> int:
+    """The deployment's schedule, then one run triggered through the API; 0 when both
+    are as they should be."""
+    failures = _check_schedule(work) + _check_triggered_run(data)
+    for failure in failures:
+        print(f"FAILED: {failure}")
+    print("deployment check: " + ("OK" if not failures else "FAILED"))
+    return 0 if not failures else 1
+
+
+def _check_schedule(work: Path) -> list[str]:
+    """The deployment is registered with the mine-local cron and its next runs are
+    scheduled at 02:30 mine-local time; what is not."""
     from prefect.client.orchestration import get_client
     from prefect.client.schemas.filters import (
-        ArtifactFilter,
-        ArtifactFilterFlowRunId,
         DeploymentFilter,
         DeploymentFilterId,
         FlowRunFilter,
         FlowRunFilterState,
         FlowRunFilterStateName,
     )
-    from prefect.deployments import run_deployment
-
-    from pipelines.ledger import fingerprint
-    from warehouse.store import DataRoot
 
     failures: list[str] = []
     with get_client(sync_client=True) as client:
@@ -187,7 +193,20 @@ def _check(work: Path, data: Path) -> int:
                 failures.append("a scheduled run is not at 02:30 mine-local time")
         if not scheduled:
             failures.append("the scheduler created no scheduled run")
+    return failures
 
+
+def _check_triggered_run(data: Path) -> list[str]:
+    """A run triggered through the API completes, leaves its report artifact and lands
+    a hoist-day in the warehouse; what does not."""
+    from prefect.client.orchestration import get_client
+    from prefect.client.schemas.filters import ArtifactFilter, ArtifactFilterFlowRunId
+    from prefect.deployments import run_deployment
+
+    from pipelines.ledger import fingerprint
+    from warehouse.store import DataRoot
+
+    failures: list[str] = []
     t0 = time.monotonic()
     run = run_deployment(f"nightly/{NAME}", timeout=300)
     print(
@@ -214,10 +233,7 @@ def _check(work: Path, data: Path) -> int:
             failures.append("the run landed no hoist-day")
     else:
         failures.append("the run created no warehouse")
-    for failure in failures:
-        print(f"FAILED: {failure}")
-    print("deployment check: " + ("OK" if not failures else "FAILED"))
-    return 0 if not failures else 1
+    return failures
 
 
 if __name__ == "__main__":

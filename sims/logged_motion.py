@@ -188,26 +188,13 @@ def rope_damping_from_record(
     envelope = np.abs(signal.hilbert(band))
     rings, decays = [], []
     for t_stop in stops_s:
-        w = (t_s >= t_stop + 0.5) & (t_s < t_stop + window_s)
-        if w.sum() < 4 * rate:
-            continue
-        # 3-7 s after the stop: the band filter's answer to the stop's pressure step
-        # (and a seal's settling) has died out, a rope's ringing (decay time
-        # 1 / (zeta omega), 2-7 s at zeta 0.03) has not
-        first = (t_s >= t_stop + 3.0) & (t_s < t_stop + 7.0)
-        ratio = float(np.sqrt(np.mean(band[first] ** 2))) / noise
-        rings.append(ratio)
-        if ratio < detect_ratio:
-            continue
-        tw, env = t_s[w], envelope[w]
-        strong = env > 2.0 * noise * np.sqrt(2.0)
-        if strong.sum() < 2 * rate:
-            continue
-        slope = np.polyfit(tw[strong] - t_stop, np.log(env[strong]), 1)[0]
-        f, pxx = signal.periodogram(band[w], fs=rate)
-        f_ring = float(f[np.argmax(pxx)])
-        if slope < 0 and f_ring > 0:
-            decays.append(-slope / (2.0 * np.pi * f_ring))
+        ratio, decay = _ringing_after_stop(
+            t_s, band, envelope, t_stop, noise, rate, window_s=window_s, detect_ratio=detect_ratio
+        )
+        if ratio is not None:
+            rings.append(ratio)
+        if decay is not None:
+            decays.append(decay)
     if not rings:
         return None, "no stop with enough standstill after it to read the rope bounce"
     seen = sum(r >= detect_ratio for r in rings)
@@ -224,3 +211,38 @@ def rope_damping_from_record(
         f"rope bounce seen after {seen} of {len(rings)} stops; damping ratio "
         f"{zeta:.3f} from its decay (median of {len(decays)})"
     )
+
+
+def _ringing_after_stop(
+    t_s: np.ndarray,
+    band: np.ndarray,
+    envelope: np.ndarray,
+    t_stop: float,
+    noise: float,
+    rate: float,
+    *,
+    window_s: float,
+    detect_ratio: float,
+) -> tuple[float | None, float | None]:
+    """The band RMS 3-7 s after one stop over the noise (None: too little standstill
+    after it) and the damping ratio read from the envelope's decay (None: not read)."""
+    w = (t_s >= t_stop + 0.5) & (t_s < t_stop + window_s)
+    if w.sum() < 4 * rate:
+        return None, None
+    # 3-7 s after the stop: the band filter's answer to the stop's pressure step
+    # (and a seal's settling) has died out, a rope's ringing (decay time
+    # 1 / (zeta omega), 2-7 s at zeta 0.03) has not
+    first = (t_s >= t_stop + 3.0) & (t_s < t_stop + 7.0)
+    ratio = float(np.sqrt(np.mean(band[first] ** 2))) / noise
+    if ratio < detect_ratio:
+        return ratio, None
+    tw, env = t_s[w], envelope[w]
+    strong = env > 2.0 * noise * np.sqrt(2.0)
+    if strong.sum() < 2 * rate:
+        return ratio, None
+    slope = np.polyfit(tw[strong] - t_stop, np.log(env[strong]), 1)[0]
+    f, pxx = signal.periodogram(band[w], fs=rate)
+    f_ring = float(f[np.argmax(pxx)])
+    if slope < 0 and f_ring > 0:
+        return ratio, -slope / (2.0 * np.pi * f_ring)
+    return ratio, None

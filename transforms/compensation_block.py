@@ -8,31 +8,24 @@ play operator, branch flow, friction and tensions) as soon as its inputs are rea
 The numba kernels and large numpy operations release the GIL, so the jobs run side by
 side. Each first-stage kernel runs twice, up to the hand-over of the next block and
 beyond it (:meth:`BlockCompensation.staged`), so the carried state is the one the next
-block resumes from.
+block resumes from. What the steps read before any of them runs (times, bounds,
+friction mode, oil temperature) is set up in :mod:`transforms.compensation_setup`.
 """
 
 from __future__ import annotations
 
-import datetime as dt
 import os
-import threading
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import replace
 
 import numpy as np
 import polars as pl
 
 from physics.closed_volume import common_mode_displacement
-from physics.friction_law import friction_law_at, law_array
-from physics.maxwell_slip import maxwell_slip_elements
-from physics.sensor_branch import sensor_branch
 from physics.trip_rule import trip_label_columns
-from schemas.hoist import HoistDescription
 from schemas.tables import ROPES
 from transforms.compensation_kernels import (
     differential_smooth,
-    long_segments,
     rope_kernel,
     smoothed_noise,
     viscosity,
@@ -40,30 +33,21 @@ from transforms.compensation_kernels import (
 from transforms.compensation_output import block_frame
 from transforms.compensation_record import (
     CompensationCarry,
-    CompensationContext,
-    CompensationSettings,
     calibrated,
-    compensation_margins_s,
     float_column,
     mean_horizontal,
     rope_cols,
 )
-from transforms.filtering import despike_median3, play_kernel, segment_ids
+from transforms.compensation_setup import BlockSetup
+from transforms.filtering import despike_median3, play_kernel
 from transforms.kinematics import smoothed_derivative
 from transforms.lowpass import lowpass, lowpass_work_size
 from transforms.piston_motion import share_out_common_motion
 from transforms.uncertainty import rope_band
 
-__all__ = ["BlockCompensation", "epoch_us"]
+__all__ = ["BlockCompensation"]
 
 Kernel = Callable[[int, int, np.ndarray], None]
-
-
-def epoch_us(at: dt.datetime) -> int:
-    """Microseconds since the epoch of a datetime (naive: UTC)."""
-    at = at.replace(tzinfo=dt.UTC) if at.tzinfo is None else at
-    delta = at - dt.datetime(1970, 1, 1, tzinfo=dt.UTC)
-    return (delta.days * 86_400 + delta.seconds) * 1_000_000 + delta.microseconds
 
 
 def _continues(segment: np.ndarray, at: int) -> float:
@@ -71,114 +55,16 @@ def _continues(segment: np.ndarray, at: int) -> float:
     return 1.0 if 0 < at < segment.size and segment[at] == segment[at - 1] else 0.0
 
 
-class BlockCompensation:
+class BlockCompensation(BlockSetup):
     """The compensation of one block: its arrays, its steps and their scheduling.
 
     ``frame`` holds the block and its margins (time-sorted, the columns
     :func:`transforms.compensation.compensate_window` reads, at least one row);
     ``carry`` the state the previous block left (None: the record's first block).
     :meth:`run` returns the block's ``ROPE_TENSIONS`` rows and the state for the next.
+    The constructor and the block's constants are :class:`~transforms.compensation_setup.
+    BlockSetup`'s.
     """
-
-    def __init__(
-        self,
-        frame: pl.DataFrame,
-        hoist: HoistDescription,
-        *,
-        context: CompensationContext,
-        settings: CompensationSettings,
-        effects: set[str],
-        carry: CompensationCarry | None,
-        block_start_utc: dt.datetime | None,
-        block_end_utc: dt.datetime | None,
-    ) -> None:
-        self.frame, self.hoist, self.context, self.n = frame, hoist, context, frame.height
-        self.law = hoist.friction_law
-        if settings.displacement_deadband_m < 0:
-            raise ValueError(
-                f"displacement_deadband_m must be >= 0, got {settings.displacement_deadband_m}"
-            )
-        self._friction_setup(effects)
-        self.resuming = carry is not None  # a block after the record's first
-        self.carry = carry or CompensationCarry.fresh(self.weights.shape[0])
-        self.nxt = replace(
-            self.carry,
-            differential=list(self.carry.differential),
-            played=list(self.carry.played),
-            rope=list(self.carry.rope),
-        )
-        rate_hz = context.sample_rate_hz
-        self.settings = replace(
-            settings,
-            sample_rate_hz=rate_hz,
-            pressure_cutoff_hz=min(settings.pressure_cutoff_hz, 0.4 * rate_hz),
-        )
-        self.dt_nominal = 1.0 / rate_hz
-        self._time_setup(block_start_utc, block_end_utc)
-        self.t_oil = self._oil_temperature(effects)
-        self.with_branch_loss = bool({"pipe_laminar_loss", "local_loss"} & effects)
-        self.branch = sensor_branch(hoist)
-        self.local = threading.local()
-        self.presliding_range_m = self._presliding_range_m()
-
-    # -- set-up ---------------------------------------------------------------------------
-    def _friction_setup(self, effects: set[str]) -> None:
-        """Friction mode (0 none, 1 Maxwell-slip, 2 LuGre), the law and the elements."""
-        law = self.law
-        presliding = "presliding_hysteresis" in effects
-        if presliding:
-            self.stiffness, self.weights = maxwell_slip_elements(
-                law.presliding_elements, law.bristle_stiffness_n_m
-            )
-        else:
-            self.stiffness, self.weights = np.ones(1), np.ones(1)
-        self.mode = 0 if "seal_friction" not in effects else (1 if presliding else 2)
-        self.law_lines = law_array(law)
-
-    def _time_setup(self, start: dt.datetime | None, end: dt.datetime | None) -> None:
-        """Times, segments and the block's bounds: the core [core_lo, core_hi) whose rows
-        are returned, the first stage's span [stage_lo, stage_hi) and its hand-over."""
-        # epoch microseconds x 1e-6 (the arithmetic of .astype(float) * 1e-6), by chunk
-        epoch = self.frame["time_utc"].dt.cast_time_unit("us").to_physical()
-        self.time_s = float_column(epoch, scale=1e-6)
-        resume_s, _ = compensation_margins_s(self.settings)
-        micros = epoch.to_numpy()
-
-        def index(at: dt.datetime | None, shift_s: float, default: int) -> int:
-            if at is None:
-                return default
-            target = epoch_us(at) + round(shift_s * 1e6)
-            return int(np.searchsorted(micros, target, side="left"))
-
-        n = self.n
-        self.core_lo, self.core_hi = index(start, 0.0, 0), index(end, 0.0, n)
-        self.stage_lo = index(start, -resume_s, 0) if self.resuming else 0
-        self.handover = index(end, -resume_s, n)
-        self.stage_hi = index(end, resume_s, n)
-        self.segment = segment_ids(
-            self.time_s, gap_factor=self.settings.gap_factor, nominal_dt_s=self.dt_nominal
-        )
-        self.long_segment, self.long_bounds = long_segments(
-            self.time_s, self.settings.differential_bridge_s
-        )
-
-    def _oil_temperature(self, effects: set[str]) -> np.ndarray | None:
-        """The logged oil temperature (gaps filled), when the viscosity follows it."""
-        frame = self.frame
-        if "viscosity_temperature" not in effects or frame["oil_temp_c"].null_count() == self.n:
-            return None
-        temperature = frame["oil_temp_c"]
-        if temperature.null_count():
-            temperature = temperature.fill_null(strategy="forward").fill_null(strategy="backward")
-        return float_column(temperature)
-
-    def _presliding_range_m(self) -> float:
-        """F_s / sigma_0 at the record's median pressure: one seal's presliding range."""
-        if self.mode == 0 or not self.law.bristle_stiffness_n_m > 0:
-            return 0.0
-        p_typical = self.context.typical_pressure_pa
-        static = friction_law_at(p_typical if np.isfinite(p_typical) else 0.0, self.law_lines)[1]
-        return static / float(self.law.bristle_stiffness_n_m)
 
     # -- helpers --------------------------------------------------------------------------
     def buffer(self, name: str, size: int) -> np.ndarray:

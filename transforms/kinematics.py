@@ -113,28 +113,34 @@ def smoothed_derivative(
     starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]]))
     bounds = [*starts.tolist(), y.size]
     for a, b in itertools.pairwise(bounds):
-        part = y[a:b]
-        bad = ~np.isfinite(part)
-        if bad.all():
-            out[a:b] = np.nan
-            continue
-        if bad.any():
-            idx = np.arange(part.size)
-            part = np.interp(idx, idx[~bad], part[~bad])
-        if b - a >= _DIRECT_FACTOR * n_win:
-            d = _savgol_derivative(part, n_win, polyorder, dt_s, out=out[a:b])
-            if bad.any():
-                d[bad] = np.nan
-            continue
-        if b - a >= n_win:
-            d = signal.savgol_filter(part, n_win, polyorder, deriv=1, delta=dt_s, mode="interp")
-        elif b - a >= 2:
-            d = np.gradient(part, dt_s)
-        else:
-            d = np.zeros(1)
-        d[bad] = np.nan
-        out[a:b] = d
+        _segment_derivative(y[a:b], n_win, polyorder, dt_s, out=out[a:b])
     return out
+
+
+def _segment_derivative(
+    part: np.ndarray, n_win: int, polyorder: int, dt_s: float, *, out: np.ndarray
+) -> None:
+    """:func:`smoothed_derivative` of one segment, written into ``out`` (its slice)."""
+    bad = ~np.isfinite(part)
+    if bad.all():
+        out[:] = np.nan
+        return
+    if bad.any():
+        idx = np.arange(part.size)
+        part = np.interp(idx, idx[~bad], part[~bad])
+    if part.size >= _DIRECT_FACTOR * n_win:
+        d = _savgol_derivative(part, n_win, polyorder, dt_s, out=out)
+        if bad.any():
+            d[bad] = np.nan
+        return
+    if part.size >= n_win:
+        d = signal.savgol_filter(part, n_win, polyorder, deriv=1, delta=dt_s, mode="interp")
+    elif part.size >= 2:
+        d = np.gradient(part, dt_s)
+    else:
+        d = np.zeros(1)
+    d[bad] = np.nan
+    out[:] = d
 
 
 #: Segments at least this many windows long take the direct convolution path.

@@ -134,81 +134,110 @@ def _batches(
     (the logger stopped mid-write): the samples every channel has land, the reading
     stops there and is ``partial`` (a channel filled with nulls instead would land
     wrong rows that the complete file's rows then conflict with)."""
-    start, offset_s, increment_s = timebase
     try:
         for chunk in tdms.data_chunks():
             group = chunk[_GROUP]
             arrays = {c.name: (c.offset, c[:]) for c in group.channels()}
             if "p1" not in arrays:
                 continue
-            first = arrays["p1"][0]
-            lengths = {
-                name: len(data)
-                for name, (offset, data) in arrays.items()
-                if (name in units or name == "timestamp") and offset == first
-            }
-            n = min(lengths.values())
-            if n < max(lengths.values()):
-                short = min(lengths, key=lengths.__getitem__)
-                reading.partial = (
-                    f"truncated: channel hoist/{short} ends at sample {first + n}, "
-                    f"{max(lengths.values()) - n} sample(s) before the longest channel; landed "
-                    "the samples every channel has"
-                )
-                arrays = {name: (offset, data[:n]) for name, (offset, data) in arrays.items()}
-            index = np.arange(first, first + n, dtype=np.int64)
-            if "timestamp" in arrays and len(arrays["timestamp"][1]) == n:
-                times = pl.Series("time_utc", arrays["timestamp"][1].astype("datetime64[us]"))
-            else:
-                step_us = np.rint((offset_s + index * increment_s) * 1e6).astype(np.int64)
-                times = pl.Series("time_utc", start + step_us.astype("timedelta64[us]"))
-            columns = {"time_utc": times.dt.replace_time_zone("UTC"), "_row": index}
-            values = []
-            for name, spec in CHANNELS.items():
-                if name in arrays and len(arrays[name][1]) == n and arrays[name][0] == first:
-                    columns[name] = np.asarray(arrays[name][1], dtype=np.float64)
-                    factor, offset = units[name]
-                    values.append(to_si(pl.col(name), factor, offset).alias(spec.column))
-                else:
-                    values.append(pl.lit(None, pl.Float64).alias(spec.column))
-            frame = pl.DataFrame(columns).with_columns(
-                pl.col(name).fill_nan(None) for name in units if name in columns
-            )
-            si = frame.select("time_utc", "_row", *values)
-            present = [CHANNELS[n].column for n in units if n in columns]
-            reasons = [
-                pl.when(pl.col("time_utc").is_null()).then(pl.lit(REASON_TIMESTAMP)),
-                *physical_reason(present, limits),
-            ]
-            si = si.with_columns(pl.coalesce(*reasons).alias("_reason"))
-            good = si.filter(pl.col("_reason").is_null())
-            bad = si.filter(pl.col("_reason").is_not_null())
-            names = [f.name for f in FIELD_SAMPLES if f.name != "source_sha256"]
-            samples = good.with_columns(pl.col("_row").alias("source_line")).select(*names, "_row")
-
-            def raw_of(rows: list[int], si: pl.DataFrame = si) -> list[str | None]:
-                picked = si.filter(pl.col("_row").is_in(rows)).drop("_reason")
-                texts = {r["_row"]: _raw_text(r) for r in picked.iter_rows(named=True)}
-                return [texts.get(r) for r in rows]
-
-            rejected = (
-                pl.DataFrame(
-                    {
-                        "row": bad["_row"],
-                        "topic": None,
-                        "reason": bad["_reason"],
-                        "raw": raw_of(bad["_row"].to_list()),
-                    },
-                    schema=REJECTED_SCHEMA,
-                )
-                if bad.height
-                else rejected_frame([])
-            )
-            yield Batch(samples=samples, rejected=rejected, raw_of=raw_of)
+            first, n, arrays = _even_channels(arrays, units, reading)
+            si, present = _si_frame(arrays, units, timebase, first, n)
+            yield _screened_batch(si, present, limits)
             if reading.partial:
                 break
     finally:
         tdms.close()
+
+
+def _even_channels(
+    arrays: dict[str, tuple[int, np.ndarray]],
+    units: dict[str, tuple[float, float]],
+    reading: Reading,
+) -> tuple[int, int, dict[str, tuple[int, np.ndarray]]]:
+    """The chunk's first sample, the samples every channel has and the channels cut to
+    them; a channel ending early marks the reading ``partial`` (a truncated file)."""
+    first = arrays["p1"][0]
+    lengths = {
+        name: len(data)
+        for name, (offset, data) in arrays.items()
+        if (name in units or name == "timestamp") and offset == first
+    }
+    n = min(lengths.values())
+    if n < max(lengths.values()):
+        short = min(lengths, key=lengths.__getitem__)
+        reading.partial = (
+            f"truncated: channel hoist/{short} ends at sample {first + n}, "
+            f"{max(lengths.values()) - n} sample(s) before the longest channel; landed "
+            "the samples every channel has"
+        )
+        arrays = {name: (offset, data[:n]) for name, (offset, data) in arrays.items()}
+    return first, n, arrays
+
+
+def _si_frame(
+    arrays: dict[str, tuple[int, np.ndarray]],
+    units: dict[str, tuple[float, float]],
+    timebase,
+    first: int,
+    n: int,
+) -> tuple[pl.DataFrame, list[str]]:
+    """The chunk's samples in SI with their times and row numbers (``_row``), and the
+    columns of the channels present (the others are null)."""
+    start, offset_s, increment_s = timebase
+    index = np.arange(first, first + n, dtype=np.int64)
+    if "timestamp" in arrays and len(arrays["timestamp"][1]) == n:
+        times = pl.Series("time_utc", arrays["timestamp"][1].astype("datetime64[us]"))
+    else:
+        step_us = np.rint((offset_s + index * increment_s) * 1e6).astype(np.int64)
+        times = pl.Series("time_utc", start + step_us.astype("timedelta64[us]"))
+    columns = {"time_utc": times.dt.replace_time_zone("UTC"), "_row": index}
+    values = []
+    for name, spec in CHANNELS.items():
+        if name in arrays and len(arrays[name][1]) == n and arrays[name][0] == first:
+            columns[name] = np.asarray(arrays[name][1], dtype=np.float64)
+            factor, offset = units[name]
+            values.append(to_si(pl.col(name), factor, offset).alias(spec.column))
+        else:
+            values.append(pl.lit(None, pl.Float64).alias(spec.column))
+    frame = pl.DataFrame(columns).with_columns(
+        pl.col(name).fill_nan(None) for name in units if name in columns
+    )
+    present = [CHANNELS[n].column for n in units if n in columns]
+    return frame.select("time_utc", "_row", *values), present
+
+
+def _screened_batch(si: pl.DataFrame, present: list[str], limits: tuple[float, float]) -> Batch:
+    """The chunk's samples that pass the timestamp and physical checks, and the rejected
+    rows with their reason and raw text."""
+    reasons = [
+        pl.when(pl.col("time_utc").is_null()).then(pl.lit(REASON_TIMESTAMP)),
+        *physical_reason(present, limits),
+    ]
+    si = si.with_columns(pl.coalesce(*reasons).alias("_reason"))
+    good = si.filter(pl.col("_reason").is_null())
+    bad = si.filter(pl.col("_reason").is_not_null())
+    names = [f.name for f in FIELD_SAMPLES if f.name != "source_sha256"]
+    samples = good.with_columns(pl.col("_row").alias("source_line")).select(*names, "_row")
+
+    def raw_of(rows: list[int], si: pl.DataFrame = si) -> list[str | None]:
+        picked = si.filter(pl.col("_row").is_in(rows)).drop("_reason")
+        texts = {r["_row"]: _raw_text(r) for r in picked.iter_rows(named=True)}
+        return [texts.get(r) for r in rows]
+
+    rejected = (
+        pl.DataFrame(
+            {
+                "row": bad["_row"],
+                "topic": None,
+                "reason": bad["_reason"],
+                "raw": raw_of(bad["_row"].to_list()),
+            },
+            schema=REJECTED_SCHEMA,
+        )
+        if bad.height
+        else rejected_frame([])
+    )
+    return Batch(samples=samples, rejected=rejected, raw_of=raw_of)
 
 
 def _raw_text(row: dict) -> str:

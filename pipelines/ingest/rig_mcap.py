@@ -218,56 +218,10 @@ def _typed(value: Any, dtype: pl.DataType) -> Any:
 
 def _reading(path: Path, collected: _Collected, partial: str | None) -> Reading:
     decoded = {t: _decode(t, collected.times[t], collected.payloads[t]) for t in KNOWN_TOPICS}
-    info = decoded["/rig/info"][0]
-    if info.height == 0:
-        raise RefusedFile(f"{path}: topic /rig/info: no valid message, so no rig_id")
-    try:  # the rig id becomes a lake folder (hoist=<rig_id>): a safe name only
-        rig_id = safe_name(info["rig_id"][0], key="rig_id", source=f"{path}: topic /rig/info")
-    except UnsafeNameError as exc:
-        raise RefusedFile(str(exc)) from None
+    rig_id = _rig_id(path, decoded["/rig/info"][0])
     pressure, rejected_p = decoded["/rig/pressure"]
-    samples = pressure.select(
-        "time_utc",
-        "_row",
-        (pl.col("p_rodless_mpa") * 1e6).alias("p_rodless_pa"),
-        (pl.col("p_rod_mpa") * 1e6).alias("p_rod_pa"),
-    )
-    reasons = []
-    for column in ("p_rodless_pa", "p_rod_pa"):
-        name = column.removesuffix("_pa")
-        reasons.append(
-            pl.when(pl.col(column) < 0).then(pl.lit(f"negative absolute pressure ({name})"))
-        )
-        reasons.append(
-            pl.when(pl.col(column) > MAX_PRESSURE_PA).then(
-                pl.lit(f"pressure above 60 MPa ({name})")
-            )
-        )
-    samples = samples.with_columns(pl.coalesce(*reasons).alias("_reason"))
-    displacement = decoded["/rig/displacement"][0].select(
-        "time_utc", (pl.col("x_mm") * 1e-3).alias("x_m")
-    )
-    temperature = decoded["/rig/temperature"][0].select("time_utc", "oil_temp_c")
-    steps = decoded["/rig/step"][0].select(
-        "time_utc",
-        pl.col("step").cast(pl.Int32),
-        (pl.col("pressure_setpoint_mpa") * 1e6).alias("pressure_setpoint_pa"),
-        (pl.col("velocity_setpoint_mm_s") * 1e-3).alias("velocity_setpoint_m_s"),
-    )
-    aligned = (
-        samples.sort("time_utc")
-        .join_asof(steps.unique("time_utc", keep="last", maintain_order=True), on="time_utc")
-        .join_asof(
-            displacement.unique("time_utc", keep="last", maintain_order=True),
-            on="time_utc",
-            tolerance=f"{round(DISPLACEMENT_TOLERANCE_S * 1e6)}us",
-        )
-        .join_asof(
-            temperature.unique("time_utc", keep="last", maintain_order=True),
-            on="time_utc",
-            tolerance=f"{round(TEMPERATURE_TOLERANCE_S * 1e6)}us",
-        )
-        .with_columns(pl.lit(rig_id).alias("rig_id"))
+    aligned = _aligned(_screened_pressure(pressure), decoded).with_columns(
+        pl.lit(rig_id).alias("rig_id")
     )
     bad = aligned.filter(pl.col("_reason").is_not_null())
     payloads = collected.payloads["/rig/pressure"]
@@ -292,6 +246,81 @@ def _reading(path: Path, collected: _Collected, partial: str | None) -> Reading:
     )
     names = [f.name for f in RIG_SAMPLES if f.name != "source_sha256"]
     good = aligned.filter(pl.col("_reason").is_null()).select(*names, "_row")
+    return Reading(
+        table="rig_samples",
+        site="rig",
+        hoist=rig_id,
+        batches=iter([Batch(samples=good, rejected=rejected, raw_of=raw_of)]),
+        notes=_notes(collected, rejected),
+        partial=partial,
+    )
+
+
+def _rig_id(path: Path, info: pl.DataFrame) -> str:
+    """The rig id of the first valid ``/rig/info`` message (refused when none or unsafe)."""
+    if info.height == 0:
+        raise RefusedFile(f"{path}: topic /rig/info: no valid message, so no rig_id")
+    try:  # the rig id becomes a lake folder (hoist=<rig_id>): a safe name only
+        return safe_name(info["rig_id"][0], key="rig_id", source=f"{path}: topic /rig/info")
+    except UnsafeNameError as exc:
+        raise RefusedFile(str(exc)) from None
+
+
+def _screened_pressure(pressure: pl.DataFrame) -> pl.DataFrame:
+    """The pressures in Pa with ``_reason`` set where one is negative or above 60 MPa."""
+    samples = pressure.select(
+        "time_utc",
+        "_row",
+        (pl.col("p_rodless_mpa") * 1e6).alias("p_rodless_pa"),
+        (pl.col("p_rod_mpa") * 1e6).alias("p_rod_pa"),
+    )
+    reasons = []
+    for column in ("p_rodless_pa", "p_rod_pa"):
+        name = column.removesuffix("_pa")
+        reasons.append(
+            pl.when(pl.col(column) < 0).then(pl.lit(f"negative absolute pressure ({name})"))
+        )
+        reasons.append(
+            pl.when(pl.col(column) > MAX_PRESSURE_PA).then(
+                pl.lit(f"pressure above 60 MPa ({name})")
+            )
+        )
+    return samples.with_columns(pl.coalesce(*reasons).alias("_reason"))
+
+
+def _aligned(
+    samples: pl.DataFrame, decoded: dict[str, tuple[pl.DataFrame, pl.DataFrame]]
+) -> pl.DataFrame:
+    """One row per pressure message with the latest step, and the latest displacement and
+    temperature within their tolerances (SI)."""
+    displacement = decoded["/rig/displacement"][0].select(
+        "time_utc", (pl.col("x_mm") * 1e-3).alias("x_m")
+    )
+    temperature = decoded["/rig/temperature"][0].select("time_utc", "oil_temp_c")
+    steps = decoded["/rig/step"][0].select(
+        "time_utc",
+        pl.col("step").cast(pl.Int32),
+        (pl.col("pressure_setpoint_mpa") * 1e6).alias("pressure_setpoint_pa"),
+        (pl.col("velocity_setpoint_mm_s") * 1e-3).alias("velocity_setpoint_m_s"),
+    )
+    return (
+        samples.sort("time_utc")
+        .join_asof(steps.unique("time_utc", keep="last", maintain_order=True), on="time_utc")
+        .join_asof(
+            displacement.unique("time_utc", keep="last", maintain_order=True),
+            on="time_utc",
+            tolerance=f"{round(DISPLACEMENT_TOLERANCE_S * 1e6)}us",
+        )
+        .join_asof(
+            temperature.unique("time_utc", keep="last", maintain_order=True),
+            on="time_utc",
+            tolerance=f"{round(TEMPERATURE_TOLERANCE_S * 1e6)}us",
+        )
+    )
+
+
+def _notes(collected: _Collected, rejected: pl.DataFrame) -> list[str]:
+    """What the reading ignored: unknown topics, invalid messages of the other topics."""
     notes = []
     if collected.unknown:
         listed = ", ".join(f"{t} ({n} messages)" for t, n in sorted(collected.unknown.items()))
@@ -299,11 +328,4 @@ def _reading(path: Path, collected: _Collected, partial: str | None) -> Reading:
     auxiliary = rejected.filter(pl.col("topic") != "/rig/pressure").height
     if auxiliary:
         notes.append(f"{auxiliary} invalid message(s) of other topics quarantined (not rows)")
-    return Reading(
-        table="rig_samples",
-        site="rig",
-        hoist=rig_id,
-        batches=iter([Batch(samples=good, rejected=rejected, raw_of=raw_of)]),
-        notes=notes,
-        partial=partial,
-    )
+    return notes

@@ -158,7 +158,7 @@ def test_local_loss_candidate_is_not_null_when_the_description_declares_no_loss(
     column is not identically zero and discovery can estimate it from a zero start."""
     import re
 
-    from discovery.library import NOMINAL_VALVE_LOSS_COEFFICIENT
+    from discovery.effect_terms import NOMINAL_VALVE_LOSS_COEFFICIENT
     from schemas.hoist import EXAMPLE_HOIST, load_hoist
     from sims.device import simulate
     from sims.trips import hold

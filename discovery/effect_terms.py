@@ -1,0 +1,328 @@
+"""The candidate terms: what a term is (:class:`EffectTerm`) and one per named effect.
+
+Each term switches its effect of the device simulation (:mod:`sims.device`) on and maps
+a small vector of coordinates to the effect's parameters; :func:`effect_terms` is the
+table of every contract effect's term, which :mod:`discovery.library` collects into the
+library.
+
+Coordinates are chosen so the simulated pressures are close to linear in them:
+
+================================  ==============================================  =========
+effect                            coordinates                                     step
+================================  ==============================================  =========
+tail_rope_weight                  mass per metre of one tail rope [kg/m]          0.5
+conveyance_inertia                accelerated empty conveyance mass [kg]          500
+seal_friction                     scale of Fc and Fs laws (both coefficients) [-] 0.1
+presliding_hysteresis             ln(total presliding stiffness [N/m])            0.3
+pipe_laminar_loss                 scale of both branch lengths [-]                0.2
+local_loss                        scale of the three loss coefficients [-]        0.2
+oil_compressibility               ln(bulk modulus [Pa])                           0.2
+viscosity_temperature             ln(kinematic viscosity at 100 degC [m2/s])      0.1
+sensor_offset                     offset per sensor [Pa] (analytic columns)       --
+sensor_gain                       gain per sensor [-] (analytic columns)          --
+groove_wear                       groove radius deviation, ropes 2..n [m]         1e-4
+================================  ==============================================  =========
+
+Sensor offset and gain act after the simulation (``reading = gain p + offset``), so
+their columns are analytic (no simulation). Groove deviations are relative to rope 1:
+a deviation common to all ropes only stretches them equally and is not seen in the
+pressures. ``presliding_hysteresis`` needs ``seal_friction`` and
+``viscosity_temperature`` needs ``pipe_laminar_loss`` (it only scales that loss); a
+term whose requirement is not in the model is not a candidate yet.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from schemas.effects import EFFECT_NAMES
+from schemas.hoist import HoistDescription
+from sims.effects import resolve_effects
+
+__all__ = ["NOMINAL_VALVE_LOSS_COEFFICIENT", "EffectTerm", "Params", "effect_terms"]
+
+Params = dict[str, dict[str, Any]]
+
+
+@dataclass(frozen=True)
+class EffectTerm:
+    """A candidate effect: its coordinates, how they map to parameters, what excites it.
+
+    Attributes
+    ----------
+    name : contract section 4 effect name.
+    coordinate_names : names (with units) of the fitted coordinates.
+    steps : finite-difference step per coordinate.
+    requires : effects that must be in the model for this term to act.
+    excitation : the operating condition that shows this effect most.
+    analytic : columns are computed from the simulated pressures (sensor terms).
+    prior_sd : prior standard deviation of a coordinate when re-tuned (< 0: relative).
+    start_amplitudes : for a term that is null at its default and strongly nonlinear
+        around it (``groove_wear``: the pistons' friction flips once they drift apart,
+        so a finite-difference column at zero deviation sees only the presliding
+        stiffness), the amplitudes of a coarse scan along the data's differential
+        signature that gives the fit a non-zero start (see
+        :mod:`discovery.selection`).
+    """
+
+    name: str
+    coordinate_names: tuple[str, ...]
+    steps: tuple[float, ...]
+    requires: tuple[str, ...]
+    excitation: str
+    get: Callable[[HoistDescription, Mapping[str, Any]], np.ndarray]
+    set: Callable[[HoistDescription, np.ndarray], dict[str, Any]]
+    analytic: bool = False
+    prior_sd: float = 0.0
+    start_amplitudes: tuple[float, ...] = ()
+
+    def prior(self, theta: np.ndarray) -> np.ndarray:
+        """Prior standard deviation of each coordinate when the term is re-tuned.
+
+        A calibrated parameter may move within its calibration uncertainty (a Gaussian
+        prior, i.e. ridge regression toward the calibrated value); relative priors
+        (``prior_sd`` < 0) scale with the coordinate's value.
+        """
+        sd = abs(self.prior_sd)
+        if self.prior_sd < 0:
+            return np.maximum(sd * np.abs(theta), 1e-12)
+        return np.full(theta.shape, sd)
+
+    def coordinates(
+        self, hoist: HoistDescription, parameters: Mapping[str, Any] | None
+    ) -> np.ndarray:
+        """Current coordinates from ``parameters`` overrides (hoist defaults otherwise)."""
+        eff = resolve_effects(hoist, [*EFFECT_NAMES], _only_known(parameters))
+        return np.asarray(self.get(hoist, eff.parameters[self.name]), dtype=float)
+
+    def parameters(self, hoist: HoistDescription, theta: np.ndarray) -> dict[str, Any]:
+        """The effect's parameters (sims.effects names, SI) at coordinates ``theta``."""
+        return self.set(hoist, np.asarray(theta, dtype=float))
+
+    def null_at_default(self, hoist: HoistDescription) -> bool:
+        """Switching the term on at the hoist's defaults changes nothing."""
+        theta = self.coordinates(hoist, None)
+        if self.name == "sensor_offset":
+            return bool(np.all(theta == 0.0))
+        if self.name == "sensor_gain":
+            return bool(np.all(theta == 1.0))
+        if self.name == "groove_wear":
+            return not any(hoist.drum.groove_radius_deviation_m)
+        return False
+
+
+def _only_known(parameters: Mapping[str, Any] | None) -> Params:
+    return {k: dict(v) for k, v in (parameters or {}).items()}
+
+
+def _pair(value: Any) -> tuple[float, float]:
+    a, b = value
+    return float(a), float(b)
+
+
+def _friction_scale(h: HoistDescription, p: Mapping[str, Any]) -> np.ndarray:
+    base = _pair(h.friction_law.coulomb_n)
+    return np.array([_pair(p["coulomb_n"])[0] / base[0] if base[0] else 1.0])
+
+
+def _friction_set(h: HoistDescription, x: np.ndarray) -> dict[str, Any]:
+    s = float(max(x[0], 0.0))
+    law = h.friction_law
+    return {
+        "coulomb_n": (s * law.coulomb_n[0], s * law.coulomb_n[1]),
+        "static_n": (s * law.static_n[0], s * law.static_n[1]),
+    }
+
+
+def _length_scale(h: HoistDescription, p: Mapping[str, Any]) -> np.ndarray:
+    return np.array([p["length_chamber_to_sensor_m"] / h.piping.length_chamber_to_sensor_m])
+
+
+def _length_set(h: HoistDescription, x: np.ndarray) -> dict[str, Any]:
+    s = float(max(x[0], 1e-3))
+    return {
+        "length_chamber_to_sensor_m": s * h.piping.length_chamber_to_sensor_m,
+        "length_sensor_to_manifold_m": s * h.piping.length_sensor_to_manifold_m,
+    }
+
+
+#: The loss coefficients a ``local_loss`` candidate scales when the description declares
+#: none (all K = 0): an open DN10 globe valve, Crane TP-410 K = 340 f_T ~ 9, beside the
+#: sensor (issue 14: a K of 0 in the TOML made the candidate identically zero).
+NOMINAL_VALVE_LOSS_COEFFICIENT = 9.0
+
+
+def _k_base(h: HoistDescription) -> tuple[float, float, float]:
+    """The loss coefficients the ``local_loss`` scale multiplies: the description's,
+    or :data:`NOMINAL_VALVE_LOSS_COEFFICIENT` on the valve when they are all zero."""
+    pp = h.piping
+    base = (
+        pp.valve_loss_coefficient,
+        pp.fittings_loss_coefficient_chamber_to_sensor,
+        pp.fittings_loss_coefficient_sensor_to_manifold,
+    )
+    return base if sum(base) > 0 else (NOMINAL_VALVE_LOSS_COEFFICIENT, 0.0, 0.0)
+
+
+def _loss_scale(h: HoistDescription, p: Mapping[str, Any]) -> np.ndarray:
+    base = sum(_k_base(h))
+    now = (
+        p["valve_loss_coefficient"]
+        + p["fittings_chamber_to_sensor"]
+        + p["fittings_sensor_to_manifold"]
+    )
+    return np.array([now / base if base else 1.0])
+
+
+def _loss_set(h: HoistDescription, x: np.ndarray) -> dict[str, Any]:
+    s = float(max(x[0], 0.0))
+    kv, k1, k2 = _k_base(h)
+    return {
+        "valve_loss_coefficient": s * kv,
+        "fittings_chamber_to_sensor": s * k1,
+        "fittings_sensor_to_manifold": s * k2,
+    }
+
+
+def _groove_get(h: HoistDescription, p: Mapping[str, Any]) -> np.ndarray:
+    dev = np.asarray(p["groove_radius_deviation_m"], dtype=float)
+    return dev[1:] - dev[0]
+
+
+def _groove_set(h: HoistDescription, x: np.ndarray) -> dict[str, Any]:
+    return {"groove_radius_deviation_m": [0.0, *[float(v) for v in x]]}
+
+
+def effect_terms() -> dict[str, EffectTerm]:
+    """Every contract effect's term, by name.
+
+    Long on purpose (~120 lines): a table, one ``EffectTerm`` of ~10 lines per effect,
+    read in one place like the module docstring's table; splitting it would scatter it.
+    """
+    ln = math.log
+    terms = [
+        EffectTerm(
+            "tail_rope_weight",
+            ("mass_per_length_kg_m",),
+            (0.5,),
+            (),
+            "long travel: the tail rope hanging below the conveyance changes with depth",
+            lambda h, p: np.array([p["mass_per_length_kg_m"]]),
+            lambda h, x: {"mass_per_length_kg_m": float(x[0])},
+            prior_sd=-0.2,
+        ),
+        EffectTerm(
+            "conveyance_inertia",
+            ("mass_kg",),
+            (500.0,),
+            (),
+            "hard acceleration and deceleration of a loaded conveyance",
+            lambda h, p: np.array([p["mass_kg"]]),
+            lambda h, x: {"mass_kg": float(max(x[0], 0.0))},
+            prior_sd=-0.1,
+        ),
+        EffectTerm(
+            "seal_friction",
+            ("friction_scale",),
+            (0.1,),
+            (),
+            "load changes at standstill and motion reversals (all pistons sliding together)",
+            _friction_scale,
+            _friction_set,
+            prior_sd=0.3,
+        ),
+        EffectTerm(
+            "presliding_hysteresis",
+            ("ln_stiffness_n_m",),
+            (0.3,),
+            ("seal_friction",),
+            "small load changes in steps at standstill (sub-millimetre piston motion)",
+            lambda h, p: np.array([ln(p["stiffness_n_m"])]),
+            lambda h, x: {"stiffness_n_m": float(math.exp(x[0]))},
+            prior_sd=0.5,
+        ),
+        EffectTerm(
+            "pipe_laminar_loss",
+            ("length_scale",),
+            (0.2,),
+            (),
+            "oil flowing between the cylinders (groove wear or unequal ropes make the "
+            "pistons drift apart during travel): the loss is linear in that flow",
+            _length_scale,
+            _length_set,
+            prior_sd=0.3,
+        ),
+        EffectTerm(
+            "local_loss",
+            ("loss_coefficient_scale",),
+            (0.2,),
+            (),
+            "trips at clearly different winding speeds with branch flow between the "
+            "cylinders (groove wear or unequal ropes): the loss grows with the flow squared, "
+            "while on trips of one speed a re-tuned laminar loss and its viscosity slope "
+            "mimic it",
+            _loss_scale,
+            _loss_set,
+            prior_sd=0.5,
+        ),
+        EffectTerm(
+            "oil_compressibility",
+            ("ln_bulk_modulus_pa",),
+            (0.2,),
+            (),
+            "sudden load changes (pressure lag and ringing between cylinders)",
+            lambda h, p: np.array([ln(p["bulk_modulus_pa"])]),
+            lambda h, x: {"bulk_modulus_pa": float(math.exp(x[0]))},
+            prior_sd=0.3,
+        ),
+        EffectTerm(
+            "viscosity_temperature",
+            ("ln_viscosity_100c_m2_s",),
+            (0.1,),
+            ("pipe_laminar_loss",),
+            "branch flow between the cylinders at clearly different oil temperatures "
+            "(a cold start warming up)",
+            lambda h, p: np.array([ln(p["kinematic_viscosity_100c_m2_s"])]),
+            lambda h, x: {"kinematic_viscosity_100c_m2_s": float(math.exp(x[0]))},
+            prior_sd=0.2,
+        ),
+        EffectTerm(
+            "sensor_offset",
+            tuple(f"offset_pa[{i}]" for i in range(1, 5)),
+            (1e3,) * 4,
+            (),
+            "the conveyance at rest empty and loaded (an offset does not scale with pressure)",
+            lambda h, p: np.asarray(p["offsets_pa"], dtype=float),
+            lambda h, x: {"offsets_pa": [float(v) for v in x]},
+            analytic=True,
+            prior_sd=5e4,
+        ),
+        EffectTerm(
+            "sensor_gain",
+            tuple(f"gain[{i}]" for i in range(1, 5)),
+            (1e-3,) * 4,
+            (),
+            "the conveyance at rest empty and loaded (a gain error scales with pressure)",
+            lambda h, p: np.asarray(p["gains"], dtype=float),
+            lambda h, x: {"gains": [float(v) for v in x]},
+            analytic=True,
+            prior_sd=0.02,
+        ),
+        EffectTerm(
+            "groove_wear",
+            tuple(f"groove_radius_deviation_m[{i}]" for i in range(2, 5)),
+            (1e-4,) * 3,
+            (),
+            "long travel in one direction at full speed (rope lengths drift apart)",
+            _groove_get,
+            _groove_set,
+            prior_sd=3e-4,
+            start_amplitudes=(1e-4, 2e-4, 4e-4, 8e-4, 1.6e-3),
+        ),
+    ]
+    return {t.name: t for t in terms}

@@ -1,0 +1,193 @@
+"""The alarm rules' checks: each family of rules evaluated on the prepared samples.
+
+:func:`rope_alarms` (imbalance, slack and tight rope), :func:`load_alarms` (overload
+and the reconciliation residual at rest) and :func:`sensor_alarms` (flat line, stuck,
+out of range, dropout) return the event rows of their rules;
+:func:`transforms.alarms.evaluate_alarms` prepares the samples and calls them. The
+thresholds are :mod:`transforms.alarm_rules`'s, the debounce :mod:`transforms.alarm_events`'.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import polars as pl
+
+from schemas.hoist import HoistDescription
+from schemas.tables import ROPES
+from transforms.alarm_events import (
+    EventContext,
+    column,
+    debounced,
+    event_rows,
+    merge_events,
+    runs,
+    threshold_events,
+    unchanged,
+)
+from transforms.alarm_rules import STANDSTILL_SPEED_M_S, RuleThresholds
+
+__all__ = ["load_alarms", "pressures_pa", "rope_alarms", "sensor_alarms"]
+
+
+def pressures_pa(frame: pl.DataFrame, hoist: HoistDescription) -> list[np.ndarray]:
+    """Sensor pressure per rope: ``p{i}_pa``, else raw tension / bore area."""
+    area = hoist.cylinders.bore_area_m2
+    out = []
+    for i in ROPES:
+        p = column(frame, f"p{i}_pa")
+        if np.all(np.isnan(p)):
+            p = column(frame, f"tension_raw{i}_n") / area
+        out.append(p)
+    return out
+
+
+def rope_alarms(
+    ctx: EventContext,
+    frame: pl.DataFrame,
+    hoist: HoistDescription,
+    thresholds: RuleThresholds,
+    common: dict[str, float],
+) -> list[dict[str, object]]:
+    """Imbalance, slack and tight rope events of each rope."""
+    alarms, t_s, rows = hoist.alarms, ctx.t_s, []
+    tensions = [column(frame, f"tension{i}_n") for i in ROPES]
+    mean = np.mean(np.vstack(tensions), axis=0)
+    # imbalance is judged only while the ropes carry at least the slack threshold on
+    # average (a hoist off its ropes has no meaningful balance); peak value is signed
+    for i, tension in zip(ROPES, tensions, strict=True):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            deviation = np.where(mean > thresholds.slack_n, (tension - mean) / mean, np.nan)
+        s, e = threshold_events(
+            t_s, np.abs(deviation), thresholds.imbalance_fraction, above=True, **common
+        )
+        rows += event_rows(
+            ctx, "rope_imbalance", i, s, e, peak_of=np.abs(deviation), peak_max=True,
+            report=deviation, threshold=thresholds.imbalance_fraction,
+            message=f"rope {i} tension differs from the mean of the ropes by more than "
+            f"{thresholds.imbalance_fraction:.0%}",
+        )  # fmt: skip
+        s, e = threshold_events(t_s, tension, thresholds.slack_n, above=False, **common)
+        rows += event_rows(
+            ctx, "slack_rope", i, s, e, peak_of=tension, peak_max=False,
+            threshold=thresholds.slack_n,
+            message=f"rope {i} tension below {thresholds.slack_n / 1e3:.1f} kN "
+            f"({alarms.slack_fraction_of_empty:.0%} of the empty conveyance's per-rope weight)",
+        )  # fmt: skip
+        s, e = threshold_events(t_s, tension, thresholds.tight_n, above=True, **common)
+        rows += event_rows(
+            ctx, "tight_rope", i, s, e, peak_of=tension, peak_max=True,
+            threshold=thresholds.tight_n,
+            message=f"rope {i} tension above {thresholds.tight_n / 1e3:.1f} kN "
+            f"(max static load + {alarms.tight_fraction_of_breaking:.0%} of breaking strength)",
+        )  # fmt: skip
+    return rows
+
+
+def load_alarms(
+    ctx: EventContext, frame: pl.DataFrame, thresholds: RuleThresholds, common: dict[str, float]
+) -> list[dict[str, object]]:
+    """Overload (static-equivalent load) and reconciliation-residual (at rest) events."""
+    t_s = ctx.t_s
+    static = column(frame, "_static_load_n")
+    overload_threshold = column(frame, "_rated_load_n") * (
+        1.0 + thresholds.overload_tolerance_fraction
+    )
+    s, e = threshold_events(t_s, static, overload_threshold, above=True, **common)
+    rows = event_rows(
+        ctx, "overload", None, s, e, peak_of=static, peak_max=True,
+        threshold=overload_threshold,
+        message="static-equivalent load above (conveyance + rated payload + tail rope) g "
+        f"+ {thresholds.overload_tolerance_fraction:.0%}",
+    )  # fmt: skip
+    speed = column(frame, "speed_m_s")
+    expected = column(frame, "_expected_n")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        residual = np.abs(column(frame, "load_n") / expected - 1.0)
+        residual[~(np.abs(speed) < STANDSTILL_SPEED_M_S)] = np.nan
+    tol = thresholds.reconciliation_tolerance_fraction
+    s, e = threshold_events(t_s, residual, tol, above=True, **common)
+    return rows + event_rows(
+        ctx, "reconciliation_residual", None, s, e, peak_of=residual, peak_max=True,
+        threshold=tol,
+        message=f"load at standstill differs from the expected load by more than {tol:.0%}",
+    )  # fmt: skip
+
+
+def sensor_alarms(
+    ctx: EventContext,
+    frame: pl.DataFrame,
+    hoist: HoistDescription,
+    thresholds: RuleThresholds,
+    *,
+    merge_gap_s: float,
+    dt_s: float,
+) -> list[dict[str, object]]:
+    """Flat-line, stuck, out-of-range and dropout rules (see the module docstring)."""
+    alarms = hoist.alarms
+    t_s = ctx.t_s
+    rows: list[dict[str, object]] = []
+    pressures = pressures_pa(frame, hoist)
+    repeats = [unchanged(p) for p in pressures]
+    moving = [~u & np.isfinite(p) for u, p in zip(repeats, pressures, strict=True)]
+    depth = column(frame, "depth_m")
+
+    for k, i in enumerate(ROPES):
+        others_moving = np.cumsum(np.any(np.vstack(moving[:k] + moving[k + 1 :]), axis=0))
+        s, e = runs(repeats[k] & np.isfinite(pressures[k]))
+        s = np.maximum(s - 1, 0)  # the run starts at the sample that is then repeated
+        duration = t_s[e] - t_s[s]
+        others = others_moving[e] - others_moving[s]
+        keep = (duration >= alarms.flatline_duration_s) & (others > 0)
+        s, e = merge_events(t_s, s[keep], e[keep], merge_gap_s)
+        rows += event_rows(
+            ctx, "sensor_flatline", i, s, e, peak_of=None, peak_max=True,
+            peak_values=t_s[e] - t_s[s], threshold=alarms.flatline_duration_s,
+            message=f"pressure sensor {i} repeats one value while the others move",
+        )  # fmt: skip
+
+        p = pressures[k]
+        full_scale = thresholds.full_scale_pa[k]
+        with np.errstate(invalid="ignore"):
+            out = (p < 0.0) | (p > full_scale)
+        s, e = debounced(
+            t_s, out, out, min_duration_s=alarms.min_duration_s, merge_gap_s=merge_gap_s, dt_s=dt_s
+        )
+        rows += event_rows(
+            ctx, "sensor_out_of_range", i, s, e, peak_of=np.abs(p - full_scale / 2.0),
+            peak_max=True, report=p, threshold=full_scale,
+            message=f"pressure sensor {i} outside 0..{full_scale / 1e6:g} MPa",
+        )  # fmt: skip
+
+        missing = ~np.isfinite(p)
+        s, e = runs(missing)
+        start = np.maximum(s - 1, 0)  # last good sample before the gap
+        stop = np.minimum(e + 1, t_s.size - 1)  # first good sample after it
+        keep = (t_s[stop] - t_s[start]) > alarms.dropout_duration_s
+        rows += event_rows(
+            ctx, "sensor_dropout", i, start[keep], stop[keep], peak_of=None, peak_max=True,
+            peak_values=(t_s[stop] - t_s[start])[keep], threshold=alarms.dropout_duration_s,
+            message=f"pressure sensor {i} missing",
+        )  # fmt: skip
+
+    all_frozen = np.logical_and.reduce(repeats)
+    s, e = runs(all_frozen)
+    s = np.maximum(s - 1, 0)
+    with np.errstate(invalid="ignore"):
+        travelled = np.abs(depth[e] - depth[s])
+    keep = (t_s[e] - t_s[s] >= alarms.flatline_duration_s) & (
+        travelled > hoist.shaft.position_window_m
+    )
+    rows += event_rows(
+        ctx, "sensor_stuck", None, s[keep], e[keep], peak_of=None, peak_max=True,
+        peak_values=(t_s[e] - t_s[s])[keep], threshold=alarms.flatline_duration_s,
+        message="all pressure sensors repeat their values while the conveyance travels",
+    )  # fmt: skip
+
+    gaps = np.diff(t_s)
+    gap_at = np.flatnonzero(gaps > alarms.dropout_duration_s)
+    rows += event_rows(
+        ctx, "sensor_dropout", None, gap_at, gap_at + 1, peak_of=None, peak_max=True,
+        peak_values=gaps[gap_at], threshold=alarms.dropout_duration_s,
+        message="no samples logged",
+    )  # fmt: skip
+    return rows

@@ -56,13 +56,13 @@ from discovery.record import (
 )
 from discovery.rope_damping import with_rope_damping
 from discovery.segmentation import (
-    _CUT_WORDS,
-    _chosen_trips,
-    _median_in,
-    _phases,
-    _ramp_samples,
-    _scored_samples,
-    _span,
+    CUT_WORDS,
+    chosen_trips,
+    median_in,
+    profile_phases,
+    ramp_samples,
+    scored_samples,
+    time_span,
 )
 from schemas.hoist import HoistDescription
 from sims.logged_motion import motion_knots, profile_from_knots, rope_damping_from_record
@@ -131,16 +131,16 @@ def _planned_trip(
     r0, r1, p_pre, p_post = tm["r0"], tm["r1"], tm["p_pre"], tm["p_post"]
     d0, d1 = tm["d0"], tm["d1"]
     # scored samples: after the ramp, within the window, every 1/score_rate s
-    idx, meas, valid = _scored_samples(
+    idx, meas, valid = scored_samples(
         t, rec.p, rec.sigma, r1 + RAMP_MARGIN_S, win_end, score_rate_hz, tm["cut"]
     )
-    ridx = _ramp_samples(t, r0, r1, t_m, score_rate_hz)
+    ridx = ramp_samples(t, r0, r1, t_m, score_rate_hz)
     profile = replay_profile(
         hoist, d0, d1, t_m - r0, max(win_end - r0, 1.0), vmax_arg, 20.0, (0.0, 1.0), 0.0
     )
     knots, driven = _driving_motion(rec, tm, profile, win_end, logged)
     tau = t[idx] - r0
-    motion = _span(t, t_m, t_e)
+    motion = time_span(t, t_m, t_e)
     fit = float(np.sqrt(np.nanmean((profile.depth(t[motion] - r0) - depth[motion]) ** 2)))
     if fit > 0.5:
         notes.append(
@@ -148,10 +148,10 @@ def _planned_trip(
         )
     if tm["cut"]:
         notes.append(
-            f"trip {tm['trip_id']}: {_CUT_WORDS[tm['cut']]}: completed by the winder profile "
+            f"trip {tm['trip_id']}: {CUT_WORDS[tm['cut']]}: completed by the winder profile "
             f"fitted to the logged depth ({d0:.1f} -> {d1:.1f} m)"
         )
-    oil = _median_in(t, rec.temp, max(r0, float(t[0])), win_end)
+    oil = median_in(t, rec.temp, max(r0, float(t[0])), win_end)
     return ReplayTrip(
         trip_id=tm["trip_id"],
         block=block[0],
@@ -172,7 +172,7 @@ def _planned_trip(
         time_s=t[idx],
         measured_pa=meas,
         valid=valid,
-        phase=_phases(driven, tau, hoist.winder.creep_speed_m_s),
+        phase=profile_phases(driven, tau, hoist.winder.creep_speed_m_s),
         depth_m=driven.depth(tau),
         ramp_time_s=t[ridx],
         ramp_measured_pa=np.nanmedian(rec.p[ridx], axis=1),
@@ -307,7 +307,7 @@ def plan_replay(
         t, rec.pc_filled, [float(t[b_i]) for _, b_i in motions], rec.quiet
     )
     notes: list[str] = []
-    chosen = _chosen_trips(len(motions), max_trips, blocks)
+    chosen = chosen_trips(len(motions), max_trips, blocks)
     if len(motions) > max_trips:
         notes.append(
             f"{len(motions)} trips in the record; analysed {sum(map(len, chosen))} in "

@@ -20,15 +20,15 @@ import polars as pl
 from scipy import ndimage
 
 from discovery.segmentation import (
-    _CUT_WORDS,
-    _complete_cut_trip,
-    _loading_ramp,
-    _median_in,
-    _motion_times,
-    _plateau_median,
-    _span,
-    _trips,
+    CUT_WORDS,
+    complete_cut_trip,
     estimate_noise_sigma,
+    loading_ramp,
+    median_in,
+    motion_times,
+    plateau_median,
+    record_trips,
+    time_span,
 )
 from schemas.hoist import HoistDescription
 
@@ -89,13 +89,13 @@ def read_record(samples: pl.DataFrame, hoist: HoistDescription) -> RecordArrays:
         if "oil_temp_c" in frame.columns
         else np.full(t.size, np.nan)
     )
-    motions, trip_ids, short_trips = _trips(t, speed, depth, hoist)
+    motions, trip_ids, short_trips = record_trips(t, speed, depth, hoist)
     if not motions:
         raise ValueError("samples: no trip (no encoder motion of at least 3 s) in the record")
     # noise from quiet standstill: >= 25 s after a stop (the rope bounce has decayed)
     quiet = np.ones(t.size, dtype=bool)
     for a_i, b_i in motions:
-        quiet[_span(t, t[a_i] - 1.0, t[b_i] + 25.0)] = False
+        quiet[time_span(t, t[a_i] - 1.0, t[b_i] + 25.0)] = False
     if quiet.sum() < 50:
         quiet = np.abs(np.nan_to_num(speed)) < 0.02
     sigma = estimate_noise_sigma(p, ~quiet)
@@ -127,9 +127,9 @@ def _stop_depths(
         + [(t[motions[-1][1]], np.inf)]
     )
     for lo, hi in bounds:
-        d = _median_in(t, depth, lo + 1.0, hi - 0.5)
+        d = median_in(t, depth, lo + 1.0, hi - 0.5)
         if not np.isfinite(d):  # a standstill shorter than 1.5 s at the record's edge
-            d = _median_in(t, depth, lo + 0.05, hi - 0.05)
+            d = median_in(t, depth, lo + 0.05, hi - 0.05)
         stops.append(float(np.clip(d, 0.0, shaft)) if np.isfinite(d) else float("nan"))
     return stops
 
@@ -142,7 +142,7 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
     a_i, b_i = motions[k]
     prev_end = float(t[motions[k - 1][1]]) if k > 0 else float(t[0]) - 2.0
     next_start = float(t[motions[k + 1][0]]) if k + 1 < len(motions) else rec.end_t
-    t_m, t_e, vmax_arg = _motion_times(t, rec.speed, hoist.winder, a_i, b_i)
+    t_m, t_e, vmax_arg = motion_times(t, rec.speed, hoist.winder, a_i, b_i)
     d0, d1 = rec.stops[k], rec.stops[k + 1]
     cut, skip = "", ""
     if not (np.isfinite(d0) and np.isfinite(d1)):
@@ -151,24 +151,24 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
         # completes the trip; both ends unknown: nothing anchors it
         cut = "start" if not np.isfinite(d0) else "end"
         try:
-            t_m, t_e, d0, d1, vmax_arg = _complete_cut_trip(
+            t_m, t_e, d0, d1, vmax_arg = complete_cut_trip(
                 hoist, t, rec.depth, a_i, b_i, d0, d1, t_m, t_e, vmax_arg
             )
         except ValueError as exc:
-            skip = f"{_CUT_WORDS[cut]}: {exc}"
+            skip = f"{CUT_WORDS[cut]}: {exc}"
     if cut == "start":
         # no loading seen: the simulation starts at rest shortly before the motion
         r0, r1 = t_m - 2.0, t_m - 1.5
         p_pre = p_post = float("nan")
     else:
         s_lo = max(prev_end + 2.0, float(t[0]))
-        r0, r1, p_pre, p_post = _loading_ramp(t, pc, pcs, s_lo, t_m - 0.3, rec.ramp_threshold)
+        r0, r1, p_pre, p_post = loading_ramp(t, pc, pcs, s_lo, t_m - 0.3, rec.ramp_threshold)
     if not np.isfinite(p_post):
         # no standstill before the motion in the record: the payload does not change
         # during a trip, so the level after its stop (or, cut there too, while moving)
-        p_post = _plateau_median(t, pcs, t_e + 2.0, next_start - 0.3, 2.0, from_start=True)
+        p_post = plateau_median(t, pcs, t_e + 2.0, next_start - 0.3, 2.0, from_start=True)
         if not np.isfinite(p_post):
-            p_post = _median_in(t, pc, t[a_i], t[b_i])
+            p_post = median_in(t, pc, t[a_i], t[b_i])
         if not np.isfinite(p_post) and not skip:
             skip = "no pressure logged to infer the payload from"
     return {
@@ -192,7 +192,7 @@ def trailing_window_end(rec: RecordArrays, timing: list[dict[str, Any]], notes: 
     """Where the last trip's window ends for a payload change after the last stop
     (loading for a trip the record does not hold); inf without one."""
     if timing and not timing[-1]["cut"]:
-        r0, _, p_a, p_b = _loading_ramp(
+        r0, _, p_a, p_b = loading_ramp(
             rec.t,
             rec.pc,
             rec.pcs,

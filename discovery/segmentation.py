@@ -14,7 +14,8 @@ The pieces :func:`discovery.planning.plan_replay` segments a landed sample frame
 * a trip the record cuts, completed by the winder profile fitted to its logged depth
   (:func:`sims.trips.fit_cut_trip`).
 
-The underscored helpers are the ``discovery`` package's own, not a public API.
+Its names are the ``discovery`` package's own (the planning's), not an API outside it;
+a leading underscore marks what only this module uses.
 """
 
 from __future__ import annotations
@@ -26,7 +27,21 @@ from physics.trip_rule import segment_ids, trip_label_codes
 from schemas.hoist import HoistDescription, Winder
 from sims.trips import TripProfile, fit_cut_trip
 
-__all__ = ["estimate_noise_sigma"]
+__all__ = [
+    "CUT_WORDS",
+    "chosen_trips",
+    "complete_cut_trip",
+    "estimate_noise_sigma",
+    "loading_ramp",
+    "median_in",
+    "motion_times",
+    "plateau_median",
+    "profile_phases",
+    "ramp_samples",
+    "record_trips",
+    "scored_samples",
+    "time_span",
+]
 
 #: A trip moving less than this is numbered but not replayed [s].
 _MIN_MOTION_S = 3.0
@@ -60,7 +75,7 @@ def estimate_noise_sigma(pressures: np.ndarray, moving: np.ndarray) -> float:
     return float(mad / 0.6745 / np.sqrt(6.0))
 
 
-def _trips(
+def record_trips(
     t: np.ndarray, speed: np.ndarray, depth: np.ndarray, hoist: HoistDescription
 ) -> tuple[list[tuple[int, int]], list[int], list[tuple[int, int, int]]]:
     """The record's trips by the pipeline's trip rule (:mod:`physics.trip_rule`: a trip
@@ -91,29 +106,29 @@ def _trips(
     return motions, ids, short
 
 
-def _median_in(t: np.ndarray, values: np.ndarray, lo: float, hi: float) -> float:
-    part = values[_span(t, lo, hi)]
+def median_in(t: np.ndarray, values: np.ndarray, lo: float, hi: float) -> float:
+    part = values[time_span(t, lo, hi)]
     part = part[np.isfinite(part)]
     return float(np.median(part)) if part.size else float("nan")
 
 
-def _plateau_median(
+def plateau_median(
     t: np.ndarray, values: np.ndarray, lo: float, hi: float, width_s: float, *, from_start: bool
 ) -> float:
     """Median of ``values`` over the first (``from_start``) or last ``width_s`` seconds of
     logged samples within [lo, hi]: a logger gap at the edge of the interval shifts the
     window to the nearest samples instead of leaving it empty."""
-    part = _span(t, lo, hi)
+    part = time_span(t, lo, hi)
     if part.stop <= part.start:
         return float("nan")
     if from_start:
         first = float(t[part.start])
-        return _median_in(t, values, first, min(first + width_s, hi))
+        return median_in(t, values, first, min(first + width_s, hi))
     last = float(t[part.stop - 1])
-    return _median_in(t, values, max(last - width_s, lo), last)
+    return median_in(t, values, max(last - width_s, lo), last)
 
 
-def _span(t: np.ndarray, lo: float, hi: float) -> slice:
+def time_span(t: np.ndarray, lo: float, hi: float) -> slice:
     """Index range of sorted ``t`` within [lo, hi] (binary search, no full-array mask)."""
     return slice(int(np.searchsorted(t, lo, "left")), int(np.searchsorted(t, hi, "right")))
 
@@ -150,7 +165,7 @@ def _fit_ramp(
     return a, b
 
 
-def _chosen_trips(count: int, max_trips: int, blocks: int) -> list[list[int]]:
+def chosen_trips(count: int, max_trips: int, blocks: int) -> list[list[int]]:
     """Blocks of consecutive trip indices: all when they fit, else spread evenly."""
     if count <= max_trips:
         return [list(range(count))] if count else []
@@ -166,10 +181,10 @@ def _chosen_trips(count: int, max_trips: int, blocks: int) -> list[list[int]]:
 
 
 #: How a trip the record cuts is named in notes and reasons.
-_CUT_WORDS = {"start": "the record starts during this trip", "end": "the record ends during it"}
+CUT_WORDS = {"start": "the record starts during this trip", "end": "the record ends during it"}
 
 
-def _complete_cut_trip(
+def complete_cut_trip(
     hoist: HoistDescription,
     t: np.ndarray,
     depth: np.ndarray,
@@ -206,7 +221,7 @@ def _complete_cut_trip(
     )
 
 
-def _loading_ramp(
+def loading_ramp(
     t: np.ndarray,
     pc: np.ndarray,
     pcs: np.ndarray,
@@ -223,10 +238,10 @@ def _loading_ramp(
     crossing and refined by :func:`_fit_ramp`. Without one the ramp is a nominal 0.5 s
     just before ``s_hi + 0.3`` (the motion start), or, with ``fallback=False``, NaN.
     """
-    p_pre = _plateau_median(t, pcs, s_lo, s_hi, 2.0, from_start=True)
-    p_post = _plateau_median(t, pcs, s_lo, s_hi, 3.0, from_start=False)
+    p_pre = plateau_median(t, pcs, s_lo, s_hi, 2.0, from_start=True)
+    p_post = plateau_median(t, pcs, s_lo, s_hi, 3.0, from_start=False)
     change = p_post - p_pre
-    in_s = _span(t, s_lo, s_hi)
+    in_s = time_span(t, s_lo, s_hi)
     if np.isfinite(change) and abs(change) > threshold_pa and in_s.stop - in_s.start > 4:
         u = (pcs[in_s] - p_pre) / change
         ts = t[in_s]
@@ -250,12 +265,12 @@ def _loading_ramp(
     return r0, min(r0 + 0.5, s_hi), p_pre, p_post
 
 
-def _motion_times(
+def motion_times(
     t: np.ndarray, speed: np.ndarray, w: Winder, a_i: int, b_i: int
 ) -> tuple[float, float, float | None]:
     """(motion start, motion end, top speed or None for the winder's) of one motion:
     least squares on the logged speed of its acceleration and deceleration."""
-    sp = _span(t, t[a_i] - 1.0, t[a_i] + 4.0)
+    sp = time_span(t, t[a_i] - 1.0, t[a_i] + 4.0)
     tw, vw = t[sp], np.abs(speed[sp])
     sel = (vw > 0.1) & (vw < 0.8 * w.acceleration_m_s2 * 4.0)
     t_m = (
@@ -263,7 +278,7 @@ def _motion_times(
         if sel.sum() >= 3
         else float(t[a_i])
     )
-    sp = _span(t, t[b_i] - 0.6, t[b_i] + 0.2)
+    sp = time_span(t, t[b_i] - 0.6, t[b_i] + 0.2)
     tw, vw = t[sp], np.abs(speed[sp])
     sel = vw > 0.05
     t_e = (
@@ -277,7 +292,7 @@ def _motion_times(
     return t_m, t_e, vmax_arg
 
 
-def _scored_samples(
+def scored_samples(
     t: np.ndarray,
     p: np.ndarray,
     sigma: float,
@@ -288,7 +303,7 @@ def _scored_samples(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(indices, measured pressures, valid) of the samples scored in ``[lo, win_end]``,
     every 1/``score_rate_hz`` s, spikes masked; none valid for a trip cut at its start."""
-    sp = _span(t, lo, win_end)
+    sp = time_span(t, lo, win_end)
     idx = np.arange(sp.start, sp.stop)
     if idx.size:
         bins = np.floor((t[idx] - lo) * score_rate_hz).astype(np.int64)
@@ -305,11 +320,11 @@ def _scored_samples(
     return idx, meas, valid
 
 
-def _ramp_samples(
+def ramp_samples(
     t: np.ndarray, r0: float, r1: float, t_m: float, score_rate_hz: float
 ) -> np.ndarray:
     """Indices of the samples around the loading ramp, every 1/``score_rate_hz`` s."""
-    sp = _span(t, r0 - 1.0, min(r1 + 3.0, t_m - 0.3))
+    sp = time_span(t, r0 - 1.0, min(r1 + 3.0, t_m - 0.3))
     ridx = np.arange(sp.start, sp.stop)
     if ridx.size:
         rb = np.floor((t[ridx] - t[ridx[0]]) * score_rate_hz).astype(np.int64)
@@ -317,7 +332,7 @@ def _ramp_samples(
     return ridx
 
 
-def _phases(driven: TripProfile, tau: np.ndarray, creep_speed_m_s: float) -> np.ndarray:
+def profile_phases(driven: TripProfile, tau: np.ndarray, creep_speed_m_s: float) -> np.ndarray:
     """Phase of the motion the simulation follows at ``tau`` [s after its start]
     (|a| > 0.05 m/s2: above the logged speed's 1 mm/s steps over a 0.1 s knot)."""
     spd = driven.speed(tau)

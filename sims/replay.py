@@ -35,141 +35,23 @@ default ``dt_s = 2 ms`` is the field-day generator's.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
-from physics.tension import tail_rope_length_m
-from schemas.hoist import G_STANDARD, HoistDescription
+from schemas.hoist import G_STANDARD
 from sims.device import DeviceState, SimulationResult, simulate
-from sims.effects import resolve_effects
 from sims.logged_motion import profile_from_knots
+from sims.replay_inputs import (
+    payload_from_pressure,
+    replay_inputs,
+    replay_profile,
+    sensor_gain_offset,
+)
 from sims.replay_plan import ReplayPlan, ReplayResult, ReplayTrip
-from sims.trips import TripProfile, trip
 
 __all__ = ["payload_from_pressure", "replay", "replay_fitted", "replay_profile"]
-
-
-def replay_profile(
-    hoist: HoistDescription,
-    d0: float,
-    d1: float,
-    rest_before_s: float,
-    duration_s: float,
-    vmax: float | None,
-    oil_temp_c: float,
-    ramp: tuple[float, float],
-    payload_before: float,
-    payload_after: float | None = None,
-) -> TripProfile:
-    """The winder profile of one replayed trip, times relative to the simulation start.
-
-    From ``d0`` to ``d1`` [m] after ``rest_before_s``, lasting ``duration_s`` (a trip the
-    record cuts at its end shorter than the profile), at top speed ``vmax`` (None: the
-    winder's); the payload changes from ``payload_before`` to ``payload_after`` (default
-    unchanged) over the loading ``ramp`` (start, end) [s].
-    """
-    base = trip(
-        hoist,
-        start_depth_m=d0,
-        end_depth_m=d1,
-        rest_before_s=max(rest_before_s, 0.0),
-        rest_after_s=0.0,
-        max_speed_m_s=vmax,
-        oil_temp_c=oil_temp_c,
-    )
-    rest_after = max(duration_s - base.duration_s, 0.5)
-    prof = trip(
-        hoist,
-        start_depth_m=d0,
-        end_depth_m=d1,
-        rest_before_s=max(rest_before_s, 0.0),
-        rest_after_s=rest_after,
-        max_speed_m_s=vmax,
-        oil_temp_c=oil_temp_c,
-    )
-    after = payload_before if payload_after is None else payload_after
-    return dataclasses.replace(
-        prof,
-        # a trip the record cuts at its end is simulated up to the end of the record
-        duration_s=min(prof.duration_s, max(duration_s, 1e-3)),
-        payload_time_s=np.array([ramp[0], max(ramp[1], ramp[0] + 1e-3)]),
-        payload_kg=np.array([payload_before, after]),
-    )
-
-
-def _sensor_calibration(
-    hoist: HoistDescription, effects: Iterable[str], parameters: Mapping[str, Any] | None
-) -> tuple[np.ndarray, np.ndarray]:
-    eff = resolve_effects(hoist, effects, parameters)
-    n = hoist.ropes_n
-    gain = (
-        np.asarray(eff.parameters["sensor_gain"]["gains"], float)
-        if eff.on("sensor_gain")
-        else np.ones(n)
-    )
-    off = (
-        np.asarray(eff.parameters["sensor_offset"]["offsets_pa"], float)
-        if eff.on("sensor_offset")
-        else np.zeros(n)
-    )
-    return gain, off
-
-
-def payload_from_pressure(
-    hoist: HoistDescription,
-    effects: Iterable[str],
-    parameters: Mapping[str, Any] | None,
-    readings_pa: float,
-    depth_m: float,
-) -> float:
-    """Payload [kg] the model needs for the mean sensor reading ``readings_pa`` at rest.
-
-    ``W = n A p`` with ``p = (reading - offset) / gain`` (the model's sensor
-    calibration), minus the conveyance and (with ``tail_rope_weight``) the hanging tail
-    rope at ``depth_m``; seal friction held at rest is ignored (see
-    :func:`replay_fitted`).
-    """
-    eff = resolve_effects(hoist, effects, parameters)
-    gain, off = _sensor_calibration(hoist, effects, parameters)
-    p = (readings_pa - off.mean()) / gain.mean()
-    tail = 0.0
-    if eff.on("tail_rope_weight"):
-        prm = eff.parameters["tail_rope_weight"]
-        tail = prm["tail_ropes"] * prm["mass_per_length_kg_m"] * tail_rope_length_m(hoist, depth_m)
-    area = hoist.cylinders.bore_area_m2
-    return max(p * hoist.ropes_n * area / G_STANDARD - hoist.conveyance.mass_kg - tail, 0.0)
-
-
-def _replay_inputs(
-    plan: ReplayPlan,
-    names: frozenset[str],
-    prm: dict[str, dict[str, Any]],
-    payload_kg: Sequence[float] | np.ndarray | None,
-    payload_before_kg: Sequence[float] | np.ndarray | None,
-    ramps_s: np.ndarray | None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(payload after, payload before, loading ramps) per trip, the defaults of
-    :func:`replay` filled in: payloads from the static pressures, the plan's ramps."""
-    hoist = plan.hoist
-    if payload_kg is None:
-        payload_kg = [
-            payload_from_pressure(hoist, names, prm, tr.p_after_pa, tr.start_depth_m)
-            for tr in plan.trips
-        ]
-    if payload_before_kg is None:
-        payload_before_kg = [
-            payload_from_pressure(hoist, names, prm, tr.p_before_pa, tr.start_depth_m)
-            for tr in plan.trips
-        ]
-    if ramps_s is None:
-        ramps_s = np.array([[tr.ramp_start_s, tr.ramp_end_s] for tr in plan.trips])
-    ramps = np.asarray(ramps_s, dtype=float).reshape(-1, 2)
-    pay = np.asarray(payload_kg, dtype=float)
-    pay_before = np.asarray(payload_before_kg, dtype=float).copy()
-    return pay, pay_before, ramps
 
 
 def _simulate_trip(
@@ -269,9 +151,7 @@ def replay(
     hoist = plan.hoist
     names = frozenset(hoist.model.effects if effects is None else effects)
     prm = {k: dict(v) for k, v in (parameters or {}).items()}
-    pay, pay_before, ramps = _replay_inputs(
-        plan, names, prm, payload_kg, payload_before_kg, ramps_s
-    )
+    pay, pay_before, ramps = replay_inputs(plan, names, prm, payload_kg, payload_before_kg, ramps_s)
     rows, failures = _replay_trips(plan, names, prm, pay, pay_before, ramps)
     return ReplayResult(
         simulated=tuple(r[0] for r in rows),
@@ -390,7 +270,7 @@ def replay_fitted(
     """
     hoist = plan.hoist
     names = frozenset(hoist.model.effects if effects is None else effects)
-    gain, _ = _sensor_calibration(hoist, names, parameters)
+    gain, _ = sensor_gain_offset(hoist, names, parameters)
     scale = hoist.ropes_n * hoist.cylinders.bore_area_m2 / G_STANDARD / float(gain.mean())
     result = replay(
         plan, effects=names, parameters=parameters, payload_kg=payload_kg, ramps_s=ramps_s

@@ -24,8 +24,11 @@ from sims.effects import ResolvedEffects
 from sims.hydraulics import ros2_matrix, ros2_step_refreshing
 from sims.trips import TripProfile
 
-#: A step with an older Jacobian is retaken with a fresh one above this error ratio.
-_REFRESH_ERROR_RATIO = 10.0
+#: A step with an older Jacobian is retaken with a fresh one when its error ratio
+#: exceeds this many times that of the last step with a fresh one (and 1): the fixed
+#: step may exceed the tolerance everywhere, an order of magnitude more says the
+#: Jacobian went stale.
+_REFRESH_GROWTH = 10.0
 
 
 @njit(cache=True, inline="always")
@@ -72,10 +75,11 @@ def _run(
     The step is :func:`sims.hydraulics.ros2_matrix` (every ``jacobian_every`` steps) and
     :func:`sims.hydraulics.ros2_step`; the friction memory is frozen over a step and
     committed with the accepted increment (:func:`_commit`). A step taken with an older
-    Jacobian whose error ratio exceeds :data:`_REFRESH_ERROR_RATIO` is taken again with
-    a fresh one (:func:`sims.hydraulics.ros2_step_refreshing`; on a validation day's
-    throttled valve, ``K = 2e4`` at 2 ms, a 10-step-old one let the replayed pressures
-    fall into cavitation).
+    Jacobian whose error ratio exceeds :data:`_REFRESH_GROWTH` times that of the last
+    fresh one is taken again with a fresh one
+    (:func:`sims.hydraulics.ros2_step_refreshing`; on a validation day's throttled
+    valve, ``K = 2e4`` at 2 ms, a 10-step-old one let the replayed pressures fall into
+    cavitation).
     """
     par, groove, ms_k, ms_w = model[0], model[1], model[6], model[7]
     n_state = y0.shape[0]
@@ -104,6 +108,7 @@ def _run(
     code = 0  # 0 ok, 1 singular, 2 non-finite, 3 cavitation
     fail_step = -1
     y_before = np.empty(n_state)
+    err_fresh = 0.0  # error ratio of the last step taken with a fresh Jacobian
     for step in range(n_steps):
         _model_rhs(y, args, f0)
         fresh = step % jacobian_every == 0
@@ -112,12 +117,14 @@ def _run(
             break
         err, worst, retaken = ros2_step_refreshing(
             _model_rhs, args, y, f0, dt, atol, rtol, w, piv, work, y_before, fresh,
-            _REFRESH_ERROR_RATIO,
+            _REFRESH_GROWTH * max(err_fresh, 1.0),
         )  # fmt: skip
         if retaken < 0:
             code = 1
             break
         err_at[2] += retaken
+        if fresh or retaken:
+            err_fresh = err
         if not math.isfinite(err):
             code = 2
             break

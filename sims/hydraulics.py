@@ -219,19 +219,22 @@ def ros2_step(rhs, args, y, f0, dt, atol, rtol, w, piv, work):  # pragma: no cov
 
 @njit(cache=True, inline="always")
 def ros2_step_refreshing(
-    rhs, args, y, f0, dt, atol, rtol, w, piv, work, y_before, fresh, refresh_ratio
+    rhs, args, y, f0, dt, atol, rtol, w, piv, work, y_before, fresh, refresh_above
 ):  # pragma: no cover - compiled
     """:func:`ros2_step`, taken again with a fresh ``W`` when the old one fails it.
 
     A W-method keeps its order with any ``W`` but not its stability: when the Jacobian
     has grown since ``W`` was built (a throttled valve's resistance ``2 K |q|`` rises
     with the flow), a step with the old ``W`` can amplify the error instead of damping
-    it. A step taken with an older ``W`` (``fresh`` False) whose error ratio exceeds
-    ``refresh_ratio`` (or is not finite) is taken again from the same state with ``W``
-    rebuilt there (:func:`ros2_matrix`).
+    it, and the error ratio then grows from step to step. A step taken with an older
+    ``W`` (``fresh`` False) whose error ratio exceeds ``refresh_above`` (or is not
+    finite) is taken again from the same state with ``W`` rebuilt there
+    (:func:`ros2_matrix`). The caller sets ``refresh_above`` from the error ratios its
+    fresh steps have (a fixed step may exceed the tolerance everywhere; only a jump
+    above that says the matrix went stale).
 
     Parameters as for :func:`ros2_step`, and ``y_before`` an (n,) scratch array,
-    ``fresh`` whether ``W`` was built at this ``y``, ``refresh_ratio`` the error ratio
+    ``fresh`` whether ``W`` was built at this ``y``, ``refresh_above`` the error ratio
     above which an older ``W`` is rebuilt.
 
     Returns
@@ -242,7 +245,7 @@ def ros2_step_refreshing(
     """
     y_before[:] = y
     err, worst = ros2_step(rhs, args, y, f0, dt, atol, rtol, w, piv, work)
-    if fresh or err <= refresh_ratio:
+    if fresh or err <= refresh_above:
         return err, worst, 0
     y[:] = y_before
     if not ros2_matrix(rhs, args, y, f0, dt, atol, w, piv, work):

@@ -23,11 +23,7 @@ digest by 7e-4 of the gaps and 1e-3 of the BIC scores, names and shares equal. T
 ``rig`` entry after the rig moved from a first-order Rosenbrock-Euler step to ROS2:
 the ideal-seal small friction test moved by up to 1.8e-3 of a column's typical value in
 x, v and the pressures (sums 1e-5..1e-3) and 3.8e-2 in the acceleration, the
-first-order error it no longer has (tests/sims/test_rig.py measures the order). The
-``field_day_sensors`` and ``demo_*`` entries after the device retakes a step with a
-fresh Jacobian when an older one fails it (:func:`sims.hydraulics.ros2_step_refreshing`):
-the field day's pressures moved by 2e-8 of their sums, displacements 1.4e-6, the demo's
-marts by 1.4e-6 (0.07 N); the device entry did not move beyond its tolerance.
+first-order error it no longer has (tests/sims/test_rig.py measures the order).
 
 The compensation's input is written here with numpy (two trips, a payload step at a
 stop, a ringing rope, a logger gap, a warming oil), not by the simulation, so a change

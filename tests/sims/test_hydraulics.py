@@ -30,7 +30,7 @@ def _rhs(y, args, out):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _integrate(n_steps, jacobian_every, refresh_ratio):  # pragma: no cover - compiled
+def _integrate(n_steps, jacobian_every, refresh_above):  # pragma: no cover - compiled
     y = np.zeros(2)
     args = (F1,)
     atol = np.array([1e-6, 1e-6])
@@ -46,7 +46,7 @@ def _integrate(n_steps, jacobian_every, refresh_ratio):  # pragma: no cover - co
         if fresh:
             ros2_matrix(_rhs, args, y, f0, DT, atol, w, piv, work)
         _, _, retaken = ros2_step_refreshing(
-            _rhs, args, y, f0, DT, atol, 1e-4, w, piv, work, y_before, fresh, refresh_ratio
+            _rhs, args, y, f0, DT, atol, 1e-4, w, piv, work, y_before, fresh, refresh_above
         )
         retakes += retaken
     return y[1], retakes

@@ -17,7 +17,9 @@ eq 1, piston force balance m_p x'' = T - p A - F
     friction rig by :func:`transforms.rig_friction.seal_friction_samples` --
     tests/physics/test_tension.py, tests/transforms/test_rig_friction.py
 eq 2, T = p_chamber A + F
-    :func:`physics.tension.rope_tension_n` -- tests/physics/test_tension.py
+    :func:`physics.tension.rope_tension_n`, the piston areas
+    :func:`~physics.tension.bore_area_m2`, :func:`~physics.tension.annulus_area_m2`
+    -- tests/physics/test_tension.py
 eq 3-4 with Table 2, sum of T = (m_c + m_p + m_t(z)) (g + a)
     :func:`physics.tension.expected_load_n`, :func:`~physics.tension.tail_rope_mass_kg`,
     :func:`~physics.tension.tail_rope_length_m` -- tests/physics/test_tension.py

@@ -18,6 +18,8 @@ friction positive while the rod moves out (contract 1a).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import polars as pl
 from numba import njit
@@ -25,6 +27,8 @@ from numba import njit
 from schemas.hoist import G_STANDARD, HoistDescription
 
 __all__ = [
+    "annulus_area_m2",
+    "bore_area_m2",
     "expected_load_n",
     "rope_tension_n",
     "tail_rope_length_m",
@@ -49,6 +53,24 @@ def rope_tension_n(p_chamber_pa: float, area_m2: float, friction_n: float) -> fl
     39390.0
     """
     return p_chamber_pa * area_m2 + friction_n
+
+
+def bore_area_m2(bore_m: float) -> float:
+    """Piston area on the rodless side, pi D^2 / 4 [m2] (paper eq 2's A).
+
+    >>> round(bore_area_m2(0.1), 7)
+    0.007854
+    """
+    return math.pi * bore_m**2 / 4.0
+
+
+def annulus_area_m2(bore_m: float, rod_m: float) -> float:
+    """Piston area on the rod side, pi (D^2 - d^2) / 4 [m2] (the friction rig's port B).
+
+    >>> round(annulus_area_m2(0.1, 0.06), 7)
+    0.0050265
+    """
+    return math.pi * (bore_m**2 - rod_m**2) / 4.0
 
 
 def tail_rope_length_m(hoist: HoistDescription, depth_m: Quantity) -> Quantity:

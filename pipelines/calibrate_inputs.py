@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import datetime as dt
 import json
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+from physics.tension import annulus_area_m2, bore_area_m2
 from pipelines.lake import lake_partitions, scan_lake
 from schemas.names import UnsafeNameError, safe_name
 from warehouse.store import DataRoot
@@ -56,11 +56,11 @@ class RigInfo:
 
     @property
     def bore_area_m2(self) -> float:
-        return math.pi * self.bore_m**2 / 4.0
+        return bore_area_m2(self.bore_m)
 
     @property
     def annulus_area_m2(self) -> float:
-        return math.pi * (self.bore_m**2 - self.rod_m**2) / 4.0
+        return annulus_area_m2(self.bore_m, self.rod_m)
 
 
 def read_rig_info(path: str | Path) -> RigInfo:

@@ -16,6 +16,7 @@ import polars as pl
 
 from physics.branch_loss import laminar_resistance
 from physics.friction_law import friction_parameters, stribeck_friction
+from physics.tension import annulus_area_m2, bore_area_m2
 from schemas.hoist import EXAMPLE_HOIST, FrictionLaw, load_hoist
 
 #: Paper 3.1: steady pressure loss at 20 L/min, 0.36 MPa at every load pressure.
@@ -58,11 +59,11 @@ class RigDesign:
 
     @property
     def bore_area_m2(self) -> float:
-        return math.pi * self.bore_m**2 / 4.0
+        return bore_area_m2(self.bore_m)
 
     @property
     def annulus_area_m2(self) -> float:
-        return math.pi * (self.bore_m**2 - self.rod_m**2) / 4.0
+        return annulus_area_m2(self.bore_m, self.rod_m)
 
     @property
     def loading_area_m2(self) -> float:

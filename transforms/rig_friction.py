@@ -33,6 +33,7 @@ import polars as pl
 from scipy.ndimage import uniform_filter1d
 from scipy.signal import savgol_filter
 
+from physics.tension import annulus_area_m2, bore_area_m2
 from transforms.friction_fit import StribeckFit, fit_stribeck
 
 __all__ = ["fit_pressure_levels", "seal_friction_samples", "steady_steps"]
@@ -116,8 +117,8 @@ def seal_friction_samples(
     """
     if samples.height == 0:
         raise ValueError("no rig samples")
-    area_bore = math.pi * bore_m**2 / 4.0
-    area_annulus = math.pi * (bore_m**2 - rod_m**2) / 4.0
+    area_bore = bore_area_m2(bore_m)
+    area_annulus = annulus_area_m2(bore_m, rod_m)
     frame = samples.sort("time_utc").with_columns(
         t_s=(pl.col("time_utc") - pl.col("time_utc").first()).dt.total_microseconds() / 1e6
     )

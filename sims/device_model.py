@@ -6,6 +6,15 @@ here they are the numba kernels :func:`rhs` (dy/dt), :func:`friction_step` (LuGr
 Maxwell-slip over a step), :func:`_line_loss` (branch part loss) and
 :func:`oil_volume` (the conserved oil inventory), reading the flat parameter vector
 of :mod:`sims.device_params`.
+
+The kernels allocate nothing and are compiled without numba's reference-counted runtime
+(``_nrt=False``): the arrays they receive are borrowed from the caller for the call,
+and neither they nor the views made of them are reference counted. Each count is an
+atomic add or subtract; the device loop calls :func:`rhs` about four times a step, and
+the counts on its arrays, its views and those of its four :func:`friction_step` calls
+took ~20 % of the device benchmark's wall time (see :mod:`sims.device_solver`). A
+kernel that needed a temporary would not compile ("NRT required but not enabled"), so
+array copies are loops (numba may compile ``a[:] = b`` to a temporary copy).
 """
 
 from __future__ import annotations
@@ -69,7 +78,7 @@ from sims.device_params import (
 )
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _profile(t: float, seg: np.ndarray) -> tuple[float, float, float]:
     k = 0
     for j in range(seg.shape[0]):
@@ -80,7 +89,7 @@ def _profile(t: float, seg: np.ndarray) -> tuple[float, float, float]:
     return seg[k, 1] + seg[k, 2] * tau + 0.5 * a * tau * tau, seg[k, 2] + a * tau, a
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _interp(t: float, knots_t: np.ndarray, values: np.ndarray) -> tuple[float, float]:
     """Piecewise-linear value and slope, constant outside the knots."""
     m = knots_t.shape[0]
@@ -98,7 +107,7 @@ def _interp(t: float, knots_t: np.ndarray, values: np.ndarray) -> tuple[float, f
     return values[j] + slope * (t - knots_t[j]), slope
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def friction_step(
     p: float,
     dx: float,
@@ -129,14 +138,15 @@ def friction_step(
             force = maxwell_slip_step(deltas, dx, ms_k, ms_w, g)
         else:
             trial = cap[:n_el]
-            trial[:] = deltas
+            for j in range(n_el):
+                trial[j] = deltas[j]
             force = maxwell_slip_step(trial, dx, ms_k, ms_w, g)
         return force + kv * v, z
     z_new = lugre_z_step(z, v, h, par[SIG0], g)
     return lugre_force(z, z_new, v, h, par[SIG0], par[SIG1], kv), z_new
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _line_loss(q: float, length_m: float, k_local: float, par: np.ndarray) -> float:
     """Loss of one branch part at flow ``q`` [m3/s], signed with it (paper eq 6, 12-14:
     :func:`physics.branch_loss.pipe_loss_pa`, Blasius when turbulent, smooth pipe);
@@ -149,32 +159,24 @@ def _line_loss(q: float, length_m: float, k_local: float, par: np.ndarray) -> fl
     return pipe_loss_pa(u, bore, length, par[MU] / par[RHO], par[RHO], k, 0.0, BLASIUS)
 
 
-@njit(cache=True)
-def rhs(
-    y: np.ndarray,
-    par: np.ndarray,
-    groove: np.ndarray,
-    seg: np.ndarray,
-    pay: np.ndarray,
-    src_t: np.ndarray,
-    src_s: np.ndarray,
-    ms_k: np.ndarray,
-    ms_w: np.ndarray,
-    z: np.ndarray,
-    deltas: np.ndarray,
-    x_start: np.ndarray,
-    h: float,
-    cap: np.ndarray,
-    out: np.ndarray,
-    aux: np.ndarray,
-) -> None:
-    """dy/dt of the device; ``aux[i] = (friction, tension, dq/dt, sensor drop)``.
+@njit(cache=True, _nrt=False)
+def rhs(y: np.ndarray, args: tuple, out: np.ndarray) -> None:
+    """dy/dt of the device at ``y`` into ``out``, in the ``rhs(y, args, out)`` form of
+    the ROS2 functions (:mod:`sims.hydraulics`); ``aux[i] = (friction, tension, dq/dt,
+    sensor drop)``.
+
+    ``args = (par, groove, seg, pay, src_t, src_s, ms_k, ms_w, z, deltas, x_start, h,
+    cap, aux)``: a :class:`~sims.device_params.Setup`'s arrays, the friction memory (z,
+    Maxwell-slip deflections, the pistons' positions at the step's start), the step
+    ``h``, the scratch ``cap`` and the output ``aux``. Unpacked here, in a kernel
+    without reference counting, rather than by the caller at each call.
 
     Longer than 80 lines on purpose: it is the compiled right-hand side the ROS2 loop
     calls 2 + n_state times per Jacobian step; the two passes over the cylinders (forces
     and hydraulics, then the piston accelerations once the conveyance's is known) share
     their locals and stay one function for speed.
     """
+    par, groove, seg, pay, src_t, src_s, ms_k, ms_w, z, deltas, x_start, h, cap, aux = args
     n = groove.shape[0]
     t = y[T]
     eta = y[ETA]
@@ -243,7 +245,7 @@ def rhs(
         out[b + 2] = out[b + 2] / par[MP] + body_acc
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def oil_volume(y: np.ndarray, par: np.ndarray, n: int) -> float:
     beta = par[BETA]
     total = par[VPIPES] + par[VM] * math.exp(y[PM] / beta)

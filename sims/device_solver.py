@@ -1,11 +1,22 @@
 """The device simulation's integrator: ROS2 at a fixed step around the compiled model.
 
-:func:`_run` is the compiled ROS2 loop (two-stage, L-stable Rosenbrock-W, Verwer et al.
-1999, the shared :func:`sims.hydraulics.ros2_matrix` / :func:`~sims.hydraulics.ros2_step`;
-finite-difference Jacobian every ``jacobian_every`` steps, friction memory frozen over a
-step and committed with the accepted increment; see :mod:`sims.device` for the scheme
-and its tolerances); :func:`integrate` checks the step grid and the friction
-memory, runs it and turns the record into a :class:`~sims.device.SimulationResult`.
+:func:`_run` is the compiled ROS2 integration (two-stage, L-stable Rosenbrock-W, Verwer
+et al. 1999, the shared :func:`sims.hydraulics.ros2_matrix` /
+:func:`~sims.hydraulics.ros2_step` with :func:`sims.device_model.rhs` as their
+``rhs(y, args, out)``; finite-difference Jacobian every ``jacobian_every`` steps,
+friction memory frozen over a step and committed with the accepted increment; see
+:mod:`sims.device` for the scheme and its tolerances); :func:`integrate` checks the step
+grid and the friction memory, runs it and turns the record into a
+:class:`~sims.device.SimulationResult`.
+
+:func:`_run` allocates; its step loop :func:`_loop` (with the ROS2 functions numba
+inlines into it), :func:`_commit` and the model's kernels are compiled without numba's
+reference-counted runtime (``_nrt=False``), so no reference count is taken on the ~20
+arrays a step passes around. Measured (``benchmarks/bench_sims.py``, 2-core machine;
+back to back, 3-4 runs each): the old loop with ROS2 written inline (396f33d) ~316x
+real time, the shared-ROS2 loop unpacking the model's arguments from a tuple at each
+right-hand-side call ~275x, this ~396x; on the way, ``rhs`` unpacking them itself ~295x
+and its kernels without reference counts ~375x.
 """
 
 from __future__ import annotations
@@ -34,15 +45,7 @@ from sims.trips import TripProfile
 _REFRESH_GROWTH = 3.0
 
 
-@njit(cache=True, inline="always")
-def _model_rhs(y, args, out):  # pragma: no cover - compiled
-    """:func:`sims.device_model.rhs` as the ``rhs(y, args, out)`` of the ROS2 functions;
-    ``args`` is the tuple of its other arguments (see :func:`_run`), ``aux`` last."""
-    par, groove, seg, pay, src_t, src_s, ms_k, ms_w, z, deltas, x_start, dt, cap, aux = args
-    rhs(y, par, groove, seg, pay, src_t, src_s, ms_k, ms_w, z, deltas, x_start, dt, cap, out, aux)
-
-
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _commit(y, par, z, deltas, x_start, dt, ms_k, ms_w, cap, aux, stop_hits):  # pragma: no cover
     """Commit the friction memory with the accepted displacement increments, count the
     end-stop contacts; True when a chamber pressure fell below zero gauge."""
@@ -62,64 +65,37 @@ def _commit(y, par, z, deltas, x_start, dt, ms_k, ms_w, cap, aux, stop_hits):  #
     return cavitation
 
 
-@njit(cache=True)
-def _run(
-    y0, model, z0, deltas0, dt, n_steps, record_every, jacobian_every, atol, rtol
+@njit(cache=True, _nrt=False)
+def _loop(
+    y, args, rec, scratch, n_steps, record_every, jacobian_every, atol, rtol
 ):  # pragma: no cover
-    """Integrate ``n_steps`` ROS2 steps of :func:`sims.device_model.rhs` from ``y0``;
-    ``model`` is the tuple (par, groove, seg, pay, src_t, src_s, ms_k, ms_w) of a
-    :class:`~sims.device_params.Setup`, ``z0``, ``deltas0`` the friction memory.
+    """The ROS2 steps of :func:`_run`, in the arrays it allocated: ``y`` advanced in
+    place, ``args`` the model's (its friction memory committed in place), ``rec`` =
+    (rec_y, rec_aux, rec_vol, err_at, stop_hits) filled, ``scratch`` = (f0, work, w,
+    piv, y_before, committed). Returns (largest error ratio, status code, failing step).
 
-    Returns the recorded states, aux values and oil volumes (every ``record_every``
-    steps; NaN rows after a failure), the largest error ratio and where, the status code
-    (0 ok, 1 singular iteration matrix, 2 non-finite, 3 cavitation), the failing step,
-    the end-stop hit counts and the final state with its friction memory.
-
-    The step is :func:`sims.hydraulics.ros2_matrix` (every ``jacobian_every`` steps) and
-    :func:`sims.hydraulics.ros2_step`; the friction memory is frozen over a step and
-    committed with the accepted increment (:func:`_commit`). A step taken with an older
-    Jacobian whose error ratio exceeds :data:`_REFRESH_GROWTH` times that of the last
-    fresh one is taken again with a fresh one
-    (:func:`sims.hydraulics.ros2_step_refreshing`; on a validation day's throttled
-    valve, ``K = 2e4`` at 2 ms, a 10-step-old one let the replayed pressures fall into
-    cavitation).
+    Compiled without numba's reference-counted runtime (``_nrt=False``, as the model's
+    kernels, :mod:`sims.device_model`): it allocates nothing, copies are loops, and
+    no reference count is taken on the arrays it borrows from :func:`_run` or the views
+    it makes of them (the inlined ROS2 functions' ``args`` and work rows included).
     """
-    par, groove, ms_k, ms_w = model[0], model[1], model[6], model[7]
-    n_state = y0.shape[0]
+    par, groove, _, _, _, _, ms_k, ms_w, z, deltas, x_start, dt, cap, aux = args
+    rec_y, rec_aux, rec_vol, err_at, stop_hits = rec
+    f0, work, w, piv, y_before, committed = scratch
+    n_state = y.shape[0]
     n = groove.shape[0]
-    n_rec = n_steps // record_every + 1
-    rec_y = np.full((n_rec, n_state), np.nan)
-    rec_aux = np.full((n_rec, n, 4), np.nan)
-    rec_vol = np.full(n_rec, np.nan)
-    y = y0.copy()
-    z = z0.copy()  # friction memory carried in (zero from static equilibrium)
-    deltas = deltas0.copy()
-    x_start = y[CYL0 + 1 :: PER].copy()
-    cap = np.empty(2 * max(ms_k.shape[0], 1))
-    aux = np.zeros((n, 4))
-    args = (*model, z, deltas, x_start, dt, cap, aux)
-    f0 = np.empty(n_state)
-    work = np.empty((4, n_state))
-    w = np.empty((n_state, n_state))
-    piv = np.empty(n_state, dtype=np.int64)
     err_max = 0.0
-    # step and state index of the largest error, steps retaken with a fresh Jacobian
-    err_at = np.zeros(3, dtype=np.int64)
-    stop_hits = np.zeros(n, dtype=np.int64)
-    _model_rhs(y, args, f0)  # record the initial state
-    rec_y[0], rec_aux[0], rec_vol[0] = y, aux, oil_volume(y, par, n)
     code = 0  # 0 ok, 1 singular, 2 non-finite, 3 cavitation
     fail_step = -1
-    y_before = np.empty(n_state)
     err_fresh = 0.0  # error ratio of the last step taken with a fresh Jacobian
     for step in range(n_steps):
-        _model_rhs(y, args, f0)
+        rhs(y, args, f0)
         fresh = step % jacobian_every == 0
-        if fresh and not ros2_matrix(_model_rhs, args, y, f0, dt, atol, w, piv, work):
+        if fresh and not ros2_matrix(rhs, args, y, f0, dt, atol, w, piv, work):
             code = 1
             break
         err, worst, retaken = ros2_step_refreshing(
-            _model_rhs, args, y, f0, dt, atol, rtol, w, piv, work, y_before, fresh,
+            rhs, args, y, f0, dt, atol, rtol, w, piv, work, y_before, fresh,
             _REFRESH_GROWTH * max(err_fresh, 1.0),
         )  # fmt: skip
         if retaken < 0:
@@ -137,13 +113,74 @@ def _run(
             code = 3
             break
         if (step + 1) % record_every == 0:
-            committed = aux[:, 0].copy()
-            _model_rhs(y, args, work[3])
-            aux[:, 0] = committed
+            for i in range(n):
+                committed[i] = aux[i, 0]
+            rhs(y, args, work[3])  # aux at the committed state, its friction kept
             kr = (step + 1) // record_every
-            rec_y[kr], rec_aux[kr], rec_vol[kr] = y, aux, oil_volume(y, par, n)
+            for i in range(n_state):
+                rec_y[kr, i] = y[i]
+            for i in range(n):
+                aux[i, 0] = committed[i]
+                for c in range(4):
+                    rec_aux[kr, i, c] = aux[i, c]
+            rec_vol[kr] = oil_volume(y, par, n)
     if code != 0:
         fail_step = step
+    return err_max, code, fail_step
+
+
+@njit(cache=True)
+def _run(
+    y0, model, z0, deltas0, dt, n_steps, record_every, jacobian_every, atol, rtol
+):  # pragma: no cover
+    """Integrate ``n_steps`` ROS2 steps of :func:`sims.device_model.rhs` from ``y0``;
+    ``model`` is the tuple (par, groove, seg, pay, src_t, src_s, ms_k, ms_w) of a
+    :class:`~sims.device_params.Setup`, ``z0``, ``deltas0`` the friction memory.
+
+    Returns the recorded states, aux values and oil volumes (every ``record_every``
+    steps; NaN rows after a failure), the largest error ratio and where, the status code
+    (0 ok, 1 singular iteration matrix, 2 non-finite, 3 cavitation), the failing step,
+    the end-stop hit counts and the final state with its friction memory.
+
+    Allocates the records, the model's ``args`` (the ``rhs(y, args, out)`` tuple:
+    ``model``, z, deltas, x_start, dt, cap, aux) and the scratch, records the initial
+    state and leaves the steps to :func:`_loop`: :func:`sims.hydraulics.ros2_matrix`
+    (every ``jacobian_every`` steps) and :func:`sims.hydraulics.ros2_step`; the friction
+    memory is frozen over a step and committed with the accepted increment
+    (:func:`_commit`). A step taken with an older Jacobian whose error ratio exceeds
+    :data:`_REFRESH_GROWTH` times that of the last fresh one is taken again with a fresh
+    one (:func:`sims.hydraulics.ros2_step_refreshing`; on a validation day's throttled
+    valve, ``K = 2e4`` at 2 ms, a 10-step-old one let the replayed pressures fall into
+    cavitation).
+    """
+    par, groove, ms_k = model[0], model[1], model[6]
+    n_state = y0.shape[0]
+    n = groove.shape[0]
+    n_rec = n_steps // record_every + 1
+    rec_y = np.full((n_rec, n_state), np.nan)
+    rec_aux = np.full((n_rec, n, 4), np.nan)
+    rec_vol = np.full(n_rec, np.nan)
+    y = y0.copy()
+    z = z0.copy()  # friction memory carried in (zero from static equilibrium)
+    deltas = deltas0.copy()
+    x_start = y[CYL0 + 1 :: PER].copy()
+    cap = np.empty(2 * max(ms_k.shape[0], 1))
+    aux = np.zeros((n, 4))
+    args = (*model, z, deltas, x_start, dt, cap, aux)
+    f0 = np.empty(n_state)
+    rhs(y, args, f0)  # record the initial state
+    rec_y[0], rec_aux[0], rec_vol[0] = y, aux, oil_volume(y, par, n)
+    # step and state index of the largest error, steps retaken with a fresh Jacobian
+    err_at = np.zeros(3, dtype=np.int64)
+    stop_hits = np.zeros(n, dtype=np.int64)
+    rec = (rec_y, rec_aux, rec_vol, err_at, stop_hits)
+    work = np.empty((4, n_state))
+    w = np.empty((n_state, n_state))
+    piv = np.empty(n_state, dtype=np.int64)
+    scratch = (f0, work, w, piv, np.empty(n_state), np.empty(n))
+    err_max, code, fail_step = _loop(
+        y, args, rec, scratch, n_steps, record_every, jacobian_every, atol, rtol
+    )
     return rec_y, rec_aux, rec_vol, err_max, err_at, code, fail_step, stop_hits, y, z, deltas
 
 

@@ -11,11 +11,16 @@ Stiff fixed-step integrator (njit), the one home of ROS2 in the sims
     Jacobian and an embedded first-order error estimate; :func:`ros2_integrate`, a plain
     fixed-step loop over them. The device (:mod:`sims.device_solver`), the rig
     (:mod:`sims.rig_solver`) and the two-cylinder model call these two functions, each
-    with its model wrapped as ``rhs(y, args, out)`` and its own per-step work (friction
-    memory, end stops, segment lookup, state floors, recording) around them. Both are
-    compiled with ``inline="always"``: numba inlines them into the caller, so the call
-    to ``rhs`` is resolved statically and the caller stays cacheable (a function passed
-    as an argument to a non-inlined call is a dynamic global to numba's cache).
+    with its model as an njit ``rhs(y, args, out)`` (the device's
+    :func:`sims.device_model.rhs` itself, the rig's a wrapper) and its own per-step work
+    (friction memory, end stops, segment lookup, state floors, recording) around them.
+    Both are compiled with ``inline="always"``: numba inlines them into the caller, so
+    the call to ``rhs`` is resolved statically and the caller stays cacheable (a
+    function passed as an argument to a non-inlined call is a dynamic global to numba's
+    cache). They allocate nothing and copy arrays with loops rather than ``a[:] = b``
+    (which numba may compile to a temporary copy), so a caller compiled without numba's
+    reference-counted runtime can inline them: the device's step loop is
+    (``_nrt=False``, see :mod:`sims.device_solver`).
 
 The problem solved is the initial value problem
 
@@ -157,7 +162,8 @@ def ros2_matrix(rhs, args, y, f0, dt, atol, w, piv, work):  # pragma: no cover -
     w[0, 0] = 1.0
     for j in range(1, n):
         delta = 1e-7 * max(abs(y[j]), atol[j] * 1e3, 1e-12)
-        ytmp[:] = y
+        for i in range(n):
+            ytmp[i] = y[i]
         ytmp[j] += delta
         rhs(ytmp, args, f1)
         for i in range(n):
@@ -195,7 +201,8 @@ def ros2_step(rhs, args, y, f0, dt, atol, rtol, w, piv, work):  # pragma: no cov
     k2 = work[1]
     ytmp = work[2]
     f1 = work[3]
-    k1[:] = f0
+    for i in range(n):
+        k1[i] = f0[i]
     lu_solve(w, piv, k1)
     for i in range(n):
         ytmp[i] = y[i] + dt * k1[i]
@@ -243,11 +250,14 @@ def ros2_step_refreshing(
     retaken : 0 taken once, 1 taken again with a fresh ``W``, -1 the rebuilt ``W`` is
         singular (``y`` is then the incoming state)
     """
-    y_before[:] = y
+    n = y.shape[0]
+    for i in range(n):
+        y_before[i] = y[i]
     err, worst = ros2_step(rhs, args, y, f0, dt, atol, rtol, w, piv, work)
     if fresh or err <= refresh_above:
         return err, worst, 0
-    y[:] = y_before
+    for i in range(n):
+        y[i] = y_before[i]
     if not ros2_matrix(rhs, args, y, f0, dt, atol, w, piv, work):
         return err, worst, -1
     err, worst = ros2_step(rhs, args, y, f0, dt, atol, rtol, w, piv, work)

@@ -30,7 +30,10 @@ The ropes' ringing is read off the record, not taken on trust from the descripti
 at ~1 Hz where the hoist does not leaves a common-mode gap of ~0.1 MPa. The description's
 ratio stays unless the record contradicts it; then the ratio read from the ringing's decay
 (or, with no ringing seen 3-7 s after the stops, 0.1 / 0.3 / 1.0) is chosen by the replay
-gap (:mod:`sims.logged_motion`, ``ReplayPlan.rope_bounce``). The trips can also be driven
+gap (:mod:`sims.logged_motion`, ``ReplayPlan.rope_bounce``). So is the ropes' stiffness
+spread (:mod:`discovery.rope_stiffness`: which piston slides when the load changes decides
+the seals' summed force, ~50 kPa of common-mode pressure on the validation days). The
+trips can also be driven
 by the encoder's logged speed instead of the winder profile (``plan_replay(motion=
 "logged")``).
 
@@ -55,6 +58,7 @@ from discovery.record import (
     trip_timing,
 )
 from discovery.rope_damping import with_rope_damping
+from discovery.rope_stiffness import piston_slides_m, with_rope_stiffness
 from discovery.segmentation import (
     CUT_WORDS,
     chosen_trips,
@@ -336,4 +340,7 @@ def plan_replay(
         skipped=tuple(skipped),
         rope_bounce=zeta_how,
     )
-    return with_rope_damping(plan, zeta)
+    plan = with_rope_damping(plan, zeta)
+    # the ropes' stiffness spread the record shows (which piston slides decides the
+    # seals' summed force; the description gives one EA for all)
+    return with_rope_stiffness(plan, piston_slides_m(samples, hoist.ropes_n))

@@ -105,6 +105,12 @@ class HoistDescription(Section):
                 f"drum.groove_radius_deviation: need {n} values (one per head rope), "
                 f"got {len(self.drum.groove_radius_deviation_m)}"
             )
+        factors = self.ropes.head_rope_stiffness_factors
+        if factors is not None and len(factors) != n:
+            raise ValueError(
+                f"ropes.head_rope_stiffness_factors: need {n} values (one per head rope), "
+                f"got {len(factors)}"
+            )
         return self
 
     # -- derived quantities used across the pipeline ------------------------------------

@@ -149,6 +149,11 @@ class Ropes(Section):
     head_rope_axial_stiffness_n: Force = Field(alias="head_rope_axial_stiffness")  # EA
     head_rope_breaking_strength_n: Force = Field(alias="head_rope_breaking_strength")
     head_rope_damping_ratio: float = Field(0.02, ge=0.0, le=1.0)
+    #: Each head rope's axial stiffness as a factor on ``head_rope_axial_stiffness``
+    #: (one per rope; None: all alike). Real ropes differ by several percent, which
+    #: decides which piston slides when the load changes; a mine rarely knows them, so
+    #: the replay reads them off the record (:mod:`discovery.rope_stiffness`).
+    head_rope_stiffness_factors: list[Annotated[float, Field(gt=0.5, lt=1.5)]] | None = None
     tail_rope_mass_per_length_kg_m: LinearDensity = Field(alias="tail_rope_mass_per_length")
 
 

@@ -120,6 +120,7 @@ from sims.device_params import (
     CYL0,
     EA,
     ETA,
+    KF0,
     LBASE,
     PER,
     PM,
@@ -276,10 +277,13 @@ def _static_start(
     )
     k0 = par[EA] / (par[LBASE] + u0)
     offsets = u0 * groove / par[RDRUM]
-    x0 = -(offsets - offsets.mean())
+    # equal tensions weight0 / n: rope i stretches weight0 / (n k0 f_i); the pistons
+    # take up the differences (mean zero)
+    stretch = weight0 / (n * k0 * par[KF0 : KF0 + n])
+    x0 = -(offsets + stretch - (offsets + stretch).mean())
     y0 = np.zeros(CYL0 + PER * n)
     y0[T] = t0
-    y0[ETA] = weight0 / (n * k0) + offsets.mean()
+    y0[ETA] = (offsets + stretch).mean()
     y0[PM] = p0
     for i in range(n):
         b = CYL0 + PER * i

@@ -45,6 +45,7 @@ from sims.device_params import (
     INERTIA_ON,
     K1,
     K2,
+    KF0,
     KSTOP,
     KV1,
     L1,
@@ -208,7 +209,7 @@ def rhs(y: np.ndarray, args: tuple, out: np.ndarray) -> None:
         s_off, s_rate = _interp(t, src_t, src_s[:, i])
         e = eta - x - u * groove[i] / par[RDRUM] - s_off
         ed = etad - v - ud * groove[i] / par[RDRUM] - s_rate
-        tension = k_rope * e + c_rope * ed
+        tension = k_rope * par[KF0 + i] * e + c_rope * ed  # rope i's EA factor
         ff, _ = friction_step(p, x - x_start[i], h, par, z[i], deltas[i], ms_k, ms_w, cap, False)
         f_stop = 0.0
         if x > par[XMAX]:

@@ -30,7 +30,9 @@ INERT, L1, L2, DLOSS, K1, K2, LAM_ON, LOC_ON, FRIC_ON, PRE_ON = range(10, 20)
 FC0, FC1, FS0, FS1, VS0, VS1, KV0, KV1, SIG0, SIG1 = range(20, 30)
 MINERT, MCONV, INERTIA_ON, TAIL_ON, TAIL_KG_M, SHAFT, LOOP, G = range(30, 38)
 EA, LBASE, ZETA, RDRUM, FIXED, INERT1, CROPE, VPIPES = range(38, 46)
-NPAR = 46
+#: each head rope's stiffness factor on EA (KF0 + i, i < 8: the schema's most head ropes)
+KF0 = 46
+NPAR = KF0 + 8
 
 # state layout: [t, eta, deta/dt, p_manifold, (p, x, v, q) per cylinder]
 T, ETA, ETAD, PM = range(4)
@@ -178,6 +180,9 @@ def _pack_mechanics(
     par[LOOP] = hoist.shaft.tail_rope_loop_m
     par[G] = G_STANDARD
     par[EA] = hoist.ropes.head_rope_axial_stiffness_n
+    factors = hoist.ropes.head_rope_stiffness_factors
+    n = hoist.ropes_n
+    par[KF0 : KF0 + n] = 1.0 if factors is None else np.asarray(factors, dtype=float)
     par[LBASE] = hoist.shaft.headframe_height_m
     par[ZETA] = hoist.ropes.head_rope_damping_ratio
     par[RDRUM] = hoist.drum.radius_m

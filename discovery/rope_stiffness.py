@@ -1,0 +1,176 @@
+"""The head ropes' stiffness spread a replay uses: read off the record.
+
+Real head ropes differ in axial stiffness by several percent (manufacture, wear,
+re-terminations); a mine's description gives one EA for all. The spread decides how the
+seals carry a load change: while the pistons stick, rope i takes ``k_i / sum(k)`` of it,
+so the pistons' friction forces part ways until the one pushed hardest breaks away and
+takes the closed oil volume's change (paper eq 5) alone while the others stay stuck
+with what they carry. With equal ropes all four slide together, each at its sliding
+friction: the seals' summed force, and with it the common-mode sensor pressure
+(``n A p = sum T_i + sum F_i``), differs by thousands of newtons. On the validation days
+(an independent simulator whose ropes differ, unknown to its description) the logged
+pistons show it: one piston slides millimetres per trip while three move less than the
+logger's 0.1 mm step, and the replay with equal ropes leaves a common-mode gap of
+~50 kPa against 5 kPa of noise.
+
+The record does not give the stiffnesses directly (a stuck piston does not move), but
+what the replay needs is the size of the spread: the spread ``s`` of factors
+``1 + s (-1.5, -0.5, 0.5, 1.5)`` (evenly spaced, mean 1, for four ropes) whose replay of
+the first trips leaves the smallest gap (:func:`with_rope_stiffness`, a grid and a
+parabola through the best three), kept only when it beats equal ropes by 10 % (as
+:mod:`discovery.rope_damping` keeps the description's damping). Which rope is which is
+not read: the common-mode pressure is the same for any order of the same factors
+(on validation day 101 the common-mode RMS gap of three orders agreed to 1e-10) and the
+differential one stays at the noise, so the sensors cannot tell; the factors go in rope
+order, and the replayed pistons may slide where the logged ones stuck. A record whose
+pistons all slid alike (:func:`piston_slides_m`) keeps equal ropes without a search.
+
+One parameter is a simplification: real spreads are not evenly spaced. It is a
+nuisance parameter (like the payloads and the ropes' damping), fitted to the baseline
+model before any candidate effect is tried.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import polars as pl
+
+from schemas.hoist import HoistDescription
+from sims.replay import replay_fitted
+from sims.replay_plan import ReplayPlan
+
+__all__ = [
+    "SLIDE_DEADBAND_M",
+    "SPREAD_GRID",
+    "piston_slides_m",
+    "spread_factors",
+    "with_rope_stiffness",
+]
+
+#: Spreads tried (factor step between neighbouring ropes, sorted by stiffness); the
+#: validation days' gap is smallest near 0.025 and rises steeply either side.
+SPREAD_GRID = (0.0, 0.01, 0.02, 0.03, 0.045)
+
+#: A spread replaces equal ropes only when its replay gap is below this share of theirs.
+_KEEP_SHARE = 0.9
+
+#: Moves of a piston's 1-second median position below this [m] do not count as a slide
+#: (1.5 steps of a logger quantising to 0.1 mm; presliding is ~0.05 mm).
+SLIDE_DEADBAND_M = 0.15e-3
+
+#: Trips of the first block replayed per candidate.
+_TRIPS = 3
+
+#: Pistons whose slides over the record are within this ratio slid alike: equal ropes
+#: (a spread makes one piston take the closed volume's change alone).
+_ALIKE_RATIO = 1.5
+
+
+def piston_slides_m(samples: pl.DataFrame, n: int) -> np.ndarray | None:
+    """How far each piston slid over the record [m]; None without logged positions.
+
+    The path of 1-second medians of ``x{i}_m`` through a dead band of
+    :data:`SLIDE_DEADBAND_M` (a move counts once the reading is that far from where the
+    last counted one left it): a sticking piston whose reading toggles between two of
+    the logger's 0.1 mm steps adds nothing, a sliding one its millimetres.
+    """
+    cols = [f"x{i}_m" for i in range(1, n + 1)]
+    if not set(cols) <= set(samples.columns):
+        return None
+    per_second = (
+        samples.sort("time_utc")
+        .group_by_dynamic("time_utc", every="1s")
+        .agg([pl.col(c).median() for c in cols])
+    )
+    x = per_second.select(cols).to_numpy().astype(float)
+    if x.shape[0] < 3 or not np.isfinite(x).any():
+        return None
+    return np.array([_deadband_path(x[:, i]) for i in range(n)])
+
+
+def _deadband_path(x: np.ndarray) -> float:
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return 0.0
+    anchor, path = x[0], 0.0
+    for value in x[1:]:
+        if abs(value - anchor) >= SLIDE_DEADBAND_M:
+            path += abs(value - anchor)
+            anchor = value
+    return float(path)
+
+
+def spread_factors(spread: float, n: int) -> list[float]:
+    """Stiffness factors (mean 1) of ``n`` ropes ``spread`` apart, in rope order (the
+    sensor pressures do not tell which rope is which: see the module docstring)."""
+    return [float(1.0 + (i - (n - 1) / 2.0) * spread) for i in range(n)]
+
+
+def _with_factors(hoist: HoistDescription, factors: list[float] | None) -> HoistDescription:
+    ropes = hoist.ropes.model_copy(update={"head_rope_stiffness_factors": factors})
+    return hoist.model_copy(update={"ropes": ropes})
+
+
+def with_rope_stiffness(plan: ReplayPlan, slides_m: np.ndarray | None) -> ReplayPlan:
+    """The plan with the head ropes' stiffness spread its first trips replay closest.
+
+    ``slides_m``: each piston's slide over the record (:func:`piston_slides_m`; None
+    when the record has no piston positions). A description that states its ropes'
+    factors keeps them, and so does a record whose pistons all slid alike (within a
+    factor 1.5: equal ropes move them together). Otherwise each spread of
+    :data:`SPREAD_GRID` is replayed on the first block's first three trips (payloads
+    fitted, two passes), a parabola through the best one and its neighbours refines it,
+    and the result replaces equal ropes when its gap is below 90 % of theirs. The
+    choice and the gaps are stated in the plan's notes.
+    """
+    hoist = plan.hoist
+    n = hoist.ropes_n
+    if hoist.ropes.head_rope_stiffness_factors is not None or not plan.trips or n < 2:
+        return plan
+    if slides_m is not None and np.max(slides_m) <= _ALIKE_RATIO * max(np.min(slides_m), 0):
+        note = "rope stiffness: equal ropes kept (the pistons slid alike, {} mm)".format(
+            ", ".join(f"{1e3 * s:.1f}" for s in slides_m)
+        )
+        return dataclasses.replace(plan, notes=(*plan.notes, note))
+    block = [tr for tr in plan.trips if tr.block == plan.trips[0].block][:_TRIPS]
+
+    def gap(spread: float) -> float:
+        factors = spread_factors(spread, n) if spread > 0 else None
+        trial = dataclasses.replace(plan, hoist=_with_factors(hoist, factors), trips=block)
+        value = replay_fitted(trial, passes=2).rms_gap_pa(trial)
+        return value if np.isfinite(value) else np.inf
+
+    spreads = list(SPREAD_GRID)
+    gaps = [gap(s) for s in spreads]
+    best = int(np.argmin(gaps))
+    if 0 < best < len(spreads) - 1 and np.all(np.isfinite(gaps[best - 1 : best + 2])):
+        refined = _parabola_minimum(spreads[best - 1 : best + 2], gaps[best - 1 : best + 2])
+        if refined is not None:
+            spreads.append(refined)
+            gaps.append(gap(refined))
+            best = int(np.argmin(gaps))
+    said = ", ".join(
+        f"{s:.3g}: {g / 1e3:.1f} kPa" for s, g in sorted(zip(spreads, gaps, strict=True))
+    )
+    if spreads[best] == 0.0 or not gaps[best] < _KEEP_SHARE * gaps[0]:
+        note = f"rope stiffness: equal ropes kept (replay gap by spread {said})"
+        return dataclasses.replace(plan, notes=(*plan.notes, note))
+    factors = spread_factors(spreads[best], n)
+    note = (
+        f"rope stiffness: spread {spreads[best]:.3g} between neighbouring ropes, factors "
+        f"{', '.join(f'{f:.3f}' for f in factors)} (replay gap on {len(block)} trips by "
+        f"spread {said})"
+    )
+    return dataclasses.replace(plan, hoist=_with_factors(hoist, factors), notes=(*plan.notes, note))
+
+
+def _parabola_minimum(xs: list[float], ys: list[float]) -> float | None:
+    """Abscissa of the vertex of the parabola through three points, if it is a minimum
+    inside their span."""
+    a, b, _ = np.polyfit(np.asarray(xs), np.asarray(ys), 2)
+    if a <= 0:
+        return None
+    vertex = float(-b / (2.0 * a))
+    return vertex if xs[0] < vertex < xs[-1] and vertex not in xs else None

@@ -1,0 +1,106 @@
+"""discovery.rope_stiffness: the head ropes' stiffness spread read off a record.
+
+The records are the device simulation's own (ropes with known factors), so these tests
+show that the search finds what made the data and that equal ropes stay equal; that the
+spread matters on data ropeload did not make is measured by ``benchmarks/eval_sanity.py``
+on the validation days (README)."""
+
+from __future__ import annotations
+
+import datetime as dt
+
+import numpy as np
+import polars as pl
+import pytest
+
+from discovery.cases import scenario_hoist
+from discovery.planning import plan_replay
+from discovery.rope_stiffness import piston_slides_m, spread_factors
+from sims.field_day import generate_field_day
+from sims.replay import replay_fitted
+
+#: the world's ropes: spread 0.03 between neighbours, not in rope order
+_WORLD = [1.015, 0.985, 0.955, 1.045]
+
+
+def _with_factors(hoist, factors):
+    ropes = hoist.ropes.model_copy(update={"head_rope_stiffness_factors": factors})
+    return hoist.model_copy(update={"ropes": ropes})
+
+
+@pytest.fixture(scope="module")
+def spread_day():
+    base = scenario_hoist("plain")
+    day = generate_field_day(
+        _with_factors(base, _WORLD),
+        date="2026-03-02",
+        seed=4,
+        trips=4,
+        hours=4 * 150.0 / 3600,
+        sample_rate_hz=20.0,
+        loading_s=5.0,
+        rest_after_s=20.0,
+        oil_temp_c=(30.0, 30.0),
+    )
+    return base, day
+
+
+def test_spread_factors_mean_one_evenly_spaced():
+    assert spread_factors(0.02, 4) == pytest.approx([0.97, 0.99, 1.01, 1.03])
+    assert spread_factors(0.02, 3) == pytest.approx([0.98, 1.0, 1.02])
+
+
+def test_slides_from_quantised_positions():
+    """One piston slides 3 mm in 60 s, three stick; x logged to 0.1 mm with 0.02 mm of
+    noise (a sticking piston's reading toggles between two steps)."""
+    rng = np.random.default_rng(0)
+    t = np.arange(0.0, 120.0, 0.02)
+    true = np.zeros((t.size, 4)) + [0.00005, -0.00003, 0.00002, 0.0]
+    true[:, 1] += np.clip((t - 30.0) / 60.0, 0.0, 1.0) * 3e-3
+    logged = np.round((true + rng.normal(0, 2e-5, true.shape)) / 1e-4) * 1e-4
+    start = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
+    frame = pl.DataFrame(
+        {
+            "time_utc": [start + dt.timedelta(seconds=float(s)) for s in t],
+            **{f"x{i + 1}_m": logged[:, i] for i in range(4)},
+        }
+    )
+    slides = piston_slides_m(frame, 4)
+    assert slides[1] == pytest.approx(3e-3, abs=0.3e-3)
+    assert np.all(np.delete(slides, 1) < 0.5e-3)
+    assert piston_slides_m(frame.drop("x4_m"), 4) is None
+
+
+def test_spread_found_and_replay_closes(spread_day):
+    """The description gives one EA; the record's ropes differ by 3 % between neighbours.
+    The plan reads the spread (within the grid's resolution) and its replay leaves the
+    noise where equal ropes leave several times it: the sensors do not tell which rope
+    is which, so the factors go in rope order and still replay the record."""
+    base, day = spread_day
+    plan = plan_replay(day.sensors, base, settle_s=20.0)
+    factors = plan.hoist.ropes.head_rope_stiffness_factors
+    assert factors is not None, plan.notes
+    steps = np.diff(np.sort(factors))
+    assert steps == pytest.approx([0.03] * 3, abs=0.006)
+    gap = replay_fitted(plan, passes=2).rms_gap_pa(plan)
+    assert gap < 1.3 * plan.noise_sigma_pa
+    equal = plan_replay(day.sensors, _with_factors(base, [1.0] * 4), settle_s=20.0)
+    assert replay_fitted(equal, passes=2).rms_gap_pa(equal) > 2.0 * gap
+
+
+def test_equal_ropes_stay_equal(spread_day):
+    base, _ = spread_day
+    day = generate_field_day(
+        base,
+        date="2026-03-02",
+        seed=4,
+        trips=3,
+        hours=3 * 150.0 / 3600,
+        sample_rate_hz=20.0,
+        loading_s=5.0,
+        rest_after_s=20.0,
+        oil_temp_c=(30.0, 30.0),
+    )
+    plan = plan_replay(day.sensors, base, settle_s=20.0)
+    assert plan.hoist.ropes.head_rope_stiffness_factors is None
+    assert any("equal ropes kept" in n for n in plan.notes), plan.notes

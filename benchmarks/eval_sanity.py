@@ -108,7 +108,7 @@ def main() -> None:
     ap.add_argument("--days", type=Path, default=DEFAULT_DAYS)
     ap.add_argument("--only", default=None, metavar="NAMES", help="e.g. mine_day101,mine_day104")
     ap.add_argument("--max-trips", type=int, default=200)
-    ap.add_argument("--motion", choices=("winder", "logged"), default="winder")
+    ap.add_argument("--motion", choices=("auto", "winder", "logged"), default="auto")
     args = ap.parse_args()
     only = {n.strip() for n in args.only.split(",")} if args.only else None
     days = [

@@ -57,8 +57,8 @@ from discovery.record import (
     trailing_window_end,
     trip_timing,
 )
-from discovery.rope_damping import with_rope_damping
-from discovery.rope_stiffness import piston_slides_m, with_rope_stiffness
+from discovery.replay_choices import choose_motion, read_ropes
+from discovery.rope_stiffness import piston_slides_m
 from discovery.segmentation import (
     CUT_WORDS,
     chosen_trips,
@@ -258,7 +258,7 @@ def plan_replay(
     score_rate_hz: float = 20.0,
     settle_s: float = 30.0,
     dt_s: float = 2e-3,
-    motion: str = "winder",
+    motion: str = "auto",
     number_from: dt.datetime | None = None,
 ) -> ReplayPlan:
     """Segment ``samples`` of one hoist into trips and prepare their simulation.
@@ -287,22 +287,21 @@ def plan_replay(
         record's first sample. Either way the trips and their order are the pipeline's
         trip rule's (:mod:`physics.trip_rule`), so a check of the period
         ``[number_from, ...)`` names each trip as that period's ``trip_summary`` does.
-    motion : {"winder", "logged"}
+    motion : {"auto", "winder", "logged"}
         What drives each trip's simulation: the hoist description's winder profile
         (constant acceleration, the top speed logged when it is 5 % off the described
-        one) or the encoder's logged speed (:mod:`sims.logged_motion`; jerk, per-trip
-        acceleration and top speed as they were). "winder" is the default because it
-        replays the validation trials closer today (48 / 51 kPa against 60 / 56 kPa on
-        two records with nothing hidden): the gap left is the seal friction's state,
-        which the input motion moves either way (README, issue 14).
+        one), the encoder's logged speed (:mod:`sims.logged_motion`; jerk, per-trip
+        acceleration and top speed as they were), or (``"auto"``, the default)
+        whichever replays the first trips closer, chosen after the ropes' damping and
+        stiffness spread (:func:`discovery.replay_choices.choose_motion`).
 
     Raises
     ------
     ValueError
         Required columns missing, or no trip (motion of >= 3 s) in the record.
     """
-    if motion not in ("winder", "logged"):
-        raise ValueError(f"motion: 'winder' or 'logged', not {motion!r}")
+    if motion not in ("auto", "winder", "logged"):
+        raise ValueError(f"motion: 'auto', 'winder' or 'logged', not {motion!r}")
     rec = read_record(samples, hoist)
     motions, t = rec.motions, rec.t
     # the ropes' damping as the record shows it (a hoist that rings and one that does not
@@ -323,24 +322,30 @@ def plan_replay(
     for tm, trip_id in zip(timing, rec.trip_ids, strict=True):
         tm["trip_id"] = trip_id - first_id
     trailing_ramp = trailing_window_end(rec, timing, notes)
-    # pass 2, the analysed trips: windows, scored samples
-    trips, skipped = _planned_trips(
-        rec, hoist, timing, chosen, trailing_ramp, (settle_s, score_rate_hz), motion, notes
+
+    def planned(kind: str) -> ReplayPlan:
+        # pass 2, the analysed trips: windows, scored samples, the motion driving each
+        said = list(notes)
+        trips, skipped = _planned_trips(
+            rec, hoist, timing, chosen, trailing_ramp, (settle_s, score_rate_hz), kind, said
+        )
+        return ReplayPlan(
+            hoist=hoist,
+            t_ref=rec.t_ref,
+            trips=tuple(trips),
+            noise_sigma_pa=rec.sigma,
+            score_rate_hz=score_rate_hz,
+            dt_s=dt_s,
+            trips_found=len(motions),
+            notes=tuple(said),
+            skipped=(*skipped, *_short_trips(rec, chosen, first_id)),
+            rope_bounce=zeta_how,
+        )
+
+    # the ropes as the record shows them (discovery.replay_choices), then the motion
+    plan = read_ropes(
+        planned("winder" if motion == "winder" else "logged"),
+        zeta,
+        piston_slides_m(samples, hoist.ropes_n),
     )
-    skipped += _short_trips(rec, chosen, first_id)
-    plan = ReplayPlan(
-        hoist=hoist,
-        t_ref=rec.t_ref,
-        trips=tuple(trips),
-        noise_sigma_pa=rec.sigma,
-        score_rate_hz=score_rate_hz,
-        dt_s=dt_s,
-        trips_found=len(motions),
-        notes=tuple(notes),
-        skipped=tuple(skipped),
-        rope_bounce=zeta_how,
-    )
-    plan = with_rope_damping(plan, zeta)
-    # the ropes' stiffness spread the record shows (which piston slides decides the
-    # seals' summed force; the description gives one EA for all)
-    return with_rope_stiffness(plan, piston_slides_m(samples, hoist.ropes_n))
+    return choose_motion(plan, planned("winder")) if motion == "auto" else plan

@@ -13,7 +13,7 @@ import dataclasses
 import numpy as np
 
 from schemas.hoist import HoistDescription
-from sims.replay import replay_fitted
+from sims.replay import first_trips_gap
 from sims.replay_plan import ReplayPlan
 
 __all__ = ["with_rope_damping"]
@@ -47,12 +47,7 @@ def with_rope_damping(plan: ReplayPlan, zeta_read: float | None) -> ReplayPlan:
         candidates = [described] + [c for c in (0.1, 0.3, 1.0) if c > 1.5 * described]
         if len(candidates) == 1:
             return plan
-    block = [tr for tr in plan.trips if tr.block == plan.trips[0].block][:3]
-    gaps = []
-    for zeta in candidates:
-        trial = dataclasses.replace(plan, hoist=_with_damping(plan.hoist, zeta), trips=block)
-        gap = replay_fitted(trial, passes=2).rms_gap_pa(trial)
-        gaps.append(gap if np.isfinite(gap) else np.inf)
+    gaps = [first_trips_gap(plan, _with_damping(plan.hoist, zeta)) for zeta in candidates]
     best = int(np.argmin(gaps))
     said = ", ".join(f"{z:g}: {g / 1e3:.1f} kPa" for z, g in zip(candidates, gaps, strict=True))
     if best == 0 or not gaps[best] < 0.9 * gaps[0]:
@@ -60,7 +55,7 @@ def with_rope_damping(plan: ReplayPlan, zeta_read: float | None) -> ReplayPlan:
         return dataclasses.replace(plan, rope_bounce=how)
     how = (
         f"{plan.rope_bounce}; damping ratio {candidates[best]:g} replaces the "
-        f"description's {described:g} (replay gap on {len(block)} trips {said})"
+        f"description's {described:g} (replay gap on the first 3 trips {said})"
     )
     return dataclasses.replace(
         plan,

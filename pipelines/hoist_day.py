@@ -225,7 +225,7 @@ def check_sanity(
     max_trips: int = SANITY_TRIPS,
     hoist: HoistDescription | None = None,
     threshold: float = 1.5,
-    motion: str = "winder",
+    motion: str = "auto",
 ) -> SanityOutcome:
     """Simulation sanity check of a run's period (:func:`pipelines.sanity.sanity_check`):
     the trips that start moving in ``[start, end)``, landed under ``run_id`` with the

@@ -97,7 +97,7 @@ def sanity_check(
     report_from: dt.datetime | None = None,
     report_to: dt.datetime | None = None,
     number_from: dt.datetime | None = None,
-    motion: str = "winder",
+    motion: str = "auto",
 ) -> pl.DataFrame:
     """Per-trip RMS gap between measured and simulated sensor pressure (``SANITY_CHECKS``).
 
@@ -131,7 +131,7 @@ def sanity_check(
         this time (:func:`discovery.planning.plan_replay`): give the start of the run's
         record (its period start less its lead-in) and ``trip_id`` names the run's
         ``trip_summary`` rows. Default the first sample of ``samples``.
-    motion : {"winder", "logged"}
+    motion : {"auto", "winder", "logged"}
         What drives each replayed trip (:func:`discovery.planning.plan_replay`).
 
     Returns

@@ -35,12 +35,13 @@ default ``dt_s = 2 ms`` is the field-day generator's.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
-from schemas.hoist import G_STANDARD
+from schemas.hoist import G_STANDARD, HoistDescription
 from sims.device import DeviceState, SimulationResult, simulate
 from sims.logged_motion import profile_from_knots
 from sims.replay_inputs import (
@@ -51,7 +52,13 @@ from sims.replay_inputs import (
 )
 from sims.replay_plan import ReplayPlan, ReplayResult, ReplayTrip
 
-__all__ = ["payload_from_pressure", "replay", "replay_fitted", "replay_profile"]
+__all__ = [
+    "first_trips_gap",
+    "payload_from_pressure",
+    "replay",
+    "replay_fitted",
+    "replay_profile",
+]
 
 
 def _simulate_trip(
@@ -299,3 +306,16 @@ def replay_fitted(
             ramps_s=ramps,
         )
     return result
+
+
+def first_trips_gap(
+    plan: ReplayPlan, hoist: HoistDescription | None = None, trips: int = 3
+) -> float:
+    """RMS gap [Pa] of the plan's first block's first ``trips`` trips replayed with
+    ``hoist`` (default the plan's), payloads fitted (two passes); inf when nothing was
+    simulated. The yardstick the replay's choices from the record use (the ropes'
+    damping and stiffness spread, the motion that drives the trips)."""
+    block = [tr for tr in plan.trips if tr.block == plan.trips[0].block][:trips]
+    trial = dataclasses.replace(plan, hoist=plan.hoist if hoist is None else hoist, trips=block)
+    gap = replay_fitted(trial, passes=2).rms_gap_pa(trial)
+    return gap if np.isfinite(gap) else float("inf")

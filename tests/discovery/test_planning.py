@@ -43,12 +43,17 @@ def test_plan_recovers_trip_inputs(null_case):
 
 def test_logged_motion_drives_every_planned_trip(null_case):
     """``motion="logged"``: each trip follows the encoder's logged speed, not only the
-    first (a reused name once left the others on the winder profile)."""
+    first (a reused name once left the others on the winder profile). The default
+    ("auto") takes whichever replays the first trips closer: on ropeload's own field
+    day, whose winder steps its acceleration and whose ropes ring, the profile."""
     _, info = null_case
     plan = plan_replay(info["day"].sensors, info["day"].hoist, motion="logged")
     assert len(plan.trips) == 3
     assert all(tr.motion_knots is not None for tr in plan.trips)
-    winder = plan_replay(info["day"].sensors, info["day"].hoist)
+    auto = plan_replay(info["day"].sensors, info["day"].hoist)
+    assert all(tr.motion_knots is None for tr in auto.trips)
+    assert any(n.startswith("motion: the winder profile drives") for n in auto.notes)
+    winder = plan_replay(info["day"].sensors, info["day"].hoist, motion="winder")
     assert all(tr.motion_knots is None for tr in winder.trips)
 
 
@@ -184,6 +189,6 @@ def test_a_payload_change_after_the_last_stop_ends_its_window(null_case):
     # generator holds the state 20 s after a stop, so 60 s leave more than the noise)
     before = info["day"].sensors.filter(pl.col("time_utc") < loading - dt.timedelta(seconds=1))
     plain = plan_replay(before, plan.hoist, settle_s=60.0)
-    assert plain.notes == ()
+    assert not any("payload changes" in note for note in plain.notes)
     without = _rms(replay_fitted(plain, passes=3).residuals(plain)[1])
     assert with_loading == pytest.approx(without, rel=0.03)

@@ -55,7 +55,7 @@ def test_slides_from_quantised_positions():
     noise (a sticking piston's reading toggles between two steps)."""
     rng = np.random.default_rng(0)
     t = np.arange(0.0, 120.0, 0.02)
-    true = np.zeros((t.size, 4)) + [0.00005, -0.00003, 0.00002, 0.0]
+    true = np.tile([5e-5, -3e-5, 2e-5, 0.0], (t.size, 1))
     true[:, 1] += np.clip((t - 30.0) / 60.0, 0.0, 1.0) * 3e-3
     logged = np.round((true + rng.normal(0, 2e-5, true.shape)) / 1e-4) * 1e-4
     start = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)

@@ -169,3 +169,29 @@ def test_several_errors_reported_together():
     lines = _error(text).splitlines()
     assert len(lines) == 2
     assert all(line.startswith("bad.toml: ") for line in lines)
+
+
+def test_rope_stiffness_factors_one_per_rope():
+    ok = parse_hoist(
+        _edit(
+            r"^head_rope_damping_ratio = 0.02 .*$",
+            "head_rope_damping_ratio = 0.02\nhead_rope_stiffness_factors = [0.97, 1.0, 1.01, 1.02]",
+        ),
+        source="ok.toml",
+    )
+    assert ok.ropes.head_rope_stiffness_factors == [0.97, 1.0, 1.01, 1.02]
+    assert parse_hoist(EXAMPLE_TEXT, source="x.toml").ropes.head_rope_stiffness_factors is None
+    message = _error(
+        _edit(
+            r"^head_rope_damping_ratio = 0.02 .*$",
+            "head_rope_damping_ratio = 0.02\nhead_rope_stiffness_factors = [0.97, 1.03]",
+        )
+    )
+    assert "ropes.head_rope_stiffness_factors: need 4 values (one per head rope), got 2" in message
+    message = _error(
+        _edit(
+            r"^head_rope_damping_ratio = 0.02 .*$",
+            "head_rope_damping_ratio = 0.02\nhead_rope_stiffness_factors = [0.2, 1, 1, 1]",
+        )
+    )
+    assert "head_rope_stiffness_factors" in message

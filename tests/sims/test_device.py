@@ -295,3 +295,53 @@ def test_scenario_without_pipe_characteristics_also_equalises():
     r = paper_scenario_3_2(pipe_characteristics=False, duration_s=3.0)
     spread, mean = _spread(r.frame, 2.5, 2.95)
     assert spread.max() < 0.01 * mean.min()
+
+
+# --- head ropes of different stiffness ---------------------------------------------------
+_FACTORS = [0.96, 1.03, 0.99, 1.02]
+
+
+def _with_rope_factors(hoist, factors):
+    ropes = hoist.ropes.model_copy(update={"head_rope_stiffness_factors": factors})
+    return hoist.model_copy(update={"ropes": ropes})
+
+
+def test_ropes_of_different_stiffness_start_at_equal_tension(hoist):
+    """Static start: the pipes equalise the pressures, so every rope carries W / n and
+    the softer ropes stretch further; the pistons take the difference up."""
+    stiff = _with_rope_factors(hoist, _FACTORS)
+    r = simulate(stiff, hold(depth_m=320.0, duration_s=0.5), effects={"oil_compressibility"})
+    assert r.status == "success", r.message
+    first = r.frame.head(1)
+    tensions = np.array([float(first[f"tension{i}_n"].item()) for i in range(1, 5)])
+    np.testing.assert_allclose(tensions, tensions.mean(), rtol=1e-9)
+    k = hoist.ropes.head_rope_axial_stiffness_n / (hoist.shaft.headframe_height_m + 320.0)
+    stretch = tensions.mean() / (k * np.array(_FACTORS))
+    x = np.array([float(first[f"x{i}_m"].item()) for i in range(1, 5)])
+    np.testing.assert_allclose(x - x.mean(), -(stretch - stretch.mean()), atol=1e-9)
+
+
+def test_stuck_pistons_share_a_load_change_by_rope_stiffness(hoist):
+    """Seals that never break away: a payload loaded at rest is shared in proportion to
+    the ropes' stiffness, dT_i = f_i / sum(f) dW (rigid attachments, the conveyance one
+    body); with free pistons the pipes would share it equally."""
+    stiff = _with_rope_factors(hoist, _FACTORS)
+    held = {
+        "seal_friction": {
+            "coulomb_n": [4e5, 0.0],
+            "static_n": [4e5, 0.0],
+            "bristle_stiffness_n_m": 2e8,
+        }
+    }
+    profile = hold(
+        depth_m=320.0, duration_s=40.0, payload_time_s=[1.0, 6.0], payload_kg=[0.0, 6000.0]
+    )
+    r = simulate(stiff, profile, effects={"seal_friction", "oil_compressibility"}, parameters=held)
+    assert r.status == "success", r.message
+    before = r.frame.filter(pl.col("time_s") < 0.9)
+    after = r.frame.filter(pl.col("time_s") > 30.0)
+    d_t = np.array(
+        [float(after[f"tension{i}_n"].mean() - before[f"tension{i}_n"].mean()) for i in range(1, 5)]
+    )
+    d_w = 6000.0 * G_STANDARD
+    np.testing.assert_allclose(d_t, d_w * np.array(_FACTORS) / sum(_FACTORS), rtol=5e-3)

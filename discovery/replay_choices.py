@@ -25,7 +25,7 @@ import dataclasses
 import numpy as np
 
 from discovery.rope_damping import with_rope_damping
-from discovery.rope_stiffness import with_rope_stiffness
+from discovery.rope_stiffness import with_rope_stiffness, with_stiffness_factors
 from sims.replay import first_trips_gap
 from sims.replay_plan import ReplayPlan
 
@@ -47,9 +47,8 @@ def read_ropes(
     factors = spread.hoist.ropes.head_rope_stiffness_factors
     if factors is None or factors == plan.hoist.ropes.head_rope_stiffness_factors:
         return spread
-    ropes = plan.hoist.ropes.model_copy(update={"head_rope_stiffness_factors": factors})
     again = with_rope_damping(
-        dataclasses.replace(plan, hoist=plan.hoist.model_copy(update={"ropes": ropes})), zeta_read
+        dataclasses.replace(plan, hoist=with_stiffness_factors(plan.hoist, factors)), zeta_read
     )
     return dataclasses.replace(again, notes=(*again.notes, spread.notes[-1]))
 

@@ -50,6 +50,7 @@ __all__ = [
     "piston_slides_m",
     "spread_factors",
     "with_rope_stiffness",
+    "with_stiffness_factors",
 ]
 
 #: Spreads tried (factor step between neighbouring ropes, sorted by stiffness); the
@@ -111,7 +112,10 @@ def spread_factors(spread: float, n: int) -> list[float]:
     return [float(1.0 + (i - (n - 1) / 2.0) * spread) for i in range(n)]
 
 
-def _with_factors(hoist: HoistDescription, factors: list[float] | None) -> HoistDescription:
+def with_stiffness_factors(
+    hoist: HoistDescription, factors: list[float] | None
+) -> HoistDescription:
+    """``hoist`` with its head ropes' stiffness factors replaced (None: all alike)."""
     ropes = hoist.ropes.model_copy(update={"head_rope_stiffness_factors": factors})
     return hoist.model_copy(update={"ropes": ropes})
 
@@ -140,7 +144,7 @@ def with_rope_stiffness(plan: ReplayPlan, slides_m: np.ndarray | None) -> Replay
 
     def gap(spread: float) -> float:
         factors = spread_factors(spread, n) if spread > 0 else None
-        return first_trips_gap(plan, _with_factors(hoist, factors), _TRIPS)
+        return first_trips_gap(plan, with_stiffness_factors(hoist, factors), _TRIPS)
 
     spreads = list(SPREAD_GRID)
     gaps = [gap(s) for s in spreads]
@@ -171,7 +175,9 @@ def with_rope_stiffness(plan: ReplayPlan, slides_m: np.ndarray | None) -> Replay
         f"{', '.join(f'{f:.3f}' for f in factors)} (replay gap on the first {_TRIPS} trips by "
         f"spread {said})"
     )
-    return dataclasses.replace(plan, hoist=_with_factors(hoist, factors), notes=(*plan.notes, note))
+    return dataclasses.replace(
+        plan, hoist=with_stiffness_factors(hoist, factors), notes=(*plan.notes, note)
+    )
 
 
 def _parabola_minimum(xs: list[float], ys: list[float]) -> float | None:

@@ -137,7 +137,9 @@ def report_objects(
         "model_effects_before": list(result.effects_before),
         "model_effects_after": list(result.effects_after),
         "noise_pa": first["noise_pa"],
-        "trips_analysed": len(result.plan.trips),
+        # compared trips (a block's warm-up and a trip the record starts in are
+        # simulated but not compared)
+        "trips_analysed": sum(1 for tr in result.plan.trips if tr.valid.any()),
         "trips_in_period": result.plan.trips_found,
         "findings": per,
     }

@@ -15,7 +15,7 @@ import pytest
 
 from discovery.cases import scenario_hoist
 from discovery.planning import plan_replay
-from discovery.rope_stiffness import piston_slides_m, spread_factors
+from discovery.rope_stiffness import piston_slides_m, spread_factors, with_stiffness_factors
 from sims.field_day import generate_field_day
 from sims.replay import replay_fitted
 
@@ -23,16 +23,11 @@ from sims.replay import replay_fitted
 _WORLD = [1.015, 0.985, 0.955, 1.045]
 
 
-def _with_factors(hoist, factors):
-    ropes = hoist.ropes.model_copy(update={"head_rope_stiffness_factors": factors})
-    return hoist.model_copy(update={"ropes": ropes})
-
-
 @pytest.fixture(scope="module")
 def spread_day():
     base = scenario_hoist("plain")
     day = generate_field_day(
-        _with_factors(base, _WORLD),
+        with_stiffness_factors(base, _WORLD),
         date="2026-03-02",
         seed=4,
         trips=4,
@@ -84,7 +79,7 @@ def test_spread_found_and_replay_closes(spread_day):
     assert steps == pytest.approx([0.03] * 3, abs=0.006)
     gap = replay_fitted(plan, passes=2).rms_gap_pa(plan)
     assert gap < 1.3 * plan.noise_sigma_pa
-    equal = plan_replay(day.sensors, _with_factors(base, [1.0] * 4), settle_s=20.0)
+    equal = plan_replay(day.sensors, with_stiffness_factors(base, [1.0] * 4), settle_s=20.0)
     assert replay_fitted(equal, passes=2).rms_gap_pa(equal) > 2.0 * gap
 
 

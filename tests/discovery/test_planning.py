@@ -192,3 +192,16 @@ def test_a_payload_change_after_the_last_stop_ends_its_window(null_case):
     assert not any("payload changes" in note for note in plain.notes)
     without = _rms(replay_fitted(plain, passes=3).residuals(plain)[1])
     assert with_loading == pytest.approx(without, rel=0.03)
+
+
+def test_a_later_block_follows_an_unscored_warm_up_trip(null_case):
+    """Two blocks of one trip out of three: the second block's history starts with the
+    trip before it, simulated from rest and not compared, so the compared trip meets
+    the seals as the trips before left them."""
+    _, info = null_case
+    plan = plan_replay(info["day"].sensors, info["day"].hoist, max_trips=2, blocks=2)
+    assert [tr.trip_id for tr in plan.trips] == [0, 1, 2]
+    assert [tr.first_in_block for tr in plan.trips] == [True, True, False]
+    assert [bool(tr.valid.any()) for tr in plan.trips] == [True, False, True]
+    assert [tr.block for tr in plan.trips] == [0, 1, 1]
+    assert any("each after a warm-up trip" in note for note in plan.notes)

@@ -23,21 +23,26 @@ from sims.replay import replay_fitted
 _WORLD = [1.015, 0.985, 0.955, 1.045]
 
 
-@pytest.fixture(scope="module")
-def spread_day():
-    base = scenario_hoist("plain")
-    day = generate_field_day(
-        with_stiffness_factors(base, _WORLD),
+def _day(hoist, trips):
+    """``trips`` trips of 150 s at 20 Hz, 30 degC oil, with every model effect of
+    ``hoist``."""
+    return generate_field_day(
+        hoist,
         date="2026-03-02",
         seed=4,
-        trips=4,
-        hours=4 * 150.0 / 3600,
+        trips=trips,
+        hours=trips * 150.0 / 3600,
         sample_rate_hz=20.0,
         loading_s=5.0,
         rest_after_s=20.0,
         oil_temp_c=(30.0, 30.0),
     )
-    return base, day
+
+
+@pytest.fixture(scope="module")
+def spread_day():
+    base = scenario_hoist("plain")
+    return base, _day(with_stiffness_factors(base, _WORLD), 4)
 
 
 def test_spread_factors_mean_one_evenly_spaced():
@@ -85,17 +90,7 @@ def test_spread_found_and_replay_closes(spread_day):
 
 def test_equal_ropes_stay_equal(spread_day):
     base, _ = spread_day
-    day = generate_field_day(
-        base,
-        date="2026-03-02",
-        seed=4,
-        trips=3,
-        hours=3 * 150.0 / 3600,
-        sample_rate_hz=20.0,
-        loading_s=5.0,
-        rest_after_s=20.0,
-        oil_temp_c=(30.0, 30.0),
-    )
+    day = _day(base, 3)
     plan = plan_replay(day.sensors, base, settle_s=20.0)
     assert plan.hoist.ropes.head_rope_stiffness_factors is None
     assert any("equal ropes kept" in n for n in plan.notes), plan.notes

@@ -33,13 +33,15 @@ ratio stays unless the record contradicts it; then the ratio read from the ringi
 gap (:mod:`sims.logged_motion`, ``ReplayPlan.rope_bounce``). So is the ropes' stiffness
 spread (:mod:`discovery.rope_stiffness`: which piston slides when the load changes decides
 the seals' summed force, ~50 kPa of common-mode pressure on the validation days). The
-trips can also be driven
-by the encoder's logged speed instead of the winder profile (``plan_replay(motion=
-"logged")``).
+trips are driven by the encoder's logged speed or by the winder profile, whichever
+replays the first trips closer (``plan_replay(motion="auto")``, the default; the order
+of these choices is :mod:`discovery.replay_choices`'s).
 
 Long records are analysed on at most ``max_trips`` trips in ``blocks`` blocks of
 consecutive trips spread evenly over the record (temperature and payload ranges
-covered, simulation cost bounded: ~0.2 s per 2-minute trip at ``dt_s = 2 ms``).
+covered, simulation cost bounded: ~0.2 s per 2-minute trip at ``dt_s = 2 ms``); each
+block after the first starts with the trip before it, simulated but not compared (it
+loads the seals' state).
 """
 
 from __future__ import annotations
@@ -329,7 +331,7 @@ def plan_replay(
     if len(motions) > max_trips:
         notes.append(
             f"{len(motions)} trips in the record; analysed {sum(map(len, chosen))} in "
-            f"{len(chosen)} blocks of consecutive trips, each after a warm-up trip"
+            f"{len(chosen)} blocks of consecutive trips, each later one after a warm-up trip"
         )
     # pass 1, every motion: start / stop times, top speed, loading ramp before it
     timing = [trip_timing(rec, hoist, k) for k in range(len(motions))]

@@ -204,4 +204,4 @@ def test_a_later_block_follows_an_unscored_warm_up_trip(null_case):
     assert [tr.first_in_block for tr in plan.trips] == [True, True, False]
     assert [bool(tr.valid.any()) for tr in plan.trips] == [True, False, True]
     assert [tr.block for tr in plan.trips] == [0, 1, 1]
-    assert any("each after a warm-up trip" in note for note in plan.notes)
+    assert any("each later one after a warm-up trip" in note for note in plan.notes)

@@ -40,8 +40,8 @@ of these choices is :mod:`discovery.replay_choices`'s).
 Long records are analysed on at most ``max_trips`` trips in ``blocks`` blocks of
 consecutive trips spread evenly over the record (temperature and payload ranges
 covered, simulation cost bounded: ~0.2 s per 2-minute trip at ``dt_s = 2 ms``); each
-block after the first starts with the trip before it, simulated but not compared (it
-loads the seals' state).
+block after the first starts with the trip before it (unless that trip ends the block
+before or cannot be replayed), simulated but not compared (it loads the seals' state).
 """
 
 from __future__ import annotations

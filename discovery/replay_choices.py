@@ -6,7 +6,8 @@ head ropes ring (:mod:`discovery.rope_damping`), how their stiffnesses differ
 logged speed drives the trips closer. Each is chosen by the replay gap of the first
 trips (:func:`sims.replay.first_trips_gap`), in this order:
 
-1. the damping, with equal ropes and the logged speed;
+1. the damping, with equal ropes and the logged speed (the winder profile when the
+   caller asks for it);
 2. the stiffness spread, with that damping;
 3. the damping again, with the spread (a spread left out inflates every damping
    candidate's gap: on validation day 102 it chose 0.3, with the spread 1.0, and the
@@ -58,7 +59,9 @@ def choose_motion(logged: ReplayPlan, winder: ReplayPlan) -> ReplayPlan:
     profile, the logged one when its first trips replay closer by 10 %, else the winder
     one (``logged``'s hoist for both), with a note of the two gaps."""
     if not logged.trips or all(tr.motion_knots is None for tr in logged.trips):
-        return dataclasses.replace(winder, hoist=logged.hoist, rope_bounce=logged.rope_bounce)
+        return dataclasses.replace(
+            winder, hoist=logged.hoist, rope_bounce=logged.rope_bounce, notes=logged.notes
+        )
     gaps = (first_trips_gap(logged), first_trips_gap(winder, logged.hoist))
     closer = gaps[0] < _KEEP_SHARE * gaps[1]
     chosen, name = (logged, "logged speed") if closer else (winder, "winder profile")

@@ -125,8 +125,9 @@ def with_rope_stiffness(plan: ReplayPlan, slides_m: np.ndarray | None) -> Replay
 
     ``slides_m``: each piston's slide over the record (:func:`piston_slides_m`; None
     when the record has no piston positions). A description that states its ropes'
-    factors keeps them, and so does a record whose pistons all slid alike (within a
-    factor 1.5: equal ropes move them together). Otherwise each spread of
+    factors keeps them, and so does a record whose pistons all slid, and alike (within
+    a factor 1.5: equal ropes move them together; pistons that never left the logger's
+    dead band say nothing). Otherwise each spread of
     :data:`SPREAD_GRID` is replayed on the first block's first three trips (payloads
     fitted, two passes), a parabola through the best one and its neighbours refines it,
     and the result replaces equal ropes when its gap is below 90 % of theirs. The
@@ -136,7 +137,8 @@ def with_rope_stiffness(plan: ReplayPlan, slides_m: np.ndarray | None) -> Replay
     n = hoist.ropes_n
     if hoist.ropes.head_rope_stiffness_factors is not None or not plan.trips or n < 2:
         return plan
-    if slides_m is not None and np.max(slides_m) <= _ALIKE_RATIO * max(np.min(slides_m), 0):
+    moved = slides_m is not None and np.min(slides_m) > SLIDE_DEADBAND_M
+    if moved and np.max(slides_m) <= _ALIKE_RATIO * np.min(slides_m):
         note = "rope stiffness: equal ropes kept (the pistons slid alike, {} mm)".format(
             ", ".join(f"{1e3 * s:.1f}" for s in slides_m)
         )

@@ -3,6 +3,7 @@ against known truth."""
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 
 import numpy as np
@@ -11,6 +12,7 @@ import pytest
 
 from discovery.cases import hidden_case
 from discovery.planning import plan_replay
+from discovery.replay_choices import choose_motion
 from discovery.segmentation import estimate_noise_sigma
 from sims.replay import replay_fitted
 from sims.replay_plan import replay_frame
@@ -205,3 +207,18 @@ def test_a_later_block_follows_an_unscored_warm_up_trip(null_case):
     assert [bool(tr.valid.any()) for tr in plan.trips] == [True, False, True]
     assert [tr.block for tr in plan.trips] == [0, 1, 1]
     assert any("each later one after a warm-up trip" in note for note in plan.notes)
+
+
+def test_motion_choice_without_logged_motion_keeps_the_ropes_notes(null_case):
+    """A record whose trips have no logged motion (all cut at their start) is driven by
+    the winder profile, and what the ropes' reading found stays in the notes."""
+    plan, _ = null_case
+    no_knots = dataclasses.replace(
+        plan,
+        trips=tuple(dataclasses.replace(tr, motion_knots=None) for tr in plan.trips),
+        notes=("rope stiffness: a note",),
+    )
+    winder = dataclasses.replace(plan, notes=())
+    chosen = choose_motion(no_knots, winder)
+    assert chosen.notes == ("rope stiffness: a note",)
+    assert chosen.trips is winder.trips

@@ -311,7 +311,8 @@ def _alive(pid: int) -> bool:
     return stat.rsplit(")", 1)[1].split()[0] != "Z"
 
 
-def _wait_gone(pid: int, seconds: float = 10.0) -> bool:
+def _wait_gone(pid: int, seconds: float = 30.0) -> bool:
+    # 30 s: a child's cleanup on a loaded 2-core machine once took over 10 s
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
         if not _alive(pid):

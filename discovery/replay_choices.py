@@ -27,14 +27,10 @@ import numpy as np
 
 from discovery.rope_damping import with_rope_damping
 from discovery.rope_stiffness import with_rope_stiffness, with_stiffness_factors
-from sims.replay import first_trips_gap
+from sims.replay import CLOSER_SHARE, first_trips_gap
 from sims.replay_plan import ReplayPlan
 
 __all__ = ["choose_motion", "read_ropes"]
-
-#: The logged speed replaces the description's winder profile when its replay gap is
-#: below this share of the profile's (as the ropes' damping and spread are chosen).
-_KEEP_SHARE = 0.9
 
 
 def read_ropes(
@@ -63,7 +59,7 @@ def choose_motion(logged: ReplayPlan, winder: ReplayPlan) -> ReplayPlan:
             winder, hoist=logged.hoist, rope_bounce=logged.rope_bounce, notes=logged.notes
         )
     gaps = (first_trips_gap(logged), first_trips_gap(winder, logged.hoist))
-    closer = gaps[0] < _KEEP_SHARE * gaps[1]
+    closer = gaps[0] < CLOSER_SHARE * gaps[1]
     chosen, name = (logged, "logged speed") if closer else (winder, "winder profile")
     note = (
         f"motion: the {name} drives the trips (replay gap on the first 3 trips: logged "

@@ -13,7 +13,7 @@ import dataclasses
 import numpy as np
 
 from schemas.hoist import HoistDescription
-from sims.replay import first_trips_gap
+from sims.replay import CLOSER_SHARE, first_trips_gap
 from sims.replay_plan import ReplayPlan
 
 __all__ = ["with_rope_damping"]
@@ -50,7 +50,7 @@ def with_rope_damping(plan: ReplayPlan, zeta_read: float | None) -> ReplayPlan:
     gaps = [first_trips_gap(plan, _with_damping(plan.hoist, zeta)) for zeta in candidates]
     best = int(np.argmin(gaps))
     said = ", ".join(f"{z:g}: {g / 1e3:.1f} kPa" for z, g in zip(candidates, gaps, strict=True))
-    if best == 0 or not gaps[best] < 0.9 * gaps[0]:
+    if best == 0 or not gaps[best] < CLOSER_SHARE * gaps[0]:
         how = f"{plan.rope_bounce}; the description's {described:g} kept (replay gap {said})"
         return dataclasses.replace(plan, rope_bounce=how)
     how = (

@@ -41,7 +41,7 @@ import numpy as np
 import polars as pl
 
 from schemas.hoist import HoistDescription
-from sims.replay import first_trips_gap
+from sims.replay import CLOSER_SHARE, first_trips_gap
 from sims.replay_plan import ReplayPlan
 
 __all__ = [
@@ -56,9 +56,6 @@ __all__ = [
 #: Spreads tried (factor step between neighbouring ropes, sorted by stiffness); the
 #: validation days' gap is smallest near 0.025 and rises steeply either side.
 SPREAD_GRID = (0.0, 0.01, 0.02, 0.03, 0.045)
-
-#: A spread replaces equal ropes only when its replay gap is below this share of theirs.
-_KEEP_SHARE = 0.9
 
 #: Moves of a piston's 1-second median position below this [m] do not count as a slide
 #: (1.5 steps of a logger quantising to 0.1 mm; presliding is ~0.05 mm).
@@ -160,7 +157,7 @@ def with_rope_stiffness(plan: ReplayPlan, slides_m: np.ndarray | None) -> Replay
     said = ", ".join(
         f"{s:.3g}: {g / 1e3:.1f} kPa" for s, g in sorted(zip(spreads, gaps, strict=True))
     )
-    if spreads[best] == 0.0 or not gaps[best] < _KEEP_SHARE * gaps[0]:
+    if spreads[best] == 0.0 or not gaps[best] < CLOSER_SHARE * gaps[0]:
         note = f"rope stiffness: equal ropes kept (replay gap by spread {said})"
         return dataclasses.replace(plan, notes=(*plan.notes, note))
     if spreads[best] == SPREAD_GRID[-1]:

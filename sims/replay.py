@@ -53,6 +53,7 @@ from sims.replay_inputs import (
 from sims.replay_plan import ReplayPlan, ReplayResult, ReplayTrip
 
 __all__ = [
+    "CLOSER_SHARE",
     "first_trips_gap",
     "payload_from_pressure",
     "replay",
@@ -306,6 +307,12 @@ def replay_fitted(
             ramps_s=ramps,
         )
     return result
+
+
+#: A choice the replay reads off the record (the ropes' damping and stiffness spread, the
+#: motion driving the trips) replaces the description's default only when the first
+#: trips' replay gap falls below this share of the default's.
+CLOSER_SHARE = 0.9
 
 
 def first_trips_gap(

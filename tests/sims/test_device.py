@@ -6,6 +6,7 @@ import numpy as np
 import polars as pl
 import pytest
 
+from discovery.rope_stiffness import with_stiffness_factors
 from physics.friction_law import friction_parameters
 from schemas.effects import EFFECT_NAMES
 from schemas.hoist import EXAMPLE_HOIST, G_STANDARD, load_hoist
@@ -301,15 +302,10 @@ def test_scenario_without_pipe_characteristics_also_equalises():
 _FACTORS = [0.96, 1.03, 0.99, 1.02]
 
 
-def _with_rope_factors(hoist, factors):
-    ropes = hoist.ropes.model_copy(update={"head_rope_stiffness_factors": factors})
-    return hoist.model_copy(update={"ropes": ropes})
-
-
 def test_ropes_of_different_stiffness_start_at_equal_tension(hoist):
     """Static start: the pipes equalise the pressures, so every rope carries W / n and
     the softer ropes stretch further; the pistons take the difference up."""
-    stiff = _with_rope_factors(hoist, _FACTORS)
+    stiff = with_stiffness_factors(hoist, _FACTORS)
     r = simulate(stiff, hold(depth_m=320.0, duration_s=0.5), effects={"oil_compressibility"})
     assert r.status == "success", r.message
     first = r.frame.head(1)
@@ -325,7 +321,7 @@ def test_stuck_pistons_share_a_load_change_by_rope_stiffness(hoist):
     """Seals that never break away: a payload loaded at rest is shared in proportion to
     the ropes' stiffness, dT_i = f_i / sum(f) dW (rigid attachments, the conveyance one
     body); with free pistons the pipes would share it equally."""
-    stiff = _with_rope_factors(hoist, _FACTORS)
+    stiff = with_stiffness_factors(hoist, _FACTORS)
     held = {
         "seal_friction": {
             "coulomb_n": [4e5, 0.0],

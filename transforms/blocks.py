@@ -50,6 +50,7 @@ from transforms.compensation import (
     context_sample,
     context_stride,
 )
+from transforms.rope_identification import IDENTIFY_SPAN, record_means
 
 __all__ = ["DEFAULT_BLOCK", "block_edges", "compensate_blocks", "record_context"]
 
@@ -143,9 +144,14 @@ def record_context(
     """
     settings = settings or CompensationSettings()
     stride = context_stride(rows)
-    parts, offset = [], 0
+    parts, means, offset = [], [], 0
     for lo, hi in block_edges(start, end, block):
         frame = read(lo, hi)
         parts.append(context_sample(frame, stride, offset=offset).collect())
+        if lo < start + IDENTIFY_SPAN:
+            means.append(record_means(frame, start))
         offset += frame.height
-    return compensation_context(pl.concat(parts, how="vertical_relaxed"), hoist, settings, stride)
+    return compensation_context(
+        pl.concat(parts, how="vertical_relaxed"), hoist, settings, stride,
+        means=pl.concat(means, how="vertical_relaxed") if means else None,
+    )  # fmt: skip

@@ -62,6 +62,7 @@ from transforms.compensation_record import (
     rope_cols,
     second_difference_sigma,
 )
+from transforms.rope_identification import record_means
 
 # The public interface of the compensation: its own two functions, and the settings,
 # statistics and carried state defined in transforms.compensation_record.
@@ -116,7 +117,10 @@ def compensate(
     if frame.height == 0:
         return pl.DataFrame(schema=OUTPUT_SCHEMA)
     stride = context_stride(frame.height)
-    context = compensation_context(context_sample(frame, stride).collect(), hoist, settings, stride)
+    context = compensation_context(
+        context_sample(frame, stride).collect(), hoist, settings, stride,
+        means=record_means(frame, frame["time_utc"][0]),
+    )  # fmt: skip
     result, _ = compensate_window(frame, hoist, context=context, settings=settings, effects=effects)
     return result
 

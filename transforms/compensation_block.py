@@ -43,7 +43,8 @@ from transforms.filtering import despike_median3, play_kernel
 from transforms.kinematics import smoothed_derivative
 from transforms.lowpass import lowpass, lowpass_work_size
 from transforms.piston_motion import share_out_common_motion
-from transforms.uncertainty import rope_band
+from transforms.stick_slip import band_members, stick_slip
+from transforms.uncertainty import ensemble_band, rope_band
 
 __all__ = ["BlockCompensation"]
 
@@ -150,6 +151,8 @@ class BlockCompensation(BlockSetup):
     def piston_motion(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
         """Each piston's displacement (the common mode shared out by the logged motion)
         and its blind motion since last seen sliding (:mod:`transforms.piston_motion`)."""
+        if self.mode == 3:
+            return self.stick_slip_motion()
         logged = [job.result() for job in self.smooth_jobs]
         common = self.common_mode.result()
         n = self.n
@@ -176,6 +179,49 @@ class BlockCompensation(BlockSetup):
 
         self.nxt.share = self.staged(run, segment, self.carry.share)
         return tuple(logged), blind
+
+    def stick_slip_motion(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+        """Each piston's displacement and friction from its identified rope spring
+        (:mod:`transforms.stick_slip`) over the first stage, and the frictions of the
+        band's members (:func:`~transforms.stick_slip.band_members`); the frictions are
+        kept for the ropes' jobs. NaN outside the stage. Blind motion: none."""
+        n, springs = self.n, self.context.rope_springs
+        pressures = tuple(job.result() for job in self.p_jobs)
+        logged = tuple(job.result() for job in self.x_jobs)
+        depth = float_column(self.frame["depth_m"])
+        nu = np.atleast_1d(np.asarray(self.nu_job.result(), dtype=float))
+        branch = self.branch if self.with_branch_loss else None
+        members = ((1.0, 1.0), *band_members(self.settings.friction_relative_sigma))
+        solutions = []
+        self.nxt.springs = self.carry.springs.copy()
+        for m, (capacity_scale, sigma0_scale) in enumerate(members):
+            x = tuple(np.full(n, np.nan) for _ in ROPES)
+            friction = tuple(np.full(n, np.nan) for _ in ROPES)
+
+            def run(
+                lo: int,
+                hi: int,
+                state: np.ndarray,
+                x=x,
+                friction=friction,
+                capacity_scale=capacity_scale,
+                sigma0_scale=sigma0_scale,
+            ) -> None:
+                xs, fs = stick_slip(
+                    tuple(p[lo:hi] for p in pressures), tuple(v[lo:hi] for v in logged),
+                    depth[lo:hi], self.segment[lo:hi], self.hoist, springs,
+                    dt_s=self.dt_nominal, nu_m2_s=nu[lo:hi] if nu.size == n else nu,
+                    branch=branch, state=state, capacity_scale=capacity_scale,
+                    sigma0_scale=sigma0_scale,
+                )  # fmt: skip
+                for whole, part in zip(x + friction, xs + fs, strict=True):
+                    whole[lo:hi] = part
+
+            self.nxt.springs[m] = self.staged(run, self.segment, self.carry.springs[m])
+            solutions.append((x, friction))
+        self.spring_friction = solutions[0][1]
+        self.member_friction = [friction for _, friction in solutions[1:]]
+        return solutions[0][0], tuple(np.zeros(n) for _ in ROPES)
 
     def played_motion(self, k: int) -> np.ndarray:
         """Rope k's piston displacement through the play operator of half-width
@@ -214,7 +260,10 @@ class BlockCompensation(BlockSetup):
         out = {name: np.empty(n) for name in ("p_chamber", "tension_raw", "tension")}
         # this rope's despiked displacement is consumed (the differential is done): its
         # array takes the friction, one fresh day-long array fewer
-        out["friction"] = self.x_jobs[k].result() if self.context.has_x else np.empty(n)
+        if self.mode == 3:  # the stick-slip solution's (its job is done: played above)
+            out["friction"] = self.spring_friction[k]
+        else:
+            out["friction"] = self.x_jobs[k].result() if self.context.has_x else np.empty(n)
         v_flow = self.branch_flow(played)
         state = self.carry.rope[k].copy()
         rope_kernel(
@@ -246,8 +295,14 @@ class BlockCompensation(BlockSetup):
         return settings.pressure_sigma_pa * np.sqrt(share) * self.hoist.cylinders.bore_area_m2
 
     def rope_band(self, k: int, out: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """The 95 % band of rope k's tension (:func:`transforms.uncertainty.rope_band`)."""
+        """The 95 % band of rope k's tension (:func:`transforms.uncertainty.rope_band`, or
+        :func:`~transforms.uncertainty.ensemble_band` of the stick-slip solution's members)."""
         core, law, friction = slice(self.core_lo, self.core_hi), self.law, self.mode != 0
+        if self.mode == 3:
+            return ensemble_band(
+                out["tension"][core], out["friction"][core],
+                [member[k][core] for member in self.member_friction], self.pressure_noise_n(),
+            )  # fmt: skip
         estimates, blind = self.motion_share.result()
         # rope k's estimate is consumed (played above) and its blind motion is read
         # before each hi is written: they take the band, unless shared by the ropes
@@ -321,6 +376,9 @@ class BlockCompensation(BlockSetup):
         )
         pressures = [p[core] for p in pressures]
         # the mean pressure's array takes the raw load sum
+        members = None
+        if self.mode == 3:  # the load's band: the members' frictions summed member by member
+            members = [sum(f[k][core] for k in range(len(ROPES))) for f in self.member_friction]
         frame = block_frame(rows, np.negative(accel[core]), labels, pressures, columns,
-                            p_mean[core], sigma_n)  # fmt: skip
+                            p_mean[core], sigma_n, load_members=members)  # fmt: skip
         return frame, self.nxt

@@ -176,7 +176,8 @@ def rope_kernel(
     (:func:`physics.friction_law.friction_law_at`); friction by Maxwell-slip
     (``mode`` 1, :func:`physics.maxwell_slip.maxwell_slip_step` plus Kv v) or LuGre
     (``mode`` 2, :func:`physics.lugre.lugre_z_step`, :func:`~physics.lugre.lugre_force`),
-    none for ``mode`` 0; tension by :func:`physics.tension.rope_tension_n` (eq 2).
+    given in ``friction`` on entry for ``mode`` 3, none for ``mode`` 0; tension by
+    :func:`physics.tension.rope_tension_n` (eq 2).
     ``state`` = [ran, last x, last time, LuGre z, Maxwell-slip deflections...] carries
     the friction state from the previous block (:func:`transforms.filtering.fresh_state`,
     :data:`transforms.compensation_record.ROPE_STATE_BASE` + elements).
@@ -215,7 +216,9 @@ def rope_kernel(
                 if same_segment and np.isfinite(step):
                     v = step
             fc, fs, vs, kv = friction_law_at(pc if np.isfinite(pc) else 0.0, law)
-            if mode == 1:
+            if mode == 3:
+                f = friction[i]  # given: the stick-slip solution's (transforms.stick_slip)
+            elif mode == 1:
                 # at standstill g(0) = Fs exactly: no exp needed
                 g = fs if v == 0.0 else stribeck_g(v, fc, fs, vs)
                 f = maxwell_slip_step(deltas, v * dt_i, stiffness, weights, g) + kv * v

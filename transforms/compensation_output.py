@@ -13,7 +13,7 @@ import polars as pl
 from schemas.tables import ROPE_TENSIONS
 from transforms.compensation_kernels import load_kernel
 from transforms.compensation_record import rope_cols
-from transforms.uncertainty import load_band
+from transforms.uncertainty import ensemble_band, load_band
 
 __all__ = ["OUTPUT_SCHEMA", "block_frame"]
 
@@ -34,6 +34,8 @@ def block_frame(
     columns: dict[str, np.ndarray],
     load_raw: np.ndarray,
     gaussian_sigma_n: tuple[float, float],
+    *,
+    load_members: list[np.ndarray] | None = None,
 ) -> pl.DataFrame:
     """The block's ``ROPE_TENSIONS`` rows.
 
@@ -41,7 +43,8 @@ def block_frame(
     acceleration [m/s2] up, ``labels`` the trip columns, ``pressures`` the filtered
     pressures, ``columns`` each rope's output arrays by column name; ``load_raw`` is
     overwritten with the raw load; ``gaussian_sigma_n`` = (relative friction sigma,
-    pressure noise [N]) of the band.
+    pressure noise [N]) of the band; ``load_members`` the summed frictions of the
+    stick-slip band's members (:func:`transforms.uncertainty.ensemble_band`), if any.
     """
     load = np.empty(rows.height)
     load_kernel(
@@ -50,14 +53,19 @@ def block_frame(
         load_raw,
         load,
     )
-    load_lo, load_hi = load_band(
-        load,
-        [columns[c] for c in rope_cols("tension{i}_lo_n")],
-        [columns[c] for c in rope_cols("tension{i}_hi_n")],
-        [columns[c] for c in rope_cols("tension{i}_n")],
-        [columns[c] for c in rope_cols("friction{i}_n")],
-        gaussian_sigma_n=gaussian_sigma_n,
-    )
+    frictions = [columns[c] for c in rope_cols("friction{i}_n")]
+    if load_members is not None:
+        noise = gaussian_sigma_n[1] * np.sqrt(len(frictions))  # independent sensors
+        load_lo, load_hi = ensemble_band(load, sum(frictions), load_members, noise)
+    else:
+        load_lo, load_hi = load_band(
+            load,
+            [columns[c] for c in rope_cols("tension{i}_lo_n")],
+            [columns[c] for c in rope_cols("tension{i}_hi_n")],
+            [columns[c] for c in rope_cols("tension{i}_n")],
+            frictions,
+            gaussian_sigma_n=gaussian_sigma_n,
+        )
     p_cols = rope_cols("p{i}_pa")
     out: dict[str, pl.Series] = {
         "time_utc": rows["time_utc"],

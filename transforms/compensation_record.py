@@ -21,6 +21,8 @@ from schemas.hoist import HoistDescription
 from schemas.tables import ROPES
 from transforms.filtering import PLAY_STATE_SIZE, first_difference_sigma, fresh_state
 from transforms.piston_motion import share_state
+from transforms.rope_identification import identify_from_means
+from transforms.stick_slip import RopeSprings, band_members, stick_slip_state
 
 __all__ = [
     "CONTEXT_ROWS",
@@ -80,6 +82,10 @@ class CompensationSettings:
         95 % band (:mod:`transforms.uncertainty`).
     pressure_sigma_pa : float
         White noise of a raw pressure reading [Pa] (1 sigma), for the band.
+    rope_springs : bool
+        Identify the head ropes from the record and solve each piston's stick-slip on
+        its rope spring (:mod:`transforms.stick_slip`) where the logged x allow it; False:
+        always share out the oil's motion by the logged x (:mod:`transforms.piston_motion`).
     """
 
     sample_rate_hz: float | None = None
@@ -93,6 +99,7 @@ class CompensationSettings:
     displacement_deadband_m: float = 5e-6
     friction_relative_sigma: float = 0.10
     pressure_sigma_pa: float = 5e3
+    rope_springs: bool = True
 
 
 def rope_cols(template: str) -> list[str]:
@@ -206,6 +213,10 @@ class CompensationContext:
         Median of the ropes' mean calibrated pressure [Pa] (the presliding range's F_s).
     has_x : bool
         Every rope's displacement is logged somewhere in the record.
+    rope_springs : RopeSprings or None
+        The head ropes' constants identified from the record
+        (:mod:`transforms.rope_identification`); None: not identified (no logged x, no
+        piston motion), the pistons' motion is shared out (:mod:`transforms.piston_motion`).
     """
 
     sample_rate_hz: float
@@ -213,6 +224,7 @@ class CompensationContext:
     displacement_sigma_m: tuple[float, ...]
     typical_pressure_pa: float
     has_x: bool
+    rope_springs: RopeSprings | None = None
 
 
 def calibrated(frame: pl.DataFrame, column: str, hoist: HoistDescription) -> np.ndarray:
@@ -227,9 +239,15 @@ def calibrated(frame: pl.DataFrame, column: str, hoist: HoistDescription) -> np.
 
 
 def compensation_context(
-    sample: pl.DataFrame, hoist: HoistDescription, settings: CompensationSettings, stride: int
+    sample: pl.DataFrame,
+    hoist: HoistDescription,
+    settings: CompensationSettings,
+    stride: int,
+    *,
+    means: pl.DataFrame | None = None,
 ) -> CompensationContext:
-    """:class:`CompensationContext` from a :func:`context_sample` of the record."""
+    """:class:`CompensationContext` from a :func:`context_sample` of the record and, to
+    identify the ropes, its :func:`transforms.rope_identification.record_means`."""
     row = sample["_row"].to_numpy()
     first = row % stride == 0
     pair = np.flatnonzero(first[:-1] & (row[1:] == row[:-1] + 1))
@@ -260,12 +278,15 @@ def compensation_context(
         displacement_sigma.append(second_difference_sigma(d2))
     mean = mean_horizontal(pressures) if pressures and row.size else np.empty(0)
     typical = float(np.nanmedian(mean)) if np.isfinite(mean).any() else 0.0
+    identify = settings.rope_springs and has_x and means is not None
+    springs = identify_from_means(means, hoist) if identify else None
     return CompensationContext(
         sample_rate_hz=rate_hz,
         spike_sigma=spike_sigma,
         displacement_sigma_m=tuple(displacement_sigma),
         typical_pressure_pa=typical,
         has_x=has_x,
+        rope_springs=springs,
     )
 
 
@@ -286,6 +307,7 @@ class CompensationCarry:
     played: list[np.ndarray]
     rope: list[np.ndarray]
     labels: np.ndarray
+    springs: np.ndarray
 
     @classmethod
     def fresh(cls, elements: int) -> CompensationCarry:
@@ -297,6 +319,7 @@ class CompensationCarry:
             played=[fresh_state(PLAY_STATE_SIZE) for _ in ropes],
             rope=[fresh_state(ROPE_STATE_BASE + elements) for _ in ropes],
             labels=fresh_state(LABEL_STATE_SIZE),
+            springs=np.stack([stick_slip_state(len(ROPES))] * (1 + len(band_members(0.1)))),
         )
 
 

@@ -92,7 +92,8 @@ class BlockSetup:
 
     # -- set-up ---------------------------------------------------------------------------
     def _friction_setup(self, effects: set[str]) -> None:
-        """Friction mode (0 none, 1 Maxwell-slip, 2 LuGre), the law and the elements."""
+        """Friction mode (0 none, 1 Maxwell-slip, 2 LuGre, 3 stick-slip on the identified
+        rope springs, :mod:`transforms.stick_slip`), the law and the elements."""
         law = self.law
         presliding = "presliding_hysteresis" in effects
         if presliding:
@@ -102,6 +103,8 @@ class BlockSetup:
         else:
             self.stiffness, self.weights = np.ones(1), np.ones(1)
         self.mode = 0 if "seal_friction" not in effects else (1 if presliding else 2)
+        if self.mode and self.context.rope_springs is not None:
+            self.mode = 3  # the seals' friction from the ropes (transforms.stick_slip)
         self.law_lines = law_array(law)
 
     def _time_setup(self, start: dt.datetime | None, end: dt.datetime | None) -> None:

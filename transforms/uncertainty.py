@@ -29,6 +29,14 @@ have gone to any of them), and the Gaussian parts add in quadrature.
 
 Where x is not logged, no piston is ever seen sliding: the band is the seals' whole
 static range, the honest answer of a pressure-only record.
+
+Where the ropes are identified (:mod:`transforms.stick_slip`), the forces decide which
+piston slides: there is no blind motion. The friction's part of the band is then the
+spread of the stick-slip solution over what the mine does not know well
+(:func:`transforms.stick_slip.band_members`: the law's capacity +-1.96 x its
+uncertainty, the bristle stiffness halved and doubled), for each rope and, member by
+member summed, for the load (:func:`ensemble_band`); the sensor's noise is added as
+above.
 """
 
 from __future__ import annotations
@@ -36,7 +44,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["Z95", "load_band", "rope_band"]
+__all__ = ["Z95", "ensemble_band", "load_band", "rope_band"]
 
 #: Two-sided 95 % coverage factor of a normal distribution.
 Z95 = 1.959963984540054
@@ -205,3 +213,52 @@ def _load_band_kernel(
         spread = Z95 * np.sqrt(variance)
         lo[t] = load[t] - below - spread
         hi[t] = load[t] + above + spread
+
+
+def ensemble_band(
+    value_n: np.ndarray,
+    friction_n: np.ndarray,
+    members_n: list[np.ndarray],
+    noise_sigma_n: float,
+    *,
+    out: tuple[np.ndarray, np.ndarray] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """95 % band of a tension or load whose friction ``friction_n`` has the alternative
+    solutions ``members_n``: the value moved by the members' lowest and highest friction
+    (a range, added whole), then -/+ 1.96 ``noise_sigma_n`` (the sensor; module
+    docstring).
+
+    >>> import numpy as np
+    >>> lo, hi = ensemble_band(np.array([10_000.0]), np.array([500.0]),
+    ...                        [np.array([400.0]), np.array([800.0])], 10.0)
+    >>> round(float(lo[0]), 1), round(float(hi[0]), 1)
+    (9880.4, 10319.6)
+    """
+    n = value_n.shape[0]
+    lo, hi = out if out is not None else (np.empty(n), np.empty(n))
+    _ensemble_band_kernel(
+        np.ascontiguousarray(value_n, dtype=np.float64),
+        np.ascontiguousarray(friction_n, dtype=np.float64),
+        tuple(np.ascontiguousarray(m, dtype=np.float64) for m in members_n),
+        Z95 * float(noise_sigma_n),
+        lo,
+        hi,
+    )
+    return lo, hi
+
+
+@njit(cache=True, nogil=True)
+def _ensemble_band_kernel(value, friction, members, noise, lo, hi):  # pragma: no cover
+    for t in range(value.shape[0]):
+        f = friction[t]
+        f_lo = f
+        f_hi = f
+        for m in members:
+            f_lo = min(f_lo, m[t])
+            f_hi = max(f_hi, m[t])
+        if not (np.isfinite(value[t]) and np.isfinite(f_lo) and np.isfinite(f_hi)):
+            lo[t] = np.nan
+            hi[t] = np.nan
+            continue
+        lo[t] = value[t] - (f - f_lo) - noise
+        hi[t] = value[t] + (f_hi - f) + noise

@@ -5,6 +5,13 @@ jitter, dropouts, spikes) is compensated; per visit of a named position the load
 within 0.5 % of the true load and each rope within 1 % (the paper reached 1.5 % on the
 load). Before compensation the error is several percent, which the test also asserts so
 that it cannot pass by a model that does nothing.
+
+These pin the share-out of the pistons' motion (``rope_springs=False``,
+:mod:`transforms.piston_motion`: the compensation without identified ropes) on ropeload's
+own simulator, whose seals are the compensation's LuGre. The default stick-slip solution
+on identified rope springs (:mod:`transforms.stick_slip`, elasto-plastic seals) leaves
+0.6-1.1 % at these visits (tests/transforms/test_stick_slip.py has its own cases; its
+accuracy is measured on independent data by benchmarks/eval_compensation.py).
 """
 
 from __future__ import annotations
@@ -15,9 +22,10 @@ import pytest
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from sims.accuracy import position_accuracy
 from sims.field_day import generate_field_day
-from transforms.compensation import compensate
+from transforms.compensation import CompensationSettings, compensate
 
 HOIST = load_hoist(EXAMPLE_HOIST)
+SHARE_OUT = CompensationSettings(rope_springs=False)
 
 
 @pytest.fixture(scope="module")
@@ -26,7 +34,7 @@ def visits() -> pl.DataFrame:
     samples = day.sensors.with_columns(
         source_sha256=pl.lit("synthetic"), source_line=pl.int_range(pl.len())
     )
-    tensions = compensate(samples, HOIST)
+    tensions = compensate(samples, HOIST, settings=SHARE_OUT)
     # The simulated day starts from rest (no friction stored), as the compensation does;
     # on real logs ropeload's run compensates a lead-in before the period for this.
     return position_accuracy(tensions, day.truth)
@@ -69,7 +77,9 @@ def test_a_20_hz_logger_is_compensated_as_well():
     samples = day.sensors.with_columns(
         source_sha256=pl.lit("synthetic"), source_line=pl.int_range(pl.len())
     )
-    visits = position_accuracy(compensate(samples, HOIST), day.truth, min_samples=20)
+    visits = position_accuracy(
+        compensate(samples, HOIST, settings=SHARE_OUT), day.truth, min_samples=20
+    )
     assert set(visits["position"]) == {"pithead", "middle", "bottom"}
     assert visits["error_after_fraction"].abs().max() < 0.005
     assert visits["rope_error_after_fraction"].max() < 0.01
@@ -88,7 +98,8 @@ def test_a_logger_dropout_mid_trip_is_not_a_second_trip():
     steps = times.diff().dt.total_milliseconds()
     moving = day.sensors["speed_m_s"].abs() > 1.0
     assert ((steps > 100) & moving & moving.shift(1)).any()  # the dropout is there
-    trips = reconcile(compensate(day.sensors, HOIST), HOIST, run_id="t").trip_summary
+    tensions = compensate(day.sensors, HOIST, settings=SHARE_OUT)
+    trips = reconcile(tensions, HOIST, run_id="t").trip_summary
     truth = day.info["trips"]
     assert trips["direction"].to_list() == [trip["direction"] for trip in truth]
     error = trips["payload_kg"].to_numpy() - [trip["payload_kg"] for trip in truth]

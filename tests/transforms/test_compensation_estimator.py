@@ -10,6 +10,11 @@ Analytic cases on small synthetic records of the example hoist (at rest, 100 Hz)
   sign (the failure of the first wave's estimate);
 - x missing: pressure only, the band spans the seals' whole static range;
 - the band holds the tension and is ordered.
+
+The share-out path (``rope_springs=False``): these records are not consistent with rope
+springs (one piston slides millimetres at rest on equal ropes), which is what the
+compensation falls back to when the ropes cannot be identified. The stick-slip solution
+on rope springs has its own cases in tests/transforms/test_stick_slip.py.
 """
 
 from __future__ import annotations
@@ -20,7 +25,7 @@ import numpy as np
 import polars as pl
 
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
-from transforms.compensation import compensate
+from transforms.compensation import CompensationSettings, compensate
 
 HOIST = load_hoist(EXAMPLE_HOIST)
 AREA = HOIST.cylinders.bore_area_m2
@@ -84,7 +89,9 @@ def _one_piston_slides(dp: float, *, logged: bool, seed: int = 3) -> pl.DataFram
         [[1e-3], [-2e-3], [0.5e-3], [3e-3]]
     )
     return compensate(
-        _frame(p, np.vstack([_quantised(r, rng) for r in x]) if logged else None), HOIST
+        _frame(p, np.vstack([_quantised(r, rng) for r in x]) if logged else None),
+        HOIST,
+        settings=CompensationSettings(rope_springs=False),
     )
 
 

@@ -1,0 +1,107 @@
+r"""A head rope as a spring on its piston, and a seal that sticks or slides against it.
+
+Quasi-static (the piston's 25 kg against ropes of 10^5-10^6 N/m: eq 1 with
+m_p x'' -> 0, i.e. eq 2), rope i pulls its piston with
+
+.. math::
+    T_i = a_i\, k(z)\, (s - x_i - c_i), \qquad k(z) = \frac{EA}{h + z}
+
+with EA the hoist description's nominal axial stiffness, h + z the hanging length
+(headframe plus depth; :mod:`sims.device` uses the same spring), s the conveyance's
+common stretch coordinate, x_i the piston displacement (rod out positive), and two
+constants of each rope that the mine does not know: a_i its stiffness relative to the
+nominal EA and c_i its length offset (real ropes differ by several percent and by up
+to ~10 mm, ``../shared/validation/README.md``).
+
+The seal is elasto-plastic: bristles of stiffness sigma_0 (the hoist's
+``bristle_stiffness``) whose force is capped by the eq 17 capacity g(v) (the Stribeck
+function, :func:`physics.friction_law.stribeck_g`). It is LuGre (paper eq 15) without
+LuGre's drift: under a small back-and-forth motion LuGre's bristle deflection creeps
+to 0, so the sensor noise that a quasi-static solution turns into micrometres of
+piston motion would drain every seal (a LuGre version of this step did: the stop
+frictions of validation day 101 came out near 0 instead of +-2 kN). Dupont et al.
+(2002) introduced elasto-plastic models for that reason; this is their limit with the
+elastic range up to the capacity, the one-element Maxwell-slip model
+(:func:`physics.maxwell_slip.maxwell_slip_step`) driven by a force.
+
+    :func:`head_rope_stiffness_n_m` -- k(z) (numba).
+    :func:`seal_on_rope_step` -- one quasi-static step of a piston between its rope and
+    its seal (numba).
+
+References
+----------
+Dupont, P., Hayward, V., Armstrong, B., Altpeter, F. (2002), Single state elastoplastic
+friction models, IEEE TAC 47(5), 787-792, doi:10.1109/TAC.2002.1000274.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+__all__ = ["head_rope_stiffness_n_m", "seal_on_rope_step"]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def head_rope_stiffness_n_m(axial_stiffness_n: float, hanging_m: float) -> float:
+    """Spring rate k = EA / L of a head rope hanging ``hanging_m`` [N/m].
+
+    >>> head_rope_stiffness_n_m(60e6, 650.0)  # the validation hoist at the bottom
+    92307.69230769231
+    """
+    return axial_stiffness_n / hanging_m
+
+
+@njit(cache=True, nogil=True, inline="always")
+def seal_on_rope_step(
+    demand_n: float, friction_n: float, sigma0_n_m: float, stiffness_n_m: float, capacity_n: float
+) -> tuple[float, float, float]:
+    r"""A piston's quasi-static step between its rope spring and its elasto-plastic seal.
+
+    The rope's pull beyond the chamber's force, ``demand`` D = a k (s - x - c) - p A
+    (eq 2 with T from the rope spring, before the piston moves), is taken by the seal
+    and by what resists the piston's step dx (``stiffness`` K: the rope's a k, plus
+    damping / dt of the viscous friction and the branch loss, implicit):
+
+    .. math::
+        F' + K\, dx = D, \qquad F' = \operatorname{clip}(F + \sigma_0\, dx, -g, g)
+
+    Sticking (|F'| < g) the seal's bristles and the rope share the demand as springs in
+    series with the piston; at the capacity the seal slides and the rope takes the rest.
+
+    Parameters
+    ----------
+    demand_n : float
+        D [N].
+    friction_n : float
+        The bristles' force F before the step [N].
+    sigma0_n_m : float
+        Bristle stiffness [N/m].
+    stiffness_n_m : float
+        K [N/m], > 0.
+    capacity_n : float
+        g >= 0, the Stribeck function at the piston's speed [N].
+
+    Returns
+    -------
+    dx, friction, slope : float
+        The piston's displacement [m], the bristles' force after it [N], and d dx / d D
+        [m/N] (what a Newton solve of the closed oil volume needs).
+
+    Examples
+    --------
+    A demand of 300 N on bristles at 0 with capacity 1000 N sticks: bristles (2e5 N/m)
+    and rope (1e5 N/m) share it by stiffness; 3000 N slides the seal, which holds its
+    capacity.
+
+    >>> seal_on_rope_step(300.0, 0.0, 2e5, 1e5, 1000.0)
+    (0.001, 200.0, 3.3333333333333333e-06)
+    >>> seal_on_rope_step(3000.0, 0.0, 2e5, 1e5, 1000.0)
+    (0.02, 1000.0, 1e-05)
+    """
+    dx = (demand_n - friction_n) / (sigma0_n_m + stiffness_n_m)
+    force = friction_n + sigma0_n_m * dx
+    if force > capacity_n:
+        return (demand_n - capacity_n) / stiffness_n_m, capacity_n, 1.0 / stiffness_n_m
+    if force < -capacity_n:
+        return (demand_n + capacity_n) / stiffness_n_m, -capacity_n, 1.0 / stiffness_n_m
+    return dx, force, 1.0 / (sigma0_n_m + stiffness_n_m)

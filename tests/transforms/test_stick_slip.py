@@ -1,0 +1,169 @@
+"""The pistons' stick-slip on rope springs and the ropes' identification (issue 13).
+
+Analytic cases of :func:`transforms.stick_slip.stick_slip` (the answers solve the
+physics' linear equations here, not with the kernel's Newton iteration):
+
+- every seal sticks through a small pressure rise: each piston takes a quarter of the
+  oil's compression and its bristles the force sigma_0 dx;
+- one piston's seal is near its capacity when the load falls: it slides and ends at
+  its capacity, the three others stick with the friction their ropes leave them;
+- blocks with the state carried give the whole record, bit for bit;
+- the rope constants identified from a record of ropeload's device simulation (LuGre
+  seals, ringing ropes, a 0.1 mm logger step) with one rope 4 % stiffer.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import itertools
+
+import numpy as np
+import polars as pl
+import pytest
+
+from physics.friction_law import friction_law_at, law_array
+from physics.oil import effective_bulk_modulus_at
+from schemas.hoist import EXAMPLE_HOIST, load_hoist
+from transforms.rope_identification import identify_from_means, record_means
+from transforms.stick_slip import RopeSprings, stick_slip
+
+HOIST = load_hoist(EXAMPLE_HOIST)
+AREA = HOIST.cylinders.bore_area_m2
+SIGMA0 = float(HOIST.friction_law.bristle_stiffness_n_m)
+DEPTH = 300.0
+K_ROPE = HOIST.ropes.head_rope_axial_stiffness_n / (HOIST.shaft.headframe_height_m + DEPTH)
+EQUAL = RopeSprings((1.0,) * 4, (0.0,) * 4, 0.0, 0)
+
+
+def _beta(p: float) -> float:
+    oil = HOIST.oil
+    return effective_bulk_modulus_at(p, oil.bulk_modulus_pa, oil.air_fraction, 1e5, 1.0)
+
+
+def _static_n(p: float) -> float:
+    return friction_law_at(p, law_array(HOIST.friction_law))[1]
+
+
+def _oil_volume(p: np.ndarray) -> float:
+    """The oil's compression, summed step by step at each step's pressure (eq 5) [m]."""
+    steps = itertools.pairwise(p)
+    return sum(HOIST.oil_volume_m3 / (_beta(b) * AREA) * (b - a) for a, b in steps)
+
+
+def _run(p: np.ndarray, springs: RopeSprings, *, dt_s: float = 0.01):
+    n = p.size
+    return stick_slip(
+        (p,) * 4, (np.zeros(n),) * 4, np.full(n, DEPTH), np.zeros(n, int), HOIST, springs,
+        dt_s=dt_s,
+    )  # fmt: skip
+
+
+def test_every_seal_sticks_through_a_small_rise():
+    p0, dp = 4.0e6, 2.0e4
+    p = np.r_[np.full(10, p0), np.linspace(p0, p0 + dp, 200)[1:]]
+    x, f = _run(p, EQUAL)
+    volume = sum(
+        HOIST.oil_volume_m3 / (_beta(b) * AREA) * (b - a) for a, b in itertools.pairwise(p)
+    )
+    for i in range(4):
+        assert x[i][-1] == pytest.approx(volume / 4, rel=1e-9)
+        assert f[i][-1] == pytest.approx(SIGMA0 * volume / 4, rel=1e-9)
+        assert abs(f[i][-1]) < _static_n(p[-1])  # it did stick
+
+
+def test_the_seal_nearest_its_capacity_slides_and_the_others_stick():
+    """Rope 1 is longer: at the start its seal carries 3/4 k c less than the mean (0 by
+    the start's convention: 90 % of its capacity below), the others 1/4 k c more. A slow
+    fall of the load slides seal 1 down, held at its capacity -F_s(p) as p falls; 2-4
+    stick. Unknowns after the fall: the common stretch ds, the sticking pistons' dx_s
+    and the sliding one's dx_1, from
+
+        ropes 2-4: k (ds - dx_s) = A dp + sigma_0 dx_s    (eq 2, sticking bristles)
+        rope 1:    k (ds - dx_1) = A dp - F_s(p_end) - F_1(0)    (at its capacity)
+        oil:       A (dx_1 + 3 dx_s) = V / beta dp    (eq 5)
+    """
+    p0, dp = 4.0e6, -3.0e5
+    offset = 0.9 * _static_n(p0) / (0.75 * K_ROPE)
+    springs = RopeSprings((1.0,) * 4, (offset, 0.0, 0.0, 0.0), 0.0, 0)
+    p = np.r_[np.full(10, p0), np.linspace(p0, p0 + dp, 20_000)[1:], np.full(50, p0 + dp)]
+    x, f = _run(p, springs, dt_s=0.05)
+    start = [f[i][0] for i in range(4)]
+    assert start[0] == pytest.approx(-0.9 * _static_n(p0), rel=1e-9)
+    assert start[1] == pytest.approx(0.3 * _static_n(p0), rel=1e-9)
+    capacity = _static_n(p[-1])
+    a = np.array([[K_ROPE, -(K_ROPE + SIGMA0), 0.0], [K_ROPE, 0.0, -K_ROPE], [0.0, 3.0, 1.0]])
+    b = np.array([AREA * dp, AREA * dp - capacity - start[0], _oil_volume(p)])
+    _, dx_s, dx_1 = np.linalg.solve(a, b)
+    # the slide ends at the capacity at the slide's last, slow speed (Stribeck: ~F_s)
+    assert f[0][-1] == pytest.approx(-capacity, rel=1e-3)
+    assert x[0][-1] == pytest.approx(dx_1, rel=5e-3)
+    for i in (1, 2, 3):
+        assert x[i][-1] == pytest.approx(dx_s, rel=5e-3)
+        assert f[i][-1] == pytest.approx(start[i] + SIGMA0 * dx_s, rel=5e-3)
+        assert abs(f[i][-1]) < 0.9 * capacity  # stuck
+    assert abs(dx_1) > 10 * abs(dx_s)  # the slider took the oil
+
+
+def test_blocks_give_the_whole_record():
+    p = 4.0e6 + 3.0e5 * np.sin(np.linspace(0, 6 * np.pi, 3000))
+    springs = RopeSprings((1.0, 1.03, 0.98, 1.01), (0.0, 2e-3, -1e-3, 0.5e-3), 0.0, 0)
+    whole_x, whole_f = _run(p, springs)
+    state = np.zeros(16)
+    parts = []
+    for lo, hi in ((0, 1000), (1000, 2200), (2200, 3000)):
+        state[1] = 1.0 if lo else 0.0
+        n = hi - lo
+        zeros, depth, segment = (np.zeros(n),) * 4, np.full(n, DEPTH), np.zeros(n, int)
+        part = stick_slip(
+            (p[lo:hi],) * 4, zeros, depth, segment, HOIST, springs, dt_s=0.01, state=state
+        )
+        parts.append(part)
+    for i in range(4):
+        assert np.array_equal(np.concatenate([part[1][i] for part in parts]), whole_f[i])
+        assert np.array_equal(np.concatenate([part[0][i] for part in parts]), whole_x[i])
+
+
+@pytest.fixture(scope="module")
+def stiff_rope_day() -> tuple[pl.DataFrame, tuple[float, ...]]:
+    from sims.field_day import generate_field_day
+
+    factors = (1.0, 1.04, 1.0, 1.0)
+    hoist = HOIST.model_copy(
+        update={"ropes": HOIST.ropes.model_copy(update={"head_rope_stiffness_factors": factors})}
+    )
+    day = generate_field_day(hoist, date="2026-03-02", seed=5, trips=8, hours=1.0)
+    # a logger's 0.1 mm step on the simulation's noisy x
+    step = 1e-4
+    logged = day.sensors.with_columns(
+        (pl.col(f"x{i}_m") / step).round() * step for i in range(1, 5)
+    )
+    return logged.sort("time_utc"), factors
+
+
+def test_the_identification_finds_the_stiffer_rope(stiff_rope_day):
+    """ropeload's device simulation (LuGre seals, ropes that ring, x logged to a 0.1 mm
+    step): rope 2 is 4 % stiffer than the others, the lengths are equal."""
+    samples, factors = stiff_rope_day
+    springs = identify_from_means(record_means(samples, samples["time_utc"][0]), HOIST)
+    assert springs is not None
+    ratios = np.array(springs.stiffness_factors) / springs.stiffness_factors[0]
+    # 1.057 for rope 2 (a model of quasi-static elasto-plastic seals on a world of
+    # LuGre seals and ringing ropes); a wrong basin takes ropes 3, 4 as 8 % softer
+    assert ratios == pytest.approx(np.array(factors), abs=0.025)
+    assert int(np.argmax(ratios)) == 1
+    assert springs.mismatch_m < 0.1e-3
+
+
+def test_no_motion_no_identification():
+    start = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
+    n = 3000
+    frame = pl.DataFrame(
+        {
+            "time_utc": [start + dt.timedelta(seconds=k / 50) for k in range(n)],
+            **{f"p{i}_pa": np.full(n, 4e6) for i in range(1, 5)},
+            **{f"x{i}_m": np.full(n, 1e-3) for i in range(1, 5)},
+            "depth_m": np.zeros(n),
+            "oil_temp_c": np.full(n, 40.0),
+        }
+    )
+    assert identify_from_means(record_means(frame, start), HOIST) is None

@@ -1,0 +1,255 @@
+"""The head ropes' constants from a record: what makes the pistons move as logged (issue 13).
+
+:mod:`transforms.stick_slip` solves each piston's motion and friction from its rope
+spring, T_i = a_i k(z) (s - x_i - c_i), with two constants per rope the mine does not
+know: a_i, the rope's stiffness relative to the description's nominal EA, and c_i, its
+length offset. They are constants of the hoist, so one record shows them: on every
+trip the ropes' rates change thirteen-fold (50 m of rope at the pithead, 650 m at the
+bottom of the validation shaft), and which piston slides, when and how far depends on
+them. The logged x show it to the logger's 0.1 mm step.
+
+:func:`identify_rope_springs` minimises the mean squared difference between the
+model's x and the logged x over theta = (a_2..a_n, c_2..c_n) (gauge a_1 = 1, c_1 = 0):
+a global search on 2 s means, then a Nelder-Mead polish on the 0.2 s means of
+:func:`record_means`. The global search is a differential evolution whose
+first population holds the description's nominal ropes, run from two seeds: the
+objective has a local minimum for each set of ropes taken for the odd ones out (a
+stiffer rope 2 of a simulated record was found as softer ropes 3 and 4 by one seed in
+three), and the better of the two is polished. Tried and dropped: sweeping the ropes in
+turn over grids of each one's constants (the ropes' constants are entangled through the
+gauge rope: from the nominal start it stalled at 0.7 mm on validation day 101).
+The objective is piecewise smooth (a slide starts or not), so no gradient method. Only
+the first :data:`IDENTIFY_SAMPLES` means are used (2 h at 5 Hz): ~10 000 runs of the
+model over them, ~13 s on two cores for a 2 h record.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import polars as pl
+from scipy.optimize import OptimizeResult, differential_evolution, minimize
+
+from physics.oil import kinematic_viscosity
+from physics.sensor_branch import sensor_branch
+from schemas.hoist import HoistDescription
+from schemas.tables import ROPES
+from transforms.stick_slip import RopeSprings, stick_slip
+
+__all__ = [
+    "IDENTIFY_SAMPLES",
+    "IDENTIFY_SPAN",
+    "MEAN_STEP",
+    "MISMATCH_LIMIT_M",
+    "identify_from_means",
+    "identify_rope_springs",
+    "record_means",
+]
+
+#: Bounds of the identification: stiffness relative to the nominal EA, length offset [m].
+STIFFNESS_BOUNDS = (0.9, 1.1)
+OFFSET_BOUNDS_M = (-0.015, 0.015)
+#: The global search's population (per parameter) and generations, and how many times
+#: the polish may restart.
+POPSIZE, GENERATIONS, RESTARTS = 20, 80, 3
+#: Seeds of the global searches (the same record gives the same constants).
+SEEDS = (1, 2)
+#: Steps of the means the global search and the polish run on [s].
+COARSE_S, POLISH_S = 2.0, 0.2
+#: The means' step (a polars duration) and how many of them the identification uses.
+MEAN_STEP = "200ms"
+IDENTIFY_SAMPLES = 36_000
+#: The span of the record the identification reads, from its first sample.
+IDENTIFY_SPAN = dt.timedelta(seconds=0.2 * IDENTIFY_SAMPLES)
+#: The most RMS difference between the model's and the logged x the ropes are kept at
+#: [m]: five logger steps. Beyond it the model does not describe the hoist (the 2 h
+#: validation and own records fit to 0.07-0.2 mm) and the compensation keeps the share-out.
+MISMATCH_LIMIT_M = 0.5e-3
+
+
+def record_means(samples: pl.DataFrame | pl.LazyFrame, start: dt.datetime) -> pl.DataFrame:
+    """0.2 s means of what the identification reads (time-sorted ``FIELD_SAMPLES`` rows)
+    of the record that starts at ``start``, up to :data:`IDENTIFY_SPAN` after it.
+
+    Windows start at multiples of 0.2 s since the epoch, so the means of a record read
+    block by block (blocks at whole hours) are those of the record read whole. Columns
+    ``time_utc`` (the window's start), the ``p`` and ``x`` columns, ``depth_m``,
+    ``oil_temp_c`` (null where the record has none).
+    """
+    lazy = samples.lazy()
+    names = set(lazy.collect_schema().names())
+    wanted = [f"p{i}_pa" for i in ROPES] + [f"x{i}_m" for i in ROPES] + ["depth_m", "oil_temp_c"]
+    aggregations = [
+        pl.col(c).cast(pl.Float64).mean() if c in names else pl.lit(None, pl.Float64).alias(c)
+        for c in wanted
+    ]
+    lazy = lazy.filter(pl.col("time_utc") < start + IDENTIFY_SPAN)
+    return lazy.group_by_dynamic("time_utc", every=MEAN_STEP).agg(aggregations).collect()
+
+
+def identify_from_means(means: pl.DataFrame, hoist: HoistDescription) -> RopeSprings | None:
+    """:func:`identify_rope_springs` on the first :data:`IDENTIFY_SAMPLES` of
+    :func:`record_means` (pressures calibrated here; the branch loss when the hoist
+    declares a pipe or local loss, at the record's median oil temperature if the viscosity
+    follows it, else at the reference temperature)."""
+    means = means.head(IDENTIFY_SAMPLES)
+    if means.height < 2:
+        return None
+    pressures = []
+    for i in ROPES:
+        p = means[f"p{i}_pa"].to_numpy().astype(np.float64)
+        for sensor in hoist.sensors:
+            if sensor.cylinder == i:
+                p = (p - sensor.offset_pa) / sensor.gain
+        pressures.append(p)
+    effects = set(hoist.model.effects)
+    branch = sensor_branch(hoist) if {"pipe_laminar_loss", "local_loss"} & effects else None
+    oil = means["oil_temp_c"].to_numpy().astype(np.float64)
+    t_oil = hoist.oil.reference_temperature_c
+    if "viscosity_temperature" in effects and np.isfinite(oil).any():
+        t_oil = float(np.nanmedian(oil))
+    return identify_rope_springs(
+        means["time_utc"].dt.epoch("us").to_numpy() * 1e-6,
+        tuple(pressures),
+        tuple(means[f"x{i}_m"].to_numpy().astype(np.float64) for i in ROPES),
+        means["depth_m"].to_numpy().astype(np.float64),
+        hoist,
+        nu_m2_s=float(kinematic_viscosity(t_oil, hoist.oil)),
+        branch=branch,
+    )
+
+
+def identify_rope_springs(
+    time_s: np.ndarray,
+    p_sensor: tuple[np.ndarray, ...],
+    x_logged: tuple[np.ndarray, ...],
+    depth_m: np.ndarray,
+    hoist: HoistDescription,
+    *,
+    nu_m2_s: float = 0.0,
+    branch: np.ndarray | None = None,
+    coarse_s: float = COARSE_S,
+    polish_s: float = POLISH_S,
+) -> RopeSprings | None:
+    """The ropes' constants that make the model's piston motion match the logged x.
+
+    Parameters
+    ----------
+    time_s : ndarray
+        Times of evenly spaced means of the record (e.g. 0.2 s means) [s].
+    p_sensor, x_logged, depth_m :
+        Those means: calibrated sensor pressures [Pa], logged displacements [m] (NaN
+        where not logged), depth [m].
+    hoist : HoistDescription
+    nu_m2_s, branch :
+        Oil viscosity and :func:`physics.sensor_branch.sensor_branch` for the branch
+        loss (branch None: none).
+    coarse_s, polish_s : float
+        Steps of the means the global search and the polish run on [s] (multiples of
+        the given samples' step).
+
+    Returns
+    -------
+    RopeSprings or None
+        None when nothing identifies the ropes: no piston motion in the logged x (a
+        record at rest), fewer than 60 samples with x and pressures, or no constants
+        within the bounds make the model's x come within :data:`MISMATCH_LIMIT_M` of the
+        logged x.
+    """
+    m = len(p_sensor)
+    usable = np.isfinite(depth_m)
+    for p, x in zip(p_sensor, x_logged, strict=True):
+        usable &= np.isfinite(p) & np.isfinite(x)
+    if usable.sum() < 60 or not _pistons_moved(x_logged):
+        return None
+    step = float(np.median(np.diff(time_s))) if time_s.size > 1 else 1.0
+    segment = np.cumsum(np.r_[0, np.diff(time_s) > 3.0 * step])
+    every = max(1, round(coarse_s / step))
+    fine = max(1, round(polish_s / step))
+
+    # a stiffer rope carries more at the pithead unless it is longer: searched as (a_i,
+    # c_i - (a_i - 1) e), e the ropes' stretch at the pithead, the two are less entangled
+    area = hoist.cylinders.bore_area_m2
+    top = hoist.shaft.headframe_height_m + max(float(np.nanmin(depth_m)), 0.0)
+    p_typical = float(np.nanmedian(np.mean(p_sensor, axis=0)))
+    stretch = p_typical * area * top / hoist.ropes.head_rope_axial_stiffness_n
+
+    def constants(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        a = np.r_[1.0, q[: m - 1]]
+        return a, np.r_[0.0, q[m - 1 :]] + (a - 1.0) * stretch
+
+    def mismatch(q: np.ndarray, stride: int) -> float:
+        a, c = constants(q)
+        springs = RopeSprings(tuple(a), tuple(c), 0, 0)
+        x, _ = stick_slip(
+            tuple(p[::stride] for p in p_sensor),
+            tuple(xl[::stride] for xl in x_logged),
+            depth_m[::stride],
+            segment[::stride],
+            hoist,
+            springs,
+            dt_s=step * stride,
+            nu_m2_s=nu_m2_s,
+            branch=branch,
+        )
+        return float(
+            np.nanmean(
+                [np.nanmean((xi - xl[::stride]) ** 2) for xi, xl in zip(x, x_logged, strict=True)]
+            )
+        )
+
+    bounds = [STIFFNESS_BOUNDS] * (m - 1) + [OFFSET_BOUNDS_M] * (m - 1)
+    scale = np.array([b[1] - b[0] for b in bounds])
+    nominal = np.r_[np.ones(m - 1), np.zeros(m - 1)] / scale  # the description's ropes
+    # the model's kernel releases the GIL: a generation's members run on the cores. The
+    # objective has a local minimum for each set of ropes taken for the odd ones out:
+    # the global search runs from several seeds, the best is polished.
+    with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
+        searches = [
+            differential_evolution(
+                lambda u: mismatch(u * scale, every) * 1e6,
+                [(b[0] / w, b[1] / w) for b, w in zip(bounds, scale, strict=True)],
+                popsize=POPSIZE,
+                maxiter=GENERATIONS,
+                tol=1e-8,
+                seed=seed,
+                polish=False,
+                x0=nominal,
+                updating="deferred",
+                workers=pool.map,
+            )
+            for seed in SEEDS
+        ]
+    q = min(searches, key=lambda result: result.fun).x * scale
+    found = OptimizeResult(x=q / scale, fun=mismatch(q, fine) * 1e6)
+    polished = found
+    for _ in range(RESTARTS):  # Nelder-Mead stalls on a piecewise objective: restart it
+        again = minimize(
+            lambda u: mismatch(u * scale, fine) * 1e6,
+            polished.x,
+            method="Nelder-Mead",
+            options={"maxfev": 100 * len(bounds), "xatol": 1e-4, "fatol": 1e-6},
+        )
+        if polished is not found and again.fun >= polished.fun * (1 - 1e-3):
+            polished = again if again.fun < polished.fun else polished
+            break
+        polished = again
+    if not np.sqrt(polished.fun * 1e-6) <= MISMATCH_LIMIT_M:
+        return None
+    a, c = constants(polished.x * scale)
+    return RopeSprings(
+        stiffness_factors=tuple(float(v) for v in a),
+        length_offsets_m=tuple(float(v) for v in c),
+        mismatch_m=float(np.sqrt(polished.fun * 1e-6)),
+        samples=int(usable.sum()),
+    )
+
+
+def _pistons_moved(x_logged: tuple[np.ndarray, ...], *, least_m: float = 0.5e-3) -> bool:
+    """Some piston's logged x spans more than ``least_m`` (5 logger steps)."""
+    return any(
+        np.isfinite(x).any() and float(np.nanmax(x) - np.nanmin(x)) > least_m for x in x_logged
+    )

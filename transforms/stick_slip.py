@@ -1,0 +1,316 @@
+r"""Each piston's motion and seal friction from its rope spring and the oil (issue 13).
+
+The compensation needs each seal's friction, and that depends on how each piston moved.
+What is observed: the four sensor pressures (equal at rest, apart only while oil flows
+through the branches), each piston's logged x (0.1 mm steps, ~0.02 mm noise: a sliding
+piston's millimetres, not a sticking one's micrometres) and the conveyance's depth.
+
+The method: a **quasi-static, constrained stick-slip solution per sample** with the
+device's own physics, and two constants per rope identified from the record.
+
+- Rope i pulls its piston with T_i = a_i k(z) (s - x_i - c_i) (:mod:`physics.rope_spring`:
+  k = EA / (headframe + depth), a_i the rope's stiffness relative to the nominal EA,
+  c_i its length offset), s the conveyance's common stretch.
+- Each piston obeys eq 2, T_i = p_i A + F_i, with p_i the chamber pressure (the sensor's
+  minus the branch loss of the piston's flow, contract 1a, eq 12-14) and F_i an
+  elasto-plastic seal, F' = clip(F + sigma_0 dx, -g(v), g(v)) with the eq 17 capacity
+  g(v) = Stribeck + K_v |v| at the piston's last speed
+  (:func:`physics.rope_spring.seal_on_rope_step`: LuGre's elastic bristles without its
+  drift under the noise). The branch loss resists a step like a damper, implicitly.
+- The chambers are one closed oil volume (eq 5): A sum_i dx_i = V dp / beta_e(p).
+
+Each dx_i is a monotone, piecewise-linear function of s, so the oil equation has one
+root per sample: a Newton solve, exact in a few steps. What a piston does follows from
+its rope and its seal: at a payload change at rest the piston nearest its capacity
+slides and the others stick with the friction their ropes leave them; on a trip the
+ropes' rates grow as they shorten and the pistons whose ropes pull hardest slide.
+
+The constants theta = (a_2..a_n, c_2..c_n) (gauge a_1 = 1, c_1 = 0) are identified per
+record by making the model's x_i match the logged x_i
+(:mod:`transforms.rope_identification`). The logged x enter only there and as the
+start: the solution runs on pressures.
+
+Why this and not a smoother or filter of a random-walk piston state (the first wave's
+estimate, a Kalman/RTS smoother, a particle filter): stick-slip motion is sparse and
+non-smooth, and which piston slides is decided by forces, not by where the x noise
+points. A filter with a minimum-energy prior spreads a slide over all pistons and
+makes sticking ones reverse (their friction changes sign; issue 13 measured the load
+error of stops after a payload change growing from 6 to 8 %). Here the sliding
+piston is the one the forces select, the sticking ones keep what their ropes leave.
+
+Measured (``benchmarks/eval_compensation.py``) in the closing note and CHANGELOG.
+What it assumes: quasi-static pistons (no rope bounce in the spring law; a ringing
+hoist's dynamic tension is common to the ropes and enters through the pressure);
+the hoist description's oil volume, bulk modulus, bristle stiffness and friction law.
+Without a logged x nothing identifies the ropes: the compensation keeps the equal share
+of :mod:`transforms.piston_motion`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from physics.friction_law import friction_law_at, law_array, stribeck_g
+from physics.oil import ATMOSPHERIC_PRESSURE_PA, effective_bulk_modulus_at
+from physics.rope_spring import head_rope_stiffness_n_m, seal_on_rope_step
+from physics.sensor_branch import sensor_minus_chamber_at
+from schemas.hoist import HoistDescription
+
+__all__ = ["RopeSprings", "band_members", "stick_slip", "stick_slip_state"]
+
+
+def band_members(friction_relative_sigma: float) -> tuple[tuple[float, float], ...]:
+    """(capacity, bristle stiffness) factors of the solutions whose spread is the
+    friction's part of the 95 % band (:mod:`transforms.uncertainty`): the law's capacity
+    +-1.96 x its relative standard uncertainty, and the bristle stiffness (a default the
+    mine does not measure, F_s / 0.05 mm) halved and doubled.
+
+    >>> band_members(0.1)
+    ((0.804, 1.0), (1.196, 1.0), (1.0, 0.5), (1.0, 2.0))
+    """
+    reach = round(1.96 * friction_relative_sigma, 6)
+    return ((1.0 - reach, 1.0), (1.0 + reach, 1.0), (1.0, 0.5), (1.0, 2.0))
+
+
+@dataclass(frozen=True)
+class RopeSprings:
+    """Constants of the head ropes identified from a record (:func:`identify_rope_springs`).
+
+    Attributes
+    ----------
+    stiffness_factors : tuple of float
+        a_i, each rope's stiffness relative to the nominal EA (a_1 = 1: the gauge).
+    length_offsets_m : tuple of float
+        c_i, each rope's length offset [m] (c_1 = 0).
+    mismatch_m : float
+        RMS of the model's x minus the logged x over the identification samples [m].
+    samples : int
+        Samples the identification used.
+    """
+
+    stiffness_factors: tuple[float, ...]
+    length_offsets_m: tuple[float, ...]
+    mismatch_m: float
+    samples: int
+
+
+def stick_slip_state(pistons: int) -> np.ndarray:
+    """Fresh state of :func:`stick_slip` (``[ran, continues, s, p, then per piston the
+    bristles' force, x, v]``; :func:`transforms.filtering.fresh_state`)."""
+    return np.zeros(4 + 3 * pistons)
+
+
+def _constants(hoist: HoistDescription) -> np.ndarray:
+    """[V, A, beta_liquid, air fraction, p_ref, EA, headframe, sigma_0] of the kernel."""
+    return np.array(
+        [
+            hoist.oil_volume_m3,
+            hoist.cylinders.bore_area_m2,
+            hoist.oil.bulk_modulus_pa,
+            hoist.oil.air_fraction,
+            ATMOSPHERIC_PRESSURE_PA,
+            hoist.ropes.head_rope_axial_stiffness_n,
+            hoist.shaft.headframe_height_m,
+            float(hoist.friction_law.bristle_stiffness_n_m),
+        ]
+    )
+
+
+def stick_slip(
+    p_sensor: tuple[np.ndarray, ...],
+    x_logged: tuple[np.ndarray, ...],
+    depth_m: np.ndarray,
+    segment_id: np.ndarray,
+    hoist: HoistDescription,
+    springs: RopeSprings,
+    *,
+    dt_s: float,
+    nu_m2_s: np.ndarray | float = 0.0,
+    branch: np.ndarray | None = None,
+    state: np.ndarray | None = None,
+    capacity_scale: float = 1.0,
+    sigma0_scale: float = 1.0,
+) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+    """Each piston's displacement [m] and seal friction [N] (module docstring).
+
+    Parameters
+    ----------
+    p_sensor : tuple of ndarray
+        Each rope's sensor pressure [Pa], calibrated and low-passed (NaN: unknown; the
+        state is held).
+    x_logged : tuple of ndarray
+        Each piston's logged displacement [m]: read only at the record's first sample
+        (NaN there: 0).
+    depth_m : ndarray
+        Conveyance depth [m] (the ropes' hanging length; NaN: the last known).
+    segment_id : ndarray of int
+        Gap-free segment of each sample: a piston's speed restarts at 0 after a gap.
+    hoist : HoistDescription
+        Oil volume, bulk modulus, piston area, nominal EA, headframe, friction law.
+    springs : RopeSprings
+        The ropes' constants.
+    dt_s : float
+        Sample step [s] (the pistons' speed for the capacity and the branch flow).
+    nu_m2_s : ndarray or float
+        Oil kinematic viscosity (per sample or one value) for the branch loss.
+    branch : ndarray, optional
+        :func:`physics.sensor_branch.sensor_branch`; None: no branch loss.
+    state : ndarray, optional
+        :func:`stick_slip_state`, carried from the previous block (updated in place).
+    capacity_scale, sigma0_scale : float
+        Factors on the friction law's capacity and on the bristle stiffness: the
+        members of the uncertainty band (:func:`band_members`).
+
+    Returns
+    -------
+    (x, friction) : tuple of tuple of ndarray
+
+    Examples
+    --------
+    Four equal ropes at rest, then the load rises: the common pressure rises and the
+    seals take the difference the oil's compression lets through (every piston sticks:
+    the friction is the same on each).
+
+    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
+    >>> hoist = load_hoist(EXAMPLE_HOIST)
+    >>> p = np.linspace(4.0e6, 4.05e6, 50)
+    >>> springs = RopeSprings((1.0,) * 4, (0.0,) * 4, 0.0, 0)
+    >>> x, f = stick_slip((p,) * 4, (np.zeros(50),) * 4, np.full(50, 300.0),
+    ...                   np.zeros(50, int), hoist, springs, dt_s=0.01)
+    >>> bool(f[0][-1] > 0) and np.ptp([fi[-1] for fi in f]) < 1e-6
+    True
+    """
+    n = depth_m.shape[0]
+    m = len(p_sensor)
+    x_out = tuple(np.empty(n) for _ in range(m))
+    f_out = tuple(np.empty(n) for _ in range(m))
+    nu = np.atleast_1d(np.asarray(nu_m2_s, dtype=np.float64))
+    if n:
+        _kernel(
+            tuple(np.ascontiguousarray(p, dtype=np.float64) for p in p_sensor),
+            tuple(np.ascontiguousarray(x, dtype=np.float64) for x in x_logged),
+            np.ascontiguousarray(depth_m, dtype=np.float64),
+            np.ascontiguousarray(segment_id, dtype=np.int64),
+            float(dt_s),
+            np.ascontiguousarray(nu),
+            branch is not None,
+            np.zeros(6) if branch is None else branch,
+            _constants(hoist) * np.r_[np.ones(7), sigma0_scale],
+            law_array(hoist.friction_law),
+            np.asarray(springs.stiffness_factors, dtype=np.float64),
+            np.asarray(springs.length_offsets_m, dtype=np.float64),
+            float(capacity_scale),
+            x_out,
+            f_out,
+            stick_slip_state(m) if state is None else state,
+        )
+    return x_out, f_out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _kernel(
+    p_sensor, x_logged, depth, segment, dt, nu, with_loss, branch, const, law, a, c, scale,
+    x_out, f_out, state,
+):  # pragma: no cover - numba  # fmt: skip
+    """Per sample: the oil's Newton solve for s, each piston's seal step (module docstring).
+
+    One function over 80 lines on purpose: the per-sample loop keeps the pistons' state
+    in registers; the physics is in :func:`physics.rope_spring.seal_on_rope_step`.
+    """
+    m = len(p_sensor)
+    n = depth.shape[0]
+    volume, area, beta_l, air, p_ref = const[0], const[1], const[2], const[3], const[4]
+    ea, headframe, sigma0 = const[5], const[6], const[7]
+    z = np.zeros(m)
+    x = np.zeros(m)
+    v = np.zeros(m)
+    damping = np.zeros(m)
+    cap = np.zeros(m)
+    ka = np.zeros(m)
+    ran = state[0] != 0.0
+    resume = ran and state[1] != 0.0
+    s, p_last = state[2], state[3]
+    if ran:
+        for i in range(m):
+            z[i] = state[4 + i]
+            x[i] = state[4 + m + i]
+            v[i] = state[4 + 2 * m + i]
+    hanging = headframe
+    per_sample = nu.shape[0] > 1
+    for t in range(n):
+        p_mean = 0.0
+        for i in range(m):
+            p_mean += p_sensor[i][t]
+        p_mean /= m
+        if np.isfinite(depth[t]):
+            hanging = headframe + max(depth[t], 0.0)
+        if not np.isfinite(p_mean):
+            for i in range(m):
+                x_out[i][t] = x[i]
+                f_out[i][t] = z[i]
+            continue
+        k = head_rope_stiffness_n_m(ea, hanging)
+        p_law = max(p_mean, 1e5)
+        fc, fs, vs, kv = friction_law_at(p_law, law)
+        new_segment = (t == 0 and not resume) or (t > 0 and segment[t] != segment[t - 1])
+        if new_segment:
+            for i in range(m):
+                v[i] = 0.0
+        for i in range(m):
+            ka[i] = a[i] * k
+            damping[i] = 0.0
+            if with_loss:  # the branch loss as a damper, implicit (explicit it diverges)
+                speed = v[i] if abs(v[i]) > 1e-6 else 1e-6
+                nu_t = nu[t] if per_sample else nu[0]
+                damping[i] = -area * sensor_minus_chamber_at(speed, nu_t, branch) / speed / dt
+            cap[i] = scale * (stribeck_g(v[i], fc, fs, vs) + kv * abs(v[i]))
+        if not ran:  # the record's start: positions logged, friction unknown (mean 0)
+            num = 0.0
+            den = 0.0
+            for i in range(m):
+                x[i] = x_logged[i][t] if np.isfinite(x_logged[i][t]) else 0.0
+                num += p_sensor[i][t] * area + ka[i] * (x[i] + c[i])
+                den += ka[i]
+            s = num / den
+            for i in range(m):
+                force = ka[i] * (s - x[i] - c[i]) - p_sensor[i][t] * area
+                z[i] = min(max(force, -scale * fs), scale * fs)
+                x_out[i][t] = x[i]
+                f_out[i][t] = z[i]
+            ran = True
+            p_last = p_mean
+            continue
+        beta = effective_bulk_modulus_at(p_law, beta_l, air, p_ref, 1.0)
+        target = volume / (beta * area) * (p_mean - p_last)
+        ds = 0.0
+        for _ in range(40):
+            total = 0.0
+            slope = 0.0
+            for i in range(m):
+                demand = ka[i] * (s + ds - x[i] - c[i]) - p_sensor[i][t] * area
+                dx, _, d = seal_on_rope_step(demand, z[i], sigma0, ka[i] + damping[i], cap[i])
+                total += dx
+                slope += d * ka[i]
+            err = total - target
+            if abs(err) < 1e-13 or slope == 0.0:
+                break
+            ds -= err / slope
+        s += ds
+        for i in range(m):
+            demand = ka[i] * (s - x[i] - c[i]) - p_sensor[i][t] * area
+            dx, z[i], _ = seal_on_rope_step(demand, z[i], sigma0, ka[i] + damping[i], cap[i])
+            x[i] += dx
+            v[i] = dx / dt
+            x_out[i][t] = x[i]
+            f_out[i][t] = z[i]
+        p_last = p_mean
+    if n and ran:
+        state[0] = 1.0
+        state[2], state[3] = s, p_last
+        for i in range(m):
+            state[4 + i] = z[i]
+            state[4 + m + i] = x[i]
+            state[4 + 2 * m + i] = v[i]

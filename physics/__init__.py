@@ -19,7 +19,10 @@ eq 1, piston force balance m_p x'' = T - p A - F
 eq 2, T = p_chamber A + F
     :func:`physics.tension.rope_tension_n`, the piston areas
     :func:`~physics.tension.bore_area_m2`, :func:`~physics.tension.annulus_area_m2`
-    -- tests/physics/test_tension.py
+    -- tests/physics/test_tension.py; with T from the rope's spring (k = EA / L, not
+    printed) and an elasto-plastic seal, one quasi-static step of a piston:
+    :func:`physics.rope_spring.seal_on_rope_step`, :func:`~physics.rope_spring.
+    head_rope_stiffness_n_m` -- tests/transforms/test_stick_slip.py
 eq 3-4 with Table 2, sum of T = (m_c + m_p + m_t(z)) (g + a)
     :func:`physics.tension.expected_load_n`, :func:`~physics.tension.tail_rope_mass_kg`,
     :func:`~physics.tension.tail_rope_length_m` -- tests/physics/test_tension.py

@@ -5,19 +5,23 @@ For each cylinder i of a hoist, per sample:
 1. sensor calibration: p_i = (reading_i - offset_i) / gain_i (hoist ``[[sensors]]``);
 2. single-sample spikes removed (3-point median) and a zero-phase low-pass, per
    gap-free segment;
-3. piston motion (:mod:`transforms.piston_motion`): the chambers, pipes and manifold
-   are one closed oil volume, so the *sum* of the four displacements follows the
-   common pressure, A sum dx_i = V dp / beta (NOTES.md) -- with a 5 kPa pressure noise
-   a micrometre-class sensor of the sum. Where x_i is logged (to a 0.1 mm step), its
-   smoothed, played record says *which* pistons move: the oil's motion is shared out
-   to the pistons seen moving, the part within the seals' presliding range equally
-   (elastic), so a piston that sticks through a payload change is not moved out and
-   back (issue 13). The friction state is driven by the increments of a play
-   (deadband) operator on that estimate, so residual noise does not move it; the
-   branch flow uses the Savitzky-Golay velocity of the same estimate;
+3. piston motion and seal friction. Where the logged x identify the head ropes
+   (:mod:`transforms.rope_identification`: each rope's stiffness and length offset,
+   from the first 2 h of the record), the forces decide: each rope is a spring on its
+   piston, each seal elasto-plastic with the eq 17 capacity, and the closed oil volume,
+   A sum dx_i = V dp / beta, fixes the sum of the motions; solved per sample
+   (:mod:`transforms.stick_slip`), it says which piston slides and what friction the
+   sticking ones keep. Otherwise (no logged x, a record at rest, ropes the model does
+   not fit, or ``CompensationSettings(rope_springs=False)``) the oil's motion is shared
+   out to the pistons the smoothed, played logged x show moving, the part within the
+   seals' presliding range equally (:mod:`transforms.piston_motion`); the friction
+   state is then driven by the increments of a play (deadband) operator on that
+   estimate, so residual noise does not move it. The branch flow uses the
+   Savitzky-Golay velocity of the motion;
 4. chamber pressure: the sensor sits after the globe valve and the first branch part,
    so p_chamber = p_sensor - (p_sensor - p_chamber)(v, T) (paper eq 12-14, contract 1a);
-5. seal friction F_i: LuGre (paper eq 15, which the paper calls "Leuven") driven by v_i,
+5. seal friction F_i (without identified ropes): LuGre (paper eq 15, which the paper
+   calls "Leuven") driven by v_i,
    with parameters linear in chamber pressure (eq 17 form); with
    ``presliding_hysteresis`` in the hoist's model, the Maxwell-slip elements (the
    Leuven / GMS idea) replace the single bristle. The state is carried through
@@ -25,8 +29,9 @@ For each cylinder i of a hoist, per sample:
 6. tension T_i = p_chamber,i A_bore + F_i (paper eq 2, F positive while the rod moves
    out), and the uncompensated T_raw,i = p_sensor,i A_bore (the paper's "before");
 7. a 95 % band for each tension and the load (:mod:`transforms.uncertainty`): the
-   friction range the estimate cannot resolve (motion only the oil saw), the friction
-   law's uncertainty and the sensor noise.
+   friction range the estimate cannot resolve (with identified ropes: the spread of the
+   stick-slip solution over the law's capacity and the bristle stiffness; without:
+   motion only the oil saw and the law's uncertainty) and the sensor noise.
 
 Which corrections apply follows the hoist's ``[model] effects``: ``seal_friction``,
 ``presliding_hysteresis``, ``pipe_laminar_loss`` / ``local_loss`` (both are in the branch

@@ -1,5 +1,10 @@
 r"""Each piston's motion from the closed oil volume and the logged displacements (issue 13).
 
+Since session 12 the compensation's fallback: where the head ropes are identified from
+the record, each piston's motion and friction come from its rope spring
+(:mod:`transforms.stick_slip`); this share-out runs without a logged x, when the logged
+x do not identify the ropes, or with ``CompensationSettings(rope_springs=False)``.
+
 The seal friction of a piston depends on the history of *its own* motion (paper eq 15:
 the bristle state follows the piston's increments), so the compensation needs each
 piston's displacement, not just the four pistons' mean. Two observables carry it:

@@ -27,7 +27,9 @@ model over them, 5-8 s on two cores for a 2 h record of 50 Hz.
 from __future__ import annotations
 
 import datetime as dt
+import hashlib
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -95,10 +97,36 @@ def identify_from_means(means: pl.DataFrame, hoist: HoistDescription) -> RopeSpr
     """:func:`identify_rope_springs` on the first :data:`IDENTIFY_SAMPLES` of
     :func:`record_means` (pressures calibrated here; the branch loss when the hoist
     declares a pipe or local loss, at the record's median oil temperature if the viscosity
-    follows it, else at the reference temperature)."""
+    follows it, else at the reference temperature).
+
+    Remembered for the process: the same means of the same hoist (a re-run, the run and
+    the sanity check of one record, a backfill's retry) are not identified again.
+    """
     means = means.head(IDENTIFY_SAMPLES)
     if means.height < 2:
         return None
+    digest = hashlib.sha256(hoist.model_dump_json().encode())
+    for column in means.columns:
+        digest.update(means[column].to_numpy().tobytes())
+    key = digest.hexdigest()
+    with _LOCK:
+        if key in _IDENTIFIED:
+            return _IDENTIFIED[key]
+    springs = _identify(means, hoist)
+    with _LOCK:
+        _IDENTIFIED[key] = springs
+        while len(_IDENTIFIED) > 64:
+            _IDENTIFIED.pop(next(iter(_IDENTIFIED)))
+    return springs
+
+
+#: Identified ropes by a digest of the means and the hoist (:func:`identify_from_means`).
+_IDENTIFIED: dict[str, RopeSprings | None] = {}
+_LOCK = threading.Lock()
+
+
+def _identify(means: pl.DataFrame, hoist: HoistDescription) -> RopeSprings | None:
+    """:func:`identify_from_means` without the memory."""
     pressures = []
     for i in ROPES:
         p = means[f"p{i}_pa"].to_numpy().astype(np.float64)

@@ -28,7 +28,11 @@ first-order error it no longer has (tests/sims/test_rig.py measures the order). 
 retakes a step with a fresh Jacobian when an older one's error ratio jumps
 (:func:`sims.hydraulics.ros2_step_refreshing`; 9 of 66840 steps of the device run): up
 to 6e-8 of the branch flows' and 3e-7 of the displacements' sums, the demo's marts
-1.1e-6 (0.07 N).
+1.1e-6 (0.07 N). The ``demo_*`` entries again (session 12) after the compensation
+solves each piston's stick-slip on rope springs identified from the record
+(:mod:`transforms.stick_slip`): the demo's compensated tensions move by up to ~0.5 % of
+the load (position summary tension_after1_n sum -0.23 %); the ``compensate`` entry's
+record does not identify ropes (its pistons move together) and is unchanged.
 
 The compensation's input is written here with numpy (two trips, a payload step at a
 stop, a ringing rope, a logger gap, a warming oil), not by the simulation, so a change

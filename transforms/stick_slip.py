@@ -180,8 +180,8 @@ def stick_slip(
     >>> springs = RopeSprings((1.0,) * 4, (0.0,) * 4, 0.0, 0)
     >>> x, f = stick_slip((p,) * 4, (np.zeros(50),) * 4, np.full(50, 300.0),
     ...                   np.zeros(50, int), hoist, springs, dt_s=0.01)
-    >>> bool(f[0][-1] > 0) and np.ptp([fi[-1] for fi in f]) < 1e-6
-    True
+    >>> [round(float(fi[-1]), 1) for fi in f]
+    [239.3, 239.3, 239.3, 239.3]
     """
     n = depth_m.shape[0]
     m = len(p_sensor)

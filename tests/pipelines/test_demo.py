@@ -46,8 +46,12 @@ def test_demo_prints_per_position_summary(demo_run, capsys):
     }
     assert set(rows) == {"pithead", "middle", "bottom"}
     for measured, compensated, expected in rows.values():
-        # compensation brings the load to the applied one (issue 5 target: 0.5 %)
-        assert abs(compensated / expected - 1) < 0.005
+        # compensation brings the load to the applied one: issue 13's 1 % at stops. The
+        # stick-slip solution on identified ropes leaves 0.6 % on this own simulation,
+        # whose LuGre seals near their capacity more slowly than its elasto-plastic
+        # ones (the share-out of the first waves met issue 5's 0.5 % here, and left 2-5 %
+        # on independent data: benchmarks/eval_compensation.py)
+        assert abs(compensated / expected - 1) < 0.01
         assert abs(measured / expected - 1) > abs(compensated / expected - 1)
     assert warehouse.exists()
 

@@ -192,33 +192,29 @@ class BlockCompensation(BlockSetup):
         nu = np.atleast_1d(np.asarray(self.nu_job.result(), dtype=float))
         branch = self.branch if self.with_branch_loss else None
         members = ((1.0, 1.0), *band_members(self.settings.friction_relative_sigma))
-        solutions = []
         self.nxt.springs = self.carry.springs.copy()
-        for m, (capacity_scale, sigma0_scale) in enumerate(members):
+
+        def solve(m: int) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+            capacity_scale, sigma0_scale = members[m]
             x = tuple(np.full(n, np.nan) for _ in ROPES)
             friction = tuple(np.full(n, np.nan) for _ in ROPES)
 
-            def run(
-                lo: int,
-                hi: int,
-                state: np.ndarray,
-                x=x,
-                friction=friction,
-                capacity_scale=capacity_scale,
-                sigma0_scale=sigma0_scale,
-            ) -> None:
-                xs, fs = stick_slip(
+            def run(lo: int, hi: int, state: np.ndarray) -> None:
+                stick_slip(
                     tuple(p[lo:hi] for p in pressures), tuple(v[lo:hi] for v in logged),
                     depth[lo:hi], self.segment[lo:hi], self.hoist, springs,
                     dt_s=self.dt_nominal, nu_m2_s=nu[lo:hi] if nu.size == n else nu,
                     branch=branch, state=state, capacity_scale=capacity_scale,
                     sigma0_scale=sigma0_scale,
+                    out=(tuple(v[lo:hi] for v in x), tuple(f[lo:hi] for f in friction)),
                 )  # fmt: skip
-                for whole, part in zip(x + friction, xs + fs, strict=True):
-                    whole[lo:hi] = part
 
             self.nxt.springs[m] = self.staged(run, self.segment, self.carry.springs[m])
-            solutions.append((x, friction))
+            return x, friction
+
+        # the kernel releases the GIL: the band's members run beside the estimate
+        with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
+            solutions = list(pool.map(solve, range(len(members))))
         self.spring_friction = solutions[0][1]
         self.member_friction = [friction for _, friction in solutions[1:]]
         return solutions[0][0], tuple(np.zeros(n) for _ in ROPES)

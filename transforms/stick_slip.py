@@ -133,6 +133,7 @@ def stick_slip(
     state: np.ndarray | None = None,
     capacity_scale: float = 1.0,
     sigma0_scale: float = 1.0,
+    out: tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]] | None = None,
 ) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
     """Each piston's displacement [m] and seal friction [N] (module docstring).
 
@@ -163,6 +164,8 @@ def stick_slip(
     capacity_scale, sigma0_scale : float
         Factors on the friction law's capacity and on the bristle stiffness: the
         members of the uncertainty band (:func:`band_members`).
+    out : (tuple of ndarray, tuple of ndarray), optional
+        Contiguous float64 arrays the displacements and frictions are written into.
 
     Returns
     -------
@@ -185,8 +188,9 @@ def stick_slip(
     """
     n = depth_m.shape[0]
     m = len(p_sensor)
-    x_out = tuple(np.empty(n) for _ in range(m))
-    f_out = tuple(np.empty(n) for _ in range(m))
+    if out is None:
+        out = (tuple(np.empty(n) for _ in range(m)), tuple(np.empty(n) for _ in range(m)))
+    x_out, f_out = out
     nu = np.atleast_1d(np.asarray(nu_m2_s, dtype=np.float64))
     if n:
         _kernel(

@@ -49,10 +49,8 @@ logged x every piston takes a quarter of the sum, as before.
 
 What it cannot do: tell which piston slid when the motion is below the play band
 (a tenth of a millimetre): the compensation's uncertainty band covers that case
-(:mod:`transforms.uncertainty`). It does not use the rope springs (each rope's stiffness
-and length offset are unknown to the mine; the research prototype
-``benchmarks/research/stick_slip_prototype.py`` shows that with them known the stop
-error falls to 1.6-1.8 %, with them nominal it rises to 2.5 % median), nor the
+(:mod:`transforms.uncertainty`). It does not use the rope springs (that is
+:mod:`transforms.stick_slip`, on constants identified from the record), nor the
 sensor-to-sensor pressure differences while oil flows.
 
 Measured (``benchmarks/eval_compensation.py``, stop windows of the independent

@@ -196,7 +196,10 @@ class BlockCompensation(BlockSetup):
 
         def solve(m: int) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
             capacity_scale, sigma0_scale = members[m]
-            x = tuple(np.full(n, np.nan) for _ in ROPES)
+            if m == 0:
+                x = tuple(np.full(n, np.nan) for _ in ROPES)
+            else:  # a member's displacements are not kept: this thread's work arrays
+                x = tuple(self.buffer(f"member_x{k}", n) for k in range(len(ROPES)))
             friction = tuple(np.full(n, np.nan) for _ in ROPES)
 
             def run(lo: int, hi: int, state: np.ndarray) -> None:

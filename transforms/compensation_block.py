@@ -130,8 +130,9 @@ class BlockCompensation(BlockSetup):
         return accel, labels
 
     def smoothed_logged(self, k: int) -> np.ndarray | None:
-        """Rope k's logged displacement, smoothed and played (None without a logged x)."""
-        if not self.context.has_x:
+        """Rope k's logged displacement, smoothed and played (None without a logged x, or
+        when the stick-slip solution on the identified ropes replaces the share-out)."""
+        if not self.context.has_x or self.mode == 3:
             return None
         smooth = differential_smooth(
             self.x_jobs[k].result(), self.long_bounds, self.settings, buffer=self.buffer

@@ -137,21 +137,24 @@ def record_context(
 ) -> CompensationContext:
     """The record's statistics for :func:`compensate_blocks`, read block by block.
 
-    ``read(lo, hi)`` as for :func:`compensate_blocks` (only ``time_utc`` and the ``p`` and
-    ``x`` columns are used), ``rows`` the record's number of samples. Rows are numbered
-    across the blocks, so the sample is the one :func:`transforms.compensation.compensate`
-    takes of the whole record in memory, and so are the statistics.
+    ``read(lo, hi)`` as for :func:`compensate_blocks` (``time_utc``, the ``p`` and ``x``
+    columns, and for the ropes' identification over the first
+    :data:`~transforms.rope_identification.IDENTIFY_SPAN` ``depth_m`` and ``oil_temp_c``),
+    ``rows`` the record's number of samples. Rows are numbered across the blocks, so the
+    sample is the one :func:`transforms.compensation.compensate` takes of the whole record
+    in memory, and so are the statistics; the identification's means are taken of its
+    first rows joined (a 0.2 s window may straddle a block's edge).
     """
     settings = settings or CompensationSettings()
     stride = context_stride(rows)
-    parts, means, offset = [], [], 0
+    parts, early, offset = [], [], 0
     for lo, hi in block_edges(start, end, block):
         frame = read(lo, hi)
         parts.append(context_sample(frame, stride, offset=offset).collect())
-        if lo < start + IDENTIFY_SPAN:
-            means.append(record_means(frame, start))
+        if lo < start + IDENTIFY_SPAN:  # the identification's rows, averaged once below
+            early.append(frame.filter(pl.col("time_utc") < start + IDENTIFY_SPAN))
         offset += frame.height
+    means = record_means(pl.concat(early, how="vertical_relaxed"), start) if early else None
     return compensation_context(
-        pl.concat(parts, how="vertical_relaxed"), hoist, settings, stride,
-        means=pl.concat(means, how="vertical_relaxed") if means else None,
-    )  # fmt: skip
+        pl.concat(parts, how="vertical_relaxed"), hoist, settings, stride, means=means
+    )

@@ -216,7 +216,9 @@ class CompensationContext:
     rope_springs : RopeSprings or None
         The head ropes' constants identified from the record
         (:mod:`transforms.rope_identification`); None: not identified (no logged x, no
-        piston motion), the pistons' motion is shared out (:mod:`transforms.piston_motion`).
+        piston motion, no constants fit the logged x to 0.5 mm, or
+        ``CompensationSettings(rope_springs=False)``): the pistons' motion is shared out
+        (:mod:`transforms.piston_motion`).
     """
 
     sample_rate_hz: float

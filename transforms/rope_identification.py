@@ -10,15 +10,17 @@ them. The logged x show it to the logger's 0.1 mm step.
 
 :func:`identify_rope_springs` minimises the mean squared difference between the
 model's x and the logged x over theta = (a_2..a_n, c_2..c_n) (gauge a_1 = 1, c_1 = 0):
-a global search on 2 s means, then a Nelder-Mead polish on 0.4 s means (of the 0.2 s
-means of :func:`record_means`), restarted while it improves. The global search is a
-differential evolution; the objective has a local minimum for each set of ropes taken
-for the odd ones out (a stiffer rope 2 of a simulated record was found as softer ropes
-3 and 4 by one seed in three), so its first population holds each hypothesis "rope j
-is 5 % stiffer or softer than the others" beside the description's nominal ropes, then
-a Latin hypercube. Tried and dropped: sweeping the ropes in turn over grids of each
-one's constants (they are entangled through the gauge rope: from the nominal start it
-stalled at 0.7 mm on validation day 101), and more seeds instead of the hypotheses.
+a global search on every 10th of the 0.2 s means of :func:`record_means` (2 s apart),
+then a Nelder-Mead polish on every 2nd (0.4 s apart), restarted while it improves. The
+global search is a differential evolution; the objective has a local minimum for each
+set of ropes taken for the odd ones out (a stiffer rope 2 of a simulated record was
+found as softer ropes 3 and 4 by one seed in three), so its first population holds each
+hypothesis "rope j is 5 % stiffer or softer than the others" beside the description's
+nominal ropes, then a Latin hypercube. Tried and dropped: sweeping the ropes in turn
+over grids of each one's constants (they are entangled through the gauge rope: from the
+nominal start it stalled at 0.7 mm on validation day 101), and more seeds instead of the
+hypotheses. The branch loss and the viscosity are those the hoist's ``[model] effects``
+declare (a run with other effects identifies on the declared ones).
 The objective is piecewise smooth (a slide starts or not), so no gradient method. Only
 the first :data:`IDENTIFY_SAMPLES` means are used (2 h at 5 Hz): ~10 000 runs of the
 model over them, 5-8 s on two cores for a 2 h record of 50 Hz.
@@ -60,7 +62,7 @@ OFFSET_BOUNDS_M = (-0.015, 0.015)
 POPSIZE, GENERATIONS, RESTARTS = 15, 60, 3
 #: Seeds of the global search (the same record gives the same constants).
 SEEDS = (1,)
-#: Steps of the means the global search and the polish run on [s].
+#: Spacing of the means the global search and the polish take [s] (every k-th mean).
 COARSE_S, POLISH_S = 2.0, 0.4
 #: The means' step (a polars duration) and how many of them the identification uses.
 MEAN_STEP = "200ms"
@@ -177,8 +179,8 @@ def identify_rope_springs(
         Oil viscosity and :func:`physics.sensor_branch.sensor_branch` for the branch
         loss (branch None: none).
     coarse_s, polish_s : float
-        Steps of the means the global search and the polish run on [s] (multiples of
-        the given samples' step).
+        Spacing of the means the global search and the polish take [s] (every k-th of
+        the given samples, k = spacing / their step).
 
     Returns
     -------

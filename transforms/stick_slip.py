@@ -16,7 +16,9 @@ device's own physics, and two constants per rope identified from the record.
   elasto-plastic seal, F' = clip(F + sigma_0 dx, -g(v), g(v)) with the eq 17 capacity
   g(v) = Stribeck + K_v |v| at the piston's last speed
   (:func:`physics.rope_spring.seal_on_rope_step`: LuGre's elastic bristles without its
-  drift under the noise). The branch loss resists a step like a damper, implicitly.
+  drift under the noise). The branch loss resists a step like a damper whose rate is
+  the loss's secant at the piston's last speed (implicit in the step, lagged in the
+  rate: an explicit loss diverged at a throttled valve).
 - The chambers are one closed oil volume (eq 5): A sum_i dx_i = V dp / beta_e(p).
 
 Each dx_i is a monotone, piecewise-linear function of s, so the oil equation has one
@@ -108,9 +110,10 @@ class RopeSprings:
 
 
 def stick_slip_state(pistons: int) -> np.ndarray:
-    """Fresh state of :func:`stick_slip` (``[ran, continues, s, p, then per piston the
-    bristles' force, x, v]``; :func:`transforms.filtering.fresh_state`)."""
-    return np.zeros(4 + 3 * pistons)
+    """Fresh state of :func:`stick_slip` (``[ran, continues, s, p, the ropes' hanging
+    length, then per piston the bristles' force, x, v]``;
+    :func:`transforms.filtering.fresh_state`)."""
+    return np.zeros(5 + 3 * pistons)
 
 
 def _constants(hoist: HoistDescription) -> np.ndarray:
@@ -154,7 +157,7 @@ def stick_slip(
         state is held).
     x_logged : tuple of ndarray
         Each piston's logged displacement [m]: read only at the record's first sample
-        (NaN there: 0).
+        with a known mean pressure (NaN there: 0).
     depth_m : ndarray
         Conveyance depth [m] (the ropes' hanging length; NaN: the last known).
     segment_id : ndarray of int
@@ -249,10 +252,10 @@ def _kernel(
     s, p_last = state[2], state[3]
     if ran:
         for i in range(m):
-            z[i] = state[4 + i]
-            x[i] = state[4 + m + i]
-            v[i] = state[4 + 2 * m + i]
-    hanging = headframe
+            z[i] = state[5 + i]
+            x[i] = state[5 + m + i]
+            v[i] = state[5 + 2 * m + i]
+    hanging = state[4] if ran else headframe  # the last known depth's, carried
     per_sample = nu.shape[0] > 1
     for t in range(n):
         p_mean = 0.0
@@ -323,8 +326,8 @@ def _kernel(
         p_last = p_mean
     if n and ran:
         state[0] = 1.0
-        state[2], state[3] = s, p_last
+        state[2], state[3], state[4] = s, p_last, hanging
         for i in range(m):
-            state[4 + i] = z[i]
-            state[4 + m + i] = x[i]
-            state[4 + 2 * m + i] = v[i]
+            state[5 + i] = z[i]
+            state[5 + m + i] = x[i]
+            state[5 + 2 * m + i] = v[i]

@@ -25,7 +25,7 @@ from physics.friction_law import friction_law_at, law_array
 from physics.oil import effective_bulk_modulus_at
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from transforms.rope_identification import identify_from_means, record_means
-from transforms.stick_slip import RopeSprings, stick_slip
+from transforms.stick_slip import RopeSprings, stick_slip, stick_slip_state
 
 HOIST = load_hoist(EXAMPLE_HOIST)
 AREA = HOIST.cylinders.bore_area_m2
@@ -105,19 +105,27 @@ def test_the_seal_nearest_its_capacity_slides_and_the_others_stick():
 
 
 def test_blocks_give_the_whole_record():
-    p = 4.0e6 + 3.0e5 * np.sin(np.linspace(0, 6 * np.pi, 3000))
+    """Also where the depth is unknown across a block's edge (the last known is kept)."""
+    n_all = 3000
+    p = 4.0e6 + 3.0e5 * np.sin(np.linspace(0, 6 * np.pi, n_all))
+    depth = np.linspace(100.0, 500.0, n_all)
+    depth[990:1010] = np.nan
+    depth[2195:2205] = np.nan
     springs = RopeSprings((1.0, 1.03, 0.98, 1.01), (0.0, 2e-3, -1e-3, 0.5e-3), 0.0, 0)
-    whole_x, whole_f = _run(p, springs)
-    state = np.zeros(16)
-    parts = []
-    for lo, hi in ((0, 1000), (1000, 2200), (2200, 3000)):
-        state[1] = 1.0 if lo else 0.0
+
+    def run(lo: int, hi: int, state: np.ndarray | None = None):
         n = hi - lo
-        zeros, depth, segment = (np.zeros(n),) * 4, np.full(n, DEPTH), np.zeros(n, int)
-        part = stick_slip(
-            (p[lo:hi],) * 4, zeros, depth, segment, HOIST, springs, dt_s=0.01, state=state
+        zeros, segment = (np.zeros(n),) * 4, np.zeros(n, int)
+        return stick_slip(
+            (p[lo:hi],) * 4, zeros, depth[lo:hi], segment, HOIST, springs, dt_s=0.01, state=state
         )
-        parts.append(part)
+
+    whole_x, whole_f = run(0, n_all)
+    state = stick_slip_state(4)
+    parts = []
+    for lo, hi in ((0, 1000), (1000, 2200), (2200, n_all)):
+        state[1] = 1.0 if lo else 0.0
+        parts.append(run(lo, hi, state))
     for i in range(4):
         assert np.array_equal(np.concatenate([part[1][i] for part in parts]), whole_f[i])
         assert np.array_equal(np.concatenate([part[0][i] for part in parts]), whole_x[i])

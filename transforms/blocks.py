@@ -151,7 +151,7 @@ def record_context(
     for lo, hi in block_edges(start, end, block):
         frame = read(lo, hi)
         parts.append(context_sample(frame, stride, offset=offset).collect())
-        if lo < start + IDENTIFY_SPAN:  # the identification's rows, averaged once below
+        if settings.rope_springs and lo < start + IDENTIFY_SPAN:  # averaged once below
             early.append(frame.filter(pl.col("time_utc") < start + IDENTIFY_SPAN))
         offset += frame.height
     means = record_means(pl.concat(early, how="vertical_relaxed"), start) if early else None

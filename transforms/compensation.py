@@ -124,7 +124,7 @@ def compensate(
     stride = context_stride(frame.height)
     context = compensation_context(
         context_sample(frame, stride).collect(), hoist, settings, stride,
-        means=record_means(frame, frame["time_utc"][0]),
+        means=record_means(frame, frame["time_utc"][0]) if settings.rope_springs else None,
     )  # fmt: skip
     result, _ = compensate_window(frame, hoist, context=context, settings=settings, effects=effects)
     return result

@@ -323,8 +323,12 @@ class BlockCompensation(BlockSetup):
 
     def common_mode_into(self, pressures: list[np.ndarray]) -> np.ndarray:
         """The mean pressure; its common mode (:mod:`physics.closed_volume`) is set as the
-        result of ``self.common_mode``, which the piston motion waits for."""
+        result of ``self.common_mode``, which the piston motion's share-out waits for
+        (None on the stick-slip path, which does not use it)."""
         p_mean = mean_horizontal(pressures)
+        if self.mode == 3:  # the stick-slip solution has its own oil: no share-out
+            self.common_mode.set_result(None)
+            return p_mean
         common = np.empty(self.n)
         segment, hoist = self.segment, self.hoist
 

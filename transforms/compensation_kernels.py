@@ -209,16 +209,16 @@ def rope_kernel(
             pc -= sensor_minus_chamber_at(v_flow[i], nu[i] if per_sample else nu[0], branch)
         p_chamber[i] = pc
         f = 0.0
-        if mode != 0:
+        if mode == 3:
+            f = friction[i]  # given: the stick-slip solution's (transforms.stick_slip)
+        elif mode != 0:
             v = 0.0
             if (i > 0 or ran) and x[i] != x_before:  # (a NaN differs too); else 0 / dt is 0
                 step = (x[i] - x_before) / dt_i
                 if same_segment and np.isfinite(step):
                     v = step
             fc, fs, vs, kv = friction_law_at(pc if np.isfinite(pc) else 0.0, law)
-            if mode == 3:
-                f = friction[i]  # given: the stick-slip solution's (transforms.stick_slip)
-            elif mode == 1:
+            if mode == 1:
                 # at standstill g(0) = Fs exactly: no exp needed
                 g = fs if v == 0.0 else stribeck_g(v, fc, fs, vs)
                 f = maxwell_slip_step(deltas, v * dt_i, stiffness, weights, g) + kv * v

@@ -43,7 +43,7 @@ from transforms.filtering import despike_median3, play_kernel
 from transforms.kinematics import smoothed_derivative
 from transforms.lowpass import lowpass, lowpass_work_size
 from transforms.piston_motion import share_out_common_motion
-from transforms.stick_slip import band_members, stick_slip
+from transforms.stick_slip import band_solutions, stick_slip
 from transforms.uncertainty import ensemble_band, rope_band
 
 __all__ = ["BlockCompensation"]
@@ -184,7 +184,7 @@ class BlockCompensation(BlockSetup):
     def stick_slip_motion(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
         """Each piston's displacement and friction from its identified rope spring
         (:mod:`transforms.stick_slip`) over the first stage, and the frictions of the
-        band's members (:func:`~transforms.stick_slip.band_members`); the frictions are
+        band's members (:func:`~transforms.stick_slip.band_solutions`); the frictions are
         kept for the ropes' jobs. NaN outside the stage. Blind motion: none."""
         n, springs = self.n, self.context.rope_springs
         pressures = tuple(job.result() for job in self.p_jobs)
@@ -192,11 +192,11 @@ class BlockCompensation(BlockSetup):
         depth = float_column(self.frame["depth_m"])
         nu = np.atleast_1d(np.asarray(self.nu_job.result(), dtype=float))
         branch = self.branch if self.with_branch_loss else None
-        members = ((1.0, 1.0), *band_members(self.settings.friction_relative_sigma))
+        members = band_solutions(springs, self.settings.friction_relative_sigma)
         self.nxt.springs = self.carry.springs.copy()
 
         def solve(m: int) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
-            capacity_scale, sigma0_scale = members[m]
+            capacity_scale, sigma0_scale, ropes = members[m]
             if m == 0:
                 x = tuple(np.full(n, np.nan) for _ in ROPES)
             else:  # a member's displacements are not kept: this thread's work arrays
@@ -206,7 +206,7 @@ class BlockCompensation(BlockSetup):
             def run(lo: int, hi: int, state: np.ndarray) -> None:
                 stick_slip(
                     tuple(p[lo:hi] for p in pressures), tuple(v[lo:hi] for v in logged),
-                    depth[lo:hi], self.segment[lo:hi], self.hoist, springs,
+                    depth[lo:hi], self.segment[lo:hi], self.hoist, ropes,
                     dt_s=self.dt_nominal, nu_m2_s=nu[lo:hi] if nu.size == n else nu,
                     branch=branch, state=state, capacity_scale=capacity_scale,
                     sigma0_scale=sigma0_scale,

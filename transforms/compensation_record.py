@@ -22,7 +22,7 @@ from schemas.tables import ROPES
 from transforms.filtering import PLAY_STATE_SIZE, first_difference_sigma, fresh_state
 from transforms.piston_motion import share_state
 from transforms.rope_identification import identify_from_means
-from transforms.stick_slip import RopeSprings, band_members, stick_slip_state
+from transforms.stick_slip import MAX_SOLUTIONS, RopeSprings, stick_slip_state
 
 __all__ = [
     "CONTEXT_ROWS",
@@ -321,7 +321,7 @@ class CompensationCarry:
             played=[fresh_state(PLAY_STATE_SIZE) for _ in ropes],
             rope=[fresh_state(ROPE_STATE_BASE + elements) for _ in ropes],
             labels=fresh_state(LABEL_STATE_SIZE),
-            springs=np.stack([stick_slip_state(len(ROPES))] * (1 + len(band_members(0.1)))),
+            springs=np.stack([stick_slip_state(len(ROPES))] * MAX_SOLUTIONS),
         )
 
 

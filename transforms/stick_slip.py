@@ -71,7 +71,37 @@ from physics.rope_spring import head_rope_stiffness_n_m, seal_on_rope_step
 from physics.sensor_branch import sensor_minus_chamber_at
 from schemas.hoist import HoistDescription
 
-__all__ = ["RopeSprings", "band_members", "stick_slip", "stick_slip_state"]
+__all__ = [
+    "MAX_SOLUTIONS",
+    "RopeSprings",
+    "band_members",
+    "band_solutions",
+    "stick_slip",
+    "stick_slip_state",
+]
+
+
+#: The most solutions :func:`band_solutions` gives: the estimate, the four of
+#: :func:`band_members` and one per alternative of the ropes (two halves).
+MAX_SOLUTIONS = 7
+
+
+def band_solutions(
+    springs: RopeSprings, friction_relative_sigma: float
+) -> list[tuple[float, float, RopeSprings]]:
+    """(capacity factor, bristle-stiffness factor, ropes) of the estimate (first) and of
+    each member of the 95 % band: the friction law's members (:func:`band_members`) on
+    the identified ropes, then the estimate's law on each alternative of the ropes (the
+    constants identified on part of the record: what the data leave open about them).
+
+    >>> springs = RopeSprings((1.0, 1.02), (0.0, 1e-3), 1e-4, 100, (((1.0, 1.03), (0.0, 2e-3)),))
+    >>> [(c, s, r.stiffness_factors) for c, s, r in band_solutions(springs, 0.1)][-2:]
+    [(1.0, 2.0, (1.0, 1.02)), (1.0, 1.0, (1.0, 1.03))]
+    """
+    solutions = [(1.0, 1.0, springs)]
+    solutions += [(c, s, springs) for c, s in band_members(friction_relative_sigma)]
+    solutions += [(1.0, 1.0, springs.alternative(k)) for k in range(len(springs.alternatives))]
+    return solutions[:MAX_SOLUTIONS]
 
 
 def band_members(friction_relative_sigma: float) -> tuple[tuple[float, float], ...]:
@@ -101,12 +131,23 @@ class RopeSprings:
         RMS of the model's x minus the logged x over the identification samples [m].
     samples : int
         Samples the identification used.
+    alternatives : tuple of (a, c)
+        The constants identified on each half of those samples
+        (:data:`transforms.rope_identification.SPLITS`): how far the record's data pin
+        the ropes down. Their solutions are members of the uncertainty band
+        (:func:`band_solutions`).
     """
 
     stiffness_factors: tuple[float, ...]
     length_offsets_m: tuple[float, ...]
     mismatch_m: float
     samples: int
+    alternatives: tuple[tuple[tuple[float, ...], tuple[float, ...]], ...] = ()
+
+    def alternative(self, k: int) -> RopeSprings:
+        """The k-th of :attr:`alternatives` as ropes of their own."""
+        a, c = self.alternatives[k]
+        return RopeSprings(a, c, self.mismatch_m, self.samples)
 
 
 def stick_slip_state(pistons: int) -> np.ndarray:

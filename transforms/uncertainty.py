@@ -33,10 +33,10 @@ static range, the honest answer of a pressure-only record.
 Where the ropes are identified (:mod:`transforms.stick_slip`), the forces decide which
 piston slides: there is no blind motion. The friction's part of the band is then the
 spread of the stick-slip solution over what the mine does not know well
-(:func:`transforms.stick_slip.band_members`: the law's capacity +-1.96 x its
-uncertainty, the bristle stiffness halved and doubled), for each rope and, member by
-member summed, for the load (:func:`ensemble_band`); the sensor's noise is added as
-above.
+(:func:`transforms.stick_slip.band_solutions`: the law's capacity +-1.96 x its
+uncertainty, the bristle stiffness halved and doubled, and the ropes' constants as
+identified on each half of the record), for each rope and, member by member summed,
+for the load (:func:`ensemble_band`); the sensor's noise is added as above.
 """
 
 from __future__ import annotations

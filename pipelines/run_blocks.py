@@ -131,7 +131,8 @@ def read_context(
     settings: CompensationSettings,
     block: dt.timedelta,
 ) -> CompensationContext:
-    """The context pass over the whole read (:func:`transforms.blocks.record_context`)."""
+    """The context pass over the whole read (:func:`transforms.blocks.record_context`);
+    identified ropes are remembered in ``<data>/cache/rope_springs``."""
     return record_context(
         lambda lo, hi: samples.scan(lo, hi).select(_CONTEXT_COLUMNS).collect(),
         hoist,
@@ -140,6 +141,7 @@ def read_context(
         rows=extent.rows,
         settings=settings,
         block=block,
+        cache_dir=samples.data.under("cache", "rope_springs"),
     )
 
 

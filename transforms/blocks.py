@@ -36,6 +36,7 @@ from __future__ import annotations
 import datetime as dt
 import itertools
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import polars as pl
 
@@ -134,6 +135,7 @@ def record_context(
     rows: int,
     settings: CompensationSettings | None = None,
     block: dt.timedelta = DEFAULT_BLOCK,
+    cache_dir: Path | None = None,
 ) -> CompensationContext:
     """The record's statistics for :func:`compensate_blocks`, read block by block.
 
@@ -143,7 +145,9 @@ def record_context(
     ``rows`` the record's number of samples. Rows are numbered across the blocks, so the
     sample is the one :func:`transforms.compensation.compensate` takes of the whole record
     in memory, and so are the statistics; the identification's means are taken of its
-    first rows joined (a 0.2 s window may straddle a block's edge).
+    first rows joined (a 0.2 s window may straddle a block's edge); the identified ropes
+    are remembered in ``cache_dir`` (:func:`~transforms.compensation_record.
+    compensation_context`).
     """
     settings = settings or CompensationSettings()
     stride = context_stride(rows)
@@ -156,5 +160,6 @@ def record_context(
         offset += frame.height
     means = record_means(pl.concat(early, how="vertical_relaxed"), start) if early else None
     return compensation_context(
-        pl.concat(parts, how="vertical_relaxed"), hoist, settings, stride, means=means
-    )
+        pl.concat(parts, how="vertical_relaxed"), hoist, settings, stride, means=means,
+        cache_dir=cache_dir,
+    )  # fmt: skip

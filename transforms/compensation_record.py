@@ -10,6 +10,7 @@ itself: :mod:`transforms.compensation`.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import polars as pl
@@ -247,9 +248,12 @@ def compensation_context(
     stride: int,
     *,
     means: pl.DataFrame | None = None,
+    cache_dir: Path | None = None,
 ) -> CompensationContext:
     """:class:`CompensationContext` from a :func:`context_sample` of the record and, to
-    identify the ropes, its :func:`transforms.rope_identification.record_means`."""
+    identify the ropes, its :func:`transforms.rope_identification.record_means` (the
+    ropes remembered in ``cache_dir``, :func:`~transforms.rope_identification.
+    identify_from_means`)."""
     row = sample["_row"].to_numpy()
     first = row % stride == 0
     pair = np.flatnonzero(first[:-1] & (row[1:] == row[:-1] + 1))
@@ -281,7 +285,7 @@ def compensation_context(
     mean = mean_horizontal(pressures) if pressures and row.size else np.empty(0)
     typical = float(np.nanmedian(mean)) if np.isfinite(mean).any() else 0.0
     identify = settings.rope_springs and has_x and means is not None
-    springs = identify_from_means(means, hoist) if identify else None
+    springs = identify_from_means(means, hoist, cache_dir=cache_dir) if identify else None
     return CompensationContext(
         sample_rate_hz=rate_hz,
         spike_sigma=spike_sigma,

@@ -42,11 +42,14 @@ from __future__ import annotations
 
 import datetime as dt
 import hashlib
+import json
+import logging
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import replace
+from dataclasses import asdict, replace
 from itertools import pairwise
+from pathlib import Path
 
 import numpy as np
 import polars as pl
@@ -59,6 +62,7 @@ from schemas.tables import ROPES
 from transforms.stick_slip import RopeSprings, stick_slip
 
 __all__ = [
+    "IDENTIFICATION_VERSION",
     "IDENTIFY_SAMPLES",
     "IDENTIFY_SPAN",
     "MEAN_STEP",
@@ -84,6 +88,9 @@ MEAN_STEP = "200ms"
 IDENTIFY_SAMPLES = 36_000
 #: The span of the record the identification reads, from its first sample.
 IDENTIFY_SPAN = dt.timedelta(seconds=0.2 * IDENTIFY_SAMPLES)
+#: Part of the name of a cached identification (:func:`identify_from_means`): bumped
+#: when the same means would give other ropes.
+IDENTIFICATION_VERSION = "2"
 #: The identification is repeated on this many consecutive parts of the means: their
 #: constants are the ropes' alternatives in the band (``RopeSprings.alternatives``).
 SPLITS = 2
@@ -113,26 +120,41 @@ def record_means(samples: pl.DataFrame | pl.LazyFrame, start: dt.datetime) -> pl
     return lazy.group_by_dynamic("time_utc", every=MEAN_STEP).agg(aggregations).collect()
 
 
-def identify_from_means(means: pl.DataFrame, hoist: HoistDescription) -> RopeSprings | None:
+def identify_from_means(
+    means: pl.DataFrame, hoist: HoistDescription, *, cache_dir: Path | None = None
+) -> RopeSprings | None:
     """:func:`identify_rope_springs` on the first :data:`IDENTIFY_SAMPLES` of
     :func:`record_means` (pressures calibrated here; the branch loss when the hoist
     declares a pipe or local loss, at the record's median oil temperature if the viscosity
-    follows it, else at the reference temperature).
+    follows it, else at the reference temperature), and on each half of them (the
+    alternatives).
 
-    Remembered for the process: the same means of the same hoist (a re-run, the run and
-    the sanity check of one record, a backfill's retry) are not identified again.
+    Remembered for the process, and in ``cache_dir`` (``<data>/cache/rope_springs`` for
+    ``ropeload run``) across processes: the same means of the same hoist (a re-run, the
+    run and the sanity check of one record, a backfill's retry, a flow's task) are not
+    identified again. The file is named by a SHA-256 of the means, the hoist and
+    :data:`IDENTIFICATION_VERSION`; one that does not read as ropes is identified again
+    and replaced.
     """
     means = means.head(IDENTIFY_SAMPLES)
     if means.height < 2:
         return None
-    digest = hashlib.sha256(hoist.model_dump_json().encode())
+    digest = hashlib.sha256(f"{IDENTIFICATION_VERSION}\n{hoist.model_dump_json()}".encode())
     for column in means.columns:
         digest.update(means[column].to_numpy().tobytes())
     key = digest.hexdigest()
     with _LOCK:
-        if key in _IDENTIFIED:
-            return _IDENTIFIED[key]
-    springs = _identify(means, hoist)
+        known, springs = key in _IDENTIFIED, _IDENTIFIED.get(key)
+    path = None if cache_dir is None else cache_dir / f"{key}.json"
+    if path is not None and not known:
+        known, springs = _read_cached(path)
+        if not known:
+            springs = _identify(means, hoist)
+            _write_cached(path, springs)
+    elif path is not None and not path.exists():
+        _write_cached(path, springs)
+    elif not known:
+        springs = _identify(means, hoist)
     with _LOCK:
         _IDENTIFIED[key] = springs
         while len(_IDENTIFIED) > 64:
@@ -140,8 +162,45 @@ def identify_from_means(means: pl.DataFrame, hoist: HoistDescription) -> RopeSpr
     return springs
 
 
+def _read_cached(path: Path) -> tuple[bool, RopeSprings | None]:
+    """(found, ropes) of a file :func:`_write_cached` wrote; (False, None) when it is
+    missing or does not read as ropes (it is then identified again)."""
+    try:
+        payload = json.loads(path.read_text(encoding="utf-8"))
+        if payload is None:
+            return True, None
+        return True, RopeSprings(
+            stiffness_factors=tuple(float(v) for v in payload["stiffness_factors"]),
+            length_offsets_m=tuple(float(v) for v in payload["length_offsets_m"]),
+            mismatch_m=float(payload["mismatch_m"]),
+            samples=int(payload["samples"]),
+            alternatives=tuple(
+                (tuple(float(v) for v in a), tuple(float(v) for v in c))
+                for a, c in payload["alternatives"]
+            ),
+        )
+    except (OSError, ValueError, KeyError, TypeError):
+        return False, None
+
+
+def _write_cached(path: Path, springs: RopeSprings | None) -> None:
+    """Write ``springs`` (or null: nothing identifies the ropes) to ``path``, whole or not
+    at all (a temporary file renamed into place). A data root that cannot take it only
+    loses the shortcut."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        temporary = path.with_name(f".{path.stem}.{os.getpid()}.{threading.get_ident()}.tmp")
+        temporary.write_text(
+            json.dumps(None if springs is None else asdict(springs)), encoding="utf-8"
+        )
+        temporary.replace(path)
+    except OSError as error:
+        _LOG.warning("rope constants not cached in %s: %s", path.parent, error)
+
+
 #: Identified ropes by a digest of the means and the hoist (:func:`identify_from_means`).
 _IDENTIFIED: dict[str, RopeSprings | None] = {}
+_LOG = logging.getLogger(__name__)
 _LOCK = threading.Lock()
 
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import datetime as dt
 import itertools
+import json
 
 import numpy as np
 import polars as pl
@@ -24,7 +25,7 @@ import pytest
 from physics.friction_law import friction_law_at, law_array
 from physics.oil import effective_bulk_modulus_at
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
-from transforms.rope_identification import identify_from_means, record_means
+from transforms.rope_identification import _IDENTIFIED, identify_from_means, record_means
 from transforms.stick_slip import RopeSprings, stick_slip, stick_slip_state
 
 HOIST = load_hoist(EXAMPLE_HOIST)
@@ -182,3 +183,47 @@ def test_no_motion_no_identification():
         }
     )
     assert identify_from_means(record_means(frame, start), HOIST) is None
+
+
+def test_identified_ropes_are_remembered_in_the_data_root(stiff_rope_day, tmp_path):
+    """What another process (a re-run, a flow's task, the sanity check) reads instead of
+    identifying again; a file that does not read as ropes is identified again."""
+    samples, _ = stiff_rope_day
+    means = record_means(samples, samples["time_utc"][0])
+    cache = tmp_path / "cache" / "rope_springs"
+    springs = identify_from_means(means, HOIST, cache_dir=cache)
+    (file,) = cache.glob("*.json")
+    assert len(file.stem) == 64  # a SHA-256, nothing from the data
+    assert set(file.stem) <= set("0123456789abcdef")
+    payload = json.loads(file.read_text())
+    assert payload["stiffness_factors"] == list(springs.stiffness_factors)
+    assert len(payload["alternatives"]) == len(springs.alternatives)
+    payload["stiffness_factors"][1] = 1.5  # proof that the file is what is read
+    file.write_text(json.dumps(payload))
+    _IDENTIFIED.clear()
+    read = identify_from_means(means, HOIST, cache_dir=cache)
+    assert read.stiffness_factors[1] == 1.5
+    assert read.alternatives == springs.alternatives
+
+
+def test_a_cached_file_that_does_not_read_is_identified_again(tmp_path):
+    start = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
+    n = 3000
+    frame = pl.DataFrame(
+        {
+            "time_utc": [start + dt.timedelta(seconds=k / 50) for k in range(n)],
+            **{f"p{i}_pa": np.full(n, 4e6) for i in range(1, 5)},
+            **{f"x{i}_m": np.full(n, 1e-3) for i in range(1, 5)},
+            "depth_m": np.zeros(n),
+            "oil_temp_c": np.full(n, 40.0),
+        }
+    )
+    means = record_means(frame, start)
+    assert identify_from_means(means, HOIST, cache_dir=tmp_path) is None  # at rest
+    (file,) = tmp_path.glob("*.json")
+    assert json.loads(file.read_text()) is None
+    file.write_text('{"stiffness_factors": [1.0')  # cut short
+    _IDENTIFIED.clear()
+    assert identify_from_means(means, HOIST, cache_dir=tmp_path) is None
+    assert json.loads(file.read_text()) is None  # replaced
+    assert not list(tmp_path.glob(".*.tmp"))

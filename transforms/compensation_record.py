@@ -305,6 +305,9 @@ class CompensationCarry:
     margin either side (:func:`compensation_margins_s`); the kernels that feed a second
     filter (the oil's common mode, the pistons' share-out, the play operators) resume
     ``resume_s`` before the block's start, the friction and trip labels at its start.
+    ``springs`` holds one :func:`~transforms.stick_slip.stick_slip_state` row per
+    solution of :func:`~transforms.stick_slip.band_solutions`, in its order (rows past
+    the record's solutions unused).
     """
 
     common: np.ndarray

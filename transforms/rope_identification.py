@@ -23,7 +23,7 @@ hypotheses. The branch loss and the viscosity are those the hoist's ``[model] ef
 declare (a run with other effects identifies on the declared ones).
 The objective is piecewise smooth (a slide starts or not), so no gradient method. Only
 the first :data:`IDENTIFY_SAMPLES` means are used (2 h at 5 Hz): ~10 000 runs of the
-model over them, 5-8 s on two cores for a 2 h record of 50 Hz (three times that with the
+model over them, 5-8 s on two cores for a 2 h record of 50 Hz (about twice that with the
 halves below).
 
 How well the record pins the constants down is measured, not assumed: the same search
@@ -42,24 +42,28 @@ from __future__ import annotations
 
 import datetime as dt
 import hashlib
+import importlib
 import json
 import logging
 import os
+import tempfile
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, replace
+from functools import lru_cache
 from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
 import polars as pl
+import scipy
 from scipy.optimize import OptimizeResult, differential_evolution, minimize
 
 from physics.oil import kinematic_viscosity
 from physics.sensor_branch import sensor_branch
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPES
-from transforms.stick_slip import RopeSprings, stick_slip
+from transforms.stick_slip import MAX_ALTERNATIVES, RopeSprings, stick_slip
 
 __all__ = [
     "IDENTIFICATION_VERSION",
@@ -88,12 +92,13 @@ MEAN_STEP = "200ms"
 IDENTIFY_SAMPLES = 36_000
 #: The span of the record the identification reads, from its first sample.
 IDENTIFY_SPAN = dt.timedelta(seconds=0.2 * IDENTIFY_SAMPLES)
-#: Part of the name of a cached identification (:func:`identify_from_means`): bumped
-#: when the same means would give other ropes.
+#: Part of the name of a cached identification (:func:`identify_from_means`), with the
+#: search's constants, the source of the modules the model runs and the numpy / scipy
+#: versions (:func:`_method_digest`): a file of another method is not read.
 IDENTIFICATION_VERSION = "2"
 #: The identification is repeated on this many consecutive parts of the means: their
 #: constants are the ropes' alternatives in the band (``RopeSprings.alternatives``).
-SPLITS = 2
+SPLITS = MAX_ALTERNATIVES
 #: The most RMS difference between the model's and the logged x the ropes are kept at
 #: [m]: five logger steps. Beyond it the model does not describe the hoist (the 2 h
 #: validation and own records fit to 0.07-0.2 mm) and the compensation keeps the share-out.
@@ -139,7 +144,7 @@ def identify_from_means(
     means = means.head(IDENTIFY_SAMPLES)
     if means.height < 2:
         return None
-    digest = hashlib.sha256(f"{IDENTIFICATION_VERSION}\n{hoist.model_dump_json()}".encode())
+    digest = hashlib.sha256(f"{_method_digest()}\n{hoist.model_dump_json()}".encode())
     for column in means.columns:
         digest.update(means[column].to_numpy().tobytes())
     key = digest.hexdigest()
@@ -162,14 +167,28 @@ def identify_from_means(
     return springs
 
 
+@lru_cache(maxsize=1)
+def _method_digest() -> str:
+    """SHA-256 of what makes the identification's answer: :data:`IDENTIFICATION_VERSION`,
+    the search's constants, the source of the modules its model runs, numpy and scipy."""
+    digest = hashlib.sha256(IDENTIFICATION_VERSION.encode())
+    constants = (STIFFNESS_BOUNDS, OFFSET_BOUNDS_M, POPSIZE, GENERATIONS, RESTARTS, SEEDS,
+                 COARSE_S, POLISH_S, MEAN_STEP, IDENTIFY_SAMPLES, MISMATCH_LIMIT_M, SPLITS,
+                 np.__version__, scipy.__version__)  # fmt: skip
+    digest.update(repr(constants).encode())
+    for name in _MODEL_MODULES:
+        digest.update(Path(importlib.import_module(name).__file__ or "").read_bytes())
+    return digest.hexdigest()
+
+
 def _read_cached(path: Path) -> tuple[bool, RopeSprings | None]:
     """(found, ropes) of a file :func:`_write_cached` wrote; (False, None) when it is
-    missing or does not read as ropes (it is then identified again)."""
+    missing or does not read as ropes of this hoist (it is then identified again)."""
     try:
         payload = json.loads(path.read_text(encoding="utf-8"))
         if payload is None:
             return True, None
-        return True, RopeSprings(
+        springs = RopeSprings(
             stiffness_factors=tuple(float(v) for v in payload["stiffness_factors"]),
             length_offsets_m=tuple(float(v) for v in payload["length_offsets_m"]),
             mismatch_m=float(payload["mismatch_m"]),
@@ -181,25 +200,46 @@ def _read_cached(path: Path) -> tuple[bool, RopeSprings | None]:
         )
     except (OSError, ValueError, KeyError, TypeError):
         return False, None
+    ropes = [springs.stiffness_factors, springs.length_offsets_m]
+    ropes += [part for alternative in springs.alternatives for part in alternative]
+    if len(springs.alternatives) > SPLITS or any(
+        len(values) != len(ROPES) or not np.isfinite(values).all() for values in ropes
+    ):
+        return False, None
+    return True, springs
 
 
 def _write_cached(path: Path, springs: RopeSprings | None) -> None:
     """Write ``springs`` (or null: nothing identifies the ropes) to ``path``, whole or not
-    at all (a temporary file renamed into place). A data root that cannot take it only
-    loses the shortcut."""
+    at all (a temporary file of its own, renamed into place). A data root that cannot
+    take it only loses the shortcut."""
+    temporary = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        temporary = path.with_name(f".{path.stem}.{os.getpid()}.{threading.get_ident()}.tmp")
-        temporary.write_text(
-            json.dumps(None if springs is None else asdict(springs)), encoding="utf-8"
-        )
+        handle, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".tmp")
+        temporary = Path(name)
+        with os.fdopen(handle, "w", encoding="utf-8") as out:
+            json.dump(None if springs is None else asdict(springs), out)
         temporary.replace(path)
+        temporary = None
     except OSError as error:
         _LOG.warning("rope constants not cached in %s: %s", path.parent, error)
+    finally:
+        if temporary is not None:
+            temporary.unlink(missing_ok=True)
 
 
 #: Identified ropes by a digest of the means and the hoist (:func:`identify_from_means`).
 _IDENTIFIED: dict[str, RopeSprings | None] = {}
+#: The modules whose code decides the identified ropes (:func:`_method_digest`).
+_MODEL_MODULES = (
+    __name__,
+    "transforms.stick_slip",
+    "physics.rope_spring",
+    "physics.friction_law",
+    "physics.oil",
+    "physics.sensor_branch",
+)
 _LOG = logging.getLogger(__name__)
 _LOCK = threading.Lock()
 
@@ -244,6 +284,11 @@ def _identify(means: pl.DataFrame, hoist: HoistDescription) -> RopeSprings | Non
         part = identify(slice(lo, hi))
         if part is not None:
             alternatives.append((part.stiffness_factors, part.length_offsets_m))
+        else:  # the band leaves that part's ropes out: narrower where the data say least
+            _LOG.warning(
+                "the ropes were not identified on part %d-%d of %d means; the band "
+                "leaves that part's ropes out", lo, hi, time_s.size,
+            )  # fmt: skip
     return replace(springs, alternatives=tuple(alternatives))
 
 

@@ -85,6 +85,7 @@ from physics.sensor_branch import sensor_minus_chamber_at
 from schemas.hoist import HoistDescription
 
 __all__ = [
+    "MAX_ALTERNATIVES",
     "MAX_SOLUTIONS",
     "RopeSprings",
     "band_members",
@@ -94,9 +95,12 @@ __all__ = [
 ]
 
 
+#: The most alternatives of the ropes a :class:`RopeSprings` carries (one per part of
+#: the record the identification repeats on, :data:`transforms.rope_identification.SPLITS`).
+MAX_ALTERNATIVES = 2
 #: The most solutions :func:`band_solutions` gives: the estimate, the four of
-#: :func:`band_members` and one per alternative of the ropes (two halves).
-MAX_SOLUTIONS = 7
+#: :func:`band_members` and one per alternative of the ropes.
+MAX_SOLUTIONS = 5 + MAX_ALTERNATIVES
 
 
 def band_solutions(
@@ -114,7 +118,10 @@ def band_solutions(
     solutions = [(1.0, 1.0, springs)]
     solutions += [(c, s, springs) for c, s in band_members(friction_relative_sigma)]
     solutions += [(1.0, 1.0, springs.alternative(k)) for k in range(len(springs.alternatives))]
-    return solutions[:MAX_SOLUTIONS]
+    if len(solutions) > MAX_SOLUTIONS:
+        raise ValueError(f"{len(springs.alternatives)} alternatives of the ropes: at most "
+                         f"{MAX_ALTERNATIVES} (MAX_ALTERNATIVES)")  # fmt: skip
+    return solutions
 
 
 def band_members(friction_relative_sigma: float) -> tuple[tuple[float, float], ...]:
@@ -229,8 +236,8 @@ def stick_slip(
     state : ndarray, optional
         :func:`stick_slip_state`, carried from the previous block (updated in place).
     capacity_scale, sigma0_scale : float
-        Factors on the friction law's capacity and on the bristle stiffness: the
-        members of the uncertainty band (:func:`band_members`).
+        Factors on the friction law's capacity and on the bristle stiffness (the
+        uncertainty band's members, :func:`band_solutions`).
     out : (tuple of ndarray, tuple of ndarray), optional
         Contiguous float64 arrays the displacements and frictions are written into.
 

@@ -25,7 +25,8 @@ import pytest
 from physics.friction_law import friction_law_at, law_array
 from physics.oil import effective_bulk_modulus_at
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
-from transforms.rope_identification import _IDENTIFIED, identify_from_means, record_means
+from transforms import rope_identification
+from transforms.rope_identification import identify_from_means, record_means
 from transforms.stick_slip import RopeSprings, stick_slip, stick_slip_state
 
 HOIST = load_hoist(EXAMPLE_HOIST)
@@ -185,9 +186,11 @@ def test_no_motion_no_identification():
     assert identify_from_means(record_means(frame, start), HOIST) is None
 
 
-def test_identified_ropes_are_remembered_in_the_data_root(stiff_rope_day, tmp_path):
+def test_identified_ropes_are_remembered_in_the_data_root(stiff_rope_day, tmp_path, monkeypatch):
     """What another process (a re-run, a flow's task, the sanity check) reads instead of
     identifying again; a file that does not read as ropes is identified again."""
+    memory = dict(rope_identification._IDENTIFIED)  # this test's own, altered below
+    monkeypatch.setattr(rope_identification, "_IDENTIFIED", memory)
     samples, _ = stiff_rope_day
     means = record_means(samples, samples["time_utc"][0])
     cache = tmp_path / "cache" / "rope_springs"
@@ -200,13 +203,14 @@ def test_identified_ropes_are_remembered_in_the_data_root(stiff_rope_day, tmp_pa
     assert len(payload["alternatives"]) == len(springs.alternatives)
     payload["stiffness_factors"][1] = 1.5  # proof that the file is what is read
     file.write_text(json.dumps(payload))
-    _IDENTIFIED.clear()
+    memory.clear()
     read = identify_from_means(means, HOIST, cache_dir=cache)
     assert read.stiffness_factors[1] == 1.5
     assert read.alternatives == springs.alternatives
 
 
-def test_a_cached_file_that_does_not_read_is_identified_again(tmp_path):
+def test_a_cached_file_that_does_not_read_is_identified_again(tmp_path, monkeypatch):
+    monkeypatch.setattr(rope_identification, "_IDENTIFIED", {})
     start = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
     n = 3000
     frame = pl.DataFrame(
@@ -223,7 +227,13 @@ def test_a_cached_file_that_does_not_read_is_identified_again(tmp_path):
     (file,) = tmp_path.glob("*.json")
     assert json.loads(file.read_text()) is None
     file.write_text('{"stiffness_factors": [1.0')  # cut short
-    _IDENTIFIED.clear()
+    rope_identification._IDENTIFIED.clear()
     assert identify_from_means(means, HOIST, cache_dir=tmp_path) is None
     assert json.loads(file.read_text()) is None  # replaced
+    three_ropes = {"stiffness_factors": [1.0, 1.0, 1.0], "length_offsets_m": [0.0, 0.0, 0.0],
+                   "mismatch_m": 1e-4, "samples": 100, "alternatives": []}  # fmt: skip
+    file.write_text(json.dumps(three_ropes))  # not this hoist's four ropes
+    rope_identification._IDENTIFIED.clear()
+    assert identify_from_means(means, HOIST, cache_dir=tmp_path) is None
+    assert json.loads(file.read_text()) is None
     assert not list(tmp_path.glob(".*.tmp"))

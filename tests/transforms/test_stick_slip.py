@@ -171,7 +171,8 @@ def test_the_identification_finds_the_stiffer_rope(stiff_rope_day):
     assert max(rope_2) - min(rope_2) < 0.08
 
 
-def test_no_motion_no_identification():
+def _means_at_rest() -> pl.DataFrame:
+    """The identification's means of a minute at rest (50 Hz, nothing moves)."""
     start = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
     n = 3000
     frame = pl.DataFrame(
@@ -183,7 +184,11 @@ def test_no_motion_no_identification():
             "oil_temp_c": np.full(n, 40.0),
         }
     )
-    assert identify_from_means(record_means(frame, start), HOIST) is None
+    return record_means(frame, start)
+
+
+def test_no_motion_no_identification():
+    assert identify_from_means(_means_at_rest(), HOIST) is None
 
 
 def test_identified_ropes_are_remembered_in_the_data_root(stiff_rope_day, tmp_path, monkeypatch):
@@ -211,18 +216,7 @@ def test_identified_ropes_are_remembered_in_the_data_root(stiff_rope_day, tmp_pa
 
 def test_a_cached_file_that_does_not_read_is_identified_again(tmp_path, monkeypatch):
     monkeypatch.setattr(rope_identification, "_IDENTIFIED", {})
-    start = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
-    n = 3000
-    frame = pl.DataFrame(
-        {
-            "time_utc": [start + dt.timedelta(seconds=k / 50) for k in range(n)],
-            **{f"p{i}_pa": np.full(n, 4e6) for i in range(1, 5)},
-            **{f"x{i}_m": np.full(n, 1e-3) for i in range(1, 5)},
-            "depth_m": np.zeros(n),
-            "oil_temp_c": np.full(n, 40.0),
-        }
-    )
-    means = record_means(frame, start)
+    means = _means_at_rest()
     assert identify_from_means(means, HOIST, cache_dir=tmp_path) is None  # at rest
     (file,) = tmp_path.glob("*.json")
     assert json.loads(file.read_text()) is None

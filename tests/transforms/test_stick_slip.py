@@ -27,7 +27,14 @@ from physics.oil import effective_bulk_modulus_at
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from transforms import rope_identification
 from transforms.rope_identification import identify_from_means, record_means
-from transforms.stick_slip import RopeSprings, stick_slip, stick_slip_state
+from transforms.stick_slip import (
+    MAX_ALTERNATIVES,
+    MAX_SOLUTIONS,
+    RopeSprings,
+    band_solutions,
+    stick_slip,
+    stick_slip_state,
+)
 
 HOIST = load_hoist(EXAMPLE_HOIST)
 AREA = HOIST.cylinders.bore_area_m2
@@ -231,3 +238,15 @@ def test_a_cached_file_that_does_not_read_is_identified_again(tmp_path, monkeypa
     assert identify_from_means(means, HOIST, cache_dir=tmp_path) is None
     assert json.loads(file.read_text()) is None
     assert not list(tmp_path.glob(".*.tmp"))
+
+
+def test_band_solutions_fit_the_carried_state():
+    """One carried state row per solution (transforms.compensation_record): more
+    alternatives than the rows hold is an error, not a member silently left out."""
+    ropes = ((1.0,) * 4, (0.0,) * 4)
+    most = RopeSprings(*ropes, 1e-4, 100, (ropes,) * MAX_ALTERNATIVES)
+    solutions = band_solutions(most, 0.1)
+    assert len(solutions) == MAX_SOLUTIONS
+    assert solutions[0] == (1.0, 1.0, most)  # the estimate first
+    with pytest.raises(ValueError, match="MAX_ALTERNATIVES"):
+        band_solutions(RopeSprings(*ropes, 1e-4, 100, (ropes,) * (MAX_ALTERNATIVES + 1)), 0.1)

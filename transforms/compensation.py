@@ -30,7 +30,8 @@ For each cylinder i of a hoist, per sample:
    out), and the uncompensated T_raw,i = p_sensor,i A_bore (the paper's "before");
 7. a 95 % band for each tension and the load (:mod:`transforms.uncertainty`): the
    friction range the estimate cannot resolve (with identified ropes: the spread of the
-   stick-slip solution over the law's capacity and the bristle stiffness; without:
+   stick-slip solution over the law's capacity, the bristle stiffness and the ropes as
+   identified on each half of the record; without:
    motion only the oil saw and the law's uncertainty) and the sensor noise.
 
 Which corrections apply follows the hoist's ``[model] effects``: ``seal_friction``,

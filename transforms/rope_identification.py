@@ -137,9 +137,9 @@ def identify_from_means(
     Remembered for the process, and in ``cache_dir`` (``<data>/cache/rope_springs`` for
     ``ropeload run``) across processes: the same means of the same hoist (a re-run, the
     run and the sanity check of one record, a backfill's retry, a flow's task) are not
-    identified again. The file is named by a SHA-256 of the means, the hoist and
-    :data:`IDENTIFICATION_VERSION`; one that does not read as ropes is identified again
-    and replaced.
+    identified again. The file is named by a SHA-256 of the means, the hoist and the
+    method (:func:`_method_digest`); one that does not read as this hoist's ropes is
+    identified again and replaced.
     """
     means = means.head(IDENTIFY_SAMPLES)
     if means.height < 2:
@@ -153,13 +153,13 @@ def identify_from_means(
     path = None if cache_dir is None else cache_dir / f"{key}.json"
     if path is not None and not known:
         known, springs = _read_cached(path)
-        if not known:
-            springs = _identify(means, hoist)
-            _write_cached(path, springs)
-    elif path is not None and not path.exists():
-        _write_cached(path, springs)
-    elif not known:
+        on_disk = known
+    else:
+        on_disk = path is None or path.exists()
+    if not known:
         springs = _identify(means, hoist)
+    if path is not None and not on_disk:
+        _write_cached(path, springs)
     with _LOCK:
         _IDENTIFIED[key] = springs
         while len(_IDENTIFIED) > 64:

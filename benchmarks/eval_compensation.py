@@ -18,6 +18,10 @@ Days evaluated:
   ring after each arrival), with windows built from the simulation's truth frame the
   same way: at rest at a named position with a steady payload, from 3 s after the
   arrival or the end of the payload change to 1 s before the next change or departure.
+- ``--sims-lugre N`` more synthetic days whose seals are LuGre's single bristle (the
+  example hoist without ``presliding_hysteresis``, in the data and in its TOML): a
+  second world where ringing shakes the seals loose (LuGre's drift, exactly integrated
+  by :mod:`sims.device`), against which the estimate's drift is checked.
 
 Each day goes the way a mine's data go: the CSV (decompressed into a temporary folder,
 the hoist TOML beside it) is ingested into a fresh data root
@@ -34,7 +38,8 @@ windows where |after| > |before| + 0.2 %-points, the 95 % band coverage and medi
 half-width (from ``load_lo_n``/``load_hi_n`` and ``tension{i}_lo_n``/``tension{i}_hi_n``
 when the landed table has them), the five worst windows, and the issue's targets.
 
-    uv run python benchmarks/eval_compensation.py [--days DIR] [--sims N] [--keep DIR]
+    uv run python benchmarks/eval_compensation.py [--days DIR] [--sims N] [--sims-lugre N]
+                                                  [--keep DIR]
 """
 
 from __future__ import annotations
@@ -186,19 +191,25 @@ def truth_windows(truth: pl.DataFrame, hoist: HoistDescription) -> list[Window]:
     return windows
 
 
-def sims_case(k: int, work: Path) -> DayCase:
-    """Synthetic day ``k``: 2 h at 50 Hz of the example hoist, written as a mine's CSV."""
-    hoist = load_hoist(EXAMPLE_HOIST)
-    date = dt.date(2026, 3, 2) + dt.timedelta(days=k)
+def sims_case(k: int, work: Path, *, lugre: bool = False) -> DayCase:
+    """Synthetic day ``k``: 2 h at 50 Hz of the example hoist, written as a mine's CSV
+    (``lugre``: its seals LuGre's single bristle, in the data and in the TOML)."""
+    text = EXAMPLE_HOIST.read_text()
+    if lugre:
+        text = text.replace('"presliding_hysteresis",', "")
+    name = f"sims_lugre_{k}" if lugre else f"sims_{k}"
+    folder = work / name
+    folder.mkdir(parents=True, exist_ok=True)
+    hoist_path = folder / "sims.hoist.toml"
+    hoist_path.write_text(text)
+    hoist = load_hoist(hoist_path)
+    date = dt.date(2026, 3, 2 + 10 * lugre) + dt.timedelta(days=k)
     day = generate_field_day(
         hoist, date=date, seed=1000 + k, trips=40, hours=2.0, sample_rate_hz=50.0
     )
-    folder = work / f"sims_{k}"
     written = write_field_day(day, folder, formats=("csv",))
-    hoist_path = folder / "sims.hoist.toml"
-    shutil.copyfile(EXAMPLE_HOIST, hoist_path)
     csv = next(p for p in written if p.suffix == ".csv")
-    return DayCase(f"sims_{k} (seed {1000 + k})", csv, hoist_path, truth_windows(day.truth, hoist))
+    return DayCase(f"{name} (seed {1000 + k})", csv, hoist_path, truth_windows(day.truth, hoist))
 
 
 def compensate_day(case: DayCase, root: Path) -> pl.DataFrame:
@@ -341,14 +352,16 @@ def _summary(figures: list[dict]) -> None:
         )
 
 
-def evaluate(days: Path, sims: int, work: Path) -> None:
-    """Evaluate every validation day in ``days`` and ``sims`` synthetic days under ``work``."""
+def evaluate(days: Path, sims: int, work: Path, *, sims_lugre: int = 0) -> None:
+    """Evaluate every validation day in ``days``, ``sims`` synthetic days and
+    ``sims_lugre`` synthetic days with LuGre seals under ``work``."""
     figures = []
     gz_files = sorted(days.glob("*.csv.gz"))
     if not gz_files:
         print(f"no *.csv.gz in {days}")
     cases = [(lambda gz=gz: validation_case(gz, work / "inputs")) for gz in gz_files]
     cases += [(lambda k=k: sims_case(k, work / "inputs")) for k in range(sims)]
+    cases += [(lambda k=k: sims_case(k, work / "inputs", lugre=True)) for k in range(sims_lugre)]
     for make in cases:
         started = time.perf_counter()
         case = make()
@@ -368,16 +381,19 @@ def main() -> None:
     )
     ap.add_argument("--sims", type=int, default=2, help="synthetic days to add (default 2)")
     ap.add_argument(
+        "--sims-lugre", type=int, default=0, help="synthetic days with LuGre seals (default 0)"
+    )
+    ap.add_argument(
         "--keep", type=Path, default=None, help="work in DIR and keep it (inputs, data roots)"
     )
     args = ap.parse_args()
     started = time.perf_counter()
     if args.keep is not None:
         args.keep.mkdir(parents=True, exist_ok=True)
-        evaluate(args.days, args.sims, args.keep.absolute())
+        evaluate(args.days, args.sims, args.keep.absolute(), sims_lugre=args.sims_lugre)
     else:
         with tempfile.TemporaryDirectory(prefix="ropeload-eval-") as tmp:
-            evaluate(args.days, args.sims, Path(tmp))
+            evaluate(args.days, args.sims, Path(tmp), sims_lugre=args.sims_lugre)
     print(f"\nwall time {time.perf_counter() - started:.0f} s")
 
 

@@ -4,6 +4,7 @@ Functions (numba scalar kernels, then the vectorised one)
     :func:`lugre_z_rate` -- dz/dt, eq 15 first line (the ODE form, for integrators).
     :func:`lugre_force_at` -- F = sigma0 z + sigma1 dz/dt + Kv v, eq 15 second line.
     :func:`lugre_z_step` -- exact exponential solution of the first line over a step.
+    :func:`lugre_drift` -- the first line's drift term alone along a travelled path.
     :func:`lugre_force` -- the second line over a step, from z before/after it.
     :func:`lugre_friction` -- the two over a sampled velocity record.
 
@@ -31,7 +32,14 @@ from numba import njit
 from physics._samples import per_sample
 from physics.friction_law import stribeck_g
 
-__all__ = ["lugre_force", "lugre_force_at", "lugre_friction", "lugre_z_rate", "lugre_z_step"]
+__all__ = [
+    "lugre_drift",
+    "lugre_force",
+    "lugre_force_at",
+    "lugre_friction",
+    "lugre_z_rate",
+    "lugre_z_step",
+]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -121,6 +129,31 @@ def lugre_z_step(z: float, v: float, dt: float, sigma0: float, g: float) -> floa
     if rate > 745.0:  # exp underflows to 0: already at the steady state
         return z_ss
     return z_ss + (z - z_ss) * math.exp(-rate)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def lugre_drift(force_n: float, path_m: float, sigma0: float, g: float) -> float:
+    r"""The bristles' force after LuGre's drift along a travelled path [N].
+
+    Eq 15's first line per unit of travel, :math:`dz = dx - \sigma_0 |dx| z / g`, is an
+    elastic part (dz = dx: reversible, the force follows the piston back and forth) and
+    a drift toward 0 proportional to the path |dx| whatever its direction. Along a path
+    s at a fixed g the drift alone gives
+
+    .. math:: F' = F \, e^{-\sigma_0 s / g}
+
+    It is why an oscillation with no net travel shakes a seal loose (the bristles relax
+    by e over each presliding length g / sigma_0 travelled): a step that adds
+    ``sigma0 dx`` (the elastic part) after this one integrates eq 15 to first order in
+    the step. ``force_n`` = sigma_0 z [N], ``path_m`` >= 0 [m], ``sigma0`` [N/m],
+    ``g`` the Stribeck function [N] > 0 (:func:`physics.friction_law.stribeck_g`).
+
+    >>> round(lugre_drift(1000.0, 25e-6, 4e7, 1000.0), 3)   # one presliding length
+    367.879
+    >>> lugre_drift(1000.0, 0.0, 4e7, 1000.0)
+    1000.0
+    """
+    return force_n * math.exp(-sigma0 * path_m / g)
 
 
 @njit(cache=True, nogil=True)

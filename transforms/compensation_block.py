@@ -43,7 +43,7 @@ from transforms.filtering import despike_median3, play_kernel
 from transforms.kinematics import smoothed_derivative
 from transforms.lowpass import lowpass, lowpass_work_size
 from transforms.piston_motion import share_out_common_motion
-from transforms.stick_slip import band_solutions, stick_slip
+from transforms.stick_slip import band_solutions, drift_pressure, stick_slip
 from transforms.uncertainty import ensemble_band, rope_band
 
 __all__ = ["BlockCompensation"]
@@ -192,6 +192,7 @@ class BlockCompensation(BlockSetup):
         depth = float_column(self.frame["depth_m"])
         nu = np.atleast_1d(np.asarray(self.nu_job.result(), dtype=float))
         branch = self.branch if self.with_branch_loss else None
+        drift_p, drift_w = self.drift_pressure(pressures)
         members = band_solutions(springs, self.settings.friction_relative_sigma)
         self.nxt.springs = self.carry.springs.copy()
 
@@ -209,7 +210,8 @@ class BlockCompensation(BlockSetup):
                     depth[lo:hi], self.segment[lo:hi], self.hoist, ropes,
                     dt_s=self.dt_nominal, nu_m2_s=nu[lo:hi] if nu.size == n else nu,
                     branch=branch, state=state, capacity_scale=capacity_scale,
-                    sigma0_scale=sigma0_scale,
+                    sigma0_scale=sigma0_scale, drift_half_width_pa=drift_w,
+                    drift_pressure_pa=None if drift_p is None else drift_p[lo:hi],
                     out=(tuple(v[lo:hi] for v in x), tuple(f[lo:hi] for f in friction)),
                 )  # fmt: skip
 
@@ -222,6 +224,21 @@ class BlockCompensation(BlockSetup):
         self.spring_friction = solutions[0][1]
         self.member_friction = [friction for _, friction in solutions[1:]]
         return solutions[0][0], tuple(np.zeros(n) for _ in ROPES)
+
+    def drift_pressure(self, pressures: tuple[np.ndarray, ...]) -> tuple[np.ndarray | None, float]:
+        """:func:`transforms.stick_slip.drift_pressure` when the seals drift (LuGre's single
+        bristle, :func:`~transforms.stick_slip.seals_drift`), else (None, 0)."""
+        if not self.lugre_seals:
+            return None, 0.0
+        settings, rate = self.settings, self.context.sample_rate_hz
+        cutoff = settings.pressure_cutoff_hz  # the scratch for the highest cutoff serves
+        work = self.buffer(
+            "drift", lowpass_work_size(self.n, sample_rate_hz=rate, cutoff_hz=cutoff)
+        )
+        return drift_pressure(
+            pressures, self.segment, self.hoist, sample_rate_hz=rate,
+            pressure_sigma_pa=settings.pressure_sigma_pa, pressure_cutoff_hz=cutoff, work=work,
+        )  # fmt: skip
 
     def played_motion(self, k: int) -> np.ndarray:
         """Rope k's piston displacement through the play operator of half-width

@@ -29,6 +29,7 @@ from transforms.compensation_record import (
     float_column,
 )
 from transforms.filtering import segment_ids
+from transforms.stick_slip import seals_drift
 
 __all__ = ["BlockSetup", "epoch_us"]
 
@@ -103,6 +104,7 @@ class BlockSetup:
         else:
             self.stiffness, self.weights = np.ones(1), np.ones(1)
         self.mode = 0 if "seal_friction" not in effects else (1 if presliding else 2)
+        self.lugre_seals = seals_drift(effects)  # one bristle per seal: it drifts (LuGre)
         if self.mode and self.context.rope_springs is not None:
             self.mode = 3  # the seals' friction from the ropes (transforms.stick_slip)
         self.law_lines = law_array(law)

@@ -82,17 +82,24 @@ import numpy as np
 from numba import njit
 
 from physics.friction_law import friction_law_at, law_array, stribeck_g
+from physics.lugre import lugre_drift
 from physics.oil import ATMOSPHERIC_PRESSURE_PA, effective_bulk_modulus_at
-from physics.rope_spring import head_rope_stiffness_n_m, seal_on_rope_step
+from physics.rope_spring import bounce_frequency_hz, head_rope_stiffness_n_m, seal_on_rope_step
 from physics.sensor_branch import sensor_minus_chamber_at
+from physics.tension import tail_rope_mass_kg
 from schemas.hoist import HoistDescription
+from transforms.lowpass import lowpass
 
 __all__ = [
+    "DRIFT_CUTOFF_FACTOR",
+    "DRIFT_SIGMAS",
     "MAX_ALTERNATIVES",
     "MAX_SOLUTIONS",
     "RopeSprings",
     "band_members",
     "band_solutions",
+    "drift_pressure",
+    "seals_drift",
     "stick_slip",
     "stick_slip_state",
 ]
@@ -104,6 +111,60 @@ MAX_ALTERNATIVES = 2
 #: The most solutions :func:`band_solutions` gives: the estimate, the four of
 #: :func:`band_members` and one per alternative of the ropes.
 MAX_SOLUTIONS = 5 + MAX_ALTERNATIVES
+#: Half-width of the play on the mean pressure that drives LuGre's drift, in standard
+#: deviations of that mean's noise: the smallest whole number at which the noise alone
+#: (5 kPa white per sensor) drains the seals by < 3 % in 10 min at rest, 50 or 100 Hz
+#: (tests/transforms/test_seal_drift.py); 3 drains 10-13 %.
+DRIFT_SIGMAS = 4.0
+#: The drift's mean pressure is low-passed at this factor on the conveyance's fastest
+#: bounce (the pistons' real back-and-forth; faster is the sensors' noise).
+DRIFT_CUTOFF_FACTOR = 1.5
+
+
+def seals_drift(effects: set[str] | frozenset[str]) -> bool:
+    """Whether the hoist's seals drift: LuGre's single bristle (``seal_friction`` without
+    ``presliding_hysteresis``, whose Maxwell-slip elements hold their force under small
+    oscillations).
+
+    >>> seals_drift({"seal_friction"}), seals_drift({"seal_friction", "presliding_hysteresis"})
+    (True, False)
+    """
+    return "seal_friction" in effects and "presliding_hysteresis" not in effects
+
+
+def drift_pressure(
+    pressures: tuple[np.ndarray, ...],
+    segment_id: np.ndarray,
+    hoist: HoistDescription,
+    *,
+    sample_rate_hz: float,
+    pressure_sigma_pa: float,
+    pressure_cutoff_hz: float,
+    work: np.ndarray | None = None,
+) -> tuple[np.ndarray, float]:
+    """The mean pressure that drives the seals' drift in :func:`stick_slip`, and the
+    half-width of the play on it [Pa].
+
+    The mean of the sensors (already low-passed at ``pressure_cutoff_hz``), low-passed
+    again at :data:`DRIFT_CUTOFF_FACTOR` x the conveyance's fastest bounce
+    (:func:`physics.rope_spring.bounce_frequency_hz`: the pithead, conveyance empty, the
+    tail ropes hanging the whole shaft); the play's half-width is :data:`DRIFT_SIGMAS`
+    x that mean's noise, ``pressure_sigma_pa`` white per sensor through the two filters.
+    ``work``: scratch of :func:`transforms.lowpass.lowpass_work_size` samples.
+    """
+    fastest = bounce_frequency_hz(
+        hoist.ropes.head_rope_axial_stiffness_n, hoist.conveyance.head_ropes,
+        hoist.shaft.headframe_height_m,
+        hoist.conveyance.mass_kg + float(tail_rope_mass_kg(hoist, 0.0)),
+    )  # fmt: skip
+    cutoff = min(DRIFT_CUTOFF_FACTOR * fastest, pressure_cutoff_hz)
+    mean = np.array(pressures[0], dtype=np.float64)
+    for p in pressures[1:]:
+        mean += p
+    mean /= len(pressures)
+    lowpass(mean, segment_id, sample_rate_hz=sample_rate_hz, cutoff_hz=cutoff, out=mean, work=work)
+    share = min(1.0, 2.0 * cutoff / sample_rate_hz)
+    return mean, DRIFT_SIGMAS * pressure_sigma_pa * float(np.sqrt(share / len(pressures)))
 
 
 def band_solutions(
@@ -113,6 +174,8 @@ def band_solutions(
     each member of the 95 % band: the friction law's members (:func:`band_members`) on
     the identified ropes, then the estimate's law on each alternative of the ropes (the
     constants identified on part of the record: what the data leave open about them).
+    With LuGre seals the bristle stiffness also sets how fast they drift
+    (:func:`stick_slip`), so its members span the drift too.
 
     >>> springs = RopeSprings((1.0, 1.02), (0.0, 1e-3), 1e-4, 100, (((1.0, 1.03), (0.0, 2e-3)),))
     >>> [(c, s, r.stiffness_factors) for c, s, r in band_solutions(springs, 0.1)][-2:]
@@ -177,7 +240,7 @@ def stick_slip_state(pistons: int) -> np.ndarray:
     """Fresh state of :func:`stick_slip` (``[ran, continues, s, p, the ropes' hanging
     length, then per piston the bristles' force, x, v]``;
     :func:`transforms.filtering.fresh_state`)."""
-    return np.zeros(5 + 3 * pistons)
+    return np.zeros(6 + 3 * pistons)
 
 
 def _constants(hoist: HoistDescription) -> np.ndarray:
@@ -210,6 +273,8 @@ def stick_slip(
     state: np.ndarray | None = None,
     capacity_scale: float = 1.0,
     sigma0_scale: float = 1.0,
+    drift_pressure_pa: np.ndarray | None = None,
+    drift_half_width_pa: float = 0.0,
     out: tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]] | None = None,
 ) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
     """Each piston's displacement [m] and seal friction [N] (module docstring).
@@ -284,6 +349,10 @@ def stick_slip(
             np.asarray(springs.stiffness_factors, dtype=np.float64),
             np.asarray(springs.length_offsets_m, dtype=np.float64),
             float(capacity_scale),
+            np.zeros(1)
+            if drift_pressure_pa is None
+            else np.ascontiguousarray(drift_pressure_pa, dtype=np.float64),
+            float(drift_half_width_pa) if drift_pressure_pa is not None else 0.0,
             x_out,
             f_out,
             stick_slip_state(m) if state is None else state,
@@ -294,7 +363,7 @@ def stick_slip(
 @njit(cache=True, nogil=True, error_model="numpy")
 def _kernel(
     p_sensor, x_logged, depth, segment, dt, nu, with_loss, branch, const, law, a, c, scale,
-    x_out, f_out, state,
+    drift_p, drift_w, x_out, f_out, state,
 ):  # pragma: no cover - numba  # fmt: skip
     """Per sample: the oil's Newton solve for s, each piston's seal step (module docstring).
 
@@ -314,6 +383,7 @@ def _kernel(
     ran = state[0] != 0.0
     resume = ran and state[1] != 0.0
     s, p_last = state[2], state[3]
+    p_play = state[5 + 3 * m] if resume else np.nan
     if ran:
         for i in range(m):
             z[i] = state[5 + i]
@@ -338,6 +408,7 @@ def _kernel(
         fc, fs, vs, kv = friction_law_at(p_law, law)
         new_segment = (t == 0 and not resume) or (t > 0 and segment[t] != segment[t - 1])
         if new_segment:
+            p_play = np.nan
             for i in range(m):
                 v[i] = 0.0
         for i in range(m):
@@ -365,6 +436,20 @@ def _kernel(
             p_last = p_mean
             continue
         beta = effective_bulk_modulus_at(p_law, beta_l, air, p_ref, 1.0)
+        if drift_w > 0.0:  # LuGre's drift: the bristles relax along the oil's real motion
+            step = 0.0
+            p_d = drift_p[t]
+            if not np.isfinite(p_play):
+                p_play = p_d
+            elif p_d > p_play + drift_w:
+                step = p_d - drift_w - p_play
+            elif p_d < p_play - drift_w:
+                step = p_d + drift_w - p_play
+            p_play += step
+            path = abs(step) * volume / (beta * area * m)  # each piston's share (eq 5)
+            for i in range(m):
+                if cap[i] > 0.0:
+                    z[i] = lugre_drift(z[i], path, sigma0, cap[i])
         target = volume / (beta * area) * (p_mean - p_last)
         ds = 0.0
         for _ in range(40):
@@ -391,6 +476,7 @@ def _kernel(
     if n and ran:
         state[0] = 1.0
         state[2], state[3], state[4] = s, p_last, hanging
+        state[5 + 3 * m] = p_play
         for i in range(m):
             state[5 + i] = z[i]
             state[5 + m + i] = x[i]

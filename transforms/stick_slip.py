@@ -240,7 +240,7 @@ def stick_slip_state(pistons: int) -> np.ndarray:
     """Fresh state of :func:`stick_slip` (``[ran, continues, s, p, the ropes' hanging
     length, then per piston the bristles' force, x, v]``;
     :func:`transforms.filtering.fresh_state`)."""
-    return np.zeros(6 + 3 * pistons)
+    return np.zeros(7 + 3 * pistons)
 
 
 def _constants(hoist: HoistDescription) -> np.ndarray:
@@ -384,6 +384,7 @@ def _kernel(
     resume = ran and state[1] != 0.0
     s, p_last = state[2], state[3]
     p_play = state[5 + 3 * m] if resume else np.nan
+    heading = state[6 + 3 * m] if resume else 0.0  # the play's last direction of travel
     if ran:
         for i in range(m):
             z[i] = state[5 + i]
@@ -409,6 +410,7 @@ def _kernel(
         new_segment = (t == 0 and not resume) or (t > 0 and segment[t] != segment[t - 1])
         if new_segment:
             p_play = np.nan
+            heading = 0.0
             for i in range(m):
                 v[i] = 0.0
         for i in range(m):
@@ -446,7 +448,12 @@ def _kernel(
             elif p_d < p_play - drift_w:
                 step = p_d + drift_w - p_play
             p_play += step
-            path = abs(step) * volume / (beta * area * m)  # each piston's share (eq 5)
+            travel = abs(step)
+            if step != 0.0:
+                if heading * step < 0.0:  # a turn: the play hid 2 w of the input's travel
+                    travel += 2.0 * drift_w
+                heading = 1.0 if step > 0.0 else -1.0
+            path = travel * volume / (beta * area * m)  # each piston's share (eq 5)
             for i in range(m):
                 if cap[i] > 0.0:
                     z[i] = lugre_drift(z[i], path, sigma0, cap[i])
@@ -477,6 +484,7 @@ def _kernel(
         state[0] = 1.0
         state[2], state[3], state[4] = s, p_last, hanging
         state[5 + 3 * m] = p_play
+        state[6 + 3 * m] = heading
         for i in range(m):
             state[5 + i] = z[i]
             state[5 + m + i] = x[i]

@@ -89,6 +89,7 @@ from physics.sensor_branch import sensor_minus_chamber_at
 from physics.tension import tail_rope_mass_kg
 from schemas.hoist import HoistDescription
 from transforms.lowpass import lowpass
+from transforms.uncertainty import Z95
 
 __all__ = [
     "DRIFT_CUTOFF_FACTOR",
@@ -183,7 +184,8 @@ def band_solutions(
     """
     solutions = [(1.0, 1.0, springs)]
     solutions += [(c, s, springs) for c, s in band_members(friction_relative_sigma)]
-    solutions += [(1.0, 1.0, springs.alternative(k)) for k in range(len(springs.alternatives))]
+    alternatives = range(len(springs.alternatives))
+    solutions += [(1.0, 1.0, springs.alternative(k, Z95)) for k in alternatives]
     if len(solutions) > MAX_SOLUTIONS:
         raise ValueError(f"{len(springs.alternatives)} alternatives of the ropes: at most "
                          f"{MAX_ALTERNATIVES} (MAX_ALTERNATIVES)")  # fmt: skip
@@ -230,9 +232,17 @@ class RopeSprings:
     samples: int
     alternatives: tuple[tuple[tuple[float, ...], tuple[float, ...]], ...] = ()
 
-    def alternative(self, k: int) -> RopeSprings:
-        """The k-th of :attr:`alternatives` as ropes of their own."""
+    def alternative(self, k: int, reach: float = 1.0) -> RopeSprings:
+        """Ropes of their own ``reach`` times as far from these as the k-th of
+        :attr:`alternatives` (1: that alternative itself).
+
+        >>> RopeSprings((1.0, 1.02), (0.0, 1e-3), 0.0, 0, (((1.0, 1.03), (0.0, 2e-3)),)
+        ...             ).alternative(0, 2.0).length_offsets_m
+        (0.0, 0.003)
+        """
         a, c = self.alternatives[k]
+        a = tuple(w + reach * (v - w) for v, w in zip(a, self.stiffness_factors, strict=True))
+        c = tuple(w + reach * (v - w) for v, w in zip(c, self.length_offsets_m, strict=True))
         return RopeSprings(a, c, self.mismatch_m, self.samples)
 
 

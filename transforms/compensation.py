@@ -8,16 +8,17 @@ For each cylinder i of a hoist, per sample:
 3. piston motion and seal friction. Where the logged x identify the head ropes
    (:mod:`transforms.rope_identification`: each rope's stiffness and length offset,
    from the first 2 h of the record), the forces decide: each rope is a spring on its
-   piston, each seal elasto-plastic with the eq 17 capacity, and the closed oil volume,
-   A sum dx_i = V dp / beta, fixes the sum of the motions; solved per sample
-   (:mod:`transforms.stick_slip`), it says which piston slides and what friction the
-   sticking ones keep. Otherwise (no logged x, a record at rest, ropes the model does
-   not fit, or ``CompensationSettings(rope_springs=False)``) the oil's motion is shared
-   out to the pistons the smoothed, played logged x show moving, the part within the
-   seals' presliding range equally (:mod:`transforms.piston_motion`); the friction
-   state is then driven by the increments of a play (deadband) operator on that
-   estimate, so residual noise does not move it. The branch flow uses the
-   Savitzky-Golay velocity of the motion;
+   piston, each seal elasto-plastic with the eq 17 capacity (and, for LuGre's single
+   bristle, eq 15's drift along the oil's back-and-forth: a ringing hoist shakes its
+   seals loose), and the closed oil volume, A sum dx_i = V dp / beta, fixes the sum of
+   the motions; solved per sample (:mod:`transforms.stick_slip`), it says which piston
+   slides and what friction the sticking ones keep. Otherwise (no logged x, a record
+   at rest, ropes the model does not fit, or ``CompensationSettings(rope_springs=False)``)
+   the oil's motion is shared out to the pistons the smoothed, played logged x show
+   moving, the part within the seals' presliding range equally
+   (:mod:`transforms.piston_motion`); the friction state is then driven by the
+   increments of a play (deadband) operator on that estimate, so residual noise does
+   not move it. The branch flow uses the Savitzky-Golay velocity of the motion;
 4. chamber pressure: the sensor sits after the globe valve and the first branch part,
    so p_chamber = p_sensor - (p_sensor - p_chamber)(v, T) (paper eq 12-14, contract 1a);
 5. seal friction F_i (without identified ropes): LuGre (paper eq 15, which the paper
@@ -30,8 +31,8 @@ For each cylinder i of a hoist, per sample:
    out), and the uncompensated T_raw,i = p_sensor,i A_bore (the paper's "before");
 7. a 95 % band for each tension and the load (:mod:`transforms.uncertainty`): the
    friction range the estimate cannot resolve (with identified ropes: the spread of the
-   stick-slip solution over the law's capacity, the bristle stiffness and the ropes as
-   identified on each half of the record; without:
+   stick-slip solution over the law's capacity, the bristle stiffness and the ropes
+   1.96 x as far as identified on each half of the record; without:
    motion only the oil saw and the law's uncertainty) and the sensor noise.
 
 Which corrections apply follows the hoist's ``[model] effects``: ``seal_friction``,

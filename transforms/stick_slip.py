@@ -261,7 +261,7 @@ def stick_slip_state(pistons: int) -> np.ndarray:
     """Fresh state of :func:`stick_slip` (``[ran, continues, s, p, the ropes' hanging
     length, then per piston the bristles' force, x, v]``;
     :func:`transforms.filtering.fresh_state`)."""
-    return np.zeros(7 + 3 * pistons)
+    return np.zeros(7 + 4 * pistons)
 
 
 def _constants(hoist: HoistDescription) -> np.ndarray:
@@ -406,6 +406,10 @@ def _kernel(
     s, p_last = state[2], state[3]
     p_play = state[5 + 3 * m] if resume else np.nan
     heading = state[6 + 3 * m] if resume else 0.0  # the play's last direction of travel
+    compliance = np.ones(m)  # each piston's d dx / d demand at its last step
+    if resume:
+        for i in range(m):
+            compliance[i] = state[7 + 3 * m + i]
     if ran:
         for i in range(m):
             z[i] = state[5 + i]
@@ -474,10 +478,11 @@ def _kernel(
                 if heading * step < 0.0:  # a turn: the play hid 2 w of the input's travel
                     travel += 2.0 * drift_w
                 heading = 1.0 if step > 0.0 else -1.0
-            path = travel * volume / (beta * area * m)  # each piston's share (eq 5)
+            # each piston's share of the oil's motion (eq 5), by its compliance
+            path = travel * volume / (beta * area * compliance.sum())
             for i in range(m):
                 if cap[i] > 0.0:
-                    z[i] = lugre_drift(z[i], path, sigma0, cap[i])
+                    z[i] = lugre_drift(z[i], path * compliance[i], sigma0, cap[i])
         target = volume / (beta * area) * (p_mean - p_last)
         ds = 0.0
         for _ in range(40):
@@ -495,7 +500,9 @@ def _kernel(
         s += ds
         for i in range(m):
             demand = ka[i] * (s - x[i] - c[i]) - p_sensor[i][t] * area
-            dx, z[i], _ = seal_on_rope_step(demand, z[i], sigma0, ka[i] + damping[i], cap[i])
+            dx, z[i], compliance[i] = seal_on_rope_step(
+                demand, z[i], sigma0, ka[i] + damping[i], cap[i]
+            )
             x[i] += dx
             v[i] = dx / dt
             x_out[i][t] = x[i]
@@ -506,6 +513,8 @@ def _kernel(
         state[2], state[3], state[4] = s, p_last, hanging
         state[5 + 3 * m] = p_play
         state[6 + 3 * m] = heading
+        for i in range(m):
+            state[7 + 3 * m + i] = compliance[i]
         for i in range(m):
             state[5 + i] = z[i]
             state[5 + m + i] = x[i]

@@ -197,13 +197,15 @@ def sims_case(k: int, work: Path, *, lugre: bool = False) -> DayCase:
     text = EXAMPLE_HOIST.read_text()
     if lugre:
         text = text.replace('"presliding_hysteresis",', "")
+        if text == EXAMPLE_HOIST.read_text():
+            raise RuntimeError(f"{EXAMPLE_HOIST}: no presliding_hysteresis effect to take out")
     name = f"sims_lugre_{k}" if lugre else f"sims_{k}"
     folder = work / name
     folder.mkdir(parents=True, exist_ok=True)
     hoist_path = folder / "sims.hoist.toml"
     hoist_path.write_text(text)
     hoist = load_hoist(hoist_path)
-    date = dt.date(2026, 3, 2 + 10 * lugre) + dt.timedelta(days=k)
+    date = dt.date(2026, 3, 12 if lugre else 2) + dt.timedelta(days=k)
     day = generate_field_day(
         hoist, date=date, seed=1000 + k, trips=40, hours=2.0, sample_rate_hz=50.0
     )

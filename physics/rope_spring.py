@@ -19,12 +19,15 @@ function, :func:`physics.friction_law.stribeck_g`). It is LuGre (paper eq 15) wi
 LuGre's drift: under a small back-and-forth motion LuGre's bristle deflection creeps
 to 0, so the sensor noise that a quasi-static solution turns into micrometres of
 piston motion would drain every seal (a LuGre version of this step did: the stop
-frictions of validation day 101 came out near 0 instead of +-2 kN). Dupont et al.
+frictions of validation day 101 came out near 0 instead of +-2 kN). The drift is
+applied apart, along the oil's real motion only (:func:`physics.lugre.lugre_drift`,
+:mod:`transforms.stick_slip`). Dupont et al.
 (2002) introduced elasto-plastic models for that reason; this is their limit with the
 elastic range up to the capacity, the one-element Maxwell-slip model
 (:func:`physics.maxwell_slip.maxwell_slip_step`) driven by a force.
 
     :func:`head_rope_stiffness_n_m` -- k(z) (numba).
+    :func:`bounce_frequency_hz` -- the conveyance's bounce on its ropes.
     :func:`seal_on_rope_step` -- one quasi-static step of a piston between its rope and
     its seal (numba).
 
@@ -36,7 +39,8 @@ friction models, IEEE TAC 47(5), 787-792, doi:10.1109/TAC.2002.1000274.
 
 from __future__ import annotations
 
-import numpy as np
+import math
+
 from numba import njit
 
 __all__ = ["bounce_frequency_hz", "head_rope_stiffness_n_m", "seal_on_rope_step"]
@@ -66,7 +70,7 @@ def bounce_frequency_hz(
     2.77
     """
     k = head_rope_stiffness_n_m(axial_stiffness_n, hanging_m)
-    return float(np.sqrt(ropes * k / mass_kg) / (2.0 * np.pi))
+    return math.sqrt(ropes * k / mass_kg) / (2.0 * math.pi)
 
 
 @njit(cache=True, nogil=True, inline="always")

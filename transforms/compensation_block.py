@@ -43,7 +43,7 @@ from transforms.filtering import despike_median3, play_kernel
 from transforms.kinematics import smoothed_derivative
 from transforms.lowpass import lowpass, lowpass_work_size
 from transforms.piston_motion import share_out_common_motion
-from transforms.stick_slip import band_solutions, drift_pressure, stick_slip
+from transforms.stick_slip import band_solutions, drift_cutoff_hz, drift_pressure, stick_slip
 from transforms.uncertainty import ensemble_band, rope_band
 
 __all__ = ["BlockCompensation"]
@@ -231,13 +231,14 @@ class BlockCompensation(BlockSetup):
         if not self.lugre_seals:
             return None, 0.0
         settings, rate = self.settings, self.context.sample_rate_hz
-        cutoff = settings.pressure_cutoff_hz  # the scratch for the highest cutoff serves
+        cutoff = drift_cutoff_hz(self.hoist, settings.pressure_cutoff_hz)
         work = self.buffer(
             "drift", lowpass_work_size(self.n, sample_rate_hz=rate, cutoff_hz=cutoff)
-        )
+        )  # the lower cut-off's pad is the longer
         return drift_pressure(
             pressures, self.segment, self.hoist, sample_rate_hz=rate,
-            pressure_sigma_pa=settings.pressure_sigma_pa, pressure_cutoff_hz=cutoff, work=work,
+            pressure_sigma_pa=settings.pressure_sigma_pa,
+            pressure_cutoff_hz=settings.pressure_cutoff_hz, work=work,
         )  # fmt: skip
 
     def played_motion(self, k: int) -> np.ndarray:

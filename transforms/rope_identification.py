@@ -28,10 +28,8 @@ halves below).
 
 How well the record pins the constants down is measured, not assumed: the same search
 runs again on each half of the means (:data:`SPLITS`), and the halves' constants are
-the ropes' alternatives: the uncertainty band's members take the ropes 1.96 x as far
-from the whole record's constants as each half's (a half minus the whole is about one
-standard deviation of the whole's estimate;
-:func:`transforms.stick_slip.band_solutions`). A Hessian of the objective would
+the ropes' alternatives, from which the uncertainty band's rope members are made
+(:func:`transforms.stick_slip.band_solutions`). A Hessian of the objective would
 understate it: the misfit (0.09-0.12 mm RMS on the validation days) is the model's,
 correlated over whole trips, not the logger's white noise, and the objective has
 several basins. On validation days 101 and 103 the halves' stiffness factors differ

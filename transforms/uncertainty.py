@@ -35,9 +35,8 @@ piston slides: there is no blind motion. The friction's part of the band is then
 spread of the stick-slip solution over what the mine does not know well
 (:func:`transforms.stick_slip.band_solutions`: the law's capacity +-1.96 x its
 uncertainty, the bristle stiffness halved and doubled (with LuGre seals also their
-drift's rate), and the ropes' constants 1.96 x as far from the record's as those
-identified on each half of it: a half minus the whole is about one standard deviation
-of the whole's estimate), for each rope and, member by member summed,
+drift's rate), and the ropes' constants reaching 1.96 x as far as those identified on
+each half of the record), for each rope and, member by member summed,
 for the load (:func:`ensemble_band`); the sensor's noise is added as above.
 """
 

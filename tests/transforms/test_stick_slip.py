@@ -113,10 +113,14 @@ def test_the_seal_nearest_its_capacity_slides_and_the_others_stick():
     assert abs(dx_1) > 10 * abs(dx_s)  # the slider took the oil
 
 
-def test_blocks_give_the_whole_record():
-    """Also where the depth is unknown across a block's edge (the last known is kept)."""
+@pytest.mark.parametrize("drift", [False, True])
+def test_blocks_give_the_whole_record(drift):
+    """Also where the depth is unknown across a block's edge (the last known is kept),
+    and with the seals' drift (its play's output, heading and the pistons' compliance
+    carried: a ringing on the pressure makes the play turn across the edges)."""
     n_all = 3000
     p = 4.0e6 + 3.0e5 * np.sin(np.linspace(0, 6 * np.pi, n_all))
+    p += 2.0e4 * np.sin(np.linspace(0, 300 * np.pi, n_all))
     depth = np.linspace(100.0, 500.0, n_all)
     depth[990:1010] = np.nan
     depth[2195:2205] = np.nan
@@ -126,8 +130,10 @@ def test_blocks_give_the_whole_record():
         n = hi - lo
         zeros, segment = (np.zeros(n),) * 4, np.zeros(n, int)
         return stick_slip(
-            (p[lo:hi],) * 4, zeros, depth[lo:hi], segment, HOIST, springs, dt_s=0.01, state=state
-        )
+            (p[lo:hi],) * 4, zeros, depth[lo:hi], segment, HOIST, springs, dt_s=0.01,
+            state=state, drift_pressure_pa=p[lo:hi] if drift else None,
+            drift_half_width_pa=5e3,
+        )  # fmt: skip
 
     whole_x, whole_f = run(0, n_all)
     state = stick_slip_state(4)

@@ -107,7 +107,7 @@ def main() -> None:
     args = parser.parse_args()
     hoist = load_hoist(EXAMPLE_HOIST)
     runs: dict[str, list[float]] = {
-        k: [] for k in ("floor", "read", "compute", "write", "user", "sys", "springs")
+        k: [] for k in ("floor", "read", "compute", "write", "user", "sys", "springs", "drift")
     }
     with tempfile.TemporaryDirectory() as tmp:
         source = Path(tmp) / "day.parquet"
@@ -144,6 +144,11 @@ def main() -> None:
             t4 = time.perf_counter()
             compensate_window(frame, hoist, context=_with_ropes(frame, hoist))
             runs["springs"].append(time.perf_counter() - t4)
+            # and with the seals as LuGre's single bristle, which drift (stick_slip)
+            lugre = set(hoist.model.effects) - {"presliding_hysteresis"}
+            t5 = time.perf_counter()
+            compensate_window(frame, hoist, context=_with_ropes(frame, hoist), effects=lugre)
+            runs["drift"].append(time.perf_counter() - t5)
             del frame, result
 
     med = {k: float(np.median(v)) for k, v in runs.items()}
@@ -176,6 +181,11 @@ def main() -> None:
         f"  compute with identified ropes:       {springs:7.2f} s  "
         f"{n / springs / 1e6:6.2f} M samples/s  ({4 * n / springs / 1e6:.2f} M rope-samples/s)"
         "   (plus the identification, once per record: 14-16 s for 2 h of 50 Hz, whole and halves)"
+    )
+    drift = med["drift"]
+    print(
+        f"  the same, seals drifting (LuGre):    {drift:7.2f} s  "
+        f"{n / drift / 1e6:6.2f} M samples/s  ({4 * n / drift / 1e6:.2f} M rope-samples/s)"
     )
     print(
         f"ratio to floor: {total / floor:.2f}x   "

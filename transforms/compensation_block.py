@@ -43,7 +43,8 @@ from transforms.filtering import despike_median3, play_kernel
 from transforms.kinematics import smoothed_derivative
 from transforms.lowpass import lowpass, lowpass_work_size
 from transforms.piston_motion import share_out_common_motion
-from transforms.stick_slip import band_solutions, drift_cutoff_hz, drift_pressure, stick_slip
+from transforms.seal_drift import drift_cutoff_hz, drift_pressure
+from transforms.stick_slip import band_solutions, stick_slip
 from transforms.uncertainty import ensemble_band, rope_band
 
 __all__ = ["BlockCompensation"]
@@ -226,8 +227,8 @@ class BlockCompensation(BlockSetup):
         return solutions[0][0], tuple(np.zeros(n) for _ in ROPES)
 
     def drift_pressure(self, pressures: tuple[np.ndarray, ...]) -> tuple[np.ndarray | None, float]:
-        """:func:`transforms.stick_slip.drift_pressure` when the seals drift (LuGre's single
-        bristle, :func:`~transforms.stick_slip.seals_drift`), else (None, 0)."""
+        """:func:`transforms.seal_drift.drift_pressure` when the seals drift (LuGre's single
+        bristle, :func:`~transforms.seal_drift.seals_drift`), else (None, 0)."""
         if not self.lugre_seals:
             return None, 0.0
         settings, rate = self.settings, self.context.sample_rate_hz

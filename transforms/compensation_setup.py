@@ -29,7 +29,7 @@ from transforms.compensation_record import (
     float_column,
 )
 from transforms.filtering import segment_ids
-from transforms.stick_slip import seals_drift
+from transforms.seal_drift import seals_drift
 
 __all__ = ["BlockSetup", "epoch_us"]
 

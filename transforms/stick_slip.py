@@ -19,18 +19,12 @@ device's own physics, and two constants per rope identified from the record.
   branch loss resists a step like a damper whose rate is the loss's secant at the
   piston's last speed (implicit in the step, lagged in the rate: an explicit loss
   diverged at a throttled valve).
-- Seals of LuGre's single bristle (``seal_friction`` without ``presliding_hysteresis``,
-  :func:`seals_drift`) also drift: eq 15's -sigma_0 |dx| F / g relaxes them along any
-  back-and-forth path (:func:`physics.lugre.lugre_drift`), which is how a ringing
-  hoist shakes its seals loose. The path is the oil's real motion, (V / beta A) per
-  pascal of the sensors' mean pressure (:func:`drift_pressure`: low-passed at 1.5 x
-  the conveyance's fastest bounce, through a play of :data:`DRIFT_SIGMAS` x its noise so
-  the noise does not drain the seals, counting the 2 w the play hides at each turn of
-  its output), shared out by each piston's compliance at its last step (a sliding
-  piston takes the oil's motion, the sticking ones barely travel). Applied before each
-  sample's elastic step, it makes a monotone motion follow LuGre's presliding curve and
-  an oscillation relax the seals. Maxwell-slip seals hold their force under
-  small oscillations (no drift).
+- Seals of LuGre's single bristle also drift (:mod:`transforms.seal_drift`): eq 15's
+  -sigma_0 |dx| F / g relaxes them along the oil's real back-and-forth, shared out by
+  each piston's compliance at its last step (a sliding piston takes the oil's motion,
+  the sticking ones barely travel) and applied before each sample's elastic step. A
+  monotone motion then follows LuGre's presliding curve and a ringing shakes the seals
+  loose. Maxwell-slip seals do not drift.
 - The chambers are one closed oil volume (eq 5): A sum_i dx_i = V dp / beta_e(p).
 
 Each dx_i is a monotone, piecewise-linear function of s, so the oil equation has one
@@ -98,24 +92,18 @@ from numba import njit
 from physics.friction_law import friction_law_at, law_array, stribeck_g
 from physics.lugre import lugre_drift
 from physics.oil import ATMOSPHERIC_PRESSURE_PA, effective_bulk_modulus_at
-from physics.rope_spring import bounce_frequency_hz, head_rope_stiffness_n_m, seal_on_rope_step
+from physics.rope_spring import head_rope_stiffness_n_m, seal_on_rope_step
 from physics.sensor_branch import sensor_minus_chamber_at
-from physics.tension import tail_rope_mass_kg
 from schemas.hoist import HoistDescription
-from transforms.lowpass import lowpass
+from transforms.seal_drift import played_travel
 from transforms.uncertainty import Z95
 
 __all__ = [
-    "DRIFT_CUTOFF_FACTOR",
-    "DRIFT_SIGMAS",
     "MAX_ALTERNATIVES",
     "MAX_SOLUTIONS",
     "RopeSprings",
     "band_members",
     "band_solutions",
-    "drift_cutoff_hz",
-    "drift_pressure",
-    "seals_drift",
     "stick_slip",
     "stick_slip_state",
 ]
@@ -127,74 +115,6 @@ MAX_ALTERNATIVES = 2
 #: The most solutions :func:`band_solutions` gives: the estimate, the four of
 #: :func:`band_members` and one per alternative of the ropes.
 MAX_SOLUTIONS = 5 + MAX_ALTERNATIVES
-#: Half-width of the play on the mean pressure that drives LuGre's drift, in standard
-#: deviations of that mean's noise: the smallest whole number at which the noise alone
-#: (5 kPa white per sensor) drains the seals by < 3 % in 10 min at rest, at 50 or
-#: 100 Hz, with the validation hoist's oil and bristles (3 drains 4-12 %; measured
-#: apart, session 14). tests/transforms/test_seal_drift.py checks < 5 % on the example
-#: hoist, and that a ringing of 20 kPa still shakes the seals loose.
-DRIFT_SIGMAS = 4.0
-#: The drift's mean pressure is low-passed at this factor on the conveyance's fastest
-#: bounce (the pistons' real back-and-forth; faster is the sensors' noise).
-DRIFT_CUTOFF_FACTOR = 1.5
-
-
-def seals_drift(effects: set[str] | frozenset[str]) -> bool:
-    """Whether the hoist's seals drift: LuGre's single bristle (``seal_friction`` without
-    ``presliding_hysteresis``, whose Maxwell-slip elements hold their force under small
-    oscillations).
-
-    >>> seals_drift({"seal_friction"}), seals_drift({"seal_friction", "presliding_hysteresis"})
-    (True, False)
-    """
-    return "seal_friction" in effects and "presliding_hysteresis" not in effects
-
-
-def drift_cutoff_hz(hoist: HoistDescription, pressure_cutoff_hz: float) -> float:
-    """Cut-off of the drift's mean pressure [Hz]: :data:`DRIFT_CUTOFF_FACTOR` x the
-    conveyance's fastest bounce (:func:`physics.rope_spring.bounce_frequency_hz`: the
-    pithead, conveyance empty, the tail ropes hanging the whole shaft), at most the
-    sensors' own cut-off.
-
-    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
-    >>> round(drift_cutoff_hz(load_hoist(EXAMPLE_HOIST), 10.0), 2)
-    3.97
-    """
-    fastest = bounce_frequency_hz(
-        hoist.ropes.head_rope_axial_stiffness_n, hoist.conveyance.head_ropes,
-        hoist.shaft.headframe_height_m,
-        hoist.conveyance.mass_kg + float(tail_rope_mass_kg(hoist, 0.0)),
-    )  # fmt: skip
-    return min(DRIFT_CUTOFF_FACTOR * fastest, pressure_cutoff_hz)
-
-
-def drift_pressure(
-    pressures: tuple[np.ndarray, ...],
-    segment_id: np.ndarray,
-    hoist: HoistDescription,
-    *,
-    sample_rate_hz: float,
-    pressure_sigma_pa: float,
-    pressure_cutoff_hz: float,
-    work: np.ndarray | None = None,
-) -> tuple[np.ndarray, float]:
-    """The mean pressure that drives the seals' drift in :func:`stick_slip`, and the
-    half-width of the play on it [Pa].
-
-    The mean of the sensors (already low-passed at ``pressure_cutoff_hz``), low-passed
-    again at :func:`drift_cutoff_hz`; the play's half-width is :data:`DRIFT_SIGMAS` x
-    that mean's noise, ``pressure_sigma_pa`` white per sensor through the two filters.
-    ``work``: scratch of :func:`transforms.lowpass.lowpass_work_size` samples at that
-    cut-off.
-    """
-    cutoff = drift_cutoff_hz(hoist, pressure_cutoff_hz)
-    mean = np.array(pressures[0], dtype=np.float64)
-    for p in pressures[1:]:
-        mean += p
-    mean /= len(pressures)
-    lowpass(mean, segment_id, sample_rate_hz=sample_rate_hz, cutoff_hz=cutoff, out=mean, work=work)
-    share = min(1.0, 2.0 * cutoff / sample_rate_hz)
-    return mean, DRIFT_SIGMAS * pressure_sigma_pa * float(np.sqrt(share / len(pressures)))
 
 
 def band_solutions(
@@ -347,10 +267,11 @@ def stick_slip(
         Factors on the friction law's capacity and on the bristle stiffness (the
         uncertainty band's members, :func:`band_solutions`).
     drift_pressure_pa : ndarray, optional
-        The pressure whose played travel drives the seals' drift (:func:`drift_pressure`,
-        one per sample); None: the seals do not drift (Maxwell-slip).
+        The pressure whose played travel drives the seals' drift
+        (:func:`transforms.seal_drift.drift_pressure`, one per sample); None: the seals
+        do not drift (Maxwell-slip).
     drift_half_width_pa : float
-        Half-width of the play on it [Pa] (:func:`drift_pressure`).
+        Half-width of the play on it [Pa] (:func:`transforms.seal_drift.drift_pressure`).
     out : (tuple of ndarray, tuple of ndarray), optional
         Contiguous float64 arrays the displacements and frictions are written into.
 
@@ -409,27 +330,6 @@ def stick_slip(
     return x_out, f_out
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _played_travel(
-    p: float, played: float, heading: float, half_width: float
-) -> tuple[float, float, float]:  # pragma: no cover - numba
-    """One sample of the play on the drift's pressure (:func:`transforms.filtering.
-    play_operator`): (the input's travel it passes [Pa], its new output, its heading).
-    At a turn of the output the input travelled 2 w more than the output: counted.
-    A NaN output (a segment's start) starts at p; a NaN p holds it."""
-    if not np.isfinite(played):
-        return 0.0, p, 0.0
-    step = 0.0
-    if p > played + half_width:
-        step = p - half_width - played
-    elif p < played - half_width:
-        step = p + half_width - played
-    if step == 0.0:
-        return 0.0, played, heading
-    travel = abs(step) + (2.0 * half_width if heading * step < 0.0 else 0.0)
-    return travel, played + step, 1.0 if step > 0.0 else -1.0
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
 def _kernel(
     p_sensor, x_logged, depth, segment, dt, nu, with_loss, branch, const, law, a, c, scale,
@@ -440,7 +340,7 @@ def _kernel(
 
     One function over 80 lines on purpose: the per-sample loop keeps the pistons' state
     in registers; the physics is in :func:`physics.rope_spring.seal_on_rope_step` and
-    :func:`physics.lugre.lugre_drift`, the play in :func:`_played_travel`.
+    :func:`physics.lugre.lugre_drift`, the play in :func:`played_travel`.
     """
     m = len(p_sensor)
     n = depth.shape[0]
@@ -518,7 +418,7 @@ def _kernel(
             continue
         beta = effective_bulk_modulus_at(p_law, beta_l, air, p_ref, 1.0)
         if drift_on:  # LuGre's drift: the bristles relax along the oil's real motion
-            travel, p_play, heading = _played_travel(drift_p[t], p_play, heading, drift_w)
+            travel, p_play, heading = played_travel(drift_p[t], p_play, heading, drift_w)
             shares = compliance.sum()  # each piston's share of the oil's motion (eq 5)
             if travel > 0.0 and 0.0 < shares < np.inf:
                 path = travel * volume / (beta * area * shares)

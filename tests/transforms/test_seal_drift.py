@@ -35,7 +35,8 @@ from sims.field_day import generate_field_day
 from transforms.compensation import compensate
 from transforms.lowpass import lowpass
 from transforms.rope_identification import identify_from_means, record_means
-from transforms.stick_slip import RopeSprings, drift_pressure, seals_drift, stick_slip
+from transforms.seal_drift import drift_pressure, seals_drift
+from transforms.stick_slip import RopeSprings, stick_slip
 
 HOIST = load_hoist(EXAMPLE_HOIST)
 AREA = HOIST.cylinders.bore_area_m2

@@ -1,0 +1,127 @@
+"""LuGre's drift in the stick-slip solution: what shakes a seal loose (issue 13).
+
+A seal of LuGre's single bristle (paper eq 15; ``seal_friction`` without
+``presliding_hysteresis``) relaxes along any back-and-forth path, not only along a
+slide: eq 15's -sigma_0 |dx| F / g (:func:`physics.lugre.lugre_drift`). A ringing
+conveyance moves the pistons back and forth through the oil and shakes their seals
+loose; the validation README's ringing hoist and ropeload's own LuGre simulation both
+show it. Maxwell-slip seals hold their force under small oscillations (no drift).
+
+What the drift needs is the pistons' *real* travel, and a quasi-static solution turns
+the sensors' noise into micrometres of motion that would drain every seal. So the
+travel is read from the sensors' mean pressure (the oil's motion, V / beta A per
+pascal, eq 5), low-passed just above the conveyance's fastest bounce
+(:func:`drift_cutoff_hz`) and passed through a play of :data:`DRIFT_SIGMAS` x its noise
+(:func:`drift_pressure`); the travel the play hides at each turn of its output is
+counted back (:func:`played_travel`). :func:`transforms.stick_slip.stick_slip` shares it
+out by each piston's compliance and applies it before each sample's elastic step.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from physics.rope_spring import bounce_frequency_hz
+from physics.tension import tail_rope_mass_kg
+from schemas.hoist import HoistDescription
+from transforms.lowpass import lowpass
+
+__all__ = [
+    "DRIFT_CUTOFF_FACTOR",
+    "DRIFT_SIGMAS",
+    "drift_cutoff_hz",
+    "drift_pressure",
+    "played_travel",
+    "seals_drift",
+]
+
+#: Half-width of the play on the mean pressure that drives LuGre's drift, in standard
+#: deviations of that mean's noise: the smallest whole number at which the noise alone
+#: (5 kPa white per sensor) drains the seals by < 3 % in 10 min at rest, at 50 or
+#: 100 Hz, with the validation hoist's oil and bristles (3 drains 4-12 %; measured
+#: apart, session 14). tests/transforms/test_seal_drift.py checks < 5 % on the example
+#: hoist, and that a ringing of 20 kPa still shakes the seals loose.
+DRIFT_SIGMAS = 4.0
+#: The drift's mean pressure is low-passed at this factor on the conveyance's fastest
+#: bounce (the pistons' real back-and-forth; faster is the sensors' noise).
+DRIFT_CUTOFF_FACTOR = 1.5
+
+
+def seals_drift(effects: set[str] | frozenset[str]) -> bool:
+    """Whether the hoist's seals drift: LuGre's single bristle (``seal_friction`` without
+    ``presliding_hysteresis``, whose Maxwell-slip elements hold their force under small
+    oscillations).
+
+    >>> seals_drift({"seal_friction"}), seals_drift({"seal_friction", "presliding_hysteresis"})
+    (True, False)
+    """
+    return "seal_friction" in effects and "presliding_hysteresis" not in effects
+
+
+def drift_cutoff_hz(hoist: HoistDescription, pressure_cutoff_hz: float) -> float:
+    """Cut-off of the drift's mean pressure [Hz]: :data:`DRIFT_CUTOFF_FACTOR` x the
+    conveyance's fastest bounce (:func:`physics.rope_spring.bounce_frequency_hz`: the
+    pithead, conveyance empty, the tail ropes hanging the whole shaft), at most the
+    sensors' own cut-off.
+
+    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
+    >>> round(drift_cutoff_hz(load_hoist(EXAMPLE_HOIST), 10.0), 2)
+    3.97
+    """
+    fastest = bounce_frequency_hz(
+        hoist.ropes.head_rope_axial_stiffness_n, hoist.conveyance.head_ropes,
+        hoist.shaft.headframe_height_m,
+        hoist.conveyance.mass_kg + float(tail_rope_mass_kg(hoist, 0.0)),
+    )  # fmt: skip
+    return min(DRIFT_CUTOFF_FACTOR * fastest, pressure_cutoff_hz)
+
+
+def drift_pressure(
+    pressures: tuple[np.ndarray, ...],
+    segment_id: np.ndarray,
+    hoist: HoistDescription,
+    *,
+    sample_rate_hz: float,
+    pressure_sigma_pa: float,
+    pressure_cutoff_hz: float,
+    work: np.ndarray | None = None,
+) -> tuple[np.ndarray, float]:
+    """The mean pressure that drives the seals' drift in
+    :func:`transforms.stick_slip.stick_slip`, and the half-width of the play on it [Pa].
+
+    The mean of the sensors (already low-passed at ``pressure_cutoff_hz``), low-passed
+    again at :func:`drift_cutoff_hz`; the play's half-width is :data:`DRIFT_SIGMAS` x
+    that mean's noise, ``pressure_sigma_pa`` white per sensor through the two filters.
+    ``work``: scratch of :func:`transforms.lowpass.lowpass_work_size` samples at that
+    cut-off.
+    """
+    cutoff = drift_cutoff_hz(hoist, pressure_cutoff_hz)
+    mean = np.array(pressures[0], dtype=np.float64)
+    for p in pressures[1:]:
+        mean += p
+    mean /= len(pressures)
+    lowpass(mean, segment_id, sample_rate_hz=sample_rate_hz, cutoff_hz=cutoff, out=mean, work=work)
+    share = min(1.0, 2.0 * cutoff / sample_rate_hz)
+    return mean, DRIFT_SIGMAS * pressure_sigma_pa * float(np.sqrt(share / len(pressures)))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def played_travel(
+    p: float, played: float, heading: float, half_width: float
+) -> tuple[float, float, float]:  # pragma: no cover - numba
+    """One sample of the play on the drift's pressure (:func:`transforms.filtering.
+    play_operator`): (the input's travel it passes [Pa], its new output, its heading).
+    At a turn of the output the input travelled 2 w more than the output: counted.
+    A NaN output (a segment's start) starts at p; a NaN p holds it."""
+    if not np.isfinite(played):
+        return 0.0, p, 0.0
+    step = 0.0
+    if p > played + half_width:
+        step = p - half_width - played
+    elif p < played - half_width:
+        step = p + half_width - played
+    if step == 0.0:
+        return 0.0, played, heading
+    travel = abs(step) + (2.0 * half_width if heading * step < 0.0 else 0.0)
+    return travel, played + step, 1.0 if step > 0.0 else -1.0

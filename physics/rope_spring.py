@@ -21,7 +21,7 @@ to 0, so the sensor noise that a quasi-static solution turns into micrometres of
 piston motion would drain every seal (a LuGre version of this step did: the stop
 frictions of validation day 101 came out near 0 instead of +-2 kN). The drift is
 applied apart, along the oil's real motion only (:func:`physics.lugre.lugre_drift`,
-:mod:`transforms.stick_slip`). Dupont et al.
+:mod:`transforms.seal_drift`). Dupont et al.
 (2002) introduced elasto-plastic models for that reason; this is their limit with the
 elastic range up to the capacity, the one-element Maxwell-slip model
 (:func:`physics.maxwell_slip.maxwell_slip_step`) driven by a force.

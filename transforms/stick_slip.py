@@ -250,7 +250,8 @@ def stick_slip(
     depth_m : ndarray
         Conveyance depth [m] (the ropes' hanging length; NaN: the last known).
     segment_id : ndarray of int
-        Gap-free segment of each sample: a piston's speed restarts at 0 after a gap.
+        Gap-free segment of each sample: a piston's speed restarts at 0 after a gap, and
+        the drift's play at the new segment's first known pressure.
     hoist : HoistDescription
         Oil volume, bulk modulus, piston area, nominal EA, headframe, friction law.
     springs : RopeSprings
@@ -271,7 +272,8 @@ def stick_slip(
         (:func:`transforms.seal_drift.drift_pressure`, one per sample); None: the seals
         do not drift (Maxwell-slip).
     drift_half_width_pa : float
-        Half-width of the play on it [Pa] (:func:`transforms.seal_drift.drift_pressure`).
+        Half-width of the play on it [Pa] (:func:`transforms.seal_drift.drift_pressure`),
+        >= 0 (0: every wiggle of the drift's pressure counts).
     out : (tuple of ndarray, tuple of ndarray), optional
         Contiguous float64 arrays the displacements and frictions are written into.
 
@@ -305,6 +307,8 @@ def stick_slip(
         drift = np.ascontiguousarray(drift_pressure_pa, dtype=np.float64)
         if drift.shape != (n,):
             raise ValueError(f"drift_pressure_pa has {drift.shape} samples, depth_m {n}")
+        if not drift_half_width_pa >= 0.0:
+            raise ValueError(f"drift_half_width_pa {drift_half_width_pa} must be >= 0")
     if n:
         _kernel(
             tuple(np.ascontiguousarray(p, dtype=np.float64) for p in p_sensor),
@@ -340,7 +344,7 @@ def _kernel(
 
     One function over 80 lines on purpose: the per-sample loop keeps the pistons' state
     in registers; the physics is in :func:`physics.rope_spring.seal_on_rope_step` and
-    :func:`physics.lugre.lugre_drift`, the play in :func:`played_travel`.
+    :func:`physics.lugre.lugre_drift`, the play in :func:`transforms.seal_drift.played_travel`.
     """
     m = len(p_sensor)
     n = depth.shape[0]
@@ -368,10 +372,14 @@ def _kernel(
             v[i] = state[5 + 2 * m + i]
     hanging = state[4] if ran else headframe  # the last known depth's, carried
     per_sample = nu.shape[0] > 1
-    restart = not resume  # a new gap-free segment: noticed even if it starts unknown
     for t in range(n):
-        if t > 0 and segment[t] != segment[t - 1]:
-            restart = True
+        # a new gap-free segment restarts the speeds and the drift's play, also where its
+        # first pressures are unknown (the reset is then carried in the state)
+        if (t == 0 and not resume) or (t > 0 and segment[t] != segment[t - 1]):
+            p_play = np.nan
+            heading = 0.0
+            for i in range(m):
+                v[i] = 0.0
         p_mean = 0.0
         for i in range(m):
             p_mean += p_sensor[i][t]
@@ -386,12 +394,6 @@ def _kernel(
         k = head_rope_stiffness_n_m(ea, hanging)
         p_law = max(p_mean, 1e5)
         fc, fs, vs, kv = friction_law_at(p_law, law)
-        if restart:
-            restart = False
-            p_play = np.nan
-            heading = 0.0
-            for i in range(m):
-                v[i] = 0.0
         for i in range(m):
             ka[i] = a[i] * k
             damping[i] = 0.0

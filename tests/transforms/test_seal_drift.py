@@ -125,7 +125,9 @@ def test_the_play_counts_the_travel_it_hides_at_each_turn():
     want = f0 * kept((amplitude - w) + 2 * amplitude * swings)
     assert [abs(fi[0]) for fi in f] == pytest.approx([f0] * 4, rel=1e-9)
     assert [abs(fi[-1]) for fi in f] == pytest.approx([want] * 4, rel=0.01)
-    assert want < 0.6 * f0 * kept((amplitude - w) + (2 * amplitude - 2 * w) * swings)
+    # what the play's output alone travels would leave the seals more than twice as loaded
+    played_only = f0 * kept((amplitude - w) + (2 * amplitude - 2 * w) * swings)
+    assert max(abs(fi[-1]) for fi in f) < 0.6 * played_only
 
 
 @pytest.mark.parametrize("rate_hz", [50.0, 100.0])

@@ -116,11 +116,14 @@ def test_the_seal_nearest_its_capacity_slides_and_the_others_stick():
 @pytest.mark.parametrize("drift", [False, True])
 def test_blocks_give_the_whole_record(drift):
     """Also where the depth is unknown across a block's edge (the last known is kept),
-    and with the seals' drift (its play's output, heading and the pistons' compliance
-    carried: a ringing on the pressure makes the play turn across the edges)."""
+    with the seals' drift (its play's output, heading and the pistons' compliance
+    carried: a ringing on the pressure makes the play turn across the edges), and where
+    a block's edge falls inside the unknown pressures that start a new segment."""
     n_all = 3000
     p = 4.0e6 + 3.0e5 * np.sin(np.linspace(0, 6 * np.pi, n_all))
     p += 2.0e4 * np.sin(np.linspace(0, 300 * np.pi, n_all))
+    p[1500:1510] = np.nan
+    segment = (np.arange(n_all) >= 1500).astype(int)
     depth = np.linspace(100.0, 500.0, n_all)
     depth[990:1010] = np.nan
     depth[2195:2205] = np.nan
@@ -128,22 +131,31 @@ def test_blocks_give_the_whole_record(drift):
 
     def run(lo: int, hi: int, state: np.ndarray | None = None):
         n = hi - lo
-        zeros, segment = (np.zeros(n),) * 4, np.zeros(n, int)
         return stick_slip(
-            (p[lo:hi],) * 4, zeros, depth[lo:hi], segment, HOIST, springs, dt_s=0.01,
-            state=state, drift_pressure_pa=p[lo:hi] if drift else None,
+            (p[lo:hi],) * 4, (np.zeros(n),) * 4, depth[lo:hi], segment[lo:hi], HOIST, springs,
+            dt_s=0.01, state=state, drift_pressure_pa=p[lo:hi] if drift else None,
             drift_half_width_pa=5e3,
         )  # fmt: skip
 
     whole_x, whole_f = run(0, n_all)
     state = stick_slip_state(4)
     parts = []
-    for lo, hi in ((0, 1000), (1000, 2200), (2200, n_all)):
-        state[1] = 1.0 if lo else 0.0
+    for lo, hi in ((0, 1000), (1000, 1505), (1505, 2200), (2200, n_all)):
+        state[1] = 1.0 if lo and segment[lo] == segment[lo - 1] else 0.0
         parts.append(run(lo, hi, state))
     for i in range(4):
         assert np.array_equal(np.concatenate([part[1][i] for part in parts]), whole_f[i])
         assert np.array_equal(np.concatenate([part[0][i] for part in parts]), whole_x[i])
+
+
+def test_the_drift_pressure_must_fit_the_record():
+    n = 10
+    args = ((np.full(n, 4e6),) * 4, (np.zeros(n),) * 4, np.full(n, 300.0), np.zeros(n, int))
+    with pytest.raises(ValueError, match="drift_pressure_pa has"):
+        stick_slip(*args, HOIST, EQUAL, dt_s=0.01, drift_pressure_pa=np.zeros(n - 1))
+    with pytest.raises(ValueError, match="must be >= 0"):
+        stick_slip(*args, HOIST, EQUAL, dt_s=0.01, drift_pressure_pa=np.zeros(n),
+                   drift_half_width_pa=-1.0)  # fmt: skip
 
 
 @pytest.fixture(scope="module")

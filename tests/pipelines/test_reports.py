@@ -23,8 +23,6 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from pipelines.cli import main
 from pipelines.demo import run_demo
@@ -82,19 +80,21 @@ def test_downsample_keeps_the_global_and_every_bucket_extreme():
     assert not np.any((t_out > t[119_999]) & (t_out < t[120_000]) & np.isfinite(y_out))
 
 
-@settings(max_examples=60, deadline=None)
-@given(
-    values=st.lists(
-        st.one_of(st.floats(-1e6, 1e6, allow_nan=False), st.just(float("nan"))),
-        min_size=1,
-        max_size=300,
-    ),
-    steps=st.lists(st.integers(0, 50), min_size=300, max_size=300),
-    buckets=st.integers(1, 40),
-)
-def test_downsample_matches_the_brute_force_on_any_series(values, steps, buckets):
-    y = np.array(values)
-    t = np.cumsum(np.array(steps[: y.size], dtype=np.int64))
+@pytest.mark.parametrize("seed", range(60))
+def test_downsample_matches_the_brute_force_on_any_series(seed):
+    """Random series (seeded: a property test that cannot flake on threads that touch the
+    global random state): NaN runs, repeated instants, ties, one sample, all NaN."""
+    rng = np.random.default_rng(seed)
+    size = 1 if seed % 6 == 2 else int(rng.integers(1, 301))
+    y = rng.uniform(-1e6, 1e6, size)
+    if seed % 6 == 3:
+        y = np.round(y / 2e5)  # ties
+    y[rng.random(size) < rng.uniform(0.0, 0.5)] = np.nan
+    if seed % 6 == 1:
+        y[:] = np.nan
+    steps = np.zeros(size, np.int64) if seed % 6 == 0 else rng.integers(0, 51, size)
+    buckets = int(rng.integers(1, 41))
+    t = np.cumsum(steps)
     t_out, y_out = downsample_minmax(t, y, buckets)
     finite = np.isfinite(y_out)
     kept = set(zip(t_out[finite].tolist(), y_out[finite].tolist(), strict=True))

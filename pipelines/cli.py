@@ -30,25 +30,20 @@ __all__ = ["main"]
 def _known_errors() -> tuple[type[BaseException], ...]:
     """Errors the user can cause: their message is the one line (no traceback).
 
-    Only evaluated when an exception reaches :func:`main`. Error classes of heavy
-    modules are taken only if the module is loaded (if it is not, it raised nothing).
+    Only evaluated when an exception reaches :func:`main`, and without importing: the
+    error classes of a module are taken only if it is loaded (if it is not, it raised
+    nothing), so an import under a tight memory limit cannot fail the error's own line.
     """
-    import duckdb
-
-    from schemas.hoist import HoistDescriptionError
-    from warehouse.lock import LockTimeoutError
-
-    known: list[type[BaseException]] = [
-        RopeloadError,
-        HoistDescriptionError,
-        FileNotFoundError,
-        duckdb.Error,
-        ValueError,
-        LockTimeoutError,
-    ]
-    run_period = sys.modules.get("pipelines.run_period")
-    if run_period is not None:
-        known.append(run_period.NoSamplesError)
+    known: list[type[BaseException]] = [RopeloadError, FileNotFoundError, ValueError]
+    for module, name in (
+        ("schemas.hoist", "HoistDescriptionError"),
+        ("duckdb", "Error"),
+        ("warehouse.lock", "LockTimeoutError"),
+        ("pipelines.run_period", "NoSamplesError"),
+    ):
+        loaded = sys.modules.get(module)
+        if loaded is not None:
+            known.append(getattr(loaded, name))
     return tuple(known)
 
 

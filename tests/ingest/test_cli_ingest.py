@@ -24,9 +24,9 @@ from warehouse.store import DataRoot, open_reader
 PREFIX = "ropeload ingest: "
 
 
-def _ingest(capsys, data: Path, *args: str | Path) -> tuple[int, str, list[str]]:
+def _ingest(capfd, data: Path, *args: str | Path) -> tuple[int, str, list[str]]:
     code = main(["ingest", "--data", str(data), *map(str, args)])
-    out, err = capsys.readouterr()
+    out, err = capfd.readouterr()
     return code, out, err.splitlines()
 
 
@@ -81,11 +81,11 @@ def _check_refusals(err: list[str], folder: Path, expected: dict[str, str]) -> N
         assert reason in by_file[str(folder / name)], by_file[str(folder / name)]
 
 
-def test_each_kind_of_refusal_exits_1_with_one_line(corpus, tmp_path, capsys):
+def test_each_kind_of_refusal_exits_1_with_one_line(corpus, tmp_path, capfd):
     expected = _bad_files(corpus, tmp_path / "bad")
     for name, reason in expected.items():
         path = tmp_path / "bad" / name
-        code, out, err = _ingest(capsys, tmp_path / f"data-{name}", path)
+        code, out, err = _ingest(capfd, tmp_path / f"data-{name}", path)
         assert code == 1, name
         assert len(err) == 1, err
         assert err[0].startswith(f"{PREFIX}{path}: "), err
@@ -94,20 +94,20 @@ def test_each_kind_of_refusal_exits_1_with_one_line(corpus, tmp_path, capsys):
         assert "refused" in out  # the report is on stdout
 
 
-def test_clean_and_quarantined_files_exit_0_with_nothing_on_stderr(corpus, tmp_path, capsys):
+def test_clean_and_quarantined_files_exit_0_with_nothing_on_stderr(corpus, tmp_path, capfd):
     _good_files(corpus, tmp_path / "good")
-    code, out, err = _ingest(capsys, tmp_path / "data", tmp_path / "good")
+    code, out, err = _ingest(capfd, tmp_path / "data", tmp_path / "good")
     assert (code, err) == (0, [])
     assert "0 refused" in out
     assert _lake_rows(tmp_path / "data") == 29 + 99
 
 
-def test_mixed_folder_lands_the_good_names_each_refused_once_and_again(corpus, tmp_path, capsys):
+def test_mixed_folder_lands_the_good_names_each_refused_once_and_again(corpus, tmp_path, capfd):
     folder = tmp_path / "incoming"
     _good_files(corpus, folder)
     expected = _bad_files(corpus, folder)
     data = tmp_path / "data"
-    code, out, err = _ingest(capsys, data, folder)
+    code, out, err = _ingest(capfd, data, folder)
     assert code == 1
     _check_refusals(err, folder, expected)
     assert _lake_rows(data) == 29 + 99
@@ -118,7 +118,7 @@ def test_mixed_folder_lands_the_good_names_each_refused_once_and_again(corpus, t
     assert quarantined == [(2,)]  # the negative pressure (CSV) and the 75 MPa (TDMS)
 
     # the same folder again: nothing new lands, and every refusal is said again
-    code, out, err = _ingest(capsys, data, folder)
+    code, out, err = _ingest(capfd, data, folder)
     assert code == 1
     _check_refusals(err, folder, expected)
     assert out.count("skipped") == 3
@@ -129,10 +129,10 @@ def test_mixed_folder_lands_the_good_names_each_refused_once_and_again(corpus, t
     assert dict(statuses) == {"landed": 3, "refused": len(expected)}
 
 
-def test_a_renamed_copy_of_a_refused_file_is_refused_again(corpus, tmp_path, capsys):
+def test_a_renamed_copy_of_a_refused_file_is_refused_again(corpus, tmp_path, capfd):
     header = {k: v for k, v in corpus.HEADER.items() if k != "units"}
     first = corpus.csv_file(tmp_path / "a.csv", corpus.data_rows(3), header=header)
-    code, _, err = _ingest(capsys, tmp_path / "data", first)
+    code, _, err = _ingest(capfd, tmp_path / "data", first)
     assert code == 1
     assert err == [
         f"{PREFIX}{first}: lines 1-4: header lacks required key(s) 'units' (found: "
@@ -140,7 +140,7 @@ def test_a_renamed_copy_of_a_refused_file_is_refused_again(corpus, tmp_path, cap
     ]
     copy = tmp_path / "export-again.csv"
     shutil.copy(first, copy)
-    code, out, err = _ingest(capsys, tmp_path / "data", copy)
+    code, out, err = _ingest(capfd, tmp_path / "data", copy)
     assert code == 1
     assert err == [
         f"{PREFIX}{copy}: lines 1-4: header lacks required key(s) 'units' (found: "
@@ -152,26 +152,26 @@ def test_a_renamed_copy_of_a_refused_file_is_refused_again(corpus, tmp_path, cap
     assert rows == [(str(copy), "refused")]  # the latest verdict on this content
 
 
-def test_an_empty_mcap_after_an_empty_csv_is_refused_not_skipped(tmp_path, capsys):
+def test_an_empty_mcap_after_an_empty_csv_is_refused_not_skipped(tmp_path, capfd):
     empty_csv, empty_mcap = tmp_path / "empty.csv", tmp_path / "empty.mcap"
     empty_csv.write_bytes(b"")
     empty_mcap.write_bytes(b"")
-    code, _, err = _ingest(capsys, tmp_path / "data", empty_csv)
+    code, _, err = _ingest(capfd, tmp_path / "data", empty_csv)
     assert (code, err) == (1, [f"{PREFIX}{empty_csv}: empty file (0 bytes): no header, no data"])
-    code, out, err = _ingest(capsys, tmp_path / "data", empty_mcap)
+    code, out, err = _ingest(capfd, tmp_path / "data", empty_mcap)
     assert (code, err) == (1, [f"{PREFIX}{empty_mcap}: empty file (0 bytes): no header, no data"])
     assert "skipped" not in out
     assert "mcap" in out
 
 
 def test_landed_csv_bytes_under_an_mcap_name_are_not_skipped_as_the_same_file(
-    corpus, tmp_path, capsys
+    corpus, tmp_path, capfd
 ):
     good = corpus.csv_file(tmp_path / "day.csv", corpus.data_rows(5))
-    assert _ingest(capsys, tmp_path / "data", good)[0] == 0
+    assert _ingest(capfd, tmp_path / "data", good)[0] == 0
     fake = tmp_path / "day.mcap"
     shutil.copy(good, fake)
-    code, _out, err = _ingest(capsys, tmp_path / "data", fake)
+    code, _out, err = _ingest(capfd, tmp_path / "data", fake)
     assert code == 1
     assert len(err) == 1
     assert err[0].startswith(f"{PREFIX}{fake}: no readable MCAP messages")
@@ -181,20 +181,20 @@ def test_landed_csv_bytes_under_an_mcap_name_are_not_skipped_as_the_same_file(
     assert rows == [(str(good), "landed")]
 
 
-def test_latin1_header_comment_lands_every_row(corpus, tmp_path, capsys):
+def test_latin1_header_comment_lands_every_row(corpus, tmp_path, capfd):
     path = corpus.csv_file(tmp_path / "day.csv", corpus.data_rows(100))
     text = path.read_bytes()
     comment = "# operator: J. Müller – rope change, all OK\n".encode("cp1252")
     path.write_bytes(text.replace(b"# units", comment + b"# units", 1))
-    code, out, err = _ingest(capsys, tmp_path / "data", path)
+    code, out, err = _ingest(capfd, tmp_path / "data", path)
     assert (code, err) == (0, [])
     assert _lake_rows(tmp_path / "data") == 100
     assert "not UTF-8 text, read as cp1252" in out
 
 
-def test_header_only_file_lands_zero_rows_with_exit_0(corpus, tmp_path, capsys):
+def test_header_only_file_lands_zero_rows_with_exit_0(corpus, tmp_path, capfd):
     path = corpus.csv_file(tmp_path / "quiet-hour.csv", [])
-    code, out, err = _ingest(capsys, tmp_path / "data", path)
+    code, out, err = _ingest(capfd, tmp_path / "data", path)
     assert (code, err) == (0, [])
     assert "no data rows" in out
     with open_reader(DataRoot.resolve(tmp_path / "data")) as con:
@@ -212,31 +212,31 @@ def _deep_log(corpus, path: Path) -> Path:
     return corpus.csv_file(path, rows, header=header)
 
 
-def test_ingest_hoist_quarantines_depth_beyond_the_shaft(corpus, tmp_path, capsys):
+def test_ingest_hoist_quarantines_depth_beyond_the_shaft(corpus, tmp_path, capfd):
     path = _deep_log(corpus, tmp_path / "deep.csv")
-    code, _out, err = _ingest(capsys, tmp_path / "data", "--hoist", EXAMPLE_HOIST, path)
+    code, _out, err = _ingest(capfd, tmp_path / "data", "--hoist", EXAMPLE_HOIST, path)
     assert (code, err) == (0, [])
     assert _lake_rows(tmp_path / "data") == 18
     with open_reader(DataRoot.resolve(tmp_path / "data")) as con:
         rows = con.sql("SELECT line, reason FROM quarantine ORDER BY line").fetchall()
     assert rows == [(12, "depth outside the shaft"), (13, "depth outside the shaft")]
     # without the description the shaft depth is unknown: the same rows land
-    code, _, err = _ingest(capsys, tmp_path / "data2", path)
+    code, _, err = _ingest(capfd, tmp_path / "data2", path)
     assert (code, err) == (0, [])
     assert _lake_rows(tmp_path / "data2") == 20
 
 
-def test_ingest_hoist_says_which_files_it_could_not_check(corpus, tmp_path, capsys):
+def test_ingest_hoist_says_which_files_it_could_not_check(corpus, tmp_path, capfd):
     other = corpus.csv_file(tmp_path / "other.csv", corpus.data_rows(3))
-    code, out, err = _ingest(capsys, tmp_path / "data", "--hoist", EXAMPLE_HOIST, other)
+    code, out, err = _ingest(capfd, tmp_path / "data", "--hoist", EXAMPLE_HOIST, other)
     assert (code, err) == (0, [])
     assert "no hoist description for xuzhou-north/main-shaft-1" in " ".join(out.split())
 
 
-def test_ingest_hoist_invalid_description_is_one_line_exit_1(tmp_path, capsys):
+def test_ingest_hoist_invalid_description_is_one_line_exit_1(tmp_path, capfd):
     bad = tmp_path / "bad.toml"
     bad.write_text("[hoist]\nsite = 'x'\n")
-    code, _out, err = _ingest(capsys, tmp_path / "data", "--hoist", bad, tmp_path)
+    code, _out, err = _ingest(capfd, tmp_path / "data", "--hoist", bad, tmp_path)
     assert code == 1
     assert len(err) == 1
     assert err[0].startswith("ropeload ingest: ")
@@ -266,7 +266,7 @@ def test_console_script_exit_status_and_streams(corpus, tmp_path):
 
 
 @pytest.mark.usefixtures("prefect_harness")
-def test_prefect_flow_fails_and_cli_says_the_same_lines(corpus, tmp_path, capsys):
+def test_prefect_flow_fails_and_cli_says_the_same_lines(corpus, tmp_path, capfd):
     from pipelines.flows import ingest_flow
 
     folder = tmp_path / "incoming"
@@ -283,7 +283,7 @@ def test_prefect_flow_fails_and_cli_says_the_same_lines(corpus, tmp_path, capsys
     assert state.is_failed()
     assert f"{folder / 'empty.csv'}: empty file (0 bytes)" in state.message
     code, out, err = _ingest(
-        capsys, tmp_path / "cli-data", "--prefect", "--hoist", EXAMPLE_HOIST, folder
+        capfd, tmp_path / "cli-data", "--prefect", "--hoist", EXAMPLE_HOIST, folder
     )
     assert code == 1
     assert [line for line in err if line.startswith(PREFIX)] == [

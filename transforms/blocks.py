@@ -51,7 +51,8 @@ from transforms.compensation import (
     context_sample,
     context_stride,
 )
-from transforms.rope_identification import IDENTIFY_SPAN, record_means
+from transforms.compensation_record import identification_means
+from transforms.rope_identification import IDENTIFY_SPAN
 
 __all__ = ["DEFAULT_BLOCK", "block_edges", "compensate_blocks", "record_context"]
 
@@ -158,7 +159,11 @@ def record_context(
         if settings.rope_springs and lo < start + IDENTIFY_SPAN:  # averaged once below
             early.append(frame.filter(pl.col("time_utc") < start + IDENTIFY_SPAN))
         offset += frame.height
-    means = record_means(pl.concat(early, how="vertical_relaxed"), start) if early else None
+    means = (
+        identification_means(pl.concat(early, how="vertical_relaxed"), start, hoist, settings)
+        if early
+        else None
+    )
     return compensation_context(
         pl.concat(parts, how="vertical_relaxed"), hoist, settings, stride, means=means,
         cache_dir=cache_dir,

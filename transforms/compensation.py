@@ -65,11 +65,11 @@ from transforms.compensation_record import (
     context_sample,
     context_stride,
     displacement_noise_sigma,
+    identification_means,
     logger_rate_hz,
     rope_cols,
     second_difference_sigma,
 )
-from transforms.rope_identification import record_means
 
 # The public interface of the compensation: its own two functions, and the settings,
 # statistics and carried state defined in transforms.compensation_record.
@@ -126,7 +126,11 @@ def compensate(
     stride = context_stride(frame.height)
     context = compensation_context(
         context_sample(frame, stride).collect(), hoist, settings, stride,
-        means=record_means(frame, frame["time_utc"][0]) if settings.rope_springs else None,
+        means=(
+            identification_means(frame, frame["time_utc"][0], hoist, settings)
+            if settings.rope_springs
+            else None
+        ),
     )  # fmt: skip
     result, _ = compensate_window(frame, hoist, context=context, settings=settings, effects=effects)
     return result

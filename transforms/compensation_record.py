@@ -9,6 +9,7 @@ itself: :mod:`transforms.compensation`.
 
 from __future__ import annotations
 
+import datetime as dt
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -22,7 +23,8 @@ from schemas.hoist import HoistDescription
 from schemas.tables import ROPES
 from transforms.filtering import PLAY_STATE_SIZE, first_difference_sigma, fresh_state
 from transforms.piston_motion import share_state
-from transforms.rope_identification import identify_from_means
+from transforms.rope_identification import IDENTIFY_SPAN, identify_from_means, record_means
+from transforms.seal_drift import drift_travel, seals_drift
 from transforms.stick_slip import MAX_SOLUTIONS, RopeSprings, stick_slip_state
 
 __all__ = [
@@ -38,6 +40,7 @@ __all__ = [
     "context_stride",
     "displacement_noise_sigma",
     "float_column",
+    "identification_means",
     "logger_rate_hz",
     "mean_horizontal",
     "rope_cols",
@@ -239,6 +242,30 @@ def calibrated(frame: pl.DataFrame, column: str, hoist: HoistDescription) -> np.
             np.subtract(values, sensor.offset_pa, out=values)
             np.divide(values, sensor.gain, out=values)
     return values
+
+
+def identification_means(
+    samples: pl.DataFrame, start: dt.datetime, hoist: HoistDescription,
+    settings: CompensationSettings,
+) -> pl.DataFrame:  # fmt: skip
+    """:func:`transforms.rope_identification.record_means` of the record that starts at
+    ``start`` (its time-sorted samples, at least its first
+    :data:`~transforms.rope_identification.IDENTIFY_SPAN`), with each mean's played
+    travel of the seals' drift (``drift_travel_pa``,
+    :func:`transforms.seal_drift.drift_travel`) when the hoist declares seals that drift.
+    The same means whether the record is read whole or block by block."""
+    span = samples.filter(pl.col("time_utc") < start + IDENTIFY_SPAN)
+    if seals_drift(set(hoist.model.effects)) and span.height:
+        epoch = span["time_utc"].dt.cast_time_unit("us").to_physical()
+        travel = drift_travel(
+            tuple(calibrated(span, column, hoist) for column in rope_cols("p{i}_pa")),
+            float_column(epoch, scale=1e-6), hoist,
+            pressure_sigma_pa=settings.pressure_sigma_pa,
+            pressure_cutoff_hz=settings.pressure_cutoff_hz,
+            spike_sigmas=settings.spike_sigmas, gap_factor=settings.gap_factor,
+        )  # fmt: skip
+        span = span.with_columns(pl.Series("drift_travel_pa", travel))
+    return record_means(span, start)
 
 
 def compensation_context(

@@ -37,12 +37,15 @@ from the whole record's by 0.01-0.03 and their length offsets by up to 2 mm, abo
 much as the whole record's constants differ from those the truth windows imply. The
 three searches take 14-16 s for a 2 h record of 50 Hz.
 
-The model identified on is the stick-slip solution without LuGre's drift, also for
-seals that drift: with the drift (on the 0.2 s means, the play at 4 sigma of their
-noise) the misfit grew from 0.090 to 0.134 mm (validation day 101) and from 0.120 to
-0.165 mm (day 103), and the constants moved away from those the truth windows imply
-(rope 2's stiffness 1.088 -> 1.106 against 1.078). The means hide the ringing that
-drives most of the drift; tried in session 14 and not kept.
+Where the seals drift (LuGre's single bristle, :mod:`transforms.seal_drift`), the model
+identified on drifts too, driven by each mean's played travel of the record's
+full-rate samples (``drift_travel_pa``, :func:`transforms.compensation_record.
+identification_means`): a 0.2 s mean hides the 0.8-2.7 Hz bounce that drives most of
+the drift. On the four validation days the misfit fell from 0.090-0.146 mm to
+0.045-0.059 mm and the days' ropes agree with each other (rope 2 1.071-1.080 against
+1.078 from the truth windows; day 104's ringing had taken it for 1.12). A play on the
+means themselves (tried in session 14) made the misfit worse (0.090 -> 0.134 mm on
+day 101): it sees neither the ringing nor the full-rate noise it must ignore.
 """
 
 from __future__ import annotations
@@ -102,7 +105,7 @@ IDENTIFY_SPAN = dt.timedelta(seconds=0.2 * IDENTIFY_SAMPLES)
 #: Part of the name of a cached identification (:func:`identify_from_means`), with the
 #: search's constants, the source of the modules the model runs and the numpy / scipy
 #: versions (:func:`_method_digest`): a file of another method is not read.
-IDENTIFICATION_VERSION = "2"
+IDENTIFICATION_VERSION = "3"
 #: The identification is repeated on this many consecutive parts of the means: their
 #: constants are the ropes' alternatives in the band (``RopeSprings.alternatives``).
 SPLITS = MAX_ALTERNATIVES
@@ -119,7 +122,8 @@ def record_means(samples: pl.DataFrame | pl.LazyFrame, start: dt.datetime) -> pl
     Windows start at multiples of 0.2 s since the epoch, so the means of a record read
     block by block (blocks at whole hours) are those of the record read whole. Columns
     ``time_utc`` (the window's start), the ``p`` and ``x`` columns, ``depth_m``,
-    ``oil_temp_c`` (null where the record has none).
+    ``oil_temp_c`` (null where the record has none), and the sum of ``drift_travel_pa``
+    when the samples have it (:func:`transforms.compensation_record.identification_means`).
     """
     lazy = samples.lazy()
     names = set(lazy.collect_schema().names())
@@ -128,6 +132,8 @@ def record_means(samples: pl.DataFrame | pl.LazyFrame, start: dt.datetime) -> pl
         pl.col(c).cast(pl.Float64).mean() if c in names else pl.lit(None, pl.Float64).alias(c)
         for c in wanted
     ]
+    if "drift_travel_pa" in names:
+        aggregations.append(pl.col("drift_travel_pa").cast(pl.Float64).sum())
     lazy = lazy.filter(pl.col("time_utc") < start + IDENTIFY_SPAN)
     return lazy.group_by_dynamic("time_utc", every=MEAN_STEP).agg(aggregations).collect()
 
@@ -242,6 +248,8 @@ _IDENTIFIED: dict[str, RopeSprings | None] = {}
 _MODEL_MODULES = (
     __name__,
     "transforms.stick_slip",
+    "transforms.seal_drift",
+    "physics.lugre",
     "physics.rope_spring",
     "physics.friction_law",
     "physics.oil",
@@ -270,6 +278,11 @@ def _identify(means: pl.DataFrame, hoist: HoistDescription) -> RopeSprings | Non
     logged = tuple(means[f"x{i}_m"].to_numpy().astype(np.float64) for i in ROPES)
     depth = means["depth_m"].to_numpy().astype(np.float64)
     nu = float(kinematic_viscosity(t_oil, hoist.oil))
+    travel = (
+        means["drift_travel_pa"].to_numpy().astype(np.float64)
+        if "drift_travel_pa" in means.columns
+        else None
+    )
 
     def identify(part: slice) -> RopeSprings | None:
         return identify_rope_springs(
@@ -280,6 +293,7 @@ def _identify(means: pl.DataFrame, hoist: HoistDescription) -> RopeSprings | Non
             hoist,
             nu_m2_s=nu,
             branch=branch,
+            drift_travel_pa=None if travel is None else travel[part],
         )
 
     springs = identify(slice(None))
@@ -310,6 +324,7 @@ def identify_rope_springs(
     branch: np.ndarray | None = None,
     coarse_s: float = COARSE_S,
     polish_s: float = POLISH_S,
+    drift_travel_pa: np.ndarray | None = None,
 ) -> RopeSprings | None:
     """The ropes' constants that make the model's piston motion match the logged x.
 
@@ -327,6 +342,9 @@ def identify_rope_springs(
     coarse_s, polish_s : float
         Spacing of the means the global search and the polish take [s] (every k-th of
         the given samples, k = spacing / their step).
+    drift_travel_pa : ndarray, optional
+        Each mean's played travel of the seals' drift [Pa] (summed over the means a
+        strided sample stands for); None: the seals do not drift.
 
     Returns
     -------
@@ -358,6 +376,12 @@ def identify_rope_springs(
         a = np.r_[1.0, q[: m - 1]]
         return a, np.r_[0.0, q[m - 1 :]] + (a - 1.0) * stretch
 
+    travels = {}
+    if drift_travel_pa is not None:
+        total = np.cumsum(np.nan_to_num(drift_travel_pa))
+        for stride in (every, fine):  # a strided sample's travel: since the one before
+            travels[stride] = np.diff(total[::stride], prepend=0.0)
+
     def mismatch(q: np.ndarray, stride: int) -> float:
         a, c = constants(q)
         springs = RopeSprings(tuple(a), tuple(c), 0, 0)
@@ -371,6 +395,7 @@ def identify_rope_springs(
             dt_s=step * stride,
             nu_m2_s=nu_m2_s,
             branch=branch,
+            drift_travel_pa=travels.get(stride),
         )
         return float(
             np.nanmean(

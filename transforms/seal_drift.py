@@ -15,6 +15,9 @@ pascal, eq 5), low-passed just above the conveyance's fastest bounce
 (:func:`drift_pressure`); the travel the play hides at each turn of its output is
 counted back (:func:`played_travel`). :func:`transforms.stick_slip.stick_slip` shares it
 out by each piston's compliance and applies it before each sample's elastic step.
+The ropes' identification (:mod:`transforms.rope_identification`) runs the same
+solution on 0.2 s means, each with the travel of the full-rate samples it stands for
+(:func:`drift_travel`).
 """
 
 from __future__ import annotations
@@ -24,7 +27,9 @@ from numba import njit
 
 from physics.rope_spring import bounce_frequency_hz
 from physics.tension import tail_rope_mass_kg
+from physics.trip_rule import segment_ids
 from schemas.hoist import HoistDescription
+from transforms.filtering import despike_median3
 from transforms.lowpass import lowpass
 
 __all__ = [
@@ -32,7 +37,9 @@ __all__ = [
     "DRIFT_SIGMAS",
     "drift_cutoff_hz",
     "drift_pressure",
+    "drift_travel",
     "played_travel",
+    "played_travels",
     "seals_drift",
 ]
 
@@ -125,3 +132,62 @@ def played_travel(
         return 0.0, played, heading
     travel = abs(step) + (2.0 * half_width if heading * step < 0.0 else 0.0)
     return travel, played + step, 1.0 if step > 0.0 else -1.0
+
+
+def drift_travel(
+    pressures: tuple[np.ndarray, ...],
+    time_s: np.ndarray,
+    hoist: HoistDescription,
+    *,
+    pressure_sigma_pa: float,
+    pressure_cutoff_hz: float,
+    spike_sigmas: float,
+    gap_factor: float,
+) -> np.ndarray:
+    """Per sample, the travel of the drift's played pressure since the sample before [Pa]:
+    what :func:`transforms.stick_slip.stick_slip` drives the seals' drift with, for a
+    record's full-rate samples (the ropes' identification sums it over each of its
+    means, ``drift_travel_pa``: a 0.2 s mean hides a bounce of 0.8-2.7 Hz).
+
+    ``pressures``: calibrated sensor pressures; despiked and low-passed here as the
+    compensation does (:class:`transforms.compensation_record.CompensationSettings`'s
+    ``spike_sigmas``, ``pressure_cutoff_hz`` at most 0.4 x the logger's rate, gaps beyond
+    ``gap_factor`` steps), then :func:`drift_pressure` and :func:`played_travel`.
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    if t.size < 2:
+        return np.zeros(t.size)
+    rate = 1.0 / float(np.median(np.diff(t)))
+    segment = segment_ids(t, gap_factor=gap_factor, nominal_dt_s=1.0 / rate)
+    cutoff = min(pressure_cutoff_hz, 0.4 * rate)
+    filtered = []
+    for p in pressures:
+        values = despike_median3(p, segment, n_sigmas=spike_sigmas)[0]
+        filtered.append(lowpass(values, segment, sample_rate_hz=rate, cutoff_hz=cutoff, out=values))
+    mean, half_width = drift_pressure(
+        tuple(filtered), segment, hoist, sample_rate_hz=rate,
+        pressure_sigma_pa=pressure_sigma_pa, pressure_cutoff_hz=cutoff,
+    )  # fmt: skip
+    return played_travels(mean, segment, half_width)
+
+
+@njit(cache=True, nogil=True)
+def played_travels(
+    p: np.ndarray, segment: np.ndarray, half_width: float
+) -> np.ndarray:  # pragma: no cover - numba
+    """:func:`played_travel` along a record: each sample's travel [Pa] (0 where p is NaN);
+    a new segment restarts the play at its first known p, as in the stick-slip kernel.
+
+    The input travels 3, 3 and 4; the play's first engagement hides 1 (w):
+
+    >>> played_travels(np.array([0.0, 3.0, 0.0, 4.0]), np.zeros(4, np.int64), 1.0).tolist()
+    [0.0, 2.0, 3.0, 4.0]
+    """
+    out = np.zeros(p.shape[0])
+    played, heading = np.nan, 0.0
+    for t in range(p.shape[0]):
+        if t > 0 and segment[t] != segment[t - 1]:
+            played, heading = np.nan, 0.0
+        if np.isfinite(p[t]):
+            out[t], played, heading = played_travel(p[t], played, heading, half_width)
+    return out

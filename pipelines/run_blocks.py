@@ -43,10 +43,11 @@ __all__ = [
 
 #: What the context pass reads (:func:`transforms.blocks.record_context`).
 _CONTEXT_COLUMNS = [
-    "time_utc", "depth_m", "oil_temp_c", *(f"p{i}_pa" for i in ROPES), *(f"x{i}_m" for i in ROPES)
+    "time_utc", "depth_m", "speed_m_s", "oil_temp_c", *(f"p{i}_pa" for i in ROPES),
+    *(f"x{i}_m" for i in ROPES),
 ]  # fmt: skip
 #: What each block's compensation reads.
-_BLOCK_COLUMNS = [*_CONTEXT_COLUMNS, "speed_m_s"]
+_BLOCK_COLUMNS = _CONTEXT_COLUMNS
 #: What :func:`transforms.alarms.evaluate_alarms` reads of the rope tensions.
 _ALARM_COLUMNS = [
     "time_utc", "trip_id", "depth_m", "speed_m_s", "acceleration_up_m_s2", "load_n",

@@ -142,7 +142,8 @@ def record_context(
 
     ``read(lo, hi)`` as for :func:`compensate_blocks` (``time_utc``, the ``p`` and ``x``
     columns, and for the ropes' identification over the first
-    :data:`~transforms.rope_identification.IDENTIFY_SPAN` ``depth_m`` and ``oil_temp_c``),
+    :data:`~transforms.rope_identification.IDENTIFY_SPAN` ``depth_m``, ``speed_m_s`` and
+    ``oil_temp_c``),
     ``rows`` the record's number of samples. Rows are numbered across the blocks, so the
     sample is the one :func:`transforms.compensation.compensate` takes of the whole record
     in memory, and so are the statistics; the identification's means are taken of its

@@ -43,8 +43,8 @@ from transforms.filtering import despike_median3, play_kernel
 from transforms.kinematics import smoothed_derivative
 from transforms.lowpass import lowpass, lowpass_work_size
 from transforms.piston_motion import share_out_common_motion
-from transforms.seal_drift import drift_cutoff_hz, drift_pressure
-from transforms.stick_slip import band_solutions, stick_slip
+from transforms.seal_drift import drift_cutoff_hz, drift_pressure, ringing_travel
+from transforms.stick_slip import STANDSTILL_M_S, band_solutions, stick_slip
 from transforms.uncertainty import ensemble_band, rope_band
 
 __all__ = ["BlockCompensation"]
@@ -194,6 +194,13 @@ class BlockCompensation(BlockSetup):
         nu = np.atleast_1d(np.asarray(self.nu_job.result(), dtype=float))
         branch = self.branch if self.with_branch_loss else None
         drift_p, drift_w = self.drift_pressure(pressures)
+        ringing = None
+        if drift_p is not None:
+            at_rest = np.abs(float_column(self.frame["speed_m_s"], fill=np.inf)) < STANDSTILL_M_S
+            ringing = ringing_travel(
+                drift_p, self.segment, depth, at_rest, self.hoist,
+                sample_rate_hz=self.context.sample_rate_hz, half_width_pa=drift_w,
+            )  # fmt: skip
         members = band_solutions(springs, self.settings.friction_relative_sigma)
         self.nxt.springs = self.carry.springs.copy()
 
@@ -213,6 +220,7 @@ class BlockCompensation(BlockSetup):
                     branch=branch, state=state, capacity_scale=capacity_scale,
                     sigma0_scale=sigma0_scale, drift_half_width_pa=drift_w,
                     drift_pressure_pa=None if drift_p is None else drift_p[lo:hi],
+                    drift_ringing_pa=None if ringing is None else ringing[lo:hi],
                     out=(tuple(v[lo:hi] for v in x), tuple(f[lo:hi] for f in friction)),
                 )  # fmt: skip
 

@@ -24,8 +24,13 @@ from schemas.tables import ROPES
 from transforms.filtering import PLAY_STATE_SIZE, first_difference_sigma, fresh_state
 from transforms.piston_motion import share_state
 from transforms.rope_identification import IDENTIFY_SPAN, identify_from_means, record_means
-from transforms.seal_drift import drift_travel, seals_drift
-from transforms.stick_slip import MAX_SOLUTIONS, RopeSprings, stick_slip_state
+from transforms.seal_drift import RINGING_BANDWIDTH_HZ, drift_travel, seals_drift
+from transforms.stick_slip import (
+    MAX_SOLUTIONS,
+    STANDSTILL_M_S,
+    RopeSprings,
+    stick_slip_state,
+)
 
 __all__ = [
     "CONTEXT_ROWS",
@@ -257,9 +262,11 @@ def identification_means(
     span = samples.filter(pl.col("time_utc") < start + IDENTIFY_SPAN)
     if seals_drift(set(hoist.model.effects)) and span.height:
         epoch = span["time_utc"].dt.cast_time_unit("us").to_physical()
+        speed = float_column(span["speed_m_s"], fill=np.inf)
         travel = drift_travel(
             tuple(calibrated(span, column, hoist) for column in rope_cols("p{i}_pa")),
-            float_column(epoch, scale=1e-6), hoist,
+            float_column(epoch, scale=1e-6), float_column(span["depth_m"]),
+            np.abs(speed) < STANDSTILL_M_S, hoist,
             pressure_sigma_pa=settings.pressure_sigma_pa,
             pressure_cutoff_hz=settings.pressure_cutoff_hz,
             spike_sigmas=settings.spike_sigmas, gap_factor=settings.gap_factor,
@@ -366,8 +373,9 @@ def compensation_margins_s(settings: CompensationSettings) -> tuple[float, float
     velocity filter (``velocity_window_s``) has exact input at the block's edges.
     ``halo``: samples this far beyond (resume + block + resume) are read so that the
     zero-phase filters have forgotten the window's edges: 10 periods of the pressure
-    low-pass, the differential smoother's 4 sigma plus its median-padded edge, twice
-    each Savitzky-Golay window, and at least 30 s.
+    low-pass and of the ringing's demodulation (:func:`transforms.seal_drift.
+    ringing_travel`), the differential smoother's 4 sigma plus its median-padded edge,
+    twice each Savitzky-Golay window, and at least 30 s.
     """
     resume = max(1.0, 2.0 * settings.velocity_window_s)
     smoother_s = 4.0 * 0.1325 / settings.differential_cutoff_hz
@@ -377,6 +385,7 @@ def compensation_margins_s(settings: CompensationSettings) -> tuple[float, float
         2.0 * (smoother_s + 1.0 / settings.differential_cutoff_hz),
         2.0 * settings.acceleration_window_s,
         2.0 * settings.velocity_window_s,
+        10.0 / RINGING_BANDWIDTH_HZ,
     )
     return resume, halo
 

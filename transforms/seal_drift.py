@@ -13,8 +13,12 @@ travel is read from the sensors' mean pressure (the oil's motion, V / beta A per
 pascal, eq 5), low-passed just above the conveyance's fastest bounce
 (:func:`drift_cutoff_hz`) and passed through a play of :data:`DRIFT_SIGMAS` x its noise
 (:func:`drift_pressure`); the travel the play hides at each turn of its output is
-counted back (:func:`played_travel`). :func:`transforms.stick_slip.stick_slip` shares it
-out by each piston's compliance and applies it before each sample's elastic step.
+counted back (:func:`played_travel`). A ringing at rest spends as much travel below
+the play's half-width as above it; that part is found by demodulating the mean
+pressure at the conveyance's bounce frequency, where the noise is a quarter of the
+play's (:func:`ringing_travel`). :func:`transforms.stick_slip.stick_slip` shares the
+travel out by each piston's compliance and applies it before each sample's elastic
+step.
 The ropes' identification (:mod:`transforms.rope_identification`) runs the same
 solution on 0.2 s means, each with the travel of the full-rate samples it stands for
 (:func:`drift_travel`).
@@ -28,18 +32,23 @@ from numba import njit
 from physics.rope_spring import bounce_frequency_hz
 from physics.tension import tail_rope_mass_kg
 from physics.trip_rule import segment_ids
-from schemas.hoist import HoistDescription
+from schemas.hoist import G_STANDARD, HoistDescription
 from transforms.filtering import despike_median3
 from transforms.lowpass import lowpass
 
 __all__ = [
     "DRIFT_CUTOFF_FACTOR",
     "DRIFT_SIGMAS",
+    "RINGING_BANDWIDTH_HZ",
+    "RINGING_BESIDE",
+    "RINGING_PEAK",
+    "RINGING_SIGMAS",
     "drift_cutoff_hz",
     "drift_pressure",
     "drift_travel",
     "played_travel",
     "played_travels",
+    "ringing_travel",
     "seals_drift",
 ]
 
@@ -53,6 +62,20 @@ DRIFT_SIGMAS = 4.0
 #: The drift's mean pressure is low-passed at this factor on the conveyance's fastest
 #: bounce (the pistons' real back-and-forth; faster is the sensors' noise).
 DRIFT_CUTOFF_FACTOR = 1.5
+#: Bandwidth of the ringing's demodulation at the conveyance's bounce frequency [Hz]
+#: (:func:`ringing_travel`): a ringing of damping ratio 0.03 decays at 0.15-0.5 /s on
+#: the validation hoist, well inside it; the noise passed is 0.25 / 4 of the play's.
+RINGING_BANDWIDTH_HZ = 0.25
+#: A ringing below the play counts where its demodulated amplitude exceeds this many
+#: RMS of the amplitude that the noise alone gives (Rayleigh: exceeded by the noise
+#: alone with probability exp(-9) ~ 1e-4).
+RINGING_SIGMAS = 3.0
+#: ... and where it is a line: this many times the amplitude at the frequencies
+#: :data:`RINGING_BESIDE` x f_b (a ringing of damping ratio 0.03 leaves < 0.12 of its
+#: amplitude there, through the demodulation's low-pass; a ramp's or a step's spectrum
+#: is about flat).
+RINGING_PEAK = 2.0
+RINGING_BESIDE = (0.6, 1.6)
 
 
 def seals_drift(effects: set[str] | frozenset[str]) -> bool:
@@ -113,6 +136,69 @@ def drift_pressure(
     return mean, DRIFT_SIGMAS * pressure_sigma_pa * float(np.sqrt(share / len(pressures)))
 
 
+def ringing_travel(
+    mean_pa: np.ndarray,
+    segment_id: np.ndarray,
+    depth_m: np.ndarray,
+    at_rest: np.ndarray,
+    hoist: HoistDescription,
+    *,
+    sample_rate_hz: float,
+    half_width_pa: float,
+) -> np.ndarray:
+    """Per sample, the travel of a ringing at rest that the drift's play hides [Pa]:
+    4 A f_b per second where the ringing's amplitude A is below the play's half-width w
+    (above it the play counts it whole) and above the noise.
+
+    A conveyance at rest rings at its bounce frequency f_b (:func:`physics.rope_spring.
+    bounce_frequency_hz`, the ropes' hanging length from ``depth_m``, the mass hanging
+    on them from the mean pressure, n A p / g), and a damped ringing spends as much
+    travel below w as above it (4 w / (2 pi zeta) of it, 85 kPa at zeta = 0.03 and w
+    = 4 kPa): a LuGre seal drains along all of it. A is the mean pressure's deviation
+    from its :data:`RINGING_BANDWIDTH_HZ` low-pass, demodulated at f_b (I/Q, low-passed
+    at the same bandwidth), where the noise is (bandwidth / drift cut-off)^(1/2) of the
+    play's; it counts above :data:`RINGING_SIGMAS` x the noise's amplitude RMS and
+    where it stands :data:`RINGING_PEAK` x above the amplitude beside f_b. Motion
+    (``at_rest`` False) has its travel from the play: the trips' own pressure changes
+    would pass for ringing here.
+
+    ``mean_pa``, ``half_width_pa``: :func:`drift_pressure`'s mean and play half-width.
+    """
+    mean = np.asarray(mean_pa, dtype=np.float64)
+    out = np.zeros(mean.shape[0])
+    if not at_rest.any():
+        return out
+    known = np.isfinite(mean)
+    mass = hoist.conveyance.head_ropes * hoist.cylinders.bore_area_m2 * mean / G_STANDARD
+    hanging = hoist.shaft.headframe_height_m + np.maximum(np.nan_to_num(depth_m), 0.0)
+    k = hoist.ropes.head_rope_axial_stiffness_n / hanging
+    bounce = np.sqrt(hoist.conveyance.head_ropes * k / np.where(mass > 0, mass, np.inf))
+    bounce = np.where(known, bounce / (2.0 * np.pi), 0.0)
+    phase = 2.0 * np.pi * np.cumsum(bounce) / sample_rate_hz
+    rate, band = sample_rate_hz, RINGING_BANDWIDTH_HZ
+    swing = mean - lowpass(mean.copy(), segment_id, sample_rate_hz=rate, cutoff_hz=band)
+    swing = np.where(known, swing, 0.0)
+
+    def amplitude_at(factor: float) -> np.ndarray:  # I/Q demodulation at factor x f_b
+        i = lowpass(swing * np.cos(factor * phase), segment_id, sample_rate_hz=rate,
+                    cutoff_hz=band)  # fmt: skip
+        q = lowpass(swing * np.sin(factor * phase), segment_id, sample_rate_hz=rate,
+                    cutoff_hz=band)  # fmt: skip
+        return 2.0 * np.hypot(i, q)
+
+    amplitude = amplitude_at(1.0)
+    # a ringing is a line at f_b; a payload change's ramp, or a stop's, is broadband
+    beside = np.maximum(*(amplitude_at(factor) for factor in RINGING_BESIDE))
+    # the mean's white noise (w / DRIFT_SIGMAS) up to the drift's cut-off: its
+    # amplitude at f_b has an RMS of 2 sigma (band / cut-off)^(1/2)
+    cutoff = drift_cutoff_hz(hoist, 0.5 * rate)
+    noise = 2.0 * half_width_pa / DRIFT_SIGMAS * np.sqrt(band / cutoff)
+    counted = at_rest & known & (amplitude > RINGING_SIGMAS * noise) & (amplitude < half_width_pa)
+    counted &= amplitude > RINGING_PEAK * beside
+    out[counted] = 4.0 * amplitude[counted] * bounce[counted] / rate
+    return out
+
+
 @njit(cache=True, nogil=True, inline="always")
 def played_travel(
     p: float, played: float, heading: float, half_width: float
@@ -137,6 +223,8 @@ def played_travel(
 def drift_travel(
     pressures: tuple[np.ndarray, ...],
     time_s: np.ndarray,
+    depth_m: np.ndarray,
+    at_rest: np.ndarray,
     hoist: HoistDescription,
     *,
     pressure_sigma_pa: float,
@@ -152,7 +240,8 @@ def drift_travel(
     ``pressures``: calibrated sensor pressures; despiked and low-passed here as the
     compensation does (:class:`transforms.compensation_record.CompensationSettings`'s
     ``spike_sigmas``, ``pressure_cutoff_hz`` at most 0.4 x the logger's rate, gaps beyond
-    ``gap_factor`` steps), then :func:`drift_pressure` and :func:`played_travel`.
+    ``gap_factor`` steps), then :func:`drift_pressure` and :func:`played_travel`, plus
+    the ringing the play hides at rest (:func:`ringing_travel`).
     """
     t = np.asarray(time_s, dtype=np.float64)
     if t.size < 2:
@@ -168,7 +257,10 @@ def drift_travel(
         tuple(filtered), segment, hoist, sample_rate_hz=rate,
         pressure_sigma_pa=pressure_sigma_pa, pressure_cutoff_hz=cutoff,
     )  # fmt: skip
-    return played_travels(mean, segment, half_width)
+    ringing = ringing_travel(
+        mean, segment, depth_m, at_rest, hoist, sample_rate_hz=rate, half_width_pa=half_width
+    )
+    return played_travels(mean, segment, half_width) + ringing
 
 
 @njit(cache=True, nogil=True)

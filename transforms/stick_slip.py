@@ -105,6 +105,7 @@ from transforms.uncertainty import Z95
 __all__ = [
     "MAX_ALTERNATIVES",
     "MAX_SOLUTIONS",
+    "STANDSTILL_M_S",
     "RopeSprings",
     "band_members",
     "band_solutions",
@@ -223,6 +224,12 @@ def _constants(hoist: HoistDescription) -> np.ndarray:
     )
 
 
+#: The conveyance stands still below this speed [m/s] (``physics.trip_rule``'s
+#: standstill): where a ringing's travel below the drift's play counts
+#: (:func:`transforms.seal_drift.ringing_travel`).
+STANDSTILL_M_S = 0.02
+
+
 def stick_slip(
     p_sensor: tuple[np.ndarray, ...],
     x_logged: tuple[np.ndarray, ...],
@@ -240,6 +247,7 @@ def stick_slip(
     drift_pressure_pa: np.ndarray | None = None,
     drift_half_width_pa: float = 0.0,
     drift_travel_pa: np.ndarray | None = None,
+    drift_ringing_pa: np.ndarray | None = None,
     out: tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]] | None = None,
 ) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
     """Each piston's displacement [m] and seal friction [N] (module docstring).
@@ -283,6 +291,9 @@ def stick_slip(
         Instead of ``drift_pressure_pa``: the played travel of each sample given [Pa]
         (:func:`transforms.seal_drift.played_travel` summed over the full-rate samples a
         mean stands for, :func:`transforms.seal_drift.travel_per_mean`).
+    drift_ringing_pa : ndarray, optional
+        With ``drift_pressure_pa``: travel added to the play's at each sample [Pa] (the
+        ringing the play hides, :func:`transforms.seal_drift.ringing_travel`).
     out : (tuple of ndarray, tuple of ndarray), optional
         Contiguous float64 arrays the displacements and frictions are written into.
 
@@ -325,6 +336,13 @@ def stick_slip(
                 raise ValueError(f"{name} has {drift.shape} samples, depth_m {n}")
     if drift_mode == 1 and not drift_half_width_pa >= 0.0:
         raise ValueError(f"drift_half_width_pa {drift_half_width_pa} must be >= 0")
+    ringing = np.zeros(1)
+    if drift_ringing_pa is not None:
+        if drift_mode != 1:
+            raise ValueError("drift_ringing_pa goes with drift_pressure_pa")
+        ringing = np.ascontiguousarray(drift_ringing_pa, dtype=np.float64)
+        if ringing.shape != (n,):
+            raise ValueError(f"drift_ringing_pa has {ringing.shape} samples, depth_m {n}")
     if n:
         _kernel(
             tuple(np.ascontiguousarray(p, dtype=np.float64) for p in p_sensor),
@@ -343,6 +361,8 @@ def stick_slip(
             drift_mode,
             drift,
             float(drift_half_width_pa),
+            drift_ringing_pa is not None,
+            ringing,
             x_out,
             f_out,
             stick_slip_state(m) if state is None else state,
@@ -353,7 +373,7 @@ def stick_slip(
 @njit(cache=True, nogil=True, error_model="numpy")
 def _kernel(
     p_sensor, x_logged, depth, segment, dt, nu, with_loss, branch, const, law, a, c, scale,
-    drift_mode, drift_p, drift_w, x_out, f_out, state,
+    drift_mode, drift_p, drift_w, rings, ringing, x_out, f_out, state,
 ):  # pragma: no cover - numba  # fmt: skip
     """Per sample: the seals' drift, the oil's Newton solve for s, each piston's seal step
     (module docstring).
@@ -438,6 +458,8 @@ def _kernel(
         if drift_mode:  # LuGre's drift: the bristles relax along the oil's real motion
             if drift_mode == 1:
                 travel, p_play, heading = played_travel(drift_p[t], p_play, heading, drift_w)
+                if rings:
+                    travel += ringing[t]
             else:
                 travel = drift_p[t] if np.isfinite(drift_p[t]) else 0.0
             shares = compliance.sum()  # each piston's share of the oil's motion (eq 5)

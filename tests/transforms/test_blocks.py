@@ -60,16 +60,16 @@ def _blocks(record: pl.DataFrame, **kwargs) -> pl.DataFrame:
     return pl.concat(list(_block_frames(record, **kwargs)))
 
 
-def _block_frames(record: pl.DataFrame, **kwargs):
+def _block_frames(record: pl.DataFrame, hoist=HOIST, **kwargs):
     def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
         return record.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi))
 
     start = record["time_utc"][0]
     end = record["time_utc"][-1] + dt.timedelta(microseconds=1)
     # the statistics of the record read block by block (as ropeload run does)
-    context = record_context(read, HOIST, start=start, end=end, rows=record.height, block=BLOCK)
+    context = record_context(read, hoist, start=start, end=end, rows=record.height, block=BLOCK)
     return compensate_blocks(
-        read, HOIST, start=start, end=end, context=context, block=BLOCK, **kwargs
+        read, hoist, start=start, end=end, context=context, block=BLOCK, **kwargs
     )
 
 
@@ -101,6 +101,21 @@ def test_blocks_cover_trips_and_stops(record: pl.DataFrame) -> None:
 
 def test_blocks_equal_whole_record(record: pl.DataFrame) -> None:
     _assert_same(compensate(record, HOIST), _blocks(record))
+
+
+def test_blocks_equal_whole_record_with_drifting_seals(tmp_path) -> None:
+    """LuGre seals: the drift's play, the ringing's demodulation at rest and the ropes'
+    identification with the drift's travel, across block edges in trips and stops."""
+    toml = tmp_path / "lugre.toml"
+    toml.write_text(EXAMPLE_HOIST.read_text().replace('"presliding_hysteresis",', ""))
+    hoist = load_hoist(toml)
+    assert "presliding_hysteresis" not in hoist.model.effects
+    record = generate_field_day(
+        hoist, date="2026-03-02", seed=6, trips=4, hours=0.25, sample_rate_hz=50.0
+    ).sensors
+    whole = compensate(record, hoist)
+    assert whole["friction1_n"].abs().max() > 100.0  # the stick-slip solution ran
+    _assert_same(whole, _blocks(record, hoist=hoist))
 
 
 def test_blocks_equal_whole_record_pressure_only(record: pl.DataFrame) -> None:

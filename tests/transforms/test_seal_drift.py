@@ -15,7 +15,9 @@ stop). Cases, each against an answer the code under test does not produce:
   hides at each turn;
 - the drift's travel of a record's full-rate samples, summed per identification mean,
   drives the stick-slip solution as the drift's pressure does sample by sample, and
-  a damped ringing's travel is its whole path;
+  a ringing's travel is its whole path;
+- a damped ringing at rest: its travel below the play is found by demodulation at the
+  bounce frequency, the sensors' noise and a payload change's ramp are not;
 - the ropes of a ringing hoist with LuGre seals identified with the drift (one rope
   4 % stiffer): closer to the truth, and a smaller misfit, than without it;
 - a hoist with LuGre seals and ringing ropes, simulated by ropeload's device model
@@ -41,7 +43,13 @@ from transforms.compensation import compensate
 from transforms.compensation_record import CompensationSettings, identification_means
 from transforms.lowpass import lowpass
 from transforms.rope_identification import identify_from_means, record_means
-from transforms.seal_drift import drift_pressure, drift_travel, played_travels, seals_drift
+from transforms.seal_drift import (
+    drift_pressure,
+    drift_travel,
+    played_travels,
+    ringing_travel,
+    seals_drift,
+)
 from transforms.stick_slip import RopeSprings, stick_slip
 
 HOIST = load_hoist(EXAMPLE_HOIST)
@@ -219,9 +227,10 @@ def test_the_travel_given_drives_the_drift_as_the_pressure_does():
     # a full cycle per second, the play's half-width well below the amplitude
     clean = 4.06e6 + amplitude * np.sin(2 * np.pi * t)
     segment = np.zeros(t.size, int)
+    moving = np.zeros(t.size, bool)  # in motion: the play's travel alone
     travel = drift_travel(
-        (clean,) * 4, t, HOIST, pressure_sigma_pa=5e3, pressure_cutoff_hz=10.0,
-        spike_sigmas=6.0, gap_factor=3.0,
+        (clean,) * 4, t, np.full(t.size, DEPTH), moving, HOIST, pressure_sigma_pa=5e3,
+        pressure_cutoff_hz=10.0, spike_sigmas=6.0, gap_factor=3.0,
     )  # fmt: skip
     mean, half_width = drift_pressure(
         (lowpass(clean.copy(), segment, sample_rate_hz=rate, cutoff_hz=10.0),) * 4, segment,
@@ -277,3 +286,75 @@ def test_the_ropes_of_a_ringing_hoist_identify_with_the_drift(tmp_path):
     assert int(np.argmax(ratios)) == 1
     assert with_drift.mismatch_m < 0.15e-3
     assert without.mismatch_m > 2 * with_drift.mismatch_m
+
+
+def _at_rest_record(rate_hz: float, seconds: float, signal, seed: int):
+    """The drift's mean pressure and play half-width of four sensors reading ``signal``
+    (a function of time) with 5 kPa white noise each, low-passed at 10 Hz."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(rate_hz * seconds)) / rate_hz
+    clean = signal(t)
+    segment = np.zeros(t.size, int)
+    noisy = tuple(
+        lowpass(clean + rng.normal(0.0, 5e3, t.size), segment, sample_rate_hz=rate_hz,
+                cutoff_hz=10.0)
+        for _ in range(4)
+    )  # fmt: skip
+    mean, half_width = drift_pressure(
+        noisy, segment, HOIST, sample_rate_hz=rate_hz, pressure_sigma_pa=5e3,
+        pressure_cutoff_hz=10.0,
+    )  # fmt: skip
+    return t, segment, mean, half_width
+
+
+@pytest.mark.parametrize("depth_m", [0.0, 600.0])
+def test_a_ringing_below_the_play_is_counted_and_noise_and_ramps_are_not(depth_m):
+    """At rest, a ringing at the bounce frequency (damping ratio 0.03) decays through the
+    play's half-width w: its whole travel, 4 A f per second, is ~4 w / (2 pi zeta)
+    below w alone. The ringing's travel counts > 40 % of that (the rest is under the
+    noise), the play and it together the whole travel (integrated exactly here) within
+    15 %; the sensors' noise alone (10 min) and a payload change's 1 MPa ramp over 3 s
+    count < 1 % of it."""
+    rate, zeta, p0 = 50.0, 0.03, 4.0e6
+    mass = 4 * AREA * p0 / 9.80665
+    hanging = HOIST.shaft.headframe_height_m + depth_m
+    f_b = float(np.sqrt(4 * HOIST.ropes.head_rope_axial_stiffness_n / hanging / mass)) / (2 * np.pi)
+    decay = 2 * np.pi * zeta * f_b
+    amplitude = 12e3
+    start = 20.0
+
+    def ringing(t):
+        after = np.clip(t - start, 0.0, None)
+        return p0 + np.where(t >= start, amplitude * np.exp(-decay * after), 0.0) * np.sin(
+            2 * np.pi * f_b * after
+        )
+
+    seconds = start + 8.0 / decay
+    t, segment, mean, w = _at_rest_record(rate, seconds, ringing, seed=3)
+    depth, rest = np.full(t.size, depth_m), np.ones(t.size, bool)
+    below = ringing_travel(mean, segment, depth, rest, HOIST, sample_rate_hz=rate, half_width_pa=w)
+    played = played_travels(mean, segment, w)
+    whole = 4 * amplitude * f_b / decay  # the integral of 4 A(t) f_b
+    hidden = 4 * w * f_b / decay  # of which below w
+    assert hidden > 0.3 * whole
+    assert below.sum() > 0.4 * hidden
+    assert played.sum() + below.sum() == pytest.approx(whole, rel=0.15)
+
+    _, segment, mean, w = _at_rest_record(rate, 600.0, lambda t: np.full(t.size, p0), seed=4)
+    n = mean.size
+    noise = ringing_travel(
+        mean, segment, np.full(n, depth_m), np.ones(n, bool), HOIST, sample_rate_hz=rate,
+        half_width_pa=w,
+    )  # fmt: skip
+    assert noise.sum() < 0.01 * hidden
+
+    def ramp(t):
+        return p0 + 1e6 * np.clip((t - 30.0) / 3.0, 0.0, 1.0)
+
+    _, segment, mean, w = _at_rest_record(rate, 60.0, ramp, seed=5)
+    n = mean.size
+    change = ringing_travel(
+        mean, segment, np.full(n, depth_m), np.ones(n, bool), HOIST, sample_rate_hz=rate,
+        half_width_pa=w,
+    )  # fmt: skip
+    assert change.sum() < 0.01 * hidden

@@ -42,8 +42,9 @@ identified on drifts too, driven by each mean's played travel of the record's
 full-rate samples (``drift_travel_pa``, :func:`transforms.compensation_record.
 identification_means`): a 0.2 s mean hides the 0.8-2.7 Hz bounce that drives most of
 the drift. On the four validation days the misfit fell from 0.090-0.146 mm to
-0.045-0.059 mm and the days' ropes agree with each other (rope 2 1.071-1.080 against
-1.078 from the truth windows; day 104's ringing had taken it for 1.12). A play on the
+0.044-0.059 mm and the days' ropes agree with each other (rope 2 1.070-1.081; day
+104's ringing had taken it for 1.12). The means' travel includes the ringing below the
+drift's play (:func:`transforms.seal_drift.ringing_travel`). A play on the
 means themselves (tried in session 14) made the misfit worse (0.090 -> 0.134 mm on
 day 101): it sees neither the ringing nor the full-rate noise it must ignore.
 """

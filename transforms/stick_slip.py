@@ -48,27 +48,25 @@ piston is the one the forces select, the sticking ones keep what their ropes lea
 
 Measured (``benchmarks/eval_compensation.py``, stop windows of the independent
 validation days 101 / 102 / 103 / 104, load error |after| worst / median, worst rope):
-0.88 / 0.16, 1.92 %; 0.67 / 0.14, 0.94 %; 0.80 / 0.15, 1.86 %; 1.42 / 0.45, 1.68 %
-with the ropes identified with the drift (session 15; before, on ropes identified
-without it: 1.16 / 0.18, 1.89 %; 1.29 / 0.17, 2.01 %; 0.86 / 0.22, 2.13 %; 1.77 / 0.26,
-3.44 %; without any drift: 1.29 / 0.37, 2.15 %; 1.04 / 0.32, 1.95 %; 2.25 / 0.52,
-2.93 %; 2.60 / 1.21, 4.44 %). The band (:func:`band_solutions`) held the true load and
-every true rope tension in 89 / 81 / 80 / 48 % of those windows at a median half-width
-of 0.77 / 0.72 / 0.75 / 0.42 % of the load. On ropeload's own simulation with
-Maxwell-slip seals (no drift) the median is 0.6 % (band 100 % at 1.14-1.21 %); with
-LuGre seals, whose ringing leaves the raw reading 0.2 % off at rest in the median
-window (up to 4.6 % after a payload change), 0.00-0.01 % (worst 0.58-0.67 %, band
-100 % at 0.3 %), against 0.85-0.91 % and 30-35 windows worse than raw without the
-drift. The session-4 research prototype of this method (since removed; elasto-plastic
-seals on sensor pressures, no band) gave 1.6-1.8 % worst with the ropes' constants
-fitted to the truth windows. Day 104's stops after a payload change are still
-over-compensated (about -0.6 x the raw error, 10 windows worse than raw): after an
-unloading at the pithead the mean pressure creeps down by ~60 kPa over 10 s at rest,
-which that world's seals relaxing under a constant load explain (sum of F / 4 A), and
-which the model, with no constraint on the load, reads as oil motion that keeps its
-seals at their capacity. A load held constant at rest is the missing constraint (holding
-the tensions at rest, tried in session 14 on ropes identified without the drift, did
-not help there).
+0.80 / 0.18, 1.12 %; 0.67 / 0.13, 1.04 %; 0.79 / 0.16, 1.86 %; 0.96 / 0.22, 1.18 %
+(session 15: the ropes identified with the drift, and the ringing below the drift's
+play counted, :mod:`transforms.seal_drift`). Before: 1.16 / 0.18, 1.89 %; 1.29 / 0.17,
+2.01 %; 0.86 / 0.22, 2.13 %; 1.77 / 0.26, 3.44 % (session 14), and without any drift
+1.29 / 0.37, 2.15 %; 1.04 / 0.32, 1.95 %; 2.25 / 0.52, 2.93 %; 2.60 / 1.21, 4.44 %.
+Windows worse than raw by > 0.2 points: 0 / 1 / 0 / 4, all at the pithead where the
+raw reading is within 0.4 %. The band (:func:`band_solutions`) held the true load and
+every true rope tension in 95 / 81 / 80 / 68 % of those windows at a median
+half-width of 0.75 / 0.71 / 0.75 / 0.43 % of the load; the windows it misses are the
+pithead's (shortest ropes), where a rope's tension is 0.3-0.7 % off in the same
+direction over the day: its length offset is off by ~0.2 mm, and the halves of the
+record agree on it more closely than the days do (0.4-0.9 mm apart). On ropeload's
+own simulation with Maxwell-slip seals (no drift) the median is 0.6 % (band 100 % at
+1.14-1.21 %: the single elasto-plastic seal of this solution relaxes more than the
+simulation's Maxwell-slip elements when the conveyance stops); with LuGre seals 0.01 %
+(worst 0.52-0.61 %, band 100 % at 0.3 %), against 0.85-0.91 % and 30-35 windows worse
+than raw without the drift. The session-4 research prototype of this method (since
+removed; elasto-plastic seals on sensor pressures, no band) gave 1.6-1.8 % worst with
+the ropes' constants fitted to the truth windows.
 What it assumes: quasi-static pistons (no rope bounce in the spring law; a ringing
 hoist's dynamic tension is common to the ropes and enters through the pressure);
 the hoist description's oil volume, bulk modulus, bristle stiffness and friction law.

@@ -39,9 +39,13 @@ friction models, IEEE TAC 47(5), 787-792, doi:10.1109/TAC.2002.1000274.
 
 from __future__ import annotations
 
-import math
+from typing import TypeVar
 
+import numpy as np
 from numba import njit
+
+#: A float, or an array of them (elementwise).
+ArrayOrFloat = TypeVar("ArrayOrFloat", float, np.ndarray)
 
 __all__ = ["bounce_frequency_hz", "head_rope_stiffness_n_m", "seal_on_rope_step"]
 
@@ -57,20 +61,21 @@ def head_rope_stiffness_n_m(axial_stiffness_n: float, hanging_m: float) -> float
 
 
 def bounce_frequency_hz(
-    axial_stiffness_n: float, ropes: int, hanging_m: float, mass_kg: float
-) -> float:
+    axial_stiffness_n: float, ropes: int, hanging_m: ArrayOrFloat, mass_kg: ArrayOrFloat
+) -> ArrayOrFloat:
     r"""Natural frequency of the conveyance bouncing on its head ropes [Hz].
 
     One mass on ``ropes`` parallel massless springs (paper section 2.1 neglects the
     ropes' mass; :func:`head_rope_stiffness_n_m`):
     :math:`f = \frac{1}{2\pi}\sqrt{n\,EA / (L\,M)}`. The highest is at the pithead
-    (shortest ropes) with the conveyance empty.
+    (shortest ropes) with the conveyance empty. Elementwise on arrays.
 
     >>> round(bounce_frequency_hz(60e6, 4, 50.0, 8200.0 + 2 * 6.2 * 620.0), 2)
     2.77
     """
     k = head_rope_stiffness_n_m(axial_stiffness_n, hanging_m)
-    return math.sqrt(ropes * k / mass_kg) / (2.0 * math.pi)
+    frequency = np.sqrt(ropes * k / mass_kg) / (2.0 * np.pi)
+    return float(frequency) if np.ndim(frequency) == 0 else frequency
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -44,6 +44,7 @@ __all__ = [
     "DIRECTIONS",
     "LABEL_STATE_SIZE",
     "PHASES",
+    "STANDSTILL_SPEED_M_S",
     "TRIP_BRIDGE_S",
     "TRIP_BRIDGE_SPEED_FRACTION",
     "named_codes",
@@ -56,6 +57,8 @@ __all__ = [
 
 #: Trip phase labels; a phase code is an index into it.
 PHASES = ("accelerate", "run", "decelerate", "creep", "standstill")
+#: Below this |speed| the conveyance stands still [m/s] (the phase ``standstill``).
+STANDSTILL_SPEED_M_S = 0.02
 #: Direction labels; a direction code is an index into it.
 DIRECTIONS = ("down", "up")
 #: A logger gap of at most this many seconds inside a motion does not end the trip [s] ...
@@ -81,7 +84,7 @@ def trip_label_codes(
     depth: np.ndarray,
     hoist: HoistDescription,
     *,
-    standstill_speed_m_s: float = 0.02,
+    standstill_speed_m_s: float = STANDSTILL_SPEED_M_S,
     acceleration_fraction: float = 0.3,
     creep_factor: float = 1.5,
     state: np.ndarray | None = None,

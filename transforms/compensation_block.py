@@ -33,6 +33,7 @@ from transforms.compensation_kernels import (
 from transforms.compensation_output import block_frame
 from transforms.compensation_record import (
     CompensationCarry,
+    at_rest,
     calibrated,
     float_column,
     mean_horizontal,
@@ -44,7 +45,7 @@ from transforms.kinematics import smoothed_derivative
 from transforms.lowpass import lowpass, lowpass_work_size
 from transforms.piston_motion import share_out_common_motion
 from transforms.seal_drift import drift_cutoff_hz, drift_pressure, ringing_travel
-from transforms.stick_slip import STANDSTILL_M_S, band_solutions, stick_slip
+from transforms.stick_slip import band_solutions, stick_slip
 from transforms.uncertainty import ensemble_band, rope_band
 
 __all__ = ["BlockCompensation"]
@@ -196,10 +197,10 @@ class BlockCompensation(BlockSetup):
         drift_p, drift_w = self.drift_pressure(pressures)
         ringing = None
         if drift_p is not None:
-            at_rest = np.abs(float_column(self.frame["speed_m_s"], fill=np.inf)) < STANDSTILL_M_S
             ringing = ringing_travel(
-                drift_p, self.segment, depth, at_rest, self.hoist,
-                sample_rate_hz=self.context.sample_rate_hz, half_width_pa=drift_w,
+                drift_p, self.segment, depth, at_rest(self.frame), self.hoist,
+                sample_rate_hz=self.context.sample_rate_hz,
+                pressure_cutoff_hz=self.settings.pressure_cutoff_hz, half_width_pa=drift_w,
             )  # fmt: skip
         members = band_solutions(springs, self.settings.friction_relative_sigma)
         self.nxt.springs = self.carry.springs.copy()

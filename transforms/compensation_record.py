@@ -18,19 +18,14 @@ import polars as pl
 from numba import njit
 
 from physics.closed_volume import COMMON_MODE_STATE_SIZE
-from physics.trip_rule import LABEL_STATE_SIZE
+from physics.trip_rule import LABEL_STATE_SIZE, STANDSTILL_SPEED_M_S
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPES
 from transforms.filtering import PLAY_STATE_SIZE, first_difference_sigma, fresh_state
 from transforms.piston_motion import share_state
 from transforms.rope_identification import IDENTIFY_SPAN, identify_from_means, record_means
 from transforms.seal_drift import RINGING_BANDWIDTH_HZ, drift_travel, seals_drift
-from transforms.stick_slip import (
-    MAX_SOLUTIONS,
-    STANDSTILL_M_S,
-    RopeSprings,
-    stick_slip_state,
-)
+from transforms.stick_slip import MAX_SOLUTIONS, RopeSprings, stick_slip_state
 
 __all__ = [
     "CONTEXT_ROWS",
@@ -38,6 +33,7 @@ __all__ = [
     "CompensationCarry",
     "CompensationContext",
     "CompensationSettings",
+    "at_rest",
     "calibrated",
     "compensation_context",
     "compensation_margins_s",
@@ -249,6 +245,15 @@ def calibrated(frame: pl.DataFrame, column: str, hoist: HoistDescription) -> np.
     return values
 
 
+def at_rest(frame: pl.DataFrame) -> np.ndarray:
+    """Where the conveyance stands still (|``speed_m_s``| below
+    :data:`physics.trip_rule.STANDSTILL_SPEED_M_S`); an unknown speed is not at rest
+    (the ringing it would let count, :func:`transforms.seal_drift.ringing_travel`, is
+    left out rather than guessed)."""
+    speed = float_column(frame["speed_m_s"], fill=np.inf)
+    return np.abs(speed) < STANDSTILL_SPEED_M_S
+
+
 def identification_means(
     samples: pl.DataFrame, start: dt.datetime, hoist: HoistDescription,
     settings: CompensationSettings,
@@ -260,13 +265,13 @@ def identification_means(
     :func:`transforms.seal_drift.drift_travel`) when the hoist declares seals that drift.
     The same means whether the record is read whole or block by block."""
     span = samples.filter(pl.col("time_utc") < start + IDENTIFY_SPAN)
-    if seals_drift(set(hoist.model.effects)) and span.height:
+    logged = [c for c in rope_cols("x{i}_m") if c in span.columns and span[c].count()]
+    if seals_drift(set(hoist.model.effects)) and span.height > 1 and logged:
         epoch = span["time_utc"].dt.cast_time_unit("us").to_physical()
-        speed = float_column(span["speed_m_s"], fill=np.inf)
         travel = drift_travel(
             tuple(calibrated(span, column, hoist) for column in rope_cols("p{i}_pa")),
-            float_column(epoch, scale=1e-6), float_column(span["depth_m"]),
-            np.abs(speed) < STANDSTILL_M_S, hoist,
+            float_column(epoch, scale=1e-6), float_column(span["depth_m"]), at_rest(span),
+            hoist, sample_rate_hz=settings.sample_rate_hz,
             pressure_sigma_pa=settings.pressure_sigma_pa,
             pressure_cutoff_hz=settings.pressure_cutoff_hz,
             spike_sigmas=settings.spike_sigmas, gap_factor=settings.gap_factor,
@@ -285,7 +290,7 @@ def compensation_context(
     cache_dir: Path | None = None,
 ) -> CompensationContext:
     """:class:`CompensationContext` from a :func:`context_sample` of the record and, to
-    identify the ropes, its :func:`transforms.rope_identification.record_means` (the
+    identify the ropes, its :func:`identification_means` (the
     ropes remembered in ``cache_dir``, :func:`~transforms.rope_identification.
     identify_from_means`)."""
     row = sample["_row"].to_numpy()

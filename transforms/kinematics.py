@@ -34,6 +34,7 @@ from scipy import signal
 from physics.trip_rule import (
     DIRECTIONS,
     PHASES,
+    STANDSTILL_SPEED_M_S,
     named_codes,
     ordered_positions,
     position_codes,
@@ -284,7 +285,7 @@ def with_trip_phases(
     segment_col: str = "segment_id",
     time_col: str = "time_utc",
     depth_col: str = "depth_m",
-    standstill_speed_m_s: float = 0.02,
+    standstill_speed_m_s: float = STANDSTILL_SPEED_M_S,
     acceleration_fraction: float = 0.3,
     creep_factor: float = 1.5,
 ) -> Frame:

@@ -143,10 +143,11 @@ def identify_from_means(
     means: pl.DataFrame, hoist: HoistDescription, *, cache_dir: Path | None = None
 ) -> RopeSprings | None:
     """:func:`identify_rope_springs` on the first :data:`IDENTIFY_SAMPLES` of
-    :func:`record_means` (pressures calibrated here; the branch loss when the hoist
-    declares a pipe or local loss, at the record's median oil temperature if the viscosity
-    follows it, else at the reference temperature), and on each half of them (the
-    alternatives).
+    :func:`record_means` (:func:`transforms.compensation_record.identification_means`
+    with the drift's travel where the seals drift; pressures calibrated here; the branch
+    loss when the hoist declares a pipe or local loss, at the record's median oil
+    temperature if the viscosity follows it, else at the reference temperature), and on
+    each half of them (the alternatives).
 
     Remembered for the process, and in ``cache_dir`` (``<data>/cache/rope_springs`` for
     ``ropeload run``) across processes: the same means of the same hoist (a re-run, the

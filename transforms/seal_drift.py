@@ -27,6 +27,7 @@ solution on 0.2 s means, each with the travel of the full-rate samples it stands
 from __future__ import annotations
 
 import numpy as np
+import polars as pl
 from numba import njit
 
 from physics.rope_spring import bounce_frequency_hz
@@ -144,6 +145,7 @@ def ringing_travel(
     hoist: HoistDescription,
     *,
     sample_rate_hz: float,
+    pressure_cutoff_hz: float,
     half_width_pa: float,
 ) -> np.ndarray:
     """Per sample, the travel of a ringing at rest that the drift's play hides [Pa]:
@@ -151,29 +153,42 @@ def ringing_travel(
     (above it the play counts it whole) and above the noise.
 
     A conveyance at rest rings at its bounce frequency f_b (:func:`physics.rope_spring.
-    bounce_frequency_hz`, the ropes' hanging length from ``depth_m``, the mass hanging
-    on them from the mean pressure, n A p / g), and a damped ringing spends as much
-    travel below w as above it (4 w / (2 pi zeta) of it, 85 kPa at zeta = 0.03 and w
-    = 4 kPa): a LuGre seal drains along all of it. A is the mean pressure's deviation
-    from its :data:`RINGING_BANDWIDTH_HZ` low-pass, demodulated at f_b (I/Q, low-passed
-    at the same bandwidth), where the noise is (bandwidth / drift cut-off)^(1/2) of the
-    play's; it counts above :data:`RINGING_SIGMAS` x the noise's amplitude RMS and
-    where it stands :data:`RINGING_PEAK` x above the amplitude beside f_b. Motion
-    (``at_rest`` False) has its travel from the play: the trips' own pressure changes
-    would pass for ringing here.
+    bounce_frequency_hz`: the ropes' hanging length from ``depth_m``, the last known
+    where NaN; the mass hanging on them n A p / g, at least the empty conveyance's),
+    and a damped ringing spends as much travel below w as above it (4 w / (2 pi zeta)
+    of it, 85 kPa at zeta = 0.03 and w = 4 kPa): a LuGre seal drains along all of it.
+    A is the mean pressure's deviation from its :data:`RINGING_BANDWIDTH_HZ` low-pass,
+    demodulated at f_b (I/Q, low-passed at the same bandwidth), where the noise is
+    (bandwidth / drift cut-off)^(1/2) of the play's; it counts above
+    :data:`RINGING_SIGMAS` x the noise's amplitude RMS and where it stands
+    :data:`RINGING_PEAK` x above the amplitude beside f_b. Motion (``at_rest`` False)
+    has its travel from the play: the trips' own pressure changes would pass for
+    ringing here.
 
-    ``mean_pa``, ``half_width_pa``: :func:`drift_pressure`'s mean and play half-width.
+    ``mean_pa``, ``half_width_pa``: :func:`drift_pressure`'s mean and play half-width,
+    ``pressure_cutoff_hz`` the sensors' cut-off it was given. NaN pressures count
+    nothing (the filters bridge them).
     """
     mean = np.asarray(mean_pa, dtype=np.float64)
-    out = np.zeros(mean.shape[0])
-    if not at_rest.any():
+    n = mean.shape[0]
+    for name, values in (("segment_id", segment_id), ("depth_m", depth_m), ("at_rest", at_rest)):
+        if np.shape(values) != (n,):
+            raise ValueError(f"{name} has {np.shape(values)} samples, mean_pa {n}")
+    out = np.zeros(n)
+    if not np.any(at_rest):
         return out
     known = np.isfinite(mean)
-    mass = hoist.conveyance.head_ropes * hoist.cylinders.bore_area_m2 * mean / G_STANDARD
-    hanging = hoist.shaft.headframe_height_m + np.maximum(np.nan_to_num(depth_m), 0.0)
-    k = hoist.ropes.head_rope_axial_stiffness_n / hanging
-    bounce = np.sqrt(hoist.conveyance.head_ropes * k / np.where(mass > 0, mass, np.inf))
-    bounce = np.where(known, bounce / (2.0 * np.pi), 0.0)
+    ropes = hoist.conveyance.head_ropes
+    hanging_mass = np.maximum(
+        ropes * hoist.cylinders.bore_area_m2 * np.nan_to_num(mean) / G_STANDARD,
+        hoist.conveyance.mass_kg,
+    )
+    depth = pl.Series(np.asarray(depth_m, dtype=np.float64)).fill_nan(None)
+    depth = depth.fill_null(strategy="forward").fill_null(0.0).to_numpy()
+    hanging = hoist.shaft.headframe_height_m + np.maximum(depth, 0.0)
+    bounce = bounce_frequency_hz(
+        hoist.ropes.head_rope_axial_stiffness_n, ropes, hanging, hanging_mass
+    )
     phase = 2.0 * np.pi * np.cumsum(bounce) / sample_rate_hz
     rate, band = sample_rate_hz, RINGING_BANDWIDTH_HZ
     swing = mean - lowpass(mean.copy(), segment_id, sample_rate_hz=rate, cutoff_hz=band)
@@ -187,11 +202,12 @@ def ringing_travel(
         return 2.0 * np.hypot(i, q)
 
     amplitude = amplitude_at(1.0)
-    # a ringing is a line at f_b; a payload change's ramp, or a stop's, is broadband
-    beside = np.maximum(*(amplitude_at(factor) for factor in RINGING_BESIDE))
+    # a ringing is a line at f_b; a payload change's ramp, or a stop's, is broadband.
+    # (At the pithead 1.6 f_b is above the drift's cut-off: 0.6 f_b then guards alone.)
+    beside = np.max([amplitude_at(factor) for factor in RINGING_BESIDE], axis=0)
     # the mean's white noise (w / DRIFT_SIGMAS) up to the drift's cut-off: its
     # amplitude at f_b has an RMS of 2 sigma (band / cut-off)^(1/2)
-    cutoff = drift_cutoff_hz(hoist, 0.5 * rate)
+    cutoff = drift_cutoff_hz(hoist, pressure_cutoff_hz)
     noise = 2.0 * half_width_pa / DRIFT_SIGMAS * np.sqrt(band / cutoff)
     counted = at_rest & known & (amplitude > RINGING_SIGMAS * noise) & (amplitude < half_width_pa)
     counted &= amplitude > RINGING_PEAK * beside
@@ -231,6 +247,7 @@ def drift_travel(
     pressure_cutoff_hz: float,
     spike_sigmas: float,
     gap_factor: float,
+    sample_rate_hz: float | None = None,
 ) -> np.ndarray:
     """Per sample, the travel of the drift's played pressure since the sample before [Pa]:
     what :func:`transforms.stick_slip.stick_slip` drives the seals' drift with, for a
@@ -240,13 +257,16 @@ def drift_travel(
     ``pressures``: calibrated sensor pressures; despiked and low-passed here as the
     compensation does (:class:`transforms.compensation_record.CompensationSettings`'s
     ``spike_sigmas``, ``pressure_cutoff_hz`` at most 0.4 x the logger's rate, gaps beyond
-    ``gap_factor`` steps), then :func:`drift_pressure` and :func:`played_travel`, plus
-    the ringing the play hides at rest (:func:`ringing_travel`).
+    ``gap_factor`` steps; the rate ``sample_rate_hz``, else the median step's), then
+    :func:`drift_pressure` and :func:`played_travel`, plus the ringing the play hides at
+    rest (:func:`ringing_travel`).
     """
     t = np.asarray(time_s, dtype=np.float64)
     if t.size < 2:
         return np.zeros(t.size)
-    rate = 1.0 / float(np.median(np.diff(t)))
+    rate = sample_rate_hz or 1.0 / float(np.median(np.diff(t)))
+    if not 0.0 < rate < np.inf:
+        raise ValueError(f"the samples' rate {rate} Hz is not a rate (repeated times?)")
     segment = segment_ids(t, gap_factor=gap_factor, nominal_dt_s=1.0 / rate)
     cutoff = min(pressure_cutoff_hz, 0.4 * rate)
     filtered = []
@@ -258,8 +278,9 @@ def drift_travel(
         pressure_sigma_pa=pressure_sigma_pa, pressure_cutoff_hz=cutoff,
     )  # fmt: skip
     ringing = ringing_travel(
-        mean, segment, depth_m, at_rest, hoist, sample_rate_hz=rate, half_width_pa=half_width
-    )
+        mean, segment, depth_m, at_rest, hoist, sample_rate_hz=rate, pressure_cutoff_hz=cutoff,
+        half_width_pa=half_width,
+    )  # fmt: skip
     return played_travels(mean, segment, half_width) + ringing
 
 

@@ -103,7 +103,6 @@ from transforms.uncertainty import Z95
 __all__ = [
     "MAX_ALTERNATIVES",
     "MAX_SOLUTIONS",
-    "STANDSTILL_M_S",
     "RopeSprings",
     "band_members",
     "band_solutions",
@@ -222,12 +221,6 @@ def _constants(hoist: HoistDescription) -> np.ndarray:
     )
 
 
-#: The conveyance stands still below this speed [m/s] (``physics.trip_rule``'s
-#: standstill): where a ringing's travel below the drift's play counts
-#: (:func:`transforms.seal_drift.ringing_travel`).
-STANDSTILL_M_S = 0.02
-
-
 def stick_slip(
     p_sensor: tuple[np.ndarray, ...],
     x_logged: tuple[np.ndarray, ...],
@@ -286,12 +279,16 @@ def stick_slip(
         Half-width of the play on it [Pa] (:func:`transforms.seal_drift.drift_pressure`),
         >= 0 (0: every wiggle of the drift's pressure counts).
     drift_travel_pa : ndarray, optional
-        Instead of ``drift_pressure_pa``: the played travel of each sample given [Pa]
-        (:func:`transforms.seal_drift.played_travel` summed over the full-rate samples a
-        mean stands for, :func:`transforms.seal_drift.travel_per_mean`).
+        Instead of ``drift_pressure_pa``: the drift's travel of each sample given [Pa],
+        finite and >= 0 (the full-rate samples' :func:`transforms.seal_drift.
+        drift_travel`, ringing included, summed over each mean by
+        :func:`transforms.compensation_record.identification_means`). The travel of
+        samples with unknown pressures, and of the record's first (which only sets
+        the state), is carried to the next sample with known pressures.
     drift_ringing_pa : ndarray, optional
-        With ``drift_pressure_pa``: travel added to the play's at each sample [Pa] (the
-        ringing the play hides, :func:`transforms.seal_drift.ringing_travel`).
+        With ``drift_pressure_pa``: travel added to the play's at each sample [Pa],
+        finite and >= 0 (the ringing the play hides, :func:`transforms.seal_drift.
+        ringing_travel`).
     out : (tuple of ndarray, tuple of ndarray), optional
         Contiguous float64 arrays the displacements and frictions are written into.
 
@@ -332,6 +329,8 @@ def stick_slip(
             drift_mode = 1 if name == "drift_pressure_pa" else 2
             if drift.shape != (n,):
                 raise ValueError(f"{name} has {drift.shape} samples, depth_m {n}")
+            if drift_mode == 2 and not (drift >= 0.0).all():
+                raise ValueError(f"{name} must be finite and >= 0")
     if drift_mode == 1 and not drift_half_width_pa >= 0.0:
         raise ValueError(f"drift_half_width_pa {drift_half_width_pa} must be >= 0")
     ringing = np.zeros(1)
@@ -341,6 +340,8 @@ def stick_slip(
         ringing = np.ascontiguousarray(drift_ringing_pa, dtype=np.float64)
         if ringing.shape != (n,):
             raise ValueError(f"drift_ringing_pa has {ringing.shape} samples, depth_m {n}")
+        if not (ringing >= 0.0).all():
+            raise ValueError("drift_ringing_pa must be finite and >= 0")
     if n:
         _kernel(
             tuple(np.ascontiguousarray(p, dtype=np.float64) for p in p_sensor),
@@ -396,6 +397,7 @@ def _kernel(
     p_play = state[5 + 3 * m] if resume else np.nan
     heading = state[6 + 3 * m] if resume else 0.0  # the play's last direction of travel
     compliance = np.ones(m)  # each piston's d dx / d demand at its last step
+    pending = 0.0  # the given drift travel not yet applied (unknown pressures)
     if resume:
         for i in range(m):
             compliance[i] = state[7 + 3 * m + i]
@@ -414,6 +416,8 @@ def _kernel(
             heading = 0.0
             for i in range(m):
                 v[i] = 0.0
+        if drift_mode == 2:
+            pending += drift_p[t]
         p_mean = 0.0
         for i in range(m):
             p_mean += p_sensor[i][t]
@@ -458,8 +462,9 @@ def _kernel(
                 travel, p_play, heading = played_travel(drift_p[t], p_play, heading, drift_w)
                 if rings:
                     travel += ringing[t]
-            else:
-                travel = drift_p[t] if np.isfinite(drift_p[t]) else 0.0
+            else:  # the travel given, with what samples of unknown pressure carried
+                travel = pending
+                pending = 0.0
             shares = compliance.sum()  # each piston's share of the oil's motion (eq 5)
             if travel > 0.0 and 0.0 < shares < np.inf:
                 path = travel * volume / (beta * area * shares)

@@ -41,6 +41,7 @@ from sims.accuracy import position_accuracy
 from sims.field_day import generate_field_day
 from transforms.compensation import compensate
 from transforms.compensation_record import CompensationSettings, identification_means
+from transforms.filtering import despike_median3
 from transforms.lowpass import lowpass
 from transforms.rope_identification import identify_from_means, record_means
 from transforms.seal_drift import (
@@ -247,7 +248,8 @@ def test_the_travel_given_drives_the_drift_as_the_pressure_does():
     # the kernel's play starts at its second sample (the first only sets the state)
     given = played_travels(np.r_[np.nan, mean[1:]], segment, half_width)
     by_travel = stick_slip(*args, dt_s=1 / rate, drift_travel_pa=given)
-    for a, b in zip(by_pressure[1], by_travel[1], strict=True):
+    for a, b in zip((*by_pressure[0], *by_pressure[1]), (*by_travel[0], *by_travel[1]),
+                    strict=True):  # fmt: skip
         np.testing.assert_array_equal(a, b)
     with pytest.raises(ValueError, match="not both"):
         stick_slip(*args, dt_s=1 / rate, drift_pressure_pa=mean, drift_travel_pa=given)
@@ -332,7 +334,10 @@ def test_a_ringing_below_the_play_is_counted_and_noise_and_ramps_are_not(depth_m
     seconds = start + 8.0 / decay
     t, segment, mean, w = _at_rest_record(rate, seconds, ringing, seed=3)
     depth, rest = np.full(t.size, depth_m), np.ones(t.size, bool)
-    below = ringing_travel(mean, segment, depth, rest, HOIST, sample_rate_hz=rate, half_width_pa=w)
+    below = ringing_travel(
+        mean, segment, depth, rest, HOIST, sample_rate_hz=rate, pressure_cutoff_hz=10.0,
+        half_width_pa=w,
+    )  # fmt: skip
     played = played_travels(mean, segment, w)
     whole = 4 * amplitude * f_b / decay  # the integral of 4 A(t) f_b
     hidden = 4 * w * f_b / decay  # of which below w
@@ -344,7 +349,7 @@ def test_a_ringing_below_the_play_is_counted_and_noise_and_ramps_are_not(depth_m
     n = mean.size
     noise = ringing_travel(
         mean, segment, np.full(n, depth_m), np.ones(n, bool), HOIST, sample_rate_hz=rate,
-        half_width_pa=w,
+        pressure_cutoff_hz=10.0, half_width_pa=w,
     )  # fmt: skip
     assert noise.sum() < 0.01 * hidden
 
@@ -355,6 +360,58 @@ def test_a_ringing_below_the_play_is_counted_and_noise_and_ramps_are_not(depth_m
     n = mean.size
     change = ringing_travel(
         mean, segment, np.full(n, depth_m), np.ones(n, bool), HOIST, sample_rate_hz=rate,
-        half_width_pa=w,
+        pressure_cutoff_hz=10.0, half_width_pa=w,
     )  # fmt: skip
     assert change.sum() < 0.01 * hidden
+
+
+def test_the_ringing_counts_only_at_rest_and_where_the_pressure_is_known():
+    """The ringing of the first test, with the conveyance still moving for its first
+    half and the sensors silent for 5 s in its second: nothing counts while moving or
+    silent, and the full-rate travel is the play's plus the ringing's."""
+    rate, p0, depth_m = 50.0, 4.0e6, 600.0
+    mass = 4 * AREA * p0 / 9.80665
+    f_b = float(np.sqrt(4 * HOIST.ropes.head_rope_axial_stiffness_n / (50.0 + depth_m) / mass))
+    f_b /= 2 * np.pi
+
+    def ringing(t):
+        return p0 + 3.5e3 * np.exp(-0.01 * t) * np.sin(2 * np.pi * f_b * t)
+
+    t, segment, mean, w = _at_rest_record(rate, 120.0, ringing, seed=8)
+    n = t.size
+    rest = t >= 30.0
+    silent = (t >= 60.0) & (t < 65.0)
+    mean[silent] = np.nan
+    below = ringing_travel(
+        mean, segment, np.full(n, depth_m), rest, HOIST, sample_rate_hz=rate,
+        pressure_cutoff_hz=10.0, half_width_pa=w,
+    )  # fmt: skip
+    assert below[~rest].sum() == 0.0
+    assert below[silent].sum() == 0.0
+    assert below[rest & ~silent].sum() > 0.0
+    with pytest.raises(ValueError, match="at_rest has"):
+        ringing_travel(
+            mean, segment, np.full(n, depth_m), rest[1:], HOIST, sample_rate_hz=rate,
+            pressure_cutoff_hz=10.0, half_width_pa=w,
+        )  # fmt: skip
+    # drift_travel of the sensors is the play's travel plus the ringing's, on its mean
+    rng = np.random.default_rng(9)
+    sensors = tuple(ringing(t) + rng.normal(0.0, 5e3, n) for _ in range(4))
+    travel = drift_travel(
+        sensors, t, np.full(n, depth_m), rest, HOIST, pressure_sigma_pa=5e3,
+        pressure_cutoff_hz=10.0, spike_sigmas=6.0, gap_factor=3.0,
+    )  # fmt: skip
+    filtered = tuple(
+        lowpass(despike_median3(p, segment)[0], segment, sample_rate_hz=rate, cutoff_hz=10.0)
+        for p in sensors
+    )
+    mean, w = drift_pressure(
+        filtered, segment, HOIST, sample_rate_hz=rate, pressure_sigma_pa=5e3,
+        pressure_cutoff_hz=10.0,
+    )  # fmt: skip
+    want = played_travels(mean, segment, w) + ringing_travel(
+        mean, segment, np.full(n, depth_m), rest, HOIST, sample_rate_hz=rate,
+        pressure_cutoff_hz=10.0, half_width_pa=w,
+    )  # fmt: skip
+    np.testing.assert_allclose(travel, want, rtol=1e-9, atol=1e-6)
+    assert travel[rest].sum() > played_travels(mean, segment, w)[rest].sum()

@@ -148,6 +148,32 @@ def test_blocks_give_the_whole_record(drift):
         assert np.array_equal(np.concatenate([part[0][i] for part in parts]), whole_x[i])
 
 
+def test_a_given_travel_is_carried_over_unknown_pressures():
+    """The drift's travel given at samples of unknown pressure acts at the next known
+    one: the same as giving it there. A negative or NaN travel is refused."""
+    n = 40
+    p = np.linspace(4.0e6, 4.05e6, n)
+    p[10:15] = np.nan
+    args = ((p,) * 4, (np.zeros(n),) * 4, np.full(n, 300.0), np.zeros(n, int), HOIST, EQUAL)
+    spread = np.zeros(n)
+    spread[10:15] = 2e3
+    spread[20] = 1e3
+    at_once = np.zeros(n)
+    at_once[15] = 10e3
+    at_once[20] = 1e3
+    one = stick_slip(*args, dt_s=0.01, drift_travel_pa=spread)[1]
+    other = stick_slip(*args, dt_s=0.01, drift_travel_pa=at_once)[1]
+    none = stick_slip(*args, dt_s=0.01, drift_travel_pa=np.zeros(n))[1]
+    for a, b, c in zip(one, other, none, strict=True):
+        np.testing.assert_array_equal(a, b)
+        assert abs(a[-1]) < abs(c[-1])  # the travel drained the seals
+    for bad in (-1.0, np.nan):
+        travel = np.zeros(n)
+        travel[3] = bad
+        with pytest.raises(ValueError, match="finite and >= 0"):
+            stick_slip(*args, dt_s=0.01, drift_travel_pa=travel)
+
+
 def test_the_drift_pressure_must_fit_the_record():
     n = 10
     args = ((np.full(n, 4e6),) * 4, (np.zeros(n),) * 4, np.full(n, 300.0), np.zeros(n, int))

@@ -145,6 +145,23 @@ def test_the_play_counts_the_travel_it_hides_at_each_turn():
     assert max(abs(fi[-1]) for fi in f) < 0.6 * played_only
 
 
+def _drift_mean(clean: np.ndarray, rate_hz: float, rng: np.random.Generator):
+    """Segments, the four sensors reading ``clean`` with 5 kPa of white noise each,
+    low-passed at 10 Hz as the compensation does, their drift's mean pressure and its
+    play's half-width."""
+    segment = np.zeros(clean.size, int)
+    noisy = tuple(
+        lowpass(clean + rng.normal(0.0, 5e3, clean.size), segment, sample_rate_hz=rate_hz,
+                cutoff_hz=10.0)
+        for _ in range(4)
+    )  # fmt: skip
+    mean, half_width = drift_pressure(
+        noisy, segment, HOIST, sample_rate_hz=rate_hz, pressure_sigma_pa=5e3,
+        pressure_cutoff_hz=10.0,
+    )  # fmt: skip
+    return segment, noisy, mean, half_width
+
+
 @pytest.mark.parametrize("rate_hz", [50.0, 100.0])
 def test_the_noise_does_not_drain_the_seals_and_a_ringing_does(rate_hz):
     """A common rise loads the seals, then 10 min at rest with 5 kPa of white noise on
@@ -158,16 +175,7 @@ def test_the_noise_does_not_drain_the_seals_and_a_ringing_does(rate_hz):
     ring = 2e4 * np.exp(-2 * np.pi * 0.03 * 1.5 * t) * np.sin(2 * np.pi * 1.5 * t)
     top = 4.06e6
     clean = np.r_[np.linspace(4.0e6, top, n_rise), np.full(n_rest, top), top + ring]
-    segment = np.zeros(clean.size, int)
-    noisy = tuple(
-        lowpass(clean + rng.normal(0.0, 5e3, clean.size), segment, sample_rate_hz=rate_hz,
-                cutoff_hz=10.0)
-        for _ in range(4)
-    )  # fmt: skip
-    mean, half_width = drift_pressure(
-        noisy, segment, HOIST, sample_rate_hz=rate_hz, pressure_sigma_pa=5e3,
-        pressure_cutoff_hz=10.0,
-    )  # fmt: skip
+    segment, noisy, mean, half_width = _drift_mean(clean, rate_hz, rng)
     second = int(rate_hz)
     loaded = slice(n_rise + 5 * second, n_rise + 15 * second)
     rested = slice(n_rise + n_rest - 10 * second, n_rise + n_rest)
@@ -291,21 +299,10 @@ def test_the_ropes_of_a_ringing_hoist_identify_with_the_drift(tmp_path):
 
 
 def _at_rest_record(rate_hz: float, seconds: float, signal, seed: int):
-    """The drift's mean pressure and play half-width of four sensors reading ``signal``
-    (a function of time) with 5 kPa white noise each, low-passed at 10 Hz."""
-    rng = np.random.default_rng(seed)
+    """Times, segments, the drift's mean pressure and play half-width of four sensors
+    reading ``signal`` (a function of time) (:func:`_drift_mean`)."""
     t = np.arange(int(rate_hz * seconds)) / rate_hz
-    clean = signal(t)
-    segment = np.zeros(t.size, int)
-    noisy = tuple(
-        lowpass(clean + rng.normal(0.0, 5e3, t.size), segment, sample_rate_hz=rate_hz,
-                cutoff_hz=10.0)
-        for _ in range(4)
-    )  # fmt: skip
-    mean, half_width = drift_pressure(
-        noisy, segment, HOIST, sample_rate_hz=rate_hz, pressure_sigma_pa=5e3,
-        pressure_cutoff_hz=10.0,
-    )  # fmt: skip
+    segment, _, mean, half_width = _drift_mean(signal(t), rate_hz, np.random.default_rng(seed))
     return t, segment, mean, half_width
 
 
@@ -345,24 +342,18 @@ def test_a_ringing_below_the_play_is_counted_and_noise_and_ramps_are_not(depth_m
     assert below.sum() > 0.4 * hidden
     assert played.sum() + below.sum() == pytest.approx(whole, rel=0.15)
 
-    _, segment, mean, w = _at_rest_record(rate, 600.0, lambda t: np.full(t.size, p0), seed=4)
-    n = mean.size
-    noise = ringing_travel(
-        mean, segment, np.full(n, depth_m), np.ones(n, bool), HOIST, sample_rate_hz=rate,
-        pressure_cutoff_hz=10.0, half_width_pa=w,
-    )  # fmt: skip
-    assert noise.sum() < 0.01 * hidden
-
     def ramp(t):
         return p0 + 1e6 * np.clip((t - 30.0) / 3.0, 0.0, 1.0)
 
-    _, segment, mean, w = _at_rest_record(rate, 60.0, ramp, seed=5)
-    n = mean.size
-    change = ringing_travel(
-        mean, segment, np.full(n, depth_m), np.ones(n, bool), HOIST, sample_rate_hz=rate,
-        pressure_cutoff_hz=10.0, half_width_pa=w,
-    )  # fmt: skip
-    assert change.sum() < 0.01 * hidden
+    # the sensors' noise alone for 10 min, and a payload change's ramp
+    for seconds, signal, seed in ((600.0, lambda t: np.full(t.size, p0), 4), (60.0, ramp, 5)):
+        _, segment, mean, w = _at_rest_record(rate, seconds, signal, seed=seed)
+        n = mean.size
+        counted = ringing_travel(
+            mean, segment, np.full(n, depth_m), np.ones(n, bool), HOIST, sample_rate_hz=rate,
+            pressure_cutoff_hz=10.0, half_width_pa=w,
+        )  # fmt: skip
+        assert counted.sum() < 0.01 * hidden
 
 
 def test_the_ringing_counts_only_at_rest_and_where_the_pressure_is_known():

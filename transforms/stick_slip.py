@@ -54,12 +54,13 @@ play counted, :mod:`transforms.seal_drift`). Before: 1.16 / 0.18, 1.89 %; 1.29 /
 2.01 %; 0.86 / 0.22, 2.13 %; 1.77 / 0.26, 3.44 % (session 14), and without any drift
 1.29 / 0.37, 2.15 %; 1.04 / 0.32, 1.95 %; 2.25 / 0.52, 2.93 %; 2.60 / 1.21, 4.44 %.
 Windows worse than raw by > 0.2 points: 0 / 1 / 0 / 4, all at the pithead where the
-raw reading is within 0.4 %. The band (:func:`band_solutions`) held the true load and
-every true rope tension in 95 / 81 / 80 / 68 % of those windows at a median
-half-width of 0.75 / 0.71 / 0.75 / 0.43 % of the load; the windows it misses are the
-pithead's (shortest ropes), where a rope's tension is 0.3-0.7 % off in the same
-direction over the day: its length offset is off by ~0.2 mm, and the halves of the
-record agree on it more closely than the days do (0.4-0.9 mm apart). On ropeload's
+raw reading is within 0.4 %. The band (:func:`band_solutions`, each rope's own seal
+added, :mod:`transforms.uncertainty`) held the true load and every true rope tension
+in 97 / 88 / 91 / 72 % of those windows at a median half-width of 0.75 / 0.71 / 0.75 /
+0.43 % of the load; the windows it misses are the pithead's (shortest ropes), where a
+rope's tension is 0.2-0.4 % off on average over the day (its length offset ~0.2 mm
+off; the halves of the record agree on it more closely than the days do, 0.4-0.9 mm
+apart) and 0.2-0.6 % from window to window. On ropeload's
 own simulation with Maxwell-slip seals (no drift) the median is 0.6 % (band 100 % at
 1.14-1.21 %: the single elasto-plastic seal of this solution relaxes more than the
 simulation's Maxwell-slip elements when the conveyance stops); with LuGre seals 0.01 %

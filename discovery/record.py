@@ -30,6 +30,7 @@ from discovery.segmentation import (
     record_trips,
     time_span,
 )
+from physics.trip_rule import STANDSTILL_SPEED_M_S
 from schemas.hoist import HoistDescription
 
 __all__ = ["RAMP_MARGIN_S", "RecordArrays", "read_record", "trailing_window_end", "trip_timing"]
@@ -97,7 +98,7 @@ def read_record(samples: pl.DataFrame, hoist: HoistDescription) -> RecordArrays:
     for a_i, b_i in motions:
         quiet[time_span(t, t[a_i] - 1.0, t[b_i] + 25.0)] = False
     if quiet.sum() < 50:
-        quiet = np.abs(np.nan_to_num(speed)) < 0.02
+        quiet = np.abs(np.nan_to_num(speed)) < STANDSTILL_SPEED_M_S
     sigma = estimate_noise_sigma(p, ~quiet)
     pc = np.nanmean(p, axis=1)
     rate = 1.0 / max(float(np.median(np.diff(t))), 1e-6)

@@ -16,7 +16,7 @@ Functions
 Rules, first match wins (|v| the speed, a_t = a sgn(v) the tangential acceleration):
 
 ==============  ===================================================================
-standstill      |v| < ``standstill_speed_m_s`` (default 0.02 m/s)
+standstill      |v| < ``standstill_speed_m_s`` (default :data:`STANDSTILL_SPEED_M_S`)
 accelerate      a_t >  ``acceleration_fraction`` (0.3) x the winder's acceleration
 decelerate      a_t < -``acceleration_fraction`` x the winder's deceleration
 creep           |v| <= ``creep_factor`` (1.5) x the winder's creep speed

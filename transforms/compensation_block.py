@@ -326,12 +326,12 @@ class BlockCompensation(BlockSetup):
         """The 95 % band of rope k's tension (:func:`transforms.uncertainty.rope_band`, or
         :func:`~transforms.uncertainty.ensemble_band` of the stick-slip solution's members)."""
         core, law, friction = slice(self.core_lo, self.core_hi), self.law, self.mode != 0
-        if self.mode == 3:  # the members move every seal alike; its own law apart
-            friction = out["friction"][core]
+        if self.mode == 3:  # the members, and the seal's own law beyond what they span
+            seal = out["friction"][core]
             return ensemble_band(
-                out["tension"][core], friction,
+                out["tension"][core], seal,
                 [member[k][core] for member in self.member_friction], self.pressure_noise_n(),
-                seal_sigma_n=self.settings.friction_relative_sigma * np.abs(friction),
+                seal_sigma_n=self.settings.friction_relative_sigma * np.abs(seal),
             )  # fmt: skip
         estimates, blind = self.motion_share.result()
         # rope k's estimate is consumed (played above) and its blind motion is read

@@ -56,7 +56,10 @@ def block_frame(
     frictions = [columns[c] for c in rope_cols("friction{i}_n")]
     if load_members is not None:
         noise = gaussian_sigma_n[1] * np.sqrt(len(frictions))  # independent sensors
-        load_lo, load_hi = ensemble_band(load, sum(frictions), load_members, noise)
+        seals = gaussian_sigma_n[0] * np.sqrt(sum(f * f for f in frictions))  # and seals
+        load_lo, load_hi = ensemble_band(
+            load, sum(frictions), load_members, noise, seal_sigma_n=seals
+        )
     else:
         load_lo, load_hi = load_band(
             load,

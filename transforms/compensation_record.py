@@ -265,7 +265,9 @@ def identification_means(
     :func:`transforms.seal_drift.drift_travel`) when the hoist declares seals that drift.
     The same means whether the record is read whole or block by block."""
     span = samples.filter(pl.col("time_utc") < start + IDENTIFY_SPAN)
-    logged = [c for c in rope_cols("x{i}_m") if c in span.columns and span[c].count()]
+    logged = [
+        c for c in rope_cols("x{i}_m") if c in span.columns and span[c].fill_nan(None).count()
+    ]
     if seals_drift(set(hoist.model.effects)) and span.height > 1 and logged:
         epoch = span["time_utc"].dt.cast_time_unit("us").to_physical()
         travel = drift_travel(

@@ -154,7 +154,8 @@ def ringing_travel(
 
     A conveyance at rest rings at its bounce frequency f_b (:func:`physics.rope_spring.
     bounce_frequency_hz`: the ropes' hanging length from ``depth_m``, the last known
-    where NaN; the mass hanging on them n A p / g, at least the empty conveyance's),
+    of the given samples where NaN, the pithead before any; the mass hanging on them
+    n A p / g, at least the empty conveyance's),
     and a damped ringing spends as much travel below w as above it (4 w / (2 pi zeta)
     of it, 85 kPa at zeta = 0.03 and w = 4 kPa): a LuGre seal drains along all of it.
     A is the mean pressure's deviation from its :data:`RINGING_BANDWIDTH_HZ` low-pass,

@@ -56,7 +56,7 @@ play counted, :mod:`transforms.seal_drift`). Before: 1.16 / 0.18, 1.89 %; 1.29 /
 Windows worse than raw by > 0.2 points: 0 / 1 / 0 / 4, all at the pithead where the
 raw reading is within 0.4 %. The band (:func:`band_solutions`, each rope's own seal
 added, :mod:`transforms.uncertainty`) held the true load and every true rope tension
-in 97 / 88 / 91 / 72 % of those windows at a median half-width of 0.75 / 0.71 / 0.75 /
+in 95 / 87 / 84 / 73 % of those windows at a median half-width of 0.75 / 0.71 / 0.75 /
 0.43 % of the load; the windows it misses are the pithead's (shortest ropes), where a
 rope's tension is 0.2-0.4 % off on average over the day (its length offset ~0.2 mm
 off; the halves of the record agree on it more closely than the days do, 0.4-0.9 mm
@@ -202,8 +202,9 @@ class RopeSprings:
 def stick_slip_state(pistons: int) -> np.ndarray:
     """Fresh state of :func:`stick_slip` (``[ran, continues, s, p, the ropes' hanging
     length, per piston the bristles' force, x, v, the drift's play output and heading,
-    per piston the compliance]``; :func:`transforms.filtering.fresh_state`)."""
-    return np.zeros(7 + 4 * pistons)
+    per piston the compliance, the given drift travel not yet applied]``;
+    :func:`transforms.filtering.fresh_state`)."""
+    return np.zeros(8 + 4 * pistons)
 
 
 def _constants(hoist: HoistDescription) -> np.ndarray:
@@ -330,7 +331,7 @@ def stick_slip(
             drift_mode = 1 if name == "drift_pressure_pa" else 2
             if drift.shape != (n,):
                 raise ValueError(f"{name} has {drift.shape} samples, depth_m {n}")
-            if drift_mode == 2 and not (drift >= 0.0).all():
+            if drift_mode == 2 and not (np.isfinite(drift).all() and (drift >= 0.0).all()):
                 raise ValueError(f"{name} must be finite and >= 0")
     if drift_mode == 1 and not drift_half_width_pa >= 0.0:
         raise ValueError(f"drift_half_width_pa {drift_half_width_pa} must be >= 0")
@@ -341,7 +342,7 @@ def stick_slip(
         ringing = np.ascontiguousarray(drift_ringing_pa, dtype=np.float64)
         if ringing.shape != (n,):
             raise ValueError(f"drift_ringing_pa has {ringing.shape} samples, depth_m {n}")
-        if not (ringing >= 0.0).all():
+        if not (np.isfinite(ringing).all() and (ringing >= 0.0).all()):
             raise ValueError("drift_ringing_pa must be finite and >= 0")
     if n:
         _kernel(
@@ -398,7 +399,7 @@ def _kernel(
     p_play = state[5 + 3 * m] if resume else np.nan
     heading = state[6 + 3 * m] if resume else 0.0  # the play's last direction of travel
     compliance = np.ones(m)  # each piston's d dx / d demand at its last step
-    pending = 0.0  # the given drift travel not yet applied (unknown pressures)
+    pending = state[7 + 4 * m]  # given drift travel not yet applied (unknown pressures)
     if resume:
         for i in range(m):
             compliance[i] = state[7 + 3 * m + i]
@@ -508,3 +509,4 @@ def _kernel(
             state[5 + i] = z[i]
             state[5 + m + i] = x[i]
             state[5 + 2 * m + i] = v[i]
+    state[7 + 4 * m] = pending

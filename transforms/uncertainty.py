@@ -38,13 +38,13 @@ uncertainty, the bristle stiffness halved and doubled (with LuGre seals also the
 drift's rate), and the ropes' constants reaching 1.96 x as far as those identified on
 each half of the record), for each rope and, member by member summed,
 for the load (:func:`ensemble_band`); the sensor's noise is added as above. The
-members move every seal alike, which for one rope is not all: a sticking piston's
-friction is not moved by the capacity member, yet its seal departs from the law like
-any other. A rope's band adds its own seal's part 2 in quadrature (session 15: band
-coverage on validation days 101-104 from 95 / 81 / 80 / 68 % to 97 / 88 / 91 / 72 %, the
-misses being pithead ropes). The load's does not: the seals' independent parts add
-in quadrature, 2 x 10 % of one seal's friction, inside the common member's range of
-four seals at 19.6 % (adding it widened the load's band by a third, to 1.0 %).
+members move every seal alike: a sliding piston's friction by the capacity member's
++-1.96 x 10 %, which is part 2 whole, but a sticking piston's, set by the ropes and its
+history, hardly at all, though its seal departs from the law as much. So each rope's
+band, and the load's, add the law's part 2 (for the load, the seals' in quadrature)
+less what the members' range already spans, in quadrature (:func:`ensemble_band`).
+Session 15, validation days 101-104: coverage 95 / 87 / 84 / 73 % with it, 95 / 81 /
+80 / 68 % without, at the same load half-width (the members span the load's part).
 """
 
 from __future__ import annotations
@@ -234,9 +234,11 @@ def ensemble_band(
 ) -> tuple[np.ndarray, np.ndarray]:
     """95 % band of a tension or load whose friction ``friction_n`` has the alternative
     solutions ``members_n``: the value moved by the members' lowest and highest friction
-    (a range, added whole), then -/+ 1.96 sqrt(``noise_sigma_n``^2 + ``seal_sigma_n``^2)
-    (the sensor, and per sample the seals' own departure from the law, independent from
-    seal to seal; module docstring).
+    (a range, added whole), then -/+ 1.96 sqrt(``noise_sigma_n``^2 + s^2): the sensor,
+    and per sample the part of the seals' own departure from the law
+    (``seal_sigma_n``, sigma_seal) that the members' range does not span,
+    s^2 = max(sigma_seal^2 - (range / 2 / 1.96)^2, 0) (module docstring). A NaN
+    ``seal_sigma_n`` gives a NaN band.
 
     >>> import numpy as np
     >>> lo, hi = ensemble_band(np.array([10_000.0]), np.array([500.0]),
@@ -244,13 +246,14 @@ def ensemble_band(
     >>> round(float(lo[0]), 1), round(float(hi[0]), 1)
     (9880.4, 10319.6)
 
-    The seal's own part, 100 N, with the sensor's 10 N: 1.96 sqrt(10^2 + 100^2) each side
+    A seal's own sigma of 150 N, of which the members' range of 400 N spans 102 N: the
+    rest, sqrt(150^2 - 102^2) = 110 N, with the sensor's 10 N, 1.96 x 110.4 N each side
 
     >>> lo, hi = ensemble_band(np.array([10_000.0]), np.array([500.0]),
     ...                        [np.array([400.0]), np.array([800.0])], 10.0,
-    ...                        seal_sigma_n=np.array([100.0]))
+    ...                        seal_sigma_n=np.array([150.0]))
     >>> round(float(lo[0]), 1), round(float(hi[0]), 1)
-    (9703.0, 10497.0)
+    (9683.6, 10516.4)
     """
     n = value_n.shape[0]
     lo, hi = out if out is not None else (np.empty(n), np.empty(n))
@@ -286,8 +289,10 @@ def _ensemble_band_kernel(
             hi[t] = np.nan
             continue
         sigma = noise_sigma
-        if with_seal and np.isfinite(seal[t]):
-            sigma = np.sqrt(noise_sigma * noise_sigma + seal[t] * seal[t])
+        if with_seal:  # the seal's own sigma, less what the members' range already spans
+            spanned = (f_hi - f_lo) / (2.0 * Z95)
+            own = max(seal[t] * seal[t] - spanned * spanned, 0.0)
+            sigma = np.sqrt(noise_sigma * noise_sigma + own)
         noise = Z95 * sigma
         lo[t] = value[t] - (f - f_lo) - noise
         hi[t] = value[t] + (f_hi - f) + noise

@@ -36,6 +36,7 @@ import pytest
 from physics.friction_law import friction_law_at, law_array
 from physics.lugre import lugre_drift, lugre_z_step
 from physics.oil import effective_bulk_modulus_at
+from physics.rope_spring import bounce_frequency_hz
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from sims.accuracy import position_accuracy
 from sims.field_day import generate_field_day
@@ -298,6 +299,13 @@ def test_the_ropes_of_a_ringing_hoist_identify_with_the_drift(tmp_path):
     assert without.mismatch_m > 2 * with_drift.mismatch_m
 
 
+def _bounce_hz(depth_m: float, p_pa: float) -> float:
+    """The example hoist's bounce frequency at that depth, its ropes loaded to p."""
+    mass = 4 * AREA * p_pa / 9.80665
+    ropes = HOIST.ropes.head_rope_axial_stiffness_n
+    return bounce_frequency_hz(ropes, 4, HOIST.shaft.headframe_height_m + depth_m, mass)
+
+
 def _at_rest_record(rate_hz: float, seconds: float, signal, seed: int):
     """Times, segments, the drift's mean pressure and play half-width of four sensors
     reading ``signal`` (a function of time) (:func:`_drift_mean`)."""
@@ -315,9 +323,7 @@ def test_a_ringing_below_the_play_is_counted_and_noise_and_ramps_are_not(depth_m
     15 %; the sensors' noise alone (10 min) and a payload change's 1 MPa ramp over 3 s
     count < 1 % of it."""
     rate, zeta, p0 = 50.0, 0.03, 4.0e6
-    mass = 4 * AREA * p0 / 9.80665
-    hanging = HOIST.shaft.headframe_height_m + depth_m
-    f_b = float(np.sqrt(4 * HOIST.ropes.head_rope_axial_stiffness_n / hanging / mass)) / (2 * np.pi)
+    f_b = _bounce_hz(depth_m, p0)
     decay = 2 * np.pi * zeta * f_b
     amplitude = 12e3
     start = 20.0
@@ -357,13 +363,12 @@ def test_a_ringing_below_the_play_is_counted_and_noise_and_ramps_are_not(depth_m
 
 
 def test_the_ringing_counts_only_at_rest_and_where_the_pressure_is_known():
-    """The ringing of the first test, with the conveyance still moving for its first
-    half and the sensors silent for 5 s in its second: nothing counts while moving or
-    silent, and the full-rate travel is the play's plus the ringing's."""
+    """A slowly decaying ringing at the bounce frequency (3.5 kPa, 0.01 /s), the
+    conveyance moving for its first 30 s of 120 and the sensors silent for 5 s later:
+    nothing counts while moving or silent, some at rest, and the full-rate travel is
+    the play's plus the ringing's."""
     rate, p0, depth_m = 50.0, 4.0e6, 600.0
-    mass = 4 * AREA * p0 / 9.80665
-    f_b = float(np.sqrt(4 * HOIST.ropes.head_rope_axial_stiffness_n / (50.0 + depth_m) / mass))
-    f_b /= 2 * np.pi
+    f_b = _bounce_hz(depth_m, p0)
 
     def ringing(t):
         return p0 + 3.5e3 * np.exp(-0.01 * t) * np.sin(2 * np.pi * f_b * t)

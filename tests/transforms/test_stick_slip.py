@@ -113,12 +113,13 @@ def test_the_seal_nearest_its_capacity_slides_and_the_others_stick():
     assert abs(dx_1) > 10 * abs(dx_s)  # the slider took the oil
 
 
-@pytest.mark.parametrize("drift", [False, True])
+@pytest.mark.parametrize("drift", ["none", "pressure", "travel"])
 def test_blocks_give_the_whole_record(drift):
     """Also where the depth is unknown across a block's edge (the last known is kept),
     with the seals' drift (its play's output, heading and the pistons' compliance
-    carried: a ringing on the pressure makes the play turn across the edges), and where
-    a block's edge falls inside the unknown pressures that start a new segment."""
+    carried: a ringing on the pressure makes the play turn across the edges; or the
+    travel given, its part at unknown pressures carried), and where a block's edge
+    falls inside the unknown pressures that start a new segment."""
     n_all = 3000
     p = 4.0e6 + 3.0e5 * np.sin(np.linspace(0, 6 * np.pi, n_all))
     p += 2.0e4 * np.sin(np.linspace(0, 300 * np.pi, n_all))
@@ -128,13 +129,15 @@ def test_blocks_give_the_whole_record(drift):
     depth[990:1010] = np.nan
     depth[2195:2205] = np.nan
     springs = RopeSprings((1.0, 1.03, 0.98, 1.01), (0.0, 2e-3, -1e-3, 0.5e-3), 0.0, 0)
+    travel = np.abs(np.diff(np.nan_to_num(p), prepend=p[0]))
 
     def run(lo: int, hi: int, state: np.ndarray | None = None):
         n = hi - lo
         return stick_slip(
             (p[lo:hi],) * 4, (np.zeros(n),) * 4, depth[lo:hi], segment[lo:hi], HOIST, springs,
-            dt_s=0.01, state=state, drift_pressure_pa=p[lo:hi] if drift else None,
+            dt_s=0.01, state=state, drift_pressure_pa=p[lo:hi] if drift == "pressure" else None,
             drift_half_width_pa=5e3,
+            drift_travel_pa=travel[lo:hi] if drift == "travel" else None,
         )  # fmt: skip
 
     whole_x, whole_f = run(0, n_all)

@@ -32,7 +32,10 @@ to 6e-8 of the branch flows' and 3e-7 of the displacements' sums, the demo's mar
 solves each piston's stick-slip on rope springs identified from the record
 (:mod:`transforms.stick_slip`): the demo's compensated tensions move by up to ~0.5 % of
 the load (position summary tension_after1_n sum -0.23 %); the ``compensate`` entry's
-record does not identify ropes (its pistons move together) and is unchanged.
+record does not identify ropes (its pistons move together) and is unchanged. The
+``demo_position_summary`` entry again (session 15) after the band adds each seal's law
+uncertainty beyond what its members span (:func:`transforms.uncertainty.ensemble_band`):
+the load band's bounds move by < 0.5 N of 155 kN (sum of load_after_lo_n -0.47 N).
 
 The compensation's input is written here with numpy (two trips, a payload step at a
 stop, a ringing rope, a logger gap, a warming oil), not by the simulation, so a change

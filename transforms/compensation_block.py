@@ -40,9 +40,9 @@ from transforms.compensation_record import (
     rope_cols,
 )
 from transforms.compensation_setup import BlockSetup
-from transforms.filtering import despike_median3, play_kernel
+from transforms.filtering import despike_median3, despiked_lowpass, play_kernel
 from transforms.kinematics import smoothed_derivative
-from transforms.lowpass import lowpass, lowpass_work_size
+from transforms.lowpass import lowpass_work_size
 from transforms.piston_motion import share_out_common_motion
 from transforms.seal_drift import drift_cutoff_hz, drift_pressure, ringing_travel
 from transforms.stick_slip import band_solutions, stick_slip
@@ -95,15 +95,17 @@ class BlockCompensation(BlockSetup):
         """Calibrated, despiked and low-passed, all in one new array."""
         values = calibrated(self.frame, column, self.hoist)
         rate, cutoff = self.context.sample_rate_hz, self.settings.pressure_cutoff_hz
-        sigma = self.context.spike_sigma.get(column)
-        despike_median3(
-            values, self.segment, n_sigmas=self.settings.spike_sigmas, out=values, sigma=sigma
-        )
         work = self.buffer(
             "work_a", lowpass_work_size(self.n, sample_rate_hz=rate, cutoff_hz=cutoff)
         )
-        return lowpass(
-            values, self.segment, sample_rate_hz=rate, cutoff_hz=cutoff, out=values, work=work
+        return despiked_lowpass(
+            values,
+            self.segment,
+            sample_rate_hz=rate,
+            cutoff_hz=cutoff,
+            spike_sigmas=self.settings.spike_sigmas,
+            sigma=self.context.spike_sigma.get(column),
+            work=work,
         )  # the work array: the rope jobs reuse it on this thread
 
     def displacement(self, column: str) -> np.ndarray:

@@ -32,16 +32,19 @@ import polars as pl
 from numba import njit
 
 from physics.trip_rule import segment_ids
+from transforms.lowpass import lowpass
 
 __all__ = [
     "MAD_TO_SIGMA",
     "box_smooth",
     "box_smooth_into",
     "despike_median3",
+    "despiked_lowpass",
     "first_difference_sigma",
     "fresh_state",
     "play_kernel",
     "play_operator",
+    "play_step",
     "seconds_expr",
     "segment_ids",
     "with_segment_id",
@@ -107,6 +110,19 @@ def fresh_state(size: int) -> np.ndarray:
     return np.zeros(size)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def play_step(x: float, y: float, half_width: float) -> float:  # pragma: no cover - numba
+    """One step of the play operator: its output y follows x once x leaves y +- w; a NaN
+    y (a segment's start) starts at x."""
+    if not np.isfinite(y):
+        return x
+    if x > y + half_width:
+        return x - half_width
+    if x < y - half_width:
+        return x + half_width
+    return y
+
+
 @njit(cache=True, nogil=True)
 def play_kernel(x, seg, half_width, out, state):  # pragma: no cover - numba
     """The play operator over a block; ``state`` = [ran, continues segment, y]
@@ -116,14 +132,8 @@ def play_kernel(x, seg, half_width, out, state):  # pragma: no cover - numba
     for i in range(x.shape[0]):
         if (i == 0 and not resume) or (i > 0 and seg[i] != seg[i - 1]):
             y = np.nan
-        xi = x[i]
-        if np.isfinite(xi):
-            if not np.isfinite(y):
-                y = xi
-            elif xi > y + half_width:
-                y = xi - half_width
-            elif xi < y - half_width:
-                y = xi + half_width
+        if np.isfinite(x[i]):
+            y = play_step(x[i], y, half_width)
         out[i] = y
     state[0] = 1.0
     state[2] = y
@@ -301,6 +311,26 @@ def despike_median3(
         out = np.empty_like(values)
     _median3_kernel(values, seg, n_sigmas * sigma, out)
     return out, sigma
+
+
+def despiked_lowpass(
+    values: np.ndarray,
+    segment_id: np.ndarray,
+    *,
+    sample_rate_hz: float,
+    cutoff_hz: float,
+    spike_sigmas: float,
+    sigma: float | None = None,
+    work: np.ndarray | None = None,
+) -> np.ndarray:
+    """A pressure as the compensation filters it, in place in ``values`` (float64):
+    :func:`despike_median3` (``sigma``: the record's noise, else this signal's), then
+    :func:`transforms.lowpass.lowpass` at ``cutoff_hz`` (``work``: its scratch)."""
+    despike_median3(values, segment_id, n_sigmas=spike_sigmas, out=values, sigma=sigma)
+    return lowpass(
+        values, segment_id, sample_rate_hz=sample_rate_hz, cutoff_hz=cutoff_hz, out=values,
+        work=work,
+    )  # fmt: skip
 
 
 def first_difference_sigma(differences: np.ndarray) -> float:

@@ -34,7 +34,7 @@ from physics.rope_spring import bounce_frequency_hz
 from physics.tension import tail_rope_mass_kg
 from physics.trip_rule import segment_ids
 from schemas.hoist import G_STANDARD, HoistDescription
-from transforms.filtering import despike_median3
+from transforms.filtering import despiked_lowpass, play_step
 from transforms.lowpass import lowpass
 
 __all__ = [
@@ -226,15 +226,12 @@ def played_travel(
     A NaN output (a segment's start) starts at p; a NaN p holds it."""
     if not np.isfinite(played):
         return 0.0, p, 0.0
-    step = 0.0
-    if p > played + half_width:
-        step = p - half_width - played
-    elif p < played - half_width:
-        step = p + half_width - played
+    output = play_step(p, played, half_width)  # transforms.filtering's, one home
+    step = output - played
     if step == 0.0:
         return 0.0, played, heading
     travel = abs(step) + (2.0 * half_width if heading * step < 0.0 else 0.0)
-    return travel, played + step, 1.0 if step > 0.0 else -1.0
+    return travel, output, 1.0 if step > 0.0 else -1.0
 
 
 def drift_travel(
@@ -270,12 +267,13 @@ def drift_travel(
         raise ValueError(f"the samples' rate {rate} Hz is not a rate (repeated times?)")
     segment = segment_ids(t, gap_factor=gap_factor, nominal_dt_s=1.0 / rate)
     cutoff = min(pressure_cutoff_hz, 0.4 * rate)
-    filtered = []
-    for p in pressures:
-        values = despike_median3(p, segment, n_sigmas=spike_sigmas)[0]
-        filtered.append(lowpass(values, segment, sample_rate_hz=rate, cutoff_hz=cutoff, out=values))
+    filtered = tuple(
+        despiked_lowpass(np.array(p, dtype=np.float64), segment, sample_rate_hz=rate,
+                         cutoff_hz=cutoff, spike_sigmas=spike_sigmas)
+        for p in pressures
+    )  # fmt: skip
     mean, half_width = drift_pressure(
-        tuple(filtered), segment, hoist, sample_rate_hz=rate,
+        filtered, segment, hoist, sample_rate_hz=rate,
         pressure_sigma_pa=pressure_sigma_pa, pressure_cutoff_hz=cutoff,
     )  # fmt: skip
     ringing = ringing_travel(

@@ -31,8 +31,9 @@ For each cylinder i of a hoist, per sample:
    out), and the uncompensated T_raw,i = p_sensor,i A_bore (the paper's "before");
 7. a 95 % band for each tension and the load (:mod:`transforms.uncertainty`): the
    friction range the estimate cannot resolve (with identified ropes: the spread of the
-   stick-slip solution over the law's capacity, the bristle stiffness and the ropes
-   1.96 x as far as identified on each half of the record; without:
+   stick-slip solution over the law's capacity, the bristle stiffness, the seals'
+   unknown friction where the record starts and the ropes as identified on each
+   quarter of the record, Student's t of their spread; without:
    motion only the oil saw and the law's uncertainty) and the sensor noise.
 
 Which corrections apply follows the hoist's ``[model] effects``: ``seal_friction``,

@@ -208,7 +208,7 @@ class BlockCompensation(BlockSetup):
         self.nxt.springs = self.carry.springs.copy()
 
         def solve(m: int) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
-            capacity_scale, sigma0_scale, ropes = members[m]
+            capacity_scale, sigma0_scale, ropes, start = members[m]
             if m == 0:
                 x = tuple(np.full(n, np.nan) for _ in ROPES)
             else:  # a member's displacements are not kept: this thread's work arrays
@@ -221,7 +221,8 @@ class BlockCompensation(BlockSetup):
                     depth[lo:hi], self.segment[lo:hi], self.hoist, ropes,
                     dt_s=self.dt_nominal, nu_m2_s=nu[lo:hi] if nu.size == n else nu,
                     branch=branch, state=state, capacity_scale=capacity_scale,
-                    sigma0_scale=sigma0_scale, drift_half_width_pa=drift_w,
+                    sigma0_scale=sigma0_scale, start_at_capacity=start,
+                    drift_half_width_pa=drift_w,
                     drift_pressure_pa=None if drift_p is None else drift_p[lo:hi],
                     drift_ringing_pa=None if ringing is None else ringing[lo:hi],
                     out=(tuple(v[lo:hi] for v in x), tuple(f[lo:hi] for f in friction)),

@@ -24,18 +24,21 @@ declare (a run with other effects identifies on the declared ones).
 The objective is piecewise smooth (a slide starts or not), so no gradient method. Only
 the first :data:`IDENTIFY_SAMPLES` means are used (2 h at 5 Hz): ~10 000 runs of the
 model over them, 5-8 s on two cores for a 2 h record of 50 Hz (about twice that with the
-halves below).
+quarters below).
 
 How well the record pins the constants down is measured, not assumed: the same search
-runs again on each half of the means (:data:`SPLITS`), and the halves' constants are
+runs again on each quarter of the means (:data:`SPLITS`; in a record under 40 min,
+fewer parts of :data:`PART_MEANS` each, at least two), and the parts' constants are
 the ropes' alternatives, from which the uncertainty band's rope members are made
-(:func:`transforms.stick_slip.band_solutions`). A Hessian of the objective would
-understate it: the misfit (0.09-0.12 mm RMS on the validation days) is the model's,
-correlated over whole trips, not the logger's white noise, and the objective has
-several basins. On validation days 101 and 103 the halves' stiffness factors differ
-from the whole record's by 0.01-0.03 and their length offsets by up to 2 mm, about as
-much as the whole record's constants differ from those the truth windows imply. The
-three searches take 14-16 s for a 2 h record of 50 Hz.
+(:func:`transforms.stick_slip.band_solutions`: Student's t on their spread,
+:func:`transforms.stick_slip.parts_reach`; two halves gave a spread of one degree of
+freedom, and the band missed 5-16 % of the validation days' windows on one rope). A
+Hessian of the objective would understate it: the misfit (0.044-0.059 mm RMS on the
+validation days) is the model's, correlated over whole trips, not the logger's white
+noise, and the objective has several basins. On the four validation days the quarters'
+stiffness factors differ from the whole record's by up to 0.01 and their length offsets
+by up to 0.9 mm, about as much as the days' whole records differ from each other (0.01,
+0.45 mm). The five searches take 14-16 s for a 2 h record of 50 Hz.
 
 Where the seals drift (LuGre's single bristle, :mod:`transforms.seal_drift`), the model
 identified on drifts too, driven by each mean's played travel of the record's
@@ -82,6 +85,7 @@ __all__ = [
     "IDENTIFY_SPAN",
     "MEAN_STEP",
     "MISMATCH_LIMIT_M",
+    "PART_MEANS",
     "SPLITS",
     "identify_from_means",
     "identify_rope_springs",
@@ -106,10 +110,14 @@ IDENTIFY_SPAN = dt.timedelta(seconds=0.2 * IDENTIFY_SAMPLES)
 #: Part of the name of a cached identification (:func:`identify_from_means`), with the
 #: search's constants, the source of the modules the model runs and the numpy / scipy
 #: versions (:func:`_method_digest`): a file of another method is not read.
-IDENTIFICATION_VERSION = "3"
+IDENTIFICATION_VERSION = "4"
 #: The identification is repeated on this many consecutive parts of the means: their
-#: constants are the ropes' alternatives in the band (``RopeSprings.alternatives``).
+#: constants are the ropes' alternatives in the band (``RopeSprings.alternatives``) ...
 SPLITS = MAX_ALTERNATIVES
+#: ... or on fewer, at least two, so that each part holds this many means (10 min: two
+#: or three trips of a shaft's cycle; a 4 min quarter of a 15 min record holds one trip
+#: or none, and gave no ropes).
+PART_MEANS = 3000
 #: The most RMS difference between the model's and the logged x the ropes are kept at
 #: [m]: five logger steps. Beyond it the model does not describe the hoist (the 2 h
 #: validation and own records fit to 0.07-0.2 mm) and the compensation keeps the share-out.
@@ -147,7 +155,8 @@ def identify_from_means(
     with the drift's travel where the seals drift; pressures calibrated here; the branch
     loss when the hoist declares a pipe or local loss, at the record's median oil
     temperature if the viscosity follows it, else at the reference temperature), and on
-    each half of them (the alternatives).
+    each of :data:`SPLITS` parts of them, or fewer of :data:`PART_MEANS` at least (the
+    alternatives).
 
     Remembered for the process, and in ``cache_dir`` (``<data>/cache/rope_springs`` for
     ``ropeload run``) across processes: the same means of the same hoist (a re-run, the
@@ -189,6 +198,7 @@ def _method_digest() -> str:
     digest = hashlib.sha256(IDENTIFICATION_VERSION.encode())
     constants = (STIFFNESS_BOUNDS, OFFSET_BOUNDS_M, POPSIZE, GENERATIONS, RESTARTS, SEEDS,
                  COARSE_S, POLISH_S, MEAN_STEP, IDENTIFY_SAMPLES, MISMATCH_LIMIT_M, SPLITS,
+                 PART_MEANS,
                  np.__version__, scipy.__version__)  # fmt: skip
     digest.update(repr(constants).encode())
     for name in _MODEL_MODULES:
@@ -212,12 +222,13 @@ def _read_cached(path: Path) -> tuple[bool, RopeSprings | None]:
                 (tuple(float(v) for v in a), tuple(float(v) for v in c))
                 for a, c in payload["alternatives"]
             ),
+            parts=int(payload["parts"]),
         )
     except (OSError, ValueError, KeyError, TypeError):
         return False, None
     ropes = [springs.stiffness_factors, springs.length_offsets_m]
     ropes += [part for alternative in springs.alternatives for part in alternative]
-    if len(springs.alternatives) > SPLITS or any(
+    if not len(springs.alternatives) <= springs.splits <= SPLITS or any(
         len(values) != len(ROPES) or not np.isfinite(values).all() for values in ropes
     ):
         return False, None
@@ -301,7 +312,8 @@ def _identify(means: pl.DataFrame, hoist: HoistDescription) -> RopeSprings | Non
     springs = identify(slice(None))
     if springs is None:
         return None
-    bounds = np.linspace(0, time_s.size, SPLITS + 1).astype(int)
+    splits = min(SPLITS, max(2, time_s.size // PART_MEANS))
+    bounds = np.linspace(0, time_s.size, splits + 1).astype(int)
     alternatives = []
     for lo, hi in pairwise(bounds):
         part = identify(slice(lo, hi))
@@ -312,7 +324,7 @@ def _identify(means: pl.DataFrame, hoist: HoistDescription) -> RopeSprings | Non
                 "the ropes were not identified on part %d-%d of %d means; the band "
                 "leaves that part's ropes out", lo, hi, time_s.size,
             )  # fmt: skip
-    return replace(springs, alternatives=tuple(alternatives))
+    return replace(springs, alternatives=tuple(alternatives), parts=splits)
 
 
 def identify_rope_springs(

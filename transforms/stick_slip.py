@@ -56,16 +56,22 @@ play counted, :mod:`transforms.seal_drift`). Before: 1.16 / 0.18, 1.89 %; 1.29 /
 Windows worse than raw by > 0.2 points: 0 / 1 / 0 / 4, all at the pithead where the
 raw reading is within 0.4 %. The band (:func:`band_solutions`, each rope's own seal
 added, :mod:`transforms.uncertainty`) held the true load and every true rope tension
-in 95 / 87 / 84 / 73 % of those windows at a median half-width of 0.75 / 0.71 / 0.75 /
-0.43 % of the load; the windows it misses are the pithead's (shortest ropes), where a
-rope's tension is 0.2-0.4 % off on average over the day (its length offset ~0.2 mm
-off; the halves of the record agree on it more closely than the days do, 0.4-0.9 mm
-apart) and 0.2-0.6 % from window to window. On ropeload's
+in 97 / 96 / 91 / 74 % of those windows at a median half-width of 0.84 / 0.82 / 0.76 /
+0.43 % of the load (medians of two clusters of windows, 0.4-0.6 % and 0.8-1.1 %:
+session 16: the ropes' members from quarters of the record with
+Student's t, and two members for the seals' unknown friction where the record starts;
+95 / 87 / 84 / 73 % at 0.75 / 0.71 / 0.75 / 0.43 % with halves at 1.96 x). The windows
+it misses are the pithead's (shortest ropes): on days 101-103 a rope's tension 0.7-1.0 %
+off, on day 104 (ringing) the load 0.4-0.9 % off after the seals' friction moved
+together by ~300 N each, more at a payload change than the validation's ringing let
+them. On ropeload's
 own simulation with Maxwell-slip seals (no drift) the median is 0.6 % (band 100 % at
 1.14-1.21 %: the single elasto-plastic seal of this solution relaxes more than the
 simulation's Maxwell-slip elements when the conveyance stops); with LuGre seals 0.01 %
-(worst 0.52-0.61 %, band 100 % at 0.3 %), against 0.85-0.91 % and 30-35 windows worse
-than raw without the drift. The session-4 research prototype of this method (since
+(worst 0.52-0.61 %, band 100 % at a median of 0.58 %: half the windows' band is
+0.29 %, half 0.87-0.91 %, and the record's first start member moved the median from
+the one to between the two), against 0.85-0.91 % and 30-35 windows worse than raw
+without the drift. The session-4 research prototype of this method (since
 removed; elasto-plastic seals on sensor pressures, no band) gave 1.6-1.8 % worst with
 the ropes' constants fitted to the truth windows.
 What it assumes: quasi-static pistons (no rope bounce in the spring law; a ringing
@@ -91,6 +97,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+from scipy.special import stdtrit
 
 from physics.friction_law import friction_law_at, law_array, stribeck_g
 from physics.lugre import lugre_drift
@@ -99,14 +106,15 @@ from physics.rope_spring import head_rope_stiffness_n_m, seal_on_rope_step
 from physics.sensor_branch import sensor_minus_chamber_at
 from schemas.hoist import HoistDescription
 from transforms.seal_drift import played_travel
-from transforms.uncertainty import Z95
 
 __all__ = [
     "MAX_ALTERNATIVES",
     "MAX_SOLUTIONS",
+    "START_MEMBERS",
     "RopeSprings",
     "band_members",
     "band_solutions",
+    "parts_reach",
     "stick_slip",
     "stick_slip_state",
 ]
@@ -114,35 +122,80 @@ __all__ = [
 
 #: The most alternatives of the ropes a :class:`RopeSprings` carries (one per part of
 #: the record the identification repeats on, :data:`transforms.rope_identification.SPLITS`).
-MAX_ALTERNATIVES = 2
+MAX_ALTERNATIVES = 4
 #: The most solutions :func:`band_solutions` gives: the estimate, the four of
 #: :func:`band_members` and one per alternative of the ropes.
 MAX_SOLUTIONS = 5 + MAX_ALTERNATIVES
+#: ``start_at_capacity`` of the members of :func:`band_members`, in its order: the lower
+#: capacity starts the record with the seals down, the higher with them up.
+START_MEMBERS = (-1.0, 1.0, 0.0, 0.0)
 
 
 def band_solutions(
     springs: RopeSprings, friction_relative_sigma: float
-) -> list[tuple[float, float, RopeSprings]]:
-    """(capacity factor, bristle-stiffness factor, ropes) of the estimate (first) and of
-    each member of the 95 % band: the friction law's members (:func:`band_members`) on
-    the identified ropes, then the estimate's law on each alternative of the ropes (the
-    constants identified on part of the record, taken 1.96 x as far: a half minus the
-    whole is about one standard deviation of the whole's estimate). With LuGre seals
-    the bristle stiffness also sets how fast they drift (:func:`stick_slip`), so its
-    members span the drift too.
+) -> list[tuple[float, float, RopeSprings, float]]:
+    """(capacity factor, bristle-stiffness factor, ropes, start) of the estimate (first)
+    and of each member of the 95 % band: the friction law's members
+    (:func:`band_members`) on the identified ropes, the lower and the higher capacity
+    also starting the record with every seal as far down or up as the ropes let it
+    (``start_at_capacity`` of :func:`stick_slip`, :data:`START_MEMBERS`: nothing tells
+    the seals' friction where a record starts), then the estimate's law on each
+    alternative of the ropes (the constants identified on part of the record, taken
+    :func:`parts_reach` x as far). With LuGre seals the bristle stiffness also sets how
+    fast they drift (:func:`stick_slip`), so its members span the drift too.
 
-    >>> springs = RopeSprings((1.0, 1.02), (0.0, 1e-3), 1e-4, 100, (((1.0, 1.03), (0.0, 2e-3)),))
-    >>> [(c, s, round(r.stiffness_factors[1], 4)) for c, s, r in band_solutions(springs, 0.1)][-2:]
-    [(1.0, 2.0, 1.02), (1.0, 1.0, 1.0396)]
+    One half of a record gave ropes (rope 2 0.01 stiffer than the whole's), the other
+    none: the member reaches t_1 = 12.7 x as far.
+
+    >>> springs = RopeSprings((1.0, 1.02), (0.0, 1e-3), 1e-4, 100,
+    ...                       (((1.0, 1.03), (0.0, 2e-3)),), parts=2)
+    >>> [(c, s, round(r.stiffness_factors[1], 4), start)
+    ...  for c, s, r, start in band_solutions(springs, 0.1)][-4:]
+    [(1.196, 1.0, 1.02, 1.0), (1.0, 0.5, 1.02, 0.0), (1.0, 2.0, 1.02, 0.0), (1.0, 1.0, 1.1471, 0.0)]
     """
-    solutions = [(1.0, 1.0, springs)]
-    solutions += [(c, s, springs) for c, s in band_members(friction_relative_sigma)]
+    solutions = [(1.0, 1.0, springs, 0.0)]
+    solutions += [
+        (c, s, springs, start)
+        for (c, s), start in zip(band_members(friction_relative_sigma), START_MEMBERS, strict=True)
+    ]
     alternatives = range(len(springs.alternatives))
-    solutions += [(1.0, 1.0, springs.alternative(k, Z95)) for k in alternatives]
+    if springs.alternatives:
+        reach = parts_reach(len(springs.alternatives), springs.splits)
+        solutions += [(1.0, 1.0, springs.member(k, reach), 0.0) for k in alternatives]
     if len(solutions) > MAX_SOLUTIONS:
         raise ValueError(f"{len(springs.alternatives)} alternatives of the ropes: at most "
                          f"{MAX_ALTERNATIVES} (MAX_ALTERNATIVES)")  # fmt: skip
     return solutions
+
+
+def parts_reach(identified: int, splits: int = MAX_ALTERNATIVES) -> float:
+    """How far the band's rope members go from the whole record's constants, as a
+    multiple of each part's deviation (:meth:`RopeSprings.member`), when the
+    identification ran on ``splits`` = K equal parts and J = ``identified`` of them gave
+    ropes.
+
+    A part's error has K x the variance of the whole's (a K-th of the data), and the
+    whole is about the parts' mean: a part less the whole spreads (K - 1)^(1/2) x the
+    whole's standard deviation sigma, which the J = K parts estimate with K - 1 degrees
+    of freedom. A 95 % interval is Student's t_{K-1} x sigma (3.18 for four quarters,
+    12.7 for two halves); the deviations sum to about zero, so the members lie on both
+    sides of the whole, and the largest is at least their RMS: the reach is
+    t_{K-1} / (K - 1)^(1/2). Where the parts disagree with the whole on one side (short
+    parts biased), the members keep that bias in the band.
+    Where only J < K parts gave ropes, their deviations from their own mean (both
+    sides) estimate sigma with J - 1 degrees of freedom: the reach is
+    t_{J-1} (J / (K (J - 1)))^(1/2). One part alone: its deviation from the whole at
+    t_1 / (K - 1)^(1/2) (one-sided and wide: little data).
+
+    >>> round(parts_reach(4), 3), round(parts_reach(3), 3), round(parts_reach(1), 2)
+    (1.837, 2.635, 7.34)
+    """
+    if splits < 2:
+        raise ValueError(f"splits {splits}: a spread needs at least two parts")
+    if identified < 2:
+        return float(stdtrit(1, 0.975) / np.sqrt(splits - 1))
+    dof = identified - 1
+    return float(stdtrit(dof, 0.975) * np.sqrt(identified / (splits * dof)))
 
 
 def band_members(friction_relative_sigma: float) -> tuple[tuple[float, float], ...]:
@@ -173,10 +226,13 @@ class RopeSprings:
     samples : int
         Samples the identification used.
     alternatives : tuple of (a, c)
-        The constants identified on each half of those samples
+        The constants identified on each of the parts of those samples
         (:data:`transforms.rope_identification.SPLITS`): how far the record's data pin
         the ropes down. Their solutions are members of the uncertainty band
         (:func:`band_solutions`).
+    parts : int
+        How many parts the identification ran on (those that gave no ropes have no
+        alternative); 0: as many as :attr:`alternatives`.
     """
 
     stiffness_factors: tuple[float, ...]
@@ -184,19 +240,36 @@ class RopeSprings:
     mismatch_m: float
     samples: int
     alternatives: tuple[tuple[tuple[float, ...], tuple[float, ...]], ...] = ()
+    parts: int = 0
 
-    def alternative(self, k: int, reach: float = 1.0) -> RopeSprings:
-        """Ropes of their own ``reach`` times as far from these as the k-th of
-        :attr:`alternatives` (1: that alternative itself).
+    @property
+    def splits(self) -> int:
+        """How many parts the identification ran on (:attr:`parts`, else as many as
+        :attr:`alternatives`)."""
+        return self.parts or len(self.alternatives)
 
-        >>> RopeSprings((1.0, 1.02), (0.0, 1e-3), 0.0, 0, (((1.0, 1.03), (0.0, 2e-3)),)
-        ...             ).alternative(0, 2.0).length_offsets_m
+    def member(self, k: int, reach: float) -> RopeSprings:
+        """Ropes of their own at these constants plus ``reach`` times the k-th of
+        :attr:`alternatives` less these constants, or less the alternatives' mean where
+        fewer than :attr:`splits` but more than one part gave ropes
+        (:func:`parts_reach`): a member of the band (:func:`band_solutions`).
+
+        >>> RopeSprings((1.0, 1.02), (0.0, 1e-3), 0.0, 0,
+        ...             (((1.0, 1.03), (0.0, 2e-3)), ((1.0, 1.01), (0.0, 0.0)))
+        ...             ).member(0, 2.0).length_offsets_m
         (0.0, 0.003)
         """
-        a, c = self.alternatives[k]
-        a = tuple(w + reach * (v - w) for v, w in zip(a, self.stiffness_factors, strict=True))
-        c = tuple(w + reach * (v - w) for v, w in zip(c, self.length_offsets_m, strict=True))
-        return RopeSprings(a, c, self.mismatch_m, self.samples)
+        here = np.r_[self.stiffness_factors, self.length_offsets_m]
+        parts = np.array([np.r_[a, c] for a, c in self.alternatives])
+        center = parts.mean(axis=0) if 1 < len(parts) < self.splits else here
+        values = here + reach * (parts[k] - center)
+        n = len(self.stiffness_factors)
+        return RopeSprings(
+            tuple(float(v) for v in values[:n]),
+            tuple(float(v) for v in values[n:]),
+            self.mismatch_m,
+            self.samples,
+        )
 
 
 def stick_slip_state(pistons: int) -> np.ndarray:
@@ -237,6 +310,7 @@ def stick_slip(
     state: np.ndarray | None = None,
     capacity_scale: float = 1.0,
     sigma0_scale: float = 1.0,
+    start_at_capacity: float = 0.0,
     drift_pressure_pa: np.ndarray | None = None,
     drift_half_width_pa: float = 0.0,
     drift_travel_pa: np.ndarray | None = None,
@@ -273,6 +347,12 @@ def stick_slip(
     capacity_scale, sigma0_scale : float
         Factors on the friction law's capacity and on the bristle stiffness (the
         uncertainty band's members, :func:`band_solutions`).
+    start_at_capacity : float
+        The seals' friction where the record starts (nothing tells it): 0 what the
+        ropes leave each seal with their mean taken 0; -1 or +1 the conveyance's common
+        stretch that takes every seal as far that way as the ropes let them, one at its
+        static capacity (the band's extremes of the unknown start, remembered until
+        the pistons slide).
     drift_pressure_pa : ndarray, optional
         The pressure whose played travel drives the seals' drift
         (:func:`transforms.seal_drift.drift_pressure`, one per sample); None: the seals
@@ -333,6 +413,8 @@ def stick_slip(
                 raise ValueError(f"{name} has {drift.shape} samples, depth_m {n}")
             if drift_mode == 2 and not (np.isfinite(drift).all() and (drift >= 0.0).all()):
                 raise ValueError(f"{name} must be finite and >= 0")
+    if start_at_capacity not in (-1.0, 0.0, 1.0):
+        raise ValueError(f"start_at_capacity {start_at_capacity} must be -1, 0 or 1")
     if drift_mode == 1 and not drift_half_width_pa >= 0.0:
         raise ValueError(f"drift_half_width_pa {drift_half_width_pa} must be >= 0")
     ringing = np.zeros(1)
@@ -359,6 +441,7 @@ def stick_slip(
             np.asarray(springs.stiffness_factors, dtype=np.float64),
             np.asarray(springs.length_offsets_m, dtype=np.float64),
             float(capacity_scale),
+            float(start_at_capacity),
             drift_mode,
             drift,
             float(drift_half_width_pa),
@@ -374,7 +457,7 @@ def stick_slip(
 @njit(cache=True, nogil=True, error_model="numpy")
 def _kernel(
     p_sensor, x_logged, depth, segment, dt, nu, with_loss, branch, const, law, a, c, scale,
-    drift_mode, drift_p, drift_w, rings, ringing, x_out, f_out, state,
+    start, drift_mode, drift_p, drift_w, rings, ringing, x_out, f_out, state,
 ):  # pragma: no cover - numba  # fmt: skip
     """Per sample: the seals' drift, the oil's Newton solve for s, each piston's seal step
     (module docstring).
@@ -442,7 +525,8 @@ def _kernel(
                 nu_t = nu[t] if per_sample else nu[0]
                 damping[i] = -area * sensor_minus_chamber_at(speed, nu_t, branch) / speed / dt
             cap[i] = scale * (stribeck_g(v[i], fc, fs, vs) + kv * abs(v[i]))
-        if not ran:  # the record's start: positions logged, friction unknown (mean 0)
+        if not ran:  # the record's start: positions logged, friction unknown (mean 0, or
+            # for the band's start members as far as the ropes let every seal go)
             num = 0.0
             den = 0.0
             for i in range(m):
@@ -450,6 +534,16 @@ def _kernel(
                 num += p_sensor[i][t] * area + ka[i] * (x[i] + c[i])
                 den += ka[i]
             s = num / den
+            if start != 0.0:  # the common stretch that takes the seals farthest that way
+                reach = s
+                for i in range(m):
+                    at_cap = (start * scale * fs + p_sensor[i][t] * area) / ka[i] + x[i] + c[i]
+                    reach = (
+                        at_cap
+                        if i == 0
+                        else (min(reach, at_cap) if start > 0.0 else max(reach, at_cap))
+                    )
+                s = max(s, reach) if start > 0.0 else min(s, reach)
             for i in range(m):
                 force = ka[i] * (s - x[i] - c[i]) - p_sensor[i][t] * area
                 z[i] = min(max(force, -scale * fs), scale * fs)

@@ -35,8 +35,10 @@ piston slides: there is no blind motion. The friction's part of the band is then
 spread of the stick-slip solution over what the mine does not know well
 (:func:`transforms.stick_slip.band_solutions`: the law's capacity +-1.96 x its
 uncertainty, the bristle stiffness halved and doubled (with LuGre seals also their
-drift's rate), and the ropes' constants reaching 1.96 x as far as those identified on
-each half of the record), for each rope and, member by member summed,
+drift's rate), the seals' unknown friction where the record starts (every seal as far
+down or up as the ropes let it, forgotten as the pistons slide), and the ropes'
+constants as identified on each quarter of the record, Student's t of their spread),
+for each rope and, member by member summed,
 for the load (:func:`ensemble_band`); the sensor's noise is added as above. The
 members move every seal alike: a sliding piston's friction by the capacity member's
 +-1.96 x 10 %, which is part 2 whole, but a sticking piston's, set by the ropes and its

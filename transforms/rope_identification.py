@@ -38,7 +38,8 @@ validation days) is the model's, correlated over whole trips, not the logger's w
 noise, and the objective has several basins. On the four validation days the quarters'
 stiffness factors differ from the whole record's by up to 0.01 and their length offsets
 by up to 0.9 mm, about as much as the days' whole records differ from each other (0.01,
-0.45 mm). The five searches take 14-16 s for a 2 h record of 50 Hz.
+0.45 mm). The five searches take ~21 s for a 2 h record of 50 Hz (whole and halves:
+15 s).
 
 Where the seals drift (LuGre's single bristle, :mod:`transforms.seal_drift`), the model
 identified on drifts too, driven by each mean's played travel of the record's

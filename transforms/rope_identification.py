@@ -23,7 +23,7 @@ hypotheses. The branch loss and the viscosity are those the hoist's ``[model] ef
 declare (a run with other effects identifies on the declared ones).
 The objective is piecewise smooth (a slide starts or not), so no gradient method. Only
 the first :data:`IDENTIFY_SAMPLES` means are used (2 h at 5 Hz): ~10 000 runs of the
-model over them, 5-8 s on two cores for a 2 h record of 50 Hz (about twice that with the
+model over them, 5-8 s on two cores for a 2 h record of 50 Hz (about three times that with the
 quarters below).
 
 How well the record pins the constants down is measured, not assumed: the same search

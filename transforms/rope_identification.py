@@ -156,8 +156,8 @@ def identify_from_means(
     with the drift's travel where the seals drift; pressures calibrated here; the branch
     loss when the hoist declares a pipe or local loss, at the record's median oil
     temperature if the viscosity follows it, else at the reference temperature), and on
-    each of :data:`SPLITS` parts of them, or fewer of :data:`PART_MEANS` at least (the
-    alternatives).
+    each of :data:`SPLITS` parts of them (fewer, of :data:`PART_MEANS` each, in a
+    record under 40 min; two in one under 20 min) (the alternatives).
 
     Remembered for the process, and in ``cache_dir`` (``<data>/cache/rope_springs`` for
     ``ropeload run``) across processes: the same means of the same hoist (a re-run, the
@@ -229,7 +229,7 @@ def _read_cached(path: Path) -> tuple[bool, RopeSprings | None]:
         return False, None
     ropes = [springs.stiffness_factors, springs.length_offsets_m]
     ropes += [part for alternative in springs.alternatives for part in alternative]
-    if not len(springs.alternatives) <= springs.splits <= SPLITS or any(
+    if springs.splits > SPLITS or any(
         len(values) != len(ROPES) or not np.isfinite(values).all() for values in ropes
     ):
         return False, None
@@ -320,7 +320,7 @@ def _identify(means: pl.DataFrame, hoist: HoistDescription) -> RopeSprings | Non
         part = identify(slice(lo, hi))
         if part is not None:
             alternatives.append((part.stiffness_factors, part.length_offsets_m))
-        else:  # the band leaves that part's ropes out: narrower where the data say least
+        else:  # the band leaves that part's ropes out (the others' t takes fewer dof)
             _LOG.warning(
                 "the ropes were not identified on part %d-%d of %d means; the band "
                 "leaves that part's ropes out", lo, hi, time_s.size,

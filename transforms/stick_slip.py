@@ -110,6 +110,7 @@ from transforms.seal_drift import played_travel
 __all__ = [
     "MAX_ALTERNATIVES",
     "MAX_SOLUTIONS",
+    "MEMBER_STIFFNESS_LIMITS",
     "START_MEMBERS",
     "RopeSprings",
     "band_members",
@@ -126,9 +127,13 @@ MAX_ALTERNATIVES = 4
 #: The most solutions :func:`band_solutions` gives: the estimate, the four of
 #: :func:`band_members` and one per alternative of the ropes.
 MAX_SOLUTIONS = 5 + MAX_ALTERNATIVES
-#: ``start_at_capacity`` of the members of :func:`band_members`, in its order: the lower
-#: capacity starts the record with the seals down, the higher with them up.
-START_MEMBERS = (-1.0, 1.0, 0.0, 0.0)
+#: ``start_at_capacity`` of the members of :func:`band_members`, in its order: the softer
+#: bristles start the record with the seals down, the stiffer with them up (both of the
+#: law's capacity: the extremes +-F_s; the capacity members keep their own role).
+START_MEMBERS = (0.0, 0.0, -1.0, 1.0)
+#: A member's rope stiffness factors are kept within these (the identification searches
+#: 0.9-1.1; a part's deviation taken t x as far could otherwise reach a slack rope).
+MEMBER_STIFFNESS_LIMITS = (0.5, 1.5)
 
 
 def band_solutions(
@@ -136,22 +141,26 @@ def band_solutions(
 ) -> list[tuple[float, float, RopeSprings, float]]:
     """(capacity factor, bristle-stiffness factor, ropes, start) of the estimate (first)
     and of each member of the 95 % band: the friction law's members
-    (:func:`band_members`) on the identified ropes, the lower and the higher capacity
+    (:func:`band_members`) on the identified ropes, the softer and the stiffer bristles
     also starting the record with every seal as far down or up as the ropes let it
     (``start_at_capacity`` of :func:`stick_slip`, :data:`START_MEMBERS`: nothing tells
     the seals' friction where a record starts), then the estimate's law on each
     alternative of the ropes (the constants identified on part of the record, taken
-    :func:`parts_reach` x as far). With LuGre seals the bristle stiffness also sets how
+    :func:`parts_reach` x as far; one part alone also mirrored, both sides of the whole).
+    With LuGre seals the bristle stiffness also sets how
     fast they drift (:func:`stick_slip`), so its members span the drift too.
 
     One half of a record gave ropes (rope 2 0.01 stiffer than the whole's), the other
-    none: the member reaches t_1 = 12.7 x as far.
+    none: the members reach t_1 = 12.7 x as far, on both sides.
 
     >>> springs = RopeSprings((1.0, 1.02), (0.0, 1e-3), 1e-4, 100,
     ...                       (((1.0, 1.03), (0.0, 2e-3)),), parts=2)
-    >>> [(c, s, round(r.stiffness_factors[1], 4), start)
-    ...  for c, s, r, start in band_solutions(springs, 0.1)][-4:]
-    [(1.196, 1.0, 1.02, 1.0), (1.0, 0.5, 1.02, 0.0), (1.0, 2.0, 1.02, 0.0), (1.0, 1.0, 1.1471, 0.0)]
+    >>> for c, s, r, start in band_solutions(springs, 0.1)[-4:]:
+    ...     print(c, s, round(r.stiffness_factors[1], 4), start)
+    1.0 0.5 1.02 -1.0
+    1.0 2.0 1.02 1.0
+    1.0 1.0 1.1471 0.0
+    1.0 1.0 0.8929 0.0
     """
     solutions = [(1.0, 1.0, springs, 0.0)]
     solutions += [
@@ -162,6 +171,8 @@ def band_solutions(
     if springs.alternatives:
         reach = parts_reach(len(springs.alternatives), springs.splits)
         solutions += [(1.0, 1.0, springs.member(k, reach), 0.0) for k in alternatives]
+        if len(springs.alternatives) == 1:  # its deviation's sign says nothing: both sides
+            solutions.append((1.0, 1.0, springs.member(0, -reach), 0.0))
     if len(solutions) > MAX_SOLUTIONS:
         raise ValueError(f"{len(springs.alternatives)} alternatives of the ropes: at most "
                          f"{MAX_ALTERNATIVES} (MAX_ALTERNATIVES)")  # fmt: skip
@@ -185,7 +196,9 @@ def parts_reach(identified: int, splits: int = MAX_ALTERNATIVES) -> float:
     Where only J < K parts gave ropes, their deviations from their own mean (both
     sides) estimate sigma with J - 1 degrees of freedom: the reach is
     t_{J-1} (J / (K (J - 1)))^(1/2). One part alone: its deviation from the whole at
-    t_1 / (K - 1)^(1/2) (one-sided and wide: little data).
+    t_1 / (K - 1)^(1/2), on both sides of the whole (:func:`band_solutions`: the
+    deviation is independent of the whole's error, so one side would hold the truth
+    half the time), and wide: little data.
 
     >>> round(parts_reach(4), 3), round(parts_reach(3), 3), round(parts_reach(1), 2)
     (1.837, 2.635, 7.34)
@@ -242,6 +255,12 @@ class RopeSprings:
     alternatives: tuple[tuple[tuple[float, ...], tuple[float, ...]], ...] = ()
     parts: int = 0
 
+    def __post_init__(self) -> None:
+        if self.parts and len(self.alternatives) > self.parts:
+            raise ValueError(f"{len(self.alternatives)} alternatives of {self.parts} parts")
+        if self.alternatives and self.splits < 2:
+            raise ValueError("alternatives need the identification on two parts at least")
+
     @property
     def splits(self) -> int:
         """How many parts the identification ran on (:attr:`parts`, else as many as
@@ -252,7 +271,8 @@ class RopeSprings:
         """Ropes of their own at these constants plus ``reach`` times the k-th of
         :attr:`alternatives` less these constants, or less the alternatives' mean where
         fewer than :attr:`splits` but more than one part gave ropes
-        (:func:`parts_reach`): a member of the band (:func:`band_solutions`).
+        (:func:`parts_reach`), the stiffness factors within
+        :data:`MEMBER_STIFFNESS_LIMITS`: a member of the band (:func:`band_solutions`).
 
         >>> RopeSprings((1.0, 1.02), (0.0, 1e-3), 0.0, 0,
         ...             (((1.0, 1.03), (0.0, 2e-3)), ((1.0, 1.01), (0.0, 0.0)))
@@ -264,6 +284,7 @@ class RopeSprings:
         center = parts.mean(axis=0) if 1 < len(parts) < self.splits else here
         values = here + reach * (parts[k] - center)
         n = len(self.stiffness_factors)
+        values[:n] = np.clip(values[:n], *MEMBER_STIFFNESS_LIMITS)
         return RopeSprings(
             tuple(float(v) for v in values[:n]),
             tuple(float(v) for v in values[n:]),
@@ -352,7 +373,8 @@ def stick_slip(
         ropes leave each seal with their mean taken 0; -1 or +1 the conveyance's common
         stretch that takes every seal as far that way as the ropes let them, one at its
         static capacity (the band's extremes of the unknown start, remembered until
-        the pistons slide).
+        the pistons slide); where the ropes already leave a seal beyond its capacity
+        that way, the estimate's start.
     drift_pressure_pa : ndarray, optional
         The pressure whose played travel drives the seals' drift
         (:func:`transforms.seal_drift.drift_pressure`, one per sample); None: the seals

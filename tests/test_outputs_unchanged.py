@@ -39,10 +39,10 @@ the load band's bounds move by < 0.5 N of 155 kN (sum of load_after_lo_n -0.47 N
 The ``demo_position_summary`` and ``demo_trip_summary`` entries again (session 16) after
 the band's rope members take Student's t on the parts' spread
 (:func:`transforms.stick_slip.parts_reach`; the demo's 15 min record is split in two
-halves, of which one gives ropes: t_1 = 12.7) and two members start the record with the
-seals as far down or up as the ropes let them: only the load bands move (sums of
-load_after_lo_n -0.38 %, load_after_hi_n +0.87 %, max_load_after_hi_n +0.26 %); the
-values are unchanged.
+halves, of which one gives ropes: t_1 = 12.7, mirrored) and the bristle members start
+the record with the seals as far down or up as the ropes let them: only the load bands
+move (sums of load_after_lo_n -0.65 %, load_after_hi_n +0.54 %, max_load_after_hi_n
++0.004 %); the values are unchanged.
 
 The compensation's input is written here with numpy (two trips, a payload step at a
 stop, a ringing rope, a logger gap, a warming oil), not by the simulation, so a change

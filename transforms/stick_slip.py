@@ -57,10 +57,11 @@ Windows worse than raw by > 0.2 points: 0 / 1 / 0 / 4, all at the pithead where 
 raw reading is within 0.4 %. The band (:func:`band_solutions`, each rope's own seal
 added, :mod:`transforms.uncertainty`) held the true load and every true rope tension
 in 97 / 96 / 91 / 74 % of those windows at a median half-width of 0.84 / 0.82 / 0.76 /
-0.43 % of the load (medians of two clusters of windows, 0.4-0.6 % and 0.8-1.1 %:
-session 16: the ropes' members from quarters of the record with
+0.43 % of the load (session 16: the ropes' members from quarters of the record with
 Student's t, and two members for the seals' unknown friction where the record starts;
-95 / 87 / 84 / 73 % at 0.75 / 0.71 / 0.75 / 0.43 % with halves at 1.96 x). The windows
+95 / 87 / 84 / 73 % at 0.75 / 0.71 / 0.75 / 0.43 % with halves at 1.96 x; the windows'
+half-widths fall in two clusters, and the medians between them move with a window or
+two). The windows
 it misses are the pithead's (shortest ropes): on days 101-103 a rope's tension 0.7-1.0 %
 off, on day 104 (ringing) the load 0.4-0.9 % off after the seals' friction moved
 together by ~300 N each, more at a payload change than the validation's ringing let
@@ -69,9 +70,9 @@ own simulation with Maxwell-slip seals (no drift) the median is 0.6 % (band 100 
 1.14-1.21 %: the single elasto-plastic seal of this solution relaxes more than the
 simulation's Maxwell-slip elements when the conveyance stops); with LuGre seals 0.01 %
 (worst 0.52-0.61 %, band 100 % at a median of 0.58 %: half the windows' band is
-0.29 %, half 0.87-0.91 %, and the record's first start member moved the median from
-the one to between the two), against 0.85-0.91 % and 30-35 windows worse than raw
-without the drift. The session-4 research prototype of this method (since
+0.29 %, half 0.87-0.91 %, and the median falls between), against 0.85-0.91 % and
+30-35 windows worse than raw without the drift. The session-4 research prototype of
+this method (since
 removed; elasto-plastic seals on sensor pressures, no band) gave 1.6-1.8 % worst with
 the ropes' constants fitted to the truth windows.
 What it assumes: quasi-static pistons (no rope bounce in the spring law; a ringing
@@ -147,8 +148,8 @@ def band_solutions(
     the seals' friction where a record starts), then the estimate's law on each
     alternative of the ropes (the constants identified on part of the record, taken
     :func:`parts_reach` x as far; one part alone also mirrored, both sides of the whole).
-    With LuGre seals the bristle stiffness also sets how
-    fast they drift (:func:`stick_slip`), so its members span the drift too.
+    With LuGre seals the bristle stiffness also sets how fast they drift
+    (:func:`stick_slip`), so its members span the drift too.
 
     One half of a record gave ropes (rope 2 0.01 stiffer than the whole's), the other
     none: the members reach t_1 = 12.7 x as far, on both sides.

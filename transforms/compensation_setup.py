@@ -28,7 +28,7 @@ from transforms.compensation_record import (
     compensation_margins_s,
     float_column,
 )
-from transforms.filtering import segment_ids
+from transforms.filtering import pressure_cutoff_at, segment_ids
 from transforms.seal_drift import seals_drift
 
 __all__ = ["BlockSetup", "epoch_us"]
@@ -81,7 +81,7 @@ class BlockSetup:
         self.settings = replace(
             settings,
             sample_rate_hz=rate_hz,
-            pressure_cutoff_hz=min(settings.pressure_cutoff_hz, 0.4 * rate_hz),
+            pressure_cutoff_hz=pressure_cutoff_at(settings.pressure_cutoff_hz, rate_hz),
         )
         self.dt_nominal = 1.0 / rate_hz
         self._time_setup(block_start_utc, block_end_utc)

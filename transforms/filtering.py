@@ -36,6 +36,7 @@ from transforms.lowpass import lowpass
 
 __all__ = [
     "MAD_TO_SIGMA",
+    "MAX_CUTOFF_SHARE",
     "box_smooth",
     "box_smooth_into",
     "despike_median3",
@@ -45,6 +46,7 @@ __all__ = [
     "play_kernel",
     "play_operator",
     "play_step",
+    "pressure_cutoff_at",
     "seconds_expr",
     "segment_ids",
     "with_segment_id",
@@ -311,6 +313,20 @@ def despike_median3(
         out = np.empty_like(values)
     _median3_kernel(values, seg, n_sigmas * sigma, out)
     return out, sigma
+
+
+#: A low-pass cut-off stays below this share of the logger's rate (Nyquist is 0.5).
+MAX_CUTOFF_SHARE = 0.4
+
+
+def pressure_cutoff_at(cutoff_hz: float, sample_rate_hz: float) -> float:
+    """The pressure low-pass's cut-off a logger's rate allows [Hz]: ``cutoff_hz``, at most
+    :data:`MAX_CUTOFF_SHARE` x ``sample_rate_hz``.
+
+    >>> pressure_cutoff_at(10.0, 50.0), pressure_cutoff_at(10.0, 10.0)
+    (10.0, 4.0)
+    """
+    return min(cutoff_hz, MAX_CUTOFF_SHARE * sample_rate_hz)
 
 
 def despiked_lowpass(

@@ -34,7 +34,7 @@ from physics.rope_spring import bounce_frequency_hz
 from physics.tension import tail_rope_mass_kg
 from physics.trip_rule import segment_ids
 from schemas.hoist import G_STANDARD, HoistDescription
-from transforms.filtering import despiked_lowpass, play_step
+from transforms.filtering import despiked_lowpass, play_step, pressure_cutoff_at
 from transforms.lowpass import lowpass
 
 __all__ = [
@@ -254,8 +254,9 @@ def drift_travel(
 
     ``pressures``: calibrated sensor pressures; despiked and low-passed here as the
     compensation does (:class:`transforms.compensation_record.CompensationSettings`'s
-    ``spike_sigmas``, ``pressure_cutoff_hz`` at most 0.4 x the logger's rate, gaps beyond
-    ``gap_factor`` steps; the rate ``sample_rate_hz``, else the median step's), then
+    ``spike_sigmas``, ``pressure_cutoff_hz`` as the logger's rate allows
+    (:func:`transforms.filtering.pressure_cutoff_at`), gaps beyond ``gap_factor``
+    steps; the rate ``sample_rate_hz``, else the median step's), then
     :func:`drift_pressure` and :func:`played_travel`, plus the ringing the play hides at
     rest (:func:`ringing_travel`).
     """
@@ -266,7 +267,7 @@ def drift_travel(
     if not 0.0 < rate < np.inf:
         raise ValueError(f"the samples' rate {rate} Hz is not a rate (repeated times?)")
     segment = segment_ids(t, gap_factor=gap_factor, nominal_dt_s=1.0 / rate)
-    cutoff = min(pressure_cutoff_hz, 0.4 * rate)
+    cutoff = pressure_cutoff_at(pressure_cutoff_hz, rate)  # as the compensation's set-up
     filtered = tuple(
         despiked_lowpass(np.array(p, dtype=np.float64), segment, sample_rate_hz=rate,
                          cutoff_hz=cutoff, spike_sigmas=spike_sigmas)

@@ -5,6 +5,8 @@ Functions
     with Stribeck-scaled capacities (numba).
     :func:`maxwell_slip_elements` -- element stiffnesses and weights from the total
     presliding stiffness.
+    :func:`maxwell_slip_virgin` -- element deflections that hold a given force after a
+    monotone motion from rest (numba).
     :func:`maxwell_slip_friction` -- the step over a sampled velocity record, plus the
     viscous term (the C -> infinity limit of Generalized Maxwell-Slip).
 
@@ -27,7 +29,12 @@ from numba import njit
 from physics._samples import per_sample
 from physics.friction_law import stribeck_g
 
-__all__ = ["maxwell_slip_elements", "maxwell_slip_friction", "maxwell_slip_step"]
+__all__ = [
+    "maxwell_slip_elements",
+    "maxwell_slip_friction",
+    "maxwell_slip_step",
+    "maxwell_slip_virgin",
+]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -83,6 +90,65 @@ def maxwell_slip_step(
             d = -limit
         deltas[j] = d
         total += stiffness[j] * d
+    return total
+
+
+@njit(cache=True, nogil=True)
+def maxwell_slip_virgin(
+    force_n: float, deltas: np.ndarray, stiffness: np.ndarray, weights: np.ndarray, g: float
+) -> float:
+    r"""Set the elements' deflections to hold ``force_n`` on the virgin curve; return it.
+
+    The state a monotone motion from rest leaves at that force (Lampaert et al. 2002:
+    the virgin curve F(u) = sum_j k_j min(|u|, alpha_j g / k_j) sgn u): every element
+    moved by the same u, those whose capacity it passed saturated. A force beyond the
+    capacity g is taken as g. Where nothing tells the elements' history (a record's
+    start) it is the state with the fewest turning points.
+
+    Parameters
+    ----------
+    force_n : float
+        The force to hold [N].
+    deltas : numpy.ndarray
+        Element deflections [m]; written.
+    stiffness, weights : numpy.ndarray
+        k_j [N/m] and alpha_j [-] (:func:`maxwell_slip_elements`).
+    g : float
+        The capacity [N], >= 0.
+
+    Returns
+    -------
+    float
+        The force the elements hold, sum k_j delta_j [N] (``force_n`` within +-g).
+
+    >>> d = np.zeros(2)
+    >>> maxwell_slip_virgin(2.0, d, np.array([1e6, 1e6]), np.array([0.2, 0.8]), 2.5)
+    2.0
+    >>> d.tolist()   # u = 1.25 um: the first element (limit 0.5 um) has slipped
+    [5e-07, 1.5e-06]
+    """
+    remaining = min(abs(force_n), g)
+    u = 0.0
+    while remaining > 0.0:
+        slope = 0.0
+        nxt = np.inf
+        for j in range(deltas.shape[0]):
+            limit = weights[j] * g / stiffness[j]
+            if limit > u:
+                slope += stiffness[j]
+                nxt = min(nxt, limit)
+        if slope == 0.0:
+            break
+        if slope * (nxt - u) >= remaining:
+            u += remaining / slope
+            break
+        remaining -= slope * (nxt - u)
+        u = nxt
+    sign = 1.0 if force_n >= 0.0 else -1.0
+    total = 0.0
+    for j in range(deltas.shape[0]):
+        deltas[j] = sign * min(u, weights[j] * g / stiffness[j])
+        total += stiffness[j] * deltas[j]
     return total
 
 

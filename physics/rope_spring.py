@@ -30,6 +30,8 @@ elastic range up to the capacity, the one-element Maxwell-slip model
     :func:`bounce_frequency_hz` -- the conveyance's bounce on its ropes.
     :func:`seal_on_rope_step` -- one quasi-static step of a piston between its rope and
     its seal (numba).
+    :func:`elements_on_rope_step` -- the same with the seal's Maxwell-slip elements
+    (``presliding_hysteresis``, numba).
 
 References
 ----------
@@ -47,7 +49,12 @@ from numba import njit
 #: A float, or an array of them (elementwise).
 ArrayOrFloat = TypeVar("ArrayOrFloat", float, np.ndarray)
 
-__all__ = ["bounce_frequency_hz", "head_rope_stiffness_n_m", "seal_on_rope_step"]
+__all__ = [
+    "bounce_frequency_hz",
+    "elements_on_rope_step",
+    "head_rope_stiffness_n_m",
+    "seal_on_rope_step",
+]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -132,3 +139,85 @@ def seal_on_rope_step(
     if force < -capacity_n:
         return (demand_n + capacity_n) / stiffness_n_m, -capacity_n, 1.0 / stiffness_n_m
     return dx, force, 1.0 / (sigma0_n_m + stiffness_n_m)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def elements_on_rope_step(
+    demand_n: float,
+    deltas: np.ndarray,
+    stiffness: np.ndarray,
+    limits: np.ndarray,
+    stiffness_n_m: float,
+) -> tuple[float, float]:
+    r"""A piston's quasi-static step between its rope spring and a seal of Maxwell-slip
+    elements (:func:`physics.maxwell_slip.maxwell_slip_step`, ``presliding_hysteresis``).
+
+    As :func:`seal_on_rope_step`, the demand D is taken by the seal and by what resists
+    the step (K), the seal now N elasto-slip elements of stiffness k_j whose deflection
+    is held within the limit L_j = alpha_j g / k_j (alpha_j the element's weight, g the
+    capacity at the piston's speed):
+
+    .. math::
+        \sum_j k_j \operatorname{clip}(\delta_j + dx, -L_j, L_j) + K\, dx = D
+
+    The left side is continuous, piecewise linear and increasing in dx: walked from
+    dx = 0 over the elements' break points toward D, exact. One element (k_1 =
+    sigma_0, L_1 = g / sigma_0) is :func:`seal_on_rope_step`.
+
+    Parameters
+    ----------
+    demand_n : float
+        D [N].
+    deltas : numpy.ndarray
+        The elements' deflections before the step [m] (not changed: the step is taken
+        with ``maxwell_slip_step(deltas, dx, stiffness, weights, g)``).
+    stiffness : numpy.ndarray
+        k_j [N/m] (:func:`physics.maxwell_slip.maxwell_slip_elements`).
+    limits : numpy.ndarray
+        L_j = alpha_j g / k_j [m], >= 0.
+    stiffness_n_m : float
+        K [N/m], > 0.
+
+    Returns
+    -------
+    dx, slope : float
+        The piston's displacement [m] and d dx / d D [m/N].
+
+    Examples
+    --------
+    The examples of :func:`seal_on_rope_step` with two elements (1.5e5 and 0.5e5 N/m,
+    capacities 500 N each, together the one bristle of 2e5 N/m): 300 N sticks both, as
+    there; 1200 N slips the stiffer element at 3.33 mm (1000 N taken), and the softer
+    and the rope share the remaining 200 N: 4.67 mm, the seal holding 733 N.
+
+    >>> k = np.array([1.5e5, 0.5e5])
+    >>> limits = 500.0 / k
+    >>> elements_on_rope_step(300.0, np.zeros(2), k, limits, 1e5)
+    (0.001, 3.3333333333333333e-06)
+    >>> dx, slope = elements_on_rope_step(1200.0, np.zeros(2), k, limits, 1e5)
+    >>> round(dx * 1e3, 4), round(1.0 / slope)
+    (4.6667, 150000)
+    """
+    h0 = 0.0
+    for j in range(deltas.shape[0]):
+        h0 += stiffness[j] * min(max(deltas[j], -limits[j]), limits[j])
+    way = 1.0 if demand_n >= h0 else -1.0
+    target = way * (demand_n - h0)  # walked in the mirrored coordinate w = way dx >= 0
+    w = 0.0
+    gained = 0.0
+    while True:
+        slope = stiffness_n_m
+        nxt = np.inf
+        for j in range(deltas.shape[0]):
+            e = way * deltas[j]
+            enters, leaves = -limits[j] - e, limits[j] - e  # elastic in between
+            if enters <= w < leaves:
+                slope += stiffness[j]
+            if w < enters < nxt:
+                nxt = enters
+            if w < leaves < nxt:
+                nxt = leaves
+        if nxt == np.inf or gained + slope * (nxt - w) >= target:
+            return way * (w + (target - gained) / slope), 1.0 / slope
+        gained += slope * (nxt - w)
+        w = nxt

@@ -42,7 +42,12 @@ the band's rope members take Student's t on the parts' spread
 halves, of which one gives ropes: t_1 = 12.7, mirrored) and the bristle members start
 the record with the seals as far down or up as the ropes let them: only the load bands
 move (sums of load_after_lo_n -0.65 %, load_after_hi_n +0.54 %, max_load_after_hi_n
-+0.004 %); the values are unchanged.
++0.004 %); the values are unchanged. The ``demo_position_summary`` and
+``demo_trip_summary`` entries again (session 17) after the stick-slip solution and the
+ropes' identification run the example hoist's seals as their four Maxwell-slip
+elements (``presliding_hysteresis``; :func:`physics.rope_spring.elements_on_rope_step`),
+not one bristle: the demo's tensions move by ~0.1 % of the load (sum of
+tension_after1_n +0.13 %), its inferred payloads by 1.6 % of their sum.
 
 The compensation's input is written here with numpy (two trips, a payload step at a
 stop, a ringing rope, a logger gap, a warming oil), not by the simulation, so a change

@@ -71,6 +71,7 @@ from transforms.compensation_record import (
     rope_cols,
     second_difference_sigma,
 )
+from transforms.seal_drift import seal_elements
 
 # The public interface of the compensation: its own two functions, and the settings,
 # statistics and carried state defined in transforms.compensation_record.
@@ -175,9 +176,8 @@ def compensate_window(
     frame = _input_frame(samples)
     effects = set(hoist.model.effects if effects is None else effects)
     if frame.height == 0:
-        law = hoist.friction_law
-        elements = law.presliding_elements if "presliding_hysteresis" in effects else 1
-        return pl.DataFrame(schema=OUTPUT_SCHEMA), carry or CompensationCarry.fresh(elements)
+        fresh = CompensationCarry.fresh(seal_elements(effects, hoist))
+        return pl.DataFrame(schema=OUTPUT_SCHEMA), carry or fresh
     block = BlockCompensation(
         frame,
         hoist,

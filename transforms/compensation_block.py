@@ -225,6 +225,7 @@ class BlockCompensation(BlockSetup):
                     drift_half_width_pa=drift_w,
                     drift_pressure_pa=None if drift_p is None else drift_p[lo:hi],
                     drift_ringing_pa=None if ringing is None else ringing[lo:hi],
+                    presliding_elements=self.weights.shape[0],
                     out=(tuple(v[lo:hi] for v in x), tuple(f[lo:hi] for f in friction)),
                 )  # fmt: skip
 

@@ -369,7 +369,7 @@ class CompensationCarry:
             played=[fresh_state(PLAY_STATE_SIZE) for _ in ropes],
             rope=[fresh_state(ROPE_STATE_BASE + elements) for _ in ropes],
             labels=fresh_state(LABEL_STATE_SIZE),
-            springs=np.stack([stick_slip_state(len(ROPES))] * MAX_SOLUTIONS),
+            springs=np.stack([stick_slip_state(len(ROPES), elements)] * MAX_SOLUTIONS),
         )
 
 

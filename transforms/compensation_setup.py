@@ -29,7 +29,7 @@ from transforms.compensation_record import (
     float_column,
 )
 from transforms.filtering import pressure_cutoff_at, segment_ids
-from transforms.seal_drift import seals_drift
+from transforms.seal_drift import seal_elements, seals_drift
 
 __all__ = ["BlockSetup", "epoch_us"]
 
@@ -99,7 +99,7 @@ class BlockSetup:
         presliding = "presliding_hysteresis" in effects
         if presliding:
             self.stiffness, self.weights = maxwell_slip_elements(
-                law.presliding_elements, law.bristle_stiffness_n_m
+                seal_elements(effects, self.hoist), law.bristle_stiffness_n_m
             )
         else:
             self.stiffness, self.weights = np.ones(1), np.ones(1)

@@ -78,6 +78,7 @@ from physics.oil import kinematic_viscosity
 from physics.sensor_branch import sensor_branch
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPES
+from transforms.seal_drift import seal_elements
 from transforms.stick_slip import MAX_ALTERNATIVES, RopeSprings, stick_slip
 
 __all__ = [
@@ -111,7 +112,7 @@ IDENTIFY_SPAN = dt.timedelta(seconds=0.2 * IDENTIFY_SAMPLES)
 #: Part of the name of a cached identification (:func:`identify_from_means`), with the
 #: search's constants, the source of the modules the model runs and the numpy / scipy
 #: versions (:func:`_method_digest`): a file of another method is not read.
-IDENTIFICATION_VERSION = "4"
+IDENTIFICATION_VERSION = "5"
 #: The identification is repeated on this many consecutive parts of the means: their
 #: constants are the ropes' alternatives in the band (``RopeSprings.alternatives``) ...
 SPLITS = MAX_ALTERNATIVES
@@ -264,6 +265,7 @@ _MODEL_MODULES = (
     "transforms.stick_slip",
     "transforms.seal_drift",
     "physics.lugre",
+    "physics.maxwell_slip",
     "physics.rope_spring",
     "physics.friction_law",
     "physics.oil",
@@ -308,6 +310,7 @@ def _identify(means: pl.DataFrame, hoist: HoistDescription) -> RopeSprings | Non
             nu_m2_s=nu,
             branch=branch,
             drift_travel_pa=None if travel is None else travel[part],
+            presliding_elements=seal_elements(effects, hoist),
         )
 
     springs = identify(slice(None))
@@ -340,6 +343,7 @@ def identify_rope_springs(
     coarse_s: float = COARSE_S,
     polish_s: float = POLISH_S,
     drift_travel_pa: np.ndarray | None = None,
+    presliding_elements: int = 1,
 ) -> RopeSprings | None:
     """The ropes' constants that make the model's piston motion match the logged x.
 
@@ -360,6 +364,8 @@ def identify_rope_springs(
     drift_travel_pa : ndarray, optional
         Each mean's played travel of the seals' drift [Pa] (summed over the means a
         strided sample stands for); None: the seals do not drift.
+    presliding_elements : int
+        Maxwell-slip elements per seal (:func:`transforms.stick_slip.stick_slip`).
 
     Returns
     -------
@@ -398,6 +404,9 @@ def identify_rope_springs(
             travels[stride] = np.diff(total[::stride], prepend=0.0)
 
     def mismatch(q: np.ndarray, stride: int) -> float:
+        """Mean square of the model's x less the logged x [m^2] on every stride-th mean;
+        the coarse global search takes each seal as one bristle (it picks the basin:
+        four times cheaper), the polish the seals' own elements."""
         a, c = constants(q)
         springs = RopeSprings(tuple(a), tuple(c), 0, 0)
         x, _ = stick_slip(
@@ -411,6 +420,7 @@ def identify_rope_springs(
             nu_m2_s=nu_m2_s,
             branch=branch,
             drift_travel_pa=travels.get(stride),
+            presliding_elements=presliding_elements if stride == fine else 1,
         )
         return float(
             np.nanmean(

@@ -50,6 +50,7 @@ __all__ = [
     "played_travel",
     "played_travels",
     "ringing_travel",
+    "seal_elements",
     "seals_drift",
 ]
 
@@ -88,6 +89,21 @@ def seals_drift(effects: set[str] | frozenset[str]) -> bool:
     (True, False)
     """
     return "seal_friction" in effects and "presliding_hysteresis" not in effects
+
+
+def seal_elements(effects: set[str] | frozenset[str], hoist: HoistDescription) -> int:
+    """Maxwell-slip elements per seal: the friction law's ``presliding_elements`` with
+    ``presliding_hysteresis`` among the effects, else 1 (one bristle: elasto-plastic,
+    or LuGre's, which drifts, :func:`seals_drift`).
+
+    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
+    >>> hoist = load_hoist(EXAMPLE_HOIST)
+    >>> seal_elements({"presliding_hysteresis"}, hoist), seal_elements({"seal_friction"}, hoist)
+    (4, 1)
+    """
+    if "presliding_hysteresis" in effects:
+        return hoist.friction_law.presliding_elements
+    return 1
 
 
 def drift_cutoff_hz(hoist: HoistDescription, pressure_cutoff_hz: float) -> float:

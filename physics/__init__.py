@@ -22,7 +22,10 @@ eq 2, T = p_chamber A + F
     -- tests/physics/test_tension.py; with T from the rope's spring (k = EA / L, not
     printed) and an elasto-plastic seal, one quasi-static step of a piston:
     :func:`physics.rope_spring.seal_on_rope_step`, :func:`~physics.rope_spring.
-    head_rope_stiffness_n_m` -- tests/transforms/test_stick_slip.py
+    head_rope_stiffness_n_m`; with Maxwell-slip elements :func:`~physics.rope_spring.
+    elements_on_rope_step`, their virgin state :func:`physics.maxwell_slip.
+    maxwell_slip_virgin` -- tests/transforms/test_stick_slip.py,
+    tests/physics/test_rope_spring.py
 eq 3-4 with Table 2, sum of T = (m_c + m_p + m_t(z)) (g + a)
     :func:`physics.tension.expected_load_n`, :func:`~physics.tension.tail_rope_mass_kg`,
     :func:`~physics.tension.tail_rope_length_m` -- tests/physics/test_tension.py

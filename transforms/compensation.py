@@ -8,7 +8,8 @@ For each cylinder i of a hoist, per sample:
 3. piston motion and seal friction. Where the logged x identify the head ropes
    (:mod:`transforms.rope_identification`: each rope's stiffness and length offset,
    from the first 2 h of the record), the forces decide: each rope is a spring on its
-   piston, each seal elasto-plastic with the eq 17 capacity (and, for LuGre's single
+   piston, each seal elasto-plastic with the eq 17 capacity (or the hoist's Maxwell-slip
+   elements with ``presliding_hysteresis``; and, for LuGre's single
    bristle, eq 15's drift along the oil's back-and-forth: a ringing hoist shakes its
    seals loose), and the closed oil volume, A sum dx_i = V dp / beta, fixes the sum of
    the motions; solved per sample (:mod:`transforms.stick_slip`), it says which piston

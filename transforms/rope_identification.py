@@ -39,7 +39,9 @@ noise, and the objective has several basins. On the four validation days the qua
 stiffness factors differ from the whole record's by up to 0.01 and their length offsets
 by up to 0.9 mm, about as much as the days' whole records differ from each other (0.01,
 0.45 mm). The five searches take ~21 s for a 2 h record of 50 Hz (whole and halves:
-15 s).
+15 s); with Maxwell-slip seals (``presliding_hysteresis``, four elements) ~17 s for
+45 min, where the coarse global search takes each seal as one bristle (it picks the
+basin) and the polish the seals' elements (one bristle throughout: 14 s).
 
 Where the seals drift (LuGre's single bristle, :mod:`transforms.seal_drift`), the model
 identified on drifts too, driven by each mean's played travel of the record's
@@ -376,6 +378,8 @@ def identify_rope_springs(
         logged x.
     """
     m = len(p_sensor)
+    if presliding_elements > 1 and drift_travel_pa is not None:
+        raise ValueError("Maxwell-slip seals (presliding_elements > 1) do not drift")
     usable = np.isfinite(depth_m)
     for p, x in zip(p_sensor, x_logged, strict=True):
         usable &= np.isfinite(p) & np.isfinite(x)
@@ -405,8 +409,9 @@ def identify_rope_springs(
 
     def mismatch(q: np.ndarray, stride: int) -> float:
         """Mean square of the model's x less the logged x [m^2] on every stride-th mean;
-        the coarse global search takes each seal as one bristle (it picks the basin:
-        four times cheaper), the polish the seals' own elements."""
+        on the coarse means (the global search, where they differ from the polish's)
+        each seal is one bristle (it picks the basin, a step a quarter of the cost of
+        four elements'), on the polish's the seals' own elements."""
         a, c = constants(q)
         springs = RopeSprings(tuple(a), tuple(c), 0, 0)
         x, _ = stick_slip(

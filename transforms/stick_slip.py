@@ -306,9 +306,10 @@ class RopeSprings:
 
 def stick_slip_state(pistons: int, elements: int = 1) -> np.ndarray:
     """Fresh state of :func:`stick_slip` (``[ran, continues, s, p, the ropes' hanging
-    length, per piston the bristles' force, x, v, the drift's play output and heading,
-    per piston the compliance, the given drift travel not yet applied]``, then with
-    ``elements`` > 1 Maxwell-slip elements per seal each element's deflection;
+    length, per piston the seal's force (its elements' total), x, v, the drift's play
+    output and heading, per piston the compliance, the given drift travel not yet
+    applied]``, then with ``elements`` > 1 Maxwell-slip elements per seal each
+    element's deflection;
     :func:`transforms.filtering.fresh_state`)."""
     return np.zeros(8 + 4 * pistons + (pistons * elements if elements > 1 else 0))
 

@@ -9,9 +9,11 @@ that it cannot pass by a model that does nothing.
 These pin the share-out of the pistons' motion (``rope_springs=False``,
 :mod:`transforms.piston_motion`: the compensation without identified ropes) on ropeload's
 own simulator, whose seals are the compensation's LuGre. The default stick-slip solution
-on identified rope springs (:mod:`transforms.stick_slip`, elasto-plastic seals) leaves
-0.6-1.1 % at these visits (tests/transforms/test_stick_slip.py has its own cases; its
-accuracy is measured on independent data by benchmarks/eval_compensation.py).
+on identified rope springs (:mod:`transforms.stick_slip`, with the hoist's Maxwell-slip
+elements since session 17) leaves 0.03-0.19 % on the load, 0.05-0.37 % per rope at
+these visits (0.6-1.1 % with one elasto-plastic bristle; tests/transforms/
+test_stick_slip.py has its own cases; its accuracy is measured on independent data
+by benchmarks/eval_compensation.py).
 """
 
 from __future__ import annotations

@@ -30,7 +30,8 @@ device's own physics, and two constants per rope identified from the record.
 - The chambers are one closed oil volume (eq 5): A sum_i dx_i = V dp / beta_e(p).
 
 Each dx_i is a monotone, piecewise-linear function of s (with elements too), so the oil
-equation has one root per sample: a Newton solve, exact in a few steps. What a piston
+equation has one root per sample: a Newton solve, exact in a few steps (halving its
+bracket where Newton would cycle between break points). What a piston
 does follows from its rope and its seal: at a payload change at rest the piston nearest
 its capacity slides and the others stick with the friction their ropes leave them; on a
 trip the ropes' rates grow as they shorten and the pistons whose ropes pull hardest
@@ -641,7 +642,8 @@ def _kernel(
                         z[i] = lugre_drift(z[i], path * compliance[i], sigma0, cap[i])
         target = volume / (beta * area) * (p_mean - p_last)
         ds = 0.0
-        for _ in range(40):
+        below, above = -np.inf, np.inf  # the root's bracket (the sum rises with ds)
+        for _ in range(60):
             total = 0.0
             slope = 0.0
             for i in range(m):
@@ -657,7 +659,15 @@ def _kernel(
             err = total - target
             if abs(err) < 1e-13 or slope == 0.0:
                 break
+            if err < 0.0:
+                below = ds
+            else:
+                above = ds
             ds -= err / slope
+            # a piecewise-linear sum is not convex: where Newton leaves the bracket (it
+            # can cycle between break points) the bracket is halved instead
+            if not below < ds < above and np.isfinite(below) and np.isfinite(above):
+                ds = 0.5 * (below + above)
         s += ds
         for i in range(m):
             demand = ka[i] * (s - x[i] - c[i]) - p_sensor[i][t] * area

@@ -31,11 +31,10 @@ device's own physics, and two constants per rope identified from the record.
 
 Each dx_i is a monotone, piecewise-linear function of s (with elements too), so the oil
 equation has one root per sample: a Newton solve, exact in a few steps (halving its
-bracket where Newton would cycle between break points). What a piston
-does follows from its rope and its seal: at a payload change at rest the piston nearest
-its capacity slides and the others stick with the friction their ropes leave them; on a
-trip the ropes' rates grow as they shorten and the pistons whose ropes pull hardest
-slide.
+bracket where Newton would cycle between break points). What a piston does follows from
+its rope and its seal: at a payload change at rest the piston nearest its capacity
+slides and the others stick with the friction their ropes leave them; on a trip the
+ropes' rates grow as they shorten and the pistons whose ropes pull hardest slide.
 
 The constants theta = (a_2..a_n, c_2..c_n) (gauge a_1 = 1, c_1 = 0) are identified per
 record by making the model's x_i match the logged x_i

@@ -81,7 +81,7 @@ from physics.sensor_branch import sensor_branch
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPES
 from transforms.seal_drift import seal_elements
-from transforms.stick_slip import MAX_ALTERNATIVES, RopeSprings, stick_slip
+from transforms.stick_slip import MAX_ALTERNATIVES, RopeSprings, stick_slip_mismatch
 
 __all__ = [
     "IDENTIFICATION_VERSION",
@@ -122,6 +122,10 @@ SPLITS = MAX_ALTERNATIVES
 #: or three trips of a shaft's cycle; a 4 min quarter of a 15 min record holds one trip
 #: or none, and gave no ropes).
 PART_MEANS = 3000
+#: The global search evaluates a generation's members on two threads from this many
+#: coarse means (half an hour of the record), on one below it (where the threads' start
+#: costs more than the split saves).
+THREADED_MEANS = 900
 #: The most RMS difference between the model's and the logged x the ropes are kept at
 #: [m]: five logger steps. Beyond it the model does not describe the hoist (the 2 h
 #: validation and own records fit to 0.07-0.2 mm) and the compensation keeps the share-out.
@@ -398,40 +402,48 @@ def identify_rope_springs(
     stretch = p_typical * area * top / hoist.ropes.head_rope_axial_stiffness_n
 
     def constants(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        a = np.r_[1.0, q[: m - 1]]
-        return a, np.r_[0.0, q[m - 1 :]] + (a - 1.0) * stretch
+        """(a, c) of each row of q, (rows, m) each."""
+        q = np.atleast_2d(q)
+        ones = np.ones((q.shape[0], 1))
+        a = np.hstack([ones, q[:, : m - 1]])
+        return a, np.hstack([0.0 * ones, q[:, m - 1 :]]) + (a - 1.0) * stretch
 
     travels = {}
     if drift_travel_pa is not None:
         total = np.cumsum(np.nan_to_num(drift_travel_pa))
         for stride in (every, fine):  # a strided sample's travel: since the one before
             travels[stride] = np.diff(total[::stride], prepend=0.0)
+    strided = {  # each stride's inputs, taken once
+        stride: (
+            tuple(np.ascontiguousarray(p[::stride]) for p in p_sensor),
+            tuple(np.ascontiguousarray(xl[::stride]) for xl in x_logged),
+            np.ascontiguousarray(depth_m[::stride]),
+            np.ascontiguousarray(segment[::stride]),
+        )
+        for stride in {every, fine}
+    }
 
-    def mismatch(q: np.ndarray, stride: int) -> float:
-        """Mean square of the model's x less the logged x [m^2] on every stride-th mean;
-        on the coarse means (the global search, where they differ from the polish's)
-        each seal is one bristle (it picks the basin, a step a quarter of the cost of
-        four elements'), on the polish's the seals' own elements."""
+    def mismatches(q: np.ndarray, stride: int) -> np.ndarray:
+        """Mean square of the model's x less the logged x [m^2] on every stride-th mean,
+        for each row of q (candidate constants); on the coarse means (the global
+        search, where they differ from the polish's) each seal is one bristle (it picks
+        the basin, a step a quarter of the cost of four elements'), on the polish's the
+        seals' own elements."""
         a, c = constants(q)
-        springs = RopeSprings(tuple(a), tuple(c), 0, 0)
-        x, _ = stick_slip(
-            tuple(p[::stride] for p in p_sensor),
-            tuple(xl[::stride] for xl in x_logged),
-            depth_m[::stride],
-            segment[::stride],
+        return stick_slip_mismatch(
+            *strided[stride],
             hoist,
-            springs,
+            a,
+            c,
             dt_s=step * stride,
             nu_m2_s=nu_m2_s,
             branch=branch,
             drift_travel_pa=travels.get(stride),
             presliding_elements=presliding_elements if stride == fine else 1,
         )
-        return float(
-            np.nanmean(
-                [np.nanmean((xi - xl[::stride]) ** 2) for xi, xl in zip(x, x_logged, strict=True)]
-            )
-        )
+
+    def mismatch(q: np.ndarray, stride: int) -> float:
+        return float(mismatches(q[np.newaxis], stride)[0])
 
     bounds = [STIFFNESS_BOUNDS] * (m - 1) + [OFFSET_BOUNDS_M] * (m - 1)
     scale = np.array([b[1] - b[0] for b in bounds])
@@ -440,10 +452,18 @@ def identify_rope_springs(
     # the first population holds each hypothesis "rope j differs by +-5 %" beside the
     # description's nominal ropes and a Latin hypercube.
     lows = np.array([b[0] for b in bounds]) / scale
-    with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
+    # a generation's members in one compiled call, or (from THREADED_MEANS) in a call
+    # per core: the model releases the GIL
+    threads = min(2, os.cpu_count() or 1) if usable[::every].sum() >= THREADED_MEANS else 1
+
+    def generation(u: np.ndarray) -> np.ndarray:  # u: (parameters, members)
+        members = np.array_split(u.T * scale, threads)
+        return np.concatenate(list(pool.map(lambda q: mismatches(q, every), members))) * 1e6
+
+    with ThreadPoolExecutor(max_workers=threads) as pool:
         searches = [
             differential_evolution(
-                lambda u: mismatch(u * scale, every) * 1e6,
+                generation,
                 [(b[0] / w, b[1] / w) for b, w in zip(bounds, scale, strict=True)],
                 maxiter=GENERATIONS,
                 tol=1e-8,
@@ -451,7 +471,7 @@ def identify_rope_springs(
                 polish=False,
                 init=_first_population(m, POPSIZE * len(bounds), lows, seed) / scale,
                 updating="deferred",
-                workers=pool.map,
+                vectorized=True,
             )
             for seed in SEEDS
         ]
@@ -471,7 +491,7 @@ def identify_rope_springs(
         polished = again
     if not np.sqrt(polished.fun * 1e-6) <= MISMATCH_LIMIT_M:
         return None
-    a, c = constants(polished.x * scale)
+    (a,), (c,) = constants(polished.x * scale)
     return RopeSprings(
         stiffness_factors=tuple(float(v) for v in a),
         length_offsets_m=tuple(float(v) for v in c),

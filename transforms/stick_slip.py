@@ -128,6 +128,7 @@ __all__ = [
     "band_solutions",
     "parts_reach",
     "stick_slip",
+    "stick_slip_mismatch",
     "stick_slip_state",
 ]
 
@@ -441,6 +442,110 @@ def stick_slip(
     if out is None:
         out = (tuple(np.empty(n) for _ in range(m)), tuple(np.empty(n) for _ in range(m)))
     x_out, f_out = out
+    head, tail = _kernel_inputs(
+        p_sensor, x_logged, depth_m, segment_id, hoist,
+        dt_s=dt_s, nu_m2_s=nu_m2_s, branch=branch, capacity_scale=capacity_scale,
+        sigma0_scale=sigma0_scale, start_at_capacity=start_at_capacity,
+        drift_pressure_pa=drift_pressure_pa, drift_half_width_pa=drift_half_width_pa,
+        drift_travel_pa=drift_travel_pa, drift_ringing_pa=drift_ringing_pa,
+        presliding_elements=presliding_elements,
+    )  # fmt: skip
+    if state is not None and state.shape != stick_slip_state(m, presliding_elements).shape:
+        raise ValueError(f"state has {state.shape[0]} values, not stick_slip_state's "
+                         f"{stick_slip_state(m, presliding_elements).shape[0]}")  # fmt: skip
+    if n:
+        _kernel(
+            *head,
+            np.asarray(springs.stiffness_factors, dtype=np.float64),
+            np.asarray(springs.length_offsets_m, dtype=np.float64),
+            *tail,
+            x_out,
+            f_out,
+            stick_slip_state(m, presliding_elements) if state is None else state,
+        )
+    return x_out, f_out
+
+
+def stick_slip_mismatch(
+    p_sensor: tuple[np.ndarray, ...],
+    x_logged: tuple[np.ndarray, ...],
+    depth_m: np.ndarray,
+    segment_id: np.ndarray,
+    hoist: HoistDescription,
+    stiffness_factors: np.ndarray,
+    length_offsets_m: np.ndarray,
+    *,
+    dt_s: float,
+    nu_m2_s: np.ndarray | float = 0.0,
+    branch: np.ndarray | None = None,
+    drift_travel_pa: np.ndarray | None = None,
+    presliding_elements: int = 1,
+) -> np.ndarray:
+    """For each row of candidate ropes, :func:`stick_slip`'s x against the logged x: the
+    mean over the pistons with a logged x of each one's mean square of the model's x
+    less the logged x (NaN samples left out) [m^2]; NaN where no piston has one.
+
+    The rope identification's objective (:mod:`transforms.rope_identification`), for
+    a whole population in one call to compiled code: on a short record the Python
+    around one solution costs more than the solution. Releases the GIL.
+
+    ``stiffness_factors``, ``length_offsets_m``: (candidates, pistons) arrays of
+    :class:`RopeSprings`' constants; the other arguments as :func:`stick_slip`'s (the
+    seals start as its default, ``capacity_scale`` 1, ``start_at_capacity`` 0).
+
+    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
+    >>> hoist = load_hoist(EXAMPLE_HOIST)
+    >>> p = np.linspace(4.0e6, 4.05e6, 50)
+    >>> x = np.zeros(50)
+    >>> ropes = np.array([[1.0] * 4, [1.0, 1.05, 1.0, 1.0]])
+    >>> mismatch = stick_slip_mismatch((p,) * 4, (x,) * 4, np.full(50, 300.0),
+    ...     np.zeros(50, int), hoist, ropes, np.zeros((2, 4)), dt_s=0.01)
+    >>> bool(mismatch[0] < mismatch[1])
+    True
+    """
+    stiffness = np.atleast_2d(np.asarray(stiffness_factors, dtype=np.float64))
+    offsets = np.atleast_2d(np.asarray(length_offsets_m, dtype=np.float64))
+    m = len(p_sensor)
+    if stiffness.shape != offsets.shape or stiffness.shape[1] != m:
+        raise ValueError(f"candidate ropes {stiffness.shape} and offsets {offsets.shape} "
+                         f"are not (candidates, {m})")  # fmt: skip
+    head, tail = _kernel_inputs(
+        p_sensor, x_logged, depth_m, segment_id, hoist, dt_s=dt_s, nu_m2_s=nu_m2_s,
+        branch=branch, drift_travel_pa=drift_travel_pa,
+        presliding_elements=presliding_elements,
+    )  # fmt: skip
+    n = depth_m.shape[0]
+    if not n:
+        return np.full(stiffness.shape[0], np.nan)
+    scratch = tuple(np.empty(n) for _ in range(m)), tuple(np.empty(n) for _ in range(m))
+    return _mismatch_kernel(
+        head, np.ascontiguousarray(stiffness), np.ascontiguousarray(offsets), tail, *scratch,
+        stick_slip_state(m, presliding_elements).shape[0],
+    )  # fmt: skip
+
+
+def _kernel_inputs(
+    p_sensor: tuple[np.ndarray, ...],
+    x_logged: tuple[np.ndarray, ...],
+    depth_m: np.ndarray,
+    segment_id: np.ndarray,
+    hoist: HoistDescription,
+    *,
+    dt_s: float,
+    nu_m2_s: np.ndarray | float = 0.0,
+    branch: np.ndarray | None = None,
+    capacity_scale: float = 1.0,
+    sigma0_scale: float = 1.0,
+    start_at_capacity: float = 0.0,
+    drift_pressure_pa: np.ndarray | None = None,
+    drift_half_width_pa: float = 0.0,
+    drift_travel_pa: np.ndarray | None = None,
+    drift_ringing_pa: np.ndarray | None = None,
+    presliding_elements: int = 1,
+) -> tuple[tuple, tuple]:
+    """:func:`_kernel`'s arguments before the ropes' constants and after them up to the
+    outputs, checked (:func:`stick_slip`'s parameters)."""
+    n = depth_m.shape[0]
     nu = np.atleast_1d(np.asarray(nu_m2_s, dtype=np.float64))
     drift, drift_mode = np.zeros(1), 0
     if drift_pressure_pa is not None and drift_travel_pa is not None:
@@ -460,9 +565,6 @@ def stick_slip(
         raise ValueError(f"presliding_elements {presliding_elements} must be >= 1")
     if presliding_elements > 1 and drift_mode:
         raise ValueError("Maxwell-slip seals (presliding_elements > 1) do not drift")
-    if state is not None and state.shape != stick_slip_state(m, presliding_elements).shape:
-        raise ValueError(f"state has {state.shape[0]} values, not stick_slip_state's "
-                         f"{stick_slip_state(m, presliding_elements).shape[0]}")  # fmt: skip
     sigma0 = float(hoist.friction_law.bristle_stiffness_n_m) * sigma0_scale
     if presliding_elements > 1:
         element_k, element_w = maxwell_slip_elements(presliding_elements, sigma0)
@@ -481,34 +583,64 @@ def stick_slip(
             raise ValueError(f"drift_ringing_pa has {ringing.shape} samples, depth_m {n}")
         if not (np.isfinite(ringing).all() and (ringing >= 0.0).all()):
             raise ValueError("drift_ringing_pa must be finite and >= 0")
-    if n:
+    head = (
+        tuple(np.ascontiguousarray(p, dtype=np.float64) for p in p_sensor),
+        tuple(np.ascontiguousarray(x, dtype=np.float64) for x in x_logged),
+        np.ascontiguousarray(depth_m, dtype=np.float64),
+        np.ascontiguousarray(segment_id, dtype=np.int64),
+        float(dt_s),
+        np.ascontiguousarray(nu),
+        branch is not None,
+        np.zeros(6) if branch is None else branch,
+        _constants(hoist) * np.r_[np.ones(7), sigma0_scale],
+        law_array(hoist.friction_law),
+    )
+    tail = (
+        float(capacity_scale),
+        float(start_at_capacity),
+        drift_mode,
+        drift,
+        float(drift_half_width_pa),
+        drift_ringing_pa is not None,
+        ringing,
+        element_k,
+        element_w,
+    )
+    return head, tail
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _mismatch_kernel(
+    head, stiffness, offsets, tail, x_out, f_out, state_size
+):  # pragma: no cover - numba
+    """:func:`stick_slip_mismatch`'s loop over the candidates."""
+    p_sensor, x_logged, depth, segment, dt, nu, with_loss, branch, const, law = head
+    scale, start, drift_mode, drift, half_width, rings, ringing, element_k, element_w = tail
+    m = len(p_sensor)
+    n = depth.shape[0]
+    out = np.full(stiffness.shape[0], np.nan)
+    for k in range(stiffness.shape[0]):
         _kernel(
-            tuple(np.ascontiguousarray(p, dtype=np.float64) for p in p_sensor),
-            tuple(np.ascontiguousarray(x, dtype=np.float64) for x in x_logged),
-            np.ascontiguousarray(depth_m, dtype=np.float64),
-            np.ascontiguousarray(segment_id, dtype=np.int64),
-            float(dt_s),
-            np.ascontiguousarray(nu),
-            branch is not None,
-            np.zeros(6) if branch is None else branch,
-            _constants(hoist) * np.r_[np.ones(7), sigma0_scale],
-            law_array(hoist.friction_law),
-            np.asarray(springs.stiffness_factors, dtype=np.float64),
-            np.asarray(springs.length_offsets_m, dtype=np.float64),
-            float(capacity_scale),
-            float(start_at_capacity),
-            drift_mode,
-            drift,
-            float(drift_half_width_pa),
-            drift_ringing_pa is not None,
-            ringing,
-            element_k,
-            element_w,
-            x_out,
-            f_out,
-            stick_slip_state(m, presliding_elements) if state is None else state,
-        )
-    return x_out, f_out
+            p_sensor, x_logged, depth, segment, dt, nu, with_loss, branch, const, law,
+            stiffness[k], offsets[k], scale, start, drift_mode, drift, half_width, rings,
+            ringing, element_k, element_w, x_out, f_out, np.zeros(state_size),
+        )  # fmt: skip
+        total = 0.0
+        pistons = 0
+        for i in range(m):
+            squares = 0.0
+            count = 0
+            for t in range(n):
+                if np.isfinite(x_logged[i][t]):
+                    d = x_out[i][t] - x_logged[i][t]
+                    squares += d * d
+                    count += 1
+            if count:
+                total += squares / count
+                pistons += 1
+        if pistons:
+            out[k] = total / pistons
+    return out
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -542,6 +674,9 @@ def _kernel(
     p_play = state[5 + 3 * m] if resume else np.nan
     heading = state[6 + 3 * m] if resume else 0.0  # the play's last direction of travel
     compliance = np.ones(m)  # each piston's d dx / d demand at its last step
+    step = np.zeros(m)  # the Newton solve's last evaluation: each piston's dx,
+    bristle = np.zeros(m)  # its seal's force (one bristle),
+    given = np.zeros(m)  # and its d dx / d demand
     pending = state[7 + 4 * m]  # given drift travel not yet applied (unknown pressures)
     elements = element_k.shape[0] > 1  # Maxwell-slip seals: each element's deflection
     deltas = np.zeros((m, element_k.shape[0]))
@@ -642,21 +777,25 @@ def _kernel(
         target = volume / (beta * area) * (p_mean - p_last)
         ds = 0.0
         below, above = -np.inf, np.inf  # the root's bracket (the sum rises with ds)
+        solved = False  # step, friction and compliance of the last evaluation are at s + ds
         for _ in range(60):
             total = 0.0
             slope = 0.0
             for i in range(m):
                 demand = ka[i] * (s + ds - x[i] - c[i]) - p_sensor[i][t] * area
                 if elements:
-                    dx, d = elements_on_rope_step(
+                    step[i], given[i] = elements_on_rope_step(
                         demand, deltas[i], element_k, limits[i], ka[i] + damping[i]
                     )
                 else:
-                    dx, _, d = seal_on_rope_step(demand, z[i], sigma0, ka[i] + damping[i], cap[i])
-                total += dx
-                slope += d * ka[i]
+                    step[i], bristle[i], given[i] = seal_on_rope_step(
+                        demand, z[i], sigma0, ka[i] + damping[i], cap[i]
+                    )
+                total += step[i]
+                slope += given[i] * ka[i]
             err = total - target
             if abs(err) < 1e-13 or slope == 0.0:
+                solved = True
                 break
             if err < 0.0:
                 below = ds
@@ -669,16 +808,22 @@ def _kernel(
                 ds = 0.5 * (below + above)
         s += ds
         for i in range(m):
-            demand = ka[i] * (s - x[i] - c[i]) - p_sensor[i][t] * area
+            if not solved:  # the iterations ran out: evaluate at the last s
+                demand = ka[i] * (s - x[i] - c[i]) - p_sensor[i][t] * area
+                if elements:
+                    step[i], given[i] = elements_on_rope_step(
+                        demand, deltas[i], element_k, limits[i], ka[i] + damping[i]
+                    )
+                else:
+                    step[i], bristle[i], given[i] = seal_on_rope_step(
+                        demand, z[i], sigma0, ka[i] + damping[i], cap[i]
+                    )
+            dx = step[i]
+            compliance[i] = given[i]
             if elements:
-                dx, compliance[i] = elements_on_rope_step(
-                    demand, deltas[i], element_k, limits[i], ka[i] + damping[i]
-                )
                 z[i] = maxwell_slip_step(deltas[i], dx, element_k, element_w, cap[i])
             else:
-                dx, z[i], compliance[i] = seal_on_rope_step(
-                    demand, z[i], sigma0, ka[i] + damping[i], cap[i]
-                )
+                z[i] = bristle[i]
             x[i] += dx
             v[i] = dx / dt
             x_out[i][t] = x[i]

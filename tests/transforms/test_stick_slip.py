@@ -37,6 +37,7 @@ from transforms.stick_slip import (
     RopeSprings,
     band_solutions,
     stick_slip,
+    stick_slip_mismatch,
     stick_slip_state,
 )
 
@@ -82,6 +83,35 @@ def test_every_seal_sticks_through_a_small_rise():
         assert x[i][-1] == pytest.approx(volume / 4, rel=1e-9)
         assert f[i][-1] == pytest.approx(SIGMA0 * volume / 4, rel=1e-9)
         assert abs(f[i][-1]) < _static_n(p[-1])  # it did stick
+
+
+def test_the_mismatch_of_a_population_is_each_ones_mean_square_off_the_logged_x():
+    """Every seal sticks through a small rise (the test above: each piston takes a quarter
+    of the oil's compression); piston 2 has no logged x, piston 3 half of it, piston 4's
+    is 20 um off on its last 100 samples: the true ropes' mismatch is (20 um)^2 x 100 / n
+    over the three pistons with an x. A stiffer rope 2 is further off, as stick_slip's x
+    says."""
+    p0, dp = 4.0e6, 2.0e4
+    p = np.r_[np.full(10, p0), np.linspace(p0, p0 + dp, 200)[1:]]
+    n = p.size
+    share = np.r_[0.0, np.cumsum([_oil_volume(p[k : k + 2]) for k in range(n - 1)])] / 4
+    logged = [share.copy() for _ in range(4)]
+    logged[1][:] = np.nan
+    logged[2][n // 2 :] = np.nan
+    logged[3][-100:] += 20e-6
+    ropes = np.array([[1.0] * 4, [1.0, 1.04, 1.0, 1.0]])
+    depth, segment = np.full(n, DEPTH), np.zeros(n, int)
+    got = stick_slip_mismatch(
+        (p,) * 4, tuple(logged), depth, segment, HOIST, ropes, np.zeros((2, 4)), dt_s=0.01
+    )
+    assert got[0] == pytest.approx((20e-6) ** 2 * 100 / n / 3, rel=1e-6)
+    x, _ = stick_slip(
+        (p,) * 4, tuple(logged), depth, segment, HOIST,
+        RopeSprings(tuple(ropes[1]), (0.0,) * 4, 0.0, 0), dt_s=0.01,
+    )  # fmt: skip
+    pistons = [np.nanmean((x[i] - logged[i]) ** 2) for i in (0, 2, 3)]
+    assert got[1] == pytest.approx(np.mean(pistons), rel=1e-12)
+    assert got[1] > got[0]
 
 
 def _virgin_n(u: float, capacity: float, elements: int = 4) -> float:

@@ -13,8 +13,10 @@ import pytest
 
 from pipelines.prefect_env import apply_prefect_defaults
 
-# A stable Prefect home for this test session, away from the user's own.
-os.environ.setdefault("PREFECT_HOME", tempfile.mkdtemp(prefix="ropeload-prefect-"))
+# A stable Prefect home for this test session, away from the user's own; with
+# pytest-xdist one per worker (a worker inherits the controller's environment).
+if "PREFECT_HOME" not in os.environ or os.environ.get("PYTEST_XDIST_WORKER"):
+    os.environ["PREFECT_HOME"] = tempfile.mkdtemp(prefix="ropeload-prefect-")
 apply_prefect_defaults()
 
 

@@ -289,9 +289,11 @@ SUPERVISED = textwrap.dedent(
         # the child: a 'server' in its own session (like a daemon that ignores its
         # parent's fate), stopped by our cleanup when we end cleanly
         server = subprocess.Popen(["sleep", "300"], start_new_session=True)
-        print(server.pid, flush=True)
         try:
             with exits.terminate_on_signals():
+                # told only once the cleanup is armed: a signal before it (the test
+                # signals as soon as it reads this) would end us without one
+                print(server.pid, flush=True)
                 time.sleep(300)
         except KeyboardInterrupt:
             server.terminate()

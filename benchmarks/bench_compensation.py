@@ -184,7 +184,7 @@ def main() -> None:
     print(
         f"  compute with identified ropes:       {springs:7.2f} s  "
         f"{n / springs / 1e6:6.2f} M samples/s  ({4 * n / springs / 1e6:.2f} M rope-samples/s)"
-        "   (plus the identification, once per record: ~21 s for 2 h of 50 Hz, whole + parts)"
+        "   (plus the identification, once per record: the compute's first run above)"
     )
     drift = med["drift"]
     print(

@@ -149,9 +149,9 @@ def main() -> None:
             compensate_window(frame, hoist, context=_with_ropes(frame, hoist))
             runs["springs"].append(time.perf_counter() - t4)
             # and with the seals as LuGre's single bristle, which drift (stick_slip)
-            lugre = set(hoist.model.effects) - {"presliding_hysteresis"}
+            lugre = hoist.with_effects(sorted(set(hoist.model.effects) - {"presliding_hysteresis"}))
             t5 = time.perf_counter()
-            compensate_window(frame, hoist, context=_with_ropes(frame, hoist), effects=lugre)
+            compensate_window(frame, lugre, context=_with_ropes(frame, lugre))
             runs["drift"].append(time.perf_counter() - t5)
             del frame, result
 

@@ -63,7 +63,6 @@ __all__ = [
     "SCENARIOS",
     "SCENARIO_FOR",
     "hidden_case",
-    "hoist_with",
     "scenario_hoist",
 ]
 
@@ -98,11 +97,6 @@ MAX_SPEEDS_M_S: dict[str, tuple[float, ...]] = {"orifice": (4.0, 10.0)}
 _OIL_TEMP_C = {"plain": (28.0, 38.0), "differential": (0.0, 30.0), "orifice": (0.0, 30.0)}
 
 
-def hoist_with(hoist: HoistDescription, effects: list[str]) -> HoistDescription:
-    """``hoist`` with its ``[model] effects`` replaced."""
-    return hoist.model_copy(update={"model": hoist.model.model_copy(update={"effects": effects})})
-
-
 def scenario_hoist(scenario: str = "plain") -> HoistDescription:
     """The example hoist as the scenario describes it (module docstring)."""
     if scenario not in SCENARIOS:
@@ -117,7 +111,7 @@ def scenario_hoist(scenario: str = "plain") -> HoistDescription:
             update={"fittings_loss_coefficient_sensor_to_manifold": ORIFICE_LOSS_COEFFICIENT}
         )
     hoist = base.model_copy(update=update)
-    return hoist_with(hoist, [*base.model.effects, "groove_wear"])
+    return hoist.with_effects([*base.model.effects, "groove_wear"])
 
 
 def hidden_case(
@@ -177,7 +171,7 @@ def hidden_case(
         oil_temp_c=_OIL_TEMP_C[scenario] if oil_temp_c is None else oil_temp_c,
         max_speeds_m_s=max_speeds_m_s,
     )
-    plan = plan_replay(day.sensors, hoist_with(base, model), settle_s=20.0)
+    plan = plan_replay(day.sensors, base.with_effects(model), settle_s=20.0)
     return plan, {
         "truth_effects": truth,
         "parameters": params,

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import tomllib
+from collections.abc import Sequence
 from functools import cached_property
 from pathlib import Path
 from typing import Literal
@@ -112,6 +113,12 @@ class HoistDescription(Section):
                 f"got {len(factors)}"
             )
         return self
+
+    def with_effects(self, effects: Sequence[str]) -> HoistDescription:
+        """This hoist with its ``[model] effects`` replaced by ``effects`` (in that order:
+        give a sorted list where the order must not depend on a set's)."""
+        model = self.model.model_copy(update={"effects": list(effects)})
+        return self.model_copy(update={"model": model})
 
     # -- derived quantities used across the pipeline ------------------------------------
     @property

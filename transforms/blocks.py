@@ -94,7 +94,6 @@ def compensate_blocks(
     end: dt.datetime,
     context: CompensationContext,
     settings: CompensationSettings | None = None,
-    effects: set[str] | None = None,
     block: dt.timedelta = DEFAULT_BLOCK,
 ) -> Iterator[pl.DataFrame]:
     """``ROPE_TENSIONS`` rows of ``start <= t < end``, one frame per block, in time order.
@@ -118,7 +117,6 @@ def compensate_blocks(
             hoist,
             context=context,
             settings=settings,
-            effects=effects,
             carry=carry,
             block_start_utc=lo,
             block_end_utc=hi if hi < end else None,

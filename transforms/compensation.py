@@ -110,7 +110,9 @@ def compensate(
     settings : CompensationSettings, optional
         Filtering and differentiation choices.
     effects : set of str, optional
-        Effects to compensate; default ``hoist.model.effects``.
+        Effects to compensate; default ``hoist.model.effects``. Given, they replace the
+        hoist's for the whole compensation: the ropes' identification too (it runs the
+        same seals), and its cache keys them.
 
     Returns
     -------
@@ -123,6 +125,8 @@ def compensate(
         (what ``ropeload run`` uses, :mod:`pipelines.blocks`).
     """
     settings = settings or CompensationSettings()
+    if effects is not None:
+        hoist = hoist.with_effects(sorted(effects))
     frame = _input_frame(samples)
     if frame.height == 0:
         return pl.DataFrame(schema=OUTPUT_SCHEMA)
@@ -135,7 +139,7 @@ def compensate(
             else None
         ),
     )  # fmt: skip
-    result, _ = compensate_window(frame, hoist, context=context, settings=settings, effects=effects)
+    result, _ = compensate_window(frame, hoist, context=context, settings=settings)
     return result
 
 
@@ -159,7 +163,6 @@ def compensate_window(
     *,
     context: CompensationContext,
     settings: CompensationSettings | None = None,
-    effects: set[str] | None = None,
     carry: CompensationCarry | None = None,
     block_start_utc: dt.datetime | None = None,
     block_end_utc: dt.datetime | None = None,
@@ -175,7 +178,7 @@ def compensate_window(
     gives the same rows (tests/transforms/test_blocks.py states the tolerance).
     """
     frame = _input_frame(samples)
-    effects = set(hoist.model.effects if effects is None else effects)
+    effects = set(hoist.model.effects)
     if frame.height == 0:
         fresh = CompensationCarry.fresh(seal_elements(effects, hoist))
         return pl.DataFrame(schema=OUTPUT_SCHEMA), carry or fresh

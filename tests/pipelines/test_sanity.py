@@ -7,7 +7,7 @@ import datetime as dt
 import polars as pl
 import pytest
 
-from discovery.cases import hidden_case, hoist_with
+from discovery.cases import hidden_case
 from pipelines.sanity import sanity_check, sanity_step
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from schemas.tables import SANITY_CHECKS
@@ -118,7 +118,7 @@ def test_a_trip_that_cannot_be_simulated_is_skipped_with_the_reason(ten_hz):
     hoist, day = ten_hz
     drum = hoist.drum.model_copy(update={"groove_radius_deviation_m": [1e-3, -1e-3, 1e-3, -1e-3]})
     effects = [*hoist.model.effects, "groove_wear"]
-    worn = hoist_with(hoist.model_copy(update={"drum": drum}), effects)
+    worn = hoist.model_copy(update={"drum": drum}).with_effects(effects)
     # from the up trip's loading on (trips 0 and 1 of this record): the block starts at
     # the bottom
     record = day.sensors.filter(pl.col("time_utc") >= _seconds(day, 149.0))

@@ -117,8 +117,7 @@ class HoistDescription(Section):
     def with_effects(self, effects: Sequence[str]) -> HoistDescription:
         """This hoist with its ``[model] effects`` replaced by ``effects`` (in that order:
         give a sorted list where the order must not depend on a set's)."""
-        model = self.model.model_copy(update={"effects": list(effects)})
-        return self.model_copy(update={"model": model})
+        return self.model_copy(update={"model": Model(effects=list(effects))})
 
     # -- derived quantities used across the pipeline ------------------------------------
     @property

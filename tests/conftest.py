@@ -13,8 +13,9 @@ import pytest
 
 from pipelines.prefect_env import apply_prefect_defaults
 
-# A stable Prefect home for this test session, away from the user's own; with
-# pytest-xdist one per worker (a worker inherits the controller's environment).
+# A stable Prefect home for this test session, away from the user's own (one the user
+# sets is kept with `-n 0`); with pytest-xdist one per worker (a worker inherits the
+# controller's environment, and two Prefect servers must not share a home).
 if "PREFECT_HOME" not in os.environ or os.environ.get("PYTEST_XDIST_WORKER"):
     os.environ["PREFECT_HOME"] = tempfile.mkdtemp(prefix="ropeload-prefect-")
 apply_prefect_defaults()

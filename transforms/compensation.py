@@ -125,7 +125,7 @@ def compensate(
         (what ``ropeload run`` uses, :mod:`pipelines.blocks`).
     """
     settings = settings or CompensationSettings()
-    if effects is not None:
+    if effects is not None and set(effects) != set(hoist.model.effects):
         hoist = hoist.with_effects(sorted(effects))
     frame = _input_frame(samples)
     if frame.height == 0:

@@ -20,7 +20,7 @@ nominal ropes, then a Latin hypercube. Tried and dropped: sweeping the ropes in 
 over grids of each one's constants (they are entangled through the gauge rope: from the
 nominal start it stalled at 0.7 mm on validation day 101), and more seeds instead of the
 hypotheses. The branch loss and the viscosity are those the hoist's ``[model] effects``
-declare (a run with other effects identifies on the declared ones).
+declare (``compensate(effects=)`` replaces them here too).
 The objective is piecewise smooth (a slide starts or not), so no gradient method. Only
 the first :data:`IDENTIFY_SAMPLES` means are used (2 h at 5 Hz): ~10 000 runs of the
 model over them, 5-8 s on two cores for a 2 h record of 50 Hz (about three times that with the
@@ -447,18 +447,19 @@ def identify_rope_springs(
 
     bounds = [STIFFNESS_BOUNDS] * (m - 1) + [OFFSET_BOUNDS_M] * (m - 1)
     scale = np.array([b[1] - b[0] for b in bounds])
-    # the model's kernel releases the GIL: a generation's members run on the cores. The
-    # objective has a local minimum for each set of ropes taken for the odd ones out:
+    # The objective has a local minimum for each set of ropes taken for the odd ones out:
     # the first population holds each hypothesis "rope j differs by +-5 %" beside the
     # description's nominal ropes and a Latin hypercube.
     lows = np.array([b[0] for b in bounds]) / scale
     # a generation's members in one compiled call, or (from THREADED_MEANS) in a call
     # per core: the model releases the GIL
-    threads = min(2, os.cpu_count() or 1) if usable[::every].sum() >= THREADED_MEANS else 1
+    steps = int(np.isfinite(np.mean(p_sensor, axis=0))[::every].sum())  # the model's work
+    threads = min(2, os.cpu_count() or 1) if steps >= THREADED_MEANS else 1
 
     def generation(u: np.ndarray) -> np.ndarray:  # u: (parameters, members)
         members = np.array_split(u.T * scale, threads)
-        return np.concatenate(list(pool.map(lambda q: mismatches(q, every), members))) * 1e6
+        energies = np.concatenate(list(pool.map(lambda q: mismatches(q, every), members)))
+        return np.nan_to_num(energies * 1e6, nan=np.inf)  # the search would keep a NaN
 
     with ThreadPoolExecutor(max_workers=threads) as pool:
         searches = [

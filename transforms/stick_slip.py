@@ -546,6 +546,14 @@ def _kernel_inputs(
     """:func:`_kernel`'s arguments before the ropes' constants and after them up to the
     outputs, checked (:func:`stick_slip`'s parameters)."""
     n = depth_m.shape[0]
+    if len(x_logged) != len(p_sensor):
+        raise ValueError(f"{len(x_logged)} logged x for {len(p_sensor)} pressures")
+    for name, given in (("p_sensor", p_sensor), ("x_logged", x_logged)):
+        for i, values in enumerate(given):
+            if np.shape(values) != (n,):
+                raise ValueError(f"{name}[{i}] has {np.shape(values)} samples, depth_m {n}")
+    if np.shape(segment_id) != (n,):
+        raise ValueError(f"segment_id has {np.shape(segment_id)} samples, depth_m {n}")
     nu = np.atleast_1d(np.asarray(nu_m2_s, dtype=np.float64))
     drift, drift_mode = np.zeros(1), 0
     if drift_pressure_pa is not None and drift_travel_pa is not None:
@@ -631,8 +639,8 @@ def _mismatch_kernel(
             squares = 0.0
             count = 0
             for t in range(n):
-                if np.isfinite(x_logged[i][t]):
-                    d = x_out[i][t] - x_logged[i][t]
+                d = x_out[i][t] - x_logged[i][t]
+                if not np.isnan(d):  # np.nanmean's: a NaN either side is left out
                     squares += d * d
                     count += 1
             if count:

@@ -143,8 +143,11 @@ def test_progress_on_a_terminal_is_a_live_bar_that_ends_cleanly():
         with os.fdopen(slave, "w") as terminal:
             bar = StderrProgress(2, stream=terminal)
             bar(_outcome(1, "failed"))
-            time.sleep(0.6)  # one refresh at 2 per second
-            during = _read_pty(master)
+            during = ""  # a refresh at 2 per second: one within seconds on a busy machine
+            deadline = time.monotonic() + 20.0
+            while "1 failed" not in during and time.monotonic() < deadline:
+                time.sleep(0.1)
+                during += _read_pty(master)
             bar(_outcome(2))  # the last one ends the bar
             after = _read_pty(master)
     finally:

@@ -112,6 +112,18 @@ def test_negative_mass_is_refused():
     assert "bad.toml: conveyance.mass: must be positive, got -8200" in message
 
 
+def test_with_effects_replaces_them_and_checks_the_names():
+    hoist = load_hoist(EXAMPLE_HOIST)
+    plain = hoist.with_effects(["seal_friction", "oil_compressibility"])
+    assert plain.model.effects == ["seal_friction", "oil_compressibility"]
+    assert plain.cylinders == hoist.cylinders
+    assert hoist.model.effects != plain.model.effects  # the original is unchanged
+    with pytest.raises(ValueError, match="seal_fricton"):
+        hoist.with_effects(["seal_fricton"])
+    with pytest.raises(ValueError, match="listed twice"):
+        hoist.with_effects(["seal_friction", "seal_friction"])
+
+
 def test_unknown_effect_name_is_named():
     message = _error(_edit(r'^    "seal_friction",', '    "seal_fricton",'))
     assert "model.effects.2: unknown effect name 'seal_fricton'" in message

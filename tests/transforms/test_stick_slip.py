@@ -114,6 +114,17 @@ def test_the_mismatch_of_a_population_is_each_ones_mean_square_off_the_logged_x(
     assert got[1] > got[0]
 
 
+def test_inputs_of_another_length_are_refused():
+    p = np.full(20, 4e6)
+    depth, segment = np.full(20, DEPTH), np.zeros(20, int)
+    short = (np.zeros(20),) * 2 + (np.zeros(19),) * 2
+    ropes = np.ones((1, 4)), np.zeros((1, 4))
+    with pytest.raises(ValueError, match=r"x_logged\[2\] has \(19,\) samples"):
+        stick_slip_mismatch((p,) * 4, short, depth, segment, HOIST, *ropes, dt_s=0.01)
+    with pytest.raises(ValueError, match="3 logged x for 4 pressures"):
+        stick_slip((p,) * 4, (np.zeros(20),) * 3, depth, segment, HOIST, EQUAL, dt_s=0.01)
+
+
 def _virgin_n(u: float, capacity: float, elements: int = 4) -> float:
     """The virgin curve of ``elements`` Maxwell-slip elements of the example hoist's
     bristle stiffness in all (Lampaert et al. 2002; equal weights, k_j proportional to

@@ -37,7 +37,7 @@ READER = textwrap.dedent(
     from warehouse.store import DataRoot, open_reader
 
     root, stop = DataRoot(Path(sys.argv[2])), Path(sys.argv[3])
-    checks, errors, states, inconsistent = 0, [], set(), []
+    checks, errors, states, inconsistent, told = 0, [], set(), [], False
     while not stop.exists():
         try:
             con = open_reader(root)
@@ -53,6 +53,10 @@ READER = textwrap.dedent(
         except Exception as exc:  # the test asserts there are none
             errors.append(f"{type(exc).__name__}: {exc}")
             continue
+        finally:
+            if not told:  # one look at the empty warehouse taken
+                print("ready", flush=True)
+                told = True
         checks += 1
         states.add(len(positions))
         ok = (set(positions) == set(trips) == set(audit)
@@ -107,7 +111,9 @@ def test_reader_process_never_fails_nor_sees_half_a_landing(tmp_path):
         text=True,
     )
     try:
-        time.sleep(1.0)  # let the reader start and run on the empty warehouse
+        # the reader has looked at the empty warehouse (a busy machine can take seconds
+        # to start it)
+        assert reader.stdout.readline() == "ready\n"
         for day in range(DAYS):
             _land_day(root, day)
             time.sleep(0.2)

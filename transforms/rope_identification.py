@@ -404,9 +404,9 @@ def identify_rope_springs(
     def constants(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(a, c) of each row of q, (rows, m) each."""
         q = np.atleast_2d(q)
-        ones = np.ones((q.shape[0], 1))
-        a = np.hstack([ones, q[:, : m - 1]])
-        return a, np.hstack([0.0 * ones, q[:, m - 1 :]]) + (a - 1.0) * stretch
+        gauge = np.zeros((q.shape[0], 1))  # rope 1: a = 1, c = 0
+        a = np.hstack([gauge + 1.0, q[:, : m - 1]])
+        return a, np.hstack([gauge, q[:, m - 1 :]]) + (a - 1.0) * stretch
 
     travels = {}
     if drift_travel_pa is not None:

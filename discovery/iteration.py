@@ -45,6 +45,7 @@ class DecisionThresholds:
 
     variance_threshold: float
     explain_fraction: float
+    detectable_x_noise: float
     stability: float
     ambiguity: float
 
@@ -215,16 +216,18 @@ def _verdict(
     top = ranking[0]["effect"]
     runner = ranking[1]["effect"] if len(ranking) > 1 else None
     ratio = bl.ratio
-    if (
-        ratio < fit.opts.variance_threshold
-        or scores[top]["dbic"] <= 0
-        or (explained < fit.opts.explain_fraction)
-    ):
+    sigma = fit.plan.noise_sigma_pa
+    # the RMS of what the best candidate explains (ranking's explained_pa), in sigmas
+    signal = np.sqrt(max(bl.rss0 - scores[top]["rss"], 0.0) / fit.eng.layout.y.size) / sigma
+    credited = explained >= fit.opts.explain_fraction or signal >= fit.opts.detectable_x_noise
+    if ratio < fit.opts.variance_threshold or scores[top]["dbic"] <= 0 or not credited:
         msg = (
             f"residual variance {ratio:.2f} x the noise variance: nothing missing"
             if ratio < fit.opts.variance_threshold
             else f"residual variance {ratio:.2f} x the noise variance, but the best candidate "
-            f"({top}) explains only {explained:.0%} of the excess"
+            f"({top}) explains only {explained:.0%} of the excess, {signal:.1f} x the noise "
+            f"in RMS (credited from {fit.opts.explain_fraction:.0%} or "
+            f"{fit.opts.detectable_x_noise:g} x)"
         )
         return _no_addition(fit, bl, NO_EFFECT, 1.0 - share.get(top, 0.0), ranking, msg)
     close = (

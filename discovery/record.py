@@ -108,7 +108,7 @@ def read_record(samples: pl.DataFrame, hoist: HoistDescription) -> RecordArrays:
     known = np.isfinite(pc)
     pc_filled = np.interp(t, t[known], pc[known]) if known.any() else np.zeros_like(pc)
     pcs = ndimage.uniform_filter1d(pc_filled, size=max(3, int(rate) | 1))
-    ramp_threshold = max(10.0 * sigma, 2e4) if np.isfinite(sigma) else 2e4
+    ramp_threshold = max(2.0 * sigma, 5e3) if np.isfinite(sigma) else 2e4
     stops = _stop_depths(t, depth, motions, hoist.shaft.depth_m)
     return RecordArrays(
         t_ref, t, p, depth, speed, temp, motions, quiet, sigma, pc, pc_filled, pcs, stops,

@@ -224,13 +224,14 @@ def check_sanity(
     end: dt.datetime,
     max_trips: int = SANITY_TRIPS,
     hoist: HoistDescription | None = None,
-    threshold: float = 1.5,
+    threshold: float | None = None,
     motion: str = "auto",
 ) -> SanityOutcome:
     """Simulation sanity check of a run's period (:func:`pipelines.sanity.sanity_check`):
     the trips that start moving in ``[start, end)``, landed under ``run_id`` with the
     step's outcome (:func:`land_sanity_checks`). A trip passes when its RMS gap is at
-    most ``threshold`` x the pressure noise; ``motion`` drives the replays
+    most ``threshold`` x the pressure noise (default
+    :data:`pipelines.sanity.PASS_LIMIT_X_NOISE`); ``motion`` drives the replays
     (:func:`discovery.planning.plan_replay`).
 
     An optional step: an error of the check itself (data it cannot replay, a numerical
@@ -239,7 +240,7 @@ def check_sanity(
     warehouse is unavailable: the caller's retry runs the check alone again, since the
     day's compensation is already done).
     """
-    from pipelines.sanity import SanityOutcome, sanity_check, sanity_step
+    from pipelines.sanity import PASS_LIMIT_X_NOISE, SanityOutcome, sanity_check, sanity_step
 
     description = hoist or load_hoist(hoist_path)
     site, name = description.hoist.site, description.hoist.name
@@ -261,7 +262,7 @@ def check_sanity(
             max_trips=max_trips,
             report_from=start,
             report_to=end,
-            threshold=threshold,
+            threshold=PASS_LIMIT_X_NOISE if threshold is None else threshold,
             number_from=start - LEAD_IN,  # the run's trips count from its lead-in
             motion=motion,
         )

@@ -9,9 +9,17 @@ set against the logger's pressure noise estimated from the data
 
 .. math:: RMS(p_{meas} - p_{sim}) \\le k \\, \\sigma_{noise}
 
-with ``k = threshold`` (default 1.5: a complete model leaves the noise, ~1.0-1.1 here;
-an effect of the size of the noise doubles the variance). A failed check is recorded
-and should trigger discovery (:mod:`pipelines.discover`) for the hoist.
+with ``k = threshold``, by default :data:`PASS_LIMIT_X_NOISE` (3): what the replay can
+reproduce of a healthy hoist it was not built with. On ropeload's own simulator a complete
+model leaves the noise (~1.0-1.1 x), but that simulator shares the replay's code; on an
+independent simulator of the same hoist, described correctly, the replay leaves common-mode
+gaps of 1.5-3 x the noise (seal friction's stuck phases, ~20 kPa after the acceleration
+of a trip down from the pithead), and issue 14 sets the replay's target at 3 x the noise.
+A limit of 1.5 x failed 85 % of such healthy trips; a check that fails every night is not
+read. What 3 x still catches: a missing effect of the model (conveyance inertia: ~10 x),
+a sensor 40 kPa off (0.5 % of the load; the differential part stays, ~3.5 x), a sensor
+gain 1 % off. A failed check is recorded and should trigger discovery
+(:mod:`pipelines.discover`) for the hoist.
 
 Input: landed field samples (``FIELD_SAMPLES``) or rope tensions (``ROPE_TENSIONS``):
 both carry ``time_utc``, ``p{i}_pa``, ``depth_m``, ``speed_m_s`` and ``oil_temp_c``.
@@ -45,7 +53,11 @@ from schemas.tables import SANITY_CHECKS, conform
 from sims.replay import replay_fitted
 from sims.replay_plan import ReplayPlan, ReplayResult, ReplayTrip
 
-__all__ = ["SanityOutcome", "sanity_check", "sanity_step"]
+__all__ = ["PASS_LIMIT_X_NOISE", "SanityOutcome", "sanity_check", "sanity_step"]
+
+#: A trip passes when its RMS gap is at most this many times the pressure noise (module
+#: docstring: the replay's accuracy on a hoist it was not built with).
+PASS_LIMIT_X_NOISE = 3.0
 
 
 @dataclass(frozen=True)
@@ -90,7 +102,7 @@ def sanity_check(
     hoist: HoistDescription,
     *,
     run_id: str,
-    threshold: float = 1.5,
+    threshold: float = PASS_LIMIT_X_NOISE,
     max_trips: int = 200,
     dt_s: float = 2e-3,
     settle_s: float = 45.0,

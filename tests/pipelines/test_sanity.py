@@ -184,3 +184,20 @@ def test_trip_ids_name_the_trips_the_periods_trip_summary_names(ten_hz):
         assert late < 0.5
     jog = trips.filter(pl.col("trip_id") == 0)
     assert abs((jog["time_start_utc"][0] - _seconds(day, jog_s)).total_seconds()) < 0.2
+
+
+def test_a_sensor_40_kpa_off_fails_at_the_default_limit():
+    """The default limit (3 x the noise, the replay's accuracy on a hoist it was not built
+    with) still catches a sensor 40 kPa off (~0.5 % of the load): the payload fit takes
+    the common-mode quarter, the differential 30 / -10 / -10 / -10 kPa stays (RMS
+    17.3 kPa, over 3 x the logger's 5 kPa noise). The same trips unchanged pass."""
+    plan, info = hidden_case(None)
+    sensors = info["day"].sensors
+    good = sanity_check(sensors, plan.hoist, run_id="r1", settle_s=20.0)
+    assert good["status"].to_list() == ["passed"]
+    off = sensors.with_columns(pl.col("p2_pa") + 40e3)
+    bad = sanity_check(off, plan.hoist, run_id="r2", settle_s=20.0)
+    assert bad["status"].to_list() == ["failed"]
+    ratio = (bad["rms_gap_pa"] / bad["noise_pa"]).item()
+    assert 3.0 < ratio < 5.0, bad["message"].to_list()
+    assert "limit 3 x" in bad["message"][0]

@@ -12,6 +12,8 @@ re-tuning, information criterion + trip bootstrap, ambiguity, iteration: the
 ``complexity``) and :func:`discover_effects`; its steps in :mod:`discovery.iteration`,
 :mod:`discovery.columns`, :mod:`discovery.normal_equations`, :mod:`discovery.ranking`,
 :mod:`discovery.bootstrap`, :mod:`discovery.refit`, :mod:`discovery.gap`.
+:mod:`discovery.record_rereading` -- :func:`discover_in_record`: discovery over a
+landed record, planning it again (ropes, motion read anew) after each effect added.
 :mod:`discovery.cases` -- synthetic hidden-effect cases for tests and benchmarks.
 
 ``discovery`` imports ``sims``; ``sims`` never imports ``discovery``. The package's
@@ -22,6 +24,7 @@ stay inside their module).
 
 from discovery.library import EFFECT_LIBRARY, EffectLibrary, EffectTerm
 from discovery.planning import plan_replay
+from discovery.record_rereading import discover_in_record
 from discovery.results import DiscoveryResult, Finding
 from discovery.selection import EffectSelector, discover_effects
 
@@ -33,5 +36,6 @@ __all__ = [
     "EffectTerm",
     "Finding",
     "discover_effects",
+    "discover_in_record",
     "plan_replay",
 ]

@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -277,6 +278,7 @@ def plan_replay(
     dt_s: float = 2e-3,
     motion: str = "auto",
     number_from: dt.datetime | None = None,
+    parameters: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> ReplayPlan:
     """Segment ``samples`` of one hoist into trips and prepare their simulation.
 
@@ -311,6 +313,12 @@ def plan_replay(
         acceleration and top speed as they were), or (``"auto"``, the default)
         whichever replays the first trips closer, chosen after the ropes' damping and
         stiffness spread (:func:`discovery.replay_choices.choose_motion`).
+    parameters : mapping, optional
+        Effect parameters (``{effect: {parameter: value}}``) of the hoist's
+        ``[model] effects`` beyond its description's: the model the choices read off the
+        record (ropes, motion) are made with, kept as ``ReplayPlan.parameters``
+        (discovery re-reads them once an effect joins the model,
+        :func:`discovery.record_rereading.discover_in_record`).
 
     Raises
     ------
@@ -357,6 +365,7 @@ def plan_replay(
             notes=tuple(said),
             skipped=(*skipped, *_short_trips(rec, chosen, first_id)),
             rope_bounce=zeta_how,
+            parameters={k: dict(v) for k, v in (parameters or {}).items()},
         )
 
     # the ropes as the record shows them (discovery.replay_choices), then the motion

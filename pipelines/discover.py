@@ -3,8 +3,9 @@
 The plain function behind the CLI command and the Prefect ``discover`` flow. Reads the
 hoist's landed samples for the period from the lake, replays its trips through the
 device simulation with the hoist's ``[model] effects`` (:mod:`sims.replay`), runs the
-discovery (:func:`discovery.discover_effects`: residual test, candidate scoring
-with re-tuning, BIC + trip bootstrap, iteration) and writes
+discovery (:func:`discovery.discover_in_record`: :func:`discovery.discover_effects`'
+residual test, candidate scoring with re-tuning, BIC + trip bootstrap, one iteration at
+a time, the record planned again after each effect added) and writes
 
 * the report JSON (``json_path``): one object per hoist and period, the contract
   section 5 fields for the first iteration's answer plus
@@ -45,8 +46,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from discovery import DiscoveryResult, Finding, discover_effects
-from discovery.planning import plan_replay
+from discovery import DiscoveryResult, Finding, discover_in_record
 from pipelines.lake import scan_lake
 from pipelines.provenance import hoist_run, new_run_id, utc_now
 from schemas.effects import NO_EFFECT
@@ -267,9 +267,8 @@ def discover_period(
         )
     p_start = (start or samples["time_utc"].min()).astimezone(dt.UTC)
     p_end = (end or samples["time_utc"].max() + dt.timedelta(microseconds=1)).astimezone(dt.UTC)
-    plan = plan_replay(samples, hoist, max_trips=max_trips)
     logger.info("discover %s/%s %s .. %s: replaying trips", site, name, p_start, p_end)
-    result = discover_effects(plan, max_iterations=max_iterations)
+    result = discover_in_record(samples, hoist, max_trips=max_trips, max_iterations=max_iterations)
     logger.info(
         "discover %s/%s: effects found: %s", site, name, ", ".join(result.effects_found) or "none"
     )

@@ -158,7 +158,7 @@ def replay(
     """
     hoist = plan.hoist
     names = frozenset(hoist.model.effects if effects is None else effects)
-    prm = {k: dict(v) for k, v in (parameters or {}).items()}
+    prm = _parameters(plan, names, parameters)
     pay, pay_before, ramps = replay_inputs(plan, names, prm, payload_kg, payload_before_kg, ramps_s)
     rows, failures = _replay_trips(plan, names, prm, pay, pay_before, ramps)
     return ReplayResult(
@@ -173,6 +173,17 @@ def replay(
         ramps_s=ramps,
         trip_messages=tuple(r[2] for r in rows),
     )
+
+
+def _parameters(
+    plan: ReplayPlan,
+    names: frozenset[str],
+    parameters: Mapping[str, Mapping[str, Any]] | None,
+) -> dict[str, dict[str, Any]]:
+    """The effect parameters a replay uses: those given, else the plan's for the effects
+    switched on (a replay of fewer effects leaves the others' out)."""
+    given = plan.parameters if parameters is None else parameters
+    return {k: dict(v) for k, v in given.items() if parameters is not None or k in names}
 
 
 def _not_simulated(tr: ReplayTrip, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -278,6 +289,7 @@ def replay_fitted(
     """
     hoist = plan.hoist
     names = frozenset(hoist.model.effects if effects is None else effects)
+    parameters = _parameters(plan, names, parameters)
     gain, _ = sensor_gain_offset(hoist, names, parameters)
     scale = hoist.ropes_n * hoist.cylinders.bore_area_m2 / G_STANDARD / float(gain.mean())
     result = replay(

@@ -9,6 +9,7 @@ samples); :func:`replay_frame` lays both out as one frame.
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -85,6 +86,9 @@ class ReplayPlan:
     what the record shows of the ropes' ringing (:func:`sims.logged_motion.
     rope_damping_from_record`); ``hoist`` carries the damping ratio the replay uses
     (the description's unless the record contradicts it, also said in ``notes``).
+    ``parameters`` are the effect parameters (``{effect: {parameter: value}}``) the
+    plan's model is replayed with where a replay is not given its own (those the choices
+    read off the record were made with; empty: the description's).
     """
 
     hoist: HoistDescription
@@ -97,6 +101,7 @@ class ReplayPlan:
     notes: tuple[str, ...] = ()
     skipped: tuple[SkippedTrip, ...] = ()
     rope_bounce: str = ""
+    parameters: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
     @property
     def n_sensors(self) -> int:

@@ -13,9 +13,15 @@ wear the record does not hold.
 discover_effects` with ``max_iterations=1``); after an iteration that adds an effect it
 plans the record again with the grown model and its fitted parameters
 (``plan_replay(parameters=...)``), so the ropes and the motion are read anew, and goes
-on from that plan. The added effect's ``gap_after_pa`` is the new plan's baseline gap
-when that is smaller (the gap with the effect and the ropes as the record shows them);
-the findings keep their order and numbering.
+on from that plan when its baseline gap is smaller than the one the effect left (the
+added effect's ``gap_after_pa`` is then that gap: the effect with the ropes as the
+record shows them), else from the plan before with the grown model. A new plan that
+cannot be made or simulated ends the search with a note; the findings so far stand.
+The findings keep their order and numbering. The result's ``before`` is the first
+plan's replay and its ``plan`` and ``after`` the last plan's (same trips and samples:
+the planning of the trips does not read the model; the ropes' damping and spread and
+the motion may differ, so "before" and "after" plots compare the replays as chosen).
+The last effect added within ``max_iterations`` is not planned again.
 """
 
 from __future__ import annotations
@@ -51,6 +57,9 @@ def discover_in_record(
     ``selector`` keywords (``bootstrap``, ``detectable_x_noise``, ...) to
     :func:`~discovery.selection.discover_effects`.
     """
+    fixed = {"effects", "parameters", "max_iterations"} & set(selector)
+    if fixed:
+        raise TypeError(f"discover_in_record: {', '.join(sorted(fixed))} cannot be given")
     plan = plan_replay(samples, hoist, max_trips=max_trips, number_from=number_from)
     first = result = discover_effects(plan, max_iterations=1, **selector)
     findings = list(result.findings)
@@ -58,22 +67,32 @@ def discover_in_record(
     while len(findings) < max_iterations and _added(findings[-1].effect):
         model = list(result.effects_after)
         params = {k: dict(v) for k, v in result.parameters_after.items() if k in model}
-        again = plan_replay(
-            samples,
-            hoist.with_effects(sorted(model)),
-            max_trips=max_trips,
-            number_from=number_from,
-            parameters=params,
-        )
-        result = discover_effects(
-            again, effects=model, parameters=params, max_iterations=1, **selector
-        )
-        nxt = result.findings[0]
-        if nxt.gap_before_pa < findings[-1].gap_after_pa:
-            findings[-1] = dataclasses.replace(findings[-1], gap_after_pa=nxt.gap_before_pa)
-        findings.append(dataclasses.replace(nxt, iteration=len(findings) + 1))
+        try:
+            again = plan_replay(
+                samples,
+                hoist.with_effects(sorted(model)),
+                max_trips=max_trips,
+                number_from=number_from,
+                parameters=params,
+            )
+            nxt_result = discover_effects(
+                again, effects=model, parameters=params, max_iterations=1, **selector
+            )
+        except (RuntimeError, ValueError) as exc:
+            notes.append(f"planning again with {', '.join(model)} failed, search ended: {exc}")
+            break
+        if nxt_result.findings[0].gap_before_pa < findings[-1].gap_after_pa:
+            gap = nxt_result.findings[0].gap_before_pa
+            findings[-1] = dataclasses.replace(findings[-1], gap_after_pa=gap)
+            notes.append(f"planned again with {', '.join(model)}")
+        else:  # the ropes read anew replay no closer: go on from the plan before
+            nxt_result = discover_effects(
+                result.plan, effects=model, parameters=params, max_iterations=1, **selector
+            )
+        result = nxt_result
+        findings.append(dataclasses.replace(result.findings[0], iteration=len(findings) + 1))
         replays += result.replays
-        notes += [f"planned again with {', '.join(model)}: {n}" for n in result.notes]
+        notes += result.notes
     return dataclasses.replace(
         result,
         findings=findings,
@@ -81,7 +100,6 @@ def discover_in_record(
         before=first.before,
         replays=replays,
         notes=notes,
-        plan=result.plan,
     )
 
 

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
+
+import numpy as np
 import pytest
 
-from discovery import discover_effects, discover_in_record, plan_replay
+from discovery import discover_in_record
 from discovery.cases import hidden_case
+from sims.replay import replay
 
 
 @pytest.mark.slow
@@ -13,7 +17,7 @@ def test_the_record_is_planned_again_with_the_effect_added():
     """Sims data hiding the tail ropes' weight (0.85 MPa of gap): named, then the record
     planned again with it at its fitted parameters (the ropes and motion read anew), and
     the next iteration starts from that plan's gap, which is the added effect's gap
-    after -- not above what the same trips left without the new plan."""
+    after; nothing else is missing (``none``)."""
     plan, info = hidden_case("tail_rope_weight")
     samples = info["day"].sensors
     result = discover_in_record(samples, plan.hoist, max_iterations=2, bootstrap=50)
@@ -27,6 +31,30 @@ def test_the_record_is_planned_again_with_the_effect_added():
     )
     assert second.gap_before_pa == first.gap_after_pa
     assert first.gap_after_pa < 0.05 * first.gap_before_pa
-    alone = discover_effects(plan_replay(samples, plan.hoist), max_iterations=1, bootstrap=50)
-    assert alone.findings[0].effect == "tail_rope_weight"
-    assert first.gap_after_pa <= alone.findings[0].gap_after_pa + 1.0
+    assert second.effect == "none"
+    assert any(n.startswith("planned again with") for n in result.notes)
+
+
+def test_effects_or_parameters_cannot_be_given():
+    plan, info = hidden_case(None, trips=1)
+    with pytest.raises(TypeError, match="effects cannot be given"):
+        discover_in_record(info["day"].sensors, plan.hoist, effects=["seal_friction"])
+
+
+def test_a_plan_replays_with_its_parameters_unless_given_others():
+    """``ReplayPlan.parameters`` are what a replay given no parameters uses (the choices
+    read off the record go through such replays); given ones replace them, and an effect
+    not switched on leaves its parameters out."""
+    plan, _ = hidden_case(None, trips=1)
+    stiff = {"oil_compressibility": {"bulk_modulus_pa": 0.5e9}}
+    with_them = dataclasses.replace(plan, parameters=stiff)
+    own = replay(with_them).simulated[0]
+    np.testing.assert_array_equal(own, replay(plan, parameters=stiff).simulated[0])
+    described = replay(plan).simulated[0]
+    assert np.nanmax(np.abs(own - described)) > 1e3  # a softer oil replays otherwise
+    np.testing.assert_array_equal(replay(with_them, parameters={}).simulated[0], described)
+    effects = [e for e in plan.hoist.model.effects if e != "oil_compressibility"]
+    np.testing.assert_array_equal(
+        replay(with_them, effects=effects).simulated[0],
+        replay(plan, effects=effects).simulated[0],
+    )

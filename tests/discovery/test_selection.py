@@ -199,8 +199,8 @@ def test_local_loss_candidate_is_not_null_when_the_description_declares_no_loss(
 
 def _with_unnamed_wave_and_offset(plan, wave_pa: float, offset_pa: float):
     """The plan's measured pressures plus what no library term names -- a common-mode
-    wave, zero-mean over each trip (periods 17 s and 61 s beating) -- and a sensor 2 that
-    reads ``offset_pa`` high (a hidden sensor offset of known size)."""
+    wave (periods of 17 s and 61 s beating) -- and a sensor 2 that reads ``offset_pa``
+    high (a hidden sensor offset of known size)."""
     trips = []
     for tr in plan.trips:
         t = tr.time_s

@@ -16,9 +16,9 @@ independent simulator of the same hoist, described correctly, the replay leaves 
 gaps of 1.5-3 x the noise (seal friction's stuck phases, ~20 kPa after the acceleration
 of a trip down from the pithead), and issue 14 sets the replay's target at 3 x the noise.
 A limit of 1.5 x failed 85 % of such healthy trips; a check that fails every night is not
-read. What 3 x still catches: a missing effect of the model (conveyance inertia: ~10 x),
-a sensor 40 kPa off (0.5 % of the load; the differential part stays, ~3.5 x), a sensor
-gain 1 % off. A failed check is recorded and should trigger discovery
+read. What 3 x still catches (tested on ropeload's own data): a model without the
+conveyance's inertia, a sensor 40 kPa off (0.5 % of the load: the payload fit takes the
+common-mode quarter, the differential part stays, ~3.5 x). A failed check is recorded and should trigger discovery
 (:mod:`pipelines.discover`) for the hoist.
 
 Input: landed field samples (``FIELD_SAMPLES``) or rope tensions (``ROPE_TENSIONS``):

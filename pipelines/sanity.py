@@ -18,8 +18,8 @@ of a trip down from the pithead), and issue 14 sets the replay's target at 3 x t
 A limit of 1.5 x failed 85 % of such healthy trips; a check that fails every night is not
 read. What 3 x still catches (tested on ropeload's own data): a model without the
 conveyance's inertia, a sensor 40 kPa off (0.5 % of the load: the payload fit takes the
-common-mode quarter, the differential part stays, ~3.5 x). A failed check is recorded and should trigger discovery
-(:mod:`pipelines.discover`) for the hoist.
+common-mode quarter, the differential part stays, ~3.5 x). A failed check is recorded
+and should trigger discovery (:mod:`pipelines.discover`) for the hoist.
 
 Input: landed field samples (``FIELD_SAMPLES``) or rope tensions (``ROPE_TENSIONS``):
 both carry ``time_utc``, ``p{i}_pa``, ``depth_m``, ``speed_m_s`` and ``oil_temp_c``.

@@ -219,9 +219,7 @@ def _verdict(
     top = ranking[0]["effect"]
     runner = ranking[1]["effect"] if len(ranking) > 1 else None
     ratio = bl.ratio
-    sigma = fit.plan.noise_sigma_pa
-    # the RMS of what the best candidate explains (ranking's explained_pa), in sigmas
-    signal = np.sqrt(max(bl.rss0 - scores[top]["rss"], 0.0) / fit.eng.layout.y.size) / sigma
+    signal = _explained_x_noise(fit, bl, scores[top]["rss"])
     credited = explained >= fit.opts.explain_fraction or signal >= fit.opts.detectable_x_noise
     if ratio < fit.opts.variance_threshold or scores[top]["dbic"] <= 0 or not credited:
         msg = (
@@ -307,8 +305,7 @@ def _add(
             ranking,
             where,
             message=f"added {top}; explains {explained:.0%} of the excess variance, "
-            f"{np.sqrt(max(bl.rss0 - best['rss'], 0.0) / lay.y.size) / plan.noise_sigma_pa:.1f}"
-            " x the noise in RMS",
+            f"{_explained_x_noise(fit, bl, best['rss']):.1f} x the noise in RMS",
         )
     )
     fit.model, fit.params, fit.current, fit.s0 = [*fit.model, top], new_params, after, s_after
@@ -316,12 +313,19 @@ def _add(
     return bool([c for c in lib.candidates(fit.model) if c in fit.allowed])
 
 
+def _explained_x_noise(fit: FitState, bl: _Baseline, rss: float) -> float:
+    """The RMS of what a candidate fit of residual sum of squares ``rss`` explains, in
+    noise sigmas (the ranking's ``explained_pa`` over the noise)."""
+    explained = max(bl.rss0 - rss, 0.0) / fit.eng.layout.y.size
+    return float(np.sqrt(explained) / fit.plan.noise_sigma_pa)
+
+
 def _credited_shrink(fit: FitState, gap_before: float, gap_after: float) -> bool:
     """Whether the re-simulated gap shrank by what step 5 credits a winner with:
     ``explain_fraction`` of the gap's excess over the noise (in variance), or an RMS of
-    ``detectable_x_noise`` sigma. The linear scoring
-    can promise more than the refit delivers: a groove wear refitted to zero wear on an
-    independent simulator's record shrank a 35.1 kPa gap by 0.4 kPa."""
+    ``detectable_x_noise`` sigma. The linear scoring can promise more than the refit
+    delivers: a groove wear refitted to zero wear on an independent simulator's record
+    shrank a 35.1 kPa gap by 0.4 kPa."""
     sigma2 = fit.plan.noise_sigma_pa**2
     shrink = gap_before**2 - gap_after**2
     return shrink > 0 and (

@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -279,6 +279,7 @@ def plan_replay(
     motion: str = "auto",
     number_from: dt.datetime | None = None,
     parameters: Mapping[str, Mapping[str, Any]] | None = None,
+    stiffness_factors: Sequence[float] | None = None,
 ) -> ReplayPlan:
     """Segment ``samples`` of one hoist into trips and prepare their simulation.
 
@@ -319,6 +320,12 @@ def plan_replay(
         record (ropes, motion) are made with, kept as ``ReplayPlan.parameters``
         (discovery re-reads them once an effect joins the model,
         :func:`discovery.record_rereading.discover_in_record`).
+    stiffness_factors : sequence of float, optional
+        The head ropes' stiffness factors as the compensation identified them from the
+        logged piston positions (``RopeSprings.stiffness_factors``,
+        :mod:`transforms.rope_identification`); used instead of the stiffness spread
+        unless they replay the first trips worse than equal ropes
+        (:func:`discovery.rope_stiffness.with_rope_stiffness`). None: the spread.
 
     Raises
     ------
@@ -373,5 +380,6 @@ def plan_replay(
         planned("winder" if motion == "winder" else "logged"),
         zeta,
         piston_slides_m(samples, hoist.ropes_n),
+        stiffness_factors,
     )
     return choose_motion(plan, planned("winder")) if motion == "auto" else plan

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+from collections.abc import Sequence
 from typing import Any
 
 import polars as pl
@@ -48,19 +49,28 @@ def discover_in_record(
     max_trips: int = 12,
     max_iterations: int = 3,
     number_from: dt.datetime | None = None,
+    stiffness_factors: Sequence[float] | None = None,
     **selector: Any,
 ) -> DiscoveryResult:
     """Discover the effects missing from ``hoist``'s model in the landed ``samples``,
     planning the record again after each effect added (module docstring).
 
-    ``max_trips`` and ``number_from`` go to :func:`~discovery.planning.plan_replay`, the
+    ``max_trips``, ``number_from`` and ``stiffness_factors`` (the ropes as the
+    compensation identified them; each plan reads them against equal ropes) go to
+    :func:`~discovery.planning.plan_replay`, the
     ``selector`` keywords (``bootstrap``, ``detectable_x_noise``, ...) to
     :func:`~discovery.selection.discover_effects`.
     """
     fixed = {"effects", "parameters", "max_iterations"} & set(selector)
     if fixed:
         raise TypeError(f"discover_in_record: {', '.join(sorted(fixed))} cannot be given")
-    plan = plan_replay(samples, hoist, max_trips=max_trips, number_from=number_from)
+    plan = plan_replay(
+        samples,
+        hoist,
+        max_trips=max_trips,
+        number_from=number_from,
+        stiffness_factors=stiffness_factors,
+    )
     first = result = discover_effects(plan, max_iterations=1, **selector)
     findings = list(result.findings)
     replays, notes = result.replays, list(result.notes)
@@ -74,6 +84,7 @@ def discover_in_record(
                 max_trips=max_trips,
                 number_from=number_from,
                 parameters=params,
+                stiffness_factors=stiffness_factors,
             )
             nxt_result = discover_effects(
                 again, effects=model, parameters=params, max_iterations=1, **selector

@@ -8,7 +8,8 @@ trips (:func:`sims.replay.first_trips_gap`), in this order:
 
 1. the damping, with equal ropes and the logged speed (the winder profile when the
    caller asks for it);
-2. the stiffness spread, with that damping;
+2. the stiffness spread, with that damping (or the ropes' factors as the compensation
+   identified them from the logged x, when the caller gives them);
 3. the damping again, with the spread (a spread left out inflates every damping
    candidate's gap: on validation day 102 it chose 0.3, with the spread 1.0, and the
    replay gap on 12 trips fell from 15.6 to 9.7 kPa);
@@ -22,6 +23,7 @@ trips (:func:`sims.replay.first_trips_gap`), in this order:
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -34,13 +36,16 @@ __all__ = ["choose_motion", "read_ropes"]
 
 
 def read_ropes(
-    plan: ReplayPlan, zeta_read: float | None, slides_m: np.ndarray | None
+    plan: ReplayPlan,
+    zeta_read: float | None,
+    slides_m: np.ndarray | None,
+    identified: Sequence[float] | None = None,
 ) -> ReplayPlan:
     """The plan with the ropes' damping and stiffness spread the record supports (steps 1-3
-    of the module docstring); ``zeta_read`` and ``slides_m`` as
+    of the module docstring); ``zeta_read``, ``slides_m`` and ``identified`` as
     :func:`~discovery.rope_damping.with_rope_damping` and
     :func:`~discovery.rope_stiffness.with_rope_stiffness` take them."""
-    spread = with_rope_stiffness(with_rope_damping(plan, zeta_read), slides_m)
+    spread = with_rope_stiffness(with_rope_damping(plan, zeta_read), slides_m, identified)
     factors = spread.hoist.ropes.head_rope_stiffness_factors
     if factors is None or factors == plan.hoist.ropes.head_rope_stiffness_factors:
         return spread

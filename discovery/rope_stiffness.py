@@ -31,11 +31,26 @@ pistons all slid alike (:func:`piston_slides_m`) keeps equal ropes without a sea
 One parameter is a simplification: real spreads are not evenly spaced. It is a
 nuisance parameter (like the payloads and the ropes' damping), fitted to the baseline
 model before any candidate effect is tried.
+
+Where the compensation has identified the ropes from the logged x
+(:mod:`transforms.rope_identification`: each rope's stiffness factor, which rope is
+which, to the logger's step), those factors are used instead of the spread: they are a
+measurement from data the pressure gap does not use, and they name the ropes. On
+validation day 101 (24 trips) the replay gap fell from 16.3 kPa with the spread to
+14.7 kPa; on an independent record with a hidden throttled valve, whose spread search
+kept equal ropes, from 49.5 to 36.6 kPa (12 trips); on day 104, whose ropes ring, it
+stayed (19.5, 19.7 kPa). The first trips' gap cannot tell them apart (13.0 against
+13.1 kPa on day 101), so the spread is still searched and the identified factors are
+refused only when they replay the first trips more than 10 % further off than the
+spread's choice (e.g. a rope re-terminated since the identification's record).
+The caller brings them (``plan_replay(stiffness_factors=...)``): discovery imports no
+transforms.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 
 import numpy as np
 import polars as pl
@@ -117,14 +132,23 @@ def with_stiffness_factors(
     return hoist.model_copy(update={"ropes": ropes})
 
 
-def with_rope_stiffness(plan: ReplayPlan, slides_m: np.ndarray | None) -> ReplayPlan:
+def with_rope_stiffness(
+    plan: ReplayPlan,
+    slides_m: np.ndarray | None,
+    identified: Sequence[float] | None = None,
+) -> ReplayPlan:
     """The plan with the head ropes' stiffness spread its first trips replay closest.
 
     ``slides_m``: each piston's slide over the record (:func:`piston_slides_m`; None
-    when the record has no piston positions). A description that states its ropes'
-    factors keeps them, and so does a record whose pistons all slid, and alike (within
-    a factor 1.5: equal ropes move them together; pistons that never left the logger's
-    dead band say nothing). Otherwise each spread of
+    when the record has no piston positions). ``identified``: the ropes' stiffness
+    factors identified from the logged x (module docstring), used unless the first
+    trips replay more than 10 % further from the record with them than with the
+    spread's choice.
+
+    The spread: a description that states its ropes' factors keeps them, and so does a
+    record whose pistons all slid, and alike (within a factor 1.5: equal ropes move them
+    together; pistons that never left the logger's dead band say nothing). Otherwise
+    each spread of
     :data:`SPREAD_GRID` is replayed on the first block's first three trips (payloads
     fitted, two passes), a parabola through the best one and its neighbours refines it,
     and the result replaces equal ropes when its gap is below 90 % of theirs. The
@@ -134,12 +158,42 @@ def with_rope_stiffness(plan: ReplayPlan, slides_m: np.ndarray | None) -> Replay
     n = hoist.ropes_n
     if hoist.ropes.head_rope_stiffness_factors is not None or not plan.trips or n < 2:
         return plan
+    if identified is not None and len(identified) != n:
+        raise ValueError(f"identified: {len(identified)} stiffness factors for {n} ropes")
+    searched, searched_gap = _spread_searched(plan, slides_m)
+    if identified is None:
+        return searched
+    factors = [float(f) for f in identified]
+    gap = first_trips_gap(plan, with_stiffness_factors(hoist, factors), _TRIPS)
+    if searched_gap is None:  # the pistons slid alike: equal ropes, not replayed
+        searched_gap = first_trips_gap(searched, trips=_TRIPS)
+    said = (
+        f"{', '.join(f'{f:.3f}' for f in factors)} (replay gap on the first {_TRIPS} trips "
+        f"{gap / 1e3:.1f} kPa, the spread's choice {searched_gap / 1e3:.1f} kPa)"
+    )
+    if gap * CLOSER_SHARE <= searched_gap:
+        note = f"rope stiffness: as identified from the logged piston positions, {said}"
+        return dataclasses.replace(
+            plan, hoist=with_stiffness_factors(hoist, factors), notes=(*plan.notes, note)
+        )
+    note = f"rope stiffness: the identified factors refused, {said}"
+    return dataclasses.replace(searched, notes=(*searched.notes, note))
+
+
+def _spread_searched(
+    plan: ReplayPlan, slides_m: np.ndarray | None
+) -> tuple[ReplayPlan, float | None]:
+    """The plan with the spread :func:`with_rope_stiffness` searches, and the first
+    trips' replay gap with it (None when the pistons slid alike: equal ropes kept
+    without a replay)."""
+    hoist = plan.hoist
+    n = hoist.ropes_n
     moved = slides_m is not None and np.min(slides_m) > SLIDE_DEADBAND_M
     if moved and np.max(slides_m) <= _ALIKE_RATIO * np.min(slides_m):
         note = "rope stiffness: equal ropes kept (the pistons slid alike, {} mm)".format(
             ", ".join(f"{1e3 * s:.1f}" for s in slides_m)
         )
-        return dataclasses.replace(plan, notes=(*plan.notes, note))
+        return dataclasses.replace(plan, notes=(*plan.notes, note)), None
 
     def gap(spread: float) -> float:
         factors = spread_factors(spread, n) if spread > 0 else None
@@ -159,7 +213,7 @@ def with_rope_stiffness(plan: ReplayPlan, slides_m: np.ndarray | None) -> Replay
     )
     if spreads[best] == 0.0 or not gaps[best] < CLOSER_SHARE * gaps[0]:
         note = f"rope stiffness: equal ropes kept (replay gap by spread {said})"
-        return dataclasses.replace(plan, notes=(*plan.notes, note))
+        return dataclasses.replace(plan, notes=(*plan.notes, note)), gaps[0]
     if spreads[best] == SPREAD_GRID[-1]:
         # still falling at the largest spread real ropes plausibly have: the gap is
         # something else (a hidden effect), which a spread would only partly mimic
@@ -167,7 +221,7 @@ def with_rope_stiffness(plan: ReplayPlan, slides_m: np.ndarray | None) -> Replay
             f"rope stiffness: equal ropes kept (the gap falls up to the largest spread "
             f"tried, {SPREAD_GRID[-1]:g}: not a spread; {said})"
         )
-        return dataclasses.replace(plan, notes=(*plan.notes, note))
+        return dataclasses.replace(plan, notes=(*plan.notes, note)), gaps[0]
     factors = spread_factors(spreads[best], n)
     note = (
         f"rope stiffness: spread {spreads[best]:.3g} between neighbouring ropes, factors "
@@ -176,7 +230,7 @@ def with_rope_stiffness(plan: ReplayPlan, slides_m: np.ndarray | None) -> Replay
     )
     return dataclasses.replace(
         plan, hoist=with_stiffness_factors(hoist, factors), notes=(*plan.notes, note)
-    )
+    ), gaps[best]
 
 
 def _parabola_minimum(xs: list[float], ys: list[float]) -> float | None:

@@ -2,7 +2,8 @@
 
 The plain function behind the CLI command and the Prefect ``discover`` flow. Reads the
 hoist's landed samples for the period from the lake, replays its trips through the
-device simulation with the hoist's ``[model] effects`` (:mod:`sims.replay`), runs the
+device simulation with the hoist's ``[model] effects`` and the head ropes as the
+compensation identifies them (:mod:`pipelines.identified_ropes`, :mod:`sims.replay`), runs the
 discovery (:func:`discovery.discover_in_record`: :func:`discovery.discover_effects`'
 residual test, candidate scoring with re-tuning, BIC + trip bootstrap, one iteration at
 a time, the record planned again after each effect added) and writes
@@ -47,6 +48,7 @@ import numpy as np
 import polars as pl
 
 from discovery import DiscoveryResult, Finding, discover_in_record
+from pipelines.identified_ropes import identified_stiffness_factors
 from pipelines.lake import scan_lake
 from pipelines.provenance import hoist_run, new_run_id, utc_now
 from schemas.effects import NO_EFFECT
@@ -268,7 +270,11 @@ def discover_period(
     p_start = (start or samples["time_utc"].min()).astimezone(dt.UTC)
     p_end = (end or samples["time_utc"].max() + dt.timedelta(microseconds=1)).astimezone(dt.UTC)
     logger.info("discover %s/%s %s .. %s: replaying trips", site, name, p_start, p_end)
-    result = discover_in_record(samples, hoist, max_trips=max_trips, max_iterations=max_iterations)
+    # the ropes as the compensation identifies them (remembered under the data root)
+    ropes = identified_stiffness_factors(samples, hoist, data=data)
+    result = discover_in_record(
+        samples, hoist, max_trips=max_trips, max_iterations=max_iterations, stiffness_factors=ropes
+    )
     logger.info(
         "discover %s/%s: effects found: %s", site, name, ", ".join(result.effects_found) or "none"
     )

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 import polars as pl
 
 from pipelines.hoists import hoist_lookup
+from pipelines.identified_ropes import identified_stiffness_factors
 from pipelines.ingest import ingest_paths
 from pipelines.lake import scan_lake
 from pipelines.ledger import partition_states
@@ -254,6 +255,11 @@ def check_sanity(
             hoist=name,
             start=start - SANITY_LEAD_IN,
             end=end + SANITY_LEAD_OUT,
+        ).collect()
+        # the ropes as the run's compensation identified them: from where its record
+        # starts, its means and the cached identification's (pipelines.identified_ropes)
+        run_record = samples.filter(
+            (pl.col("time_utc") >= start - LEAD_IN) & (pl.col("time_utc") < end)
         )
         frame = sanity_check(
             samples,
@@ -265,6 +271,7 @@ def check_sanity(
             threshold=PASS_LIMIT_X_NOISE if threshold is None else threshold,
             number_from=start - LEAD_IN,  # the run's trips count from its lead-in
             motion=motion,
+            stiffness_factors=identified_stiffness_factors(run_record, description, data=data),
         )
         step = sanity_step(frame)
     except Exception as exc:

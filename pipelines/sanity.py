@@ -41,6 +41,7 @@ trip completed by the winder profile fitted to its logged depth
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -110,6 +111,7 @@ def sanity_check(
     report_to: dt.datetime | None = None,
     number_from: dt.datetime | None = None,
     motion: str = "auto",
+    stiffness_factors: Sequence[float] | None = None,
 ) -> pl.DataFrame:
     """Per-trip RMS gap between measured and simulated sensor pressure (``SANITY_CHECKS``).
 
@@ -145,6 +147,10 @@ def sanity_check(
         ``trip_summary`` rows. Default the first sample of ``samples``.
     motion : {"auto", "winder", "logged"}
         What drives each replayed trip (:func:`discovery.planning.plan_replay`).
+    stiffness_factors : sequence of float, optional
+        The head ropes' stiffness factors as the compensation identified them
+        (:func:`pipelines.identified_ropes.identified_stiffness_factors`), which the
+        replay uses instead of reading a spread (:func:`discovery.planning.plan_replay`).
 
     Returns
     -------
@@ -166,6 +172,7 @@ def sanity_check(
             settle_s=settle_s,
             number_from=number_from,
             motion=motion,
+            stiffness_factors=stiffness_factors,
         )
     except ValueError as exc:
         if "no trip" in str(exc):

@@ -94,3 +94,30 @@ def test_equal_ropes_stay_equal(spread_day):
     plan = plan_replay(day.sensors, base, settle_s=20.0)
     assert plan.hoist.ropes.head_rope_stiffness_factors is None
     assert any("equal ropes kept" in n for n in plan.notes), plan.notes
+
+
+def test_identified_factors_name_the_ropes_and_replay_to_the_noise(spread_day):
+    """The ropes as the compensation identifies them from the logged x (here the
+    world's own factors, as a perfect identification would give them) are used in rope
+    order and replay the record to the noise."""
+    base, day = spread_day
+    plan = plan_replay(day.sensors, base, settle_s=20.0, stiffness_factors=_WORLD)
+    assert plan.hoist.ropes.head_rope_stiffness_factors == _WORLD
+    assert any("as identified from the logged piston positions" in n for n in plan.notes)
+    assert replay_fitted(plan, passes=2).rms_gap_pa(plan) < 1.3 * plan.noise_sigma_pa
+
+
+def test_identified_factors_that_replay_worse_than_equal_ropes_are_refused(spread_day):
+    """Factors that do not describe the ropes (the world's mirrored about 1 and twice
+    as far apart) replay the first trips further off than the spread's choice:
+    refused, said, and the spread kept."""
+    base, day = spread_day
+    wrong = [1.0 - 2.0 * (f - 1.0) for f in _WORLD]
+    plan = plan_replay(day.sensors, base, settle_s=20.0, stiffness_factors=wrong)
+    assert any("identified factors refused" in n for n in plan.notes), plan.notes
+    factors = plan.hoist.ropes.head_rope_stiffness_factors
+    assert factors is not None
+    assert factors != wrong
+    assert np.diff(np.sort(factors)) == pytest.approx([0.03] * 3, abs=0.006)
+    with pytest.raises(ValueError, match="3 stiffness factors for 4 ropes"):
+        plan_replay(day.sensors, base, settle_s=20.0, stiffness_factors=_WORLD[:3])

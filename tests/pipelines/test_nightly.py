@@ -249,6 +249,9 @@ def test_a_failed_sanity_check_is_a_finding_and_its_day_is_not_recomputed(midnig
     sources = load_hoists(hoists, data=data, incoming=incoming)
     assert nightly(sources, data=data, sanity=False).ok
     runs = _runs(data)
+    # the checks replay with the ropes the runs identified: none is identified again
+    identified = sorted((data.path / "cache" / "rope_springs").glob("*.json"))
+    assert len(identified) == 2
     day2, day3 = [r for r in partition_ledger(data).iter_rows(named=True)]
     outcome = check_sanity(
         hoist_path=sources[0].path, data=data, run_id=day3["run_id"],
@@ -268,6 +271,7 @@ def test_a_failed_sanity_check_is_a_finding_and_its_day_is_not_recomputed(midnig
     assert night.runs.outcomes[0].checks == 1
     assert _runs(data) == runs
     assert nightly(sources, data=data).runs.outcomes == []
+    assert sorted((data.path / "cache" / "rope_springs").glob("*.json")) == identified
 
 
 def test_unclaimed_incoming_folders_and_hoists_without_data_are_named(tmp_path, capsys):

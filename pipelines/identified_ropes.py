@@ -1,0 +1,60 @@
+"""The head ropes' stiffness factors a replay takes from the compensation (issue 14).
+
+The replay (:func:`discovery.planning.plan_replay`) needs to know how the head ropes'
+stiffnesses differ, and which rope is which: while the pistons stick, rope i takes
+``k_i / sum(k)`` of a load change, and the piston pushed hardest slides first. The
+compensation identifies exactly that from the logged piston positions
+(:mod:`transforms.rope_identification`); discovery imports no transforms, so the
+pipelines that replay a record (the sanity check, ``ropeload discover``) bring the
+identified factors with them (``stiffness_factors=``).
+
+The identification reads the record's first two hours (its 0.2 s means) and is
+remembered in ``<data>/cache/rope_springs`` by a digest of those means and the hoist:
+a sanity check that reads its samples from where its run's record starts (the period
+less :data:`pipelines.run_period.LEAD_IN`) takes the run's ropes from there instead of
+identifying them again.
+"""
+
+from __future__ import annotations
+
+import polars as pl
+
+from schemas.hoist import HoistDescription
+from transforms.compensation import CompensationSettings
+from transforms.compensation_record import identification_means
+from transforms.rope_identification import identify_from_means
+from warehouse.store import DataRoot
+
+__all__ = ["identified_stiffness_factors"]
+
+
+def identified_stiffness_factors(
+    samples: pl.DataFrame,
+    hoist: HoistDescription,
+    *,
+    data: DataRoot | None = None,
+    settings: CompensationSettings | None = None,
+) -> tuple[float, ...] | None:
+    """Each head rope's stiffness relative to the description's EA, as the compensation
+    identifies it from ``samples`` (landed field samples of one hoist, the record from
+    its first sample); None when nothing identifies them (no logged piston positions, no
+    piston motion, no constants within the bounds fit the logged x) or the description
+    states its ropes' factors (the replay keeps those).
+
+    ``data``: the data root whose ``cache/rope_springs`` remembers identified ropes;
+    ``settings``: the compensation's (the seals' drift travel, where they drift).
+    """
+    x_logged = [c for c in (f"x{i}_m" for i in range(1, hoist.ropes_n + 1)) if c in samples.columns]
+    if (
+        hoist.ropes.head_rope_stiffness_factors is not None
+        or samples.height == 0
+        or len(x_logged) < hoist.ropes_n
+    ):
+        return None
+    record = samples.sort("time_utc")
+    means = identification_means(
+        record, record["time_utc"][0], hoist, settings or CompensationSettings()
+    )
+    cache = None if data is None else data.under("cache", "rope_springs")
+    springs = identify_from_means(means, hoist, cache_dir=cache)
+    return None if springs is None else tuple(springs.stiffness_factors)

@@ -35,12 +35,15 @@ model before any candidate effect is tried.
 Where the compensation has identified the ropes from the logged x
 (:mod:`transforms.rope_identification`: each rope's stiffness factor, which rope is
 which, to the logger's step), those factors are used instead of the spread: they are a
-measurement from data the pressure gap does not use, and they name the ropes. On
-validation day 101 (24 trips) the replay gap fell from 16.3 kPa with the spread to
-14.7 kPa; on an independent record with a hidden throttled valve, whose spread search
-kept equal ropes, from 49.5 to 36.6 kPa (12 trips); on day 104, whose ropes ring, it
-stayed (19.5, 19.7 kPa). The first trips' gap cannot tell them apart (13.0 against
-13.1 kPa on day 101), so the spread is still searched and the identified factors are
+measurement from data the pressure gap does not use, and they name the ropes. The
+identification fixes rope 1 at the description's EA (a gauge: the stick-slip model
+barely sees the ropes' common stiffness); the replay scales the factors to a mean of
+1, as the spread's. On validation day 101 (24 trips) the replay gap fell from 16.3 kPa
+with the spread to 15.0 kPa (14.7 kPa unscaled); on an independent record with a
+hidden throttled valve, whose spread search kept equal ropes, from 49.5 to 36.9 kPa
+(12 trips); on day 104, whose ropes ring, from 19.5 to 19.1 kPa (19.7 kPa unscaled:
+stiffer ropes ring faster). The first trips' gap cannot tell them apart (13.0 against
+13.2 kPa on day 101), so the spread is still searched and the identified factors are
 refused only when they replay the first trips more than 10 % further off than the
 spread's choice (e.g. a rope re-terminated since the identification's record).
 The caller brings them (``plan_replay(stiffness_factors=...)``): discovery imports no
@@ -141,7 +144,8 @@ def with_rope_stiffness(
 
     ``slides_m``: each piston's slide over the record (:func:`piston_slides_m`; None
     when the record has no piston positions). ``identified``: the ropes' stiffness
-    factors identified from the logged x (module docstring), used unless the first
+    factors identified from the logged x (module docstring), scaled to a mean of 1 and
+    used unless the first
     trips replay more than 10 % further from the record with them than with the
     spread's choice.
 
@@ -163,7 +167,9 @@ def with_rope_stiffness(
     searched, searched_gap = _spread_searched(plan, slides_m)
     if identified is None:
         return searched
-    factors = [float(f) for f in identified]
+    # the identification's gauge (rope 1 at the description's EA) is arbitrary: the
+    # description's EA is taken as the ropes' mean, as for the spread
+    factors = [float(f) / float(np.mean(identified)) for f in identified]
     gap = first_trips_gap(plan, with_stiffness_factors(hoist, factors), _TRIPS)
     if searched_gap is None:  # the pistons slid alike: equal ropes, not replayed
         searched_gap = first_trips_gap(searched, trips=_TRIPS)

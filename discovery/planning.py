@@ -323,9 +323,10 @@ def plan_replay(
     stiffness_factors : sequence of float, optional
         The head ropes' stiffness factors as the compensation identified them from the
         logged piston positions (``RopeSprings.stiffness_factors``,
-        :mod:`transforms.rope_identification`); used instead of the stiffness spread
-        unless they replay the first trips worse than equal ropes
-        (:func:`discovery.rope_stiffness.with_rope_stiffness`). None: the spread.
+        :mod:`transforms.rope_identification`), scaled to a mean of 1; used instead of
+        the stiffness spread unless they replay the first trips more than 10 % worse
+        than the spread's choice (:func:`discovery.rope_stiffness.with_rope_stiffness`).
+        None: the spread.
 
     Raises
     ------

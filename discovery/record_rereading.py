@@ -56,7 +56,8 @@ def discover_in_record(
     planning the record again after each effect added (module docstring).
 
     ``max_trips``, ``number_from`` and ``stiffness_factors`` (the ropes as the
-    compensation identified them; each plan reads them against equal ropes) go to
+    compensation identified them; each plan weighs them against the stiffness spread
+    it searches) go to
     :func:`~discovery.planning.plan_replay`, the
     ``selector`` keywords (``bootstrap``, ``detectable_x_noise``, ...) to
     :func:`~discovery.selection.discover_effects`.

@@ -45,14 +45,15 @@ def read_ropes(
     of the module docstring); ``zeta_read``, ``slides_m`` and ``identified`` as
     :func:`~discovery.rope_damping.with_rope_damping` and
     :func:`~discovery.rope_stiffness.with_rope_stiffness` take them."""
-    spread = with_rope_stiffness(with_rope_damping(plan, zeta_read), slides_m, identified)
+    damped = with_rope_damping(plan, zeta_read)
+    spread = with_rope_stiffness(damped, slides_m, identified)
     factors = spread.hoist.ropes.head_rope_stiffness_factors
     if factors is None or factors == plan.hoist.ropes.head_rope_stiffness_factors:
         return spread
     again = with_rope_damping(
         dataclasses.replace(plan, hoist=with_stiffness_factors(plan.hoist, factors)), zeta_read
     )
-    return dataclasses.replace(again, notes=(*again.notes, spread.notes[-1]))
+    return dataclasses.replace(again, notes=(*again.notes, *spread.notes[len(damped.notes) :]))
 
 
 def choose_motion(logged: ReplayPlan, winder: ReplayPlan) -> ReplayPlan:

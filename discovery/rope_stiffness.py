@@ -82,6 +82,10 @@ SLIDE_DEADBAND_M = 0.15e-3
 #: Trips of the first block replayed per candidate.
 _TRIPS = 3
 
+#: Identified factors whose first trips replay more than this many times the gap of the
+#: spread's choice are refused (10 % worse).
+_REFUSED_ABOVE = 1.1
+
 #: Pistons whose slides over the record are within this ratio slid alike: equal ropes
 #: (a spread makes one piston take the closed volume's change alone).
 _ALIKE_RATIO = 1.5
@@ -177,7 +181,7 @@ def with_rope_stiffness(
         f"{', '.join(f'{f:.3f}' for f in factors)} (replay gap on the first {_TRIPS} trips "
         f"{gap / 1e3:.1f} kPa, the spread's choice {searched_gap / 1e3:.1f} kPa)"
     )
-    if gap * CLOSER_SHARE <= searched_gap:
+    if gap <= _REFUSED_ABOVE * searched_gap:
         note = f"rope stiffness: as identified from the logged piston positions, {said}"
         return dataclasses.replace(
             plan, hoist=with_stiffness_factors(hoist, factors), notes=(*plan.notes, note)

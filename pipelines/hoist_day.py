@@ -31,7 +31,7 @@ from pipelines.ingest import ingest_paths
 from pipelines.lake import scan_lake
 from pipelines.ledger import partition_states
 from pipelines.partitions import Partition, PartitionOutcome, failed_outcome, new_outcome
-from pipelines.run_period import LEAD_IN, NoSamplesError, run_period
+from pipelines.run_period import NoSamplesError, record_start, run_period
 from pipelines.steps import StepOutcome, land_steps, one_line
 from schemas.hoist import HoistDescription, load_hoist
 from warehouse.landing import insert_frame
@@ -258,8 +258,9 @@ def check_sanity(
         ).collect()
         # the ropes as the run's compensation identified them: from where its record
         # starts, its means and the cached identification's (pipelines.identified_ropes)
+        end_utc = end.replace(tzinfo=dt.UTC) if end.tzinfo is None else end
         run_record = samples.filter(
-            (pl.col("time_utc") >= start - LEAD_IN) & (pl.col("time_utc") < end)
+            (pl.col("time_utc") >= record_start(start)) & (pl.col("time_utc") < end_utc)
         )
         frame = sanity_check(
             samples,
@@ -269,7 +270,7 @@ def check_sanity(
             report_from=start,
             report_to=end,
             threshold=PASS_LIMIT_X_NOISE if threshold is None else threshold,
-            number_from=start - LEAD_IN,  # the run's trips count from its lead-in
+            number_from=record_start(start),  # the run's trips count from its lead-in
             motion=motion,
             stiffness_factors=identified_stiffness_factors(run_record, description, data=data),
         )

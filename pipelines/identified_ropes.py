@@ -39,22 +39,33 @@ def identified_stiffness_factors(
     identifies it from ``samples`` (landed field samples of one hoist, the record from
     its first sample); None when nothing identifies them (no logged piston positions, no
     piston motion, no constants within the bounds fit the logged x) or the description
-    states its ropes' factors (the replay keeps those).
+    states its ropes' factors (the replay keeps those); as the run, only when every
+    rope's displacement is logged somewhere in ``samples`` and
+    ``settings.rope_springs``.
 
     ``data``: the data root whose ``cache/rope_springs`` remembers identified ropes;
     ``settings``: the compensation's (the seals' drift travel, where they drift).
     """
-    x_logged = [c for c in (f"x{i}_m" for i in range(1, hoist.ropes_n + 1)) if c in samples.columns]
+    settings = settings or CompensationSettings()
+    x_columns = [f"x{i}_m" for i in range(1, hoist.ropes_n + 1)]
     if (
         hoist.ropes.head_rope_stiffness_factors is not None
+        or not settings.rope_springs
         or samples.height == 0
-        or len(x_logged) < hoist.ropes_n
+        or not all(_logged(samples, c) for c in x_columns)
     ):
         return None
     record = samples.sort("time_utc")
-    means = identification_means(
-        record, record["time_utc"][0], hoist, settings or CompensationSettings()
-    )
+    means = identification_means(record, record["time_utc"][0], hoist, settings)
     cache = None if data is None else data.under("cache", "rope_springs")
     springs = identify_from_means(means, hoist, cache_dir=cache)
     return None if springs is None else tuple(springs.stiffness_factors)
+
+
+def _logged(samples: pl.DataFrame, column: str) -> bool:
+    """The column has a value somewhere (the run identifies the ropes only then:
+    ``CompensationContext.has_x``, every rope's displacement logged somewhere)."""
+    if column not in samples.columns:
+        return False
+    values = samples[column].cast(pl.Float64)
+    return bool(values.is_finite().fill_null(False).any())

@@ -36,7 +36,15 @@ from transforms.compensation import CompensationSettings
 from warehouse.landing import RopeTensionStage, RunRecord, land_results
 from warehouse.store import DataRoot, open_writer
 
-__all__ = ["LEAD_IN", "CheckedRun", "NoSamplesError", "RunResult", "run_checked", "run_period"]
+__all__ = [
+    "LEAD_IN",
+    "CheckedRun",
+    "NoSamplesError",
+    "RunResult",
+    "record_start",
+    "run_checked",
+    "run_period",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -47,6 +55,13 @@ LEAD_IN = dt.timedelta(minutes=30)
 
 def _utc(value: dt.datetime) -> dt.datetime:
     return value.replace(tzinfo=dt.UTC) if value.tzinfo is None else value.astimezone(dt.UTC)
+
+
+def record_start(period_start: dt.datetime, lead_in: dt.timedelta = LEAD_IN) -> dt.datetime:
+    """Where a run of the period starting at ``period_start`` starts reading (UTC; a
+    naive time is UTC): ``lead_in`` before it, so the filters and the friction state
+    are settled when the period begins."""
+    return _utc(period_start) - lead_in
 
 
 class NoSamplesError(LookupError):
@@ -153,7 +168,7 @@ def run_period(
     settings = settings or CompensationSettings()
     samples = FieldSamples(data, hoist.hoist.site, hoist.hoist.name)
     start, end = (None if t is None else _utc(t) for t in (start, end))
-    scan_start = None if start is None else start - lead_in
+    scan_start = None if start is None else record_start(start, lead_in)
     extent = period_extent(samples.scan(scan_start, end), start, end)
     if extent is None:
         raise NoSamplesError(_no_samples_message(data, samples.site, samples.hoist, start, end))

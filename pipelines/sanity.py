@@ -150,7 +150,8 @@ def sanity_check(
     stiffness_factors : sequence of float, optional
         The head ropes' stiffness factors as the compensation identified them
         (:func:`pipelines.identified_ropes.identified_stiffness_factors`), which the
-        replay uses instead of reading a spread (:func:`discovery.planning.plan_replay`).
+        replay uses instead of the stiffness spread it searches unless they replay the
+        first trips more than 10 % worse (:func:`discovery.planning.plan_replay`).
 
     Returns
     -------

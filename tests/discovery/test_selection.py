@@ -10,6 +10,7 @@ wear in the hoist's description, a cold start; :mod:`discovery.cases`).
 from __future__ import annotations
 
 import dataclasses
+import inspect
 
 import numpy as np
 import pytest
@@ -216,9 +217,8 @@ def test_an_effect_twice_the_noise_is_named_beside_a_gap_no_term_names():
     """A baseline that is not perfect (issue 14): beside a common-mode wave of 20 kPa RMS
     that no candidate models, a sensor 40 kPa high explains 42 % of the excess, under
     the 50 % share, but 3.4 x the noise in RMS: named, its offset fitted to 40 kPa, and
-    the gap shrinks (credited by the share alone, under 50 %, it would be ``none``:
-    :func:`discovery.iteration` credits it from its RMS, as its message says). The same
-    wave with nothing hidden stays ``none``."""
+    the gap shrinks: under the default 50 % share, it is credited by its RMS alone (at
+    least the default 2 x the noise). The same wave with nothing hidden stays ``none``."""
     plan, _ = hidden_case(None, trips=4)
     data = _with_unnamed_wave_and_offset(plan, 40e3, 40e3)
     first = discover_effects(data, bootstrap=50, max_iterations=1).findings[0]
@@ -226,5 +226,8 @@ def test_an_effect_twice_the_noise_is_named_beside_a_gap_no_term_names():
     assert first.parameters["offsets_pa"][1] == pytest.approx(40e3, rel=0.05)
     assert first.gap_after_pa < 0.8 * first.gap_before_pa
     assert "explains 42% of the excess variance, 3.4 x the noise in RMS" in first.message
+    defaults = inspect.signature(discover_effects).parameters
+    assert defaults["explain_fraction"].default > 0.42
+    assert defaults["detectable_x_noise"].default <= 3.4
     null = _with_unnamed_wave_and_offset(hidden_case(None)[0], 40e3, 0.0)
     assert [f.effect for f in discover_effects(null, bootstrap=50).findings] == ["none"]

@@ -57,9 +57,8 @@ def discover_in_record(
 
     ``max_trips``, ``number_from`` and ``stiffness_factors`` (the ropes as the
     compensation identified them; each plan weighs them against the stiffness spread
-    it searches) go to
-    :func:`~discovery.planning.plan_replay`, the
-    ``selector`` keywords (``bootstrap``, ``detectable_x_noise``, ...) to
+    it searches) go to :func:`~discovery.planning.plan_replay`, the ``selector``
+    keywords (``bootstrap``, ``detectable_x_noise``, ...) to
     :func:`~discovery.selection.discover_effects`.
     """
     fixed = {"effects", "parameters", "max_iterations"} & set(selector)

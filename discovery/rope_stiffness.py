@@ -149,18 +149,16 @@ def with_rope_stiffness(
     ``slides_m``: each piston's slide over the record (:func:`piston_slides_m`; None
     when the record has no piston positions). ``identified``: the ropes' stiffness
     factors identified from the logged x (module docstring), scaled to a mean of 1 and
-    used unless the first
-    trips replay more than 10 % further from the record with them than with the
-    spread's choice.
+    used unless the first trips replay more than 10 % further from the record with them
+    than with the spread's choice.
 
     The spread: a description that states its ropes' factors keeps them, and so does a
     record whose pistons all slid, and alike (within a factor 1.5: equal ropes move them
     together; pistons that never left the logger's dead band say nothing). Otherwise
-    each spread of
-    :data:`SPREAD_GRID` is replayed on the first block's first three trips (payloads
-    fitted, two passes), a parabola through the best one and its neighbours refines it,
-    and the result replaces equal ropes when its gap is below 90 % of theirs. The
-    choice and the gaps are stated in the plan's notes.
+    each spread of :data:`SPREAD_GRID` is replayed on the first block's first three
+    trips (payloads fitted, two passes), a parabola through the best one and its
+    neighbours refines it, and the result replaces equal ropes when its gap is below
+    90 % of theirs. The choice and the gaps are stated in the plan's notes.
     """
     hoist = plan.hoist
     n = hoist.ropes_n

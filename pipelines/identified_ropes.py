@@ -10,9 +10,11 @@ identified factors with them (``stiffness_factors=``).
 
 The identification reads the record's first two hours (its 0.2 s means) and is
 remembered in ``<data>/cache/rope_springs`` by a digest of those means and the hoist:
-a sanity check that reads its samples from where its run's record starts (the period
-less :data:`pipelines.run_period.LEAD_IN`) takes the run's ropes from there instead of
-identifying them again.
+a sanity check that reads its samples from where its run's record starts
+(:func:`pipelines.run_period.record_start`) takes the run's ropes from there instead of
+identifying them again. Where no run identified them (``ropeload discover`` on a record
+not yet run), only the whole record's ropes are searched, not the alternatives the
+compensation's band takes from its quarters (a third of the time).
 """
 
 from __future__ import annotations
@@ -58,7 +60,7 @@ def identified_stiffness_factors(
     record = samples.sort("time_utc")
     means = identification_means(record, record["time_utc"][0], hoist, settings)
     cache = None if data is None else data.under("cache", "rope_springs")
-    springs = identify_from_means(means, hoist, cache_dir=cache)
+    springs = identify_from_means(means, hoist, cache_dir=cache, alternatives=False)
     return None if springs is None else tuple(springs.stiffness_factors)
 
 

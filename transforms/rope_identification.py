@@ -65,6 +65,7 @@ import logging
 import os
 import tempfile
 import threading
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, replace
 from functools import lru_cache
@@ -156,7 +157,11 @@ def record_means(samples: pl.DataFrame | pl.LazyFrame, start: dt.datetime) -> pl
 
 
 def identify_from_means(
-    means: pl.DataFrame, hoist: HoistDescription, *, cache_dir: Path | None = None
+    means: pl.DataFrame,
+    hoist: HoistDescription,
+    *,
+    cache_dir: Path | None = None,
+    alternatives: bool = True,
 ) -> RopeSprings | None:
     """:func:`identify_rope_springs` on the first :data:`IDENTIFY_SAMPLES` of
     :func:`record_means` (:func:`transforms.compensation_record.identification_means`
@@ -172,6 +177,10 @@ def identify_from_means(
     identified again. The file is named by a SHA-256 of the means, the hoist and the
     method (:func:`_method_digest`); one that does not read as this hoist's ropes is
     identified again and replaced.
+
+    ``alternatives=False`` (a replay, which needs only the whole record's ropes): the
+    ropes remembered with their alternatives if there are any, else the whole record's
+    alone, a third of the searches (remembered apart).
     """
     means = means.head(IDENTIFY_SAMPLES)
     if means.height < 2:
@@ -180,6 +189,23 @@ def identify_from_means(
     for column in means.columns:
         digest.update(means[column].to_numpy().tobytes())
     key = digest.hexdigest()
+    if alternatives:
+        return _remembered(key, cache_dir, lambda: _identify(means, hoist))
+    with _LOCK:
+        known, springs = key in _IDENTIFIED, _IDENTIFIED.get(key)
+    if not known and cache_dir is not None:
+        known, springs = _read_cached(cache_dir / f"{key}.json")
+    if known:
+        return springs
+    whole = hashlib.sha256(f"{key}\nwhole record only".encode()).hexdigest()
+    return _remembered(whole, cache_dir, lambda: _identify(means, hoist, parts=False))
+
+
+def _remembered(
+    key: str, cache_dir: Path | None, identify: Callable[[], RopeSprings | None]
+) -> RopeSprings | None:
+    """The ropes remembered under ``key`` (for the process, and in ``cache_dir``), or
+    ``identify()``'s, remembered."""
     with _LOCK:
         known, springs = key in _IDENTIFIED, _IDENTIFIED.get(key)
     path = None if cache_dir is None else cache_dir / f"{key}.json"
@@ -189,7 +215,7 @@ def identify_from_means(
     else:
         on_disk = path is None or path.exists()
     if not known:
-        springs = _identify(means, hoist)
+        springs = identify()
     if path is not None and not on_disk:
         _write_cached(path, springs)
     with _LOCK:
@@ -281,8 +307,10 @@ _LOG = logging.getLogger(__name__)
 _LOCK = threading.Lock()
 
 
-def _identify(means: pl.DataFrame, hoist: HoistDescription) -> RopeSprings | None:
-    """:func:`identify_from_means` without the memory."""
+def _identify(
+    means: pl.DataFrame, hoist: HoistDescription, *, parts: bool = True
+) -> RopeSprings | None:
+    """:func:`identify_from_means` without the memory (``parts``: with the alternatives)."""
     pressures = []
     for i in ROPES:
         p = means[f"p{i}_pa"].to_numpy().astype(np.float64)
@@ -320,8 +348,8 @@ def _identify(means: pl.DataFrame, hoist: HoistDescription) -> RopeSprings | Non
         )
 
     springs = identify(slice(None))
-    if springs is None:
-        return None
+    if springs is None or not parts:
+        return springs
     splits = min(SPLITS, max(2, time_s.size // PART_MEANS))
     bounds = np.linspace(0, time_s.size, splits + 1).astype(int)
     alternatives = []

@@ -487,6 +487,17 @@ def test_identified_ropes_are_remembered_in_the_data_root(stiff_rope_day, tmp_pa
     assert read.stiffness_factors[1] == 1.5
     assert read.alternatives == springs.alternatives
     assert read.parts == springs.parts == SPLITS
+    # a replay's (whole record only): the remembered ropes, alternatives and all ...
+    assert identify_from_means(means, HOIST, cache_dir=cache, alternatives=False) == read
+    assert list(cache.glob("*.json")) == [file]
+    # ... else the whole record's search alone, the same ropes, remembered apart
+    memory.clear()
+    alone = tmp_path / "alone"
+    whole = identify_from_means(means, HOIST, cache_dir=alone, alternatives=False)
+    assert whole.stiffness_factors == springs.stiffness_factors
+    assert whole.alternatives == ()
+    (other,) = alone.glob("*.json")
+    assert other.name != file.name
 
 
 def test_a_cached_file_that_does_not_read_is_identified_again(tmp_path, monkeypatch):

@@ -28,7 +28,7 @@ import polars as pl
 from pipelines.hoists import hoist_lookup
 from pipelines.identified_ropes import identified_stiffness_factors
 from pipelines.ingest import ingest_paths
-from pipelines.lake import scan_lake
+from pipelines.lake import as_utc, scan_lake
 from pipelines.ledger import partition_states
 from pipelines.partitions import Partition, PartitionOutcome, failed_outcome, new_outcome
 from pipelines.run_period import NoSamplesError, record_start, run_period
@@ -258,9 +258,8 @@ def check_sanity(
         ).collect()
         # the ropes as the run's compensation identified them: from where its record
         # starts, its means and the cached identification's (pipelines.identified_ropes)
-        end_utc = end.replace(tzinfo=dt.UTC) if end.tzinfo is None else end
         run_record = samples.filter(
-            (pl.col("time_utc") >= record_start(start)) & (pl.col("time_utc") < end_utc)
+            (pl.col("time_utc") >= record_start(start)) & (pl.col("time_utc") < as_utc(end))
         )
         frame = sanity_check(
             samples,

@@ -16,7 +16,8 @@ from warehouse.store import DataRoot
 __all__ = ["lake_partitions", "scan_lake"]
 
 
-def _utc(value: dt.datetime) -> dt.datetime:
+def as_utc(value: dt.datetime) -> dt.datetime:
+    """``value`` in UTC; a naive time is taken as UTC."""
     return value.replace(tzinfo=dt.UTC) if value.tzinfo is None else value.astimezone(dt.UTC)
 
 
@@ -43,16 +44,16 @@ def scan_lake(
     root = data.partition_dir(table, site=site, hoist=hoist)
     files = sorted(root.glob("date=*/*.parquet"))
     if start is not None or end is not None:
-        first = _utc(start).date().isoformat() if start is not None else ""
-        last = _utc(end).date().isoformat() if end is not None else "9999-12-31"
+        first = as_utc(start).date().isoformat() if start is not None else ""
+        last = as_utc(end).date().isoformat() if end is not None else "9999-12-31"
         files = [f for f in files if first <= f.parent.name.removeprefix("date=") <= last]
     if not files:
         return pl.LazyFrame(schema=pl.Schema(pl.from_arrow(schema.empty_table()).schema))
     frame = pl.scan_parquet(files, hive_partitioning=False)
     if start is not None:
-        frame = frame.filter(pl.col("time_utc") >= _utc(start))
+        frame = frame.filter(pl.col("time_utc") >= as_utc(start))
     if end is not None:
-        frame = frame.filter(pl.col("time_utc") < _utc(end))
+        frame = frame.filter(pl.col("time_utc") < as_utc(end))
     return frame.sort("time_utc") if sort else frame
 
 

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import polars as pl
 
-from pipelines.lake import scan_lake
+from pipelines.lake import as_utc, scan_lake
 from pipelines.provenance import hoist_run, new_run_id, utc_now
 from pipelines.run_blocks import (
     Extent,
@@ -53,15 +53,11 @@ logger = logging.getLogger(__name__)
 LEAD_IN = dt.timedelta(minutes=30)
 
 
-def _utc(value: dt.datetime) -> dt.datetime:
-    return value.replace(tzinfo=dt.UTC) if value.tzinfo is None else value.astimezone(dt.UTC)
-
-
 def record_start(period_start: dt.datetime, lead_in: dt.timedelta = LEAD_IN) -> dt.datetime:
     """Where a run of the period starting at ``period_start`` starts reading (UTC; a
     naive time is UTC): ``lead_in`` before it, so the filters and the friction state
     are settled when the period begins."""
-    return _utc(period_start) - lead_in
+    return as_utc(period_start) - lead_in
 
 
 class NoSamplesError(LookupError):
@@ -167,7 +163,7 @@ def run_period(
     hoist = hoist or load_hoist(hoist_path)
     settings = settings or CompensationSettings()
     samples = FieldSamples(data, hoist.hoist.site, hoist.hoist.name)
-    start, end = (None if t is None else _utc(t) for t in (start, end))
+    start, end = (None if t is None else as_utc(t) for t in (start, end))
     scan_start = None if start is None else record_start(start, lead_in)
     extent = period_extent(samples.scan(scan_start, end), start, end)
     if extent is None:

@@ -191,10 +191,7 @@ def identify_from_means(
     key = digest.hexdigest()
     if alternatives:
         return _remembered(key, cache_dir, lambda: _identify(means, hoist))
-    with _LOCK:
-        known, springs = key in _IDENTIFIED, _IDENTIFIED.get(key)
-    if not known and cache_dir is not None:
-        known, springs = _read_cached(cache_dir / f"{key}.json")
+    known, springs, _ = _recalled(key, cache_dir)
     if known:
         return springs
     whole = hashlib.sha256(f"{key}\nwhole record only".encode()).hexdigest()
@@ -206,14 +203,8 @@ def _remembered(
 ) -> RopeSprings | None:
     """The ropes remembered under ``key`` (for the process, and in ``cache_dir``), or
     ``identify()``'s, remembered."""
-    with _LOCK:
-        known, springs = key in _IDENTIFIED, _IDENTIFIED.get(key)
+    known, springs, on_disk = _recalled(key, cache_dir)
     path = None if cache_dir is None else cache_dir / f"{key}.json"
-    if path is not None and not known:
-        known, springs = _read_cached(path)
-        on_disk = known
-    else:
-        on_disk = path is None or path.exists()
     if not known:
         springs = identify()
     if path is not None and not on_disk:
@@ -223,6 +214,18 @@ def _remembered(
         while len(_IDENTIFIED) > 64:
             _IDENTIFIED.pop(next(iter(_IDENTIFIED)))
     return springs
+
+
+def _recalled(key: str, cache_dir: Path | None) -> tuple[bool, RopeSprings | None, bool]:
+    """(known, ropes, on disk) of ``key``: remembered for the process, else read from
+    ``cache_dir`` (on disk: there is nothing to write, or the file is there)."""
+    with _LOCK:
+        known, springs = key in _IDENTIFIED, _IDENTIFIED.get(key)
+    path = None if cache_dir is None else cache_dir / f"{key}.json"
+    if path is not None and not known:
+        known, springs = _read_cached(path)
+        return known, springs, known
+    return known, springs, path is None or path.exists()
 
 
 @lru_cache(maxsize=1)

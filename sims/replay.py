@@ -35,7 +35,9 @@ default ``dt_s = 2 ms`` is the field-day generator's.
 
 from __future__ import annotations
 
+import collections
 import dataclasses
+import threading
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
@@ -333,8 +335,40 @@ def first_trips_gap(
     """RMS gap [Pa] of the plan's first block's first ``trips`` trips replayed with
     ``hoist`` (default the plan's), payloads fitted (two passes); inf when nothing was
     simulated. The yardstick the replay's choices from the record use (the ropes'
-    damping and stiffness spread, the motion that drives the trips)."""
-    block = [tr for tr in plan.trips if tr.block == plan.trips[0].block][:trips]
+    damping and stiffness spread, the motion that drives the trips).
+
+    The choices of one plan ask for the same replay more than once (the ropes they
+    kept, then the motion with them; the damping again with the stiffness chosen), so
+    the last :data:`_REMEMBERED_GAPS` answers are remembered, keyed by the very trip
+    objects (plans are frozen) and an equal hoist and replay settings.
+    """
+    block = tuple(tr for tr in plan.trips if tr.block == plan.trips[0].block)[:trips]
     trial = dataclasses.replace(plan, hoist=plan.hoist if hoist is None else hoist, trips=block)
+    with _GAPS_LOCK:
+        for known, gap in _GAPS:
+            if _same_replay(known, trial):
+                return gap
     gap = replay_fitted(trial, passes=2).rms_gap_pa(trial)
-    return gap if np.isfinite(gap) else float("inf")
+    gap = gap if np.isfinite(gap) else float("inf")
+    with _GAPS_LOCK:
+        _GAPS.append((trial, gap))
+    return gap
+
+
+#: How many first-trips gaps :func:`first_trips_gap` remembers (a plan's choices ask
+#: for a dozen at most; each keeps its few trips alive).
+_REMEMBERED_GAPS = 16
+_GAPS: collections.deque[tuple[ReplayPlan, float]] = collections.deque(maxlen=_REMEMBERED_GAPS)
+_GAPS_LOCK = threading.Lock()
+
+
+def _same_replay(a: ReplayPlan, b: ReplayPlan) -> bool:
+    """The two plans replay alike: the same trip objects, equal hoists and settings."""
+    return (
+        len(a.trips) == len(b.trips)
+        and all(x is y for x, y in zip(a.trips, b.trips, strict=True))
+        and (a.t_ref, a.dt_s, a.score_rate_hz, a.noise_sigma_pa)
+        == (b.t_ref, b.dt_s, b.score_rate_hz, b.noise_sigma_pa)
+        and a.parameters == b.parameters
+        and a.hoist == b.hoist
+    )

@@ -7,6 +7,7 @@ on the validation days (README)."""
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 
 import numpy as np
@@ -17,7 +18,7 @@ from discovery.cases import scenario_hoist
 from discovery.planning import plan_replay
 from discovery.rope_stiffness import piston_slides_m, spread_factors, with_stiffness_factors
 from sims.field_day import generate_field_day
-from sims.replay import replay_fitted
+from sims.replay import first_trips_gap, replay_fitted
 
 #: the world's ropes: spread 0.03 between neighbours, not in rope order
 _WORLD = [1.015, 0.985, 0.955, 1.045]
@@ -121,3 +122,28 @@ def test_identified_factors_that_replay_worse_than_the_spread_are_refused(spread
     assert np.diff(np.sort(factors)) == pytest.approx([0.03] * 3, abs=0.006)
     with pytest.raises(ValueError, match="3 stiffness factors for 4 ropes"):
         plan_replay(day.sensors, base, settle_s=20.0, stiffness_factors=_WORLD[:3])
+
+
+def test_a_first_trips_gap_asked_again_is_not_replayed_again(spread_day, monkeypatch):
+    """The choices ask for some replays twice (the ropes they kept, then the motion with
+    them): the second answer is the first's, without a replay; another hoist or other
+    trips are replayed. The gap is the first three trips' fitted replay."""
+    import sims.replay as replay_module
+
+    base, day = spread_day
+    world = with_stiffness_factors(base, _WORLD)
+    plan = plan_replay(day.sensors, world, settle_s=20.0, motion="winder")
+    replays = []
+    real = replay_module.replay_fitted
+    monkeypatch.setattr(
+        replay_module, "replay_fitted", lambda p, **kw: replays.append(p) or real(p, **kw)
+    )
+    gap = first_trips_gap(plan)
+    three = dataclasses.replace(plan, trips=plan.trips[:3])
+    assert gap == real(three, passes=2).rms_gap_pa(three)
+    assert first_trips_gap(dataclasses.replace(plan, notes=("another note",))) == gap
+    assert len(replays) == 1
+    equal = with_stiffness_factors(base, [1.0] * 4)
+    assert first_trips_gap(plan, equal) > 2.0 * gap
+    assert first_trips_gap(plan, trips=2) != gap
+    assert len(replays) == 3

@@ -26,7 +26,7 @@ pytestmark = [pytest.mark.prefect, pytest.mark.usefixtures("prefect_harness")]
 @pytest.fixture(scope="module")
 def mine(tmp_path_factory) -> tuple[Path, Path]:
     root = tmp_path_factory.mktemp("flow-mine")
-    return write_example_mine(root, hoists=2, days=3)
+    return write_example_mine(root, hoists=2, days=2)
 
 
 @pytest.fixture(scope="module")
@@ -60,7 +60,7 @@ def test_backfill_flow_lands_the_plain_rows_and_publishes_the_report(mine, refer
         [hoists], start=FIRST, end=LAST, data=data, incoming=incoming, max_workers=2
     )
     assert report.ok
-    assert report.count("succeeded") == 6
+    assert report.count("succeeded") == 4
     assert fingerprint(DataRoot.resolve(data)) == reference
     markdown = _artifacts("backfill-report")
     assert markdown
@@ -82,8 +82,8 @@ def test_nightly_flow_processes_new_files_and_a_second_night_changes_nothing(
     data = tmp_path / "data"
     first = run_nightly_flow(hoists, data=data, incoming=incoming, max_workers=2)
     assert first.ok
-    assert [n.row()["new_files"] for n in first.hoists] == [3, 3]
-    assert first.runs.count("succeeded") == 6
+    assert [n.row()["new_files"] for n in first.hoists] == [2, 2]
+    assert first.runs.count("succeeded") == 4
     # a night lands exactly what a backfill of the same days lands, plus sanity checks
     after_first = fingerprint(DataRoot.resolve(data))
     checks = after_first.pop("sanity_checks")
@@ -109,7 +109,7 @@ def test_backfill_flow_on_a_local_dask_cluster(mine, reference, tmp_path):
     report = run_backfill_flow(
         [hoists], start=FIRST, end=LAST, data=data, incoming=incoming, max_workers=2, dask="local"
     )
-    assert report.count("succeeded") == 6
+    assert report.count("succeeded") == 4
     assert fingerprint(DataRoot.resolve(data)) == reference
 
 
@@ -120,7 +120,7 @@ def test_ingest_and_run_flows_share_the_plain_implementation(mine, tmp_path):
     data = tmp_path / "data"
     files = sorted((incoming / "paper-field-test" / "shaft-1").glob("*.csv"))
     ingested = ingest_flow(paths=[str(f) for f in files], data=str(data))
-    assert [f.status for f in ingested] == ["landed"] * 3
+    assert [f.status for f in ingested] == ["landed"] * 2
     start = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
     result = run_flow(
         hoist=str(hoists / "shaft-1.toml"),

@@ -29,7 +29,7 @@ import numpy as np
 
 from discovery.rope_damping import with_rope_damping
 from discovery.rope_stiffness import with_rope_stiffness, with_stiffness_factors
-from sims.replay import CLOSER_SHARE, first_trips_gap
+from sims.replay import CLOSER_SHARE, first_trips_gaps
 from sims.replay_plan import ReplayPlan
 
 __all__ = ["choose_motion", "read_ropes"]
@@ -64,7 +64,7 @@ def choose_motion(logged: ReplayPlan, winder: ReplayPlan) -> ReplayPlan:
         return dataclasses.replace(
             winder, hoist=logged.hoist, rope_bounce=logged.rope_bounce, notes=logged.notes
         )
-    gaps = (first_trips_gap(logged), first_trips_gap(winder, logged.hoist))
+    gaps = first_trips_gaps([(logged, None), (winder, logged.hoist)])
     closer = gaps[0] < CLOSER_SHARE * gaps[1]
     chosen, name = (logged, "logged speed") if closer else (winder, "winder profile")
     note = (

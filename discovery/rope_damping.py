@@ -13,7 +13,7 @@ import dataclasses
 import numpy as np
 
 from schemas.hoist import HoistDescription
-from sims.replay import CLOSER_SHARE, first_trips_gap
+from sims.replay import CLOSER_SHARE, first_trips_gaps
 from sims.replay_plan import ReplayPlan
 
 __all__ = ["with_rope_damping"]
@@ -57,7 +57,7 @@ def with_rope_damping(plan: ReplayPlan, zeta_read: float | None) -> ReplayPlan:
         candidates = [described] + [c for c in (0.1, 0.3, 1.0) if c > 1.5 * described]
         if len(candidates) == 1:
             return plan
-    gaps = [first_trips_gap(plan, _with_damping(plan.hoist, zeta)) for zeta in candidates]
+    gaps = first_trips_gaps([(plan, _with_damping(plan.hoist, zeta)) for zeta in candidates])
     best = int(np.argmin(gaps))
     said = ", ".join(f"{z:g}: {g / 1e3:.1f} kPa" for z, g in zip(candidates, gaps, strict=True))
     if best == 0 or not gaps[best] < CLOSER_SHARE * gaps[0]:

@@ -59,7 +59,7 @@ import numpy as np
 import polars as pl
 
 from schemas.hoist import HoistDescription
-from sims.replay import CLOSER_SHARE, first_trips_gap
+from sims.replay import CLOSER_SHARE, first_trips_gap, first_trips_gaps
 from sims.replay_plan import ReplayPlan
 
 __all__ = [
@@ -203,18 +203,17 @@ def _spread_searched(
         )
         return dataclasses.replace(plan, notes=(*plan.notes, note)), None
 
-    def gap(spread: float) -> float:
-        factors = spread_factors(spread, n) if spread > 0 else None
-        return first_trips_gap(plan, with_stiffness_factors(hoist, factors), _TRIPS)
+    def spread(width: float) -> HoistDescription:
+        return with_stiffness_factors(hoist, spread_factors(width, n) if width > 0 else None)
 
     spreads = list(SPREAD_GRID)
-    gaps = [gap(s) for s in spreads]
+    gaps = first_trips_gaps([(plan, spread(s)) for s in spreads], _TRIPS)
     best = int(np.argmin(gaps))
     if 0 < best < len(spreads) - 1 and np.all(np.isfinite(gaps[best - 1 : best + 2])):
         refined = _parabola_minimum(spreads[best - 1 : best + 2], gaps[best - 1 : best + 2])
         if refined is not None:
             spreads.append(refined)
-            gaps.append(gap(refined))
+            gaps.append(first_trips_gap(plan, spread(refined), _TRIPS))
             best = int(np.argmin(gaps))
     said = ", ".join(
         f"{s:.3g}: {g / 1e3:.1f} kPa" for s, g in sorted(zip(spreads, gaps, strict=True))

@@ -129,7 +129,7 @@ def _loop(
     return err_max, code, fail_step
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _run(
     y0, model, z0, deltas0, dt, n_steps, record_every, jacobian_every, atol, rtol
 ):  # pragma: no cover

@@ -37,8 +37,11 @@ from __future__ import annotations
 
 import collections
 import dataclasses
+import os
 import threading
 from collections.abc import Iterable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
@@ -57,6 +60,7 @@ from sims.replay_plan import ReplayPlan, ReplayResult, ReplayTrip
 __all__ = [
     "CLOSER_SHARE",
     "first_trips_gap",
+    "first_trips_gaps",
     "payload_from_pressure",
     "replay",
     "replay_fitted",
@@ -201,22 +205,53 @@ def _replay_trips(
     pay_before: np.ndarray,
     ramps: np.ndarray,
 ) -> tuple[list[tuple[np.ndarray, np.ndarray, str]], list[str]]:
-    """The planned trips simulated in order, each block one chained history: per trip
-    (scored pressures, ramp common-mode pressure, why it was not simulated or ""), and
-    the failures. ``pay_before`` is updated in place: a block's later trips start with
-    the previous trip's payload."""
+    """The planned trips simulated, each block one chained history: per trip (scored
+    pressures, ramp common-mode pressure, why it was not simulated or ""), and the
+    failures, both in trip order. ``pay_before`` is updated in place: a block's later
+    trips start with the previous trip's payload.
+
+    The blocks are independent histories, so they run on up to :data:`REPLAY_THREADS`
+    threads (the integrator releases the GIL, :func:`sims.device_solver._run`); each
+    block's result is what it is alone, so the replay is the same on any number.
+    """
+    starts = [k for k, tr in enumerate(plan.trips) if k == 0 or tr.first_in_block]
+    blocks = [range(a, b) for a, b in pairwise([*starts, len(plan.trips)])]
+
+    def run(block: range) -> tuple[list[tuple[np.ndarray, np.ndarray, str]], list[str]]:
+        return _replay_block(plan, block, names, prm, pay, pay_before, ramps)
+
+    threads = min(REPLAY_THREADS, len(blocks))
+    if threads > 1:
+        with ThreadPoolExecutor(max_workers=threads) as pool:
+            done = list(pool.map(run, blocks))
+    else:
+        done = [run(block) for block in blocks]
+    return [row for rows, _ in done for row in rows], [f for _, fs in done for f in fs]
+
+
+#: Threads a replay runs its blocks on: the cores this process may use.
+REPLAY_THREADS = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
+
+
+def _replay_block(
+    plan: ReplayPlan,
+    block: range,
+    names: frozenset[str],
+    prm: dict[str, dict[str, Any]],
+    pay: np.ndarray,
+    pay_before: np.ndarray,
+    ramps: np.ndarray,
+) -> tuple[list[tuple[np.ndarray, np.ndarray, str]], list[str]]:
+    """:func:`_replay_trips` of one block's trips (indices ``block``), in order."""
     n = plan.hoist.ropes_n
     rows: list[tuple[np.ndarray, np.ndarray, str]] = []
     failures: list[str] = []
     state = None
     broken = ""
     prev_end = -np.inf
-    for k, tr in enumerate(plan.trips):
-        if tr.first_in_block:
-            state = None
-            broken = ""
-            prev_end = -np.inf
-        else:
+    for k in block:
+        tr = plan.trips[k]
+        if k != block.start:
             pay_before[k] = pay[k - 1]
         if broken:
             rows.append((*_not_simulated(tr, n), f"not simulated: {broken}"))
@@ -353,6 +388,18 @@ def first_trips_gap(
     with _GAPS_LOCK:
         _GAPS.append((trial, gap))
     return gap
+
+
+def first_trips_gaps(
+    replays: Sequence[tuple[ReplayPlan, HoistDescription | None]], trips: int = 3
+) -> list[float]:
+    """:func:`first_trips_gap` of each ``(plan, hoist)``, on up to :data:`REPLAY_THREADS`
+    threads (the candidates of a choice are independent replays)."""
+    threads = min(REPLAY_THREADS, len(replays))
+    if threads <= 1:
+        return [first_trips_gap(plan, hoist, trips) for plan, hoist in replays]
+    with ThreadPoolExecutor(max_workers=threads) as pool:
+        return list(pool.map(lambda pair: first_trips_gap(*pair, trips), replays))
 
 
 #: How many first-trips gaps :func:`first_trips_gap` remembers (a plan's choices ask

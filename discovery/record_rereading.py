@@ -15,7 +15,8 @@ plans the record again with the grown model and its fitted parameters
 (``plan_replay(parameters=...)``), so the ropes and the motion are read anew, and goes
 on from that plan when its baseline gap is smaller than the one the effect left (the
 added effect's ``gap_after_pa`` is then that gap: the effect with the ropes as the
-record shows them), else from the plan before with the grown model. A new plan that
+record shows them), else from the plan before with the grown model. The baselines are
+compared before the next iteration runs: only the plan it goes on from is searched. A new plan that
 cannot be made or simulated ends the search with a note; the findings so far stand.
 The findings keep their order and numbering. The result's ``before`` is the first
 plan's replay and its ``plan`` and ``after`` the last plan's (same trips and samples:
@@ -35,7 +36,7 @@ import polars as pl
 
 from discovery.planning import plan_replay
 from discovery.results import AMBIGUOUS, DiscoveryResult
-from discovery.selection import discover_effects
+from discovery.selection import baseline_gap_pa, discover_effects, fitted_baseline
 from schemas.effects import NO_EFFECT
 from schemas.hoist import HoistDescription
 
@@ -86,14 +87,17 @@ def discover_in_record(
                 parameters=params,
                 stiffness_factors=stiffness_factors,
             )
-            nxt_result = discover_effects(
-                again, effects=model, parameters=params, max_iterations=1, **selector
-            )
+            base = fitted_baseline(again, model, params, passes=selector.get("passes", 3))
+            gap = baseline_gap_pa(again, base)
+            if gap < findings[-1].gap_after_pa:
+                nxt_result = discover_effects(
+                    again, effects=model, parameters=params, max_iterations=1, base=base,
+                    **selector,
+                )  # fmt: skip
         except (RuntimeError, ValueError) as exc:
             notes.append(f"planning again with {', '.join(model)} failed, search ended: {exc}")
             break
-        if nxt_result.findings[0].gap_before_pa < findings[-1].gap_after_pa:
-            gap = nxt_result.findings[0].gap_before_pa
+        if gap < findings[-1].gap_after_pa:
             findings[-1] = dataclasses.replace(findings[-1], gap_after_pa=gap)
             notes.append(f"planned again with {', '.join(model)}")
         else:  # the ropes read anew replay no closer: go on from the plan before

@@ -93,19 +93,22 @@ import numpy as np
 
 from discovery.bootstrap import trip_weights
 from discovery.columns import FitEngine
-from discovery.gap import locate_gap
+from discovery.gap import locate_gap, rms
 from discovery.iteration import DecisionThresholds, FitState, run_iteration
+from discovery.layout import entry_layout
 from discovery.library import EFFECT_LIBRARY, EffectLibrary, term_parameters
 from discovery.results import AMBIGUOUS, DiscoveryResult, Finding, Params
 from sims.replay import replay_fitted
-from sims.replay_plan import ReplayPlan
+from sims.replay_plan import ReplayPlan, ReplayResult
 
 __all__ = [
     "AMBIGUOUS",
     "DiscoveryResult",
     "EffectSelector",
     "Finding",
+    "baseline_gap_pa",
     "discover_effects",
+    "fitted_baseline",
     "locate_gap",
 ]
 
@@ -189,12 +192,13 @@ class EffectSelector:
         self.passes = passes
 
     # -- the pysindy-like surface ------------------------------------------------------
-    def fit(self, plan: ReplayPlan) -> EffectSelector:
+    def fit(self, plan: ReplayPlan, base: ReplayResult | None = None) -> EffectSelector:
         """Run the discovery on the planned trips (:func:`discovery.planning.plan_replay`);
-        returns self. Raises ValueError for bad hyperparameters, RuntimeError when the
-        hoist's model does not simulate the trips."""
+        returns self. ``base``: the plan's :func:`fitted_baseline` with this selector's
+        effects, parameters and passes, when the caller has it. Raises ValueError for bad
+        hyperparameters, RuntimeError when the hoist's model does not simulate the trips."""
         self._check()
-        fit = self._start(plan)
+        fit = self._start(plan, base)
         for iteration in range(1, self.max_iterations + 1):
             if not run_iteration(fit, iteration):
                 break
@@ -254,23 +258,16 @@ class EffectSelector:
         if self.max_iterations < 1 or self.bootstrap < 1:
             raise ValueError("max_iterations and bootstrap must be at least 1")
 
-    def _start(self, plan: ReplayPlan) -> FitState:
-        """The base replay (payloads and ramps fitted), its engine and layout."""
+    def _start(self, plan: ReplayPlan, base: ReplayResult | None) -> FitState:
+        """The base replay (payloads and ramps fitted; ``base`` when given), its engine
+        and layout."""
         hoist = plan.hoist
         lib = (self.library or EFFECT_LIBRARY).fit(hoist)
         model = list(hoist.model.effects if self.effects is None else self.effects)
         params: Params = {k: dict(v) for k, v in (self.parameters or {}).items()}
         allowed = set(lib.get_feature_names() if self.candidates is None else self.candidates)
-        base = replay_fitted(
-            plan,
-            effects=model,
-            parameters=term_parameters(hoist, params, model),
-            passes=self.passes,
-        )
-        if not base.ok:
-            raise RuntimeError(
-                f"the hoist's model does not simulate the measured trips: {base.message}"
-            )
+        if base is None:
+            base = fitted_baseline(plan, model, params, passes=self.passes)
         eng = FitEngine(plan, lib, base)
         eng.rebase(base, model, params)
         lay = eng.layout
@@ -306,12 +303,14 @@ def discover_effects(
     stability: float = 0.6,
     ambiguity: float = 0.05,
     passes: int = 3,
+    base: ReplayResult | None = None,
 ) -> DiscoveryResult:
     """Find the effects missing from a hoist's model (module docstring for the method).
 
-    ``EffectSelector(library, ...).fit(plan).result_``: the parameters are the
+    ``EffectSelector(library, ...).fit(plan, base).result_``: the parameters are the
     :class:`EffectSelector`'s; ``plan`` the measured trips
-    (:func:`discovery.planning.plan_replay`).
+    (:func:`discovery.planning.plan_replay`); ``base`` its :func:`fitted_baseline`
+    when the caller has it.
     """
     selector = EffectSelector(
         library,
@@ -328,4 +327,29 @@ def discover_effects(
         ambiguity=ambiguity,
         passes=passes,
     )
-    return selector.fit(plan).result_
+    return selector.fit(plan, base).result_
+
+
+def fitted_baseline(
+    plan: ReplayPlan, effects: Iterable[str], parameters: Params, *, passes: int = 3
+) -> ReplayResult:
+    """The plan's replay with ``effects`` and their ``parameters``, payloads and loading
+    ramps fitted (``passes``): where every iteration of :func:`discover_effects` starts.
+    RuntimeError when the model does not simulate the trips."""
+    model = list(effects)
+    base = replay_fitted(
+        plan, effects=model, parameters=term_parameters(plan.hoist, parameters, model),
+        passes=passes,
+    )  # fmt: skip
+    if not base.ok:
+        raise RuntimeError(
+            f"the hoist's model does not simulate the measured trips: {base.message}"
+        )
+    return base
+
+
+def baseline_gap_pa(plan: ReplayPlan, base: ReplayResult) -> float:
+    """RMS gap [Pa] of a :func:`fitted_baseline` over the samples discovery scores: the
+    first finding's ``gap_before_pa`` of :func:`discover_effects` from it."""
+    layout = entry_layout(plan, base)
+    return rms(layout.y - layout.flat(base.simulated))

@@ -27,6 +27,12 @@ block are not simulated. A trip is driven by the logged motion when the plan hol
 (``ReplayTrip.motion_knots``, :mod:`sims.logged_motion`), else by the winder profile
 (:func:`replay_profile`).
 
+Speed: the blocks are independent histories and replay on :data:`REPLAY_THREADS`
+threads (the integrator releases the GIL); :func:`first_trips_gaps` replays a choice's
+candidates side by side. On the independent simulator's trials records (2 h, 12 trips
+in 4 blocks, 2 cores) ``ropeload discover`` took a median 66.6 s a record (168 s before,
+one thread; ``benchmarks/eval_discovery.py --trials``).
+
 Accuracy note: the device simulation's sensor pressures change by ~13 kPa RMS between
 ``dt_s`` = 2 ms and 5 ms (friction stick-slip transitions), so replaying synthetic data
 at another step than it was generated with leaves a systematic gap of that size. The

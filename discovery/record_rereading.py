@@ -36,7 +36,12 @@ import polars as pl
 
 from discovery.planning import plan_replay
 from discovery.results import AMBIGUOUS, DiscoveryResult
-from discovery.selection import baseline_gap_pa, discover_effects, fitted_baseline
+from discovery.selection import (
+    BASE_PASSES,
+    baseline_gap_pa,
+    discover_effects,
+    fitted_baseline,
+)
 from schemas.effects import NO_EFFECT
 from schemas.hoist import HoistDescription
 
@@ -87,23 +92,19 @@ def discover_in_record(
                 parameters=params,
                 stiffness_factors=stiffness_factors,
             )
-            base = fitted_baseline(again, model, params, passes=selector.get("passes", 3))
+            base = fitted_baseline(again, model, params, passes=selector.get("passes", BASE_PASSES))
             gap = baseline_gap_pa(again, base)
-            if gap < findings[-1].gap_after_pa:
-                nxt_result = discover_effects(
-                    again, effects=model, parameters=params, max_iterations=1, base=base,
-                    **selector,
-                )  # fmt: skip
+            closer = gap < findings[-1].gap_after_pa  # else: go on from the plan before
+            nxt_result = discover_effects(
+                again if closer else result.plan, effects=model, parameters=params,
+                max_iterations=1, base=base if closer else None, **selector,
+            )  # fmt: skip
         except (RuntimeError, ValueError) as exc:
             notes.append(f"planning again with {', '.join(model)} failed, search ended: {exc}")
             break
-        if gap < findings[-1].gap_after_pa:
+        if closer:
             findings[-1] = dataclasses.replace(findings[-1], gap_after_pa=gap)
             notes.append(f"planned again with {', '.join(model)}")
-        else:  # the ropes read anew replay no closer: go on from the plan before
-            nxt_result = discover_effects(
-                result.plan, effects=model, parameters=params, max_iterations=1, **selector
-            )
         result = nxt_result
         findings.append(dataclasses.replace(result.findings[0], iteration=len(findings) + 1))
         replays += result.replays

@@ -112,6 +112,9 @@ __all__ = [
     "locate_gap",
 ]
 
+#: Payload / loading-ramp fitting passes of the base replay (:func:`fitted_baseline`).
+BASE_PASSES = 3
+
 
 class EffectSelector:
     """Select the effects missing from a hoist's model (pysindy-like; module docstring).
@@ -175,7 +178,7 @@ class EffectSelector:
         detectable_x_noise: float = 2.0,
         stability: float = 0.6,
         ambiguity: float = 0.05,
-        passes: int = 3,
+        passes: int = BASE_PASSES,
     ) -> None:
         self.library = library
         self.effects = effects
@@ -268,6 +271,8 @@ class EffectSelector:
         allowed = set(lib.get_feature_names() if self.candidates is None else self.candidates)
         if base is None:
             base = fitted_baseline(plan, model, params, passes=self.passes)
+        elif base.effects != frozenset(model) or len(base.simulated) != len(plan.trips):
+            raise ValueError("base: not the plan's replay with the selector's effects")
         eng = FitEngine(plan, lib, base)
         eng.rebase(base, model, params)
         lay = eng.layout
@@ -302,7 +307,7 @@ def discover_effects(
     detectable_x_noise: float = 2.0,
     stability: float = 0.6,
     ambiguity: float = 0.05,
-    passes: int = 3,
+    passes: int = BASE_PASSES,
     base: ReplayResult | None = None,
 ) -> DiscoveryResult:
     """Find the effects missing from a hoist's model (module docstring for the method).
@@ -331,11 +336,11 @@ def discover_effects(
 
 
 def fitted_baseline(
-    plan: ReplayPlan, effects: Iterable[str], parameters: Params, *, passes: int = 3
+    plan: ReplayPlan, effects: Iterable[str], parameters: Params, *, passes: int = BASE_PASSES
 ) -> ReplayResult:
     """The plan's replay with ``effects`` and their ``parameters``, payloads and loading
-    ramps fitted (``passes``): where every iteration of :func:`discover_effects` starts.
-    RuntimeError when the model does not simulate the trips."""
+    ramps fitted (``passes``): where the first iteration of :func:`discover_effects`
+    starts. RuntimeError when the model does not simulate the trips."""
     model = list(effects)
     base = replay_fitted(
         plan, effects=model, parameters=term_parameters(plan.hoist, parameters, model),

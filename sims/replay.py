@@ -42,6 +42,7 @@ default ``dt_s = 2 ms`` is the field-day generator's.
 from __future__ import annotations
 
 import collections
+import contextvars
 import dataclasses
 import os
 import threading
@@ -226,7 +227,7 @@ def _replay_trips(
     def run(block: range) -> tuple[list[tuple[np.ndarray, np.ndarray, str]], list[str]]:
         return _replay_block(plan, block, names, prm, pay, pay_before, ramps)
 
-    threads = min(REPLAY_THREADS, len(blocks))
+    threads = 1 if _ONE_THREAD.get() else min(REPLAY_THREADS, len(blocks))
     if threads > 1:
         with ThreadPoolExecutor(max_workers=threads) as pool:
             done = list(pool.map(run, blocks))
@@ -404,8 +405,21 @@ def first_trips_gaps(
     threads = min(REPLAY_THREADS, len(replays))
     if threads <= 1:
         return [first_trips_gap(plan, hoist, trips) for plan, hoist in replays]
+
+    def alone(pair: tuple[ReplayPlan, HoistDescription | None]) -> float:
+        token = _ONE_THREAD.set(True)  # the cores are taken by the candidates
+        try:
+            return first_trips_gap(*pair, trips)
+        finally:
+            _ONE_THREAD.reset(token)
+
     with ThreadPoolExecutor(max_workers=threads) as pool:
-        return list(pool.map(lambda pair: first_trips_gap(*pair, trips), replays))
+        return list(pool.map(alone, replays))
+
+
+#: Set in a thread that already takes a core of its own: its replays run their blocks
+#: one after the other.
+_ONE_THREAD: contextvars.ContextVar[bool] = contextvars.ContextVar("one_thread", default=False)
 
 
 #: How many first-trips gaps :func:`first_trips_gap` remembers (a plan's choices ask

@@ -9,6 +9,7 @@ import pytest
 
 from discovery import discover_in_record
 from discovery.cases import hidden_case
+from discovery.selection import discover_effects, fitted_baseline
 from sims.replay import replay
 
 
@@ -58,3 +59,13 @@ def test_a_plan_replays_with_its_parameters_unless_given_others():
         replay(with_them, effects=effects).simulated[0],
         replay(plan, effects=effects).simulated[0],
     )
+
+
+def test_a_base_replayed_with_other_effects_is_refused():
+    """``discover_effects(base=)`` takes the caller's baseline only when it is the plan's
+    replay with the effects searched from."""
+    plan, _ = hidden_case(None, trips=1)
+    fewer = list(plan.hoist.model.effects)[:-1]
+    other = fitted_baseline(plan, fewer, {}, passes=1)
+    with pytest.raises(ValueError, match="not the plan's replay"):
+        discover_effects(plan, base=other)

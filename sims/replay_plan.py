@@ -64,6 +64,13 @@ class ReplayTrip:
     cut: str = ""
     motion_knots: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
+    def __post_init__(self) -> None:
+        # frozen to the arrays too: a replay's answer is remembered by the very trip
+        # (:func:`sims.replay.first_trips_gap`), so what it holds may not change
+        for value in (*vars(self).values(), *(self.motion_knots or ())):
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
+
 
 @dataclass(frozen=True)
 class SkippedTrip:

@@ -54,3 +54,13 @@ def test_blocks_on_threads_replay_as_each_block_alone(two_blocks, monkeypatch):
     # a block's second trip starts with its first trip's payload, the block's first its own
     assert threaded.payload_before_kg[1] == payloads[0]
     assert threaded.payload_before_kg[3] == payloads[2]
+
+
+def test_a_planned_trip_holds_what_it_was_planned_with(two_blocks):
+    """A replay's answer is remembered by the very trips (``first_trips_gap``): their
+    arrays cannot be written."""
+    trip = two_blocks.trips[1]
+    with pytest.raises(ValueError, match="read-only"):
+        trip.measured_pa[0, 0] = 0.0
+    with pytest.raises(ValueError, match="read-only"):
+        trip.time_s[0] = 0.0

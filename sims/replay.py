@@ -382,7 +382,7 @@ def first_trips_gap(
     The choices of one plan ask for the same replay more than once (the ropes they
     kept, then the motion with them; the damping again with the stiffness chosen), so
     the last :data:`_REMEMBERED_GAPS` answers are remembered, keyed by the very trip
-    objects (plans are frozen) and an equal hoist and replay settings.
+    objects (frozen, their arrays read-only) and an equal hoist and replay settings.
     """
     block = tuple(tr for tr in plan.trips if tr.block == plan.trips[0].block)[:trips]
     trial = dataclasses.replace(plan, hoist=plan.hoist if hoist is None else hoist, trips=block)

@@ -223,9 +223,41 @@ def _replay_trips(
     """
     starts = [k for k, tr in enumerate(plan.trips) if k == 0 or tr.first_in_block]
     blocks = [range(a, b) for a, b in pairwise([*starts, len(plan.trips)])]
+    n = plan.hoist.ropes_n
 
     def run(block: range) -> tuple[list[tuple[np.ndarray, np.ndarray, str]], list[str]]:
-        return _replay_block(plan, block, names, prm, pay, pay_before, ramps)
+        """One block's trips (indices ``block``), in order."""
+        rows: list[tuple[np.ndarray, np.ndarray, str]] = []
+        failures: list[str] = []
+        state = None
+        broken = ""
+        prev_end = -np.inf
+        for k in block:
+            tr = plan.trips[k]
+            if k != block.start:
+                pay_before[k] = pay[k - 1]
+            if broken:
+                rows.append((*_not_simulated(tr, n), f"not simulated: {broken}"))
+                continue
+            start = float(max(ramps[k, 0], prev_end))
+            ramp_end = float(max(ramps[k, 1], start + 1e-3))
+            try:
+                payloads = (float(pay_before[k]), float(pay[k]))
+                res = _simulate_trip(plan, tr, names, prm, start, ramp_end, payloads, state)
+            except ValueError as exc:
+                failures.append(f"trip {tr.trip_id}: {exc}")
+                broken = f"trip {tr.trip_id} before it could not be simulated ({exc})"
+                rows.append((*_not_simulated(tr, n), f"simulation failed: {exc}"))
+                continue
+            reason = ""
+            if not res.ok:
+                failures.append(f"trip {tr.trip_id}: {res.message}")
+                reason = f"simulation failed: {res.message}"
+                broken = f"trip {tr.trip_id} before it could not be simulated ({res.message})"
+            state = res.final_state
+            scored, ramp_sim, prev_end = _at_scored_samples(tr, res, start, n, prev_end)
+            rows.append((scored, ramp_sim, reason))
+        return rows, failures
 
     threads = 1 if _ONE_THREAD.get() else min(REPLAY_THREADS, len(blocks))
     if threads > 1:
@@ -238,50 +270,6 @@ def _replay_trips(
 
 #: Threads a replay runs its blocks on: the cores this process may use.
 REPLAY_THREADS = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
-
-
-def _replay_block(
-    plan: ReplayPlan,
-    block: range,
-    names: frozenset[str],
-    prm: dict[str, dict[str, Any]],
-    pay: np.ndarray,
-    pay_before: np.ndarray,
-    ramps: np.ndarray,
-) -> tuple[list[tuple[np.ndarray, np.ndarray, str]], list[str]]:
-    """:func:`_replay_trips` of one block's trips (indices ``block``), in order."""
-    n = plan.hoist.ropes_n
-    rows: list[tuple[np.ndarray, np.ndarray, str]] = []
-    failures: list[str] = []
-    state = None
-    broken = ""
-    prev_end = -np.inf
-    for k in block:
-        tr = plan.trips[k]
-        if k != block.start:
-            pay_before[k] = pay[k - 1]
-        if broken:
-            rows.append((*_not_simulated(tr, n), f"not simulated: {broken}"))
-            continue
-        start = float(max(ramps[k, 0], prev_end))
-        ramp_end = float(max(ramps[k, 1], start + 1e-3))
-        try:
-            payloads = (float(pay_before[k]), float(pay[k]))
-            res = _simulate_trip(plan, tr, names, prm, start, ramp_end, payloads, state)
-        except ValueError as exc:
-            failures.append(f"trip {tr.trip_id}: {exc}")
-            broken = f"trip {tr.trip_id} before it could not be simulated ({exc})"
-            rows.append((*_not_simulated(tr, n), f"simulation failed: {exc}"))
-            continue
-        reason = ""
-        if not res.ok:
-            failures.append(f"trip {tr.trip_id}: {res.message}")
-            reason = f"simulation failed: {res.message}"
-            broken = f"trip {tr.trip_id} before it could not be simulated ({res.message})"
-        state = res.final_state
-        scored, ramp_sim, prev_end = _at_scored_samples(tr, res, start, n, prev_end)
-        rows.append((scored, ramp_sim, reason))
-    return rows, failures
 
 
 def _refine_ramp(

@@ -64,3 +64,30 @@ def test_a_planned_trip_holds_what_it_was_planned_with(two_blocks):
         trip.measured_pa[0, 0] = 0.0
     with pytest.raises(ValueError, match="read-only"):
         trip.time_s[0] = 0.0
+
+
+def test_an_older_jacobian_changes_a_hard_replay_by_a_hundredth_of_the_noise(
+    two_blocks, monkeypatch
+):
+    """The replay refreshes the device's Jacobian every ``REPLAY_JACOBIAN_EVERY`` steps.
+    ROS2 is a W-method (second order for any Jacobian) that retakes a step whose error
+    jumps, so on the stiffest device the contract allows (a throttled valve, K = 3e5)
+    with ringing ropes (damping ratio 0.03) the replay must stay within 1 % of the sensor
+    noise (5 kPa) of the one with a fresh Jacobian at every step."""
+    hoist = two_blocks.hoist
+    ropes = hoist.ropes.model_copy(update={"head_rope_damping_ratio": 0.03})
+    piping = hoist.piping.model_copy(update={"valve_loss_coefficient": 3e5})
+    stiff = hoist.model_copy(update={"ropes": ropes, "piping": piping})
+    assert "local_loss" in hoist.model.effects  # the valve's loss is simulated
+    plan = dataclasses.replace(two_blocks, hoist=stiff, trips=two_blocks.trips[:2])
+    payloads = np.array([9000.0, 8000.0])
+    assert replay_module.REPLAY_JACOBIAN_EVERY > 1
+    older = replay_module.replay(plan, payload_kg=payloads)
+    monkeypatch.setattr(replay_module, "REPLAY_JACOBIAN_EVERY", 1)
+    fresh = replay_module.replay(plan, payload_kg=payloads)
+    assert older.status == fresh.status == "success", (older.message, fresh.message)
+    diff = np.concatenate([a - b for a, b in zip(older.simulated, fresh.simulated, strict=True)])
+    assert np.isfinite(diff).all()
+    swing = np.ptp(np.concatenate(fresh.simulated))
+    assert swing > 1e6  # the trips load, accelerate and stop: pressures move by MPa
+    assert np.sqrt(np.mean(diff**2)) < 50.0

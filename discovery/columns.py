@@ -12,7 +12,8 @@ ramps fitted.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import threading
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,7 +24,7 @@ from discovery.library import EffectLibrary, EffectTerm, term_parameters
 from discovery.normal_equations import normal_equations, solve_normal
 from discovery.results import Params, merge_parameters
 from sims.effects import resolve_effects
-from sims.replay import payload_from_pressure, replay, replay_fitted
+from sims.replay import payload_from_pressure, replay_fitted, replay_many
 from sims.replay_plan import ReplayPlan, ReplayResult
 
 __all__ = ["FitEngine", "TermColumns", "replay_refitted"]
@@ -56,6 +57,7 @@ class FitEngine:
         self.base = base
         self.layout = entry_layout(plan, base)
         self.replays = 0
+        self._replays_lock = threading.Lock()  # counted from threads: refit's starts
         self.cache: dict[str, TermColumns] = {}
         self.base_static = np.zeros((len(plan.trips), 2))
 
@@ -75,22 +77,35 @@ class FitEngine:
             ]
         )
 
+    def count_replays(self, n: int) -> None:
+        """Count ``n`` more replays (:attr:`replays`)."""
+        with self._replays_lock:
+            self.replays += n
+
     def sim(self, effects: Iterable[str], params: Params) -> np.ndarray:
         """Replay with the base's payloads and ramps, the payloads shifted by what the
         changed model implies statically (tail rope at the start depth, sensor
         calibration), so a column shows the effect, not a payload mismatch."""
-        self.replays += 1
-        eff = list(effects)
-        shift = self._static_payloads(eff, params) - self.base_static
-        res = replay(
-            self.plan,
-            effects=eff,
-            parameters=term_parameters(self.hoist, params, eff),
-            payload_kg=np.maximum(self.base.payload_kg + shift[:, 0], 0.0),
-            payload_before_kg=np.maximum(self.base.payload_before_kg + shift[:, 1], 0.0),
-            ramps_s=self.base.ramps_s,
-        )
-        return self.layout.flat(res.simulated)
+        return self.sims([(effects, params)])[0]
+
+    def sims(self, jobs: Sequence[tuple[Iterable[str], Params]]) -> list[np.ndarray]:
+        """:meth:`sim` of each ``(effects, params)``, the replays' blocks sharing the
+        cores (:func:`sims.replay.replay_many`)."""
+        self.count_replays(len(jobs))
+        runs = []
+        for effects, params in jobs:
+            eff = list(effects)
+            shift = self._static_payloads(eff, params) - self.base_static
+            runs.append(
+                {
+                    "effects": eff,
+                    "parameters": term_parameters(self.hoist, params, eff),
+                    "payload_kg": np.maximum(self.base.payload_kg + shift[:, 0], 0.0),
+                    "payload_before_kg": np.maximum(self.base.payload_before_kg + shift[:, 1], 0.0),
+                    "ramps_s": self.base.ramps_s,
+                }
+            )
+        return [self.layout.flat(res.simulated) for res in replay_many(self.plan, runs)]
 
     def rebase(self, base: ReplayResult, effects: list[str], params: Params) -> None:
         self.base = base
@@ -127,24 +142,39 @@ class FitEngine:
     def fd(
         self, term: EffectTerm, effects: list[str], params: Params, s_at: np.ndarray
     ) -> TermColumns:
+        """Forward-difference columns of ``term`` at ``params`` (``term.steps``), whose
+        replay is ``s_at``; the step replays side by side."""
+        theta, jobs = self._steps(term, effects, params)
+        return self._columns(term, theta, s_at, self.sims(jobs))
+
+    def _steps(
+        self, term: EffectTerm, effects: list[str], params: Params
+    ) -> tuple[np.ndarray, list[tuple[list[str], Params]]]:
+        """The term's coordinates at ``params`` and the replays of its forward steps."""
         theta = term.coordinates(self.hoist, params)
-        cols = []
+        jobs = []
         for j, step in enumerate(term.steps):
             th = theta.copy()
             th[j] += step
             p2 = {k: dict(v) for k, v in params.items()}
             p2[term.name] = {**p2.get(term.name, {}), **term.parameters(self.hoist, th)}
-            s = self.sim(effects, p2)
-            if not np.all(np.isfinite(s)):
-                return TermColumns(
-                    term.name,
-                    np.zeros((s_at.size, 0)),
-                    np.zeros(s_at.size),
-                    theta,
-                    ok=False,
-                    note="simulation failed at a finite-difference step",
-                )
-            cols.append((s - s_at) / step)
+            jobs.append((effects, p2))
+        return theta, jobs
+
+    @staticmethod
+    def _columns(
+        term: EffectTerm, theta: np.ndarray, s_at: np.ndarray, ran: list[np.ndarray]
+    ) -> TermColumns:
+        if not all(np.all(np.isfinite(s)) for s in ran):
+            return TermColumns(
+                term.name,
+                np.zeros((s_at.size, 0)),
+                np.zeros(s_at.size),
+                theta,
+                ok=False,
+                note="simulation failed at a finite-difference step",
+            )
+        cols = [(s - s_at) / step for s, step in zip(ran, term.steps, strict=True)]
         return TermColumns(term.name, np.column_stack(cols), np.zeros(s_at.size), theta)
 
     def retune(self, name: str, effects: list[str], params: Params, s0: np.ndarray) -> TermColumns:
@@ -154,6 +184,51 @@ class FitEngine:
         if name not in self.cache:
             self.cache[name] = self.fd(term, effects, params, s0)
         return self.cache[name]
+
+    def retune_all(
+        self, names: list[str], effects: list[str], params: Params, s0: np.ndarray
+    ) -> list[TermColumns]:
+        """:meth:`retune` of each name, the replays of all their steps side by side."""
+        todo = [n for n in names if not self.lib[n].analytic and n not in self.cache]
+        steps = [self._steps(self.lib[n], effects, params) for n in todo]
+        ran = iter(self.sims([job for _, jobs in steps for job in jobs]))
+        for name, (theta, jobs) in zip(todo, steps, strict=True):
+            self.cache[name] = self._columns(self.lib[name], theta, s0, [next(ran) for _ in jobs])
+        return [self.retune(n, effects, params, s0) for n in names]
+
+    def switch_on_all(
+        self, names: list[str], effects: list[str], params: Params, s0: np.ndarray
+    ) -> None:
+        """The columns of each candidate of ``names`` that is switched on at its
+        default (not analytic, not null there), remembered for :meth:`candidate`: its
+        replay added to ``effects`` and its forward steps there, all side by side;
+        ``delta`` = that replay - ``s0``."""
+        todo = [
+            n
+            for n in names
+            if n not in self.cache
+            and not self.lib[n].analytic
+            and not self.lib[n].null_at_default(self.hoist)
+        ]
+        steps = [self._steps(self.lib[n], [*effects, n], params) for n in todo]
+        jobs = [job for name, (_, js) in zip(todo, steps, strict=True)
+                for job in [([*effects, name], params), *js]]  # fmt: skip
+        ran = iter(self.sims(jobs))
+        for name, (theta, js) in zip(todo, steps, strict=True):
+            s_on = next(ran)
+            cols = self._columns(self.lib[name], theta, s_on, [next(ran) for _ in js])
+            if not np.all(np.isfinite(s_on)):
+                cols = TermColumns(
+                    name,
+                    np.zeros((s_on.size, 0)),
+                    np.zeros(s_on.size),
+                    theta,
+                    ok=False,
+                    note="simulation failed with the effect switched on",
+                )
+            if cols.ok:
+                cols.delta = s_on - s0
+            self.cache[name] = cols
 
     def _rss_trip_offsets(self, resid: np.ndarray) -> float:
         """Residual sum of squares after a per-trip common offset (the payload)."""
@@ -227,18 +302,19 @@ class FitEngine:
         r0 = self._rss_trip_offsets(r)
         tried: dict[float, tuple[float, np.ndarray]] = {0.0: (r0, s0)}
 
+        def at(a: float) -> tuple[list[str], Params]:
+            return effects, merge_parameters(params, term.name, term.parameters(self.hoist, a * g))
+
         def along(a: float) -> float:
             """RSS (per-trip offsets removed) at coordinates ``a g``; remembered."""
             if a not in tried:
-                s = self.sim(
-                    effects, merge_parameters(params, term.name, term.parameters(self.hoist, a * g))
-                )
+                s = self.sim(*at(a))
                 tried[a] = (self._rss_trip_offsets(lay.y - s), s)
             return tried[a][0]
 
         grid = sorted({sign * amp for amp in term.start_amplitudes for sign in (1.0, -1.0)})
-        for a in grid:
-            along(a)
+        for a, s in zip(grid, self.sims([at(a) for a in grid]), strict=True):
+            tried[a] = (self._rss_trip_offsets(lay.y - s), s)
         # refine between the grid neighbours of the best amplitude (Brent's bounded
         # method): the RSS along the signature is V-shaped about the true deviation
         points = sorted(tried)
@@ -308,18 +384,20 @@ class FitEngine:
             return self.analytic(term, s0, params, on=False)
         if name in self.cache:
             return self.cache[name]
+        if not term.null_at_default(self.hoist):
+            self.switch_on_all([name], effects, params, s0)
+            return self.cache[name]
         eff = [*effects, name]
-        start = None
-        if term.null_at_default(self.hoist):
-            s_on = s0
-            if term.start_amplitudes:
-                start = self.start(term, eff, params, s0)
-        else:
-            s_on = self.sim(eff, params)
+        s_on = s0
+        start = self.start(term, eff, params, s0) if term.start_amplitudes else None
         if start is not None:
             params = merge_parameters(params, name, term.parameters(self.hoist, start[0]))
             s_on = start[1]
-        if not np.all(np.isfinite(s_on)):
+        if np.all(np.isfinite(s_on)):
+            cols = self.fd(term, eff, params, s_on)
+            if cols.ok:
+                cols.delta = s_on - s0
+        else:
             cols = TermColumns(
                 name,
                 np.zeros((s0.size, 0)),
@@ -328,9 +406,6 @@ class FitEngine:
                 ok=False,
                 note="simulation failed with the effect switched on",
             )
-        else:
-            cols = self.fd(term, eff, params, s_on)
-            cols.delta = s_on - s0
         self.cache[name] = cols
         return cols
 
@@ -338,7 +413,7 @@ class FitEngine:
 def replay_refitted(
     plan: ReplayPlan, eng: FitEngine, effects: list[str], params: Params, start: ReplayResult
 ) -> ReplayResult:
-    eng.replays += 3
+    eng.count_replays(3)
     return replay_fitted(
         plan,
         effects=effects,

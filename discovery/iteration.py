@@ -105,7 +105,7 @@ def _baseline(fit: FitState, iteration: int) -> _Baseline:
     sigma2 = fit.plan.noise_sigma_pa**2
     r = lay.y - fit.s0
     retune_names = [e for e in fit.model if e in lib]
-    retune_cols = [eng.retune(e, fit.model, fit.params, fit.s0) for e in retune_names]
+    retune_cols = eng.retune_all(retune_names, fit.model, fit.params, fit.s0)
     retune_cols = [c for c in retune_cols if c.ok and c.jac.shape[1]]
     x0 = np.column_stack([*(c.jac for c in retune_cols), fit.nuis])
     pen0 = np.concatenate(
@@ -122,7 +122,11 @@ def _score(fit: FitState, bl: _Baseline) -> dict[str, dict[str, Any]]:
     lay, m = fit.eng.layout, fit.m
     cand = [c for c in fit.lib.candidates(fit.model) if c in fit.allowed]
     scores: dict[str, dict[str, Any]] = {}
-    for name in cand if bl.ratio >= fit.opts.variance_threshold else []:
+    if bl.ratio < fit.opts.variance_threshold:
+        return scores
+    # the candidates switched on at their defaults replay side by side, then each scores
+    fit.eng.switch_on_all(cand, fit.model, fit.params, fit.s0)
+    for name in cand:
         cols = fit.eng.candidate(name, fit.model, fit.params, fit.s0)
         if not cols.ok:
             fit.notes.append(f"iteration {bl.iteration}: candidate {name} skipped: {cols.note}")

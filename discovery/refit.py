@@ -12,6 +12,7 @@ linear prediction (:func:`_gauss_newton_step`).
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import numpy as np
@@ -23,6 +24,7 @@ from discovery.library import EffectLibrary, EffectTerm
 from discovery.normal_equations import normal_equations, solve_normal
 from discovery.results import Params, merge_parameters
 from schemas.hoist import HoistDescription
+from sims.replay import side_by_side
 from sims.replay_plan import ReplayPlan, ReplayResult
 
 __all__ = ["add_winner", "winner_parameters"]
@@ -149,7 +151,7 @@ def _refine_along(
         gap = rms(lay.y - lay.flat(res.simulated)) if res.ok else np.inf
         return gap, res, prm
 
-    first = [at(np.asarray(t, float)) for t in starts]
+    first = side_by_side([functools.partial(at, np.asarray(t, float)) for t in starts])
     k = int(np.argmin([f[0] for f in first]))
     direction = np.asarray(starts[k], float)
     seen[1.0] = first[k]

@@ -44,12 +44,13 @@ from __future__ import annotations
 import collections
 import contextvars
 import dataclasses
+import functools
 import os
 import threading
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from itertools import pairwise
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -72,7 +73,10 @@ __all__ = [
     "replay",
     "replay_fitted",
     "replay_profile",
+    "side_by_side",
 ]
+
+T = TypeVar("T")
 
 
 def _simulate_trip(
@@ -170,23 +174,65 @@ def replay(
         ``status="failed"`` with the reason when a trip's simulation failed (its and the
         block's later trips' pressures are NaN).
     """
-    hoist = plan.hoist
-    names = frozenset(hoist.model.effects if effects is None else effects)
-    prm = _parameters(plan, names, parameters)
-    pay, pay_before, ramps = replay_inputs(plan, names, prm, payload_kg, payload_before_kg, ramps_s)
-    rows, failures = _replay_trips(plan, names, prm, pay, pay_before, ramps)
-    return ReplayResult(
-        simulated=tuple(r[0] for r in rows),
-        payload_kg=pay,
-        payload_before_kg=pay_before,
-        effects=names,
-        parameters=prm,
-        status="failed" if failures else "success",
-        message="; ".join(failures),
-        ramp_simulated=tuple(r[1] for r in rows),
-        ramps_s=ramps,
-        trip_messages=tuple(r[2] for r in rows),
-    )
+    return replay_many(
+        plan,
+        [
+            {
+                "effects": effects,
+                "parameters": parameters,
+                "payload_kg": payload_kg,
+                "payload_before_kg": payload_before_kg,
+                "ramps_s": ramps_s,
+            }
+        ],
+    )[0]
+
+
+def replay_many(plan: ReplayPlan, runs: Sequence[Mapping[str, Any]]) -> list[ReplayResult]:
+    """:func:`replay` of the plan with each keyword set of ``runs`` (``effects``,
+    ``parameters``, ``payload_kg``, ``payload_before_kg``, ``ramps_s``; absent: the
+    default), in order.
+
+    The blocks of all the runs share one pool of :data:`REPLAY_THREADS` threads: a
+    plan of a few blocks keeps both cores busy only while its longest block lasts, a
+    dozen blocks of three runs keep them busy to the end. Each run's result is what
+    :func:`replay` alone gives (each block is its own history, :func:`_block_runs`).
+    """
+    prepared = []
+    for kw in runs:
+        names = frozenset(plan.hoist.model.effects if kw.get("effects") is None else kw["effects"])
+        prm = _parameters(plan, names, kw.get("parameters"))
+        pay, pay_before, ramps = replay_inputs(
+            plan, names, prm, kw.get("payload_kg"), kw.get("payload_before_kg"), kw.get("ramps_s")
+        )
+        prepared.append((names, prm, pay, pay_before, ramps))
+    tasks = [_block_runs(plan, *p) for p in prepared]
+    # a block's cost: its simulated seconds, from its first loading ramp to its last window
+    costs = [
+        plan.trips[block[-1]].window_end_s - plan.trips[block.start].ramp_start_s
+        for block in _blocks(plan)
+    ]
+    done = iter(_run_tasks([t for blocks in tasks for t in blocks], costs * len(tasks)))
+    results = []
+    for (names, prm, pay, pay_before, ramps), blocks in zip(prepared, tasks, strict=True):
+        ran = [next(done) for _ in blocks]
+        rows = [row for block_rows, _ in ran for row in block_rows]
+        failures = [f for _, block_failures in ran for f in block_failures]
+        results.append(
+            ReplayResult(
+                simulated=tuple(r[0] for r in rows),
+                payload_kg=pay,
+                payload_before_kg=pay_before,
+                effects=names,
+                parameters=prm,
+                status="failed" if failures else "success",
+                message="; ".join(failures),
+                ramp_simulated=tuple(r[1] for r in rows),
+                ramps_s=ramps,
+                trip_messages=tuple(r[2] for r in rows),
+            )
+        )
+    return results
 
 
 def _parameters(
@@ -205,28 +251,29 @@ def _not_simulated(tr: ReplayTrip, n: int) -> tuple[np.ndarray, np.ndarray]:
     return np.full((tr.time_s.size, n), np.nan), np.full(tr.ramp_time_s.size, np.nan)
 
 
-def _replay_trips(
+_BlockRun = tuple[list[tuple[np.ndarray, np.ndarray, str]], list[str]]
+
+
+def _block_runs(
     plan: ReplayPlan,
     names: frozenset[str],
     prm: dict[str, dict[str, Any]],
     pay: np.ndarray,
     pay_before: np.ndarray,
     ramps: np.ndarray,
-) -> tuple[list[tuple[np.ndarray, np.ndarray, str]], list[str]]:
-    """The planned trips simulated, each block one chained history: per trip (scored
-    pressures, ramp common-mode pressure, why it was not simulated or ""), and the
-    failures, both in trip order. ``pay_before`` is updated in place: a block's later
-    trips start with the previous trip's payload.
+) -> list[Callable[[], _BlockRun]]:
+    """One task per block of the plan, in trip order: each simulates its block's trips
+    as one chained history and returns, per trip, (scored pressures, ramp common-mode
+    pressure, why it was not simulated or "") and the block's failures. ``pay_before``
+    is updated in place: a block's later trips start with the previous trip's payload.
 
-    The blocks are independent histories, so they run on up to :data:`REPLAY_THREADS`
-    threads (the integrator releases the GIL, :func:`sims.device_solver._run`); each
-    block's result is what it is alone, so the replay is the same on any number.
+    The blocks are independent histories, so the tasks may run on threads in any order
+    (the integrator releases the GIL, :func:`sims.device_solver._run`); each block's
+    result is what it is alone, so a replay is the same on any number of threads.
     """
-    starts = [k for k, tr in enumerate(plan.trips) if k == 0 or tr.first_in_block]
-    blocks = [range(a, b) for a, b in pairwise([*starts, len(plan.trips)])]
     n = plan.hoist.ropes_n
 
-    def run(block: range) -> tuple[list[tuple[np.ndarray, np.ndarray, str]], list[str]]:
+    def run(block: range) -> _BlockRun:
         """One block's trips (indices ``block``), in order."""
         rows: list[tuple[np.ndarray, np.ndarray, str]] = []
         failures: list[str] = []
@@ -260,13 +307,26 @@ def _replay_trips(
             rows.append((scored, ramp_sim, reason))
         return rows, failures
 
-    threads = 1 if _ONE_THREAD.get() else min(REPLAY_THREADS, len(blocks))
-    if threads > 1:
-        with ThreadPoolExecutor(max_workers=threads) as pool:
-            done = list(pool.map(run, blocks))
-    else:
-        done = [run(block) for block in blocks]
-    return [row for rows, _ in done for row in rows], [f for _, fs in done for f in fs]
+    return [functools.partial(run, block) for block in _blocks(plan)]
+
+
+def _blocks(plan: ReplayPlan) -> list[range]:
+    """The trip indices of each replay block, in order."""
+    starts = [k for k, tr in enumerate(plan.trips) if k == 0 or tr.first_in_block]
+    return [range(a, b) for a, b in pairwise([*starts, len(plan.trips)])]
+
+
+def _run_tasks(tasks: Sequence[Callable[[], T]], costs: Sequence[float]) -> list[T]:
+    """The tasks' results in order, on up to :data:`REPLAY_THREADS` threads (one in a
+    thread that already takes a core, :data:`_ONE_THREAD`), the costliest started first
+    (so that a long block does not start last and run alone)."""
+    threads = 1 if _ONE_THREAD.get() else min(REPLAY_THREADS, len(tasks))
+    if threads <= 1:
+        return [task() for task in tasks]
+    order = sorted(range(len(tasks)), key=lambda k: -costs[k])
+    with ThreadPoolExecutor(max_workers=threads) as pool:
+        futures = {k: pool.submit(tasks[k]) for k in order}
+        return [futures[k].result() for k in range(len(tasks))]
 
 
 #: A replay refreshes the device simulation's finite-difference Jacobian every this many
@@ -401,21 +461,34 @@ def first_trips_gap(
 def first_trips_gaps(
     replays: Sequence[tuple[ReplayPlan, HoistDescription | None]], trips: int = 3
 ) -> list[float]:
-    """:func:`first_trips_gap` of each ``(plan, hoist)``, on up to :data:`REPLAY_THREADS`
-    threads (the candidates of a choice are independent replays)."""
-    threads = min(REPLAY_THREADS, len(replays))
-    if threads <= 1:
-        return [first_trips_gap(plan, hoist, trips) for plan, hoist in replays]
+    """:func:`first_trips_gap` of each ``(plan, hoist)``, side by side
+    (:func:`side_by_side`: the candidates of a choice are independent replays)."""
+    return side_by_side([functools.partial(first_trips_gap, p, h, trips) for p, h in replays])
 
-    def alone(pair: tuple[ReplayPlan, HoistDescription | None]) -> float:
-        token = _ONE_THREAD.set(True)  # the cores are taken by the candidates
+
+def side_by_side(calls: Sequence[Callable[[], T]]) -> list[T]:
+    """The results of ``calls`` (each a function of no argument running replays), in
+    order, computed on up to :data:`REPLAY_THREADS` threads, each call's replays running
+    their blocks one after the other (the cores are taken by the calls).
+
+    For the candidates of a replay choice, each a fit of several passes on a few
+    trips of one block: side by side they use the cores that one block's replay
+    leaves idle. (Replays of one plan in one pass share their blocks' threads
+    instead: :func:`replay_many`.) Each replay's result is the same either way.
+    """
+    threads = min(REPLAY_THREADS, len(calls))
+    if threads <= 1 or _ONE_THREAD.get():
+        return [call() for call in calls]
+
+    def alone(call: Callable[[], T]) -> T:
+        token = _ONE_THREAD.set(True)
         try:
-            return first_trips_gap(*pair, trips)
+            return call()
         finally:
             _ONE_THREAD.reset(token)
 
     with ThreadPoolExecutor(max_workers=threads) as pool:
-        return list(pool.map(alone, replays))
+        return list(pool.map(alone, calls))
 
 
 #: Set in a thread that already takes a core of its own: its replays run their blocks

@@ -56,6 +56,32 @@ def test_blocks_on_threads_replay_as_each_block_alone(two_blocks, monkeypatch):
     assert threaded.payload_before_kg[3] == payloads[2]
 
 
+def test_many_replays_sharing_the_threads_are_each_replay_alone(two_blocks, monkeypatch):
+    """``replay_many`` runs the blocks of all its runs on one pool, longest first: each
+    result must be exactly the replay of its run alone, on one thread."""
+    plan = two_blocks
+    base = np.array([9000.0, 8000.0, 10000.0, 7000.0, 8500.0])
+    runs = [
+        {"payload_kg": base},
+        {"payload_kg": base + 500.0, "effects": [*plan.hoist.model.effects][:-1]},
+        {"payload_kg": base - 500.0, "ramps_s": None},
+    ]
+    monkeypatch.setattr(replay_module, "REPLAY_THREADS", 2)
+    together = replay_module.replay_many(plan, runs)
+    monkeypatch.setattr(replay_module, "REPLAY_THREADS", 1)
+    alone = [replay_module.replay(plan, **run) for run in runs]
+    assert len(together) == len(runs)
+    for got, want in zip(together, alone, strict=True):
+        assert got.status == want.status == "success"
+        assert got.effects == want.effects
+        np.testing.assert_array_equal(got.payload_before_kg, want.payload_before_kg)
+        for a, b in zip(got.simulated, want.simulated, strict=True):
+            np.testing.assert_array_equal(a, b)
+    # the runs differ: the payloads and the effects reach the simulation
+    assert not np.array_equal(together[0].simulated[0], together[2].simulated[0])
+    assert together[1].effects != together[0].effects
+
+
 def test_a_planned_trip_holds_what_it_was_planned_with(two_blocks):
     """A replay's answer is remembered by the very trips (``first_trips_gap``): their
     arrays cannot be written."""

@@ -28,10 +28,15 @@ block are not simulated. A trip is driven by the logged motion when the plan hol
 (:func:`replay_profile`).
 
 Speed: the blocks are independent histories and replay on :data:`REPLAY_THREADS`
-threads (the integrator releases the GIL); :func:`first_trips_gaps` replays a choice's
-candidates side by side. On the independent simulator's trials records (2 h, 12 trips
-in 4 blocks, 2 cores) ``ropeload discover`` took a median 66.6 s a record (168 s before,
-one thread; ``benchmarks/eval_discovery.py --trials``).
+threads (the integrator releases the GIL); :func:`replay_many` replays several runs of
+one plan with all their blocks on one pool, the longest first (a discovery term's
+finite-difference steps, its candidates switched on); :func:`side_by_side` runs a
+choice's candidate fits side by side; the Jacobian is refreshed every
+:data:`REPLAY_JACOBIAN_EVERY` steps. On the independent simulator's trials records
+(2 h, 12 trips in 4 blocks, 2 cores; ``benchmarks/eval_discovery.py --trials``)
+``ropeload discover`` took a median 53.3 s, at most 118 s, a record (session 22; 66.6
+and 190 s with a Jacobian every 10th step and each replay's blocks alone on the
+threads, 168 and 372 s on one thread).
 
 Accuracy note: the device simulation's sensor pressures change by ~13 kPa RMS between
 ``dt_s`` = 2 ms and 5 ms (friction stick-slip transitions), so replaying synthetic data

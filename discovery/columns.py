@@ -15,6 +15,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 from scipy import optimize
@@ -249,12 +250,14 @@ class FitEngine:
         makes the pistons drift apart one way going down and back going up, and each
         sliding piston's seal friction offsets its sensor by the sign of its motion);
         the coordinates (ropes 2..n relative to rope 1) along it, largest 1. Scan:
-        both signs times ``term.start_amplitudes``, the best amplitude (per-trip offsets
-        removed) refined between its grid neighbours (Brent), then up to three damped
-        Gauss-Newton steps on all coordinates. None when the signature is within
-        ``_SIGNATURE_Z`` standard errors of zero (a fixed fraction of the noise would
-        ignore a signature that many samples make certain), or when nothing beats zero by
-        more than 25 noise variances.
+        the grid of both signs times ``term.start_amplitudes``, walked out from zero on
+        the side whose smallest amplitude beats zero, while the RSS (per-trip offsets
+        removed) falls (it is V-shaped about the true deviation: the grid's best, not
+        every point replayed); the best refined between its grid neighbours (Brent),
+        then up to three damped Gauss-Newton steps on all coordinates. None when the
+        signature is within ``_SIGNATURE_Z`` standard errors of zero (a fixed fraction
+        of the noise would ignore a signature that many samples make certain), or when
+        nothing beats zero by more than 25 noise variances.
         """
         g = self._signature(term, s0)
         if g is None:
@@ -312,11 +315,21 @@ class FitEngine:
                 tried[a] = (self._rss_trip_offsets(lay.y - s), s)
             return tried[a][0]
 
-        grid = sorted({sign * amp for amp in term.start_amplitudes for sign in (1.0, -1.0)})
-        for a, s in zip(grid, self.sims([at(a) for a in grid]), strict=True):
+        # The RSS along the signature is V-shaped about the true deviation, so the best
+        # of the grid (both signs times the amplitudes) lies on the side where the
+        # smallest amplitude beats zero, at the last amplitude before the RSS rises
+        # again: the walk out replays 2 + (amplitudes passed) of the grid's 2 x n.
+        amps = sorted(term.start_amplitudes)
+        near = [amps[0], -amps[0]]
+        for a, s in zip(near, self.sims([at(a) for a in near]), strict=True):
             tried[a] = (self._rss_trip_offsets(lay.y - s), s)
+        sign = 1.0 if tried[amps[0]][0] <= tried[-amps[0]][0] else -1.0
+        if tried[sign * amps[0]][0] < r0:
+            for smaller, amp in pairwise(amps):
+                if along(sign * amp) >= tried[sign * smaller][0]:
+                    break
         # refine between the grid neighbours of the best amplitude (Brent's bounded
-        # method): the RSS along the signature is V-shaped about the true deviation
+        # method)
         points = sorted(tried)
         k = points.index(min(tried, key=lambda a: tried[a][0]))
         if points[k] != 0.0:

@@ -144,7 +144,8 @@ class FitEngine:
         self, term: EffectTerm, effects: list[str], params: Params, s_at: np.ndarray
     ) -> TermColumns:
         """Forward-difference columns of ``term`` at ``params`` (``term.steps``), whose
-        replay is ``s_at``; the step replays side by side."""
+        replay is ``s_at``; the step replays share the cores (:meth:`sims`: all are
+        replayed and counted, also when one fails)."""
         theta, jobs = self._steps(term, effects, params)
         return self._columns(term, theta, s_at, self.sims(jobs))
 
@@ -189,7 +190,8 @@ class FitEngine:
     def retune_all(
         self, names: list[str], effects: list[str], params: Params, s0: np.ndarray
     ) -> list[TermColumns]:
-        """:meth:`retune` of each name, the replays of all their steps side by side."""
+        """:meth:`retune` of each name, the replays of all their steps sharing the cores
+        (:meth:`sims`)."""
         todo = [n for n in names if not self.lib[n].analytic and n not in self.cache]
         steps = [self._steps(self.lib[n], effects, params) for n in todo]
         ran = iter(self.sims([job for _, jobs in steps for job in jobs]))
@@ -202,8 +204,9 @@ class FitEngine:
     ) -> None:
         """The columns of each candidate of ``names`` that is switched on at its
         default (not analytic, not null there), remembered for :meth:`candidate`: its
-        replay added to ``effects`` and its forward steps there, all side by side;
-        ``delta`` = that replay - ``s0``."""
+        replay added to ``effects``, then its forward steps there (of those whose
+        replay succeeded), each batch sharing the cores (:meth:`sims`); ``delta`` =
+        that replay - ``s0``."""
         todo = [
             n
             for n in names
@@ -211,22 +214,24 @@ class FitEngine:
             and not self.lib[n].analytic
             and not self.lib[n].null_at_default(self.hoist)
         ]
-        steps = [self._steps(self.lib[n], [*effects, n], params) for n in todo]
-        jobs = [job for name, (_, js) in zip(todo, steps, strict=True)
-                for job in [([*effects, name], params), *js]]  # fmt: skip
-        ran = iter(self.sims(jobs))
-        for name, (theta, js) in zip(todo, steps, strict=True):
-            s_on = next(ran)
-            cols = self._columns(self.lib[name], theta, s_on, [next(ran) for _ in js])
-            if not np.all(np.isfinite(s_on)):
-                cols = TermColumns(
-                    name,
-                    np.zeros((s_on.size, 0)),
-                    np.zeros(s_on.size),
-                    theta,
-                    ok=False,
-                    note="simulation failed with the effect switched on",
-                )
+        switched = self.sims([([*effects, n], params) for n in todo])
+        stepping = []
+        for name, s_on in zip(todo, switched, strict=True):
+            theta, jobs = self._steps(self.lib[name], [*effects, name], params)
+            if np.all(np.isfinite(s_on)):
+                stepping.append((name, s_on, theta, jobs))
+                continue
+            self.cache[name] = TermColumns(
+                name,
+                np.zeros((s_on.size, 0)),
+                np.zeros(s_on.size),
+                theta,
+                ok=False,
+                note="simulation failed with the effect switched on",
+            )
+        ran = iter(self.sims([job for *_, jobs in stepping for job in jobs]))
+        for name, s_on, theta, jobs in stepping:
+            cols = self._columns(self.lib[name], theta, s_on, [next(ran) for _ in jobs])
             if cols.ok:
                 cols.delta = s_on - s0
             self.cache[name] = cols

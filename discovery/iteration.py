@@ -124,7 +124,7 @@ def _score(fit: FitState, bl: _Baseline) -> dict[str, dict[str, Any]]:
     scores: dict[str, dict[str, Any]] = {}
     if bl.ratio < fit.opts.variance_threshold:
         return scores
-    # the candidates switched on at their defaults replay side by side, then each scores
+    # the candidates switched on at their defaults replay sharing the cores, then each scores
     fit.eng.switch_on_all(cand, fit.model, fit.params, fit.s0)
     for name in cand:
         cols = fit.eng.candidate(name, fit.model, fit.params, fit.s0)

@@ -34,9 +34,10 @@ finite-difference steps, its candidates switched on); :func:`side_by_side` runs 
 choice's candidate fits side by side; the Jacobian is refreshed every
 :data:`REPLAY_JACOBIAN_EVERY` steps. On the independent simulator's trials records
 (2 h, 12 trips in 4 blocks, 2 cores; ``benchmarks/eval_discovery.py --trials``)
-``ropeload discover`` took a median 53.3 s, at most 118 s, a record (session 22; 66.6
-and 190 s with a Jacobian every 10th step and each replay's blocks alone on the
-threads, 168 and 372 s on one thread).
+``ropeload discover`` took a median 49.5 s, at most 94 s, a record (session 22, with
+the groove-wear scan's walk, :mod:`discovery.columns`; 66.6 and 190 s with a Jacobian
+every 10th step and each replay's blocks alone on the threads, 168 and 372 s on one
+thread).
 
 Accuracy note: the device simulation's sensor pressures change by ~13 kPa RMS between
 ``dt_s`` = 2 ms and 5 ms (friction stick-slip transitions), so replaying synthetic data
@@ -77,6 +78,7 @@ __all__ = [
     "payload_from_pressure",
     "replay",
     "replay_fitted",
+    "replay_many",
     "replay_profile",
     "side_by_side",
 ]
@@ -331,7 +333,11 @@ def _run_tasks(tasks: Sequence[Callable[[], T]], costs: Sequence[float]) -> list
     order = sorted(range(len(tasks)), key=lambda k: -costs[k])
     with ThreadPoolExecutor(max_workers=threads) as pool:
         futures = {k: pool.submit(tasks[k]) for k in order}
-        return [futures[k].result() for k in range(len(tasks))]
+        try:
+            return [futures[k].result() for k in range(len(tasks))]
+        except BaseException:
+            pool.shutdown(cancel_futures=True)  # the queued blocks would be thrown away
+            raise
 
 
 #: A replay refreshes the device simulation's finite-difference Jacobian every this many
@@ -474,7 +480,8 @@ def first_trips_gaps(
 def side_by_side(calls: Sequence[Callable[[], T]]) -> list[T]:
     """The results of ``calls`` (each a function of no argument running replays), in
     order, computed on up to :data:`REPLAY_THREADS` threads, each call's replays running
-    their blocks one after the other (the cores are taken by the calls).
+    their blocks one after the other (the cores are taken by the calls); one after the
+    other in a thread that already takes a core (:data:`_ONE_THREAD`).
 
     For the candidates of a replay choice, each a fit of several passes on a few
     trips of one block: side by side they use the cores that one block's replay

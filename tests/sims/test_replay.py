@@ -65,17 +65,27 @@ def test_many_replays_sharing_the_threads_are_each_replay_alone(two_blocks, monk
         {"payload_kg": base},
         {"payload_kg": base + 500.0, "effects": [*plan.hoist.model.effects][:-1]},
         {"payload_kg": base - 500.0, "ramps_s": None},
+        {"payload_kg": np.where(np.arange(5) == 3, np.nan, base)},  # block 2 fails at trip 3
     ]
     monkeypatch.setattr(replay_module, "REPLAY_THREADS", 2)
     together = replay_module.replay_many(plan, runs)
     monkeypatch.setattr(replay_module, "REPLAY_THREADS", 1)
     alone = [replay_module.replay(plan, **run) for run in runs]
     assert len(together) == len(runs)
+    assert [r.status for r in together] == ["success"] * 3 + ["failed"]
+    assert "not simulated" in together[3].trip_messages[4]
     for got, want in zip(together, alone, strict=True):
-        assert got.status == want.status == "success"
-        assert got.effects == want.effects
-        np.testing.assert_array_equal(got.payload_before_kg, want.payload_before_kg)
-        for a, b in zip(got.simulated, want.simulated, strict=True):
+        assert (got.status, got.message, got.trip_messages, got.effects) == (
+            want.status,
+            want.message,
+            want.trip_messages,
+            want.effects,
+        )
+        for name in ("payload_kg", "payload_before_kg", "ramps_s"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
+        for a, b in zip(
+            got.simulated + got.ramp_simulated, want.simulated + want.ramp_simulated, strict=True
+        ):
             np.testing.assert_array_equal(a, b)
     # the runs differ: the payloads and the effects reach the simulation
     assert not np.array_equal(together[0].simulated[0], together[2].simulated[0])

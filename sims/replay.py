@@ -483,10 +483,11 @@ def side_by_side(calls: Sequence[Callable[[], T]]) -> list[T]:
     their blocks one after the other (the cores are taken by the calls); one after the
     other in a thread that already takes a core (:data:`_ONE_THREAD`).
 
-    For the candidates of a replay choice, each a fit of several passes on a few
-    trips of one block: side by side they use the cores that one block's replay
-    leaves idle. (Replays of one plan in one pass share their blocks' threads
-    instead: :func:`replay_many`.) Each replay's result is the same either way.
+    For fits of several passes each (the candidates of a replay choice, on a few
+    trips of one block; a discovery refit's two starts): side by side they use the
+    cores that one fit's replays leave idle. (Replays of one plan in one pass share
+    their blocks' threads instead: :func:`replay_many`.) Each replay's result is
+    the same either way.
     """
     threads = min(REPLAY_THREADS, len(calls))
     if threads <= 1 or _ONE_THREAD.get():

@@ -16,8 +16,9 @@ plans the record again with the grown model and its fitted parameters
 on from that plan when its baseline gap is smaller than the one the effect left (the
 added effect's ``gap_after_pa`` is then that gap: the effect with the ropes as the
 record shows them), else from the plan before with the grown model. The baselines are
-compared before the next iteration runs: only the plan it goes on from is searched. A new plan that
-cannot be made or simulated ends the search with a note; the findings so far stand.
+compared before the next iteration runs: only the plan it goes on from is searched. A
+new plan that cannot be made or simulated ends the search with a note; the findings so
+far stand.
 The findings keep their order and numbering. The result's ``before`` is the first
 plan's replay and its ``plan`` and ``after`` the last plan's (same trips and samples:
 the planning of the trips does not read the model; the ropes' damping and spread and

@@ -213,11 +213,12 @@ def replay_many(plan: ReplayPlan, runs: Sequence[Mapping[str, Any]]) -> list[Rep
             plan, names, prm, kw.get("payload_kg"), kw.get("payload_before_kg"), kw.get("ramps_s")
         )
         prepared.append((names, prm, pay, pay_before, ramps))
-    tasks = [_block_runs(plan, *p) for p in prepared]
+    blocks = _blocks(plan)
+    tasks = [_block_runs(plan, blocks, *p) for p in prepared]
     # a block's cost: its simulated seconds, from its first loading ramp to its last window
     costs = [
         plan.trips[block[-1]].window_end_s - plan.trips[block.start].ramp_start_s
-        for block in _blocks(plan)
+        for block in blocks
     ]
     done = iter(_run_tasks([t for blocks in tasks for t in blocks], costs * len(tasks)))
     results = []
@@ -263,16 +264,18 @@ _BlockRun = tuple[list[tuple[np.ndarray, np.ndarray, str]], list[str]]
 
 def _block_runs(
     plan: ReplayPlan,
+    blocks: list[range],
     names: frozenset[str],
     prm: dict[str, dict[str, Any]],
     pay: np.ndarray,
     pay_before: np.ndarray,
     ramps: np.ndarray,
 ) -> list[Callable[[], _BlockRun]]:
-    """One task per block of the plan, in trip order: each simulates its block's trips
-    as one chained history and returns, per trip, (scored pressures, ramp common-mode
-    pressure, why it was not simulated or "") and the block's failures. ``pay_before``
-    is updated in place: a block's later trips start with the previous trip's payload.
+    """One task per block of the plan (``blocks``, :func:`_blocks`), in trip order: each
+    simulates its block's trips as one chained history and returns, per trip, (scored
+    pressures, ramp common-mode pressure, why it was not simulated or "") and the
+    block's failures. ``pay_before`` is updated in place: a block's later trips start
+    with the previous trip's payload.
 
     The blocks are independent histories, so the tasks may run on threads in any order
     (the integrator releases the GIL, :func:`sims.device_solver._run`); each block's
@@ -314,7 +317,7 @@ def _block_runs(
             rows.append((scored, ramp_sim, reason))
         return rows, failures
 
-    return [functools.partial(run, block) for block in _blocks(plan)]
+    return [functools.partial(run, block) for block in blocks]
 
 
 def _blocks(plan: ReplayPlan) -> list[range]:
@@ -489,19 +492,16 @@ def side_by_side(calls: Sequence[Callable[[], T]]) -> list[T]:
     their blocks' threads instead: :func:`replay_many`.) Each replay's result is
     the same either way.
     """
-    threads = min(REPLAY_THREADS, len(calls))
-    if threads <= 1 or _ONE_THREAD.get():
-        return [call() for call in calls]
+    return _run_tasks([functools.partial(_alone, call) for call in calls], [0.0] * len(calls))
 
-    def alone(call: Callable[[], T]) -> T:
-        token = _ONE_THREAD.set(True)
-        try:
-            return call()
-        finally:
-            _ONE_THREAD.reset(token)
 
-    with ThreadPoolExecutor(max_workers=threads) as pool:
-        return list(pool.map(alone, calls))
+def _alone(call: Callable[[], T]) -> T:
+    """``call()`` with its replays' blocks one after the other (:data:`_ONE_THREAD`)."""
+    token = _ONE_THREAD.set(True)
+    try:
+        return call()
+    finally:
+        _ONE_THREAD.reset(token)
 
 
 #: Set in a thread that already takes a core of its own: its replays run their blocks

@@ -9,14 +9,17 @@ weight (a 789 kPa gap), the effect was named and added, but the gap stayed at 88
 against 5 kPa of noise, and the next iteration "explained" part of that with a groove
 wear the record does not hold.
 
-:func:`discover_in_record` runs one iteration at a time (:func:`discovery.selection.
-discover_effects` with ``max_iterations=1``); after an iteration that adds an effect it
+:func:`discover_in_record` runs one iteration at a time (an :class:`discovery.selection.
+EffectSelector` with ``max_iterations=1``); after an iteration that adds an effect it
 plans the record again with the grown model and its fitted parameters
 (``plan_replay(parameters=...)``), so the ropes and the motion are read anew, and goes
 on from that plan when its baseline gap is smaller than the one the effect left (the
 added effect's ``gap_after_pa`` is then that gap: the effect with the ropes as the
-record shows them), else from the plan before with the grown model. The baselines are
-compared before the next iteration runs: only the plan it goes on from is searched. A
+record shows them), else from the plan before with the grown model: that search goes
+on (:meth:`~discovery.selection.EffectSelector.fit_more`), its fitted state and its
+candidates' columns reused as the iterations of one search reuse them; a search on the
+new plan takes those columns over too (``fit(columns_from=...)``). The baselines
+are compared before the next iteration runs: only the plan it goes on from is searched. A
 new plan that cannot be made or simulated ends the search with a note; the findings so
 far stand.
 The findings keep their order and numbering. The result's ``before`` is the first
@@ -39,8 +42,8 @@ from discovery.planning import plan_replay
 from discovery.results import AMBIGUOUS, DiscoveryResult
 from discovery.selection import (
     BASE_PASSES,
+    EffectSelector,
     baseline_gap_pa,
-    discover_effects,
     fitted_baseline,
 )
 from schemas.effects import NO_EFFECT
@@ -78,7 +81,8 @@ def discover_in_record(
         number_from=number_from,
         stiffness_factors=stiffness_factors,
     )
-    first = result = discover_effects(plan, max_iterations=1, **selector)
+    search = EffectSelector(max_iterations=1, **selector).fit(plan)
+    first = result = search.result_
     findings = list(result.findings)
     replays, notes = result.replays, list(result.notes)
     while len(findings) < max_iterations and _added(findings[-1].effect):
@@ -95,21 +99,26 @@ def discover_in_record(
             )
             base = fitted_baseline(again, model, params, passes=selector.get("passes", BASE_PASSES))
             gap = baseline_gap_pa(again, base)
-            closer = gap < findings[-1].gap_after_pa  # else: go on from the plan before
-            nxt_result = discover_effects(
-                again if closer else result.plan, effects=model, parameters=params,
-                max_iterations=1, base=base if closer else None, **selector,
-            )  # fmt: skip
+            closer = gap < findings[-1].gap_after_pa
+            if closer:  # a search on the new plan, the candidates' columns taken over
+                search = EffectSelector(
+                    effects=model, parameters=params, max_iterations=1, **selector
+                ).fit(again, base, columns_from=search)
+                counted = 0
+            else:  # the search goes on from the plan before with its columns
+                counted = search.result_.replays
+                search.fit_more(1)
         except (RuntimeError, ValueError) as exc:
             notes.append(f"planning again with {', '.join(model)} failed, search ended: {exc}")
             break
         if closer:
             findings[-1] = dataclasses.replace(findings[-1], gap_after_pa=gap)
             notes.append(f"planned again with {', '.join(model)}")
-        result = nxt_result
-        findings.append(dataclasses.replace(result.findings[0], iteration=len(findings) + 1))
-        replays += result.replays
-        notes += result.notes
+        fresh = len(result.notes) if not closer else 0
+        result = search.result_
+        findings.append(dataclasses.replace(result.findings[-1], iteration=len(findings) + 1))
+        replays += result.replays - counted
+        notes += result.notes[fresh:]
     return dataclasses.replace(
         result,
         findings=findings,

@@ -95,7 +95,7 @@ from discovery.bootstrap import trip_weights
 from discovery.columns import FitEngine
 from discovery.gap import locate_gap, rms
 from discovery.iteration import DecisionThresholds, FitState, run_iteration
-from discovery.layout import entry_layout
+from discovery.layout import EntryLayout, entry_layout
 from discovery.library import EFFECT_LIBRARY, EffectLibrary, term_parameters
 from discovery.results import AMBIGUOUS, DiscoveryResult, Finding, Params
 from sims.replay import replay_fitted
@@ -195,28 +195,65 @@ class EffectSelector:
         self.passes = passes
 
     # -- the pysindy-like surface ------------------------------------------------------
-    def fit(self, plan: ReplayPlan, base: ReplayResult | None = None) -> EffectSelector:
+    def fit(
+        self,
+        plan: ReplayPlan,
+        base: ReplayResult | None = None,
+        *,
+        columns_from: EffectSelector | None = None,
+    ) -> EffectSelector:
         """Run the discovery on the planned trips (:func:`discovery.planning.plan_replay`);
         returns self. ``base``: the plan's :func:`fitted_baseline` with this selector's
         effects, parameters and passes, when the caller has it. Raises ValueError for bad
-        hyperparameters, RuntimeError when the hoist's model does not simulate the trips."""
+        hyperparameters, RuntimeError when the hoist's model does not simulate the trips.
+
+        ``columns_from``: a selector fitted on another plan of the same record (planned
+        again: the same trips and samples, the ropes and the motion read anew) whose
+        candidates' columns are taken over where both base replays score the same
+        samples, instead of replayed again. They are linearisations around that plan's
+        base, reused as the iterations of one search reuse them around its first base
+        (module docstring): they rank the candidates, and what is credited is
+        re-simulated on ``plan`` (step 5). Where the scored samples differ, every column
+        is replayed anew."""
         self._check()
-        fit = self._start(plan, base)
-        for iteration in range(1, self.max_iterations + 1):
+        self._state = self._start(plan, base)
+        before = getattr(columns_from, "_state", None)
+        if before is not None and _same_entries(before.eng.layout, self._state.eng.layout):
+            self._state.eng.cache.update(before.eng.cache)
+        return self._iterate(self.max_iterations)
+
+    def fit_more(self, iterations: int = 1) -> EffectSelector:
+        """Go on for up to ``iterations`` more iterations from where :meth:`fit` (or the
+        last call) stopped, with the same plan, engine and candidate columns (the
+        iterations of :meth:`fit` share them the same way: linearisations around the
+        first base); returns self with ``result_`` holding every iteration so far.
+        What :func:`discovery.record_rereading.discover_in_record` does when planning
+        the record again with an added effect does not bring the gap down."""
+        if not hasattr(self, "_state"):
+            raise RuntimeError("fit_more: call fit first")
+        if iterations < 1:
+            raise ValueError("iterations must be at least 1")
+        return self._iterate(iterations)
+
+    def _iterate(self, iterations: int) -> EffectSelector:
+        """Up to ``iterations`` iterations on the kept state, then ``result_``."""
+        fit = self._state
+        done = len(fit.findings)
+        for iteration in range(done + 1, done + iterations + 1):
             if not run_iteration(fit, iteration):
                 break
-        hoist = plan.hoist
+        hoist = fit.plan.hoist
         self.library_ = fit.lib
         self.result_ = DiscoveryResult(
-            plan=plan,
-            findings=fit.findings,
+            plan=fit.plan,
+            findings=list(fit.findings),
             effects_before=tuple(hoist.model.effects if self.effects is None else self.effects),
             effects_after=tuple(fit.model),
             parameters_after=fit.params,
             before=fit.first,
             after=fit.current,
             replays=fit.eng.replays + 0,
-            notes=fit.notes,
+            notes=list(fit.notes),
         )
         return self
 
@@ -290,6 +327,13 @@ class EffectSelector:
             self.ambiguity,
         )
         return FitState(opts, plan, lib, eng, allowed, nuis, weights, model, params, base, base, s0)
+
+
+def _same_entries(a: EntryLayout, b: EntryLayout) -> bool:
+    """Both layouts score the same samples of the same trips, in the same order."""
+    return len(a.mask) == len(b.mask) and all(
+        x.shape == y.shape and np.array_equal(x, y) for x, y in zip(a.mask, b.mask, strict=True)
+    )
 
 
 def discover_effects(

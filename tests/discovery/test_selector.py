@@ -50,3 +50,22 @@ def test_discover_effects_is_the_selector(plan, fitted):
 def test_bad_hyperparameters_raise_at_fit(plan):
     with pytest.raises(ValueError, match="variance_threshold"):
         EffectSelector(variance_threshold=1.0).fit(plan)
+
+
+def test_fit_more_goes_on_as_one_fit_with_more_iterations(plan):
+    once = EffectSelector(bootstrap=20, max_iterations=2).fit(plan)
+    stepped = EffectSelector(bootstrap=20, max_iterations=1).fit(plan)
+    assert len(stepped.findings_) == 1
+    assert stepped.fit_more(1) is stepped
+    assert stepped.findings_ == once.findings_
+    assert stepped.result_.effects_after == once.result_.effects_after
+    assert stepped.result_.replays == once.result_.replays
+    with pytest.raises(RuntimeError, match="call fit first"):
+        EffectSelector().fit_more(1)
+
+
+def test_columns_taken_over_from_a_search_on_the_same_samples(plan, fitted):
+    taken = EffectSelector(bootstrap=20, max_iterations=1).fit(plan, columns_from=fitted)
+    assert taken.findings_ == fitted.findings_
+    # the base replays again; every candidate's columns come from ``fitted``
+    assert 0 < taken.result_.replays < fitted.result_.replays

@@ -30,7 +30,7 @@ from pipelines.reports.fleet import Kind, fleet_report, outcome_table
 from pipelines.reports.period import HoistPeriod, Step
 from pipelines.reports.sections import hoist_sections
 from schemas.hoist import HoistDescription
-from warehouse.store import DataRoot
+from warehouse.store import DataRoot, open_writer
 
 if TYPE_CHECKING:
     from pipelines.hoists import HoistSource
@@ -216,7 +216,7 @@ def _record(
 ) -> None:
     """Land the report's outcome (``run_steps``, step ``report``) for each run it covers."""
     try:
-        from pipelines.steps import StepOutcome, one_line, record_steps
+        from pipelines.steps import StepOutcome, land_steps, one_line
     except ImportError:  # a tree without landed step outcomes
         return
     outcome = (
@@ -224,8 +224,11 @@ def _record(
         if error is None
         else StepOutcome("report", "failed", f"{one_line(error)} (fallback {report.path})")
     )
-    for run_id, site, hoist in runs:
-        record_steps(data, run_id=run_id, site=site, hoist=hoist, outcomes=[outcome])
+    if not runs:
+        return
+    with open_writer(data) as con:  # one transaction for every run the report covers
+        for run_id, site, hoist in runs:
+            land_steps(con, run_id=run_id, site=site, hoist=hoist, outcomes=[outcome])
 
 
 def run_report_path(data: DataRoot, result: RunResult) -> Path:

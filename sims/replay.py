@@ -51,7 +51,6 @@ import collections
 import contextvars
 import dataclasses
 import functools
-import os
 import threading
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -61,6 +60,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from schemas.hoist import G_STANDARD, HoistDescription
+from sims.cores import usable_cores
 from sims.device import DeviceState, SimulationResult, simulate
 from sims.logged_motion import profile_from_knots
 from sims.replay_inputs import (
@@ -355,8 +355,9 @@ def _run_tasks(tasks: Sequence[Callable[[], T]], costs: Sequence[float]) -> list
 #: replays ~30 % faster for nothing measurable.
 REPLAY_JACOBIAN_EVERY = 20
 
-#: Threads a replay runs its blocks on: the cores this process may use.
-REPLAY_THREADS = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
+#: Threads a replay runs its blocks on: the cores this process may use
+#: (:func:`usable_cores`).
+REPLAY_THREADS = usable_cores()
 
 
 def _refine_ramp(

@@ -69,9 +69,9 @@ def discover_in_record(
     compensation identified them; each plan weighs them against the stiffness spread
     it searches) go to :func:`~discovery.planning.plan_replay`, the ``selector``
     keywords (``bootstrap``, ``detectable_x_noise``, ...) to
-    :func:`~discovery.selection.discover_effects`.
+    :class:`~discovery.selection.EffectSelector`.
     """
-    fixed = {"effects", "parameters", "max_iterations"} & set(selector)
+    fixed = {"effects", "parameters", "max_iterations", "base"} & set(selector)
     if fixed:
         raise TypeError(f"discover_in_record: {', '.join(sorted(fixed))} cannot be given")
     plan = plan_replay(
@@ -100,25 +100,32 @@ def discover_in_record(
             base = fitted_baseline(again, model, params, passes=selector.get("passes", BASE_PASSES))
             gap = baseline_gap_pa(again, base)
             closer = gap < findings[-1].gap_after_pa
+        except (RuntimeError, ValueError) as exc:
+            notes.append(f"planning again with {', '.join(model)} failed, search ended: {exc}")
+            break
+        # what the search that goes on (on the plan before) had counted, said and found
+        counted, said, found = 0, 0, 0
+        try:
             if closer:  # a search on the new plan, the candidates' columns taken over
                 search = EffectSelector(
                     effects=model, parameters=params, max_iterations=1, **selector
                 ).fit(again, base, columns_from=search)
-                counted = 0
             else:  # the search goes on from the plan before with its columns
-                counted = search.result_.replays
+                counted, said = search.result_.replays, len(search.result_.notes)
+                found = len(search.result_.findings)
                 search.fit_more(1)
         except (RuntimeError, ValueError) as exc:
-            notes.append(f"planning again with {', '.join(model)} failed, search ended: {exc}")
+            notes.append(f"the search with {', '.join(model)} failed, search ended: {exc}")
             break
+        if len(search.result_.findings) == found:
+            break  # the search had ended (no candidate left)
         if closer:
             findings[-1] = dataclasses.replace(findings[-1], gap_after_pa=gap)
             notes.append(f"planned again with {', '.join(model)}")
-        fresh = len(result.notes) if not closer else 0
         result = search.result_
         findings.append(dataclasses.replace(result.findings[-1], iteration=len(findings) + 1))
         replays += result.replays - counted
-        notes += result.notes[fresh:]
+        notes += result.notes[said:]
     return dataclasses.replace(
         result,
         findings=findings,

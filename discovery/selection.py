@@ -210,16 +210,24 @@ class EffectSelector:
         ``columns_from``: a selector fitted on another plan of the same record (planned
         again: the same trips and samples, the ropes and the motion read anew) whose
         candidates' columns are taken over where both base replays score the same
-        samples, instead of replayed again. They are linearisations around that plan's
-        base, reused as the iterations of one search reuse them around its first base
-        (module docstring): they rank the candidates, and what is credited is
-        re-simulated on ``plan`` (step 5). Where the scored samples differ, every column
-        is replayed anew."""
+        samples (else every column is replayed anew), instead of replayed again: those
+        that simulated, of candidates still outside the model and not started from a
+        scan of that plan's residual (groove wear: its start fits that plan's gap).
+        They are linearisations around that plan's base, used as the later iterations of
+        one search use the columns of its first base (module docstring): they score,
+        rank and refuse the candidates and set a winner's first coordinates; a winner
+        is added only if its re-simulation on ``plan`` shrinks the gap (step 5). The
+        model's re-tuning columns are replayed on ``plan``."""
         self._check()
         self._state = self._start(plan, base)
         before = getattr(columns_from, "_state", None)
         if before is not None and _same_entries(before.eng.layout, self._state.eng.layout):
-            self._state.eng.cache.update(before.eng.cache)
+            lib, model = self._state.lib, set(self._state.model)
+            self._state.eng.cache.update(
+                (name, cols)
+                for name, cols in before.eng.cache.items()
+                if cols.ok and name not in model and not lib[name].start_amplitudes
+            )
         return self._iterate(self.max_iterations)
 
     def fit_more(self, iterations: int = 1) -> EffectSelector:
@@ -227,20 +235,25 @@ class EffectSelector:
         last call) stopped, with the same plan, engine and candidate columns (the
         iterations of :meth:`fit` share them the same way: linearisations around the
         first base); returns self with ``result_`` holding every iteration so far.
+        Nothing is run once an iteration ended the loop (``none``, ``ambiguous``, or
+        no candidate left).
         What :func:`discovery.record_rereading.discover_in_record` does when planning
         the record again with an added effect does not bring the gap down."""
         if not hasattr(self, "_state"):
             raise RuntimeError("fit_more: call fit first")
         if iterations < 1:
             raise ValueError("iterations must be at least 1")
-        return self._iterate(iterations)
+        return self if self._ended else self._iterate(iterations)
 
     def _iterate(self, iterations: int) -> EffectSelector:
-        """Up to ``iterations`` iterations on the kept state, then ``result_``."""
+        """Up to ``iterations`` iterations on the kept state, then ``result_``; once an
+        iteration ends the loop (nothing added, or no candidate left) none follows."""
         fit = self._state
         done = len(fit.findings)
+        self._ended = False
         for iteration in range(done + 1, done + iterations + 1):
             if not run_iteration(fit, iteration):
+                self._ended = True
                 break
         hoist = fit.plan.hoist
         self.library_ = fit.lib
@@ -249,7 +262,7 @@ class EffectSelector:
             findings=list(fit.findings),
             effects_before=tuple(hoist.model.effects if self.effects is None else self.effects),
             effects_after=tuple(fit.model),
-            parameters_after=fit.params,
+            parameters_after={k: dict(v) for k, v in fit.params.items()},
             before=fit.first,
             after=fit.current,
             replays=fit.eng.replays + 0,
@@ -331,8 +344,12 @@ class EffectSelector:
 
 def _same_entries(a: EntryLayout, b: EntryLayout) -> bool:
     """Both layouts score the same samples of the same trips, in the same order."""
-    return len(a.mask) == len(b.mask) and all(
-        x.shape == y.shape and np.array_equal(x, y) for x, y in zip(a.mask, b.mask, strict=True)
+    return (
+        np.array_equal(a.y, b.y)
+        and len(a.mask) == len(b.mask)
+        and all(
+            x.shape == y.shape and np.array_equal(x, y) for x, y in zip(a.mask, b.mask, strict=True)
+        )
     )
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -55,17 +57,36 @@ def test_bad_hyperparameters_raise_at_fit(plan):
 def test_fit_more_goes_on_as_one_fit_with_more_iterations(plan):
     once = EffectSelector(bootstrap=20, max_iterations=2).fit(plan)
     stepped = EffectSelector(bootstrap=20, max_iterations=1).fit(plan)
-    assert len(stepped.findings_) == 1
+    first = stepped.result_
+    assert len(first.findings) == 1
     assert stepped.fit_more(1) is stepped
+    assert len(first.findings) == 1  # the earlier result is not grown in place
     assert stepped.findings_ == once.findings_
     assert stepped.result_.effects_after == once.result_.effects_after
+    assert stepped.result_.notes == once.result_.notes
     assert stepped.result_.replays == once.result_.replays
+    if once.findings_[-1].effect in ("none", "ambiguous"):  # the loop ended: nothing more
+        assert stepped.fit_more(1).findings_ == once.findings_
     with pytest.raises(RuntimeError, match="call fit first"):
         EffectSelector().fit_more(1)
 
 
-def test_columns_taken_over_from_a_search_on_the_same_samples(plan, fitted):
-    taken = EffectSelector(bootstrap=20, max_iterations=1).fit(plan, columns_from=fitted)
-    assert taken.findings_ == fitted.findings_
-    # the base replays again; every candidate's columns come from ``fitted``
-    assert 0 < taken.result_.replays < fitted.result_.replays
+def test_columns_are_taken_over_only_from_a_search_on_the_same_samples(plan):
+    """A candidate switched on at its default (the oil's viscosity-temperature law, left
+    out of the model here) has columns another search on the same samples can take;
+    on other samples every column is replayed."""
+    fewer = [e for e in plan.hoist.model.effects if e != "viscosity_temperature"]
+
+    def search(trips: slice, columns_from: EffectSelector | None = None) -> EffectSelector:
+        part = dataclasses.replace(plan, trips=plan.trips[trips])
+        selector = EffectSelector(effects=fewer, bootstrap=20, max_iterations=1)
+        return selector.fit(part, columns_from=columns_from)
+
+    first = search(slice(0, 1))
+    taken = search(slice(0, 1), columns_from=first)
+    assert taken.findings_ == first.findings_
+    assert taken.result_.replays < first.result_.replays
+    fresh = search(slice(1, 2))
+    other = search(slice(1, 2), columns_from=first)  # the other trip: nothing taken
+    assert other.result_.replays == fresh.result_.replays
+    assert other.findings_ == fresh.findings_

@@ -211,22 +211,23 @@ class EffectSelector:
         again: the same trips and samples, the ropes and the motion read anew) whose
         candidates' columns are taken over where both base replays score the same
         samples (else every column is replayed anew), instead of replayed again: those
-        that simulated, of candidates still outside the model and not started from a
-        scan of that plan's residual (groove wear: its start fits that plan's gap).
-        They are linearisations around that plan's base, used as the later iterations of
-        one search use the columns of its first base (module docstring): they score,
-        rank and refuse the candidates and set a winner's first coordinates; a winner
-        is added only if its re-simulation on ``plan`` shrinks the gap (step 5). The
-        model's re-tuning columns are replayed on ``plan``."""
+        that simulated, but not of an effect that search added (its column was taken at
+        its default, not where it was fitted) or one started from a scan of that plan's
+        residual (groove wear: its start fits that plan's gap), which are replayed on
+        ``plan``. They are linearisations around that plan's base, used as the later
+        iterations of one search use the columns of its first base (module docstring):
+        they re-tune the model, score, rank and refuse the candidates and set a
+        winner's first coordinates; a winner is added only if its re-simulation on
+        ``plan`` shrinks the gap (step 5)."""
         self._check()
         self._state = self._start(plan, base)
         before = getattr(columns_from, "_state", None)
         if before is not None and _same_entries(before.eng.layout, self._state.eng.layout):
-            lib, model = self._state.lib, set(self._state.model)
+            lib, added = self._state.lib, set(before.model) - set(before.first.effects)
             self._state.eng.cache.update(
                 (name, cols)
                 for name, cols in before.eng.cache.items()
-                if cols.ok and name not in model and not lib[name].start_amplitudes
+                if cols.ok and name not in added and not lib[name].start_amplitudes
             )
         return self._iterate(self.max_iterations)
 

@@ -18,7 +18,8 @@ added effect's ``gap_after_pa`` is then that gap: the effect with the ropes as t
 record shows them), else from the plan before with the grown model: that search goes
 on (:meth:`~discovery.selection.EffectSelector.fit_more`), its fitted state and its
 candidates' columns reused as the iterations of one search reuse them; a search on the
-new plan takes those columns over too (``fit(columns_from=...)``). The baselines
+new plan takes those columns over too (``fit(columns_from=...)``), but for the added
+effect's and groove wear's, which it replays. The baselines
 are compared before the next iteration runs: only the plan it goes on from is searched. A
 new plan that cannot be made or simulated ends the search with a note; the findings so
 far stand.

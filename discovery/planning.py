@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -62,7 +62,7 @@ from discovery.record import (
     trip_timing,
 )
 from discovery.replay_choices import choose_motion, read_ropes
-from discovery.rope_stiffness import piston_slides_m
+from discovery.rope_stiffness import IdentifiedFactors, piston_slides_m
 from discovery.segmentation import (
     CUT_WORDS,
     chosen_trips,
@@ -279,7 +279,7 @@ def plan_replay(
     motion: str = "auto",
     number_from: dt.datetime | None = None,
     parameters: Mapping[str, Mapping[str, Any]] | None = None,
-    stiffness_factors: Sequence[float] | None = None,
+    stiffness_factors: IdentifiedFactors = None,
 ) -> ReplayPlan:
     """Segment ``samples`` of one hoist into trips and prepare their simulation.
 
@@ -320,13 +320,15 @@ def plan_replay(
         record (ropes, motion) are made with, kept as ``ReplayPlan.parameters``
         (discovery re-reads them once an effect joins the model,
         :func:`discovery.record_rereading.discover_in_record`).
-    stiffness_factors : sequence of float, optional
+    stiffness_factors : sequence of float or callable, optional
         The head ropes' stiffness factors as the compensation identified them from the
         logged piston positions (``RopeSprings.stiffness_factors``,
         :mod:`transforms.rope_identification`), scaled to a mean of 1; used instead of
         the stiffness spread unless they replay the first trips more than 10 % worse
         than the spread's choice (:func:`discovery.rope_stiffness.with_rope_stiffness`).
-        None: the spread.
+        None: the spread. Or a function of no argument returning them (or None), called
+        once the spread has been searched: the identification can run meanwhile
+        (:data:`discovery.rope_stiffness.IdentifiedFactors`).
 
     Raises
     ------

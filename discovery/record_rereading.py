@@ -34,13 +34,13 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
-from collections.abc import Sequence
 from typing import Any
 
 import polars as pl
 
 from discovery.planning import plan_replay
 from discovery.results import AMBIGUOUS, DiscoveryResult
+from discovery.rope_stiffness import IdentifiedFactors
 from discovery.selection import (
     BASE_PASSES,
     EffectSelector,
@@ -60,7 +60,7 @@ def discover_in_record(
     max_trips: int = 12,
     max_iterations: int = 3,
     number_from: dt.datetime | None = None,
-    stiffness_factors: Sequence[float] | None = None,
+    stiffness_factors: IdentifiedFactors = None,
     **selector: Any,
 ) -> DiscoveryResult:
     """Discover the effects missing from ``hoist``'s model in the landed ``samples``,

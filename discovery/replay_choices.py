@@ -23,12 +23,15 @@ trips (:func:`sims.replay.first_trips_gap`), in this order:
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
 
 import numpy as np
 
 from discovery.rope_damping import with_rope_damping
-from discovery.rope_stiffness import with_rope_stiffness, with_stiffness_factors
+from discovery.rope_stiffness import (
+    IdentifiedFactors,
+    with_rope_stiffness,
+    with_stiffness_factors,
+)
 from sims.replay import CLOSER_SHARE, first_trips_gaps
 from sims.replay_plan import ReplayPlan
 
@@ -39,7 +42,7 @@ def read_ropes(
     plan: ReplayPlan,
     zeta_read: float | None,
     slides_m: np.ndarray | None,
-    identified: Sequence[float] | None = None,
+    identified: IdentifiedFactors = None,
 ) -> ReplayPlan:
     """The plan with the ropes' damping and stiffness spread the record supports (steps 1-3
     of the module docstring); ``zeta_read``, ``slides_m`` and ``identified`` as

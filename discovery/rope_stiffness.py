@@ -53,7 +53,7 @@ transforms.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import polars as pl
@@ -65,11 +65,18 @@ from sims.replay_plan import ReplayPlan
 __all__ = [
     "SLIDE_DEADBAND_M",
     "SPREAD_GRID",
+    "IdentifiedFactors",
     "piston_slides_m",
     "spread_factors",
     "with_rope_stiffness",
     "with_stiffness_factors",
 ]
+
+#: The ropes' stiffness factors as the compensation identified them, None, or a function
+#: of no argument returning either (called once the spread has been searched, so that the
+#: identification can run beside the record's first replays: ``concurrent.futures.
+#: Future.result``).
+IdentifiedFactors = Sequence[float] | Callable[[], Sequence[float] | None] | None
 
 #: Spreads tried (factor step between neighbouring ropes, sorted by stiffness); the
 #: validation days' gap is smallest near 0.025 and rises steeply either side.
@@ -142,15 +149,16 @@ def with_stiffness_factors(
 def with_rope_stiffness(
     plan: ReplayPlan,
     slides_m: np.ndarray | None,
-    identified: Sequence[float] | None = None,
+    identified: IdentifiedFactors = None,
 ) -> ReplayPlan:
     """The plan with the head ropes' stiffness spread its first trips replay closest.
 
     ``slides_m``: each piston's slide over the record (:func:`piston_slides_m`; None
     when the record has no piston positions). ``identified``: the ropes' stiffness
-    factors identified from the logged x (module docstring), scaled to a mean of 1 and
-    used unless the first trips replay more than 10 % further from the record with them
-    than with the spread's choice.
+    factors identified from the logged x (module docstring; or a function returning
+    them, called after the spread's search, :data:`IdentifiedFactors`), scaled to a mean
+    of 1 and used unless the first trips replay more than 10 % further from the record
+    with them than with the spread's choice.
 
     The spread: a description that states its ropes' factors keeps them, and so does a
     record whose pistons all slid, and alike (within a factor 1.5: equal ropes move them
@@ -164,11 +172,13 @@ def with_rope_stiffness(
     n = hoist.ropes_n
     if hoist.ropes.head_rope_stiffness_factors is not None or not plan.trips or n < 2:
         return plan
-    if identified is not None and len(identified) != n:
-        raise ValueError(f"identified: {len(identified)} stiffness factors for {n} ropes")
     searched, searched_gap = _spread_searched(plan, slides_m)
+    if callable(identified):
+        identified = identified()
     if identified is None:
         return searched
+    if len(identified) != n:
+        raise ValueError(f"identified: {len(identified)} stiffness factors for {n} ropes")
     # the identification's gauge (rope 1 at the description's EA) is arbitrary: the
     # description's EA is taken as the ropes' mean, as for the spread
     factors = [float(f) / float(np.mean(identified)) for f in identified]

@@ -40,6 +40,7 @@ from __future__ import annotations
 import datetime as dt
 import json
 import logging
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -270,11 +271,19 @@ def discover_period(
     p_start = (start or samples["time_utc"].min()).astimezone(dt.UTC)
     p_end = (end or samples["time_utc"].max() + dt.timedelta(microseconds=1)).astimezone(dt.UTC)
     logger.info("discover %s/%s %s .. %s: replaying trips", site, name, p_start, p_end)
-    # the ropes as the compensation identifies them (remembered under the data root)
-    ropes = identified_stiffness_factors(samples, hoist, data=data)
-    result = discover_in_record(
-        samples, hoist, max_trips=max_trips, max_iterations=max_iterations, stiffness_factors=ropes
-    )
+    # the ropes as the compensation identifies them (remembered under the data root),
+    # identified beside the record's first replays: the plan asks for them once it has
+    # searched the stiffness spread (its Nelder-Mead polish leaves a core free)
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="ropes") as pool:
+        ropes = pool.submit(identified_stiffness_factors, samples, hoist, data=data)
+        result = discover_in_record(
+            samples,
+            hoist,
+            max_trips=max_trips,
+            max_iterations=max_iterations,
+            stiffness_factors=ropes.result,
+        )
+        ropes.result()  # an identification that failed fails the discovery, as before
     logger.info(
         "discover %s/%s: effects found: %s", site, name, ", ".join(result.effects_found) or "none"
     )

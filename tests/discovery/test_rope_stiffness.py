@@ -16,7 +16,12 @@ import pytest
 
 from discovery.cases import scenario_hoist
 from discovery.planning import plan_replay
-from discovery.rope_stiffness import piston_slides_m, spread_factors, with_stiffness_factors
+from discovery.rope_stiffness import (
+    piston_slides_m,
+    spread_factors,
+    with_rope_stiffness,
+    with_stiffness_factors,
+)
 from sims.field_day import generate_field_day
 from sims.replay import first_trips_gap, replay_fitted
 
@@ -106,6 +111,21 @@ def test_identified_factors_name_the_ropes_and_replay_to_the_noise(spread_day):
     assert plan.hoist.ropes.head_rope_stiffness_factors == pytest.approx(_WORLD)
     assert any("as identified from the logged piston positions" in n for n in plan.notes)
     assert replay_fitted(plan, passes=2).rms_gap_pa(plan) < 1.3 * plan.noise_sigma_pa
+    # given as a function (an identification running meanwhile), called once, after
+    # the spread's search: the same choice and notes
+    equal = dataclasses.replace(plan, hoist=with_stiffness_factors(plan.hoist, None))
+    slides = piston_slides_m(day.sensors, 4)
+    given = with_rope_stiffness(equal, slides, _WORLD)
+    asked = []
+    lazily = with_rope_stiffness(equal, slides, lambda: asked.append(1) or _WORLD)
+    assert asked == [1]
+    assert (lazily.hoist, lazily.notes) == (given.hoist, given.notes)
+    none = with_rope_stiffness(equal, slides, lambda: None)
+    assert none.hoist == with_rope_stiffness(equal, slides).hoist  # the spread's choice
+    assert (
+        none.hoist.ropes.head_rope_stiffness_factors
+        != given.hoist.ropes.head_rope_stiffness_factors
+    )
 
 
 def test_identified_factors_that_replay_worse_than_the_spread_are_refused(spread_day):

@@ -333,7 +333,10 @@ def plan_replay(
     Raises
     ------
     ValueError
-        Required columns missing, or no trip (motion of >= 3 s) in the record.
+        Required columns missing, no trip (motion of >= 3 s) in the record, or
+        stiffness factors not one per rope.
+    Exception
+        Whatever a ``stiffness_factors`` function raises.
     """
     if motion not in ("auto", "winder", "logged"):
         raise ValueError(f"motion: 'auto', 'winder' or 'logged', not {motion!r}")

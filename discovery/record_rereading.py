@@ -68,8 +68,9 @@ def discover_in_record(
 
     ``max_trips``, ``number_from`` and ``stiffness_factors`` (the ropes as the
     compensation identified them; each plan weighs them against the stiffness spread
-    it searches) go to :func:`~discovery.planning.plan_replay`, the ``selector``
-    keywords (``bootstrap``, ``detectable_x_noise``, ...) to
+    it searches; a function returning them is called by each plan) go to
+    :func:`~discovery.planning.plan_replay`, the ``selector`` keywords (``bootstrap``,
+    ``detectable_x_noise``, ...) to
     :class:`~discovery.selection.EffectSelector`.
     """
     fixed = {"effects", "parameters", "max_iterations", "base"} & set(selector)

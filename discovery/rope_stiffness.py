@@ -172,13 +172,14 @@ def with_rope_stiffness(
     n = hoist.ropes_n
     if hoist.ropes.head_rope_stiffness_factors is not None or not plan.trips or n < 2:
         return plan
+    if identified is not None and not callable(identified):
+        _check_count(identified, n)  # before any replay
     searched, searched_gap = _spread_searched(plan, slides_m)
     if callable(identified):
         identified = identified()
     if identified is None:
         return searched
-    if len(identified) != n:
-        raise ValueError(f"identified: {len(identified)} stiffness factors for {n} ropes")
+    _check_count(identified, n)
     # the identification's gauge (rope 1 at the description's EA) is arbitrary: the
     # description's EA is taken as the ropes' mean, as for the spread
     factors = [float(f) / float(np.mean(identified)) for f in identified]
@@ -196,6 +197,11 @@ def with_rope_stiffness(
         )
     note = f"rope stiffness: the identified factors refused, {said}"
     return dataclasses.replace(searched, notes=(*searched.notes, note))
+
+
+def _check_count(identified: Sequence[float], n: int) -> None:
+    if len(identified) != n:
+        raise ValueError(f"identified: {len(identified)} stiffness factors for {n} ropes")
 
 
 def _spread_searched(

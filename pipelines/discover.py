@@ -256,6 +256,10 @@ def discover_period(
         No samples landed for the hoist in the period.
     ValueError
         No trip in the period.
+
+    The ropes are identified on a thread of their own while the record is planned; an
+    error of the discovery waits for the identification to end before it is raised,
+    and an identification that fails fails the discovery.
     """
     started = utc_now()
     hoist = load_hoist(hoist_path)
@@ -273,7 +277,7 @@ def discover_period(
     logger.info("discover %s/%s %s .. %s: replaying trips", site, name, p_start, p_end)
     # the ropes as the compensation identifies them (remembered under the data root),
     # identified beside the record's first replays: the plan asks for them once it has
-    # searched the stiffness spread (its Nelder-Mead polish leaves a core free)
+    # searched the stiffness spread (the identification's polish runs on one core)
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="ropes") as pool:
         ropes = pool.submit(identified_stiffness_factors, samples, hoist, data=data)
         result = discover_in_record(

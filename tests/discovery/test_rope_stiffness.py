@@ -107,12 +107,12 @@ def test_identified_factors_name_the_ropes_and_replay_to_the_noise(spread_day):
     world's own factors, as a perfect identification would give them) are used in rope
     order and replay the record to the noise."""
     base, day = spread_day
-    plan = plan_replay(day.sensors, base, settle_s=20.0, stiffness_factors=_WORLD)
+    # given as a function (``ropeload discover`` identifies them meanwhile)
+    plan = plan_replay(day.sensors, base, settle_s=20.0, stiffness_factors=lambda: _WORLD)
     assert plan.hoist.ropes.head_rope_stiffness_factors == pytest.approx(_WORLD)
     assert any("as identified from the logged piston positions" in n for n in plan.notes)
     assert replay_fitted(plan, passes=2).rms_gap_pa(plan) < 1.3 * plan.noise_sigma_pa
-    # given as a function (an identification running meanwhile), called once, after
-    # the spread's search: the same choice and notes
+    # a function is called once and gives the choice and notes the factors give
     equal = dataclasses.replace(plan, hoist=with_stiffness_factors(plan.hoist, None))
     slides = piston_slides_m(day.sensors, 4)
     given = with_rope_stiffness(equal, slides, _WORLD)

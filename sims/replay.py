@@ -34,10 +34,10 @@ finite-difference steps, its candidates switched on); :func:`side_by_side` runs 
 choice's candidate fits side by side; the Jacobian is refreshed every
 :data:`REPLAY_JACOBIAN_EVERY` steps. On the independent simulator's trials records
 (2 h, 12 trips in 4 blocks, 2 cores; ``benchmarks/eval_discovery.py --trials``)
-``ropeload discover`` took a median 49.5 s, at most 94 s, a record (session 22, with
-the groove-wear scan's walk, :mod:`discovery.columns`; 66.6 and 190 s with a Jacobian
-every 10th step and each replay's blocks alone on the threads, 168 and 372 s on one
-thread).
+``ropeload discover`` took a median 44.6 s, at most 72 s, a record (session 23, with
+discovery's columns reused after an effect is added, :mod:`discovery.record_rereading`;
+49.5 and 94 s at session 22; 66.6 and 190 s with a Jacobian every 10th step and each
+replay's blocks alone on the threads, 168 and 372 s on one thread).
 
 Accuracy note: the device simulation's sensor pressures change by ~13 kPa RMS between
 ``dt_s`` = 2 ms and 5 ms (friction stick-slip transitions), so replaying synthetic data

@@ -60,6 +60,7 @@ from discovery.record import (
     read_record,
     trailing_window_end,
     trip_timing,
+    window_end,
 )
 from discovery.replay_choices import choose_motion, read_ropes
 from discovery.rope_stiffness import IdentifiedFactors, piston_slides_m
@@ -227,7 +228,7 @@ def _planned_trips(
                 restart = True
                 continue
             next_ramp = timing[k + 1]["r0"] if k + 1 < len(motions) else trailing_ramp
-            win_end = min(tm["t_e"] + settle_s, next_ramp, rec.end_t)
+            win_end = window_end(tm["t_e"], next_ramp, settle_s, rec.end_t)
             trip = _planned_trip(
                 rec, hoist, k, tm, (b, restart), win_end, score_rate_hz, logged, notes
             )
@@ -327,7 +328,7 @@ def plan_replay(
         the stiffness spread unless they replay the first trips more than 10 % worse
         than the spread's choice (:func:`discovery.rope_stiffness.with_rope_stiffness`).
         None: the spread. Or a function of no argument returning them (or None), called
-        once the spread has been searched: the identification can run meanwhile
+        once the spread's grid has been replayed: the identification can run meanwhile
         (:data:`discovery.rope_stiffness.IdentifiedFactors`).
 
     Raises

@@ -59,7 +59,7 @@ import numpy as np
 import polars as pl
 
 from schemas.hoist import HoistDescription
-from sims.replay import CLOSER_SHARE, first_trips_gap, first_trips_gaps
+from sims.replay import CLOSER_SHARE, first_trips_gaps
 from sims.replay_plan import ReplayPlan
 
 __all__ = [
@@ -73,9 +73,9 @@ __all__ = [
 ]
 
 #: The ropes' stiffness factors as the compensation identified them, None, or a function
-#: of no argument returning either (called once the spread has been searched, so that the
-#: identification can run beside the record's first replays: ``concurrent.futures.
-#: Future.result``).
+#: of no argument returning either (called once the spread's grid has been replayed, so
+#: that the identification can run beside the record's first replays: ``concurrent.
+#: futures.Future.result``).
 IdentifiedFactors = Sequence[float] | Callable[[], Sequence[float] | None] | None
 
 #: Spreads tried (factor step between neighbouring ropes, sorted by stiffness); the
@@ -156,9 +156,11 @@ def with_rope_stiffness(
     ``slides_m``: each piston's slide over the record (:func:`piston_slides_m`; None
     when the record has no piston positions). ``identified``: the ropes' stiffness
     factors identified from the logged x (module docstring; or a function returning
-    them, called after the spread's search, :data:`IdentifiedFactors`), scaled to a mean
-    of 1 and used unless the first trips replay more than 10 % further from the record
-    with them than with the spread's choice.
+    them, called once the spread's grid has been replayed, :data:`IdentifiedFactors`),
+    scaled to a mean of 1 and used unless the first trips replay more than 10 % further
+    from the record with them than with the spread's choice. They replay beside the
+    spread's refinement (or beside equal ropes when the pistons slid alike), each on a
+    core of its own.
 
     The spread: a description that states its ropes' factors keeps them, and so does a
     record whose pistons all slid, and alike (within a factor 1.5: equal ropes move them
@@ -174,27 +176,35 @@ def with_rope_stiffness(
         return plan
     if identified is not None and not callable(identified):
         _check_count(identified, n)  # before any replay
-    searched, searched_gap = _spread_searched(plan, slides_m)
+    alike = _slid_alike(slides_m)
+    grid = None if alike else _spread_grid(plan)
     if callable(identified):
         identified = identified()
-    if identified is None:
-        return searched
-    _check_count(identified, n)
-    # the identification's gauge (rope 1 at the description's EA) is arbitrary: the
-    # description's EA is taken as the ropes' mean, as for the spread
-    factors = [float(f) / float(np.mean(identified)) for f in identified]
-    gap = first_trips_gap(plan, with_stiffness_factors(hoist, factors), _TRIPS)
-    if searched_gap is None:  # the pistons slid alike: equal ropes, not replayed
-        searched_gap = first_trips_gap(searched, trips=_TRIPS)
+    beside = None
+    if identified is not None:
+        _check_count(identified, n)
+        # the identification's gauge (rope 1 at the description's EA) is arbitrary: the
+        # description's EA is taken as the ropes' mean, as for the spread
+        factors = [float(f) / float(np.mean(identified)) for f in identified]
+        beside = with_stiffness_factors(hoist, factors)
+    # the identified factors replay beside the spread's last replay (its refinement, or
+    # equal ropes when the pistons slid alike): one core each
+    if alike is not None:
+        searched = dataclasses.replace(plan, notes=(*plan.notes, alike))
+        if beside is None:
+            return searched
+        searched_gap, gap = first_trips_gaps([(plan, None), (plan, beside)], _TRIPS)
+    else:
+        searched, searched_gap, gap = _spread_chosen(plan, *grid, beside)
+        if beside is None:
+            return searched
     said = (
         f"{', '.join(f'{f:.3f}' for f in factors)} (replay gap on the first {_TRIPS} trips "
         f"{gap / 1e3:.1f} kPa, the spread's choice {searched_gap / 1e3:.1f} kPa)"
     )
     if gap <= _REFUSED_ABOVE * searched_gap:
         note = f"rope stiffness: as identified from the logged piston positions, {said}"
-        return dataclasses.replace(
-            plan, hoist=with_stiffness_factors(hoist, factors), notes=(*plan.notes, note)
-        )
+        return dataclasses.replace(plan, hoist=beside, notes=(*plan.notes, note))
     note = f"rope stiffness: the identified factors refused, {said}"
     return dataclasses.replace(searched, notes=(*searched.notes, note))
 
@@ -204,39 +214,57 @@ def _check_count(identified: Sequence[float], n: int) -> None:
         raise ValueError(f"identified: {len(identified)} stiffness factors for {n} ropes")
 
 
-def _spread_searched(
-    plan: ReplayPlan, slides_m: np.ndarray | None
-) -> tuple[ReplayPlan, float | None]:
-    """The plan with the spread :func:`with_rope_stiffness` searches, and the first
-    trips' replay gap with it (None when the pistons slid alike: equal ropes kept
-    without a replay)."""
-    hoist = plan.hoist
-    n = hoist.ropes_n
+def _slid_alike(slides_m: np.ndarray | None) -> str | None:
+    """The note keeping equal ropes when every piston slid, and alike (no search); else
+    None."""
     moved = slides_m is not None and np.min(slides_m) > SLIDE_DEADBAND_M
-    if moved and np.max(slides_m) <= _ALIKE_RATIO * np.min(slides_m):
-        note = "rope stiffness: equal ropes kept (the pistons slid alike, {} mm)".format(
-            ", ".join(f"{1e3 * s:.1f}" for s in slides_m)
-        )
-        return dataclasses.replace(plan, notes=(*plan.notes, note)), None
+    if not (moved and np.max(slides_m) <= _ALIKE_RATIO * np.min(slides_m)):
+        return None
+    return "rope stiffness: equal ropes kept (the pistons slid alike, {} mm)".format(
+        ", ".join(f"{1e3 * s:.1f}" for s in slides_m)
+    )
 
-    def spread(width: float) -> HoistDescription:
-        return with_stiffness_factors(hoist, spread_factors(width, n) if width > 0 else None)
 
+def _spread_grid(plan: ReplayPlan) -> tuple[list[float], list[float]]:
+    """Each spread of :data:`SPREAD_GRID` and the first trips' replay gap with it."""
     spreads = list(SPREAD_GRID)
-    gaps = first_trips_gaps([(plan, spread(s)) for s in spreads], _TRIPS)
+    replays = [(plan, _with_spread(plan.hoist, s)) for s in spreads]
+    return spreads, first_trips_gaps(replays, _TRIPS)
+
+
+def _with_spread(hoist: HoistDescription, width: float) -> HoistDescription:
+    factors = spread_factors(width, hoist.ropes_n) if width > 0 else None
+    return with_stiffness_factors(hoist, factors)
+
+
+def _spread_chosen(
+    plan: ReplayPlan,
+    spreads: list[float],
+    gaps: list[float],
+    beside: HoistDescription | None,
+) -> tuple[ReplayPlan, float, float | None]:
+    """The plan with the spread :func:`with_rope_stiffness` chooses from the grid's
+    ``spreads`` and their ``gaps`` (refined by a parabola through the best one and its
+    neighbours), the first trips' replay gap with it, and that of ``plan`` with the
+    ropes of ``beside``, replayed beside the refinement (None without ``beside``)."""
+    hoist = plan.hoist
     best = int(np.argmin(gaps))
+    refined = None
     if 0 < best < len(spreads) - 1 and np.all(np.isfinite(gaps[best - 1 : best + 2])):
         refined = _parabola_minimum(spreads[best - 1 : best + 2], gaps[best - 1 : best + 2])
-        if refined is not None:
-            spreads.append(refined)
-            gaps.append(first_trips_gap(plan, spread(refined), _TRIPS))
-            best = int(np.argmin(gaps))
+    replays = [] if refined is None else [(plan, _with_spread(hoist, refined))]
+    replays += [] if beside is None else [(plan, beside)]
+    ran = first_trips_gaps(replays, _TRIPS) if replays else []
+    beside_gap = ran.pop() if beside is not None else None
+    if refined is not None:
+        spreads, gaps = [*spreads, refined], [*gaps, ran[0]]
+        best = int(np.argmin(gaps))
     said = ", ".join(
         f"{s:.3g}: {g / 1e3:.1f} kPa" for s, g in sorted(zip(spreads, gaps, strict=True))
     )
     if spreads[best] == 0.0 or not gaps[best] < CLOSER_SHARE * gaps[0]:
         note = f"rope stiffness: equal ropes kept (replay gap by spread {said})"
-        return dataclasses.replace(plan, notes=(*plan.notes, note)), gaps[0]
+        return dataclasses.replace(plan, notes=(*plan.notes, note)), gaps[0], beside_gap
     if spreads[best] == SPREAD_GRID[-1]:
         # still falling at the largest spread real ropes plausibly have: the gap is
         # something else (a hidden effect), which a spread would only partly mimic
@@ -244,16 +272,17 @@ def _spread_searched(
             f"rope stiffness: equal ropes kept (the gap falls up to the largest spread "
             f"tried, {SPREAD_GRID[-1]:g}: not a spread; {said})"
         )
-        return dataclasses.replace(plan, notes=(*plan.notes, note)), gaps[0]
-    factors = spread_factors(spreads[best], n)
+        return dataclasses.replace(plan, notes=(*plan.notes, note)), gaps[0], beside_gap
+    factors = spread_factors(spreads[best], hoist.ropes_n)
     note = (
         f"rope stiffness: spread {spreads[best]:.3g} between neighbouring ropes, factors "
         f"{', '.join(f'{f:.3f}' for f in factors)} (replay gap on the first {_TRIPS} trips by "
         f"spread {said})"
     )
-    return dataclasses.replace(
+    chosen = dataclasses.replace(
         plan, hoist=with_stiffness_factors(hoist, factors), notes=(*plan.notes, note)
-    ), gaps[best]
+    )
+    return chosen, gaps[best], beside_gap
 
 
 def _parabola_minimum(xs: list[float], ys: list[float]) -> float | None:

@@ -12,6 +12,7 @@ import pytest
 
 from discovery.cases import hidden_case
 from discovery.planning import plan_replay
+from discovery.record import RAMP_LEAD_S
 from discovery.replay_choices import choose_motion
 from discovery.segmentation import estimate_noise_sigma
 from sims.replay import replay_fitted
@@ -184,7 +185,8 @@ def test_a_payload_change_after_the_last_stop_ends_its_window(null_case):
     assert len(cut_plan.trips) == 2
     last = cut_plan.trips[-1]
     assert _at(cut_plan, last.window_end_s) <= loading
-    assert _at(cut_plan, last.window_end_s) > loading - dt.timedelta(seconds=3)
+    # it ends RAMP_LEAD_S before the ramp the pressure shows, which starts near the loading
+    assert _at(cut_plan, last.window_end_s) > loading - dt.timedelta(seconds=RAMP_LEAD_S + 2.0)
     assert any("payload changes after the last stop" in note for note in cut_plan.notes)
     with_loading = _rms(replay_fitted(cut_plan, passes=3).residuals(cut_plan)[1])
     # the same standstill, the record ending before the loading: the same gap (the
@@ -222,3 +224,20 @@ def test_motion_choice_without_logged_motion_keeps_the_ropes_notes(null_case):
     chosen = choose_motion(no_knots, winder)
     assert chosen.notes == ("rope stiffness: a note",)
     assert chosen.trips is winder.trips
+
+
+def test_a_loading_soon_after_a_stop_is_replayed_from_where_it_started(null_case):
+    """Windows long enough to reach the next loading (60 s of settling; the generator
+    loads 37 s after a stop) end RAMP_LEAD_S before the ramp the pressure shows, so the
+    replay's refit can start the load where the generator did, before the pressure
+    shows it (the seals take its start). Ended at the ramp, the window held trip 1's
+    load back to 150.26 s against the generator's 150 s."""
+    plan, info = null_case
+    truth = info["day"].info["trips"]
+    long = plan_replay(info["day"].sensors, plan.hoist, settle_s=60.0)
+    before, loaded = long.trips[0], long.trips[1]
+    assert before.window_end_s == pytest.approx(loaded.ramp_start_s - RAMP_LEAD_S)
+    assert loaded.ramp_start_s - truth[1]["start_s"] > 0.15  # the pressure shows it late
+    res = replay_fitted(long, passes=3)
+    replayed_from = max(res.ramps_s[1, 0], before.window_end_s)  # as the replay starts it
+    assert replayed_from == pytest.approx(truth[1]["start_s"], abs=0.1)

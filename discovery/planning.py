@@ -58,7 +58,7 @@ from discovery.record import (
     RAMP_MARGIN_S,
     RecordArrays,
     read_record,
-    trailing_window_end,
+    trailing_ramp_start,
     trip_timing,
     window_end,
 )
@@ -328,7 +328,7 @@ def plan_replay(
         the stiffness spread unless they replay the first trips more than 10 % worse
         than the spread's choice (:func:`discovery.rope_stiffness.with_rope_stiffness`).
         None: the spread. Or a function of no argument returning them (or None), called
-        once the spread's grid has been replayed: the identification can run meanwhile
+        after the spread's grid: the identification can run meanwhile
         (:data:`discovery.rope_stiffness.IdentifiedFactors`).
 
     Raises
@@ -360,7 +360,7 @@ def plan_replay(
     first_id = _first_trip_id(rec, number_from)
     for tm, trip_id in zip(timing, rec.trip_ids, strict=True):
         tm["trip_id"] = trip_id - first_id
-    trailing_ramp = trailing_window_end(rec, timing, notes)
+    trailing_ramp = trailing_ramp_start(rec, timing, notes)
 
     def planned(kind: str) -> ReplayPlan:
         # pass 2, the analysed trips: windows, scored samples, the motion driving each

@@ -6,7 +6,8 @@ record: the motions, the quiet standstill and the pressure noise, the common-mod
 pressure (gaps interpolated, 1-s mean), the depths at the standstills. For each motion,
 :func:`trip_timing` finds its start and stop, top speed, depths (completed by the
 winder profile when the record cuts it), the loading ramp before it and the pressure
-levels around it; :func:`trailing_window_end` a load change after the last stop.
+levels around it; :func:`trailing_ramp_start` a load change after the last stop;
+:func:`window_end` where a trip's window ends.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ __all__ = [
     "RAMP_MARGIN_S",
     "RecordArrays",
     "read_record",
-    "trailing_window_end",
+    "trailing_ramp_start",
     "trip_timing",
     "window_end",
 ]
@@ -211,9 +212,10 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
     }
 
 
-def trailing_window_end(rec: RecordArrays, timing: list[dict[str, Any]], notes: list[str]) -> float:
-    """Where the last trip's window ends for a payload change after the last stop
-    (loading for a trip the record does not hold); inf without one."""
+def trailing_ramp_start(rec: RecordArrays, timing: list[dict[str, Any]], notes: list[str]) -> float:
+    """Where a payload change after the last stop (loading for a trip the record does
+    not hold) starts as the pressure shows it; inf without one. The last trip's window
+    ends :data:`RAMP_LEAD_S` before it (:func:`window_end`), as before any other ramp."""
     if timing and not timing[-1]["cut"]:
         r0, _, p_a, p_b = loading_ramp(
             rec.t,
@@ -225,27 +227,25 @@ def trailing_window_end(rec: RecordArrays, timing: list[dict[str, Any]], notes: 
             fallback=False,
         )
         if np.isfinite(r0) and abs(p_b - p_a) > rec.ramp_threshold:
-            # the pressure shows the load change late (seal friction, rope bounce): stop
-            # short of the fitted ramp start, as scoring starts after a ramp's end
             notes.append(
                 f"the payload changes after the last stop (from {r0:.0f} s): "
                 "the last trip's window ends there"
             )
-            return r0 - RAMP_LEAD_S
+            return r0
     return np.inf
 
 
 def window_end(t_stop: float, next_ramp: float, settle_s: float, end_t: float) -> float:
     """Where the window of a trip that stopped at ``t_stop`` ends: ``settle_s`` after
     the stop, :data:`RAMP_LEAD_S` before the next loading ramp the pressure shows
-    (``next_ramp``; inf without one), at the record's end ``end_t``. A ramp that starts
-    within twice the lead of the stop ends the window at the ramp itself.
+    (``next_ramp``; inf without one), at the record's end ``end_t``; but never sooner
+    than :data:`RAMP_LEAD_S` after the stop, nor after the ramp (a ramp that soon after
+    the stop leaves the stop's own settling the lead).
 
     >>> window_end(100.0, 140.0, 30.0, 1e9), window_end(100.0, 125.0, 30.0, 1e9)
     (130.0, 123.0)
-    >>> window_end(100.0, 103.0, 30.0, 1e9)
-    103.0
+    >>> window_end(100.0, 103.0, 30.0, 1e9), window_end(100.0, 101.0, 30.0, 1e9)
+    (102.0, 101.0)
     """
-    before = next_ramp - RAMP_LEAD_S
-    cap = before if before >= t_stop + RAMP_LEAD_S else next_ramp
+    cap = min(next_ramp, max(next_ramp - RAMP_LEAD_S, t_stop + RAMP_LEAD_S))
     return min(t_stop + settle_s, cap, end_t)

@@ -73,9 +73,9 @@ __all__ = [
 ]
 
 #: The ropes' stiffness factors as the compensation identified them, None, or a function
-#: of no argument returning either (called once the spread's grid has been replayed, so
-#: that the identification can run beside the record's first replays: ``concurrent.
-#: futures.Future.result``).
+#: of no argument returning either (called after the spread's grid, or at once when the
+#: pistons slid alike, so that the identification can run beside the record's first
+#: replays: ``concurrent.futures.Future.result``).
 IdentifiedFactors = Sequence[float] | Callable[[], Sequence[float] | None] | None
 
 #: Spreads tried (factor step between neighbouring ropes, sorted by stiffness); the
@@ -156,11 +156,11 @@ def with_rope_stiffness(
     ``slides_m``: each piston's slide over the record (:func:`piston_slides_m`; None
     when the record has no piston positions). ``identified``: the ropes' stiffness
     factors identified from the logged x (module docstring; or a function returning
-    them, called once the spread's grid has been replayed, :data:`IdentifiedFactors`),
-    scaled to a mean of 1 and used unless the first trips replay more than 10 % further
-    from the record with them than with the spread's choice. They replay beside the
-    spread's refinement (or beside equal ropes when the pistons slid alike), each on a
-    core of its own.
+    them, called after the spread's grid, or at once when the pistons slid alike,
+    :data:`IdentifiedFactors`), scaled to a mean of 1 and used unless the first trips
+    replay more than 10 % further from the record with them than with the spread's
+    choice. They replay beside the spread's refinement, when there is one, or beside
+    equal ropes when the pistons slid alike, each on a core of its own.
 
     The spread: a description that states its ropes' factors keeps them, and so does a
     record whose pistons all slid, and alike (within a factor 1.5: equal ropes move them
@@ -189,7 +189,7 @@ def with_rope_stiffness(
         beside = with_stiffness_factors(hoist, factors)
     # the identified factors replay beside the spread's last replay (its refinement, or
     # equal ropes when the pistons slid alike): one core each
-    if alike is not None:
+    if alike:
         searched = dataclasses.replace(plan, notes=(*plan.notes, alike))
         if beside is None:
             return searched

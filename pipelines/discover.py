@@ -277,7 +277,7 @@ def discover_period(
     logger.info("discover %s/%s %s .. %s: replaying trips", site, name, p_start, p_end)
     # the ropes as the compensation identifies them (remembered under the data root),
     # identified beside the record's first replays: the plan asks for them once it has
-    # searched the stiffness spread (the identification's polish runs on one core)
+    # replayed the stiffness spread's grid (the identification's polish runs on one core)
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="ropes") as pool:
         ropes = pool.submit(identified_stiffness_factors, samples, hoist, data=data)
         result = discover_in_record(

@@ -186,7 +186,7 @@ def test_a_payload_change_after_the_last_stop_ends_its_window(null_case):
     last = cut_plan.trips[-1]
     assert _at(cut_plan, last.window_end_s) <= loading
     # it ends RAMP_LEAD_S before the ramp the pressure shows, which starts near the loading
-    assert _at(cut_plan, last.window_end_s) > loading - dt.timedelta(seconds=RAMP_LEAD_S + 2.0)
+    assert _at(cut_plan, last.window_end_s) > loading - dt.timedelta(seconds=RAMP_LEAD_S + 1.0)
     assert any("payload changes after the last stop" in note for note in cut_plan.notes)
     with_loading = _rms(replay_fitted(cut_plan, passes=3).residuals(cut_plan)[1])
     # the same standstill, the record ending before the loading: the same gap (the

@@ -92,20 +92,20 @@ def _simulate_trip(
     names: frozenset[str],
     prm: dict[str, dict[str, Any]],
     start: float,
-    ramp: tuple[float, float],
+    ramp_end: float,
     payloads: tuple[float, float],
     state: DeviceState | None,
 ) -> SimulationResult:
     """Simulate trip ``tr`` from ``start`` [s after ``t_ref``] on, from ``state`` (None:
-    static equilibrium), its payload ``payloads`` (before, after) loaded over ``ramp``
-    (start, end) [s after ``t_ref``]; driven by its logged motion when the plan holds it.
-    Raises ``ValueError`` when the simulation refuses the trip."""
+    static equilibrium), its payload ``payloads`` (before, after) loaded until
+    ``ramp_end``; driven by its logged motion when the plan holds it. Raises
+    ``ValueError`` when the simulation refuses the trip."""
     if tr.motion_knots is not None and tr.motion_knots[0][-1] > start:
         profile = profile_from_knots(
             *tr.motion_knots,
             start_s=start,
             duration_s=max(tr.window_end_s - start, 1e-3),
-            payload_time_s=np.array([ramp[0] - start, ramp[1] - start]),
+            payload_time_s=np.array([0.0, ramp_end - start]),
             payload_kg=np.array([payloads[0], payloads[1]]),
             oil_temp_c=tr.oil_temp_c,
             direction=tr.direction,
@@ -119,7 +119,7 @@ def _simulate_trip(
             tr.window_end_s - start,
             tr.max_speed_m_s,
             tr.oil_temp_c,
-            (ramp[0] - start, ramp[1] - start),
+            (0.0, ramp_end - start),
             payloads[0],
             payloads[1],
         )
@@ -297,14 +297,11 @@ def _block_runs(
             if broken:
                 rows.append((*_not_simulated(tr, n), f"not simulated: {broken}"))
                 continue
-            ramp_start = float(max(ramps[k, 0], prev_end))
-            ramp = (ramp_start, float(max(ramps[k, 1], ramp_start + 1e-3)))
-            # a loading up to HANDOVER_S after the trip before ends: its standstill
-            # simulated, not skipped (one continuous history)
-            start = prev_end if ramp_start - prev_end <= HANDOVER_S else ramp_start
+            start = float(max(ramps[k, 0], prev_end))
+            ramp_end = float(max(ramps[k, 1], start + 1e-3))
             try:
                 payloads = (float(pay_before[k]), float(pay[k]))
-                res = _simulate_trip(plan, tr, names, prm, start, ramp, payloads, state)
+                res = _simulate_trip(plan, tr, names, prm, start, ramp_end, payloads, state)
             except ValueError as exc:
                 failures.append(f"trip {tr.trip_id}: {exc}")
                 broken = f"trip {tr.trip_id} before it could not be simulated ({exc})"
@@ -442,14 +439,6 @@ def replay_fitted(
             ramps_s=ramps,
         )
     return result
-
-
-#: A trip whose loading starts at most this long [s] after the window of the trip before it
-#: ends is simulated from that end, its standstill before the loading included, so the
-#: block's history stays continuous (the planned windows end 2 s before the next ramp
-#: the pressure shows: :data:`discovery.record.RAMP_LEAD_S`); a longer standstill is
-#: skipped, the state handed over as the trip before left it.
-HANDOVER_S = 2.5
 
 
 #: A choice the replay reads off the record (the ropes' damping and stiffness spread, the

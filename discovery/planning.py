@@ -188,7 +188,27 @@ def _planned_trip(
         profile_fit_m=fit,
         cut=tm["cut"],
         motion_knots=knots,
+        x_start_m=_pistons_before(rec, r0) if tm["cut"] != "start" else None,
     )
+
+
+#: The logged piston positions a block starts from are their median over this long
+#: before the trip's window [s] (the logger's 0.1 mm step and ~0.02 mm noise).
+PISTONS_BEFORE_S = 2.0
+
+
+def _pistons_before(rec: RecordArrays, t0: float) -> np.ndarray | None:
+    """Each piston's logged position [m], the median over :data:`PISTONS_BEFORE_S`
+    before ``t0`` (the first as long after it where the record starts there); None
+    without a logged position of every piston there."""
+    if rec.x is None:
+        return None
+    x = rec.x[time_span(rec.t, t0 - PISTONS_BEFORE_S, t0)]
+    if not np.isfinite(x).any(axis=0).all():
+        x = rec.x[time_span(rec.t, t0, t0 + PISTONS_BEFORE_S)]
+    if x.shape[0] == 0 or not np.isfinite(x).any(axis=0).all():
+        return None
+    return np.nanmedian(x, axis=0)
 
 
 def _planned_trips(

@@ -82,6 +82,8 @@ class RecordArrays:
     ramp_threshold: float
     trip_ids: list[int]
     short_trips: list[tuple[int, int, int]]
+    #: the logged piston positions (samples, n) [m]; None unless every one is logged
+    x: np.ndarray | None = None
 
     @property
     def end_t(self) -> float:
@@ -107,6 +109,12 @@ def read_record(samples: pl.DataFrame, hoist: HoistDescription) -> RecordArrays:
         frame["oil_temp_c"].to_numpy().astype(float)
         if "oil_temp_c" in frame.columns
         else np.full(t.size, np.nan)
+    )
+    xcols = [f"x{i}_m" for i in range(1, n + 1)]
+    x = (
+        frame.select(xcols).cast(pl.Float64).to_numpy()
+        if set(xcols) <= set(frame.columns)
+        else None
     )
     motions, trip_ids, short_trips = record_trips(t, speed, depth, hoist)
     if not motions:
@@ -135,7 +143,7 @@ def read_record(samples: pl.DataFrame, hoist: HoistDescription) -> RecordArrays:
     stops = _stop_depths(t, depth, motions, hoist.shaft.depth_m)
     return RecordArrays(
         t_ref, t, p, depth, speed, temp, motions, quiet, sigma, pc, pc_filled, pcs, stops,
-        ramp_threshold, trip_ids, short_trips,
+        ramp_threshold, trip_ids, short_trips, x,
     )  # fmt: skip
 
 

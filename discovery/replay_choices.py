@@ -54,7 +54,12 @@ def read_ropes(
     if factors is None or factors == plan.hoist.ropes.head_rope_stiffness_factors:
         return spread
     again = with_rope_damping(
-        dataclasses.replace(plan, hoist=with_stiffness_factors(plan.hoist, factors)), zeta_read
+        dataclasses.replace(
+            plan,
+            hoist=with_stiffness_factors(plan.hoist, factors),
+            rope_offsets_m=spread.rope_offsets_m,
+        ),
+        zeta_read,
     )
     return dataclasses.replace(again, notes=(*again.notes, *spread.notes[len(damped.notes) :]))
 
@@ -63,20 +68,20 @@ def choose_motion(logged: ReplayPlan, winder: ReplayPlan) -> ReplayPlan:
     """Of two plans of the same trips, driven by the logged speed and by the winder
     profile, the logged one when its first trips replay closer by 10 %, else the winder
     one (``logged``'s hoist for both), with a note of the two gaps."""
+    # the winder plan replays the ropes the logged one read (stiffness, damping, offsets)
+    winder = dataclasses.replace(
+        winder,
+        hoist=logged.hoist,
+        rope_bounce=logged.rope_bounce,
+        rope_offsets_m=logged.rope_offsets_m,
+    )
     if not logged.trips or all(tr.motion_knots is None for tr in logged.trips):
-        return dataclasses.replace(
-            winder, hoist=logged.hoist, rope_bounce=logged.rope_bounce, notes=logged.notes
-        )
-    gaps = first_trips_gaps([(logged, None), (winder, logged.hoist)])
+        return dataclasses.replace(winder, notes=logged.notes)
+    gaps = first_trips_gaps([(logged, None), (winder, None)])
     closer = gaps[0] < CLOSER_SHARE * gaps[1]
     chosen, name = (logged, "logged speed") if closer else (winder, "winder profile")
     note = (
         f"motion: the {name} drives the trips (replay gap on the first 3 trips: logged "
         f"speed {gaps[0] / 1e3:.1f} kPa, winder profile {gaps[1] / 1e3:.1f} kPa)"
     )
-    return dataclasses.replace(
-        chosen,
-        hoist=logged.hoist,
-        rope_bounce=logged.rope_bounce,
-        notes=(*logged.notes, note),
-    )
+    return dataclasses.replace(chosen, notes=(*logged.notes, note))

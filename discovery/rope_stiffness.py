@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Sequence
+from typing import Protocol
 
 import numpy as np
 import polars as pl
@@ -66,17 +67,33 @@ __all__ = [
     "SLIDE_DEADBAND_M",
     "SPREAD_GRID",
     "IdentifiedFactors",
+    "IdentifiedRopes",
     "piston_slides_m",
     "spread_factors",
     "with_rope_stiffness",
     "with_stiffness_factors",
 ]
 
-#: The ropes' stiffness factors as the compensation identified them, None, or a function
-#: of no argument returning either (called after the spread's grid, or at once when the
-#: pistons slid alike, so that the identification can run beside the record's first
-#: replays: ``concurrent.futures.Future.result``).
-IdentifiedFactors = Sequence[float] | Callable[[], Sequence[float] | None] | None
+
+class IdentifiedRopes(Protocol):
+    """The head ropes' constants as the compensation identifies them from the logged x
+    (``transforms.stick_slip.RopeSprings`` is one): rope i pulls its piston with
+    a_i k (s - x_i - c_i)."""
+
+    @property
+    def stiffness_factors(self) -> Sequence[float]: ...  # a_i
+
+    @property
+    def length_offsets_m(self) -> Sequence[float]: ...  # c_i [m]
+
+
+#: The ropes' stiffness factors as the compensation identified them (alone, or with their
+#: length offsets: :class:`IdentifiedRopes`), None, or a function of no argument
+#: returning one of those (called after the spread's grid, or at once when the pistons
+#: slid alike, so that the identification can run beside the record's first replays:
+#: ``concurrent.futures.Future.result``).
+Identified = Sequence[float] | IdentifiedRopes | None
+IdentifiedFactors = Identified | Callable[[], Identified]
 
 #: Spreads tried (factor step between neighbouring ropes, sorted by stiffness); the
 #: validation days' gap is smallest near 0.025 and rises steeply either side.
@@ -175,25 +192,31 @@ def with_rope_stiffness(
     if hoist.ropes.head_rope_stiffness_factors is not None or not plan.trips or n < 2:
         return plan
     if identified is not None and not callable(identified):
-        _check_count(identified, n)  # before any replay
+        _check_count(_factors_of(identified), n)  # before any replay
     alike = _slid_alike(slides_m)
     grid = None if alike else _spread_grid(plan)
     if callable(identified):
         identified = identified()
     beside = None
     if identified is not None:
-        _check_count(identified, n)
+        raw = _factors_of(identified)
+        _check_count(raw, n)
         # the identification's gauge (rope 1 at the description's EA) is arbitrary: the
         # description's EA is taken as the ropes' mean, as for the spread
-        factors = [float(f) / float(np.mean(identified)) for f in identified]
-        beside = with_stiffness_factors(hoist, factors)
-    # the identified factors replay beside the spread's last replay (its refinement, or
+        factors = [float(f) / float(np.mean(raw)) for f in raw]
+        offsets = getattr(identified, "length_offsets_m", None)
+        beside = dataclasses.replace(
+            plan,
+            hoist=with_stiffness_factors(hoist, factors),
+            rope_offsets_m=None if offsets is None else tuple(float(c) for c in offsets),
+        )
+    # the identified ropes replay beside the spread's last replay (its refinement, or
     # equal ropes when the pistons slid alike): one core each
     if alike:
         searched = dataclasses.replace(plan, notes=(*plan.notes, alike))
         if beside is None:
             return searched
-        searched_gap, gap = first_trips_gaps([(plan, None), (plan, beside)], _TRIPS)
+        searched_gap, gap = first_trips_gaps([(plan, None), (beside, None)], _TRIPS)
     else:
         searched, searched_gap, gap = _spread_chosen(plan, *grid, beside)
         if beside is None:
@@ -204,9 +227,14 @@ def with_rope_stiffness(
     )
     if gap <= _REFUSED_ABOVE * searched_gap:
         note = f"rope stiffness: as identified from the logged piston positions, {said}"
-        return dataclasses.replace(plan, hoist=beside, notes=(*plan.notes, note))
+        return dataclasses.replace(beside, notes=(*plan.notes, note))
     note = f"rope stiffness: the identified factors refused, {said}"
     return dataclasses.replace(searched, notes=(*searched.notes, note))
+
+
+def _factors_of(identified: Sequence[float] | IdentifiedRopes) -> Sequence[float]:
+    """The stiffness factors of identified ropes (given alone or with their offsets)."""
+    return getattr(identified, "stiffness_factors", identified)
 
 
 def _check_count(identified: Sequence[float], n: int) -> None:
@@ -241,19 +269,19 @@ def _spread_chosen(
     plan: ReplayPlan,
     spreads: list[float],
     gaps: list[float],
-    beside: HoistDescription | None,
+    beside: ReplayPlan | None,
 ) -> tuple[ReplayPlan, float, float | None]:
     """The plan with the spread :func:`with_rope_stiffness` chooses from the grid's
     ``spreads`` and their ``gaps`` (refined by a parabola through the best one and its
-    neighbours), the first trips' replay gap with it, and that of ``plan`` with the
-    ropes of ``beside``, replayed beside the refinement (None without ``beside``)."""
+    neighbours), the first trips' replay gap with it, and that of the plan ``beside``
+    (the identified ropes), replayed beside the refinement (None without ``beside``)."""
     hoist = plan.hoist
     best = int(np.argmin(gaps))
     refined = None
     if 0 < best < len(spreads) - 1 and np.all(np.isfinite(gaps[best - 1 : best + 2])):
         refined = _parabola_minimum(spreads[best - 1 : best + 2], gaps[best - 1 : best + 2])
     replays = [] if refined is None else [(plan, _with_spread(hoist, refined))]
-    replays += [] if beside is None else [(plan, beside)]
+    replays += [] if beside is None else [(beside, None)]
     ran = first_trips_gaps(replays, _TRIPS) if replays else []
     beside_gap = ran.pop() if beside is not None else None
     if refined is not None:

@@ -49,7 +49,7 @@ import numpy as np
 import polars as pl
 
 from discovery import DiscoveryResult, Finding, discover_in_record
-from pipelines.identified_ropes import identified_stiffness_factors
+from pipelines.identified_ropes import identified_ropes
 from pipelines.lake import scan_lake
 from pipelines.provenance import hoist_run, new_run_id, utc_now
 from schemas.effects import NO_EFFECT
@@ -279,7 +279,7 @@ def discover_period(
     # identified beside the record's first replays: the plan asks for them once it has
     # replayed the stiffness spread's grid (the identification's polish runs on one core)
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="ropes") as pool:
-        ropes = pool.submit(identified_stiffness_factors, samples, hoist, data=data)
+        ropes = pool.submit(identified_ropes, samples, hoist, data=data)
         result = discover_in_record(
             samples,
             hoist,

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 import polars as pl
 
 from pipelines.hoists import hoist_lookup
-from pipelines.identified_ropes import identified_stiffness_factors
+from pipelines.identified_ropes import identified_ropes
 from pipelines.ingest import ingest_paths
 from pipelines.lake import as_utc, scan_lake
 from pipelines.ledger import partition_states
@@ -271,7 +271,7 @@ def check_sanity(
             threshold=PASS_LIMIT_X_NOISE if threshold is None else threshold,
             number_from=record_start(start),  # the run's trips count from its lead-in
             motion=motion,
-            stiffness_factors=identified_stiffness_factors(run_record, description, data=data),
+            stiffness_factors=identified_ropes(run_record, description, data=data),
         )
         step = sanity_step(frame)
     except Exception as exc:

@@ -1,12 +1,14 @@
-"""The head ropes' stiffness factors a replay takes from the compensation (issue 14).
+"""The head ropes' constants a replay takes from the compensation (issue 14).
 
 The replay (:func:`discovery.planning.plan_replay`) needs to know how the head ropes'
 stiffnesses differ, and which rope is which: while the pistons stick, rope i takes
-``k_i / sum(k)`` of a load change, and the piston pushed hardest slides first. The
-compensation identifies exactly that from the logged piston positions
-(:mod:`transforms.rope_identification`); discovery imports no transforms, so the
-pipelines that replay a record (the sanity check, ``ropeload discover``) bring the
-identified factors with them (``stiffness_factors=``).
+``k_i / sum(k)`` of a load change, and the piston pushed hardest slides first. It also
+needs the ropes' length offsets, to start a block with its pistons where the record
+logged them and the seals holding what the ropes leave them
+(:func:`sims.replay.block_pistons`). The compensation identifies both from the logged
+piston positions (:mod:`transforms.rope_identification`); discovery imports no
+transforms, so the pipelines that replay a record (the sanity check, ``ropeload
+discover``) bring the identified ropes with them (``stiffness_factors=``).
 
 The identification reads the record's first two hours (its 0.2 s means) and is
 remembered in ``<data>/cache/rope_springs`` by a digest of those means and the hoist:
@@ -25,25 +27,26 @@ from schemas.hoist import HoistDescription
 from transforms.compensation import CompensationSettings
 from transforms.compensation_record import identification_means
 from transforms.rope_identification import identify_from_means
+from transforms.stick_slip import RopeSprings
 from warehouse.store import DataRoot
 
-__all__ = ["identified_stiffness_factors"]
+__all__ = ["identified_ropes"]
 
 
-def identified_stiffness_factors(
+def identified_ropes(
     samples: pl.DataFrame,
     hoist: HoistDescription,
     *,
     data: DataRoot | None = None,
     settings: CompensationSettings | None = None,
-) -> tuple[float, ...] | None:
-    """Each head rope's stiffness relative to the description's EA, as the compensation
-    identifies it from ``samples`` (landed field samples of one hoist, the record from
-    its first sample); None when nothing identifies them (no logged piston positions, no
-    piston motion, no constants within the bounds fit the logged x) or the description
-    states its ropes' factors (the replay keeps those); as the run, only when every
-    rope's displacement is logged somewhere in ``samples`` and
-    ``settings.rope_springs``.
+) -> RopeSprings | None:
+    """The head ropes' constants (each one's stiffness relative to the description's EA
+    and its length offset) as the compensation identifies them from ``samples`` (landed
+    field samples of one hoist, the record from its first sample); None when nothing
+    identifies them (no logged piston positions, no piston motion, no constants within
+    the bounds fit the logged x) or the description states its ropes' factors (the
+    replay keeps those); as the run, only when every rope's displacement is logged
+    somewhere in ``samples`` and ``settings.rope_springs``.
 
     ``data``: the data root whose ``cache/rope_springs`` remembers identified ropes;
     ``settings``: the compensation's (the seals' drift travel, where they drift).
@@ -61,7 +64,7 @@ def identified_stiffness_factors(
     means = identification_means(record, record["time_utc"][0], hoist, settings)
     cache = None if data is None else data.under("cache", "rope_springs")
     springs = identify_from_means(means, hoist, cache_dir=cache, alternatives=False)
-    return None if springs is None else tuple(springs.stiffness_factors)
+    return springs
 
 
 def _logged(samples: pl.DataFrame, column: str) -> bool:

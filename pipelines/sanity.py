@@ -41,13 +41,13 @@ trip completed by the winder profile fitted to its logged depth
 from __future__ import annotations
 
 import datetime as dt
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import polars as pl
 
 from discovery.planning import plan_replay
+from discovery.rope_stiffness import Identified
 from pipelines.steps import StepOutcome
 from schemas.hoist import HoistDescription
 from schemas.tables import SANITY_CHECKS, conform
@@ -111,7 +111,7 @@ def sanity_check(
     report_to: dt.datetime | None = None,
     number_from: dt.datetime | None = None,
     motion: str = "auto",
-    stiffness_factors: Sequence[float] | None = None,
+    stiffness_factors: Identified = None,
 ) -> pl.DataFrame:
     """Per-trip RMS gap between measured and simulated sensor pressure (``SANITY_CHECKS``).
 
@@ -147,11 +147,12 @@ def sanity_check(
         ``trip_summary`` rows. Default the first sample of ``samples``.
     motion : {"auto", "winder", "logged"}
         What drives each replayed trip (:func:`discovery.planning.plan_replay`).
-    stiffness_factors : sequence of float, optional
-        The head ropes' stiffness factors as the compensation identified them
-        (:func:`pipelines.identified_ropes.identified_stiffness_factors`), which the
-        replay uses instead of the stiffness spread it searches unless they replay the
-        first trips more than 10 % worse (:func:`discovery.planning.plan_replay`).
+    stiffness_factors : sequence of float or identified ropes, optional
+        The head ropes' stiffness factors as the compensation identified them, alone or
+        with their length offsets (:func:`pipelines.identified_ropes.identified_ropes`),
+        which the replay uses instead of the stiffness spread it searches unless they
+        replay the first trips more than 10 % worse (:func:`discovery.planning.plan_replay`);
+        with the offsets each block starts with its pistons where the record logged them.
 
     Returns
     -------

@@ -113,6 +113,7 @@ from typing import Any
 
 import numpy as np
 
+from physics.friction_law import friction_law_at
 from physics.tension import tail_rope_length_m
 from schemas.hoist import G_STANDARD, HoistDescription
 from sims.device_params import (
@@ -120,11 +121,17 @@ from sims.device_params import (
     CYL0,
     EA,
     ETA,
+    FC0,
+    FRIC_ON,
     KF0,
+    KV1,
     LBASE,
     PER,
     PM,
+    PRE_ON,
     RDRUM,
+    SIG0,
+    A,
     Setup,
     T,
     build_par,
@@ -158,6 +165,7 @@ def simulate(
     dt_s: float = 1e-3,
     jacobian_every: int = 10,
     initial_state: DeviceState | None = None,
+    pistons_m: np.ndarray | None = None,
 ) -> SimulationResult:
     """Simulate the connection device, ropes and conveyance over one trip profile.
 
@@ -184,6 +192,11 @@ def simulate(
         must start where the state is: depth within
         :data:`CONTINUATION_DEPTH_TOLERANCE_M`, the same payload and commanded speed,
         and the same effects and parameters (the state's bulk modulus is kept).
+    pistons_m : (n,) array, optional
+        Without ``initial_state``: start at rest with the pistons here [m, in the ropes'
+        frame: rope i stretches by ``eta - x_i`` less its groove offset; only the
+        differences count, the mean is taken as zero], the seals holding what the ropes
+        leave them (:func:`held_start`), instead of where equal tensions put them.
 
     Returns
     -------
@@ -206,6 +219,10 @@ def simulate(
         _check_continuation(initial_state, profile, eff, n)
     setup, y0 = _static_start(hoist, eff, profile)
     z0 = deltas0 = None
+    if initial_state is None and pistons_m is not None:
+        y0, z0, deltas0 = held_start(
+            setup, y0, np.asarray(pistons_m, dtype=float), float(profile.depth(profile.t0_s))
+        )
     if initial_state is not None:
         # continue: every state, the friction memory and the oil's bulk modulus carry over
         y0 = initial_state._vector(profile.t0_s)
@@ -290,6 +307,67 @@ def _static_start(
         y0[b] = p0
         y0[b + 1] = x0[i]
     return setup, y0
+
+
+def held_start(
+    setup: Setup, y0: np.ndarray, pistons_m: np.ndarray, depth_m: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A static start (``y0`` of :func:`_static_start`) with the pistons at ``pistons_m``
+    (their mean taken as zero, so the oil inventory is the static start's) and the seals
+    holding what the ropes leave them at ``depth_m``: the state vector, LuGre z and Maxwell-slip
+    deflections.
+
+    At rest each piston's equation (paper eq 2) is T_i = p A + F_i. The ropes' common
+    stretch is set so that they carry the static weight (sum T_i = n p A, p the static
+    start's equal pressure), and each seal holds F_i = T_i - p A: zero in sum, the
+    ropes' imbalance at these piston positions. A seal holds at most its static
+    friction F_s at p (eq 17); beyond it the piston would have slid, so its friction is
+    clipped there. The bristle that holds F at rest is z = F / sigma_0 (LuGre, eq 15);
+    Maxwell-slip elements deflect together by the d that gives F (each clipped at its
+    share of F_s; :func:`physics.maxwell_slip.maxwell_slip_step`). Without seal friction nothing
+    holds a piston: the static start is returned unchanged.
+    """
+    par, groove = setup.par, setup.groove
+    n = groove.shape[0]
+    z0 = np.zeros(n)
+    deltas0 = np.zeros((n, setup.ms_k.shape[0]))
+    if par[FRIC_ON] == 0.0:
+        return y0, z0, deltas0  # nothing holds a piston: equal tensions place them
+    x = pistons_m - pistons_m.mean()
+    y = y0.copy()
+    depth = depth_m
+    p0 = float(y0[PM])
+    area = par[A]
+    weight = n * p0 * area
+    factors = par[KF0 : KF0 + n]
+    k0 = par[EA] / (par[LBASE] + depth)
+    offsets = depth * groove / par[RDRUM]
+    # sum_i k0 f_i (eta - x_i - o_i) = W
+    eta = (weight / k0 + float(np.sum(factors * (x + offsets)))) / float(np.sum(factors))
+    held = k0 * factors * (eta - x - offsets) - p0 * area
+    _, fs, _, _ = friction_law_at(max(p0, 0.0), par[FC0 : KV1 + 1])
+    held = np.clip(held, -fs, fs)
+    if par[PRE_ON] != 0.0:
+        deltas0 = np.array([_elements_holding(f, setup.ms_k, setup.ms_w * fs) for f in held])
+    else:
+        z0 = held / par[SIG0]
+    y[ETA] = eta
+    for i in range(n):
+        y[CYL0 + PER * i + 1] = x[i]
+    return y, z0, deltas0
+
+
+def _elements_holding(force: float, k: np.ndarray, capacity: np.ndarray) -> np.ndarray:
+    """Deflections of Maxwell-slip elements (stiffnesses ``k``, capacities ``capacity``)
+    moved together from rest until their force is ``force`` (|force| <= sum capacity)."""
+    lo, hi = 0.0, float(np.max(capacity / k))
+    for _ in range(60):  # bisection on the common deflection (the force is monotone in it)
+        mid = 0.5 * (lo + hi)
+        if np.sum(np.minimum(k * mid, capacity)) < abs(force):
+            lo = mid
+        else:
+            hi = mid
+    return np.sign(force) * np.minimum(0.5 * (lo + hi), capacity / k)
 
 
 #: How far [m] a continuing profile's start depth may lie from the state's depth.

@@ -99,9 +99,9 @@ def _simulate_trip(
     state: DeviceState | None,
 ) -> SimulationResult:
     """Simulate trip ``tr`` from ``start`` [s after ``t_ref``] on, from ``state`` (None:
-    static equilibrium), its payload ``payloads`` (before, after) loaded until
-    ``ramp_end``; driven by its logged motion when the plan holds it. Raises
-    ``ValueError`` when the simulation refuses the trip."""
+    at rest, the pistons where :func:`block_pistons` puts them), its payload
+    ``payloads`` (before, after) loaded until ``ramp_end``; driven by its logged motion
+    when the plan holds it. Raises ``ValueError`` when the simulation refuses the trip."""
     if tr.motion_knots is not None and tr.motion_knots[0][-1] > start:
         profile = profile_from_knots(
             *tr.motion_knots,
@@ -134,7 +134,31 @@ def _simulate_trip(
         dt_s=plan.dt_s,
         jacobian_every=REPLAY_JACOBIAN_EVERY,
         initial_state=state,
+        pistons_m=block_pistons(plan, tr) if state is None else None,
     )
+
+
+def block_pistons(plan: ReplayPlan, tr: ReplayTrip) -> np.ndarray | None:
+    """Where a block that starts with trip ``tr`` puts its pistons [m, the ropes'
+    frame]: where the record logged them, shifted by the ropes' identified length
+    offsets (x_i + c_i: rope i pulls with k_i (s - x_i - c_i), so the ropes' imbalance,
+    and with it what each seal holds, is the record's); None (where equal tensions put
+    them) without the offsets or the logged positions.
+
+    Why: the seals hold the pistons wherever the history left them. Deep in the shaft
+    the ropes are long and soft (their rate falls thirteen-fold from the pithead to the
+    bottom of the validation shaft), so a seal's static friction holds a piston
+    millimetres away from equal tensions; only near the pithead do the ropes move it.
+    A block started with equal tensions at the middle level then slid its pistons
+    7-10 mm apart on its first way up, where the record's moved 1-3 mm, and the seals'
+    summed friction, sliding apart instead of presliding together, replayed the run's
+    common-mode pressure up to 170 kPa off (an independent record with nothing hidden,
+    validation trial_010).
+    """
+    if plan.rope_offsets_m is None or tr.x_start_m is None:
+        return None
+    x = np.asarray(tr.x_start_m, dtype=float) + np.asarray(plan.rope_offsets_m, dtype=float)
+    return x if np.all(np.isfinite(x)) else None
 
 
 def _at_scored_samples(
@@ -528,4 +552,5 @@ def _same_replay(a: ReplayPlan, b: ReplayPlan) -> bool:
         == (b.t_ref, b.dt_s, b.score_rate_hz, b.noise_sigma_pa)
         and a.parameters == b.parameters
         and a.hoist == b.hoist
+        and a.rope_offsets_m == b.rope_offsets_m
     )

@@ -34,7 +34,10 @@ class ReplayTrip:
     simulated and scored up to the record's end. ``motion_knots`` (time [s after
     ``t_ref``], speed [m/s, + down], depth [m]) is the logged motion that drives the
     simulation (:mod:`sims.logged_motion`); None for a trip cut at its start (driven by
-    the fitted winder profile).
+    the fitted winder profile). ``x_start_m`` (n,) the pistons' logged positions just
+    before the window [m] (None where they are not logged, or the trip is cut at its
+    start): where a block that starts with this trip puts them
+    (:attr:`ReplayPlan.rope_offsets_m`).
     """
 
     trip_id: int
@@ -63,6 +66,7 @@ class ReplayTrip:
     profile_fit_m: float = 0.0
     cut: str = ""
     motion_knots: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    x_start_m: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         # frozen to the arrays too: a replay's answer is remembered by the very trip
@@ -109,6 +113,12 @@ class ReplayPlan:
     skipped: tuple[SkippedTrip, ...] = ()
     rope_bounce: str = ""
     parameters: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    #: The head ropes' length offsets [m] identified with the stiffness factors the
+    #: hoist carries (``RopeSprings.length_offsets_m``: rope i pulls with
+    #: k_i (s - x_i - c_i)), or None. With them a block starts with its pistons where
+    #: the record logged them (``ReplayTrip.x_start_m``), the seals holding what the ropes
+    #: leave them (:func:`sims.device.held_start`); without, where equal tensions put them.
+    rope_offsets_m: tuple[float, ...] | None = None
 
     @property
     def n_sensors(self) -> int:

@@ -341,14 +341,18 @@ def plan_replay(
         record (ropes, motion) are made with, kept as ``ReplayPlan.parameters``
         (discovery re-reads them once an effect joins the model,
         :func:`discovery.record_rereading.discover_in_record`).
-    stiffness_factors : sequence of float or callable, optional
+    stiffness_factors : sequence of float, identified ropes or callable, optional
         The head ropes' stiffness factors as the compensation identified them from the
         logged piston positions (``RopeSprings.stiffness_factors``,
         :mod:`transforms.rope_identification`), scaled to a mean of 1; used instead of
         the stiffness spread unless they replay the first trips more than 10 % worse
         than the spread's choice (:func:`discovery.rope_stiffness.with_rope_stiffness`).
-        None: the spread. Or a function of no argument returning them (or None), called
-        after the spread's grid: the identification can run meanwhile
+        Given with their length offsets (a ``RopeSprings``,
+        :class:`discovery.rope_stiffness.IdentifiedRopes`), the plan keeps those
+        (``ReplayPlan.rope_offsets_m``) and each block starts with its pistons where the
+        record logged them (:func:`sims.replay.block_pistons`). None: the spread. Or a
+        function of no argument returning one of those (or None), called after the
+        spread's grid: the identification can run meanwhile
         (:data:`discovery.rope_stiffness.IdentifiedFactors`).
 
     Raises

@@ -47,7 +47,12 @@ stiffer ropes ring faster). The first trips' gap cannot tell them apart (13.0 ag
 refused only when they replay the first trips more than 10 % further off than the
 spread's choice (e.g. a rope re-terminated since the identification's record).
 The caller brings them (``plan_replay(stiffness_factors=...)``): discovery imports no
-transforms.
+transforms. Brought with their length offsets (:class:`IdentifiedRopes`), the plan
+keeps those too, and each replay block starts with its pistons where the record logged
+them (:func:`sims.replay.block_pistons`): on an independent record with nothing hidden
+(validation trial_010, 12 trips in 4 blocks) the replay gap fell from 25.9 to 11.6 kPa,
+the blocks started at the middle level no longer sliding their pistons 7-10 mm apart on
+the way up where the record's moved 1-3 mm.
 """
 
 from __future__ import annotations

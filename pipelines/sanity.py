@@ -115,11 +115,13 @@ def sanity_check(
 ) -> pl.DataFrame:
     """Per-trip RMS gap between measured and simulated sensor pressure (``SANITY_CHECKS``).
 
-    The first trip of each replay block starts from rest, with no friction stored in the
-    seals, where the real seals carry what the previous trip left (hundreds of newtons:
-    a few kPa of sensor pressure). It only loads the simulated state and is not
-    reported; give samples from before the period (and ``report_from``) so that the
-    period's first trip follows a replayed one.
+    The first trip of each replay block starts from rest: with the identified ropes'
+    length offsets, its pistons where the record logged them and the seals holding what
+    the ropes leave them (:func:`sims.replay.block_pistons`), else with equal tensions
+    and no friction stored, where the real seals carry what the previous trip left
+    (hundreds of newtons: a few kPa of sensor pressure). It only loads the simulated
+    state and is not reported; give samples from before the period (and
+    ``report_from``) so that the period's first trip follows a replayed one.
 
     Parameters
     ----------

@@ -12,8 +12,10 @@ are simulated:
     simulated sensor pressures at the scored measured timestamps. The trips of a block
     are one continuous history: each continues from the previous one's final state
     (``simulate(..., initial_state=...)``), as the field-day generator and a real hoist
-    do; a block starts in static equilibrium, and its first trip is scored only after
-    its loading ramp (the friction stored before it is unknown).
+    do. A block starts at rest with its pistons where the record logged them and the
+    seals holding what the ropes leave them when the plan has the ropes' identified
+    length offsets (:func:`block_pistons`), else in static equilibrium (equal
+    tensions); its first trip is scored only after its loading ramp.
 :func:`replay_fitted`
     :func:`replay` with the payloads fitted: the payload is the log's free input. It is
     inferred from the static pressure after loading, then corrected once from the

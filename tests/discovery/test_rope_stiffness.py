@@ -167,3 +167,48 @@ def test_a_first_trips_gap_asked_again_is_not_replayed_again(spread_day, monkeyp
     assert first_trips_gap(plan, equal) > 2.0 * gap
     assert first_trips_gap(plan, trips=2) != gap
     assert len(replays) == 3
+
+
+def test_a_later_block_starts_with_the_pistons_where_the_record_logged_them():
+    """The identified ropes with their length offsets (here the world's: its ropes have
+    none) start each block with the pistons where the log has them before the block's
+    first trip and the seals holding what the ropes leave them. Deep in the shaft the
+    seals hold the pistons millimetres from equal tension, so a block started there with
+    equal tensions replays its trips further off; started from the log, to the noise."""
+    base = scenario_hoist("plain")
+    day = _day(with_stiffness_factors(base, _WORLD), 6)
+    x_logged = day.sensors.select([f"x{i}_m" for i in range(1, 5)]).to_numpy()
+    t_logged = (day.sensors["time_utc"] - day.sensors["time_utc"][0]).dt.total_microseconds() / 1e6
+    ropes = _Ropes(tuple(_WORLD), (0.0, 0.0, 0.0, 0.0))
+    gaps = {}
+    for name, given in (("logged", ropes), ("equal tensions", _WORLD)):
+        plan = plan_replay(
+            day.sensors, base, settle_s=20.0, max_trips=4, blocks=2, stiffness_factors=given
+        )
+        later = [tr for tr in plan.trips if tr.block == plan.trips[-1].block]
+        assert later[0].first_in_block
+        assert later[0].start_depth_m > 500.0  # at the bottom
+        if name == "logged":
+            assert plan.rope_offsets_m == (0.0, 0.0, 0.0, 0.0)
+            before = (t_logged.to_numpy() <= later[0].window_start_s) & (
+                t_logged.to_numpy() >= later[0].window_start_s - 2.0
+            )
+            np.testing.assert_allclose(
+                later[0].x_start_m, np.median(x_logged[before], axis=0), atol=1e-12
+            )
+        else:
+            assert plan.rope_offsets_m is None
+        result = replay_fitted(plan, passes=2)
+        residuals = result.residuals(plan)
+        scored = [r for tr, r in zip(plan.trips, residuals, strict=True) if tr in later[1:]]
+        gaps[name] = float(np.sqrt(np.nanmean(np.concatenate(scored) ** 2)))
+    assert gaps["logged"] < 1.7 * plan.noise_sigma_pa
+    assert gaps["logged"] < 0.8 * gaps["equal tensions"]
+
+
+@dataclasses.dataclass(frozen=True)
+class _Ropes:
+    """Identified ropes as ``transforms.stick_slip.RopeSprings`` carries them."""
+
+    stiffness_factors: tuple[float, ...]
+    length_offsets_m: tuple[float, ...]

@@ -341,3 +341,68 @@ def test_stuck_pistons_share_a_load_change_by_rope_stiffness(hoist):
     )
     d_w = 6000.0 * G_STANDARD
     np.testing.assert_allclose(d_t, d_w * np.array(_FACTORS) / sum(_FACTORS), rtol=5e-3)
+
+
+# --- a start with the pistons where a record logged them -----------------------------------
+@pytest.mark.parametrize(
+    "friction_fx",
+    [{"seal_friction"}, {"seal_friction", "presliding_hysteresis"}],
+    ids=["lugre", "maxwell-slip"],
+)
+def test_pistons_started_where_given_stay_and_their_seals_hold_the_ropes_imbalance(
+    hoist, friction_fx
+):
+    """``pistons_m``: at rest eq 2 gives T_i = p A + F_i with the pipes' equal p, so with
+    the pistons placed (not where equal tensions put them) each seal holds its rope's
+    share of the imbalance, T_i = k f_i (eta - x_i), sum T_i = W (hand-computed here), and
+    nothing moves."""
+    stiff = with_stiffness_factors(hoist, _FACTORS)
+    fx = friction_fx | {"oil_compressibility"}
+    depth = 320.0
+    placed = np.array([0.6e-3, -0.4e-3, 0.1e-3, -0.3e-3]) + 5e-3  # the mean does not count
+    r = simulate(stiff, hold(depth_m=depth, duration_s=5.0), effects=fx, pistons_m=placed)
+    assert r.ok, r.message
+    weight = hoist.conveyance.mass_kg * G_STANDARD
+    k = hoist.ropes.head_rope_axial_stiffness_n / (hoist.shaft.headframe_height_m + depth)
+    f = np.array(_FACTORS)
+    x = placed - placed.mean()
+    eta = (weight / k + np.sum(f * x)) / np.sum(f)
+    tension = k * f * (eta - x)
+    area = hoist.cylinders.bore_area_m2
+    p0 = weight / (4 * area)
+    first, last = r.frame.head(1), r.frame.tail(1)
+    _, fs, _, _ = (float(a) for a in friction_parameters(p0, hoist.friction_law))
+    assert np.abs(tension - weight / 4).max() > 0.1 * fs  # an imbalance worth holding
+    assert np.abs(tension - weight / 4).max() < fs
+    for i in range(1, 5):
+        assert float(first[f"x{i}_m"].item()) == pytest.approx(x[i - 1], abs=1e-12)
+        assert float(first[f"tension{i}_n"].item()) == pytest.approx(tension[i - 1], rel=1e-9)
+        assert float(first[f"p_chamber{i}_pa"].item()) == pytest.approx(p0, rel=1e-12)
+        held = tension[i - 1] - p0 * area
+        assert float(first[f"friction{i}_n"].item()) == pytest.approx(held, abs=1e-3 * fs)
+        # held: the pistons stay and so do the forces
+        assert abs(float(last[f"x{i}_m"].item()) - x[i - 1]) < 1e-7
+        assert float(last[f"friction{i}_n"].item()) == pytest.approx(held, abs=1e-2 * fs)
+
+
+def test_a_piston_placed_beyond_what_its_seal_holds_slides_and_without_seals_none_is_held(
+    hoist,
+):
+    """A seal holds at most its static friction F_s: a piston placed 10 mm off equal
+    tension (a rope imbalance of several F_s at 320 m) starts at F_s and slides; without
+    seal friction nothing holds a piston and the start is the equal-tension one."""
+    stiff = with_stiffness_factors(hoist, _FACTORS)
+    placed = np.array([10e-3, -10e-3 / 3, -10e-3 / 3, -10e-3 / 3])
+    fx = {"seal_friction", "oil_compressibility"}
+    r = simulate(stiff, hold(depth_m=320.0, duration_s=5.0), effects=fx, pistons_m=placed)
+    assert r.ok, r.message
+    p0 = hoist.conveyance.mass_kg * G_STANDARD / (4 * hoist.cylinders.bore_area_m2)
+    _, fs, _, _ = (float(a) for a in friction_parameters(p0, hoist.friction_law))
+    first, last = r.frame.head(1), r.frame.tail(1)
+    assert abs(float(first["friction1_n"].item())) == pytest.approx(fs, rel=1e-3)
+    assert abs(float(last["x1_m"].item()) - float(first["x1_m"].item())) > 0.1e-3
+    free = simulate(stiff, hold(depth_m=320.0, duration_s=0.5), effects={"oil_compressibility"},
+                    pistons_m=placed)  # fmt: skip
+    equal = simulate(stiff, hold(depth_m=320.0, duration_s=0.5), effects={"oil_compressibility"})
+    for i in range(1, 5):
+        assert float(free.frame[f"x{i}_m"][0]) == float(equal.frame[f"x{i}_m"][0])

@@ -152,10 +152,11 @@ class FitEngine:
     def _steps(
         self, term: EffectTerm, effects: list[str], params: Params
     ) -> tuple[np.ndarray, list[tuple[list[str], Params]]]:
-        """The term's coordinates at ``params`` and the replays of its forward steps."""
+        """The term's coordinates at ``params`` and the replays of its forward steps
+        (``term.steps``; relative beyond 1 for a term with ``start_scales``)."""
         theta = term.coordinates(self.hoist, params)
         jobs = []
-        for j, step in enumerate(term.steps):
+        for j, step in enumerate(_step_sizes(term, theta)):
             th = theta.copy()
             th[j] += step
             p2 = {k: dict(v) for k, v in params.items()}
@@ -176,7 +177,8 @@ class FitEngine:
                 ok=False,
                 note="simulation failed at a finite-difference step",
             )
-        cols = [(s - s_at) / step for s, step in zip(ran, term.steps, strict=True)]
+        steps = _step_sizes(term, theta)
+        cols = [(s - s_at) / step for s, step in zip(ran, steps, strict=True)]
         return TermColumns(term.name, np.column_stack(cols), np.zeros(s_at.size), theta)
 
     def retune(self, name: str, effects: list[str], params: Params, s0: np.ndarray) -> TermColumns:
@@ -206,7 +208,8 @@ class FitEngine:
         default (not analytic, not null there), remembered for :meth:`candidate`: its
         replay added to ``effects``, then its forward steps there (of those whose
         replay succeeded), each batch sharing the cores (:meth:`sims`); ``delta`` =
-        that replay - ``s0``."""
+        that replay - ``s0``. A term with ``start_scales`` is first walked out from its
+        default (:meth:`_walk_out`) and its columns taken where the walk ended."""
         todo = [
             n
             for n in names
@@ -215,9 +218,11 @@ class FitEngine:
             and not self.lib[n].null_at_default(self.hoist)
         ]
         switched = self.sims([([*effects, n], params) for n in todo])
+        starts = self._walk_out(todo, effects, params, switched)
         stepping = []
         for name, s_on in zip(todo, switched, strict=True):
-            theta, jobs = self._steps(self.lib[name], [*effects, name], params)
+            at, s_on = starts.get(name, (params, s_on))
+            theta, jobs = self._steps(self.lib[name], [*effects, name], at)
             if np.all(np.isfinite(s_on)):
                 stepping.append((name, s_on, theta, jobs))
                 continue
@@ -235,6 +240,50 @@ class FitEngine:
             if cols.ok:
                 cols.delta = s_on - s0
             self.cache[name] = cols
+
+    def _walk_out(
+        self, names: list[str], effects: list[str], params: Params, switched: list[np.ndarray]
+    ) -> dict[str, tuple[Params, np.ndarray]]:
+        """Where each term of ``names`` with ``start_scales`` gives its columns: its
+        coordinate times each factor in turn, while the RSS (per-trip offsets removed)
+        falls, from its default (``switched``: the replays there); the terms walk side
+        by side (:meth:`sims`). {name: (parameters, replay)} of the terms whose walk
+        beat the default by 25 noise variances (as :meth:`start`'s scan); the others
+        keep their default.
+
+        A loss the data put decades from the description's is far outside a
+        finite-difference column's reach there, and its pressures are not linear in the
+        scale over decades; walked out, the column is taken where the loss is about its
+        size and the linear fit finishes from there."""
+        lay = self.layout
+        best: dict[str, tuple[float, Params, np.ndarray]] = {}
+        for name, s_on in zip(names, switched, strict=True):
+            if self.lib[name].start_scales and np.all(np.isfinite(s_on)):
+                best[name] = (self._rss_trip_offsets(lay.y - s_on), params, s_on)
+        rss0 = {name: found[0] for name, found in best.items()}
+        walking = set(best)
+        for step in range(max((len(self.lib[n].start_scales) for n in best), default=0)):
+            moving = [n for n in names if n in walking and step < len(self.lib[n].start_scales)]
+            if not moving:
+                break
+            tries = []
+            for name in moving:
+                term = self.lib[name]
+                theta = term.coordinates(self.hoist, params) * term.start_scales[step]
+                tries.append(merge_parameters(params, name, term.parameters(self.hoist, theta)))
+            ran = self.sims([([*effects, n], at) for n, at in zip(moving, tries, strict=True)])
+            for name, at, s in zip(moving, tries, ran, strict=True):
+                rss = self._rss_trip_offsets(lay.y - s)
+                if rss < best[name][0]:
+                    best[name] = (rss, at, s)
+                else:
+                    walking.discard(name)  # the RSS rises again: past the minimum
+        enough = 25.0 * self.plan.noise_sigma_pa**2
+        return {
+            name: (at, s)
+            for name, (rss, at, s) in best.items()
+            if at is not params and rss0[name] - rss > enough
+        }
 
     def _rss_trip_offsets(self, resid: np.ndarray) -> float:
         """Residual sum of squares after a per-trip common offset (the payload)."""
@@ -426,6 +475,13 @@ class FitEngine:
             )
         self.cache[name] = cols
         return cols
+
+
+def _step_sizes(term: EffectTerm, theta: np.ndarray) -> np.ndarray:
+    """The forward steps of ``term``'s columns at ``theta``: ``term.steps``, in
+    proportion to a coordinate beyond 1 for a term walked out by ``start_scales``."""
+    steps = np.asarray(term.steps, dtype=float)
+    return steps * np.maximum(1.0, np.abs(theta)) if term.start_scales else steps
 
 
 def replay_refitted(

@@ -92,6 +92,7 @@ def _resize(term: EffectTerm, names: tuple[str, ...]) -> EffectTerm:
         term.analytic,
         term.prior_sd,
         term.start_amplitudes,
+        term.start_scales,
     )
 
 

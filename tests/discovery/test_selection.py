@@ -16,7 +16,9 @@ import numpy as np
 import pytest
 
 from discovery import EFFECT_LIBRARY, discover_effects
-from discovery.cases import hidden_case
+from discovery.cases import ORIFICE_LOSS_COEFFICIENT, hidden_case
+from discovery.columns import FitEngine
+from discovery.selection import fitted_baseline
 from sims.noise import NoiseModel
 
 #: Effects found in the plain two-trip scenario (full-shaft trips, loading at the stops)
@@ -118,6 +120,33 @@ def test_local_loss_is_named_on_trips_at_different_winding_speeds():
     excess_before = np.sqrt(max(first.gap_before_pa**2 - noise**2, 0.0))
     excess_after = np.sqrt(max(first.gap_after_pa**2 - noise**2, 0.0))
     assert excess_after < 0.5 * excess_before
+
+
+@pytest.mark.slow
+def test_an_orifice_far_beyond_the_described_one_is_walked_out_to():
+    """The orifice (K = 1000 on the tee -> manifold fittings) described 64 times smaller:
+    the candidate's scale (1 at the description's coefficients, the globe valve's K = 9
+    beside it) is walked out by factors of 4 while the gap falls (``start_scales``) and
+    its columns are taken there, about the orifice's size (a scale of ~40), so the fit
+    starts in reach of it; described right, the walk stays at the description's (a
+    factor 4 more loss fits worse)."""
+    plan, _ = hidden_case("local_loss", trips=3)
+    model = [e for e in plan.hoist.model.effects if e != "local_loss"]
+    walked = {}
+    for shrink in (64.0, 1.0):
+        described = plan.hoist.piping.model_copy(
+            update={
+                "fittings_loss_coefficient_sensor_to_manifold": ORIFICE_LOSS_COEFFICIENT / shrink
+            }
+        )
+        case = dataclasses.replace(plan, hoist=plan.hoist.model_copy(update={"piping": described}))
+        base = fitted_baseline(case, model, {}, passes=2)
+        eng = FitEngine(case, EFFECT_LIBRARY, base)
+        eng.rebase(base, model, {})
+        eng.switch_on_all(["local_loss"], model, {}, eng.layout.flat(base.simulated))
+        walked[shrink] = float(eng.cache["local_loss"].theta0[0])
+    assert 10.0 < walked[64.0] < 100.0
+    assert walked[1.0] == 1.0
 
 
 @pytest.mark.slow

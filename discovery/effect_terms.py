@@ -97,11 +97,14 @@ class EffectTerm:
 
         A calibrated parameter may move within its calibration uncertainty (a Gaussian
         prior, i.e. ridge regression toward the calibrated value); relative priors
-        (``prior_sd`` < 0) scale with the coordinate's value.
+        (``prior_sd`` < 0) scale with the coordinate's value, and so do those of a term
+        with ``start_scales`` beyond 1.
         """
         sd = abs(self.prior_sd)
         if self.prior_sd < 0:
             return np.maximum(sd * np.abs(theta), 1e-12)
+        if self.start_scales:  # a scale walked out: in proportion beyond 1, as its steps
+            return sd * np.maximum(1.0, np.abs(theta))
         return np.full(theta.shape, sd)
 
     def coordinates(

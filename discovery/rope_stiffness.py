@@ -210,6 +210,8 @@ def with_rope_stiffness(
         # description's EA is taken as the ropes' mean, as for the spread
         factors = [float(f) / float(np.mean(raw)) for f in raw]
         offsets = getattr(identified, "length_offsets_m", None)
+        if offsets is not None:
+            _check_count(offsets, n, "length offsets")
         beside = dataclasses.replace(
             plan,
             hoist=with_stiffness_factors(hoist, factors),
@@ -242,9 +244,9 @@ def _factors_of(identified: Sequence[float] | IdentifiedRopes) -> Sequence[float
     return getattr(identified, "stiffness_factors", identified)
 
 
-def _check_count(identified: Sequence[float], n: int) -> None:
+def _check_count(identified: Sequence[float], n: int, what: str = "stiffness factors") -> None:
     if len(identified) != n:
-        raise ValueError(f"identified: {len(identified)} stiffness factors for {n} ropes")
+        raise ValueError(f"identified: {len(identified)} {what} for {n} ropes")
 
 
 def _slid_alike(slides_m: np.ndarray | None) -> str | None:

@@ -227,7 +227,10 @@ class EffectSelector:
             self._state.eng.cache.update(
                 (name, cols)
                 for name, cols in before.eng.cache.items()
-                if cols.ok and name not in added and not lib[name].start_amplitudes
+                if cols.ok
+                and name not in added
+                and not lib[name].start_amplitudes
+                and not lib[name].start_scales  # walked out on the other plan's gap
             )
         return self._iterate(self.max_iterations)
 

@@ -313,7 +313,9 @@ def held_start(
     setup: Setup, y0: np.ndarray, pistons_m: np.ndarray, depth_m: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A static start (``y0`` of :func:`_static_start`) with the pistons at ``pistons_m``
-    (their mean taken as zero, so the oil inventory is the static start's) and the seals
+    (their mean taken as zero, so the oil inventory is the static start's; in the ropes'
+    frame: rope i stretches by ``eta - pistons_m[i]``, any groove offset included, so a
+    groove wear in the model moves the pistons by its offsets at ``depth_m``) and the seals
     holding what the ropes leave them at ``depth_m``: the state vector, LuGre z and Maxwell-slip
     deflections.
 
@@ -333,18 +335,22 @@ def held_start(
     deltas0 = np.zeros((n, setup.ms_k.shape[0]))
     if par[FRIC_ON] == 0.0:
         return y0, z0, deltas0  # nothing holds a piston: equal tensions place them
-    x = pistons_m - pistons_m.mean()
+    # rope i stretches by eta - x_i - o_i (o_i its groove offset at this depth), and the
+    # given positions already hold the record's whole imbalance: the pistons go to
+    # pistons_m - o (mean zero), so that rope i stretches by eta - pistons_m_i
+    offsets = depth_m * groove / par[RDRUM]
+    x = pistons_m - offsets
+    x = x - x.mean()
+    u = x + offsets  # each rope's stretch is eta - u_i
     y = y0.copy()
-    depth = depth_m
     p0 = float(y0[PM])
     area = par[A]
     weight = n * p0 * area
     factors = par[KF0 : KF0 + n]
-    k0 = par[EA] / (par[LBASE] + depth)
-    offsets = depth * groove / par[RDRUM]
-    # sum_i k0 f_i (eta - x_i - o_i) = W
-    eta = (weight / k0 + float(np.sum(factors * (x + offsets)))) / float(np.sum(factors))
-    held = k0 * factors * (eta - x - offsets) - p0 * area
+    k0 = par[EA] / (par[LBASE] + depth_m)
+    # sum_i k0 f_i (eta - u_i) = W
+    eta = (weight / k0 + float(np.sum(factors * u))) / float(np.sum(factors))
+    held = k0 * factors * (eta - u) - p0 * area
     _, fs, _, _ = friction_law_at(max(p0, 0.0), par[FC0 : KV1 + 1])
     held = np.clip(held, -fs, fs)
     if par[PRE_ON] != 0.0:

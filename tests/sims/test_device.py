@@ -344,30 +344,45 @@ def test_stuck_pistons_share_a_load_change_by_rope_stiffness(hoist):
 
 
 # --- a start with the pistons where a record logged them -----------------------------------
+_GROOVES_M = [0.0, 2e-4, -1e-4, 1e-4]
+
+
 @pytest.mark.parametrize(
     "friction_fx",
-    [{"seal_friction"}, {"seal_friction", "presliding_hysteresis"}],
-    ids=["lugre", "maxwell-slip"],
+    [
+        {"seal_friction"},
+        {"seal_friction", "presliding_hysteresis"},
+        {"seal_friction", "groove_wear"},
+    ],
+    ids=["lugre", "maxwell-slip", "lugre-groove-wear"],
 )
 def test_pistons_started_where_given_stay_and_their_seals_hold_the_ropes_imbalance(
     hoist, friction_fx
 ):
     """``pistons_m``: at rest eq 2 gives T_i = p A + F_i with the pipes' equal p, so with
     the pistons placed (not where equal tensions put them) each seal holds its rope's
-    share of the imbalance, T_i = k f_i (eta - x_i), sum T_i = W (hand-computed here), and
-    nothing moves."""
+    share of the imbalance, T_i = k f_i (eta - u_i), sum T_i = W (hand-computed here), and
+    nothing moves. The positions are in the ropes' frame (u_i, a rope's whole imbalance):
+    with a groove wear in the model the pistons sit its offsets o_i = depth dr_i / R
+    away, x_i = u_i - o_i (means zero)."""
     stiff = with_stiffness_factors(hoist, _FACTORS)
     fx = friction_fx | {"oil_compressibility"}
     depth = 320.0
     placed = np.array([0.6e-3, -0.4e-3, 0.1e-3, -0.3e-3]) + 5e-3  # the mean does not count
-    r = simulate(stiff, hold(depth_m=depth, duration_s=5.0), effects=fx, pistons_m=placed)
+    grooves = {"groove_wear": {"groove_radius_deviation_m": _GROOVES_M}}
+    r = simulate(
+        stiff, hold(depth_m=depth, duration_s=5.0), effects=fx, pistons_m=placed,
+        parameters=grooves if "groove_wear" in fx else None,
+    )  # fmt: skip
     assert r.ok, r.message
     weight = hoist.conveyance.mass_kg * G_STANDARD
     k = hoist.ropes.head_rope_axial_stiffness_n / (hoist.shaft.headframe_height_m + depth)
     f = np.array(_FACTORS)
-    x = placed - placed.mean()
-    eta = (weight / k + np.sum(f * x)) / np.sum(f)
-    tension = k * f * (eta - x)
+    u = placed - placed.mean()
+    offsets = depth * np.array(_GROOVES_M) / hoist.drum.radius_m if "groove_wear" in fx else 0.0
+    x = u - offsets + np.mean(offsets)
+    eta = (weight / k + np.sum(f * u)) / np.sum(f)
+    tension = k * f * (eta - u)
     area = hoist.cylinders.bore_area_m2
     p0 = weight / (4 * area)
     first, last = r.frame.head(1), r.frame.tail(1)

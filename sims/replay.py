@@ -36,8 +36,9 @@ finite-difference steps, its candidates switched on); :func:`side_by_side` runs 
 choice's candidate fits side by side; the Jacobian is refreshed every
 :data:`REPLAY_JACOBIAN_EVERY` steps. On the independent simulator's trials records
 (2 h, 12 trips in 4 blocks, 2 cores; ``benchmarks/eval_discovery.py --trials``)
-``ropeload discover`` took a median 45.1 s, at most 141 s, a record (session 24: one
-record's second iteration refines a groove wear along its coordinates, 8 refitted
+``ropeload discover`` took a median 57.3 s, at most 91 s, a record (session 25, with
+the branch losses walked out from the description's; 45.1 and 141 s at session 24, when
+one record's second iteration refined a groove wear along its coordinates, 8 refitted
 replays one after the other, before refusing it; 44.6 and 72 s at session 23, with
 discovery's columns reused after an effect is added, :mod:`discovery.record_rereading`;
 49.5 and 94 s at session 22; 66.6 and 190 s with a Jacobian every 10th step and each

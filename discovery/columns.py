@@ -258,7 +258,9 @@ class FitEngine:
         lay = self.layout
         best: dict[str, tuple[float, Params, np.ndarray]] = {}
         for name, s_on in zip(names, switched, strict=True):
-            if self.lib[name].start_scales and np.all(np.isfinite(s_on)):
+            term = self.lib[name]
+            scalable = np.any(term.coordinates(self.hoist, params) != 0.0)  # 0 stays 0
+            if term.start_scales and scalable and np.all(np.isfinite(s_on)):
                 best[name] = (self._rss_trip_offsets(lay.y - s_on), params, s_on)
         rss0 = {name: found[0] for name, found in best.items()}
         walking = set(best)

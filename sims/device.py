@@ -194,9 +194,9 @@ def simulate(
         and the same effects and parameters (the state's bulk modulus is kept).
     pistons_m : (n,) array, optional
         Without ``initial_state``: start at rest with the pistons here [m, in the ropes'
-        frame: rope i stretches by ``eta - x_i`` less its groove offset; only the
-        differences count, the mean is taken as zero], the seals holding what the ropes
-        leave them (:func:`held_start`), instead of where equal tensions put them.
+        frame: rope i stretches by ``eta - pistons_m[i]``, any groove offset included;
+        only the differences count], the seals holding what the ropes leave them
+        (:func:`held_start`), instead of where equal tensions put them.
 
     Returns
     -------

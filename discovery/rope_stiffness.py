@@ -48,11 +48,12 @@ refused only when they replay the first trips more than 10 % further off than th
 spread's choice (e.g. a rope re-terminated since the identification's record).
 The caller brings them (``plan_replay(stiffness_factors=...)``): discovery imports no
 transforms. Brought with their length offsets (:class:`IdentifiedRopes`), the plan
-keeps those too, and each replay block starts with its pistons where the record logged
-them (:func:`sims.replay.block_pistons`): on an independent record with nothing hidden
-(validation trial_010, 12 trips in 4 blocks) the replay gap fell from 25.9 to 11.6 kPa,
-the blocks started at the middle level no longer sliding their pistons 7-10 mm apart on
-the way up where the record's moved 1-3 mm.
+keeps those too once the factors are kept (they are compared with the spread's choice
+started alike, from equal tensions), and each replay block starts with its pistons where
+the record logged them (:func:`sims.replay.block_pistons`): on an independent record
+with nothing hidden (validation trial_010, 12 trips in 4 blocks) the replay gap fell
+from 25.9 to 11.6 kPa, the blocks started at the middle level no longer sliding their
+pistons 7-10 mm apart on the way up where the record's moved 1-3 mm.
 """
 
 from __future__ import annotations
@@ -212,10 +213,11 @@ def with_rope_stiffness(
         offsets = getattr(identified, "length_offsets_m", None)
         if offsets is not None:
             _check_count(offsets, n, "length offsets")
+            offsets = tuple(float(c) for c in offsets)
+        # compared with the spread like with like: both started with equal tensions (the
+        # offsets place the pistons where the record had them once the factors are kept)
         beside = dataclasses.replace(
-            plan,
-            hoist=with_stiffness_factors(hoist, factors),
-            rope_offsets_m=None if offsets is None else tuple(float(c) for c in offsets),
+            plan, hoist=with_stiffness_factors(hoist, factors), rope_offsets_m=None
         )
     # the identified ropes replay beside the spread's last replay (its refinement, or
     # equal ropes when the pistons slid alike): one core each
@@ -234,7 +236,7 @@ def with_rope_stiffness(
     )
     if gap <= _REFUSED_ABOVE * searched_gap:
         note = f"rope stiffness: as identified from the logged piston positions, {said}"
-        return dataclasses.replace(beside, notes=(*plan.notes, note))
+        return dataclasses.replace(beside, rope_offsets_m=offsets, notes=(*plan.notes, note))
     note = f"rope stiffness: the identified factors refused, {said}"
     return dataclasses.replace(searched, notes=(*searched.notes, note))
 

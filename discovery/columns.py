@@ -257,10 +257,13 @@ class FitEngine:
         size and the linear fit finishes from there."""
         lay = self.layout
         best: dict[str, tuple[float, Params, np.ndarray]] = {}
+        theta0: dict[str, np.ndarray] = {}
         for name, s_on in zip(names, switched, strict=True):
             term = self.lib[name]
-            scalable = np.any(term.coordinates(self.hoist, params) != 0.0)  # 0 stays 0
-            if term.start_scales and scalable and np.all(np.isfinite(s_on)):
+            if not term.start_scales or not np.all(np.isfinite(s_on)):
+                continue
+            theta0[name] = term.coordinates(self.hoist, params)
+            if np.any(theta0[name] != 0.0):  # a zero scale stays zero
                 best[name] = (self._rss_trip_offsets(lay.y - s_on), params, s_on)
         rss0 = {name: found[0] for name, found in best.items()}
         walking = set(best)
@@ -271,7 +274,7 @@ class FitEngine:
             tries = []
             for name in moving:
                 term = self.lib[name]
-                theta = term.coordinates(self.hoist, params) * term.start_scales[step]
+                theta = theta0[name] * term.start_scales[step]
                 tries.append(merge_parameters(params, name, term.parameters(self.hoist, theta)))
             ran = self.sims([([*effects, n], at) for n, at in zip(moving, tries, strict=True)])
             for name, at, s in zip(moving, tries, ran, strict=True):

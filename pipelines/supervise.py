@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import select
 import signal
 import sys
@@ -55,6 +56,20 @@ _DYING_WORDS = (
     b"std::bad_alloc",
     b"cannot allocate memory for thread-local data",
 )
+#: A Rust thread's panic whose next line says the process is starved (a thread that
+#: could not be spawned under ``ulimit -v``, measured: polars' executor panics on
+#: ``Os { code: 11, kind: WouldBlock, message: "Resource temporarily unavailable" }``,
+#: after a blank line, before the allocator's own words): dying words from the blank
+#: line or the panic's line on.
+_STARVED_PANIC = re.compile(
+    rb"(?:(?:^|(?<=\n))\n)?thread '[^'\n]*'[^\n]* panicked at [^\n]*\n[^\n]*"
+    rb"(?:kind: WouldBlock|kind: OutOfMemory|Resource temporarily unavailable"
+    rb"|Cannot allocate memory)"
+)
+#: A Rust thread's panic line (and a blank line before it): held until the panic's next
+#: line says whether it is starved.
+_PANIC_LINE = re.compile(rb"(?:^|(?<=\n))(\n?)thread '[^'\n]*'[^\n]* panicked at ")
+_PANIC_START = b"thread '"
 #: What a starving allocator writes and goes on (a line each time).
 _NOISE = (b"<jemalloc>: ",)
 _GRACE_S = 5.0
@@ -171,7 +186,8 @@ class _Relay:
     """Copies the child's stderr to ours, without what starving allocators say.
 
     From an allocator's or loader's dying words on (:data:`_DYING_WORDS`, anywhere in a
-    line) nothing more is copied; lines of :data:`_NOISE` (jemalloc complaining, once
+    line, or a thread's panic that says the process is starved, :data:`_STARVED_PANIC`)
+    nothing more is copied; lines of :data:`_NOISE` (jemalloc complaining, once
     per attempt: 400 000 lines measured under ``ulimit -v 1500000``) are dropped one by
     one. Text is copied as soon as it arrives (progress bars redraw without a newline),
     except a tail that may be the start of such words, held until it is decided.
@@ -188,8 +204,17 @@ class _Relay:
         if self.dying:
             return b""
         cut = min((i for w in _DYING_WORDS if (i := data.find(w)) >= 0), default=-1)
+        starved = _STARVED_PANIC.search(data)
+        if starved is not None and (cut < 0 or starved.start() < cut):
+            cut = starved.start()
+        undecided = b""
         if cut >= 0:
             self.dying, data = True, data[:cut]
+        else:  # a panic whose next line has not ended yet waits for it
+            for panic in _PANIC_LINE.finditer(data):
+                if data.count(b"\n", panic.end(1)) < 2:
+                    data, undecided = data[: panic.start()], data[panic.start() :]
+                    break
         *lines, tail = data.split(b"\n")
         out = bytearray()
         for line in lines:
@@ -199,8 +224,15 @@ class _Relay:
                 out += line + b"\n"
         if self.dying:
             return bytes(out + tail)
-        if tail.startswith(_NOISE) or any(n.startswith(tail) for n in _NOISE if tail):
-            self._held = tail  # decided by the rest of its line
+        if undecided:  # data ends where the panic's line starts: no tail to hold
+            self._held = undecided
+            return bytes(out + tail)
+        starts = (*_NOISE, _PANIC_START)
+        hold = tail.startswith(starts) or any(n.startswith(tail) for n in starts if tail)
+        if (hold or not tail) and out.endswith(b"\n\n"):  # a panic's blank line, maybe
+            out, tail, hold = out[:-1], b"\n" + tail, True
+        if hold:
+            self._held = tail  # decided by the rest of its line (and the next)
             return bytes(out)
         keep = max(
             (k for w in _DYING_WORDS for k in range(1, len(w)) if tail.endswith(w[:k])),
@@ -236,7 +268,7 @@ class _Relay:
             os.close(self.fd)
             self.fd = None
         held, self._held = self._held, b""
-        if held and not self.dying and not held.startswith(_NOISE):
+        if held and not self.dying and not held.lstrip(b"\n").startswith(_NOISE):
             self._write(held)
 
     def drain(self) -> None:

@@ -277,6 +277,49 @@ def test_allocator_abort_in_the_child_becomes_one_line():
     assert "try fewer --workers" in second
 
 
+#: What polars wrote under ``ulimit -v 1800000`` (a CI run, 2026-11-27) before the
+#: allocator's own last words: a thread it could not spawn.
+STARVED_PANIC = (
+    b"\nthread '<unnamed>' (24483) panicked at crates/polars-async/src/executor/mod.rs:435:26:"
+    b"\ncalled `Result::unwrap()` on an `Err` value: Os { code: 11, kind: WouldBlock, "
+    b'message: "Resource temporarily unavailable" }\nstack backtrace:\n'
+)
+OTHER_PANIC = (
+    b"thread 'main' panicked at src/lib.rs:7:5:\ncalled `Option::unwrap()` on a `None` "
+    b"value\nnote: run with `RUST_BACKTRACE=1`\n"
+)
+
+
+def _relayed(stream: bytes, cut: int) -> tuple[bytes, bool]:
+    """What the relay copies of ``stream`` arriving in two pieces split at ``cut``."""
+    from pipelines.supervise import _Relay
+
+    relay = _Relay(None)
+    out = relay._filter(stream[:cut]) + relay._filter(stream[cut:])
+    held, relay._held = relay._held, b""
+    if held and not relay.dying:
+        out += held  # as at the end of the stream (_Relay._close)
+    return out, relay.dying
+
+
+@pytest.mark.parametrize("cut", range(0, len(b"progress 1/2\n" + STARVED_PANIC) + 1, 7))
+def test_a_thread_that_cannot_be_spawned_is_the_processes_last_words(cut):
+    """A Rust panic whose next line says the process is starved (WouldBlock: no memory
+    for the thread's stack) is dying words from the panic's line on, wherever the
+    pieces of stderr split it; what came before passes through."""
+    out, dying = _relayed(b"progress 1/2\n" + STARVED_PANIC + b"memory allocation of 8", cut)
+    assert dying
+    assert out == b"progress 1/2\n"
+
+
+@pytest.mark.parametrize("cut", range(0, len(b"progress 1/2\n" + OTHER_PANIC) + 1, 7))
+def test_any_other_panic_passes_through_whole(cut):
+    """A panic that is not starvation is the program's own error: copied whole."""
+    out, dying = _relayed(b"progress 1/2\n" + OTHER_PANIC, cut)
+    assert not dying
+    assert out == b"progress 1/2\n" + OTHER_PANIC
+
+
 # ------------------------------------------------------------------ children
 
 SUPERVISED = textwrap.dedent(

@@ -300,7 +300,7 @@ def plan_replay(
     motion: str = "auto",
     number_from: dt.datetime | None = None,
     parameters: Mapping[str, Mapping[str, Any]] | None = None,
-    stiffness_factors: IdentifiedFactors = None,
+    identified_ropes: IdentifiedFactors = None,
 ) -> ReplayPlan:
     """Segment ``samples`` of one hoist into trips and prepare their simulation.
 
@@ -341,7 +341,7 @@ def plan_replay(
         record (ropes, motion) are made with, kept as ``ReplayPlan.parameters``
         (discovery re-reads them once an effect joins the model,
         :func:`discovery.record_rereading.discover_in_record`).
-    stiffness_factors : sequence of float, identified ropes or callable, optional
+    identified_ropes : sequence of float, identified ropes or callable, optional
         The head ropes' stiffness factors as the compensation identified them from the
         logged piston positions (``RopeSprings.stiffness_factors``,
         :mod:`transforms.rope_identification`), scaled to a mean of 1; used instead of
@@ -361,7 +361,7 @@ def plan_replay(
         Required columns missing, no trip (motion of >= 3 s) in the record, or
         stiffness factors not one per rope.
     Exception
-        Whatever a ``stiffness_factors`` function raises.
+        Whatever an ``identified_ropes`` function raises.
     """
     if motion not in ("auto", "winder", "logged"):
         raise ValueError(f"motion: 'auto', 'winder' or 'logged', not {motion!r}")
@@ -411,6 +411,6 @@ def plan_replay(
         planned("winder" if motion == "winder" else "logged"),
         zeta,
         piston_slides_m(samples, hoist.ropes_n),
-        stiffness_factors,
+        identified_ropes,
     )
     return choose_motion(plan, planned("winder")) if motion == "auto" else plan

@@ -60,13 +60,13 @@ def discover_in_record(
     max_trips: int = 12,
     max_iterations: int = 3,
     number_from: dt.datetime | None = None,
-    stiffness_factors: IdentifiedFactors = None,
+    identified_ropes: IdentifiedFactors = None,
     **selector: Any,
 ) -> DiscoveryResult:
     """Discover the effects missing from ``hoist``'s model in the landed ``samples``,
     planning the record again after each effect added (module docstring).
 
-    ``max_trips``, ``number_from`` and ``stiffness_factors`` (the ropes as the
+    ``max_trips``, ``number_from`` and ``identified_ropes`` (the ropes as the
     compensation identified them; each plan weighs them against the stiffness spread
     it searches; a function returning them is called by each plan) go to
     :func:`~discovery.planning.plan_replay`, the ``selector`` keywords (``bootstrap``,
@@ -81,7 +81,7 @@ def discover_in_record(
         hoist,
         max_trips=max_trips,
         number_from=number_from,
-        stiffness_factors=stiffness_factors,
+        identified_ropes=identified_ropes,
     )
     search = EffectSelector(max_iterations=1, **selector).fit(plan)
     first = result = search.result_
@@ -97,7 +97,7 @@ def discover_in_record(
                 max_trips=max_trips,
                 number_from=number_from,
                 parameters=params,
-                stiffness_factors=stiffness_factors,
+                identified_ropes=identified_ropes,
             )
             base = fitted_baseline(again, model, params, passes=selector.get("passes", BASE_PASSES))
             gap = baseline_gap_pa(again, base)

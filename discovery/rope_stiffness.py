@@ -46,7 +46,7 @@ stiffer ropes ring faster). The first trips' gap cannot tell them apart (13.0 ag
 13.2 kPa on day 101), so the spread is still searched and the identified factors are
 refused only when they replay the first trips more than 10 % further off than the
 spread's choice (e.g. a rope re-terminated since the identification's record).
-The caller brings them (``plan_replay(stiffness_factors=...)``): discovery imports no
+The caller brings them (``plan_replay(identified_ropes=...)``): discovery imports no
 transforms. Brought with their length offsets (:class:`IdentifiedRopes`), the plan
 keeps those too once the factors are kept (they are compared with the spread's choice
 started alike, from equal tensions), and each replay block starts with its pistons where

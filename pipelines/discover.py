@@ -285,7 +285,7 @@ def discover_period(
             hoist,
             max_trips=max_trips,
             max_iterations=max_iterations,
-            stiffness_factors=ropes.result,
+            identified_ropes=ropes.result,
         )
         ropes.result()  # an identification that failed fails the discovery, as before
     logger.info(

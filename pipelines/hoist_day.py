@@ -271,7 +271,7 @@ def check_sanity(
             threshold=PASS_LIMIT_X_NOISE if threshold is None else threshold,
             number_from=record_start(start),  # the run's trips count from its lead-in
             motion=motion,
-            stiffness_factors=identified_ropes(run_record, description, data=data),
+            identified_ropes=identified_ropes(run_record, description, data=data),
         )
         step = sanity_step(frame)
     except Exception as exc:

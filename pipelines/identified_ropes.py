@@ -8,7 +8,7 @@ logged them and the seals holding what the ropes leave them
 (:func:`sims.replay.block_pistons`). The compensation identifies both from the logged
 piston positions (:mod:`transforms.rope_identification`); discovery imports no
 transforms, so the pipelines that replay a record (the sanity check, ``ropeload
-discover``) bring the identified ropes with them (``stiffness_factors=``).
+discover``) bring the identified ropes with them (``identified_ropes=``).
 
 The identification reads the record's first two hours (its 0.2 s means) and is
 remembered in ``<data>/cache/rope_springs`` by a digest of those means and the hoist:

@@ -111,7 +111,7 @@ def sanity_check(
     report_to: dt.datetime | None = None,
     number_from: dt.datetime | None = None,
     motion: str = "auto",
-    stiffness_factors: Identified = None,
+    identified_ropes: Identified = None,
 ) -> pl.DataFrame:
     """Per-trip RMS gap between measured and simulated sensor pressure (``SANITY_CHECKS``).
 
@@ -149,7 +149,7 @@ def sanity_check(
         ``trip_summary`` rows. Default the first sample of ``samples``.
     motion : {"auto", "winder", "logged"}
         What drives each replayed trip (:func:`discovery.planning.plan_replay`).
-    stiffness_factors : sequence of float or identified ropes, optional
+    identified_ropes : sequence of float or identified ropes, optional
         The head ropes' stiffness factors as the compensation identified them, alone or
         with their length offsets (:func:`pipelines.identified_ropes.identified_ropes`),
         which the replay uses instead of the stiffness spread it searches unless they
@@ -176,7 +176,7 @@ def sanity_check(
             settle_s=settle_s,
             number_from=number_from,
             motion=motion,
-            stiffness_factors=stiffness_factors,
+            identified_ropes=identified_ropes,
         )
     except ValueError as exc:
         if "no trip" in str(exc):

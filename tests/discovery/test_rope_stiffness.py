@@ -108,7 +108,7 @@ def test_identified_factors_name_the_ropes_and_replay_to_the_noise(spread_day):
     order and replay the record to the noise."""
     base, day = spread_day
     # given as a function (``ropeload discover`` identifies them meanwhile)
-    plan = plan_replay(day.sensors, base, settle_s=20.0, stiffness_factors=lambda: _WORLD)
+    plan = plan_replay(day.sensors, base, settle_s=20.0, identified_ropes=lambda: _WORLD)
     assert plan.hoist.ropes.head_rope_stiffness_factors == pytest.approx(_WORLD)
     assert any("as identified from the logged piston positions" in n for n in plan.notes)
     assert replay_fitted(plan, passes=2).rms_gap_pa(plan) < 1.3 * plan.noise_sigma_pa
@@ -134,14 +134,14 @@ def test_identified_factors_that_replay_worse_than_the_spread_are_refused(spread
     refused, said, and the spread kept."""
     base, day = spread_day
     wrong = [1.0 - 2.0 * (f - 1.0) for f in _WORLD]
-    plan = plan_replay(day.sensors, base, settle_s=20.0, stiffness_factors=wrong)
+    plan = plan_replay(day.sensors, base, settle_s=20.0, identified_ropes=wrong)
     assert any("identified factors refused" in n for n in plan.notes), plan.notes
     factors = plan.hoist.ropes.head_rope_stiffness_factors
     assert factors is not None
     assert factors != wrong
     assert np.diff(np.sort(factors)) == pytest.approx([0.03] * 3, abs=0.006)
     with pytest.raises(ValueError, match="3 stiffness factors for 4 ropes"):
-        plan_replay(day.sensors, base, settle_s=20.0, stiffness_factors=_WORLD[:3])
+        plan_replay(day.sensors, base, settle_s=20.0, identified_ropes=_WORLD[:3])
 
 
 def test_a_first_trips_gap_asked_again_is_not_replayed_again(spread_day, monkeypatch):
@@ -184,7 +184,7 @@ def test_a_later_block_starts_with_the_pistons_where_the_record_logged_them():
     gaps, chosen = {}, {}
     for name, given in (("logged", ropes), ("equal tensions", _WORLD)):
         plan = plan_replay(
-            day.sensors, base, settle_s=20.0, max_trips=4, blocks=2, stiffness_factors=given
+            day.sensors, base, settle_s=20.0, max_trips=4, blocks=2, identified_ropes=given
         )
         later = [tr for tr in plan.trips if tr.block == plan.trips[-1].block]
         assert later[0].first_in_block

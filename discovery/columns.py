@@ -208,7 +208,8 @@ class FitEngine:
         default (not analytic, not null there), remembered for :meth:`candidate`: its
         replay added to ``effects``, then its forward steps there (of those whose
         replay succeeded), each batch sharing the cores (:meth:`sims`); ``delta`` =
-        that replay - ``s0``. A term with ``start_scales`` is first walked out from its
+        that replay - ``s0``. A term with a walk (``start_scales``, ``start_shifts``) is
+        first walked out from its
         default (:meth:`_walk_out`) and its columns taken where the walk ended."""
         todo = [
             n
@@ -244,8 +245,10 @@ class FitEngine:
     def _walk_out(
         self, names: list[str], effects: list[str], params: Params, switched: list[np.ndarray]
     ) -> dict[str, tuple[Params, np.ndarray]]:
-        """Where each term of ``names`` with ``start_scales`` gives its columns: its
-        coordinate times each factor in turn, while the RSS (per-trip offsets removed)
+        """Where each term of ``names`` with a walk gives its columns: its coordinate at
+        each point of :meth:`~discovery.effect_terms.EffectTerm.walk_points` in turn (times
+        each of ``start_scales``, plus each of ``start_shifts``), while the RSS (per-trip
+        offsets removed)
         falls, from its default (``switched``: the replays there); the terms walk side
         by side (:meth:`sims`). {name: (parameters, replay)} of the terms whose walk
         beat the default by 25 noise variances (as :meth:`start`'s scan); the others
@@ -257,24 +260,24 @@ class FitEngine:
         size and the linear fit finishes from there."""
         lay = self.layout
         best: dict[str, tuple[float, Params, np.ndarray]] = {}
-        theta0: dict[str, np.ndarray] = {}
+        points: dict[str, list[np.ndarray]] = {}
         for name, s_on in zip(names, switched, strict=True):
             term = self.lib[name]
-            if not term.start_scales or not np.all(np.isfinite(s_on)):
+            if not term.walks or not np.all(np.isfinite(s_on)):
                 continue
-            theta0[name] = term.coordinates(self.hoist, params)
-            if np.any(theta0[name] != 0.0):  # a zero scale stays zero
+            points[name] = term.walk_points(term.coordinates(self.hoist, params))
+            if points[name]:  # a zero scale stays zero
                 best[name] = (self._rss_trip_offsets(lay.y - s_on), params, s_on)
         rss0 = {name: found[0] for name, found in best.items()}
         walking = set(best)
-        for step in range(max((len(self.lib[n].start_scales) for n in best), default=0)):
-            moving = [n for n in names if n in walking and step < len(self.lib[n].start_scales)]
+        for step in range(max((len(points[n]) for n in best), default=0)):
+            moving = [n for n in names if n in walking and step < len(points[n])]
             if not moving:
                 break
             tries = []
             for name in moving:
                 term = self.lib[name]
-                theta = theta0[name] * term.start_scales[step]
+                theta = points[name][step]
                 tries.append(merge_parameters(params, name, term.parameters(self.hoist, theta)))
             ran = self.sims([([*effects, n], at) for n, at in zip(moving, tries, strict=True)])
             for name, at, s in zip(moving, tries, ran, strict=True):

@@ -93,6 +93,7 @@ def _resize(term: EffectTerm, names: tuple[str, ...]) -> EffectTerm:
         term.prior_sd,
         term.start_amplitudes,
         term.start_scales,
+        term.start_shifts,
     )
 
 

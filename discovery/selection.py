@@ -230,7 +230,7 @@ class EffectSelector:
                 if cols.ok
                 and name not in added
                 and not lib[name].start_amplitudes
-                and not lib[name].start_scales  # walked out on the other plan's gap
+                and not lib[name].walks  # walked out on the other plan's gap
             )
         return self._iterate(self.max_iterations)
 

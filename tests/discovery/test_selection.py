@@ -150,6 +150,30 @@ def test_an_orifice_far_beyond_the_described_one_is_walked_out_to():
 
 
 @pytest.mark.slow
+def test_oil_described_four_times_stiffer_is_walked_down_to_its_modulus():
+    """The world's oil at the hoist's 1.5 GPa, described at 6 GPa (a mine writing down the
+    oil's own modulus while its hoses and air soften it): the candidate's ln(bulk
+    modulus) is walked down by steps of ln 2 / 2 while the gap falls (``start_shifts``)
+    and its columns are taken within two steps of the world's modulus, where the linear
+    fit finishes. The gap is flat about its minimum: described 4x too stiff or right,
+    the walk ends one step softer than the world's (1.06 GPa, measured), never further."""
+    plan, _ = hidden_case("oil_compressibility", trips=3)
+    world = plan.hoist.oil.bulk_modulus_pa
+    model = [e for e in plan.hoist.model.effects if e != "oil_compressibility"]
+    walked = {}
+    for stiffer in (4.0, 1.0):
+        oil = plan.hoist.oil.model_copy(update={"bulk_modulus_pa": stiffer * world})
+        case = dataclasses.replace(plan, hoist=plan.hoist.model_copy(update={"oil": oil}))
+        base = fitted_baseline(case, model, {}, passes=2)
+        eng = FitEngine(case, EFFECT_LIBRARY, base)
+        eng.rebase(base, model, {})
+        eng.switch_on_all(["oil_compressibility"], model, {}, eng.layout.flat(base.simulated))
+        walked[stiffer] = float(np.exp(eng.cache["oil_compressibility"].theta0[0]))
+    assert world / 2.0 < walked[4.0] < world * 2.0
+    assert world / 2.0 < walked[1.0] <= world
+
+
+@pytest.mark.slow
 def test_local_loss_on_equal_speed_trips_is_not_misnamed():
     """The same orifice on trips of one winding speed: its loss is mimicked by
     re-tuning the laminar loss and its viscosity slope (two coordinates for two trip

@@ -56,20 +56,20 @@ _DYING_WORDS = (
     b"std::bad_alloc",
     b"cannot allocate memory for thread-local data",
 )
-#: A Rust thread's panic whose next line says the process is starved (a thread that
-#: could not be spawned under ``ulimit -v``, measured: polars' executor panics on
-#: ``Os { code: 11, kind: WouldBlock, message: "Resource temporarily unavailable" }``,
-#: after a blank line, before the allocator's own words): dying words from the blank
-#: line or the panic's line on.
-_STARVED_PANIC = re.compile(
-    rb"(?:(?:^|(?<=\n))\n)?thread '[^'\n]*'[^\n]* panicked at [^\n]*\n[^\n]*"
-    rb"(?:kind: WouldBlock|kind: OutOfMemory|Resource temporarily unavailable"
-    rb"|Cannot allocate memory)"
-)
-#: A Rust thread's panic line (and a blank line before it): held until the panic's next
-#: line says whether it is starved.
-_PANIC_LINE = re.compile(rb"(?:^|(?<=\n))(\n?)thread '[^'\n]*'[^\n]* panicked at ")
+#: A Rust thread's panic at the start of a line whose next line says the process is
+#: starved (a thread that could not be spawned under ``ulimit -v``, measured: polars'
+#: executor panics on ``Os { code: 11, kind: WouldBlock, message: "Resource temporarily
+#: unavailable" }``, after a blank line, before the allocator's own words): dying words
+#: from the panic's line on (from the blank line before it, if any). Until its next line
+#: has ended, a panic's line is held.
+_PANIC_AT = re.compile(rb"thread '[^'\n]*'[^\n]* panicked at ")
 _PANIC_START = b"thread '"
+_STARVED = (
+    b"kind: WouldBlock",
+    b"kind: OutOfMemory",
+    b"Resource temporarily unavailable",
+    b"Cannot allocate memory",
+)
 #: What a starving allocator writes and goes on (a line each time).
 _NOISE = (b"<jemalloc>: ",)
 _GRACE_S = 5.0
@@ -186,7 +186,7 @@ class _Relay:
     """Copies the child's stderr to ours, without what starving allocators say.
 
     From an allocator's or loader's dying words on (:data:`_DYING_WORDS`, anywhere in a
-    line, or a thread's panic that says the process is starved, :data:`_STARVED_PANIC`)
+    line, or a thread's panic that says the process is starved, :data:`_PANIC_AT`)
     nothing more is copied; lines of :data:`_NOISE` (jemalloc complaining, once
     per attempt: 400 000 lines measured under ``ulimit -v 1500000``) are dropped one by
     one. Text is copied as soon as it arrives (progress bars redraw without a newline),
@@ -198,23 +198,51 @@ class _Relay:
         self.dying = False
         self.noisy = False
         self._held = b""
+        self._line_start = True  # what was copied ended a line (or nothing was)
 
     def _filter(self, data: bytes) -> bytes:
+        out = self._decide(data)
+        if out:
+            self._line_start = out.endswith(b"\n")
+        return out
+
+    def _blank_before(self, data: bytes, at: int) -> int:
+        """``at``, or ``at - 1`` where a blank line ends there."""
+        if at >= 1 and data[at - 1 : at] == b"\n":
+            if data[at - 2 : at - 1] == b"\n" if at >= 2 else self._line_start:
+                return at - 1
+        return at
+
+    def _panic(self, data: bytes) -> tuple[int, bool | None]:
+        """(where it starts, whether it is starved; None: undecided) of the first panic
+        at the start of a line that is starved or undecided; (-1, False) for none."""
+        for found in _PANIC_AT.finditer(data):
+            at = found.start()
+            if not (data[at - 1 : at] == b"\n" if at else self._line_start):
+                continue  # within a line: the program's own text
+            end = data.find(b"\n", at)
+            after = data.find(b"\n", end + 1) if end >= 0 else -1
+            following = data[end + 1 : after if after >= 0 else len(data)] if end >= 0 else b""
+            if any(word in following for word in _STARVED):
+                return self._blank_before(data, at), True
+            if after < 0:
+                return self._blank_before(data, at), None
+        return -1, False
+
+    def _decide(self, data: bytes) -> bytes:
         data, self._held = self._held + data, b""
         if self.dying:
             return b""
         cut = min((i for w in _DYING_WORDS if (i := data.find(w)) >= 0), default=-1)
-        starved = _STARVED_PANIC.search(data)
-        if starved is not None and (cut < 0 or starved.start() < cut):
-            cut = starved.start()
         undecided = b""
+        at, starved = self._panic(data)
+        if at >= 0 and (cut < 0 or at < cut):
+            if starved:
+                cut = at
+            else:  # its next line has not ended: the panic waits for it
+                data, undecided, cut = data[:at], data[at:], -1
         if cut >= 0:
             self.dying, data = True, data[:cut]
-        else:  # a panic whose next line has not ended yet waits for it
-            for panic in _PANIC_LINE.finditer(data):
-                if data.count(b"\n", panic.end(1)) < 2:
-                    data, undecided = data[: panic.start()], data[panic.start() :]
-                    break
         *lines, tail = data.split(b"\n")
         out = bytearray()
         for line in lines:
@@ -229,7 +257,8 @@ class _Relay:
             return bytes(out + tail)
         starts = (*_NOISE, _PANIC_START)
         hold = tail.startswith(starts) or any(n.startswith(tail) for n in starts if tail)
-        if (hold or not tail) and out.endswith(b"\n\n"):  # a panic's blank line, maybe
+        blank = out.endswith(b"\n\n") or (out == b"\n" and self._line_start)
+        if (hold or not tail) and blank:  # a panic's blank line, maybe
             out, tail, hold = out[:-1], b"\n" + tail, True
         if hold:
             self._held = tail  # decided by the rest of its line (and the next)
@@ -268,8 +297,15 @@ class _Relay:
             os.close(self.fd)
             self.fd = None
         held, self._held = self._held, b""
-        if held and not self.dying and not held.lstrip(b"\n").startswith(_NOISE):
-            self._write(held)
+        if self.dying or not held:
+            return
+        cut = min((i for w in _DYING_WORDS if (i := held.find(w)) >= 0), default=-1)
+        if cut >= 0:
+            self.dying, held = True, held[:cut]
+        text = held.lstrip(b"\n")
+        if text.startswith(_NOISE):  # the blank lines before it are the program's
+            held = held[: len(held) - len(text)]
+        self._write(held)
 
     def drain(self) -> None:
         """What is left once the child has ended (processes it started may hold it open)."""

@@ -9,6 +9,7 @@ Real commands, real processes, real signals.
 
 from __future__ import annotations
 
+import itertools
 import os
 import resource
 import signal
@@ -290,34 +291,61 @@ OTHER_PANIC = (
 )
 
 
-def _relayed(stream: bytes, cut: int) -> tuple[bytes, bool]:
-    """What the relay copies of ``stream`` arriving in two pieces split at ``cut``."""
+def _relayed(stream: bytes, *cuts: int) -> tuple[bytes, bool]:
+    """What the relay copies of ``stream`` arriving in pieces split at ``cuts``, to its
+    end (``_Relay._close``), and whether it heard dying words."""
     from pipelines.supervise import _Relay
 
-    relay = _Relay(None)
-    out = relay._filter(stream[:cut]) + relay._filter(stream[cut:])
-    held, relay._held = relay._held, b""
-    if held and not relay.dying:
-        out += held  # as at the end of the stream (_Relay._close)
-    return out, relay.dying
+    relay, copied = _Relay(None), []
+    relay._write = copied.append  # instead of our stderr
+    edges = [0, *cuts, len(stream)]
+    for a, b in itertools.pairwise(edges):
+        copied.append(relay._filter(stream[a:b]))
+    relay._close()
+    return b"".join(copied), relay.dying
 
 
-@pytest.mark.parametrize("cut", range(0, len(b"progress 1/2\n" + STARVED_PANIC) + 1, 7))
-def test_a_thread_that_cannot_be_spawned_is_the_processes_last_words(cut):
-    """A Rust panic whose next line says the process is starved (WouldBlock: no memory
-    for the thread's stack) is dying words from the panic's line on, wherever the
-    pieces of stderr split it; what came before passes through."""
-    out, dying = _relayed(b"progress 1/2\n" + STARVED_PANIC + b"memory allocation of 8", cut)
-    assert dying
-    assert out == b"progress 1/2\n"
+def _splits(stream: bytes):
+    """Every split of ``stream`` in three pieces, at every 5th byte."""
+    for i in range(0, len(stream) + 1, 5):
+        for j in range(i, len(stream) + 1, 5):
+            yield i, j
 
 
-@pytest.mark.parametrize("cut", range(0, len(b"progress 1/2\n" + OTHER_PANIC) + 1, 7))
-def test_any_other_panic_passes_through_whole(cut):
-    """A panic that is not starvation is the program's own error: copied whole."""
-    out, dying = _relayed(b"progress 1/2\n" + OTHER_PANIC, cut)
-    assert not dying
-    assert out == b"progress 1/2\n" + OTHER_PANIC
+@pytest.mark.parametrize(
+    ("before", "after"),
+    [(b"progress 1/2\n", b"progress 1/2\n"), (b"pct 5%", b"pct 5%\n"), (b"", b"")],
+    ids=["after-a-line", "after-a-progress-bar", "first"],
+)
+def test_a_thread_that_cannot_be_spawned_is_the_processes_last_words(before, after):
+    """A Rust panic starting a line whose next line says the process is starved
+    (WouldBlock: no memory for the thread's stack) is dying words from its blank line on,
+    wherever the pieces of stderr split it; what came before passes through, and the
+    newline that ends a progress bar's line is that line's."""
+    stream = before + STARVED_PANIC + b"memory allocation of 8"
+    for i, j in _splits(stream):
+        assert _relayed(stream, i, j) == (after, True), (i, j)
+
+
+@pytest.mark.parametrize(
+    "stream",
+    [
+        b"progress 1/2\n" + OTHER_PANIC,
+        b"pct 5%\n\n" + OTHER_PANIC + b"done\n",
+        b"pct 5%thread 'x' (1) panicked at y:\nkind: WouldBlock\n",  # within a line
+        b"a\n\nb\n\n",
+    ],
+    ids=["panic", "panic-after-a-blank-line", "within-a-line", "blank-lines"],
+)
+def test_any_other_panic_and_blank_lines_pass_through_whole(stream):
+    """A panic that is not starvation is the program's own error, and blank lines are
+    its own text: copied whole, however the pieces split them."""
+    for i, j in _splits(stream):
+        assert _relayed(stream, i, j) == (stream, False), (i, j)
+
+
+def test_a_starving_allocators_complaints_go_but_the_blank_lines_before_stay():
+    assert _relayed(b"a\n\n<jemalloc>: x", 3) == (b"a\n\n", False)
 
 
 # ------------------------------------------------------------------ children

@@ -96,6 +96,10 @@ class EffectTerm:
     start_scales: tuple[float, ...] = ()
     start_shifts: tuple[float, ...] = ()
 
+    def __post_init__(self) -> None:
+        if self.start_scales and self.start_shifts:
+            raise ValueError(f"{self.name}: a walk by start_scales or by start_shifts, not both")
+
     @property
     def walks(self) -> bool:
         """Whether the term is walked out from its default (``start_scales`` or

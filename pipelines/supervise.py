@@ -193,16 +193,23 @@ class _Relay:
     except a tail that may be the start of such words, held until it is decided.
     """
 
-    def __init__(self, fd: int | None) -> None:
+    def __init__(self, fd: int | None, said: bytes = b"") -> None:
         self.fd = fd
         self.dying = False
         self.noisy = False
+        #: whether a line starting with ``said`` (the command's ``ropeload <command>: ``)
+        #: was copied: the child's own one-line error
+        self.said = False
+        self._said = said
         self._held = b""
         self._line_start = True  # what was copied ended a line (or nothing was)
 
     def _filter(self, data: bytes) -> bytes:
         out = self._decide(data)
         if out:
+            if self._said:  # a line of ``out`` starting with it
+                text = (b"\n" if self._line_start else b"") + out
+                self.said |= b"\n" + self._said in text
             self._line_start = out.endswith(b"\n")
         return out
 
@@ -341,7 +348,7 @@ def run_supervised(command: str, limit: MemoryLimit | None) -> int | None:
 
     if capture:
         os.close(write_end)
-    relay = _Relay(read_end if capture else None)
+    relay = _Relay(read_end if capture else None, f"ropeload {command}: ".encode())
     foreground = _in_foreground()
 
     def forward(signum: int, frame: FrameType | None) -> None:
@@ -364,7 +371,8 @@ def run_supervised(command: str, limit: MemoryLimit | None) -> int | None:
     end_children()
     if os.WIFEXITED(status):
         if os.WEXITSTATUS(status) != 0 and relay.dying:  # its last words were swallowed
-            sys.stderr.write(f"ropeload {command}: {out_of_memory(command, limit)}\n")
+            if not relay.said:  # the child's own one line, if it wrote it, is the line
+                sys.stderr.write(f"ropeload {command}: {out_of_memory(command, limit)}\n")
             return 1
         return os.WEXITSTATUS(status)
     signum = os.WTERMSIG(status)
@@ -379,7 +387,8 @@ def run_supervised(command: str, limit: MemoryLimit | None) -> int | None:
     else:
         sys.stderr.write(f"ropeload {command}: killed by {name}\n")
         return 128 + signum
-    sys.stderr.write(f"ropeload {command}: {message}\n")
+    if not relay.said:  # a child that said why it failed and then crashed: its line
+        sys.stderr.write(f"ropeload {command}: {message}\n")
     return 1
 
 

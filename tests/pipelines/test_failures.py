@@ -262,6 +262,39 @@ ABORTING = textwrap.dedent(
 )
 
 
+SAYS_THEN_CRASHES = textwrap.dedent(
+    """
+    import os, resource, signal, sys
+    sys.path.insert(0, sys.argv[1])
+    resource.setrlimit(resource.RLIMIT_AS, (64 * 2**30, resource.RLIM_INFINITY))
+    from pipelines import exits, supervise
+    status = supervise.run_supervised("run", exits.memory_limit())
+    if status is None:  # the child: its own one line, then a crash at exit (measured
+        # under ulimit -v 500000: an ImportError said, then SIGSEGV in the teardown)
+        sys.stderr.write("ropeload run: out of memory (address-space limit 0.5 GiB)\\n")
+        sys.stderr.flush()
+        os.kill(os.getpid(), signal.SIGSEGV)
+    sys.exit(status)
+    """
+)
+
+
+def test_a_child_that_said_its_line_and_then_crashed_is_that_one_line():
+    """The child's own ``ropeload run: ...`` line is the one line: its crash after it
+    (SIGSEGV under an address-space limit) adds no second, and the exit status is 1."""
+    hard = resource.getrlimit(resource.RLIMIT_AS)[1]
+    if hard != resource.RLIM_INFINITY and hard < 64 * 2**30:
+        pytest.skip("a hard address-space limit below 64 GiB is set")
+    done = subprocess.run(
+        [sys.executable, "-c", SAYS_THEN_CRASHES, str(REPO)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 1
+    assert done.stderr.splitlines() == ["ropeload run: out of memory (address-space limit 0.5 GiB)"]
+
+
 def test_allocator_abort_in_the_child_becomes_one_line():
     """Deterministic form of the 1.5 GiB case: what came before the allocator's last
     words passes through, they and the backtrace do not, SIGABRT becomes exit 1."""

@@ -210,7 +210,10 @@ LOSS_START_SCALES = tuple(4.0**k for k in range(1, 9))
 #: fitted as 1.17 GPa and left 34 kPa of a 96 kPa gap; walked, 0.38 GPa and 20 kPa;
 #: described at 0.64 GPa the record replays to 12.8 kPa). The gap is flat about its
 #: minimum, so a walk may end a step softer than the oil (tests/discovery/
-#: test_selection.py); the fit finishes from there.
+#: test_selection.py); the fit finishes from there. A description that quotes the oil's
+#: isothermal modulus at low pressure may be up to ~15-25 % soft (the adiabatic value and
+#: the modulus at working pressure are higher): no walk goes up; the linear fit from the
+#: description's value covers that much.
 BULK_MODULUS_START_SHIFTS = tuple(-0.5 * math.log(2.0) * k for k in range(1, 9))
 
 #: The loss coefficients a ``local_loss`` candidate scales when the description declares

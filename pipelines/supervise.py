@@ -197,8 +197,8 @@ class _Relay:
         self.fd = fd
         self.dying = False
         self.noisy = False
-        #: whether a line starting with ``said`` (the command's ``ropeload <command>: ``)
-        #: was copied: the child's own one-line error
+        #: whether a line starting with ``said`` was copied: the child's own line that
+        #: it ran out of memory (``ropeload <command>: out of memory``)
         self.said = False
         self._said = said
         self._held = b""
@@ -348,7 +348,7 @@ def run_supervised(command: str, limit: MemoryLimit | None) -> int | None:
 
     if capture:
         os.close(write_end)
-    relay = _Relay(read_end if capture else None, f"ropeload {command}: ".encode())
+    relay = _Relay(read_end if capture else None, f"ropeload {command}: out of memory".encode())
     foreground = _in_foreground()
 
     def forward(signum: int, frame: FrameType | None) -> None:
@@ -371,7 +371,7 @@ def run_supervised(command: str, limit: MemoryLimit | None) -> int | None:
     end_children()
     if os.WIFEXITED(status):
         if os.WEXITSTATUS(status) != 0 and relay.dying:  # its last words were swallowed
-            if not relay.said:  # the child's own one line, if it wrote it, is the line
+            if not relay.said:  # the child's own out-of-memory line, if any, is the line
                 sys.stderr.write(f"ropeload {command}: {out_of_memory(command, limit)}\n")
             return 1
         return os.WEXITSTATUS(status)
@@ -387,7 +387,7 @@ def run_supervised(command: str, limit: MemoryLimit | None) -> int | None:
     else:
         sys.stderr.write(f"ropeload {command}: killed by {name}\n")
         return 128 + signum
-    if not relay.said:  # a child that said why it failed and then crashed: its line
+    if not relay.said:  # a child that said it ran out of memory, then crashed: its line
         sys.stderr.write(f"ropeload {command}: {message}\n")
     return 1
 

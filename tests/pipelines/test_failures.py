@@ -269,9 +269,9 @@ SAYS_THEN_CRASHES = textwrap.dedent(
     resource.setrlimit(resource.RLIMIT_AS, (64 * 2**30, resource.RLIM_INFINITY))
     from pipelines import exits, supervise
     status = supervise.run_supervised("run", exits.memory_limit())
-    if status is None:  # the child: its own one line, then a crash at exit (measured
-        # under ulimit -v 500000: an ImportError said, then SIGSEGV in the teardown)
-        sys.stderr.write("ropeload run: out of memory (address-space limit 0.5 GiB)\\n")
+    if status is None:  # the child: its own line, then a crash at exit (measured under
+        # ulimit -v 500000: an ImportError said, then SIGSEGV in the teardown)
+        sys.stderr.write(sys.argv[2] + "\\n")
         sys.stderr.flush()
         os.kill(os.getpid(), signal.SIGSEGV)
     sys.exit(status)
@@ -279,20 +279,33 @@ SAYS_THEN_CRASHES = textwrap.dedent(
 )
 
 
-def test_a_child_that_said_its_line_and_then_crashed_is_that_one_line():
-    """The child's own ``ropeload run: ...`` line is the one line: its crash after it
-    (SIGSEGV under an address-space limit) adds no second, and the exit status is 1."""
+@pytest.mark.parametrize(
+    ("said", "added"),
+    [
+        ("ropeload run: out of memory (address-space limit 0.5 GiB)", False),
+        ("ropeload run: --workers 4 -> 2, to stay within --memory-budget-gb 8", True),
+    ],
+    ids=["out-of-memory", "a-note"],
+)
+def test_a_child_that_said_it_is_out_of_memory_and_crashed_is_that_one_line(said, added):
+    """The child's own ``ropeload run: out of memory ...`` line is the one line: its
+    crash after it (SIGSEGV under an address-space limit) adds no second, and the exit
+    status is 1. After any other line of the child's, the supervisor says why."""
     hard = resource.getrlimit(resource.RLIMIT_AS)[1]
     if hard != resource.RLIM_INFINITY and hard < 64 * 2**30:
         pytest.skip("a hard address-space limit below 64 GiB is set")
     done = subprocess.run(
-        [sys.executable, "-c", SAYS_THEN_CRASHES, str(REPO)],
+        [sys.executable, "-c", SAYS_THEN_CRASHES, str(REPO), said],
         capture_output=True,
         text=True,
         timeout=60,
     )
     assert done.returncode == 1
-    assert done.stderr.splitlines() == ["ropeload run: out of memory (address-space limit 0.5 GiB)"]
+    lines = done.stderr.splitlines()
+    assert lines[0] == said
+    assert len(lines) == 1 + added
+    if added:
+        assert lines[1].startswith("ropeload run: crashed (SIGSEGV), probably out of memory")
 
 
 def test_allocator_abort_in_the_child_becomes_one_line():

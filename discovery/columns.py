@@ -209,8 +209,8 @@ class FitEngine:
         replay added to ``effects``, then its forward steps there (of those whose
         replay succeeded), each batch sharing the cores (:meth:`sims`); ``delta`` =
         that replay - ``s0``. A term with a walk (``start_scales``, ``start_shifts``) is
-        first walked out from its
-        default (:meth:`_walk_out`) and its columns taken where the walk ended."""
+        first walked out from its default (:meth:`_walk_out`) and its columns taken where
+        the walk ended."""
         todo = [
             n
             for n in names
@@ -248,9 +248,8 @@ class FitEngine:
         """Where each term of ``names`` with a walk gives its columns: its coordinate at
         each point of :meth:`~discovery.effect_terms.EffectTerm.walk_points` in turn (times
         each of ``start_scales``, plus each of ``start_shifts``), while the RSS (per-trip
-        offsets removed)
-        falls, from its default (``switched``: the replays there); the terms walk side
-        by side (:meth:`sims`). {name: (parameters, replay)} of the terms whose walk
+        offsets removed) falls, from its default (``switched``: the replays there); the
+        terms walk side by side (:meth:`sims`). {name: (parameters, replay)} of the terms whose walk
         beat the default by 25 noise variances (as :meth:`start`'s scan); the others
         keep their default.
 

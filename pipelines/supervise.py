@@ -75,6 +75,11 @@ _NOISE = (b"<jemalloc>: ",)
 _GRACE_S = 5.0
 
 
+def _dying_words_at(data: bytes) -> int:
+    """Where the first of :data:`_DYING_WORDS` starts in ``data``; -1 for none."""
+    return min((i for w in _DYING_WORDS if (i := data.find(w)) >= 0), default=-1)
+
+
 def _prctl(option: int, value: int) -> bool:
     import ctypes
 
@@ -214,11 +219,12 @@ class _Relay:
         return out
 
     def _blank_before(self, data: bytes, at: int) -> int:
-        """``at``, or ``at - 1`` where a blank line ends there."""
-        if at >= 1 and data[at - 1 : at] == b"\n":
-            if data[at - 2 : at - 1] == b"\n" if at >= 2 else self._line_start:
-                return at - 1
-        return at
+        """``at``, or ``at - 1`` where a blank line ends there (its newline at ``at - 1``
+        follows another newline, or the start of a line already copied)."""
+        if at < 1 or data[at - 1 : at] != b"\n":
+            return at
+        line_started = data[at - 2 : at - 1] == b"\n" if at >= 2 else self._line_start
+        return at - 1 if line_started else at
 
     def _panic(self, data: bytes) -> tuple[int, bool | None]:
         """(where it starts, whether it is starved; None: undecided) of the first panic
@@ -240,7 +246,7 @@ class _Relay:
         data, self._held = self._held + data, b""
         if self.dying:
             return b""
-        cut = min((i for w in _DYING_WORDS if (i := data.find(w)) >= 0), default=-1)
+        cut = _dying_words_at(data)
         undecided = b""
         at, starved = self._panic(data)
         if at >= 0 and (cut < 0 or at < cut):
@@ -306,7 +312,7 @@ class _Relay:
         held, self._held = self._held, b""
         if self.dying or not held:
             return
-        cut = min((i for w in _DYING_WORDS if (i := held.find(w)) >= 0), default=-1)
+        cut = _dying_words_at(held)
         if cut >= 0:
             self.dying, held = True, held[:cut]
         text = held.lstrip(b"\n")

@@ -36,8 +36,10 @@ finite-difference steps, its candidates switched on); :func:`side_by_side` runs 
 choice's candidate fits side by side; the Jacobian is refreshed every
 :data:`REPLAY_JACOBIAN_EVERY` steps. On the independent simulator's trials records
 (2 h, 12 trips in 4 blocks, 2 cores; ``benchmarks/eval_discovery.py --trials``)
-``ropeload discover`` took a median 58.8 s, at most 106 s, a record (session 25, with
-the branch losses walked out from the description's; 45.1 and 141 s at session 24, when
+``ropeload discover`` took a median 39.5 s, at most 67.6 s, a record (session 26, with
+the oil's bulk modulus walked down as well; 38.7 and 65.1 s before that walk; 58.8 and
+106 s at session 25, with the branch losses walked out from the description's, measured
+beside other work; 45.1 and 141 s at session 24, when
 one record's second iteration refined a groove wear along its coordinates, 8 refitted
 replays one after the other, before refusing it; 44.6 and 72 s at session 23, with
 discovery's columns reused after an effect is added, :mod:`discovery.record_rereading`;

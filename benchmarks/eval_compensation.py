@@ -272,6 +272,21 @@ def _mark(ok: bool) -> str:
     return "met" if ok else "NOT met"
 
 
+def _print_windows(title: str, rows: pl.DataFrame) -> None:
+    print(f"  {title}:")
+    print(
+        f"    {'kind':<21} {'position':<8} {'t0 (UTC)':<19} {'before':>8} {'after':>8} "
+        f"{'rope max':>8} {'band':>5}"
+    )
+    for r in rows.iter_rows(named=True):
+        band = "" if r.get("covered") is None else ("in" if r["covered"] else "out")
+        print(
+            f"    {r['kind']:<21} {r['position']:<8} {r['t0']:%Y-%m-%d %H:%M:%S} "
+            f"{r['before_pct']:>+7.2f}% {r['after_pct']:>+7.2f}% {r['rope_max_pct']:>7.2f}% "
+            f"{band:>5}"
+        )
+
+
 def report_day(name: str, errors: pl.DataFrame, windows: int, seconds: float) -> dict:
     """Print the day's figures and targets; return them for the summary table."""
     before = errors["before_pct"].abs()
@@ -312,17 +327,11 @@ def report_day(name: str, errors: pl.DataFrame, windows: int, seconds: float) ->
         )
     else:
         print("  band coverage: n/a (no band); median half-width: n/a (no band)")
-    print("  worst 5 windows (by |after|):")
-    print(
-        f"    {'kind':<21} {'position':<8} {'t0 (UTC)':<19} {'before':>8} {'after':>8} "
-        f"{'rope max':>8}"
-    )
-    worst = errors.with_columns(after.alias("_abs")).sort("_abs", descending=True).head(5)
-    for r in worst.iter_rows(named=True):
-        print(
-            f"    {r['kind']:<21} {r['position']:<8} {r['t0']:%Y-%m-%d %H:%M:%S} "
-            f"{r['before_pct']:>+7.2f}% {r['after_pct']:>+7.2f}% {r['rope_max_pct']:>7.2f}%"
-        )
+    ranked = errors.with_columns(after.alias("_abs")).sort("_abs", descending=True)
+    _print_windows("worst 5 windows (by |after|)", ranked.head(5))
+    if worse:
+        worse_rows = ranked.filter(pl.col("_abs") > pl.col("before_pct").abs() + WORSE_PP)
+        _print_windows("windows worse than raw", worse_rows)
     band = fig["coverage"] is not None
     targets = [
         f"worst <= {TARGET_WORST_PCT} %: {_mark(fig['worst_after'] <= TARGET_WORST_PCT)}",

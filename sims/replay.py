@@ -36,8 +36,9 @@ finite-difference steps, its candidates switched on); :func:`side_by_side` runs 
 choice's candidate fits side by side; the Jacobian is refreshed every
 :data:`REPLAY_JACOBIAN_EVERY` steps. On the independent simulator's trials records
 (2 h, 12 trips in 4 blocks, 2 cores; ``benchmarks/eval_discovery.py --trials``)
-``ropeload discover`` took a median 39.5 s, at most 67.6 s, a record (session 26, with
-the oil's bulk modulus walked down as well; 38.7 and 65.1 s before that walk; 58.8 and
+``ropeload discover`` took a median 36.5 s, at most 62.5 s, a record (session 27, the
+Jacobian every 40th step; 39.5 and 67.6 s at session 26, with the oil's bulk modulus
+walked down as well; 38.7 and 65.1 s before that walk; 58.8 and
 106 s at session 25, with the branch losses walked out from the description's, measured
 beside other work; 45.1 and 141 s at session 24, when
 one record's second iteration refined a groove wear along its coordinates, 8 refitted
@@ -381,10 +382,15 @@ def _run_tasks(tasks: Sequence[Callable[[], T]], costs: Sequence[float]) -> list
 #: the first 8 trips of each validation day at ``dt_s`` = 2 ms, one thread, against a
 #: Jacobian every step (session 22): every 10th step 1.9-6.1 Pa RMS in 2.36-2.55 s;
 #: every 20th 3.7-13.0 Pa RMS (at most 204 Pa from every 10th, on the ringing day) in
-#: 1.63-1.82 s; every 40th 5.9-27.8 Pa RMS in 1.39-1.73 s. Against ~5 kPa of sensor
-#: noise, and kPa that ``dt_s`` itself moves (module docstring), every 20th step makes
-#: replays ~30 % faster for nothing measurable.
-REPLAY_JACOBIAN_EVERY = 20
+#: 1.63-1.82 s; every 40th 5.9-27.8 Pa RMS in 1.39-1.73 s. Again in session 27 (2 h of
+#: each day, 8 trips in 2 blocks, CPU seconds): every 20th 4.7-17.4 Pa RMS in 1.12-1.27 s,
+#: every 40th 6.9-31.8 Pa RMS (at most 2.6 kPa in one sample, on the throttled valve of
+#: day 103) in 1.00-1.19 s, every 80th 12.8-69.9 Pa RMS in 0.98-1.08 s. Against ~5 kPa of
+#: sensor noise, and kPa that ``dt_s`` itself moves (module docstring), every 40th step
+#: makes replays ~40 % faster than every 10th for nothing measurable; a discovery of a
+#: 2 h record that adds an effect (validation trial_002) took 60 s instead of 67 s with
+#: every 20th.
+REPLAY_JACOBIAN_EVERY = 40
 
 #: Threads a replay runs its blocks on: the cores this process may use
 #: (:func:`usable_cores`).

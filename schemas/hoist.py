@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import hashlib
 import tomllib
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from functools import cached_property
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import (
     ValidationError,
@@ -113,6 +113,15 @@ class HoistDescription(Section):
                 f"got {len(factors)}"
             )
         return self
+
+    def model_copy(
+        self, *, update: Mapping[str, Any] | None = None, deep: bool = False
+    ) -> HoistDescription:
+        """pydantic's copy, without the friction law cached from the original (the
+        update may change the ``friction`` or ``cylinders`` it derives from)."""
+        copied = super().model_copy(update=update, deep=deep)
+        copied.__dict__.pop("friction_law", None)
+        return copied
 
     def with_effects(self, effects: Sequence[str]) -> HoistDescription:
         """This hoist with its ``[model] effects`` replaced by ``effects`` (in that order:

@@ -66,6 +66,22 @@ def test_friction_stated_as_equivalent_pressure_converts_to_newtons():
     assert kv_at_5mpa == pytest.approx((0.00121 + 0.000066 * 5) * 1e6 * area / 1e-3)
 
 
+def test_a_copy_with_other_friction_or_bore_has_its_own_friction_law():
+    """The law is cached per description; a copy made after it was read derives its own
+    (the copy's friction set, its bore area), and the original keeps its."""
+    hoist = load_hoist(EXAMPLE_HOIST)
+    before = hoist.friction_law.coulomb_n[0]
+    doubled = hoist.friction.model_copy(update={"coulomb": (0.0584, 0.0518)})
+    assert hoist.model_copy(update={"friction": doubled}).friction_law.coulomb_n[
+        0
+    ] == pytest.approx(2 * before)
+    wider = hoist.cylinders.model_copy(update={"bore_m": 0.2})
+    copied = hoist.model_copy(update={"cylinders": wider})
+    assert copied.cylinders.bore_area_m2 == pytest.approx(4 * hoist.cylinders.bore_area_m2)
+    assert copied.friction_law.coulomb_n[0] == pytest.approx(4 * before)
+    assert hoist.friction_law.coulomb_n[0] == before
+
+
 def test_friction_stated_as_force_in_kn():
     text = _edit(r'^force_unit = "MPa"', 'force_unit = "kN"')
     law = parse_hoist(text).friction_law

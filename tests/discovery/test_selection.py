@@ -150,6 +150,36 @@ def test_an_orifice_far_beyond_the_described_one_is_walked_out_to():
 
 
 @pytest.mark.slow
+def test_seal_friction_described_four_times_stronger_is_walked_down_to_it():
+    """The world's seals at the hoist's friction law, the description's law four times
+    as strong (Coulomb and static): in a model without seal friction the candidate's
+    scale (1 at the description's law) is walked down by factors of 2^(-1/2) while the
+    gap falls (``start_scales``) and its columns are taken within a step of the world's
+    1/4; described right, the walk ends at most one step below the law."""
+    plan, _ = hidden_case("seal_friction", trips=3)
+    model = [e for e in plan.hoist.model.effects if e != "seal_friction"]
+    walked = {}
+    for stronger in (4.0, 1.0):
+        fr = plan.hoist.friction
+        described = fr.model_copy(
+            update={
+                "coulomb": tuple(stronger * v for v in fr.coulomb),
+                "static": tuple(stronger * v for v in fr.static),
+            }
+        )
+        hoist = plan.hoist.model_copy(update={"friction": described})
+        case = dataclasses.replace(plan, hoist=hoist)
+        base = fitted_baseline(case, model, {}, passes=2)
+        eng = FitEngine(case, EFFECT_LIBRARY, base)
+        eng.rebase(base, model, {})
+        eng.switch_on_all(["seal_friction"], model, {}, eng.layout.flat(base.simulated))
+        walked[stronger] = float(eng.cache["seal_friction"].theta0[0])
+    step = 2.0**0.5
+    assert 0.25 / step - 1e-9 <= walked[4.0] <= 0.25 * step + 1e-9  # 0.25, measured
+    assert walked[1.0] >= 1.0 / step - 1e-9  # 1.0, measured
+
+
+@pytest.mark.slow
 def test_oil_described_four_times_stiffer_is_walked_down_to_its_modulus():
     """The world's oil at the hoist's 1.5 GPa, described at 6 GPa (a mine writing down the
     oil's own modulus while its hoses and air soften it): the candidate's ln(bulk

@@ -337,7 +337,7 @@ def _identify(
         else None
     )
 
-    def identify(part: slice) -> RopeSprings | None:
+    def identify(part: slice, threads: int | None = None) -> RopeSprings | None:
         return identify_rope_springs(
             time_s[part],
             tuple(p[part] for p in pressures),
@@ -348,16 +348,23 @@ def _identify(
             branch=branch,
             drift_travel_pa=None if travel is None else travel[part],
             presliding_elements=seal_elements(effects, hoist),
+            threads=threads,
         )
 
-    springs = identify(slice(None))
-    if springs is None or not parts:
-        return springs
+    if not parts:
+        return identify(slice(None))
     splits = min(SPLITS, max(2, time_s.size // PART_MEANS))
     bounds = np.linspace(0, time_s.size, splits + 1).astype(int)
+    # the whole record and its parts are independent searches: one per core, the whole
+    # beside the parts (it costs about what they do together), each search on one
+    # thread; the same constants as one after the other, each on the cores
+    spans = [slice(None), *(slice(lo, hi) for lo, hi in pairwise(bounds))]
+    with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
+        springs, *found = pool.map(lambda span: identify(span, threads=1), spans)
+    if springs is None:
+        return None
     alternatives = []
-    for lo, hi in pairwise(bounds):
-        part = identify(slice(lo, hi))
+    for (lo, hi), part in zip(pairwise(bounds), found, strict=True):
         if part is not None:
             alternatives.append((part.stiffness_factors, part.length_offsets_m))
         else:  # the band leaves that part's ropes out (the others' t takes fewer dof)
@@ -381,6 +388,7 @@ def identify_rope_springs(
     polish_s: float = POLISH_S,
     drift_travel_pa: np.ndarray | None = None,
     presliding_elements: int = 1,
+    threads: int | None = None,
 ) -> RopeSprings | None:
     """The ropes' constants that make the model's piston motion match the logged x.
 
@@ -403,6 +411,9 @@ def identify_rope_springs(
         strided sample stands for); None: the seals do not drift.
     presliding_elements : int
         Maxwell-slip elements per seal (:func:`transforms.stick_slip.stick_slip`).
+    threads : int, optional
+        Threads the global search's members are split over (the result does not
+        depend on it); default up to 2 cores from :data:`THREADED_MEANS` means, else 1.
 
     Returns
     -------
@@ -485,7 +496,8 @@ def identify_rope_springs(
     # a generation's members in one compiled call, or (from THREADED_MEANS) in a call
     # per core: the model releases the GIL
     steps = int(np.isfinite(np.mean(p_sensor, axis=0))[::every].sum())  # the model's work
-    threads = min(2, os.cpu_count() or 1) if steps >= THREADED_MEANS else 1
+    if threads is None:
+        threads = min(2, os.cpu_count() or 1) if steps >= THREADED_MEANS else 1
 
     def generation(u: np.ndarray) -> np.ndarray:  # u: (parameters, members)
         members = np.array_split(u.T * scale, threads)

@@ -443,6 +443,17 @@ def test_the_identification_finds_the_stiffer_rope(stiff_rope_day):
     assert abs(ratios[1] - factors[1]) < min(abs(q - factors[1]) for q in quarters)
     rope_2 = [ratios[1], *quarters]
     assert max(rope_2) - min(rope_2) < 0.08
+    # the whole record was searched on one thread beside its quarters; alone, with the
+    # default threads (the members split over the cores on a long record): the same
+    # ropes to the last bit
+    alone = rope_identification._identify(
+        record_means(samples, samples["time_utc"][0]), HOIST, parts=False
+    )
+    assert (alone.stiffness_factors, alone.length_offsets_m, alone.mismatch_m) == (
+        springs.stiffness_factors,
+        springs.length_offsets_m,
+        springs.mismatch_m,
+    )
 
 
 def _means_at_rest() -> pl.DataFrame:

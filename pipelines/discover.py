@@ -277,7 +277,9 @@ def discover_period(
     logger.info("discover %s/%s %s .. %s: replaying trips", site, name, p_start, p_end)
     # the ropes as the compensation identifies them (remembered under the data root),
     # identified beside the record's first replays: the plan asks for them once it has
-    # replayed the stiffness spread's grid (the identification's polish runs on one core)
+    # replayed the stiffness spread's grid (the cores are shared: on validation trial_004
+    # the discovery took 27.9-28.6 s with the identification's searches on both cores,
+    # 27.8-28.5 s with them one after the other, session 27)
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="ropes") as pool:
         ropes = pool.submit(identified_ropes, samples, hoist, data=data)
         result = discover_in_record(

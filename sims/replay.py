@@ -36,9 +36,9 @@ finite-difference steps, its candidates switched on); :func:`side_by_side` runs 
 choice's candidate fits side by side; the Jacobian is refreshed every
 :data:`REPLAY_JACOBIAN_EVERY` steps. On the independent simulator's trials records
 (2 h, 12 trips in 4 blocks, 2 cores; ``benchmarks/eval_discovery.py --trials``)
-``ropeload discover`` took a median 36.5 s, at most 62.5 s, a record (session 27, the
-Jacobian every 40th step; 39.5 and 67.6 s at session 26, with the oil's bulk modulus
-walked down as well; 38.7 and 65.1 s before that walk; 58.8 and
+``ropeload discover`` took a median 36.5-39.1 s, at most 62.5-68.9 s, a record (three
+runs of session 27, the Jacobian every 40th step; 39.5 and 67.6 s at session 26, with
+the oil's bulk modulus walked down as well; 38.7 and 65.1 s before that walk; 58.8 and
 106 s at session 25, with the branch losses walked out from the description's, measured
 beside other work; 45.1 and 141 s at session 24, when
 one record's second iteration refined a groove wear along its coordinates, 8 refitted
@@ -389,7 +389,7 @@ def _run_tasks(tasks: Sequence[Callable[[], T]], costs: Sequence[float]) -> list
 #: sensor noise, and kPa that ``dt_s`` itself moves (module docstring), every 40th step
 #: makes replays ~40 % faster than every 10th for nothing measurable; a discovery of a
 #: 2 h record that adds an effect (validation trial_002) took 60 s instead of 67 s with
-#: every 20th.
+#: every 20th (one run each, back to back).
 REPLAY_JACOBIAN_EVERY = 40
 
 #: Threads a replay runs its blocks on: the cores this process may use

@@ -150,6 +150,23 @@ def test_an_orifice_far_beyond_the_described_one_is_walked_out_to():
 
 
 @pytest.mark.slow
+def test_a_walk_stops_at_a_step_the_noise_does_not_show():
+    """A soft oil hidden, the model without it: a valve 4x the described one lowers the
+    residual by less than 25 noise variances (a branch flow it barely throttles), so the
+    local loss's walk stops at its first step and the candidate keeps its default: one
+    replay switched on, one walk step, one finite-difference step (a walk that took any
+    fall of the RSS went a step further)."""
+    plan, _ = hidden_case("oil_compressibility", trips=3)
+    model = [e for e in plan.hoist.model.effects if e not in ("local_loss", "oil_compressibility")]
+    base = fitted_baseline(plan, model, {}, passes=2)
+    eng = FitEngine(plan, EFFECT_LIBRARY, base)
+    eng.rebase(base, model, {})
+    eng.switch_on_all(["local_loss"], model, {}, eng.layout.flat(base.simulated))
+    assert eng.replays == 3
+    assert eng.cache["local_loss"].theta0[0] == 1.0
+
+
+@pytest.mark.slow
 def test_seal_friction_described_four_times_stronger_is_walked_down_to_it():
     """The world's seals at the hoist's friction law, the description's law four times
     as strong (Coulomb and static): in a model without seal friction the candidate's

@@ -36,13 +36,14 @@ finite-difference steps, its candidates switched on); :func:`side_by_side` runs 
 choice's candidate fits side by side; the Jacobian is refreshed every
 :data:`REPLAY_JACOBIAN_EVERY` steps. On the independent simulator's trials records
 (2 h, 12 trips in 4 blocks, 2 cores; ``benchmarks/eval_discovery.py --trials``)
-``ropeload discover`` took a median 36.5-39.1 s, at most 62.5-68.9 s, a record (three
-runs of session 27, the Jacobian every 40th step; 39.5 and 67.6 s at session 26, with
-the oil's bulk modulus walked down as well; 38.7 and 65.1 s before that walk; 58.8 and
-106 s at session 25, with the branch losses walked out from the description's, measured
-beside other work; 45.1 and 141 s at session 24, when
-one record's second iteration refined a groove wear along its coordinates, 8 refitted
-replays one after the other, before refusing it; 44.6 and 72 s at session 23, with
+``ropeload discover`` took a median 37.5 s, at most 62.4 s, a record (session 27, the
+Jacobian every 40th step and a walk stopped at a step the noise does not show; 36.5-39.1
+and 62.5-68.9 s in three runs before that stop, the machine's CPU time wandering 10 %;
+39.5 and 67.6 s at session 26, with the oil's bulk modulus walked down as well; 38.7
+and 65.1 s before that walk; 58.8 and 106 s at session 25, with the branch losses walked
+out from the description's, measured beside other work; 45.1 and 141 s at session 24,
+when one record's second iteration refined a groove wear along its coordinates, 8
+refitted replays one after the other, before refusing it; 44.6 and 72 s at session 23, with
 discovery's columns reused after an effect is added, :mod:`discovery.record_rereading`;
 49.5 and 94 s at session 22; 66.6 and 190 s with a Jacobian every 10th step and each
 replay's blocks alone on the threads, 168 and 372 s on one thread).

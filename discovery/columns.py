@@ -153,7 +153,7 @@ class FitEngine:
         self, term: EffectTerm, effects: list[str], params: Params
     ) -> tuple[np.ndarray, list[tuple[list[str], Params]]]:
         """The term's coordinates at ``params`` and the replays of its forward steps
-        (``term.steps``; relative beyond 1 for a term with ``start_scales``)."""
+        (``term.steps``; relative beyond 1 for a term that walks up, ``scales_up``)."""
         theta = term.coordinates(self.hoist, params)
         jobs = []
         for j, step in enumerate(_step_sizes(term, theta)):
@@ -494,9 +494,9 @@ class FitEngine:
 
 def _step_sizes(term: EffectTerm, theta: np.ndarray) -> np.ndarray:
     """The forward steps of ``term``'s columns at ``theta``: ``term.steps``, in
-    proportion to a coordinate beyond 1 for a term walked out by ``start_scales``."""
+    proportion to a coordinate beyond 1 for a term walked up (``scales_up``)."""
     steps = np.asarray(term.steps, dtype=float)
-    return steps * np.maximum(1.0, np.abs(theta)) if term.start_scales else steps
+    return steps * np.maximum(1.0, np.abs(theta)) if term.scales_up else steps
 
 
 def replay_refitted(

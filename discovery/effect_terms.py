@@ -103,6 +103,14 @@ class EffectTerm:
             raise ValueError(f"{self.name}: a walk by start_scales or by start_shifts, not both")
 
     @property
+    def scales_up(self) -> bool:
+        """Whether the walk goes to factors beyond 1 (a loss): the coordinate's steps and
+        prior then grow in proportion beyond 1 (:meth:`prior`,
+        :func:`discovery.columns._step_sizes`); a walk down (the seal friction) keeps
+        them."""
+        return bool(self.start_scales) and max(self.start_scales) > 1.0
+
+    @property
     def walks(self) -> bool:
         """Whether the term is walked out from its default (``start_scales`` or
         ``start_shifts``)."""
@@ -129,12 +137,12 @@ class EffectTerm:
         A calibrated parameter may move within its calibration uncertainty (a Gaussian
         prior, i.e. ridge regression toward the calibrated value); relative priors
         (``prior_sd`` < 0) scale with the coordinate's value, and so do those of a term
-        with ``start_scales`` beyond 1.
+        whose walk goes up (:attr:`scales_up`) beyond 1.
         """
         sd = abs(self.prior_sd)
         if self.prior_sd < 0:
             return np.maximum(sd * np.abs(theta), 1e-12)
-        if self.start_scales:  # a scale walked out: in proportion beyond 1, as its steps
+        if self.scales_up:  # a scale walked out: in proportion beyond 1, as its steps
             return sd * np.maximum(1.0, np.abs(theta))
         return np.full(theta.shape, sd)
 

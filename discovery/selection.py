@@ -217,8 +217,9 @@ class EffectSelector:
         candidates' columns are taken over where both base replays score the same
         samples (else every column is replayed anew), instead of replayed again: those
         that simulated, but not of an effect that search added (its column was taken at
-        its default, not where it was fitted) or one started from a scan of that plan's
-        residual (groove wear: its start fits that plan's gap), which are replayed on
+        its default, not where it was fitted), one started from a scan of that plan's
+        residual (groove wear: its start fits that plan's gap) or a candidate walked out on
+        that plan's gap (a term of the model's re-tuning is taken over), which are replayed on
         ``plan``. They are linearisations around that plan's base, used as the later
         iterations of one search use the columns of its first base (module docstring):
         they re-tune the model, score, rank and refuse the candidates and set a
@@ -235,7 +236,9 @@ class EffectSelector:
                 if cols.ok
                 and name not in added
                 and not lib[name].start_amplitudes
-                and not lib[name].walks  # walked out on the other plan's gap
+                # a candidate walked out on the other plan's gap (a term of the model is
+                # re-tuned where it was fitted: no walk)
+                and (name in before.model or not lib[name].walks)
             )
         return self._iterate(self.max_iterations)
 

@@ -122,9 +122,8 @@ def _scenario_hoist(stop_valve_loss_coefficient: float) -> HoistDescription:
         fittings_loss_coefficient_sensor_to_manifold=0.0,
         manifold_volume="0.1 L",
     )
-    hoist = base.model_copy(update={"cylinders": cylinders, "piping": piping})
-    hoist.__dict__.pop("friction_law", None)  # cached for the base bore; recompute
-    return hoist
+    # the copy derives its friction law for the new bore (HoistDescription.model_copy)
+    return base.model_copy(update={"cylinders": cylinders, "piping": piping})
 
 
 def _scenario_start(p0: float, rope_stiffness_n_m: float) -> np.ndarray:

@@ -23,8 +23,8 @@ hypotheses. The branch loss and the viscosity are those the hoist's ``[model] ef
 declare (``compensate(effects=)`` replaces them here too).
 The objective is piecewise smooth (a slide starts or not), so no gradient method. Only
 the first :data:`IDENTIFY_SAMPLES` means are used (2 h at 5 Hz): ~10 000 runs of the
-model over them, 5-8 s on two cores for a 2 h record of 50 Hz (about three times that with the
-quarters below).
+model over them, 5-8 s on two cores for a 2 h record of 50 Hz (the quarters below search
+again, beside it).
 
 How well the record pins the constants down is measured, not assumed: the same search
 runs again on each quarter of the means (:data:`SPLITS`; in a record under 40 min,
@@ -360,7 +360,8 @@ def _identify(
     bounds = np.linspace(0, time_s.size, splits + 1).astype(int)
     # the whole record and its parts are independent searches: one per core, the whole
     # beside the parts (it costs about what they do together), each search on one
-    # thread; the same constants as one after the other, each on the cores
+    # thread; the same constants as one after the other, each on the cores. The parts
+    # are searched also where the whole then gives no ropes (their time is lost there).
     spans = [slice(None), *(slice(lo, hi) for lo, hi in pairwise(bounds))]
     with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
         springs, *found = pool.map(lambda span: identify(span, threads=1), spans)

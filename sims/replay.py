@@ -36,7 +36,7 @@ finite-difference steps, its candidates switched on); :func:`side_by_side` runs 
 choice's candidate fits side by side; the Jacobian is refreshed every
 :data:`REPLAY_JACOBIAN_EVERY` steps. On the independent simulator's trials records
 (2 h, 12 trips in 4 blocks, 2 cores; ``benchmarks/eval_discovery.py --trials``)
-``ropeload discover`` took a median 37.5 s, at most 62.4 s, a record (session 27, the
+``ropeload discover`` took a median 37.7 s, at most 63.1 s, a record (session 27, the
 Jacobian every 40th step and a walk stopped at a step the noise does not show; 36.5-39.1
 and 62.5-68.9 s in three runs before that stop, the machine's CPU time wandering 10 %;
 39.5 and 67.6 s at session 26, with the oil's bulk modulus walked down as well; 38.7

@@ -291,7 +291,8 @@ def report_day(name: str, errors: pl.DataFrame, windows: int, seconds: float) ->
     """Print the day's figures and targets; return them for the summary table."""
     before = errors["before_pct"].abs()
     after = errors["after_pct"].abs()
-    worse = int((after > before + WORSE_PP).sum())
+    flagged = errors.with_columns(after.alias("_abs"), (after > before + WORSE_PP).alias("_worse"))
+    worse = int(flagged["_worse"].sum())
     rope = float(errors["rope_max_pct"].max())
     fig = {
         "name": name,
@@ -327,11 +328,10 @@ def report_day(name: str, errors: pl.DataFrame, windows: int, seconds: float) ->
         )
     else:
         print("  band coverage: n/a (no band); median half-width: n/a (no band)")
-    ranked = errors.with_columns(after.alias("_abs")).sort("_abs", descending=True)
+    ranked = flagged.sort("_abs", descending=True)
     _print_windows("worst 5 windows (by |after|)", ranked.head(5))
     if worse:
-        worse_rows = ranked.filter(pl.col("_abs") > pl.col("before_pct").abs() + WORSE_PP)
-        _print_windows("windows worse than raw", worse_rows)
+        _print_windows("windows worse than raw", ranked.filter(pl.col("_worse")))
     band = fig["coverage"] is not None
     targets = [
         f"worst <= {TARGET_WORST_PCT} %: {_mark(fig['worst_after'] <= TARGET_WORST_PCT)}",

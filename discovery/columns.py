@@ -275,7 +275,6 @@ class FitEngine:
             points[name] = term.walk_points(term.coordinates(self.hoist, params))
             if points[name]:  # a zero scale stays zero
                 best[name] = (self._rss_trip_offsets(lay.y - s_on), params, s_on)
-        rss0 = {name: found[0] for name, found in best.items()}
         walking = set(best)
         enough = 25.0 * self.plan.noise_sigma_pa**2
         for step in range(max((len(points[n]) for n in best), default=0)):
@@ -294,11 +293,8 @@ class FitEngine:
                     best[name] = (rss, at, s)
                 else:  # past the minimum, or a step that changes nothing the noise shows
                     walking.discard(name)
-        return {
-            name: (at, s)
-            for name, (rss, at, s) in best.items()
-            if at is not params and rss0[name] - rss > enough
-        }
+        # a term that moved took steps of more than ``enough`` each: it beat its default
+        return {name: (at, s) for name, (_, at, s) in best.items() if at is not params}
 
     def _rss_trip_offsets(self, resid: np.ndarray) -> float:
         """Residual sum of squares after a per-trip common offset (the payload)."""

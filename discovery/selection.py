@@ -23,10 +23,10 @@ Method (one iteration)
    is switched on at its default parameters (a fixed column Delta_c = s_c - s) and its
    coordinates get finite-difference columns J_c (a term the data may put far from its
    description -- a branch loss, the oil's bulk modulus, the seal friction -- is first
-   walked out from its default while the gap falls, and Delta_c and J_c are taken where
-   the walk ended:
-   ``EffectTerm.start_scales`` / ``start_shifts``,
-   :meth:`discovery.columns.FitEngine.switch_on_all`); the joint least squares of r -
+   walked out from its default while each step lowers the gap by more than the noise
+   shows, and Delta_c and J_c are taken where the walk ended: ``EffectTerm.start_scales``
+   / ``start_shifts``, :meth:`discovery.columns.FitEngine.switch_on_all`); the joint
+   least squares of r -
    Delta_c on [re-tuning, J_c, nuisance] gives RSS_c. A candidate is credited only for
    what re-tuning cannot explain: its score is the BIC difference (Schwarz 1978, Ann.
    Stat. 6(2) 461-464)

@@ -3,8 +3,10 @@ writer of small field logs."""
 
 from __future__ import annotations
 
+import atexit
 import datetime as dt
 import os
+import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -15,9 +17,11 @@ from pipelines.prefect_env import apply_prefect_defaults
 
 # A stable Prefect home for this test session, away from the user's own (one the user
 # sets is kept with `-n 0`); with pytest-xdist one per worker (a worker inherits the
-# controller's environment, and two Prefect servers must not share a home).
+# controller's environment, and two Prefect servers must not share a home). The process
+# that made a home removes it when it exits: a run leaves nothing in the temp directory.
 if "PREFECT_HOME" not in os.environ or os.environ.get("PYTEST_XDIST_WORKER"):
     os.environ["PREFECT_HOME"] = tempfile.mkdtemp(prefix="ropeload-prefect-")
+    atexit.register(shutil.rmtree, os.environ["PREFECT_HOME"], ignore_errors=True)
 apply_prefect_defaults()
 
 

@@ -25,7 +25,7 @@ from discovery.ranking import (
     score_bic,
     separating_excitation,
 )
-from discovery.refit import add_winner, winner_parameters
+from discovery.refit import add_winner, as_added, winner_parameters
 from discovery.results import AMBIGUOUS, Finding, Params
 from schemas.effects import NO_EFFECT
 from sims.effects import parameters_json
@@ -35,8 +35,12 @@ from sims.replay_plan import ReplayPlan, ReplayResult
 #: strong" (Kass and Raftery 1995, J. Am. Stat. Assoc. 90(430), 773-795, section 3.2;
 #: on the effective sample count, so autocorrelated residuals do not inflate it).
 DECISIVE_DBIC = 10.0
+#: The least RMS, in noise sigmas, that a winner credited by its size (its fitted sensor
+#: change at least ``detectable_x_noise`` sigma in RMS) must take out of the residual: the
+#: gap's variance falls by at least the noise's own (step 5 of :mod:`discovery.selection`).
+NOTICEABLE_X_NOISE = 1.0
 
-__all__ = ["DECISIVE_DBIC", "DecisionThresholds", "FitState", "run_iteration"]
+__all__ = ["DECISIVE_DBIC", "NOTICEABLE_X_NOISE", "DecisionThresholds", "FitState", "run_iteration"]
 
 
 @dataclass(frozen=True)
@@ -224,15 +228,19 @@ def _verdict(
     runner = ranking[1]["effect"] if len(ranking) > 1 else None
     ratio = bl.ratio
     signal = _explained_x_noise(fit, bl, scores[top]["rss"])
-    credited = explained >= fit.opts.explain_fraction or signal >= fit.opts.detectable_x_noise
+    size = _effect_x_noise(fit, top, scores[top])
+    credited = explained >= fit.opts.explain_fraction or (
+        size >= fit.opts.detectable_x_noise and signal >= NOTICEABLE_X_NOISE
+    )
     if ratio < fit.opts.variance_threshold or scores[top]["dbic"] <= 0 or not credited:
         msg = (
             f"residual variance {ratio:.2f} x the noise variance: nothing missing"
             if ratio < fit.opts.variance_threshold
             else f"residual variance {ratio:.2f} x the noise variance, but the best candidate "
             f"({top}) explains only {explained:.0%} of the excess, {signal:.1f} x the noise "
-            f"in RMS (credited from {fit.opts.explain_fraction:.0%} or "
-            f"{fit.opts.detectable_x_noise:g} x)"
+            f"in RMS, its fitted change {size:.1f} x (credited from "
+            f"{fit.opts.explain_fraction:.0%}, or a change of {fit.opts.detectable_x_noise:g} x "
+            f"that explains {NOTICEABLE_X_NOISE:g} x)"
         )
         return _no_addition(fit, bl, NO_EFFECT, 1.0 - share.get(top, 0.0), ranking, msg)
     close = (
@@ -285,7 +293,7 @@ def _add(
         plan, eng, fit.nuis, lib[top], theta, best["cols"].theta0, fit.model, fit.params,
         winner_only, fit.current, predicted,
     )  # fmt: skip
-    if not after.ok or not _credited_shrink(fit, bl.gap_before, gap_after):
+    if not after.ok or not _credited_shrink(fit, bl.gap_before, gap_after, top, best):
         msg = (
             f"{top} scored best but adding it did not shrink the gap by what a winner "
             f"is credited with ({bl.gap_before:.0f} -> {gap_after:.0f} Pa)"
@@ -309,7 +317,8 @@ def _add(
             ranking,
             where,
             message=f"added {top}; explains {explained:.0%} of the excess variance, "
-            f"{_explained_x_noise(fit, bl, best['rss']):.1f} x the noise in RMS",
+            f"{_explained_x_noise(fit, bl, best['rss']):.1f} x the noise in RMS (its fitted "
+            f"change {_effect_x_noise(fit, top, best):.1f} x)",
         )
     )
     fit.model, fit.params, fit.current, fit.s0 = [*fit.model, top], new_params, after, s_after
@@ -324,15 +333,33 @@ def _explained_x_noise(fit: FitState, bl: _Baseline, rss: float) -> float:
     return float(np.sqrt(explained) / fit.plan.noise_sigma_pa)
 
 
-def _credited_shrink(fit: FitState, gap_before: float, gap_after: float) -> bool:
+def _effect_x_noise(fit: FitState, name: str, score: dict[str, Any]) -> float:
+    """The RMS of candidate ``name``'s fitted sensor change, its column at the start plus
+    its coordinates' steps to where they are added (:func:`discovery.refit.as_added`;
+    before the payloads take their share), in noise sigmas: the size issue 14 gives an
+    effect (``rms_over_noise``)."""
+    k = score["k"]
+    cols = score["cols"]
+    step = as_added(name, cols.theta0 + score["beta"][:k]) - cols.theta0 if k else 0.0
+    change = cols.delta + (cols.jac @ step if k else 0.0)
+    return float(np.sqrt(np.mean(np.square(change))) / fit.plan.noise_sigma_pa)
+
+
+def _credited_shrink(
+    fit: FitState, gap_before: float, gap_after: float, name: str, score: dict[str, Any]
+) -> bool:
     """Whether the re-simulated gap shrank by what step 5 credits a winner with:
-    ``explain_fraction`` of the gap's excess over the noise (in variance), or an RMS of
-    ``detectable_x_noise`` sigma. The linear scoring can promise more than the refit
-    delivers: a groove wear refitted to zero wear on an independent simulator's record
-    shrank a 35.1 kPa gap by 0.4 kPa."""
+    ``explain_fraction`` of the gap's excess over the noise (in variance), or, for a
+    fitted change (``score`` of candidate ``name``) of at least ``detectable_x_noise``
+    sigma, an RMS of :data:`NOTICEABLE_X_NOISE` sigma. The linear scoring can promise
+    more than the refit delivers: a groove wear refitted to zero wear on an independent
+    simulator's record shrank a 35.1 kPa gap by 0.4 kPa."""
     sigma2 = fit.plan.noise_sigma_pa**2
     shrink = gap_before**2 - gap_after**2
     return shrink > 0 and (
         shrink >= fit.opts.explain_fraction * max(gap_before**2 - sigma2, 0.0)
-        or shrink >= fit.opts.detectable_x_noise**2 * sigma2
+        or (
+            _effect_x_noise(fit, name, score) >= fit.opts.detectable_x_noise
+            and shrink >= NOTICEABLE_X_NOISE**2 * sigma2
+        )
     )

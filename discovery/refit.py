@@ -27,7 +27,22 @@ from schemas.hoist import HoistDescription
 from sims.replay import side_by_side
 from sims.replay_plan import ReplayPlan, ReplayResult
 
-__all__ = ["add_winner", "winner_parameters"]
+__all__ = ["add_winner", "as_added", "winner_parameters"]
+
+
+def as_added(name: str, theta: np.ndarray) -> np.ndarray:
+    """A candidate's fitted coordinates as they are added: sensor offsets relative to
+    their median and gains to theirs (the common part is the payload's, which the
+    per-trip payloads cannot be told from); other terms' as fitted.
+
+    >>> as_added("sensor_offset", np.array([10.0, 40.0, 10.0, 20.0])).tolist()
+    [-5.0, 25.0, -5.0, 5.0]
+    """
+    if name == "sensor_offset":
+        return theta - np.median(theta)
+    if name == "sensor_gain":
+        return theta / np.median(theta)
+    return theta
 
 
 def winner_parameters(
@@ -44,11 +59,7 @@ def winner_parameters(
     k_c = cols.jac.shape[1]
     beta = best["beta"]
     term = lib[top]
-    theta = cols.theta0 + beta[:k_c]
-    if top == "sensor_offset":  # the common part is the payload's: relative to the median
-        theta = theta - np.median(theta)
-    elif top == "sensor_gain":
-        theta = theta / np.median(theta)
+    theta = as_added(top, cols.theta0 + beta[:k_c])
     winner_only = merge_parameters(params, top, term.parameters(hoist, theta))
     retuned: Params = {}  # what re-tuning moved while scoring (reported, not applied)
     pos = k_c

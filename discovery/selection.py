@@ -39,16 +39,23 @@ Method (one iteration)
    winner's share is the reported confidence.
 5. *Decision.* The best candidate wins when its score is positive, it is credited with
    a share of the residual -- at least ``explain_fraction`` of the excess variance
-   ``RSS_0 - N sigma^2``, or an explained RMS ``sqrt((RSS_0 - RSS_c) / N)`` of at least
-   ``detectable_x_noise`` sigma -- and it wins at least ``stability`` of the resamples.
-   The second route is for a baseline model that is not perfect: on a hoist the model
-   was not built with, the replay leaves an excess no candidate names (2-6 x the noise
-   in RMS on an independent simulator's records with nothing hidden), and a hidden
-   effect 30 x the noise, named first with BIC margins of hundreds, explained under half
-   of it. Twice the noise in RMS is where an effect counts as detectable (issue 14
-   scores effects from 2 x the noise); smaller ones are not claimed on a baseline that
-   leaves more than they would explain (the spurious winners of those records with
-   nothing hidden explained 0.7-1.3 x the noise). When the runner-up's RSS is within
+   ``RSS_0 - N sigma^2``, or, when its fitted sensor change ``Delta_c + J_c delta_c``
+   is at least ``detectable_x_noise`` sigma in RMS, an explained RMS
+   ``sqrt((RSS_0 - RSS_c) / N)`` of at least
+   :data:`discovery.iteration.NOTICEABLE_X_NOISE` (1) sigma -- and it wins at least
+   ``stability`` of the resamples. The second route is for a baseline model that is
+   not perfect: on a hoist the model was not built with, the replay leaves an excess
+   no candidate names (2-6 x the noise in RMS on an independent simulator's records
+   with nothing hidden), and a hidden effect 30 x the noise, named first with BIC
+   margins of hundreds, explained under half of it. An effect's size is its own sensor
+   change, as issue 14 measures it (``rms_over_noise``), and twice the noise is where
+   it counts as detectable; what it explains is less, as the per-trip payloads take
+   the common part of every change (a seal friction whose fitted change was 5.6 x the
+   noise explained 1.9 x). The floor on what it explains keeps a change the payloads
+   almost wholly absorb (a sensor gain's, tens of x the noise) from being claimed on
+   what a baseline that is not perfect leaves: the best candidates of the validation
+   records with nothing hidden explained 0.3-0.6 x the noise (session 28). When the
+   runner-up's RSS is within
    ``ambiguity`` of the best's explained variance and their BIC scores differ by less
    than :data:`discovery.iteration.DECISIVE_DBIC` (10, "very strong" evidence: Kass and
    Raftery 1995), or the resamples split between the two, the answer is ``ambiguous``
@@ -142,7 +149,8 @@ class EffectSelector:
     explain_fraction : float
         Share of the excess variance a winner explains to be credited.
     detectable_x_noise : float
-        Or the explained RMS, in noise sigmas, to be credited (step 5).
+        Or the RMS of its fitted sensor change, in noise sigmas, to be credited when it
+        also explains :data:`~discovery.iteration.NOTICEABLE_X_NOISE` sigma (step 5).
     stability : float
         Share of bootstrap resamples the winner must win.
     ambiguity : float

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import re
 
 import numpy as np
 import pytest
@@ -333,3 +334,31 @@ def test_an_effect_twice_the_noise_is_named_beside_a_gap_no_term_names():
     assert defaults["detectable_x_noise"].default <= 3.4
     null = _with_unnamed_wave_and_offset(hidden_case(None)[0], 40e3, 0.0)
     assert [f.effect for f in discover_effects(null, bootstrap=50).findings] == ["none"]
+
+
+def test_a_winner_is_credited_by_the_size_of_its_fitted_change():
+    """Known truth: sensor 2 reads 20 kPa high. Added as the library adds an offset
+    (relative to the sensors' median), its change is 20 kPa on one sensor of four: an RMS
+    of 10 kPa, the size the finding reports. With the share route closed
+    (``explain_fraction`` 1), the winner is credited by that size and not by what it
+    explains (the per-trip payloads take a quarter of the offset, so less): named at a
+    ``detectable_x_noise`` between the two, ``none`` just above its size."""
+    plan, _ = hidden_case("sensor_offset")
+    noise = plan.noise_sigma_pa
+
+    def first(**thresholds):
+        result = discover_effects(plan, bootstrap=50, max_iterations=1, **thresholds)
+        return result.findings[0]
+
+    named = first()
+    size, explained = (
+        float(re.search(pattern, named.message).group(1))
+        for pattern in (r"its fitted change ([\d.]+) x", r"([\d.]+) x the noise in RMS")
+    )
+    assert size * noise == pytest.approx(10e3, rel=0.1)
+    assert explained < size - 0.1
+    between = first(explain_fraction=1.0, detectable_x_noise=(size + explained) / 2)
+    assert between.effect == "sensor_offset"
+    above = first(explain_fraction=1.0, detectable_x_noise=1.1 * size)
+    assert above.effect == "none"
+    assert f"its fitted change {size:.1f} x" in above.message

@@ -320,8 +320,9 @@ def test_an_effect_twice_the_noise_is_named_beside_a_gap_no_term_names():
     """A baseline that is not perfect (issue 14): beside a common-mode wave of 20 kPa RMS
     that no candidate models, a sensor 40 kPa high explains 42 % of the excess, under
     the 50 % share, but 3.4 x the noise in RMS: named, its offset fitted to 40 kPa, and
-    the gap shrinks: under the default 50 % share, it is credited by its RMS alone (at
-    least the default 2 x the noise). The same wave with nothing hidden stays ``none``."""
+    the gap shrinks: under the default 50 % share, it is credited by the size of its
+    change (20 kPa on one sensor of four, at least the default 2 x the noise) and what
+    it explains (at least 1 x). The same wave with nothing hidden stays ``none``."""
     plan, _ = hidden_case(None, trips=4)
     data = _with_unnamed_wave_and_offset(plan, 40e3, 40e3)
     first = discover_effects(data, bootstrap=50, max_iterations=1).findings[0]
@@ -329,9 +330,11 @@ def test_an_effect_twice_the_noise_is_named_beside_a_gap_no_term_names():
     assert first.parameters["offsets_pa"][1] == pytest.approx(40e3, rel=0.05)
     assert first.gap_after_pa < 0.8 * first.gap_before_pa
     assert "explains 42% of the excess variance, 3.4 x the noise in RMS" in first.message
+    size = float(re.search(r"its fitted change ([\d.]+) x", first.message).group(1))
+    assert size * data.noise_sigma_pa == pytest.approx(20e3, rel=0.1)
     defaults = inspect.signature(discover_effects).parameters
     assert defaults["explain_fraction"].default > 0.42
-    assert defaults["detectable_x_noise"].default <= 3.4
+    assert defaults["detectable_x_noise"].default <= size
     null = _with_unnamed_wave_and_offset(hidden_case(None)[0], 40e3, 0.0)
     assert [f.effect for f in discover_effects(null, bootstrap=50).findings] == ["none"]
 

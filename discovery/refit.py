@@ -96,8 +96,11 @@ def add_winner(
     if term.start_amplitudes and gap_after > 1.1 * plan.noise_sigma_pa:
         gap_before = rms(lay.y - lay.flat(current.simulated))
         after, gap_after, new_params = _refine_along(
-            plan, eng, new_model, params, term, [theta, theta0], current, gap_before
-        )
+            plan, eng, new_model, params, term, [theta, theta0], current, gap_before,
+            (gap_after, after, new_params),
+        )  # fmt: skip
+        if not gap_after < gap_before:  # no start shrinks it: refused as it stands
+            return after, gap_after, new_params
     if gap_after > 1.1 * predicted and not term.analytic:
         after, gap_after, new_params = _gauss_newton_step(
             plan, eng, nuis, term, new_model, new_params, after, gap_after, current
@@ -144,6 +147,7 @@ def _refine_along(
     starts: list[np.ndarray],
     current: ReplayResult,
     gap_before: float,
+    at_first: tuple[float, ReplayResult, Params],
     *,
     evaluations: int = 8,
 ) -> tuple[ReplayResult, float, Params]:
@@ -154,11 +158,13 @@ def _refine_along(
     and the payloads fitted without the term are biased; so the gap with payloads and
     ramps refitted (:func:`replay_refitted`) is minimised over the scale ``c`` of the better of
     ``starts`` (Brent's bounded method on ``0.5 <= c <= 1.5``). Returns the best replay,
-    its gap and parameters. Where neither start brings the refitted gap below
-    ``gap_before`` (the replay without the term) the search is not run: a term the refit
-    cannot make explain anything at its fitted size is refused as it stands (on an
-    independent simulator's record a groove wear credited by the linear scoring left a
-    14.1 kPa gap at 14.1 kPa, after eight more replays of 4-5 s).
+    its gap and parameters; ``at_first`` is (gap, replay, parameters) at the first start,
+    already replayed. Where neither start brings the refitted gap below ``gap_before``
+    (the replay without the term) the search is not run, nor the Gauss-Newton step
+    after it (:func:`add_winner`): a term the refit cannot make explain anything at its
+    fitted size is refused as it stands (on an independent simulator's record a groove
+    wear credited by the linear scoring left a 14.1 kPa gap at 14.1 kPa, after eight
+    more replays of 4-5 s).
     """
     lay = eng.layout
     seen: dict[float, tuple[float, ReplayResult, Params]] = {}
@@ -169,7 +175,10 @@ def _refine_along(
         gap = rms(lay.y - lay.flat(res.simulated)) if res.ok else np.inf
         return gap, res, prm
 
-    first = side_by_side([functools.partial(at, np.asarray(t, float)) for t in starts])
+    rest = [functools.partial(at, np.asarray(t, float)) for t in starts[1:]]
+    # one start left: its replays take the cores themselves (side_by_side runs a call's
+    # replays one block after the other, for calls that share the cores)
+    first = [at_first, *(side_by_side(rest) if len(rest) > 1 else [call() for call in rest])]
     k = int(np.argmin([f[0] for f in first]))
     direction = np.asarray(starts[k], float)
     seen[1.0] = first[k]

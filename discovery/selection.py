@@ -51,10 +51,14 @@ Method (one iteration)
    change, as issue 14 measures it (``rms_over_noise``), and twice the noise is where
    it counts as detectable; what it explains is less, as the per-trip payloads take
    the common part of every change (a seal friction whose fitted change was 5.6 x the
-   noise explained 1.9 x). The floor on what it explains keeps a change the payloads
-   almost wholly absorb (a sensor gain's, tens of x the noise) from being claimed on
-   what a baseline that is not perfect leaves: the best candidates of the validation
-   records with nothing hidden explained 0.3-0.6 x the noise (session 28). When the
+   noise explained 1.9 x). Offsets and gains are sized as they are added, relative to
+   their median (:func:`discovery.refit.as_added`): a gain fitted in common, which the
+   payloads cannot be told from, has no size. The floor on what a winner explains
+   keeps what a baseline that is not perfect leaves from being claimed: the best
+   candidates of the validation records with nothing hidden explained 0.3-0.6 x the
+   noise (session 28); on the larger gap an added effect leaves, second iterations'
+   best explained up to 1.5 x, refused by their size (a local loss's, just under 2 x)
+   or by the re-simulated gap (a groove wear's, which left it as it was). When the
    runner-up's RSS is within
    ``ambiguity`` of the best's explained variance and their BIC scores differ by less
    than :data:`discovery.iteration.DECISIVE_DBIC` (10, "very strong" evidence: Kass and

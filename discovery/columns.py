@@ -58,7 +58,7 @@ class FitEngine:
         self.base = base
         self.layout = entry_layout(plan, base)
         self.replays = 0
-        self._replays_lock = threading.Lock()  # counted from threads: refit's starts
+        self._replays_lock = threading.Lock()  # counted from threads (side_by_side)
         self.cache: dict[str, TermColumns] = {}
         self.base_static = np.zeros((len(plan.trips), 2))
 

@@ -6,9 +6,9 @@ theirs: the common part is the payload's, :func:`as_added`) and the trips re-sim
 with payloads and ramps refitted (:func:`discovery.columns.replay_refitted`). A term
 null and strongly nonlinear at its default (groove wear) is then fitted along its
 coordinates with payloads refitted (Brent, :func:`_refine_along`) while the gap is
-above the noise and one of its starts shrinks it; a Gauss-Newton step on the winner's
-coordinates follows when the re-simulated gap is more than 10 % above the linear
-prediction (:func:`_gauss_newton_step`).
+above the noise and one of its starts shrinks it (where none does, it is refused as it
+stands); a Gauss-Newton step on the winner's coordinates follows when the re-simulated
+gap is more than 10 % above the linear prediction (:func:`_gauss_newton_step`).
 """
 
 from __future__ import annotations

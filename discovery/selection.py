@@ -77,8 +77,9 @@ Method (one iteration)
    :func:`discovery.refit._refine_along`)
    while the gap is above the noise and one of its starts (the linear step, the scan's
    start) shrinks it: payloads fitted without it are biased, so the linear step alone
-   stops short. A Gauss-Newton step on the winner's coordinates
-   follows when the re-simulated gap is more than 10 % above the linear prediction.
+   stops short (where neither start shrinks it, it is refused as it stands). A
+   Gauss-Newton step on the winner's coordinates follows when the re-simulated gap is
+   more than 10 % above the linear prediction.
 
 The loop repeats while a further effect passes (``max_iterations``); the columns of
 candidates are linearisations around the first base and are reused (each costs one

@@ -526,10 +526,10 @@ def side_by_side(calls: Sequence[Callable[[], T]]) -> list[T]:
     other in a thread that already takes a core (:data:`_ONE_THREAD`).
 
     For fits of several passes each (the candidates of a replay choice, on a few
-    trips of one block; a discovery refit's two starts): side by side they use the
-    cores that one fit's replays leave idle. (Replays of one plan in one pass share
-    their blocks' threads instead: :func:`replay_many`.) Each replay's result is
-    the same either way.
+    trips of one block; a discovery refit's starts, when more than one is replayed):
+    side by side they use the cores that one fit's replays leave idle. (Replays of one
+    plan in one pass share their blocks' threads instead: :func:`replay_many`.) Each
+    replay's result is the same either way.
     """
     return _run_tasks([functools.partial(_alone, call) for call in calls], [0.0] * len(calls))
 

@@ -229,6 +229,7 @@ def _verdict(
     ratio = bl.ratio
     signal = _explained_x_noise(fit, bl, scores[top]["rss"])
     size = _effect_x_noise(fit, top, scores[top])
+    scores[top]["size_x_noise"] = size  # the winner's, for step 6
     credited = explained >= fit.opts.explain_fraction or (
         size >= fit.opts.detectable_x_noise and signal >= NOTICEABLE_X_NOISE
     )
@@ -291,9 +292,10 @@ def _add(
     predicted = np.sqrt(best["rss"] / lay.y.size)
     after, gap_after, new_params = add_winner(
         plan, eng, fit.nuis, lib[top], theta, best["cols"].theta0, fit.model, fit.params,
-        winner_only, fit.current, predicted,
+        winner_only, fit.current, predicted, bl.gap_before,
     )  # fmt: skip
-    if not after.ok or not _credited_shrink(fit, bl.gap_before, gap_after, top, best):
+    size = best["size_x_noise"]
+    if not after.ok or not _credited_shrink(fit, bl.gap_before, gap_after, size):
         msg = (
             f"{top} scored best but adding it did not shrink the gap by what a winner "
             f"is credited with ({bl.gap_before:.0f} -> {gap_after:.0f} Pa)"
@@ -318,7 +320,7 @@ def _add(
             where,
             message=f"added {top}; explains {explained:.0%} of the excess variance, "
             f"{_explained_x_noise(fit, bl, best['rss']):.1f} x the noise in RMS (its fitted "
-            f"change {_effect_x_noise(fit, top, best):.1f} x)",
+            f"change {size:.1f} x)",
         )
     )
     fit.model, fit.params, fit.current, fit.s0 = [*fit.model, top], new_params, after, s_after
@@ -345,21 +347,16 @@ def _effect_x_noise(fit: FitState, name: str, score: dict[str, Any]) -> float:
     return float(np.sqrt(np.mean(np.square(change))) / fit.plan.noise_sigma_pa)
 
 
-def _credited_shrink(
-    fit: FitState, gap_before: float, gap_after: float, name: str, score: dict[str, Any]
-) -> bool:
+def _credited_shrink(fit: FitState, gap_before: float, gap_after: float, size: float) -> bool:
     """Whether the re-simulated gap shrank by what step 5 credits a winner with:
     ``explain_fraction`` of the gap's excess over the noise (in variance), or, for a
-    fitted change (``score`` of candidate ``name``) of at least ``detectable_x_noise``
-    sigma, an RMS of :data:`NOTICEABLE_X_NOISE` sigma. The linear scoring can promise
-    more than the refit delivers: a groove wear refitted to zero wear on an independent
+    fitted change of ``size`` >= ``detectable_x_noise`` sigma (:func:`_effect_x_noise`),
+    an RMS of :data:`NOTICEABLE_X_NOISE` sigma. The linear scoring can promise more than
+    the refit delivers: a groove wear refitted to zero wear on an independent
     simulator's record shrank a 35.1 kPa gap by 0.4 kPa."""
     sigma2 = fit.plan.noise_sigma_pa**2
     shrink = gap_before**2 - gap_after**2
     return shrink > 0 and (
         shrink >= fit.opts.explain_fraction * max(gap_before**2 - sigma2, 0.0)
-        or (
-            _effect_x_noise(fit, name, score) >= fit.opts.detectable_x_noise
-            and shrink >= NOTICEABLE_X_NOISE**2 * sigma2
-        )
+        or (size >= fit.opts.detectable_x_noise and shrink >= NOTICEABLE_X_NOISE**2 * sigma2)
     )

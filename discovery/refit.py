@@ -85,16 +85,17 @@ def add_winner(
     winner_only: Params,
     current: ReplayResult,
     predicted: float,
+    gap_before: float,
 ) -> tuple[ReplayResult, float, Params]:
     """(replay, gap, parameters) with ``term`` added at ``theta`` to ``model``, refitted;
-    ``predicted`` is the gap the linear fit promised."""
+    ``predicted`` is the gap the linear fit promised, ``gap_before`` the gap of
+    ``current`` (without the term)."""
     lay = eng.layout
     new_model = [*model, term.name]
     new_params = winner_only
     after = replay_refitted(plan, eng, new_model, new_params, current)
     gap_after = rms(lay.y - lay.flat(after.simulated)) if after.ok else np.inf
     if term.start_amplitudes and gap_after > 1.1 * plan.noise_sigma_pa:
-        gap_before = rms(lay.y - lay.flat(current.simulated))
         after, gap_after, new_params = _refine_along(
             plan, eng, new_model, params, term, [theta, theta0], current, gap_before,
             (gap_after, after, new_params),

@@ -86,9 +86,15 @@ committed exactly with the accepted increment. Local error estimate ``h (k1 + k2
 with per-state atol (time 1e-6 s, eta 1e-6 m, deta/dt 1e-5 m/s, p_m 100 Pa; per
 cylinder p 100 Pa, x 1e-7 m, v 1e-5 m/s, q 1e-9 m3/s) and rtol 1e-4; its largest
 weighted RMS norm is reported (``error_ratio_max``; it is an indicator, the step is
-not adapted). Failure -- a non-finite state, a singular iteration matrix, a chamber
-pressure below zero gauge (cavitation, not modelled) -- ends the run with
-``status="failed"``, the reason and the frame up to the last good sample.
+not adapted). Where the forcing (winder, payload, the ropes' source offsets) stays
+constant until some ``t_end`` and every state's rate times ``t_end - t`` is within a
+tenth of its absolute tolerance, the state is held to ``t_end`` instead of stepped
+(:data:`sims.device_solver.QUIET_FRACTION`; the solver record counts the steps held,
+``steps_held_at_rest``): a device at rest between trips costs nothing, and where it is
+not exactly still it is off by at most a tenth of a tolerance. Failure -- a non-finite
+state, a singular iteration matrix, a chamber pressure below zero gauge (cavitation,
+not modelled) -- ends the run with ``status="failed"``, the reason and the frame up to
+the last good sample.
 
 Code
 ----
@@ -166,6 +172,7 @@ def simulate(
     jacobian_every: int = 10,
     initial_state: DeviceState | None = None,
     pistons_m: np.ndarray | None = None,
+    hold_at_rest: bool = True,
 ) -> SimulationResult:
     """Simulate the connection device, ropes and conveyance over one trip profile.
 
@@ -197,6 +204,9 @@ def simulate(
         frame: rope i stretches by ``eta - pistons_m[i]``, any groove offset included;
         only the differences count], the seals holding what the ropes leave them
         (:func:`held_start`), instead of where equal tensions put them.
+    hold_at_rest : bool
+        Hold the state instead of stepping it where the forcing is constant and the
+        device still (module docstring, Solver); False steps every ``dt_s``.
 
     Returns
     -------
@@ -242,6 +252,7 @@ def simulate(
         profile=profile,
         z0=z0,
         deltas0=deltas0,
+        hold_at_rest=hold_at_rest,
     )
 
 

@@ -80,11 +80,24 @@ from sims.device_params import (
 
 
 @njit(cache=True, _nrt=False)
+def _segment_at(t: float, seg: np.ndarray) -> int:
+    """The profile segment holding ``t``: the last whose start is at or before it (the
+    first before them all), by bisection (the starts increase,
+    :class:`sims.trip_profile.TripProfile`; a logged trip has ~800 segments and
+    :func:`rhs` asks ~4 times a step)."""
+    lo, hi = 0, seg.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if seg[mid, 0] <= t:
+            lo = mid + 1
+        else:
+            hi = mid
+    return max(lo - 1, 0)
+
+
+@njit(cache=True, _nrt=False)
 def _profile(t: float, seg: np.ndarray) -> tuple[float, float, float]:
-    k = 0
-    for j in range(seg.shape[0]):
-        if seg[j, 0] <= t:
-            k = j
+    k = _segment_at(t, seg)
     tau = max(t - seg[k, 0], 0.0)
     a = seg[k, 3]
     return seg[k, 1] + seg[k, 2] * tau + 0.5 * a * tau * tau, seg[k, 2] + a * tau, a
@@ -106,6 +119,46 @@ def _interp(t: float, knots_t: np.ndarray, values: np.ndarray) -> tuple[float, f
         return values[j + 1], 0.0
     slope = (values[j + 1] - values[j]) / span
     return values[j] + slope * (t - knots_t[j]), slope
+
+
+@njit(cache=True, _nrt=False)
+def _knots_constant_until(t: float, knots_t: np.ndarray, values: np.ndarray) -> float:
+    """Up to when :func:`_interp`'s value stays what it is at ``t`` (``t`` if it is
+    changing there, ``inf`` if it never changes again)."""
+    m = knots_t.shape[0]
+    if t >= knots_t[m - 1]:
+        return math.inf
+    j = -1  # the knot interval holding t (-1: before the first knot)
+    while knots_t[j + 1] <= t:
+        j += 1
+    if j >= 0 and values[j + 1] != values[j]:
+        return t
+    for k in range(j + 1, m - 1):
+        if values[k + 1] != values[k]:
+            return knots_t[k]
+    return math.inf
+
+
+@njit(cache=True, _nrt=False)
+def constant_until(
+    t: float,
+    seg: np.ndarray,
+    pay: np.ndarray,
+    src_t: np.ndarray,
+    src_s: np.ndarray,
+) -> float:
+    """Up to when the forcing :func:`rhs` reads at ``t`` stays what it is: the winder
+    at rest (its profile segment with zero speed and acceleration) until its next
+    segment, the payload and each rope's source offset until their next changing knot;
+    ``t`` itself where any of them changes there."""
+    k = _segment_at(t, seg)
+    if seg[k, 2] != 0.0 or seg[k, 3] != 0.0:
+        return t
+    end = seg[k + 1, 0] if k + 1 < seg.shape[0] else math.inf
+    end = min(end, _knots_constant_until(t, pay[:, 0], pay[:, 1]))
+    for i in range(src_s.shape[1]):
+        end = min(end, _knots_constant_until(t, src_t, src_s[:, i]))
+    return end
 
 
 @njit(cache=True, _nrt=False)

@@ -47,7 +47,14 @@ move (sums of load_after_lo_n -0.65 %, load_after_hi_n +0.54 %, max_load_after_h
 ropes' identification run the example hoist's seals as their four Maxwell-slip
 elements (``presliding_hysteresis``; :func:`physics.rope_spring.elements_on_rope_step`),
 not one bristle: the demo's tensions move by ~0.1 % of the load (sum of
-tension_after1_n +0.13 %), its inferred payloads by 1.6 % of their sum.
+tension_after1_n +0.13 %), its inferred payloads by 1.6 % of their sum. The
+``device_all_effects``, ``field_day_sensors``, ``discovery_*`` and ``demo_*`` entries
+again (session 29) after the device is held instead of stepped where it is still at
+rest (:data:`sims.device_solver.QUIET_FRACTION`): the pistons' velocities move by up to
+2.8e-6 m/s (7e-3 of the sampled values' scale), displacements by 7e-8 m, the chamber
+pressures' sums by 7e-7; discovery's gaps by 3.5 Pa of 10.2 kPa (3e-4), its scores by
+2e-4, names and shares equal; the demo's tensions before compensation by 3e-6 of their
+sums.
 
 The compensation's input is written here with numpy (two trips, a payload step at a
 stop, a ringing rope, a logger gap, a warming oil), not by the simulation, so a change

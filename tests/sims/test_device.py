@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import polars as pl
 import pytest
@@ -17,6 +19,7 @@ from sims.device import (
     paper_scenario_3_2,
     simulate,
 )
+from sims.device_model import constant_until
 from sims.effects import EFFECT_REGISTRY, resolve_effects
 from sims.trips import hold, trip
 
@@ -421,3 +424,56 @@ def test_a_piston_placed_beyond_what_its_seal_holds_slides_and_without_seals_non
     equal = simulate(stiff, hold(depth_m=320.0, duration_s=0.5), effects={"oil_compressibility"})
     for i in range(1, 5):
         assert float(free.frame[f"x{i}_m"][0]) == float(equal.frame[f"x{i}_m"][0])
+
+
+# --- a device at rest is held, not stepped ----------------------------------------------
+def test_the_forcing_is_constant_until_the_winder_moves_or_a_knot_changes_it():
+    # rest until 5 s, accelerate at 1 m/s2 until 10 s, run at 5 m/s
+    seg = np.array([[0.0, 0.0, 0.0, 0.0], [5.0, 0.0, 0.0, 1.0], [10.0, 12.5, 5.0, 0.0]])
+    flat_src_t, flat_src = np.array([0.0]), np.zeros((1, 4))
+    no_load = np.array([[0.0, 0.0]])
+    assert constant_until(1.0, seg, no_load, flat_src_t, flat_src) == 5.0
+    assert constant_until(6.0, seg, no_load, flat_src_t, flat_src) == 6.0  # accelerating
+    assert constant_until(11.0, seg, no_load, flat_src_t, flat_src) == 11.0  # running
+    # loading from 2 s to 4 s (a flat knot pair before it changes nothing)
+    loading = np.array([[0.5, 0.0], [2.0, 0.0], [4.0, 6000.0]])
+    assert constant_until(1.0, seg, loading, flat_src_t, flat_src) == 2.0
+    assert constant_until(3.0, seg, loading, flat_src_t, flat_src) == 3.0
+    assert constant_until(4.5, seg, loading, flat_src_t, flat_src) == 5.0
+    # one rope's source offset steps at 3 s
+    src_t = np.array([0.0, 3.0, 3.5])
+    src = np.zeros((3, 4))
+    src[2, 1] = 1e-3
+    assert constant_until(0.5, seg, no_load, src_t, src) == 3.0
+    at_rest = np.array([[0.0, 7.0, 0.0, 0.0]])
+    assert constant_until(4.0, at_rest, no_load, src_t, src) == math.inf
+
+
+@pytest.mark.parametrize(
+    "profile",
+    [
+        # the winder starts between steps: one starting on a step could start a step
+        # later in the stepped run, whose clock sums the steps' increments
+        trip(hoist=load_hoist(EXAMPLE_HOIST), start_depth_m=0.0, end_depth_m=320.0,
+             rest_before_s=20.0004, rest_after_s=30.0),
+        hold(depth_m=320.0, duration_s=40.0, payload_time_s=[10.0, 15.0],
+             payload_kg=[0.0, 6000.0]),
+    ],
+    ids=["trip", "loading"],
+)  # fmt: skip
+def test_a_device_held_at_rest_matches_one_stepped_through_it(hoist, profile):
+    """The rests before and after a trip, or around a loading at rest, held instead of
+    stepped: the pressures and the load stay within a hundredth of the sensor's 1 kPa
+    resolution of every step taken, and the rest up to the first change of forcing (the
+    static start) is held."""
+    held = simulate(hoist, profile, effects=ALL)
+    stepped = simulate(hoist, profile, effects=ALL, hold_at_rest=False)
+    assert held.status == stepped.status == "success"
+    assert stepped.solver["steps_held_at_rest"] == 0
+    # the static start is held to the first change of forcing: the first 10 s at least
+    assert held.solver["steps_held_at_rest"] * held.solver["dt_s"] >= 10.0
+    for col in [*(f"p_sensor{i}_pa" for i in range(1, 5)), "p_manifold_pa"]:
+        diff = held.frame[col].to_numpy() - stepped.frame[col].to_numpy()
+        assert np.max(np.abs(diff)) < 10.0, (col, np.max(np.abs(diff)))
+    diff = held.frame["load_n"].to_numpy() - stepped.frame["load_n"].to_numpy()
+    assert np.max(np.abs(diff)) < 1.0, np.max(np.abs(diff))

@@ -36,8 +36,12 @@ finite-difference steps, its candidates switched on); :func:`side_by_side` runs 
 choice's candidate fits side by side; the Jacobian is refreshed every
 :data:`REPLAY_JACOBIAN_EVERY` steps. On the independent simulator's trials records
 (2 h, 12 trips in 4 blocks, 2 cores; ``benchmarks/eval_discovery.py --trials``)
-``ropeload discover`` took a median 37.7 s, at most 63.1 s, a record (session 27, the
-Jacobian every 40th step and a walk stopped at a step the noise does not show; 36.5-39.1
+``ropeload discover`` took a median 29.1 s, at most 44.2 s, a record (session 29, the
+device held where it is still at rest, :data:`sims.device_solver.QUIET_FRACTION`, and
+the profile's segment found by bisection: one replay of validation trial_002's plan on
+one thread 1.87 -> 1.02 s; 45.4 and 74.3 s at
+session 28, on a machine ~20 % slower than at session 27); 37.7 and 63.1 s at session 27,
+the Jacobian every 40th step and a walk stopped at a step the noise does not show; 36.5-39.1
 and 62.5-68.9 s in three runs before that stop, the machine's CPU time wandering 10 %;
 39.5 and 67.6 s at session 26, with the oil's bulk modulus walked down as well; 38.7
 and 65.1 s before that walk; 58.8 and 106 s at session 25, with the branch losses walked

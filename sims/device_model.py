@@ -124,16 +124,21 @@ def _interp(t: float, knots_t: np.ndarray, values: np.ndarray) -> tuple[float, f
 @njit(cache=True, _nrt=False)
 def _knots_constant_until(t: float, knots_t: np.ndarray, values: np.ndarray) -> float:
     """Up to when :func:`_interp`'s value stays what it is at ``t`` (``t`` if it is
-    changing there, ``inf`` if it never changes again)."""
+    changing there, ``inf`` if it never changes again). As :func:`_interp`, the knot
+    interval ``(knots_t[j], knots_t[j + 1]]`` holds ``t``: at a repeated knot (a step)
+    the value before the step."""
     m = knots_t.shape[0]
     if t >= knots_t[m - 1]:
         return math.inf
-    j = -1  # the knot interval holding t (-1: before the first knot)
-    while knots_t[j + 1] <= t:
-        j += 1
-    if j >= 0 and values[j + 1] != values[j]:
-        return t
-    for k in range(j + 1, m - 1):
+    first = 0  # the first interval that may change the value after t
+    if t > knots_t[0]:
+        j = 0
+        while knots_t[j + 1] < t:
+            j += 1
+        if values[j + 1] != values[j]:
+            return t
+        first = j + 1
+    for k in range(first, m - 1):
         if values[k + 1] != values[k]:
             return knots_t[k]
     return math.inf

@@ -153,6 +153,9 @@ def _loop(
         held = _quiet_steps(y, f0, args, atol, dt, n_steps - step, quiet_fraction)
         if held > 0:  # at rest: the state held, its records filled
             err_at[3] += held
+            for i in range(n):  # a piston held against its end stop is counted there
+                if abs(y[CYL0 + PER * i + 1]) > par[XMAX]:
+                    stop_hits[i] += held
             for _ in range(held):
                 step += 1
                 y[T] = t0 + step * dt

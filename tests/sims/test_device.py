@@ -440,12 +440,18 @@ def test_the_forcing_is_constant_until_the_winder_moves_or_a_knot_changes_it():
     assert constant_until(1.0, seg, loading, flat_src_t, flat_src) == 2.0
     assert constant_until(3.0, seg, loading, flat_src_t, flat_src) == 3.0
     assert constant_until(4.5, seg, loading, flat_src_t, flat_src) == 5.0
+    # a step (a repeated knot) at 5 s with the winder at rest: at 5 s the value is the
+    # one before it, about to change
+    at_rest = np.array([[0.0, 7.0, 0.0, 0.0]])
+    step = np.array([[0.0, 0.0], [5.0, 0.0], [5.0, 6000.0], [10.0, 6000.0]])
+    assert constant_until(1.0, at_rest, step, flat_src_t, flat_src) == 5.0
+    assert constant_until(5.0, at_rest, step, flat_src_t, flat_src) == 5.0
+    assert constant_until(5.5, at_rest, step, flat_src_t, flat_src) == math.inf
     # one rope's source offset steps at 3 s
     src_t = np.array([0.0, 3.0, 3.5])
     src = np.zeros((3, 4))
     src[2, 1] = 1e-3
     assert constant_until(0.5, seg, no_load, src_t, src) == 3.0
-    at_rest = np.array([[0.0, 7.0, 0.0, 0.0]])
     assert constant_until(4.0, at_rest, no_load, src_t, src) == math.inf
 
 

@@ -87,11 +87,12 @@ with per-state atol (time 1e-6 s, eta 1e-6 m, deta/dt 1e-5 m/s, p_m 100 Pa; per
 cylinder p 100 Pa, x 1e-7 m, v 1e-5 m/s, q 1e-9 m3/s) and rtol 1e-4; its largest
 weighted RMS norm is reported (``error_ratio_max``; it is an indicator, the step is
 not adapted). Where the forcing (winder, payload, the ropes' source offsets) stays
-constant until some ``t_end`` and every state's rate times ``t_end - t`` is within a
-tenth of its absolute tolerance, the state is held to ``t_end`` instead of stepped
-(:data:`sims.device_solver.QUIET_FRACTION`; the solver record counts the steps held,
-``steps_held_at_rest``): a device at rest between trips costs nothing, and where it is
-not exactly still it is off by at most a tenth of a tolerance. Failure -- a non-finite
+constant until some ``t_end`` and every state's rate, extrapolated over ``t_end - t``,
+stays within a tenth of its absolute tolerance, the state is held to ``t_end`` instead
+of stepped (:data:`sims.device_solver.QUIET_FRACTION`; the solver record counts the
+steps held, ``steps_held_at_rest``): a device at rest between trips costs next to
+nothing (the extrapolation is an estimate of what a hold leaves out, not a bound; see
+there for what it moved). Failure -- a non-finite
 state, a singular iteration matrix, a chamber pressure below zero gauge (cavitation,
 not modelled) -- ends the run with ``status="failed"``, the reason and the frame up to
 the last good sample.

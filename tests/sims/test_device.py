@@ -19,7 +19,7 @@ from sims.device import (
     paper_scenario_3_2,
     simulate,
 )
-from sims.device_model import constant_until
+from sims.device_model import _segment_at, constant_until
 from sims.effects import EFFECT_REGISTRY, resolve_effects
 from sims.trips import hold, trip
 
@@ -448,11 +448,36 @@ def test_the_forcing_is_constant_until_the_winder_moves_or_a_knot_changes_it():
     assert constant_until(5.0, at_rest, step, flat_src_t, flat_src) == 5.0
     assert constant_until(5.5, at_rest, step, flat_src_t, flat_src) == math.inf
     # one rope's source offset steps at 3 s
+    # at a segment's start the segment applies; a ramp's last point is still on it
+    assert constant_until(5.0, seg, no_load, flat_src_t, flat_src) == 5.0
+    assert constant_until(10.0, seg, no_load, flat_src_t, flat_src) == 10.0
+    ramp = np.array([[2.0, 0.0], [4.0, 6000.0], [9.0, 6000.0]])
+    assert constant_until(4.0, seg, ramp, flat_src_t, flat_src) == 4.0
+    assert constant_until(4.001, seg, ramp, flat_src_t, flat_src) == 5.0
+    # a logged rest is a run of segments at rest at one depth: one span to the motion
+    logged = np.array([[0.0, 7.0, 0.0, 0.0], [0.1, 7.0, 0.0, 0.0], [0.2, 7.0, 0.0, 0.0],
+                       [0.3, 7.0, 0.0, 0.5], [0.4, 7.0025, 0.05, 0.0]])  # fmt: skip
+    assert constant_until(0.05, logged, no_load, flat_src_t, flat_src) == 0.3
+    moved = logged.copy()
+    moved[2, 1] = 7.001  # at rest elsewhere: a change of depth
+    assert constant_until(0.05, moved, no_load, flat_src_t, flat_src) == 0.2
     src_t = np.array([0.0, 3.0, 3.5])
     src = np.zeros((3, 4))
     src[2, 1] = 1e-3
     assert constant_until(0.5, seg, no_load, src_t, src) == 3.0
     assert constant_until(4.0, at_rest, no_load, src_t, src) == math.inf
+
+
+def test_the_profile_segment_is_the_last_started_as_a_scan_finds_it():
+    rng = np.random.default_rng(7)
+    starts = np.cumsum(rng.uniform(0.01, 2.0, 40))
+    seg = np.column_stack([starts, np.zeros((40, 3))])
+    times = np.concatenate([starts, np.nextafter(starts, -np.inf),
+                            np.nextafter(starts, np.inf), [starts[0] - 1.0, starts[-1] + 1.0],
+                            rng.uniform(starts[0] - 1.0, starts[-1] + 1.0, 200)])  # fmt: skip
+    for t in times:
+        scan = max([j for j in range(40) if starts[j] <= t], default=0)
+        assert _segment_at(t, seg) == scan, t
 
 
 @pytest.mark.parametrize(
@@ -472,8 +497,10 @@ def test_a_device_held_at_rest_matches_one_stepped_through_it(hoist, profile):
     stepped: the pressures and the load stay within a hundredth of the sensor's 1 kPa
     resolution of every step taken, and the rest up to the first change of forcing (the
     static start) is held."""
-    held = simulate(hoist, profile, effects=ALL)
-    stepped = simulate(hoist, profile, effects=ALL, hold_at_rest=False)
+    # a Jacobian every 7th step: the first hold ends off that schedule, so the run must
+    # factor an iteration matrix of its own after a hold from its start
+    held = simulate(hoist, profile, effects=ALL, jacobian_every=7)
+    stepped = simulate(hoist, profile, effects=ALL, jacobian_every=7, hold_at_rest=False)
     assert held.status == stepped.status == "success"
     assert stepped.solver["steps_held_at_rest"] == 0
     # the static start is held to the first change of forcing: the first 10 s at least

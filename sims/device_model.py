@@ -152,16 +152,19 @@ def constant_until(
     src_t: np.ndarray,
     src_s: np.ndarray,
 ) -> float:
-    """Up to when the forcing :func:`rhs` reads at ``t`` stays what it is, as far as
-    the next knot shows: the winder at rest (its profile segment with zero speed and
-    acceleration) until its next segment (a logged motion's rest is a run of 0.1 s
-    segments at one depth: each is a span of its own), the payload and each rope's
-    source offset until their next changing knot; ``t`` itself where any of them
-    changes there."""
+    """Up to when the forcing :func:`rhs` reads at ``t`` stays what it is: the winder
+    at rest (its profile segment with zero speed and acceleration) until the next
+    segment that is not at rest at the same depth (a logged motion's rest is a run of
+    0.1 s segments), the payload and each rope's source offset until their next
+    changing knot; ``t`` itself where any of them changes there."""
     k = _segment_at(t, seg)
     if seg[k, 2] != 0.0 or seg[k, 3] != 0.0:
         return t
-    end = seg[k + 1, 0] if k + 1 < seg.shape[0] else math.inf
+    last = seg.shape[0] - 1
+    j = k
+    while j < last and seg[j + 1, 1] == seg[k, 1] and seg[j + 1, 2] == 0.0 and seg[j + 1, 3] == 0.0:
+        j += 1
+    end = seg[j + 1, 0] if j < last else math.inf
     end = min(end, _knots_constant_until(t, pay[:, 0], pay[:, 1]))
     for i in range(src_s.shape[1]):
         end = min(end, _knots_constant_until(t, src_t, src_s[:, i]))

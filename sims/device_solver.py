@@ -39,22 +39,18 @@ from sims.hydraulics import ros2_matrix, ros2_step_refreshing
 from sims.trips import TripProfile
 
 #: A device at rest is not stepped: where the forcing (the winder's motion, the payload,
-#: the ropes' source offsets) stays constant until ``t_end`` (the next knot,
-#: :func:`sims.device_model.constant_until`) and every state's rate at ``t``,
-#: extrapolated over ``t_end - t``, stays within this fraction of its absolute tolerance
-#: (10 Pa, 0.01 um), the state is held until ``t_end`` (:func:`_quiet_steps`). That is
-#: a first-order estimate of what one hold leaves out, not a bound: the states drive
-#: each other, a difference carries on after the hold, and a logged rest is a run of
-#: 0.1 s spans, each held on its own, so what they leave out adds up over the rest (at
-#: most this fraction of a tolerance per span at the rate each starts with). Measured:
-#: the golden outputs of ``tests/test_outputs_unchanged.py`` moved by up to 2.8e-6 m/s
-#: in the pistons' velocities and 7e-8 m in their displacements; on validation
-#: trial_002's 12 planned trips (15 simulated, 1632 s) 31 % of the steps are held and
-#: the sensor pressures stay within 0.52 Pa of every step taken (0.06 Pa with a logged
-#: rest held only as one span, with which trial_000's discovery took 56 s instead of
-#: 41 s, the others 2-10 % longer); one replay on one thread 1.34 -> 1.0-1.1 s
-#: (1.87 s before the profile's segment was found by bisection). The held state's
-#: friction memory does not move (no displacement).
+#: the ropes' source offsets) stays constant until ``t_end`` and every state's rate at
+#: ``t``, extrapolated over ``t_end - t``, stays within this fraction of its absolute
+#: tolerance (10 Pa, 0.01 um), the state is held until ``t_end`` (:func:`_quiet_steps`).
+#: That is a first-order estimate of what the hold leaves out, not a bound: the states
+#: drive each other and a difference carries on after the hold (the golden outputs of
+#: ``tests/test_outputs_unchanged.py`` moved by up to 2.8e-6 m/s in the pistons'
+#: velocities and 7e-8 m in their displacements). The held state's friction memory does
+#: not move (no displacement). Measured on validation
+#: trial_002's 12 planned trips (15 simulated, 1632 s): 31 % of the steps are held; one
+#: replay on one thread 1.34 -> 1.0-1.1 s (1.87 s before the profile's segment was
+#: found by bisection), its sensor pressures within 0.06 Pa of every step taken (0.52 Pa
+#: when a logged rest's 0.1 s segments were held one by one).
 QUIET_FRACTION = 0.1
 
 #: A step with an older Jacobian is retaken with a fresh one when its error ratio
@@ -72,11 +68,11 @@ def _quiet_steps(y, f0, args, atol, dt, steps_left, quiet_fraction):  # pragma: 
     """How many steps from ``y`` (rates ``f0``) the state may be held (0: step it; no
     hold when ``quiet_fraction`` is 0).
 
-    Held only to where :func:`sims.device_model.constant_until` says the forcing may
-    change (its next knot, or the run's end), and only when every state's rate
-    extrapolated over that whole span stays within ``quiet_fraction``
-    (:data:`QUIET_FRACTION`) of its tolerance: the span is skipped in one piece. A state
-    moving within one step is told first, before the forcing's knots are read."""
+    Held only to where :func:`sims.device_model.constant_until` says the forcing changes
+    (or the run ends), and only when every state's rate extrapolated over that whole
+    span stays within ``quiet_fraction`` (:data:`QUIET_FRACTION`) of its tolerance: the
+    span is skipped in one piece, so what it leaves out is counted once, not per piece.
+    A state moving within one step is told first, before the forcing's knots are read."""
     if quiet_fraction <= 0.0:
         return 0
     for i in range(1, y.shape[0]):

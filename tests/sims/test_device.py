@@ -454,11 +454,13 @@ def test_the_forcing_is_constant_until_the_winder_moves_or_a_knot_changes_it():
     ramp = np.array([[2.0, 0.0], [4.0, 6000.0], [9.0, 6000.0]])
     assert constant_until(4.0, seg, ramp, flat_src_t, flat_src) == 4.0
     assert constant_until(4.001, seg, ramp, flat_src_t, flat_src) == 5.0
-    # a logged rest is a run of segments at rest at one depth: each a span of its own
+    # a logged rest is a run of segments at rest at one depth: one span to the motion
     logged = np.array([[0.0, 7.0, 0.0, 0.0], [0.1, 7.0, 0.0, 0.0], [0.2, 7.0, 0.0, 0.0],
                        [0.3, 7.0, 0.0, 0.5], [0.4, 7.0025, 0.05, 0.0]])  # fmt: skip
-    assert constant_until(0.05, logged, no_load, flat_src_t, flat_src) == 0.1
-    assert constant_until(0.25, logged, no_load, flat_src_t, flat_src) == 0.3
+    assert constant_until(0.05, logged, no_load, flat_src_t, flat_src) == 0.3
+    moved = logged.copy()
+    moved[2, 1] = 7.001  # at rest elsewhere: a change of depth
+    assert constant_until(0.05, moved, no_load, flat_src_t, flat_src) == 0.2
     src_t = np.array([0.0, 3.0, 3.5])
     src = np.zeros((3, 4))
     src[2, 1] = 1e-3

@@ -447,7 +447,6 @@ def test_the_forcing_is_constant_until_the_winder_moves_or_a_knot_changes_it():
     assert constant_until(1.0, at_rest, step, flat_src_t, flat_src) == 5.0
     assert constant_until(5.0, at_rest, step, flat_src_t, flat_src) == 5.0
     assert constant_until(5.5, at_rest, step, flat_src_t, flat_src) == math.inf
-    # one rope's source offset steps at 3 s
     # at a segment's start the segment applies; a ramp's last point is still on it
     assert constant_until(5.0, seg, no_load, flat_src_t, flat_src) == 5.0
     assert constant_until(10.0, seg, no_load, flat_src_t, flat_src) == 10.0
@@ -461,6 +460,7 @@ def test_the_forcing_is_constant_until_the_winder_moves_or_a_knot_changes_it():
     moved = logged.copy()
     moved[2, 1] = 7.001  # at rest elsewhere: a change of depth
     assert constant_until(0.05, moved, no_load, flat_src_t, flat_src) == 0.2
+    # one rope's source offset steps at 3 s
     src_t = np.array([0.0, 3.0, 3.5])
     src = np.zeros((3, 4))
     src[2, 1] = 1e-3

@@ -104,6 +104,16 @@ def _profile(t: float, seg: np.ndarray) -> tuple[float, float, float]:
 
 
 @njit(cache=True, _nrt=False)
+def _knot_interval(t: float, knots_t: np.ndarray) -> int:
+    """The knot interval ``(knots_t[j], knots_t[j + 1]]`` holding ``t``, for ``t``
+    strictly inside the knots (at a repeated knot, a step: the interval before it)."""
+    j = 0
+    while knots_t[j + 1] < t:
+        j += 1
+    return j
+
+
+@njit(cache=True, _nrt=False)
 def _interp(t: float, knots_t: np.ndarray, values: np.ndarray) -> tuple[float, float]:
     """Piecewise-linear value and slope, constant outside the knots."""
     m = knots_t.shape[0]
@@ -111,9 +121,7 @@ def _interp(t: float, knots_t: np.ndarray, values: np.ndarray) -> tuple[float, f
         return values[0], 0.0
     if t >= knots_t[m - 1]:
         return values[m - 1], 0.0
-    j = 0
-    while knots_t[j + 1] < t:
-        j += 1
+    j = _knot_interval(t, knots_t)
     span = knots_t[j + 1] - knots_t[j]
     if span <= 0.0:
         return values[j + 1], 0.0
@@ -124,17 +132,14 @@ def _interp(t: float, knots_t: np.ndarray, values: np.ndarray) -> tuple[float, f
 @njit(cache=True, _nrt=False)
 def _knots_constant_until(t: float, knots_t: np.ndarray, values: np.ndarray) -> float:
     """Up to when :func:`_interp`'s value stays what it is at ``t`` (``t`` if it is
-    changing there, ``inf`` if it never changes again). As :func:`_interp`, the knot
-    interval ``(knots_t[j], knots_t[j + 1]]`` holds ``t``: at a repeated knot (a step)
-    the value before the step."""
+    changing there, ``inf`` if it never changes again), its knot interval found as
+    :func:`_interp` finds it (:func:`_knot_interval`)."""
     m = knots_t.shape[0]
     if t >= knots_t[m - 1]:
         return math.inf
     first = 0  # the first interval that may change the value after t
     if t > knots_t[0]:
-        j = 0
-        while knots_t[j + 1] < t:
-            j += 1
+        j = _knot_interval(t, knots_t)
         if values[j + 1] != values[j]:
             return t
         first = j + 1

@@ -75,9 +75,14 @@ def _quiet_steps(y, f0, args, atol, dt, steps_left, quiet_fraction):  # pragma: 
     A state moving within one step is told first, before the forcing's knots are read."""
     if quiet_fraction <= 0.0:
         return 0
+    rate = 0.0  # the largest rate, in tolerances per second
     for i in range(1, y.shape[0]):
-        if not abs(f0[i]) * dt <= quiet_fraction * atol[i]:  # a NaN rate too
+        r = abs(f0[i]) / atol[i]
+        if not r < math.inf:  # a NaN or infinite rate: never held
             return 0
+        rate = max(rate, r)
+    if not rate * dt <= quiet_fraction:
+        return 0
     t = y[T]
     t_end = constant_until(t, args[2], args[3], args[4], args[5])
     span = t_end - t
@@ -86,10 +91,8 @@ def _quiet_steps(y, f0, args, atol, dt, steps_left, quiet_fraction):  # pragma: 
     m = steps_left
     if span < m * dt:
         m = int(span / dt)
-    horizon = m * dt
-    for i in range(1, y.shape[0]):
-        if not abs(f0[i]) * horizon <= quiet_fraction * atol[i]:  # a NaN rate too
-            return 0
+    if not rate * m * dt <= quiet_fraction:
+        return 0
     return m
 
 

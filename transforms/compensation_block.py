@@ -14,9 +14,11 @@ friction mode, oil temperature) is set up in :mod:`transforms.compensation_setup
 
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
 
 import numpy as np
 import polars as pl
@@ -24,6 +26,14 @@ import polars as pl
 from physics.closed_volume import common_mode_displacement
 from physics.trip_rule import trip_label_columns
 from schemas.tables import ROPES
+from transforms.band_members import (
+    STEADY_SIGMAS,
+    group_mean,
+    group_sum,
+    held,
+    mean_starts,
+    mean_steps,
+)
 from transforms.compensation_kernels import (
     differential_smooth,
     rope_kernel,
@@ -44,13 +54,34 @@ from transforms.filtering import despike_median3, despiked_lowpass, play_kernel
 from transforms.kinematics import smoothed_derivative
 from transforms.lowpass import lowpass_work_size
 from transforms.piston_motion import share_out_common_motion
-from transforms.seal_drift import drift_cutoff_hz, drift_pressure, ringing_travel
-from transforms.stick_slip import band_solutions, stick_slip
+from transforms.seal_drift import (
+    drift_cutoff_hz,
+    drift_pressure,
+    played_travels_into,
+    ringing_travel,
+)
+from transforms.stick_slip import RopeSprings, band_solutions, stick_slip
 from transforms.uncertainty import ensemble_band, rope_band
 
 __all__ = ["BlockCompensation"]
 
 Kernel = Callable[[int, int, np.ndarray], None]
+
+
+@dataclass(frozen=True)
+class _SpringInputs:
+    """What :func:`~transforms.stick_slip.stick_slip` reads, per sample or per mean: the
+    filtered pressures, the logged displacements, depth, segment, viscosity (one value or
+    per sample), the drift's pressure and play half-width, the ringing's travel."""
+
+    pressures: tuple[np.ndarray, ...]
+    logged: tuple[np.ndarray, ...]
+    depth: np.ndarray
+    segment: np.ndarray
+    nu: np.ndarray
+    drift_p: np.ndarray | None
+    drift_w: float
+    ringing: np.ndarray | None
 
 
 def _continues(segment: np.ndarray, at: int) -> float:
@@ -79,15 +110,23 @@ class BlockCompensation(BlockSetup):
             arrays[name] = np.empty(size)
         return arrays[name][:size]
 
-    def staged(self, run: Kernel, seg: np.ndarray, state: np.ndarray) -> np.ndarray:
+    def staged(
+        self,
+        run: Kernel,
+        seg: np.ndarray,
+        state: np.ndarray,
+        bounds: tuple[int, int, int] | None = None,
+    ) -> np.ndarray:
         """Run a first-stage kernel over [stage_lo, stage_hi) resuming ``state``; returns
-        its state at the hand-over to the next block."""
+        its state at the hand-over to the next block. ``bounds``: (stage_lo, hand-over,
+        stage_hi) in other units than the samples (the band members' means)."""
+        lo, handover, hi = bounds or (self.stage_lo, self.handover, self.stage_hi)
         state = state.copy()
-        state[1] = _continues(seg, self.stage_lo)
-        run(self.stage_lo, self.handover, state)
+        state[1] = _continues(seg, lo)
+        run(lo, handover, state)
         saved = state.copy()
-        state[1] = _continues(seg, self.handover)
-        run(self.handover, self.stage_hi, state)
+        state[1] = _continues(seg, handover)
+        run(handover, hi, state)
         return saved
 
     # -- steps ----------------------------------------------------------------------------
@@ -188,14 +227,15 @@ class BlockCompensation(BlockSetup):
     def stick_slip_motion(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
         """Each piston's displacement and friction from its identified rope spring
         (:mod:`transforms.stick_slip`) over the first stage, and the frictions of the
-        band's members (:func:`~transforms.stick_slip.band_solutions`); the frictions are
-        kept for the ropes' jobs. NaN outside the stage. Blind motion: none."""
+        band's members (:func:`~transforms.stick_slip.band_solutions`; at the sensors'
+        rate, or on means with ``band_member_step_s``: :meth:`member_spreads`); the
+        frictions are kept for the ropes' jobs. NaN outside the stage. Blind motion:
+        none."""
         n, springs = self.n, self.context.rope_springs
         pressures = tuple(job.result() for job in self.p_jobs)
         logged = tuple(job.result() for job in self.x_jobs)
         depth = float_column(self.frame["depth_m"])
         nu = np.atleast_1d(np.asarray(self.nu_job.result(), dtype=float))
-        branch = self.branch if self.with_branch_loss else None
         drift_p, drift_w = self.drift_pressure(pressures)
         ringing = None
         if drift_p is not None:
@@ -205,39 +245,142 @@ class BlockCompensation(BlockSetup):
                 pressure_cutoff_hz=self.settings.pressure_cutoff_hz, half_width_pa=drift_w,
             )  # fmt: skip
         members = band_solutions(springs, self.settings.friction_relative_sigma)
+        inputs = _SpringInputs(
+            pressures, logged, depth, self.segment, nu, drift_p, drift_w, ringing
+        )
+        x = tuple(np.full(n, np.nan) for _ in ROPES)
+        friction = tuple(np.full(n, np.nan) for _ in ROPES)
+
+        def run(lo: int, hi: int, state: np.ndarray) -> None:
+            self.solve_springs(inputs, members[0], lo, hi, state, (x, friction), self.dt_nominal)
+
+        step_s = self.settings.band_member_step_s
         self.nxt.springs = self.carry.springs.copy()
-
-        def solve(m: int) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
-            capacity_scale, sigma0_scale, ropes, start = members[m]
-            if m == 0:
-                x = tuple(np.full(n, np.nan) for _ in ROPES)
-            else:  # a member's displacements are not kept: this thread's work arrays
-                x = tuple(self.buffer(f"member_x{k}", n) for k in range(len(ROPES)))
-            friction = tuple(np.full(n, np.nan) for _ in ROPES)
-
-            def run(lo: int, hi: int, state: np.ndarray) -> None:
-                stick_slip(
-                    tuple(p[lo:hi] for p in pressures), tuple(v[lo:hi] for v in logged),
-                    depth[lo:hi], self.segment[lo:hi], self.hoist, ropes,
-                    dt_s=self.dt_nominal, nu_m2_s=nu[lo:hi] if nu.size == n else nu,
-                    branch=branch, state=state, capacity_scale=capacity_scale,
-                    sigma0_scale=sigma0_scale, start_at_capacity=start,
-                    drift_half_width_pa=drift_w,
-                    drift_pressure_pa=None if drift_p is None else drift_p[lo:hi],
-                    drift_ringing_pa=None if ringing is None else ringing[lo:hi],
-                    presliding_elements=self.weights.shape[0],
-                    out=(tuple(v[lo:hi] for v in x), tuple(f[lo:hi] for f in friction)),
-                )  # fmt: skip
-
-            self.nxt.springs[m] = self.staged(run, self.segment, self.carry.springs[m])
-            return x, friction
-
-        # the kernel releases the GIL: the band's members run beside the estimate
+        # the kernel releases the GIL: the members run beside the estimate
         with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
-            solutions = list(pool.map(solve, range(len(members))))
-        self.spring_friction = solutions[0][1]
-        self.member_friction = [friction for _, friction in solutions[1:]]
-        return solutions[0][0], tuple(np.zeros(n) for _ in ROPES)
+            estimate = pool.submit(self.staged, run, self.segment, self.carry.estimate)
+            if step_s > 0 and len(members) > 1:
+                spread = self.member_spreads(inputs, members, step_s)
+                self.nxt.estimate = estimate.result()
+                self.member_friction = [
+                    tuple(f + d for f, d in zip(friction, deltas, strict=True)) for deltas in spread
+                ]
+            else:
+                at_rate = functools.partial(self.member_at_rate, inputs)
+                self.member_friction = list(pool.map(at_rate, range(1, len(members)), members[1:]))
+                self.nxt.estimate = estimate.result()
+        self.spring_friction = friction
+        return x, tuple(np.zeros(n) for _ in ROPES)
+
+    def solve_springs(
+        self,
+        inputs: _SpringInputs,
+        member: tuple[float, float, RopeSprings, float],
+        lo: int,
+        hi: int,
+        state: np.ndarray,
+        out: tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]],
+        dt_s: float | np.ndarray,
+        travel: np.ndarray | None = None,
+    ) -> None:
+        """:func:`~transforms.stick_slip.stick_slip` of one solution over [lo, hi) of
+        ``inputs`` (samples, or means with the drift's ``travel`` given)."""
+        capacity_scale, sigma0_scale, ropes, start = member
+        nu = inputs.nu
+        drift_p = None if inputs.drift_p is None or travel is not None else inputs.drift_p[lo:hi]
+        stick_slip(
+            tuple(p[lo:hi] for p in inputs.pressures), tuple(v[lo:hi] for v in inputs.logged),
+            inputs.depth[lo:hi], inputs.segment[lo:hi], self.hoist, ropes,
+            dt_s=dt_s[lo:hi] if np.size(dt_s) > 1 else dt_s,
+            nu_m2_s=nu[lo:hi] if nu.size > 1 else nu,
+            branch=self.branch if self.with_branch_loss else None, state=state,
+            capacity_scale=capacity_scale, sigma0_scale=sigma0_scale,
+            start_at_capacity=start, drift_half_width_pa=inputs.drift_w,
+            drift_pressure_pa=drift_p,
+            drift_travel_pa=None if travel is None else travel[lo:hi],
+            drift_ringing_pa=(
+                None if inputs.ringing is None or drift_p is None else inputs.ringing[lo:hi]
+            ),
+            presliding_elements=self.weights.shape[0],
+            out=(tuple(v[lo:hi] for v in out[0]), tuple(f[lo:hi] for f in out[1])),
+        )  # fmt: skip
+
+    def member_means(
+        self, inputs: _SpringInputs, step_s: float
+    ) -> tuple[np.ndarray, _SpringInputs, np.ndarray | None]:
+        """(first sample of each mean, the inputs' means, the drift's travel over each
+        mean or None) of :mod:`transforms.band_members`: means of ``step_s`` since the
+        epoch within each gap-free segment where the pressures stay within
+        :data:`~transforms.band_members.STEADY_SIGMAS` x their low-passed noise, else of
+        each sample; the drift's full-rate play resumed from the previous block and its
+        travel (the ringing's included) summed over each mean."""
+        steady_pa = STEADY_SIGMAS * self.pressure_noise_n() / self.hoist.cylinders.bore_area_m2
+        starts = mean_starts(self.epoch_us, self.segment, step_s, inputs.pressures, steady_pa)
+        travel = None
+        if inputs.drift_p is not None:
+            per_sample = np.zeros(self.n)
+            drift_p, segment, drift_w = inputs.drift_p, self.segment, inputs.drift_w
+
+            def play(lo: int, hi: int, state: np.ndarray) -> None:
+                played_travels_into(
+                    drift_p[lo:hi], segment[lo:hi], drift_w, state, per_sample[lo:hi]
+                )
+
+            self.nxt.drift_play = self.staged(play, segment, self.carry.drift_play)
+            if inputs.ringing is not None:
+                per_sample += np.nan_to_num(inputs.ringing)
+            travel = group_sum(per_sample, starts)
+        nu = inputs.nu
+        means = _SpringInputs(
+            tuple(group_mean(p, starts) for p in inputs.pressures),
+            tuple(group_mean(v, starts) for v in inputs.logged),
+            group_mean(inputs.depth, starts), self.segment[starts],
+            group_mean(nu, starts) if nu.size > 1 else nu, None, 0.0, None,
+        )  # fmt: skip
+        return starts, means, travel
+
+    def member_at_rate(
+        self, inputs: _SpringInputs, m: int, member: tuple[float, float, RopeSprings, float]
+    ) -> tuple[np.ndarray, ...]:
+        """Band member m's friction per rope, solved at the sensors' rate (NaN outside the
+        stage); its displacements go to this thread's work arrays."""
+        n = self.n
+        x = tuple(self.buffer(f"member_x{k}", n) for k in range(len(ROPES)))
+        f = tuple(np.full(n, np.nan) for _ in ROPES)
+        run = functools.partial(
+            self.solve_springs, inputs, member, out=(x, f), dt_s=self.dt_nominal
+        )
+        self.nxt.springs[m] = self.staged(run, self.segment, self.carry.springs[m])
+        return f
+
+    def member_spreads(
+        self,
+        inputs: _SpringInputs,
+        members: list[tuple[float, float, RopeSprings, float]],
+        step_s: float,
+    ) -> list[tuple[np.ndarray, ...]]:
+        """Each band member's friction less the estimate's, per rope, at the sensors' rate:
+        both solved on the means of :meth:`member_means` and the difference held over each
+        mean's samples (NaN outside the stage; :mod:`transforms.band_members`)."""
+        n = self.n
+        starts, means, travel = self.member_means(inputs, step_s)
+        steps = mean_steps(starts, n, self.dt_nominal)
+        bounds = tuple(
+            int(np.searchsorted(starts, i)) for i in (self.stage_lo, self.handover, self.stage_hi)
+        )
+        x = tuple(self.buffer(f"member_x{k}", starts.size) for k in range(len(ROPES)))
+        frictions = []
+        for m, member in enumerate(members):
+            f = tuple(np.full(starts.size, np.nan) for _ in ROPES)
+            run = functools.partial(
+                self.solve_springs, means, member, out=(x, f), dt_s=steps, travel=travel
+            )
+            self.nxt.springs[m] = self.staged(run, means.segment, self.carry.springs[m], bounds)
+            frictions.append(f)
+        return [
+            tuple(held(fm - f0, starts, n) for fm, f0 in zip(f_m, frictions[0], strict=True))
+            for f_m in frictions[1:]
+        ]
 
     def drift_pressure(self, pressures: tuple[np.ndarray, ...]) -> tuple[np.ndarray | None, float]:
         """:func:`transforms.seal_drift.drift_pressure` when the seals drift (LuGre's single

@@ -24,7 +24,12 @@ from schemas.tables import ROPES
 from transforms.filtering import PLAY_STATE_SIZE, first_difference_sigma, fresh_state
 from transforms.piston_motion import share_state
 from transforms.rope_identification import IDENTIFY_SPAN, identify_from_means, record_means
-from transforms.seal_drift import RINGING_BANDWIDTH_HZ, drift_travel, seals_drift
+from transforms.seal_drift import (
+    PLAYED_TRAVEL_STATE_SIZE,
+    RINGING_BANDWIDTH_HZ,
+    drift_travel,
+    seals_drift,
+)
 from transforms.stick_slip import MAX_SOLUTIONS, RopeSprings, stick_slip_state
 
 __all__ = [
@@ -91,6 +96,12 @@ class CompensationSettings:
         Identify the head ropes from the record and solve each piston's stick-slip on
         its rope spring (:mod:`transforms.stick_slip`) where the logged x allow it; False:
         always share out the oil's motion by the logged x (:mod:`transforms.piston_motion`).
+    band_member_step_s : float
+        0 (the default): the stick-slip band's members run at the sensors' rate, each
+        costing what the estimate costs. > 0: they run on means of this many seconds
+        where the pressures hold still (:mod:`transforms.band_members`; 0.1 s made the
+        compute 1.8-3.5x faster, the band the same to tens of newtons at most samples
+        but up to ~0.4 % of the load at single stops: a backfill's choice).
     """
 
     sample_rate_hz: float | None = None
@@ -105,6 +116,7 @@ class CompensationSettings:
     friction_relative_sigma: float = 0.10
     pressure_sigma_pa: float = 5e3
     rope_springs: bool = True
+    band_member_step_s: float = 0.0
 
 
 def rope_cols(template: str) -> list[str]:
@@ -346,9 +358,13 @@ class CompensationCarry:
     margin either side (:func:`compensation_margins_s`); the kernels that feed a second
     filter (the oil's common mode, the pistons' share-out, the play operators) resume
     ``resume_s`` before the block's start, the friction and trip labels at its start.
-    ``springs`` holds one :func:`~transforms.stick_slip.stick_slip_state` row per
-    solution of :func:`~transforms.stick_slip.band_solutions`, in its order (rows past
-    the record's solutions unused).
+    ``estimate`` is the stick-slip estimate's :func:`~transforms.stick_slip.
+    stick_slip_state`; ``springs`` holds one row per solution of
+    :func:`~transforms.stick_slip.band_solutions`, in its order: its band members at the
+    sensors' rate (row 0 unused), or with ``band_member_step_s`` every solution on the
+    means of :mod:`transforms.band_members` (rows past the record's solutions unused);
+    ``drift_play`` the play whose travel drives the means' drift
+    (:func:`transforms.seal_drift.played_travels_into`).
     """
 
     common: np.ndarray
@@ -358,6 +374,8 @@ class CompensationCarry:
     rope: list[np.ndarray]
     labels: np.ndarray
     springs: np.ndarray
+    estimate: np.ndarray
+    drift_play: np.ndarray
 
     @classmethod
     def fresh(cls, elements: int) -> CompensationCarry:
@@ -370,6 +388,8 @@ class CompensationCarry:
             rope=[fresh_state(ROPE_STATE_BASE + elements) for _ in ropes],
             labels=fresh_state(LABEL_STATE_SIZE),
             springs=np.stack([stick_slip_state(len(ROPES), elements)] * MAX_SOLUTIONS),
+            estimate=stick_slip_state(len(ROPES), elements),
+            drift_play=np.zeros(PLAYED_TRAVEL_STATE_SIZE),
         )
 
 

@@ -117,6 +117,7 @@ class BlockSetup:
         self.time_s = float_column(epoch, scale=1e-6)
         resume_s, _ = compensation_margins_s(self.settings)
         micros = epoch.to_numpy()
+        self.epoch_us = micros
 
         def index(at: dt.datetime | None, shift_s: float, default: int) -> int:
             if at is None:

@@ -40,6 +40,7 @@ from transforms.lowpass import lowpass
 __all__ = [
     "DRIFT_CUTOFF_FACTOR",
     "DRIFT_SIGMAS",
+    "PLAYED_TRAVEL_STATE_SIZE",
     "RINGING_BANDWIDTH_HZ",
     "RINGING_BESIDE",
     "RINGING_PEAK",
@@ -49,6 +50,7 @@ __all__ = [
     "drift_travel",
     "played_travel",
     "played_travels",
+    "played_travels_into",
     "ringing_travel",
     "seal_elements",
     "seals_drift",
@@ -300,6 +302,11 @@ def drift_travel(
     return played_travels(mean, segment, half_width) + ringing
 
 
+#: Size of :func:`played_travels_into`'s state: [ran, continues, output, heading]
+#: (:func:`transforms.filtering.fresh_state`'s first two).
+PLAYED_TRAVEL_STATE_SIZE = 4
+
+
 @njit(cache=True, nogil=True)
 def played_travels(
     p: np.ndarray, segment: np.ndarray, half_width: float
@@ -313,10 +320,33 @@ def played_travels(
     [0.0, 2.0, 3.0, 4.0]
     """
     out = np.zeros(p.shape[0])
-    played, heading = np.nan, 0.0
+    played_travels_into(p, segment, half_width, np.zeros(PLAYED_TRAVEL_STATE_SIZE), out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def played_travels_into(
+    p: np.ndarray, segment: np.ndarray, half_width: float, state: np.ndarray, out: np.ndarray
+) -> None:  # pragma: no cover - numba
+    """:func:`played_travels` into ``out``, resuming the play from ``state`` (size
+    :data:`PLAYED_TRAVEL_STATE_SIZE`; its output and heading kept where ``state[1]`` says
+    the samples continue the state's segment) and leaving its own there: a record read
+    block by block plays as it does whole.
+
+    >>> state, out = np.zeros(PLAYED_TRAVEL_STATE_SIZE), np.zeros(2)
+    >>> played_travels_into(np.array([0.0, 3.0]), np.zeros(2, np.int64), 1.0, state, out)
+    >>> state[1] = 1.0  # the next samples continue the segment
+    >>> played_travels_into(np.array([0.0, 4.0]), np.zeros(2, np.int64), 1.0, state, out)
+    >>> out.tolist()
+    [3.0, 4.0]
+    """
+    resume = state[0] != 0.0 and state[1] != 0.0
+    played = state[2] if resume else np.nan
+    heading = state[3] if resume else 0.0
     for t in range(p.shape[0]):
+        out[t] = 0.0
         if t > 0 and segment[t] != segment[t - 1]:
             played, heading = np.nan, 0.0
         if np.isfinite(p[t]):
             out[t], played, heading = played_travel(p[t], played, heading, half_width)
-    return out
+    state[0], state[2], state[3] = 1.0, played, heading

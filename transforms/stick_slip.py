@@ -339,7 +339,7 @@ def stick_slip(
     hoist: HoistDescription,
     springs: RopeSprings,
     *,
-    dt_s: float,
+    dt_s: float | np.ndarray,
     nu_m2_s: np.ndarray | float = 0.0,
     branch: np.ndarray | None = None,
     state: np.ndarray | None = None,
@@ -372,8 +372,10 @@ def stick_slip(
         Oil volume, bulk modulus, piston area, nominal EA, headframe, friction law.
     springs : RopeSprings
         The ropes' constants.
-    dt_s : float
-        Sample step [s] (the pistons' speed for the capacity and the branch flow).
+    dt_s : float or ndarray
+        Sample step [s] (the pistons' speed for the capacity and the branch flow); or
+        per sample, the step from the sample before (the band's members on means,
+        :mod:`transforms.band_members`).
     nu_m2_s : ndarray or float
         Oil kinematic viscosity (per sample or one value) for the branch loss.
     branch : ndarray, optional
@@ -531,7 +533,7 @@ def _kernel_inputs(
     segment_id: np.ndarray,
     hoist: HoistDescription,
     *,
-    dt_s: float,
+    dt_s: float | np.ndarray,
     nu_m2_s: np.ndarray | float = 0.0,
     branch: np.ndarray | None = None,
     capacity_scale: float = 1.0,
@@ -555,6 +557,9 @@ def _kernel_inputs(
     if np.shape(segment_id) != (n,):
         raise ValueError(f"segment_id has {np.shape(segment_id)} samples, depth_m {n}")
     nu = np.atleast_1d(np.asarray(nu_m2_s, dtype=np.float64))
+    steps = np.ascontiguousarray(np.atleast_1d(np.asarray(dt_s, dtype=np.float64)))
+    if steps.shape not in ((1,), (n,)) or not (np.isfinite(steps).all() and (steps > 0).all()):
+        raise ValueError(f"dt_s must be one step or one per sample (> 0 s), got {steps.shape}")
     drift, drift_mode = np.zeros(1), 0
     if drift_pressure_pa is not None and drift_travel_pa is not None:
         raise ValueError("give drift_pressure_pa or drift_travel_pa, not both")
@@ -596,7 +601,7 @@ def _kernel_inputs(
         tuple(np.ascontiguousarray(x, dtype=np.float64) for x in x_logged),
         np.ascontiguousarray(depth_m, dtype=np.float64),
         np.ascontiguousarray(segment_id, dtype=np.int64),
-        float(dt_s),
+        steps,
         np.ascontiguousarray(nu),
         branch is not None,
         np.zeros(6) if branch is None else branch,
@@ -653,7 +658,7 @@ def _mismatch_kernel(
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _kernel(
-    p_sensor, x_logged, depth, segment, dt, nu, with_loss, branch, const, law, a, c, scale,
+    p_sensor, x_logged, depth, segment, steps, nu, with_loss, branch, const, law, a, c, scale,
     start, drift_mode, drift_p, drift_w, rings, ringing, element_k, element_w, x_out, f_out,
     state,
 ):  # pragma: no cover - numba  # fmt: skip
@@ -703,7 +708,9 @@ def _kernel(
             v[i] = state[5 + 2 * m + i]
     hanging = state[4] if ran else headframe  # the last known depth's, carried
     per_sample = nu.shape[0] > 1
+    per_step = steps.shape[0] > 1
     for t in range(n):
+        dt = steps[t] if per_step else steps[0]
         # a new gap-free segment restarts the speeds and the drift's play, also where its
         # first pressures are unknown (the reset is then carried in the state)
         if (t == 0 and not resume) or (t > 0 and segment[t] != segment[t - 1]):

@@ -46,9 +46,11 @@ from transforms.filtering import despike_median3
 from transforms.lowpass import lowpass
 from transforms.rope_identification import identify_from_means, record_means
 from transforms.seal_drift import (
+    PLAYED_TRAVEL_STATE_SIZE,
     drift_pressure,
     drift_travel,
     played_travels,
+    played_travels_into,
     ringing_travel,
     seals_drift,
 )
@@ -411,3 +413,20 @@ def test_the_ringing_counts_only_at_rest_and_where_the_pressure_is_known():
     )  # fmt: skip
     np.testing.assert_allclose(travel, want, rtol=1e-9, atol=1e-6)
     assert travel[rest].sum() > played_travels(mean, segment, w)[rest].sum()
+
+
+def test_played_travels_resumed_in_pieces_equal_the_whole() -> None:
+    """The play carried across a cut (a block edge) plays as the record read whole; a new
+    segment restarts it as a fresh state does."""
+    rng = np.random.default_rng(3)
+    p = np.cumsum(rng.normal(0.0, 2e3, 500))
+    p[[40, 41, 300]] = np.nan
+    segment = np.repeat([0, 1], [250, 250])
+    whole = played_travels(p, segment, 3e3)
+    pieces = np.zeros(p.size)
+    state = np.zeros(PLAYED_TRAVEL_STATE_SIZE)
+    for lo, hi in ((0, 97), (97, 250), (250, 333), (333, 500)):
+        state[1] = 1.0 if lo and segment[lo] == segment[lo - 1] else 0.0
+        played_travels_into(p[lo:hi], segment[lo:hi], 3e3, state, pieces[lo:hi])
+    np.testing.assert_array_equal(pieces, whole)
+    assert whole.sum() > 0.0

@@ -179,6 +179,7 @@ def backfill(
     retry_delay_s: float = 1.0,
     force: bool = False,
     sanity: bool = False,
+    band_member_step_s: float = 0.0,
     progress: Callable[[PartitionOutcome], None] | None = None,
     on_plan: Callable[[BackfillPlan], None] | None = None,
     write_report: bool = True,
@@ -211,8 +212,9 @@ def backfill(
         if progress is not None:
             progress(outcome)
     report.outcomes += run_partitions(
-        executor, plan.todo, data=data, force=force, sanity=sanity, progress=progress
-    )
+        executor, plan.todo, data=data, force=force, sanity=sanity, progress=progress,
+        band_member_step_s=band_member_step_s,
+    )  # fmt: skip
     executor.call(record_failures, data, report.outcomes, command="backfill")
     report.wall_s = time.perf_counter() - t0
     report.notes = incoming_notes(sources)

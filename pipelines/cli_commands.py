@@ -119,10 +119,12 @@ def cmd_run(args: argparse.Namespace) -> int:
             payload_kg=args.payload_kg,
             sanity=not args.no_sanity,
             block_minutes=args.block_minutes,
+            band_member_step_s=args.band_member_step,
         )
         report = run_report_path(DataRoot.resolve(args.data), result)
     else:
         from pipelines.run_period import run_checked
+        from transforms.compensation_record import CompensationSettings
 
         checked = run_checked(
             hoist_path=args.hoist,
@@ -132,6 +134,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             payload_kg=args.payload_kg,
             sanity=not args.no_sanity,
             block=dt.timedelta(minutes=args.block_minutes),
+            settings=CompensationSettings(band_member_step_s=args.band_member_step),
         )
         result, report, error = checked.result, checked.report, checked.sanity_error
         checks = "; " + checked.sanity_words
@@ -197,6 +200,7 @@ def cmd_backfill(args: argparse.Namespace) -> int:
             max_workers=args.workers,
             force=args.force,
             sanity=args.sanity,
+            band_member_step_s=args.band_member_step,
             progress=bar,
             on_plan=None if bar is None else lambda plan: bar.resize(plan.total),
         )
@@ -214,6 +218,7 @@ def cmd_backfill(args: argparse.Namespace) -> int:
             dask=args.dask,
             force=args.force,
             sanity=args.sanity,
+            band_member_step_s=args.band_member_step,
             show_progress=show_progress,
         )
 

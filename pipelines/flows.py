@@ -115,12 +115,13 @@ def run_flow(
     payload_kg: float | None = None,
     sanity: bool = True,
     block_minutes: float = 60.0,
+    band_member_step_s: float = 0.0,
 ) -> RunResult:
     """``ropeload run``: compensate, reconcile, alarm and sanity-check a period of one hoist."""
     from pipelines.reports import Step, sanity_step
 
     root = DataRoot.resolve(data)
-    result = run_period_task(hoist, root, start, end, payload_kg, block_minutes)
+    result = run_period_task(hoist, root, start, end, payload_kg, block_minutes, band_member_step_s)
     reason = "not asked for (sanity=False)" if not sanity else "no trip in the period"
     steps = [sanity_step(None, reason=reason)]
     if sanity and result.trip_summary.height:
@@ -184,6 +185,7 @@ def backfill_flow(
     force: bool = False,
     sanity: bool = False,
     show_progress: bool = False,
+    band_member_step_s: float = 0.0,
 ) -> BackfillReport:
     """``ropeload backfill``: every hoist-day of ``start..end`` not done yet, resumable.
 
@@ -204,6 +206,7 @@ def backfill_flow(
         end=end,
         force=force,
         sanity=sanity,
+        band_member_step_s=band_member_step_s,
         progress=progress,
         on_plan=on_plan,
         executor=PrefectExecutor(),
@@ -268,6 +271,7 @@ def run_backfill_flow(
     force: bool = False,
     sanity: bool = False,
     show_progress: bool = False,
+    band_member_step_s: float = 0.0,
 ) -> BackfillReport:
     """:func:`backfill_flow` on ``max_workers`` threads or a Dask cluster (``dask``)."""
     return _with_runner(backfill_flow, max_workers=max_workers, dask=dask)(
@@ -279,6 +283,7 @@ def run_backfill_flow(
         force=force,
         sanity=sanity,
         show_progress=show_progress,
+        band_member_step_s=band_member_step_s,
     )
 
 

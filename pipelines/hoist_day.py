@@ -34,6 +34,7 @@ from pipelines.partitions import Partition, PartitionOutcome, failed_outcome, ne
 from pipelines.run_period import NoSamplesError, record_start, run_period
 from pipelines.steps import StepOutcome, land_steps, one_line
 from schemas.hoist import HoistDescription, load_hoist
+from transforms.compensation_record import CompensationSettings
 from warehouse.landing import insert_frame
 from warehouse.store import DataRoot, open_writer
 
@@ -66,6 +67,7 @@ def run_partition(
     command: str = "backfill",
     sanity: bool = False,
     sanity_trips: int = SANITY_TRIPS,
+    band_member_step_s: float = 0.0,
 ) -> PartitionOutcome:
     """Ingest the partition's new files, then run its UTC day unless already done.
 
@@ -116,6 +118,7 @@ def run_partition(
                 start=partition.start,
                 end=partition.end,
                 command=command,
+                settings=CompensationSettings(band_member_step_s=band_member_step_s),
             )
         except NoSamplesError as exc:
             return new_outcome(partition, "empty", message=str(exc), ingest_s=t1 - t0)
@@ -178,6 +181,7 @@ def run_partitions(
     command: str = "backfill",
     sanity: bool = False,
     progress: Callable[[PartitionOutcome], None] | None = None,
+    band_member_step_s: float = 0.0,
 ) -> list[PartitionOutcome]:
     """:func:`run_partition` of each partition on ``executor``; outcomes in completion order.
 
@@ -195,6 +199,7 @@ def run_partitions(
         force=force,
         command=command,
         sanity=sanity,
+        band_member_step_s=band_member_step_s,
     ):
         if done.error is not None:
             outcome = failed_outcome(done.item, done.error, attempts=done.attempts)

@@ -191,7 +191,7 @@ def run_period(
         run = hoist_run(
             run_id=run_id, command=command, started_at_utc=started, hoist=hoist,
             hoist_path=hoist_path, period=(extent.period_start, extent.period_end),
-            inputs=inputs, message=f"{extent.in_period} samples, {alarms.height} alarms",
+            inputs=inputs, message=_run_message(extent.in_period, alarms.height, settings),
         )  # fmt: skip
         _publish(data, stage, run, extent, positions, trip_summary, alarms)
     finally:
@@ -256,6 +256,15 @@ class CheckedRun:
     report: Path
 
 
+def _run_message(samples: int, alarms: int, settings: CompensationSettings) -> str:
+    """The ``runs.message`` of a run: what it did and, when asked for, how its band's
+    members ran (an analyst reading the band should know)."""
+    message = f"{samples} samples, {alarms} alarms"
+    if settings.band_member_step_s > 0:
+        message += f"; band members on {settings.band_member_step_s:g} s means"
+    return message
+
+
 def run_checked(
     *,
     hoist_path: str | Path,
@@ -267,6 +276,7 @@ def run_checked(
     hoist: HoistDescription | None = None,
     command: str = "run",
     block: dt.timedelta = DEFAULT_BLOCK,
+    settings: CompensationSettings | None = None,
 ) -> CheckedRun:
     """:func:`run_period`, then the simulation sanity check of its trips, then its report.
 
@@ -289,6 +299,7 @@ def run_checked(
         hoist=hoist,
         command=command,
         block=block,
+        settings=settings,
     )
     checks: object | None = None
     error: Exception | None = None

@@ -42,6 +42,7 @@ from pipelines.nightly import HoistNight, ingest_new_files  # noqa: E402
 from pipelines.partitions import Partition, PartitionOutcome  # noqa: E402
 from pipelines.reports import Report, write_fleet_report  # noqa: E402
 from pipelines.run_period import RunResult, run_period  # noqa: E402
+from transforms.compensation_record import CompensationSettings  # noqa: E402
 from warehouse.store import DataRoot  # noqa: E402
 
 enable_run_logs()  # the module loggers' INFO lines go to the flow and task run logs
@@ -141,6 +142,7 @@ def run_period_task(
     end: dt.datetime | None,
     payload_kg: float | None,
     block_minutes: float = 60.0,
+    band_member_step_s: float = 0.0,
 ) -> RunResult:
     return run_period(
         hoist_path=hoist_path,
@@ -149,6 +151,7 @@ def run_period_task(
         end=end,
         payload_kg=payload_kg,
         block=dt.timedelta(minutes=block_minutes),
+        settings=CompensationSettings(band_member_step_s=band_member_step_s),
     )
 
 

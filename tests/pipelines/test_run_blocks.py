@@ -102,3 +102,28 @@ def test_a_block_of_no_minutes_is_refused(tmp_path: Path, capsys) -> None:
         main(["run", "--data", str(tmp_path), "--hoist", str(HOIST_PATH), "--block-minutes", "0"])
     assert exit_info.value.code == 2
     assert "--block-minutes: must be a positive number of minutes, got 0" in capsys.readouterr().err
+
+
+def test_band_members_on_means_are_asked_for_and_recorded(record: Path, tmp_path: Path, capsys):
+    """``--band-member-step``: the run says in ``runs.message`` that its band's members ran
+    on means (transforms.band_members), and the band still holds the estimate."""
+    data = tmp_path / "means"
+    _run(record, data, "--band-member-step", "0.1")
+    capsys.readouterr()
+    con = open_reader(DataRoot.resolve(data))
+    try:
+        (message,) = con.sql("SELECT message FROM runs WHERE command = 'run'").fetchall()[0]
+    finally:
+        con.close()
+    assert message.endswith("; band members on 0.1 s means")
+    landed = scan_lake(DataRoot.resolve(data), "rope_tensions", site=SITE, hoist=NAME).collect()
+    inside = landed.select(
+        ((pl.col("load_lo_n") <= pl.col("load_n")) & (pl.col("load_n") <= pl.col("load_hi_n")))
+        .mean()
+        .alias("share")
+    )["share"][0]
+    assert inside > 0.99
+    with pytest.raises(SystemExit) as exit_info:
+        main(["run", "--data", str(data), "--hoist", str(HOIST_PATH), "--band-member-step", "-1"])
+    assert exit_info.value.code == 2
+    assert "--band-member-step: must be a number of seconds >= 0, got -1" in capsys.readouterr().err

@@ -178,9 +178,17 @@ def plan_task(
 
 @task(name="partition", task_run_name="{partition.key}", **TRANSIENT_OPTIONS)
 def partition_task(
-    partition: Partition, data: DataRoot, force: bool, command: str, sanity: bool
+    partition: Partition,
+    data: DataRoot,
+    force: bool,
+    command: str,
+    sanity: bool,
+    band_member_step_s: float = 0.0,
 ) -> PartitionOutcome:
-    return run_partition(partition, data=data, force=force, command=command, sanity=sanity)
+    return run_partition(
+        partition, data=data, force=force, command=command, sanity=sanity,
+        band_member_step_s=band_member_step_s,
+    )  # fmt: skip
 
 
 @task(name="discover", task_run_name="discover {day.source.key} {day.day}", **TASK_OPTIONS)

@@ -116,7 +116,7 @@ def _positive_gb(text: str) -> float:
 def _band_member_step(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--band-member-step",
-        type=_nonnegative_seconds,
+        type=_member_step_seconds,
         default=0.0,
         metavar="S",
         help="solve the uncertainty band's members on S-second means where the pressures "
@@ -125,10 +125,12 @@ def _band_member_step(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _nonnegative_seconds(text: str) -> float:
+def _member_step_seconds(text: str) -> float:
     value = float(text)
-    if not value >= 0:
-        raise argparse.ArgumentTypeError(f"must be a number of seconds >= 0, got {text}")
+    if not (value == 0 or (0 < value <= 1 and abs(1 / value - round(1 / value)) < 1e-9)):
+        raise argparse.ArgumentTypeError(
+            f"must be 0 or a whole fraction of a second (0.1, 0.2, 0.25, 0.5, 1), got {text}"
+        )
     return value
 
 

@@ -7,8 +7,8 @@ is the spread of :func:`transforms.stick_slip.stick_slip` over the members of
 stiffness, the seals' unknown start and the ropes as identified on parts of the record.
 At the sensors' rate each member costs what the estimate costs, and the eight of them
 are most of the compensation's compute (2 h at 100 Hz of the example hoist, its seals
-of eight Maxwell-slip elements, 386 ns a sample and solution: 1.3 s of the compute's
-1.3 s with identified ropes, 0.17 s without the stick-slip solution; session 30).
+of Maxwell-slip elements, 386 ns a sample and solution: the compute took 1.34 s with
+identified ropes, 0.17 s without the stick-slip solution; session 30).
 
 The members run instead on windows of ``band_member_step_s`` since the epoch (within a
 gap-free segment, so a record read block by block has the windows of the record read
@@ -20,8 +20,10 @@ plus the member's difference from it on the means, held over each mean's samples
 (:func:`held`). A LuGre seal's drift is driven by the full-rate play's travel summed over
 each mean (:func:`transforms.seal_drift.played_travels_into`, the ringing the play hides
 included), as in the ropes' identification. Where no window is steady the means are the
-samples and the members are those at the sensors' rate
-(``tests/transforms/test_band_members.py``).
+samples and the members match those at the sensors' rate (to 1e-5 of the load a minute
+into the record, where the kernel's own play starts a sample later;
+``tests/transforms/test_band_members.py``). The step is a whole fraction of the blocks'
+resume margin, so that the windows start where a block's first stage does.
 
 What it costs in accuracy, measured (session 30, 0.1 s windows): on a 1 h LuGre day of
 ropeload's own generator at 50 Hz the load band's edges moved by 27 / 17 N RMS (99th
@@ -94,7 +96,8 @@ def mean_starts(
 def mean_steps(starts: np.ndarray, n: int, dt_s: float) -> np.ndarray:
     """Step from each mean's centre to the next's [s] on a grid of ``dt_s`` (the means of
     ``n`` samples starting at ``starts``): the pistons' speed between two means; the
-    first's is ``dt_s``. Means of one sample each step by ``dt_s``, as the samples do.
+    first's is ``dt_s``. A mean of one sample after another steps by ``dt_s``, as the
+    samples do.
 
     >>> mean_steps(np.array([0, 1, 2, 6]), 8, 0.01).round(3).tolist()
     [0.01, 0.01, 0.025, 0.03]

@@ -100,8 +100,11 @@ class CompensationSettings:
         0 (the default): the stick-slip band's members run at the sensors' rate, each
         costing what the estimate costs. > 0: they run on means of this many seconds
         where the pressures hold still (:mod:`transforms.band_members`; 0.1 s made the
-        compute 1.8-3.5x faster, the band the same to tens of newtons at most samples
-        but up to ~0.4 % of the load at single stops: a backfill's choice).
+        compute 1.5-1.8x faster, the band the same to tens of newtons at most samples
+        but moved by up to ~0.3 % of the load at single stops: a backfill's choice).
+        A whole fraction of the blocks' resume margin (:func:`compensation_margins_s`,
+        1 s by default: 0.1, 0.2, 0.25, 0.5 or 1 s), so that the windows start where a
+        block's first stage does.
     """
 
     sample_rate_hz: float | None = None
@@ -117,6 +120,17 @@ class CompensationSettings:
     pressure_sigma_pa: float = 5e3
     rope_springs: bool = True
     band_member_step_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        step = self.band_member_step_s
+        if step == 0:
+            return
+        resume_s = compensation_margins_s(self)[0]
+        if not (0 < step <= resume_s and abs(resume_s / step - round(resume_s / step)) < 1e-9):
+            raise ValueError(
+                f"band_member_step_s {step} s: 0, or a whole fraction of the resume margin "
+                f"{resume_s:g} s (e.g. 0.1, 0.2, 0.25, 0.5)"
+            )
 
 
 def rope_cols(template: str) -> list[str]:

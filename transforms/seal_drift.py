@@ -349,4 +349,5 @@ def played_travels_into(
             played, heading = np.nan, 0.0
         if np.isfinite(p[t]):
             out[t], played, heading = played_travel(p[t], played, heading, half_width)
-    state[0], state[2], state[3] = 1.0, played, heading
+    if p.shape[0]:  # no samples: the state stays as it was
+        state[0], state[2], state[3] = 1.0, played, heading

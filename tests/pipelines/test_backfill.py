@@ -232,3 +232,27 @@ def test_memory_budget_lowers_the_workers_and_says_so(mine, reference, tmp_path,
     err = capsys.readouterr().err
     assert "ropeload backfill: --workers 4 -> 2, to stay within --memory-budget-gb 1.8" in err
     assert fingerprint(DataRoot.resolve(data)) == reference
+
+
+def test_backfill_with_band_members_on_means_records_it(mine, tmp_path, capsys):
+    """``--band-member-step``: each day's run says in ``runs.message`` how its band's
+    members ran (transforms.band_members); a day already done is not redone for it."""
+    from pipelines.cli import main
+
+    hoists, incoming = mine
+    data = tmp_path / "data"
+    command = ["backfill", "--data", str(data), "--hoists", str(hoists), "--incoming",
+               str(incoming), "--from", "2026-03-02", "--to", "2026-03-02",
+               "--no-progress"]  # fmt: skip
+    assert main([*command, "--band-member-step", "0.5"]) == 0
+    capsys.readouterr()
+    con = open_reader(DataRoot.resolve(data))
+    try:
+        messages = [m for (m,) in con.sql("SELECT message FROM runs WHERE command = 'backfill'")
+                    .fetchall()]  # fmt: skip
+    finally:
+        con.close()
+    assert len(messages) == 2  # the two hoists' day
+    assert all(m.endswith("; band members on 0.5 s means") for m in messages)
+    assert main(command) == 0  # done: same inputs and hoist description, not redone
+    assert "0 run, 2 already done" in capsys.readouterr().out

@@ -126,4 +126,6 @@ def test_band_members_on_means_are_asked_for_and_recorded(record: Path, tmp_path
     with pytest.raises(SystemExit) as exit_info:
         main(["run", "--data", str(data), "--hoist", str(HOIST_PATH), "--band-member-step", "-1"])
     assert exit_info.value.code == 2
-    assert "--band-member-step: must be a number of seconds >= 0, got -1" in capsys.readouterr().err
+    assert (
+        "--band-member-step: must be 0 or a whole fraction of a second" in capsys.readouterr().err
+    )

@@ -22,12 +22,14 @@ import polars as pl
 import pytest
 
 import transforms.compensation_block as block_module
+from physics.sensor_branch import sensor_branch
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from sims.field_day import generate_field_day
+from transforms.band_members import mean_starts
 from transforms.blocks import block_edges, compensate_blocks, record_context
 from transforms.compensation import compensate
 from transforms.compensation_record import CompensationSettings
-from transforms.stick_slip import RopeSprings, stick_slip
+from transforms.stick_slip import RopeSprings, stick_slip, stick_slip_state
 
 BLOCK = dt.timedelta(minutes=4)
 BAND = ["load_lo_n", "load_hi_n"] + [f"tension{i}_{e}_n" for i in range(1, 5) for e in ("lo", "hi")]
@@ -79,9 +81,19 @@ def test_means_of_single_samples_are_the_members_at_the_sensors_rate(
     assert split["load_n"].equals(at_rate["load_n"])  # the estimate is not touched
 
 
-def test_means_are_close_to_the_members_at_the_sensors_rate(lugre, at_rate) -> None:
+def test_means_are_close_to_the_members_at_the_sensors_rate(lugre, at_rate, monkeypatch) -> None:
     hoist, record = lugre
+    counted = []
+
+    def counting_mean_starts(epoch_us, *args):  # the real function, its answer counted
+        starts = mean_starts(epoch_us, *args)
+        counted.append((starts.size, epoch_us.size))
+        return starts
+
+    monkeypatch.setattr(block_module, "mean_starts", counting_mean_starts)
     means = compensate(record, hoist, settings=ON_MEANS)
+    (merged,) = counted
+    assert merged[0] < 0.5 * merged[1]  # most windows of the record were steady
     assert means["load_n"].equals(at_rate["load_n"])
     load = _band(at_rate, "load_hi_n") + _band(at_rate, "load_lo_n")
     for column in ("load_lo_n", "load_hi_n"):
@@ -91,12 +103,12 @@ def test_means_are_close_to_the_members_at_the_sensors_rate(lugre, at_rate) -> N
         # within 0.1 % of the load in RMS, 0.5 % everywhere
         assert np.sqrt(np.mean(moved[known] ** 2)) < 1e-3 * np.median(load[known] / 2)
         assert np.max(np.abs(moved[known])) < 5e-3 * np.median(load[known] / 2)
-    # and the means did save work: most windows of the record were steady
-    assert not np.array_equal(_band(means, "load_lo_n"), _band(at_rate, "load_lo_n"))
 
 
-def test_means_block_by_block_equal_the_whole_record(lugre) -> None:
+@pytest.mark.parametrize("step_s", [0.1, 0.5])
+def test_means_block_by_block_equal_the_whole_record(lugre, step_s) -> None:
     hoist, record = lugre
+    settings = CompensationSettings(band_member_step_s=step_s)
 
     def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
         return record.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi))
@@ -108,16 +120,51 @@ def test_means_block_by_block_equal_the_whole_record(lugre) -> None:
     blocks = pl.concat(
         list(
             compensate_blocks(
-                read, hoist, start=t0, end=end, context=context, settings=ON_MEANS, block=BLOCK
+                read, hoist, start=t0, end=end, context=context, settings=settings, block=BLOCK
             )
         )
     )
-    whole = compensate(record, hoist, settings=ON_MEANS)
+    whole = compensate(record, hoist, settings=settings)
     assert blocks["time_utc"].equals(whole["time_utc"])
     for column in [*BAND, "load_n"]:
         np.testing.assert_allclose(
             _band(blocks, column), _band(whole, column), rtol=1e-6, atol=1e-3, err_msg=column
         )
+
+
+@pytest.mark.parametrize("step_s", [0.3, 2.0, -0.1, float("inf"), float("nan")])
+def test_a_step_that_is_no_whole_fraction_of_the_resume_margin_is_refused(step_s) -> None:
+    with pytest.raises(ValueError, match="band_member_step_s"):
+        CompensationSettings(band_member_step_s=step_s)
+
+
+def test_stick_slip_steps_per_sample_are_the_runs_between_their_changes() -> None:
+    """Steps that change along the record solve as the runs of one step each, resumed:
+    each sample's step is the one from the sample before it."""
+    hoist = load_hoist(EXAMPLE_HOIST)
+    n = 300
+    p = 4.0e6 + 3e5 * np.sin(np.linspace(0.0, 9.0, n))
+    springs = RopeSprings((1.0, 1.01, 0.99, 1.0), (0.0, 1e-4, -1e-4, 0.0), 0.0, 0)
+    runs = ((0, 120, 0.02), (120, 200, 0.2), (200, n, 0.05))
+    steps = np.concatenate([np.full(hi - lo, v) for lo, hi, v in runs])
+    inputs = ((p,) * 4, (np.zeros(n),) * 4, np.full(n, 300.0), np.zeros(n, int))
+    _, each = stick_slip(*inputs, hoist, springs, dt_s=steps, branch=sensor_branch(hoist),
+                         nu_m2_s=4e-5)  # fmt: skip
+    state = stick_slip_state(4)
+    pieces = [np.empty(n) for _ in range(4)]
+    for lo, hi, v in runs:
+        state[1] = 1.0 if lo else 0.0
+        _, f = stick_slip(*(tuple(a[lo:hi] for a in x) if isinstance(x, tuple) else x[lo:hi]
+                            for x in inputs), hoist, springs, dt_s=v,
+                          branch=sensor_branch(hoist), nu_m2_s=4e-5, state=state)  # fmt: skip
+        for whole, part in zip(pieces, f, strict=True):
+            whole[lo:hi] = part
+    for a, b in zip(each, pieces, strict=True):
+        assert np.array_equal(a, b)
+    # the steps matter: with the branch loss a slower piston is less damped
+    _, one = stick_slip(*inputs, hoist, springs, dt_s=0.02, branch=sensor_branch(hoist),
+                        nu_m2_s=4e-5)  # fmt: skip
+    assert not all(np.array_equal(a, b) for a, b in zip(one, each, strict=True))
 
 
 def test_stick_slip_steps_per_sample_equal_one_step() -> None:

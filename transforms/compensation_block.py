@@ -260,7 +260,7 @@ class BlockCompensation(BlockSetup):
         with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
             estimate = pool.submit(self.staged, run, self.segment, self.carry.estimate)
             if step_s > 0 and len(members) > 1:
-                spread = self.member_spreads(inputs, members, step_s)
+                spread = self.member_spreads(inputs, members, step_s, pool)
                 self.nxt.estimate = estimate.result()
                 self.member_friction = [
                     tuple(f + d for f, d in zip(friction, deltas, strict=True)) for deltas in spread
@@ -358,25 +358,31 @@ class BlockCompensation(BlockSetup):
         inputs: _SpringInputs,
         members: list[tuple[float, float, RopeSprings, float]],
         step_s: float,
+        pool: ThreadPoolExecutor,
     ) -> list[tuple[np.ndarray, ...]]:
         """Each band member's friction less the estimate's, per rope, at the sensors' rate:
-        both solved on the means of :meth:`member_means` and the difference held over each
-        mean's samples (NaN outside the stage; :mod:`transforms.band_members`)."""
+        both solved on the means of :meth:`member_means` (on ``pool``) and the difference
+        held over each mean's samples (NaN outside the stage;
+        :mod:`transforms.band_members`)."""
         n = self.n
         starts, means, travel = self.member_means(inputs, step_s)
         steps = mean_steps(starts, n, self.dt_nominal)
         bounds = tuple(
             int(np.searchsorted(starts, i)) for i in (self.stage_lo, self.handover, self.stage_hi)
         )
-        x = tuple(self.buffer(f"member_x{k}", starts.size) for k in range(len(ROPES)))
-        frictions = []
-        for m, member in enumerate(members):
+
+        def solve(m: int) -> tuple[np.ndarray, ...]:
+            # the displacements go to the solving thread's work arrays
+            x = tuple(self.buffer(f"member_x{k}", starts.size) for k in range(len(ROPES)))
             f = tuple(np.full(starts.size, np.nan) for _ in ROPES)
             run = functools.partial(
-                self.solve_springs, means, member, out=(x, f), dt_s=steps, travel=travel
+                self.solve_springs, means, members[m], out=(x, f), dt_s=steps, travel=travel
             )
             self.nxt.springs[m] = self.staged(run, means.segment, self.carry.springs[m], bounds)
-            frictions.append(f)
+            return f
+
+        # on the pool: beside the estimate, then on both its threads
+        frictions = list(pool.map(solve, range(len(members))))
         return [
             tuple(held(fm - f0, starts, n) for fm, f0 in zip(f_m, frictions[0], strict=True))
             for f_m in frictions[1:]

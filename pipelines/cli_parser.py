@@ -126,11 +126,17 @@ def _band_member_step(parser: argparse.ArgumentParser) -> None:
 
 
 def _member_step_seconds(text: str) -> float:
+    """The step, checked by the settings' own rule (imported here only: the CLI's start
+    stays light when the option is not given)."""
+    from transforms.compensation_record import CompensationSettings
+
     value = float(text)
-    if not (value == 0 or (0 < value <= 1 and abs(1 / value - round(1 / value)) < 1e-9)):
+    try:
+        CompensationSettings(band_member_step_s=value)
+    except ValueError:
         raise argparse.ArgumentTypeError(
             f"must be 0 or a whole fraction of a second (0.1, 0.2, 0.25, 0.5, 1), got {text}"
-        )
+        ) from None
     return value
 
 

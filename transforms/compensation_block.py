@@ -256,19 +256,20 @@ class BlockCompensation(BlockSetup):
 
         step_s = self.settings.band_member_step_s
         self.nxt.springs = self.carry.springs.copy()
+        spread = None
         # the kernel releases the GIL: the members run beside the estimate
         with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
             estimate = pool.submit(self.staged, run, self.segment, self.carry.estimate)
             if step_s > 0 and len(members) > 1:
                 spread = self.member_spreads(inputs, members, step_s, pool)
-                self.nxt.estimate = estimate.result()
-                self.member_friction = [
-                    tuple(f + d for f, d in zip(friction, deltas, strict=True)) for deltas in spread
-                ]
             else:
                 at_rate = functools.partial(self.member_at_rate, inputs)
                 self.member_friction = list(pool.map(at_rate, range(1, len(members)), members[1:]))
-                self.nxt.estimate = estimate.result()
+            self.nxt.estimate = estimate.result()
+        if spread is not None:  # the estimate plus each member's difference
+            self.member_friction = [
+                tuple(f + d for f, d in zip(friction, deltas, strict=True)) for deltas in spread
+            ]
         self.spring_friction = friction
         return x, tuple(np.zeros(n) for _ in ROPES)
 

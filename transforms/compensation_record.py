@@ -100,8 +100,9 @@ class CompensationSettings:
         0 (the default): the stick-slip band's members run at the sensors' rate, each
         costing what the estimate costs. > 0: they run on means of this many seconds
         where the pressures hold still (:mod:`transforms.band_members`; 0.1 s made the
-        compute 1.5x faster, its CPU 2.3x less, the band the same to tens of newtons at most samples
-        but moved by up to ~0.3 % of the load at single stops: a backfill's choice).
+        compute 1.5x faster, its CPU 2.3x less, the band the same to tens of newtons at
+        most samples but moved by up to ~0.3 % of the load at single stops: a
+        backfill's choice).
         A whole fraction of the blocks' resume margin (:func:`compensation_margins_s`,
         1 s by default: 0.1, 0.2, 0.25, 0.5 or 1 s), so that the windows start where a
         block's first stage does.

@@ -37,6 +37,11 @@ the load error before / after (worst and median |.|), the worst rope after, the
 windows where |after| > |before| + 0.2 %-points, the 95 % band coverage and median
 half-width (from ``load_lo_n``/``load_hi_n`` and ``tension{i}_lo_n``/``tension{i}_hi_n``
 when the landed table has them), the five worst windows, and the issue's targets.
+On a validation day it also prints the ropes' constants the run identified
+(:func:`pipelines.identified_ropes.identified_ropes`, from the data root's cache) against
+those the truth's windows imply (:func:`truth_ropes`: the true tensions and piston
+positions fitted to the spring law), and what each length offset's difference makes of
+a rope's tension at the pithead: the identification's share of the pithead's errors.
 
     uv run python benchmarks/eval_compensation.py [--days DIR] [--sims N] [--sims-lugre N]
                                                   [--keep DIR]
@@ -57,12 +62,15 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+from physics.rope_spring import head_rope_stiffness_n_m
+from pipelines.identified_ropes import identified_ropes
 from pipelines.ingest import ingest_paths
 from pipelines.lake import scan_lake
 from pipelines.run_period import run_period
 from schemas.hoist import EXAMPLE_HOIST, HoistDescription, load_hoist
 from schemas.tables import ROPES
 from sims.field_day import generate_field_day, write_field_day
+from transforms.stick_slip import RopeSprings
 from warehouse.store import DataRoot
 
 DEFAULT_DAYS = Path(__file__).resolve().parents[1].parent / "shared" / "validation" / "days"
@@ -96,6 +104,10 @@ class Window:
     t1: dt.datetime
     true_load_n: float
     true_tension_n: tuple[float, ...]
+    #: The stop's depth [m] and each piston's true position [m] (validation days; the
+    #: ropes the truth implies are fitted from them, :func:`truth_ropes`).
+    depth_m: float = float("nan")
+    true_piston_x_m: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -131,11 +143,73 @@ def validation_case(gz: Path, work: Path) -> DayCase:
             t1=_utc(w["t1_utc"]),
             true_load_n=float(w["true_load_n"]),
             true_tension_n=tuple(float(x) for x in w["true_tension_n"]),
+            depth_m=float(stop["depth_m"]),
+            true_piston_x_m=tuple(1e-3 * float(x) for x in w.get("piston_x_mm", ())),
         )
         for stop in truth["stops"]
         for w in stop["windows"]
     ]
     return DayCase(name, csv, hoist_path, windows)
+
+
+def truth_ropes(
+    windows: list[Window], hoist: HoistDescription
+) -> tuple[tuple[float, ...], tuple[float, ...], float] | None:
+    """The ropes' constants the truth's windows imply: (a, c [m], fit RMS [N]) in the
+    identification's gauge (rope 1: a = 1, c = 0), or None without pistons' positions.
+
+    Each window's true tensions and piston positions obey the spring law of
+    :mod:`transforms.stick_slip`, T_i = a_i k (s - x_i - c_i) with k the head rope's
+    rate at the stop's depth (:func:`physics.rope_spring.head_rope_stiffness_n_m`);
+    rope 1 gives the window's s = T_1 / k + x_1, and each other rope's (a_i, a_i c_i)
+    is a linear least-squares fit over the windows.
+    """
+    usable = [
+        w for w in windows if len(w.true_piston_x_m) == hoist.ropes_n and np.isfinite(w.depth_m)
+    ]
+    if len(usable) < 3:
+        return None
+    rate = np.array([
+        head_rope_stiffness_n_m(
+            hoist.ropes.head_rope_axial_stiffness_n,
+            hoist.shaft.headframe_height_m + max(w.depth_m, 0.0),
+        )
+        for w in usable
+    ])  # fmt: skip
+    tension = np.array([w.true_tension_n for w in usable])
+    x = np.array([w.true_piston_x_m for w in usable])
+    s = tension[:, 0] / rate + x[:, 0]
+    a, c, squares = [1.0], [0.0], []
+    for i in range(1, hoist.ropes_n):
+        design = np.column_stack([s - x[:, i], -np.ones(len(usable))])
+        (a_i, ac_i), *_ = np.linalg.lstsq(design, tension[:, i] / rate, rcond=None)
+        a.append(float(a_i))
+        c.append(float(ac_i / a_i))
+        squares.append(np.mean(((design @ (a_i, ac_i)) - tension[:, i] / rate) ** 2 * rate**2))
+    return tuple(a), tuple(c), float(np.sqrt(np.mean(squares)))
+
+
+def report_ropes(
+    identified: RopeSprings | None,
+    implied: tuple[tuple[float, ...], tuple[float, ...], float] | None,
+    hoist: HoistDescription,
+) -> None:
+    """Print the identified ropes against those the truth implies, and what their
+    length offsets' difference makes of a rope's tension at the pithead (a k dc)."""
+    if identified is None or implied is None:
+        return
+    a_true, c_true, rms = implied
+    k_top = head_rope_stiffness_n_m(
+        hoist.ropes.head_rope_axial_stiffness_n, hoist.shaft.headframe_height_m
+    )
+    print(f"  ropes identified vs implied by the truth windows (fit RMS {rms:.0f} N):")
+    for i in range(1, hoist.ropes_n):
+        a, c = identified.stiffness_factors[i], identified.length_offsets_m[i]
+        print(
+            f"    rope {i + 1}: a {a:.4f} vs {a_true[i]:.4f} ({a - a_true[i]:+.4f}), "
+            f"c {1e3 * c:+.3f} vs {1e3 * c_true[i]:+.3f} mm ({1e3 * (c - c_true[i]):+.3f} mm: "
+            f"{-a * k_top * (c - c_true[i]):+.0f} N at the pithead)"
+        )
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -382,6 +456,13 @@ def evaluate(days: Path, sims: int, work: Path, *, sims_lugre: int = 0) -> None:
         figures.append(
             report_day(case.name, errors, len(case.windows), time.perf_counter() - started)
         )
+        implied = truth_ropes(case.windows, hoist := load_hoist(case.hoist_path))
+        if implied is not None:  # the identification's share of the errors
+            data = DataRoot.resolve(root)
+            samples = scan_lake(
+                data, "field_samples", site=hoist.hoist.site, hoist=hoist.hoist.name
+            )
+            report_ropes(identified_ropes(samples.collect(), hoist, data=data), implied, hoist)
     _summary(figures)
 
 

@@ -1,0 +1,58 @@
+"""The evaluation's helpers on windows with known ropes (benchmarks/eval_compensation.py)."""
+
+from __future__ import annotations
+
+import datetime as dt
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from schemas.hoist import EXAMPLE_HOIST, load_hoist
+
+SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "eval_compensation.py"
+
+
+@pytest.fixture(scope="module")
+def evaluation():
+    spec = importlib.util.spec_from_file_location("eval_compensation", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclasses look their module up
+    try:
+        spec.loader.exec_module(module)
+        yield module
+    finally:
+        sys.modules.pop(spec.name, None)
+
+
+def test_truth_ropes_recovers_the_constants_the_windows_obey(evaluation) -> None:
+    """Windows built from T_i = a_i k (s - x_i - c_i) at three depths, rope 1 the
+    gauge (a = 1, c = 0), give back every rope's a and c, with no misfit."""
+    hoist = load_hoist(EXAMPLE_HOIST)
+    a = np.array([1.0, 1.04, 1.01, 0.99])
+    c = np.array([0.0, -0.004, 0.007, 0.001])
+    rng = np.random.default_rng(3)
+    t0 = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
+    windows = []
+    for depth in (0.0, 300.0, 600.0) * 3:
+        k = hoist.ropes.head_rope_axial_stiffness_n / (hoist.shaft.headframe_height_m + depth)
+        x = rng.uniform(-3e-3, 3e-3, 4)
+        s = 0.05 + rng.uniform(0.0, 0.01)
+        tension = a * k * (s - x - c)
+        windows.append(evaluation.Window("arrival", "p", t0, t0, float(tension.sum()),
+                                         tuple(tension), depth, tuple(x)))  # fmt: skip
+    found = evaluation.truth_ropes(windows, hoist)
+    assert found is not None
+    a_found, c_found, rms = found
+    np.testing.assert_allclose(a_found, a, rtol=1e-9)
+    np.testing.assert_allclose(c_found, c, atol=1e-9)
+    assert rms < 1e-6
+
+
+def test_truth_ropes_needs_piston_positions(evaluation) -> None:
+    hoist = load_hoist(EXAMPLE_HOIST)
+    t0 = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
+    windows = [evaluation.Window("arrival", "p", t0, t0, 4.0, (1.0,) * 4)] * 5
+    assert evaluation.truth_ropes(windows, hoist) is None

@@ -37,7 +37,9 @@ the load error before / after (worst and median |.|), the worst rope after, the
 windows where |after| > |before| + 0.2 %-points, the 95 % band coverage and median
 half-width (from ``load_lo_n``/``load_hi_n`` and ``tension{i}_lo_n``/``tension{i}_hi_n``
 when the landed table has them), the five worst windows, and the issue's targets.
-On a validation day it also prints the ropes' constants the run identified
+On a validation day it also prints the seals' friction error per position (summed over
+the pistons and per piston, RMS, against the truth's ``friction_n``) and the ropes'
+constants the run identified
 (:func:`pipelines.identified_ropes.identified_ropes`, from the data root's cache) against
 those the truth's windows imply (:func:`truth_ropes`: the true tensions and piston
 positions fitted to the spring law), and what each length offset's difference makes of
@@ -108,6 +110,8 @@ class Window:
     #: ropes the truth implies are fitted from them, :func:`truth_ropes`).
     depth_m: float = float("nan")
     true_piston_x_m: tuple[float, ...] = ()
+    #: Each seal's true friction [N] (validation days: :func:`report_friction`).
+    true_friction_n: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -145,6 +149,7 @@ def validation_case(gz: Path, work: Path) -> DayCase:
             true_tension_n=tuple(float(x) for x in w["true_tension_n"]),
             depth_m=float(stop["depth_m"]),
             true_piston_x_m=tuple(1e-3 * float(x) for x in w.get("piston_x_mm", ())),
+            true_friction_n=tuple(float(f) for f in w.get("friction_n", ())),
         )
         for stop in truth["stops"]
         for w in stop["windows"]
@@ -187,6 +192,34 @@ def truth_ropes(
         c.append(float(ac_i / a_i))
         squares.append(np.mean(((design @ (a_i, ac_i)) - tension[:, i] / rate) ** 2 * rate**2))
     return tuple(a), tuple(c), float(np.sqrt(np.mean(squares)))
+
+
+def report_friction(errors: pl.DataFrame) -> None:
+    """Print, per position, the RMS over its windows of the seals' friction error summed
+    over the pistons (the load's error from friction) and per piston [N], where the
+    truth gives each seal's friction."""
+    columns = [f"friction{i}_error_n" for i in ROPES]
+    if not set(columns) <= set(errors.columns):
+        return
+    per_position = (
+        errors.with_columns(pl.sum_horizontal(columns).alias("_sum"))
+        .group_by("position")
+        .agg(
+            pl.len().alias("windows"),
+            (pl.col("_sum") ** 2).mean().sqrt().alias("sum"),
+            (pl.concat_list(columns).list.eval(pl.element() ** 2).list.mean())
+            .mean()
+            .sqrt()
+            .alias("piston"),
+        )
+        .sort("position")
+    )
+    print("  seals' friction against the truth's (RMS over the windows):")
+    for r in per_position.iter_rows(named=True):
+        print(
+            f"    {r['position']:<8} {r['windows']:>3} windows: summed {r['sum']:>5.0f} N, "
+            f"per piston {r['piston']:>5.0f} N"
+        )
 
 
 def report_ropes(
@@ -331,6 +364,9 @@ def window_errors(tensions: pl.DataFrame, windows: list[Window]) -> pl.DataFrame
             **{f"rope{i}_pct": ropes[i - 1] for i in ROPES},
             "rope_max_pct": max(abs(r) for r in ropes),
         }
+        if len(w.true_friction_n) == len(ROPES) and all(f"friction{i}_n" in cols for i in ROPES):
+            for i in ROPES:  # the seals' part of each rope's error [N]
+                row[f"friction{i}_error_n"] = mean(f"friction{i}_n") - w.true_friction_n[i - 1]
         if band:
             inside = mean("load_lo_n") <= w.true_load_n <= mean("load_hi_n")
             for i in ROPES:
@@ -456,6 +492,7 @@ def evaluate(days: Path, sims: int, work: Path, *, sims_lugre: int = 0) -> None:
         figures.append(
             report_day(case.name, errors, len(case.windows), time.perf_counter() - started)
         )
+        report_friction(errors)
         implied = truth_ropes(case.windows, hoist := load_hoist(case.hoist_path))
         if implied is not None:  # the identification's share of the errors
             data = DataRoot.resolve(root)

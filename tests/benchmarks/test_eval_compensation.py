@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import polars as pl
 import pytest
 
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
@@ -56,3 +57,33 @@ def test_truth_ropes_needs_piston_positions(evaluation) -> None:
     t0 = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
     windows = [evaluation.Window("arrival", "p", t0, t0, 4.0, (1.0,) * 4)] * 5
     assert evaluation.truth_ropes(windows, hoist) is None
+
+
+def test_window_errors_splits_out_the_seals_friction(evaluation) -> None:
+    """A landed second of constant values against a window's truth: the load's and each
+    seal's error come out as the differences, and the summed friction error per position."""
+    t0 = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
+    times = [t0 + dt.timedelta(milliseconds=20 * k) for k in range(50)]
+    columns = {"time_utc": times, "load_raw_n": [990.0] * 50, "load_n": [1010.0] * 50}
+    for i in range(1, 5):
+        columns[f"tension{i}_n"] = [250.0 + i] * 50
+        columns[f"friction{i}_n"] = [10.0 * i] * 50
+    tensions = pl.DataFrame(columns)
+    window = evaluation.Window(
+        "arrival", "pithead", t0, t0 + dt.timedelta(seconds=1), 1000.0, (250.0,) * 4,
+        true_friction_n=(5.0, 20.0, 35.0, 40.0),
+    )  # fmt: skip
+    errors = evaluation.window_errors(tensions, [window])
+    row = errors.row(0, named=True)
+    assert row["before_pct"] == pytest.approx(-1.0)
+    assert row["after_pct"] == pytest.approx(1.0)
+    assert [row[f"friction{i}_error_n"] for i in range(1, 5)] == pytest.approx([5, 0, -5, 0])
+    no_truth = evaluation.window_errors(
+        tensions,
+        [
+            evaluation.Window(
+                "arrival", "pithead", t0, t0 + dt.timedelta(seconds=1), 1000.0, (250.0,) * 4
+            )
+        ],
+    )
+    assert "friction1_error_n" not in no_truth.columns

@@ -103,6 +103,12 @@ Each seal also drained along its own played path (session 31, beside the oil's s
 travel, the larger of the two): day 104 to 0.66 / 0.17 %, none worse than raw, but days
 101-103 to 1.6-1.9 / 0.5-0.6 %; only along its elastic (unclipped) steps, the same;
 the drift shared equally instead of by compliance: 1.2-1.8 % worst on all four days.
+The own path only while a ringing is counted (:func:`transforms.seal_drift.
+ringing_travel` > 0): days 101-103 unchanged (none rings), day 104 0.96 -> 0.84 %
+worst, 0.22 -> 0.14 % median, 4 -> 2 windows worse than raw, coverage 74 -> 84 %; but
+ropeload's own LuGre simulation, which rings and integrates eq 15 exactly, went from
+0.52 to 0.91 % worst and 100 to 90 % coverage: more drain than LuGre's, so a guess at
+the validation world's own shaking, not the paper's physics.
 """
 
 from __future__ import annotations

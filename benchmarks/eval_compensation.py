@@ -202,7 +202,8 @@ def report_friction(errors: pl.DataFrame) -> None:
     if not set(columns) <= set(errors.columns):
         return
     per_position = (
-        errors.with_columns(pl.sum_horizontal(columns).alias("_sum"))
+        errors.drop_nulls(columns)  # windows without the truth's friction are left out
+        .with_columns(pl.sum_horizontal(columns).alias("_sum"))
         .group_by("position")
         .agg(
             pl.len().alias("windows"),

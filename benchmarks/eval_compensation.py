@@ -42,8 +42,9 @@ the pistons and per piston, RMS, against the truth's ``friction_n``) and the rop
 constants the run identified
 (:func:`pipelines.identified_ropes.identified_ropes`, from the data root's cache) against
 those the truth's windows imply (:func:`truth_ropes`: the true tensions and piston
-positions fitted to the spring law), and what each length offset's difference makes of
-a rope's tension at the pithead: the identification's share of the pithead's errors.
+positions fitted to the spring law), with what each length offset's difference alone
+makes of a rope's tension at the pithead at a fixed stretch (-a k dc; the stiffness's
+difference adds about (da / a) T there, which the print leaves out).
 
     uv run python benchmarks/eval_compensation.py [--days DIR] [--sims N] [--sims-lugre N]
                                                   [--keep DIR]
@@ -167,7 +168,8 @@ def truth_ropes(
     :mod:`transforms.stick_slip`, T_i = a_i k (s - x_i - c_i) with k the head rope's
     rate at the stop's depth (:func:`physics.rope_spring.head_rope_stiffness_n_m`);
     rope 1 gives the window's s = T_1 / k + x_1, and each other rope's (a_i, a_i c_i)
-    is a linear least-squares fit over the windows.
+    is a linear least-squares fit over the windows, in metres (T / k: the deep windows
+    weigh more); the RMS is reported in newtons.
     """
     usable = [
         w for w in windows if len(w.true_piston_x_m) == hoist.ropes_n and np.isfinite(w.depth_m)
@@ -202,7 +204,7 @@ def report_friction(errors: pl.DataFrame) -> None:
     if not set(columns) <= set(errors.columns):
         return
     per_position = (
-        errors.drop_nulls(columns)  # windows without the truth's friction are left out
+        errors.filter(pl.all_horizontal(pl.col(columns).is_finite()))  # truth and estimate
         .with_columns(pl.sum_horizontal(columns).alias("_sum"))
         .group_by("position")
         .agg(
@@ -229,7 +231,8 @@ def report_ropes(
     hoist: HoistDescription,
 ) -> None:
     """Print the identified ropes against those the truth implies, and what their
-    length offsets' difference makes of a rope's tension at the pithead (a k dc)."""
+    length offsets' difference alone makes of a rope's tension at the pithead at a fixed
+    stretch: -a k dc, the estimate minus the truth (the stiffness's part left out)."""
     if identified is None or implied is None:
         return
     a_true, c_true, rms = implied
@@ -242,7 +245,7 @@ def report_ropes(
         print(
             f"    rope {i + 1}: a {a:.4f} vs {a_true[i]:.4f} ({a - a_true[i]:+.4f}), "
             f"c {1e3 * c:+.3f} vs {1e3 * c_true[i]:+.3f} mm ({1e3 * (c - c_true[i]):+.3f} mm: "
-            f"{-a * k_top * (c - c_true[i]):+.0f} N at the pithead)"
+            f"{-a * k_top * (c - c_true[i]):+.0f} N at the pithead from dc)"
         )
 
 
@@ -340,7 +343,8 @@ def window_errors(tensions: pl.DataFrame, windows: list[Window]) -> pl.DataFrame
     ``after_pct``, ``rope{i}_pct``, ``rope_max_pct`` (largest |rope error|), and, when
     the landed table has the band, ``covered`` (true load and every true rope tension
     inside the window-mean band) and ``half_width_pct`` (half the load band in % of
-    the true load).
+    the true load), and where the window has the truth's friction
+    ``friction{i}_error_n`` (the window-mean landed friction less the truth's [N]).
     """
     t_ns = tensions["time_utc"].dt.epoch("ns").to_numpy()
     cols = {c: tensions[c].to_numpy() for c in tensions.columns if c.endswith("_n")}

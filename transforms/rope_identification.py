@@ -59,10 +59,11 @@ day 101): it sees neither the ringing nor the full-rate noise it must ignore.
 
 Against the constants the validation days' truth implies (the true tensions and piston
 positions of the stop windows fitted to the spring law, ``benchmarks/
-eval_compensation.py``'s ``truth_ropes``: one set for all four days, a = 1.078 /
-1.049 / 1.033, c = 8.48 / 10.85 / -3.64 mm, 19-24 N RMS), the identification gets
-each a within 0.008 and each c within 0.04-0.48 mm, worth 57-618 N of a rope's tension
-at the pithead (session 31). The model's misfit, not the logger's, sets that: with the
+eval_compensation.py``'s ``truth_ropes``, per day: the same to within 0.04 mm on all
+four, a = 1.078 / 1.049 / 1.033, c = 8.48 / 10.85 / -3.64 mm, 19-24 N RMS), the
+identification gets each a within 0.008 and each c within 0.04-0.48 mm, the c's part
+alone worth 57-618 N of a rope's tension at the pithead (session 31; the a's adds up to
+~400 N there). The model's misfit, not the logger's, sets that: with the
 truth's constants the model's x is 0.103 mm from the logged (0.047 mm with the
 identified, day 102), offset by ~0.1 mm at the pithead's slides and kept while the
 pistons stick, and the search moves c to take the offsets up. Tried there and not kept:
@@ -74,9 +75,9 @@ objective on x differenced over 10-600 s (the truth's constants still fit worse)
 polish on the sensors' samples (day 102 worst 0.67 -> 1.25 %: the model at 0.02 s
 steps fits x 0.13-0.26 mm and its step matters, through the drift's shares and the
 branch loss together, yet its friction is nearer the truth's there than on means).
-With the truth's constants in place of the identified, days 101 / 103 improve (worst
-rope 1.12 -> 0.88 %, 1.86 -> 1.00 %), days 102 / 104 do not (0.67 -> 0.69 %,
-0.96 -> 1.08 % worst).
+With the truth's constants in place of the identified, worst load / worst rope on
+days 101-104 went 0.80 / 1.12 -> 0.74 / 0.88 %, 0.67 / 1.04 -> 0.69 / 0.95 %,
+0.79 / 1.86 -> 0.62 / 1.00 %, 0.96 / 1.18 -> 1.08 / 1.29 %.
 """
 
 from __future__ import annotations

@@ -87,3 +87,35 @@ def test_window_errors_splits_out_the_seals_friction(evaluation) -> None:
         ],
     )
     assert "friction1_error_n" not in no_truth.columns
+
+
+def test_report_friction_prints_the_rms_of_the_sum_and_per_piston(evaluation, capsys) -> None:
+    """Two pithead windows with errors (30, 10, 0, 0) and (-10, -10, 0, 0) N: summed
+    40 and -20 (RMS 31.6 N), per piston RMS ((900 + 100 + 100 + 100) / 8)^(1/2) = 12.2 N; a
+    window without the truth's friction is left out."""
+    errors = pl.DataFrame(
+        {
+            "position": ["pithead", "pithead", "pithead"],
+            "friction1_error_n": [30.0, -10.0, None],
+            "friction2_error_n": [10.0, -10.0, None],
+            "friction3_error_n": [0.0, 0.0, None],
+            "friction4_error_n": [0.0, 0.0, None],
+        }
+    )
+    evaluation.report_friction(errors)
+    line = capsys.readouterr().out.splitlines()[-1]
+    assert "2 windows" in line
+    assert f"summed {np.sqrt((40**2 + 20**2) / 2):>5.0f} N" in line
+    assert f"per piston {np.sqrt(1200 / 8):>5.0f} N" in line
+
+
+def test_report_ropes_prints_the_offsets_part_at_the_pithead(evaluation, capsys) -> None:
+    """Rope 2 identified 0.1 mm shorter than the truth's: its tension at the pithead is
+    a k (0.1 mm) higher, printed with a plus sign."""
+    hoist = load_hoist(EXAMPLE_HOIST)
+    ropes = evaluation.RopeSprings((1.0, 1.05, 1.0, 1.0), (0.0, 0.0019, 0.0, 0.0), 0.0, 0)
+    implied = ((1.0, 1.05, 1.0, 1.0), (0.0, 0.002, 0.0, 0.0), 20.0)
+    evaluation.report_ropes(ropes, implied, hoist)
+    rope2 = capsys.readouterr().out.splitlines()[1]
+    k = hoist.ropes.head_rope_axial_stiffness_n / hoist.shaft.headframe_height_m
+    assert f"({-0.1:+.3f} mm: {1.05 * k * 1e-4:+.0f} N at the pithead from dc)" in rope2

@@ -88,7 +88,7 @@ def bounce_frequency_hz(
 @njit(cache=True, nogil=True, inline="always")
 def seal_on_rope_step(
     demand_n: float, friction_n: float, sigma0_n_m: float, stiffness_n_m: float, capacity_n: float
-) -> tuple[float, float, float]:
+) -> tuple[float, float, float, float, float]:
     r"""A piston's quasi-static step between its rope spring and its elasto-plastic seal.
 
     The rope's pull beyond the chamber's force, ``demand`` D = a k (s - x - c) - p A
@@ -120,25 +120,36 @@ def seal_on_rope_step(
     dx, friction, slope : float
         The piston's displacement [m], the bristles' force after it [N], and d dx / d D
         [m/N] (what a Newton solve of the closed oil volume needs).
+    lo, hi : float
+        The demands [N] between which dx, the force and the slope are linear in D with
+        that slope (the piece of D this one is on: sticking, or sliding either way; the
+        sliding pieces are unbounded): a Newton step that stays within it lands on the
+        root of a sum of such steps, with no evaluation after it.
 
     Examples
     --------
     A demand of 300 N on bristles at 0 with capacity 1000 N sticks: bristles (2e5 N/m)
-    and rope (1e5 N/m) share it by stiffness; 3000 N slides the seal, which holds its
-    capacity.
+    and rope (1e5 N/m) share it by stiffness, up to a demand of 1500 N; 3000 N slides
+    the seal, which holds its capacity.
 
     >>> seal_on_rope_step(300.0, 0.0, 2e5, 1e5, 1000.0)
-    (0.001, 200.0, 3.3333333333333333e-06)
+    (0.001, 200.0, 3.3333333333333333e-06, -1500.0, 1500.0)
     >>> seal_on_rope_step(3000.0, 0.0, 2e5, 1e5, 1000.0)
-    (0.02, 1000.0, 1e-05)
+    (0.02, 1000.0, 1e-05, 1500.0, inf)
     """
     dx = (demand_n - friction_n) / (sigma0_n_m + stiffness_n_m)
     force = friction_n + sigma0_n_m * dx
+    # the demands at which the sticking bristles reach the capacity either way
+    reach = (sigma0_n_m + stiffness_n_m) / sigma0_n_m
+    lo = friction_n + (-capacity_n - friction_n) * reach
+    hi = friction_n + (capacity_n - friction_n) * reach
     if force > capacity_n:
-        return (demand_n - capacity_n) / stiffness_n_m, capacity_n, 1.0 / stiffness_n_m
+        slide = 1.0 / stiffness_n_m
+        return (demand_n - capacity_n) * slide, capacity_n, slide, hi, np.inf
     if force < -capacity_n:
-        return (demand_n + capacity_n) / stiffness_n_m, -capacity_n, 1.0 / stiffness_n_m
-    return dx, force, 1.0 / (sigma0_n_m + stiffness_n_m)
+        slide = 1.0 / stiffness_n_m
+        return (demand_n + capacity_n) * slide, -capacity_n, slide, -np.inf, lo
+    return dx, force, 1.0 / (sigma0_n_m + stiffness_n_m), lo, hi
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -148,7 +159,7 @@ def elements_on_rope_step(
     stiffness: np.ndarray,
     limits: np.ndarray,
     stiffness_n_m: float,
-) -> tuple[float, float]:
+) -> tuple[float, float, float, float]:
     r"""A piston's quasi-static step between its rope spring and a seal of Maxwell-slip
     elements (:func:`physics.maxwell_slip.maxwell_slip_step`, ``presliding_hysteresis``).
 
@@ -182,21 +193,27 @@ def elements_on_rope_step(
     -------
     dx, slope : float
         The piston's displacement [m] and d dx / d D [m/N].
+    lo, hi : float
+        The demands [N] between which dx is linear in D with that slope (the segment of
+        the walk D falls on, the last unbounded; the first either way goes on past the
+        elements' force before the step where the slope is the same on the other
+        side), as :func:`seal_on_rope_step`'s.
 
     Examples
     --------
     The examples of :func:`seal_on_rope_step` with two elements (1.5e5 and 0.5e5 N/m,
     capacities 500 N each, together the one bristle of 2e5 N/m): 300 N sticks both, as
     there; 1200 N slips the stiffer element at 3.33 mm (1000 N taken), and the softer
-    and the rope share the remaining 200 N: 4.67 mm, the seal holding 733 N.
+    and the rope share the remaining 200 N: 4.67 mm, the seal holding 733 N. That
+    segment runs from a demand of 1000 N to 2000 N, where the softer slips too (10 mm).
 
     >>> k = np.array([1.5e5, 0.5e5])
     >>> limits = 500.0 / k
-    >>> elements_on_rope_step(300.0, np.zeros(2), k, limits, 1e5)
+    >>> elements_on_rope_step(300.0, np.zeros(2), k, limits, 1e5)[:2]
     (0.001, 3.3333333333333333e-06)
-    >>> dx, slope = elements_on_rope_step(1200.0, np.zeros(2), k, limits, 1e5)
-    >>> round(dx * 1e3, 4), round(1.0 / slope)
-    (4.6667, 150000)
+    >>> dx, slope, lo, hi = elements_on_rope_step(1200.0, np.zeros(2), k, limits, 1e5)
+    >>> round(dx * 1e3, 4), round(1.0 / slope), round(lo, 6), round(hi, 6)
+    (4.6667, 150000, 1000.0, 2000.0)
     """
     h0 = 0.0
     for j in range(deltas.shape[0]):
@@ -205,6 +222,8 @@ def elements_on_rope_step(
     target = way * (demand_n - h0)  # walked in the mirrored coordinate w = way dx >= 0
     w = 0.0
     gained = 0.0
+    first = True
+    back_slope, back = stiffness_n_m, np.inf  # the first segment the other way from h0
     while True:
         slope = stiffness_n_m
         nxt = np.inf
@@ -217,7 +236,19 @@ def elements_on_rope_step(
                 nxt = enters
             if w < leaves < nxt:
                 nxt = leaves
+            if first:  # mirrored: the element enters at -leaves and leaves at -enters
+                if -leaves <= 0.0 < -enters:
+                    back_slope += stiffness[j]
+                if 0.0 < -leaves < back:
+                    back = -leaves
+                if 0.0 < -enters < back:
+                    back = -enters
         if nxt == np.inf or gained + slope * (nxt - w) >= target:
-            return way * (w + (target - gained) / slope), 1.0 / slope
+            end = gained + slope * (nxt - w) if nxt < np.inf else np.inf
+            # the first segment goes on past h0 where the slope is the same there
+            start = -back_slope * back if first and back_slope == slope else gained
+            lo, hi = (h0 + start, h0 + end) if way > 0.0 else (h0 - end, h0 - start)
+            return way * (w + (target - gained) / slope), 1.0 / slope, lo, hi
         gained += slope * (nxt - w)
         w = nxt
+        first = False

@@ -699,11 +699,15 @@ def _kernel(
     compliance = np.ones(m)  # each piston's d dx / d demand at its last step
     step = np.zeros(m)  # the Newton solve's last evaluation: each piston's dx,
     bristle = np.zeros(m)  # its seal's force (one bristle),
-    given = np.zeros(m)  # and its d dx / d demand
+    given = np.zeros(m)  # and its d dx / d demand,
+    demand = np.zeros(m)  # at that demand,
+    lo = np.zeros(m)  # linear between these demands
+    hi = np.zeros(m)
     pending = state[7 + 4 * m]  # given drift travel not yet applied (unknown pressures)
     elements = element_k.shape[0] > 1  # Maxwell-slip seals: each element's deflection
     deltas = np.zeros((m, element_k.shape[0]))
     limits = np.zeros((m, element_k.shape[0]))  # each element's deflection limit [m]
+    per_capacity = element_w / element_k  # the limits per newton of capacity
     if elements and ran:
         for i in range(m):
             for j in range(element_k.shape[0]):
@@ -754,7 +758,7 @@ def _kernel(
             cap[i] = scale * (stribeck_g(v[i], fc, fs, vs) + kv * abs(v[i]))
             if elements:
                 for j in range(element_k.shape[0]):
-                    limits[i, j] = element_w[j] * cap[i] / element_k[j]
+                    limits[i, j] = per_capacity[j] * cap[i]
         if not ran:  # the record's start: positions logged, friction unknown (mean 0, or
             # for the band's start members as far as the ropes let every seal go)
             num = 0.0
@@ -807,14 +811,14 @@ def _kernel(
             total = 0.0
             slope = 0.0
             for i in range(m):
-                demand = ka[i] * (s + ds - x[i] - c[i]) - p_sensor[i][t] * area
+                demand[i] = ka[i] * (s + ds - x[i] - c[i]) - p_sensor[i][t] * area
                 if elements:
-                    step[i], given[i] = elements_on_rope_step(
-                        demand, deltas[i], element_k, limits[i], ka[i] + damping[i]
+                    step[i], given[i], lo[i], hi[i] = elements_on_rope_step(
+                        demand[i], deltas[i], element_k, limits[i], ka[i] + damping[i]
                     )
                 else:
-                    step[i], bristle[i], given[i] = seal_on_rope_step(
-                        demand, z[i], sigma0, ka[i] + damping[i], cap[i]
+                    step[i], bristle[i], given[i], lo[i], hi[i] = seal_on_rope_step(
+                        demand[i], z[i], sigma0, ka[i] + damping[i], cap[i]
                     )
                 total += step[i]
                 slope += given[i] * ka[i]
@@ -826,7 +830,23 @@ def _kernel(
                 below = ds
             else:
                 above = ds
-            ds -= err / slope
+            move = -err / slope
+            # every piston's demand stays on its piece: the sum is linear up to the new
+            # s, which is its root; the steps follow their slopes, no evaluation there
+            linear = True
+            for i in range(m):
+                if not lo[i] <= demand[i] + ka[i] * move <= hi[i]:
+                    linear = False
+                    break
+            ds += move
+            if linear:
+                for i in range(m):
+                    shift = given[i] * ka[i] * move
+                    step[i] += shift
+                    if not elements and np.isfinite(lo[i]) and np.isfinite(hi[i]):
+                        bristle[i] += sigma0 * shift  # sticking: the bristles follow
+                solved = True
+                break
             # a piecewise-linear sum is not convex: where Newton leaves the bracket (it
             # can cycle between break points) the bracket is halved instead
             if not below < ds < above and np.isfinite(below) and np.isfinite(above):
@@ -834,14 +854,14 @@ def _kernel(
         s += ds
         for i in range(m):
             if not solved:  # the iterations ran out: evaluate at the last s
-                demand = ka[i] * (s - x[i] - c[i]) - p_sensor[i][t] * area
+                demand[i] = ka[i] * (s - x[i] - c[i]) - p_sensor[i][t] * area
                 if elements:
-                    step[i], given[i] = elements_on_rope_step(
-                        demand, deltas[i], element_k, limits[i], ka[i] + damping[i]
+                    step[i], given[i], lo[i], hi[i] = elements_on_rope_step(
+                        demand[i], deltas[i], element_k, limits[i], ka[i] + damping[i]
                     )
                 else:
-                    step[i], bristle[i], given[i] = seal_on_rope_step(
-                        demand, z[i], sigma0, ka[i] + damping[i], cap[i]
+                    step[i], bristle[i], given[i], lo[i], hi[i] = seal_on_rope_step(
+                        demand[i], z[i], sigma0, ka[i] + damping[i], cap[i]
                     )
             dx = step[i]
             compliance[i] = given[i]

@@ -60,7 +60,7 @@ from transforms.seal_drift import (
     played_travels_into,
     ringing_travel,
 )
-from transforms.stick_slip import RopeSprings, band_solutions, stick_slip
+from transforms.stick_slip import BAND_SOURCES, BandSolution, band_solutions, stick_slip
 from transforms.uncertainty import ensemble_band, rope_band
 
 __all__ = ["BlockCompensation"]
@@ -244,7 +244,10 @@ class BlockCompensation(BlockSetup):
                 sample_rate_hz=self.context.sample_rate_hz,
                 pressure_cutoff_hz=self.settings.pressure_cutoff_hz, half_width_pa=drift_w,
             )  # fmt: skip
-        members = band_solutions(springs, self.settings.friction_relative_sigma)
+        members = band_solutions(
+            springs, self.settings.friction_relative_sigma, ringing=ringing is not None
+        )
+        self.member_sources = tuple(BAND_SOURCES.index(m.source) for m in members[1:])
         inputs = _SpringInputs(
             pressures, logged, depth, self.segment, nu, drift_p, drift_w, ringing
         )
@@ -257,15 +260,27 @@ class BlockCompensation(BlockSetup):
         step_s = self.settings.band_member_step_s
         self.nxt.springs = self.carry.springs.copy()
         spread = None
+        on_means = step_s > 0 and len(members) > 1
+        # a ringing member where nothing rings, resuming from the estimate's state, is
+        # the estimate bit for bit (its travel x 0): copied, not solved
+        others = range(1, len(members))
+        copied = [] if on_means else [m for m in others if self.is_estimate(inputs, m, members)]
+        solved = [m for m in others if m not in copied]
         # the kernel releases the GIL: the members run beside the estimate
         with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
             estimate = pool.submit(self.staged, run, self.segment, self.carry.estimate)
-            if step_s > 0 and len(members) > 1:
+            if on_means:
                 spread = self.member_spreads(inputs, members, step_s, pool)
             else:
                 at_rate = functools.partial(self.member_at_rate, inputs)
-                self.member_friction = list(pool.map(at_rate, range(1, len(members)), members[1:]))
+                found = pool.map(at_rate, solved, [members[m] for m in solved])
+                frictions = dict(zip(solved, found, strict=True))
             self.nxt.estimate = estimate.result()
+        if not on_means:
+            for m in copied:
+                frictions[m] = tuple(f.copy() for f in friction)
+                self.nxt.springs[m] = self.nxt.estimate.copy()
+            self.member_friction = [frictions[m] for m in range(1, len(members))]
         if spread is not None:  # the estimate plus each member's difference
             self.member_friction = [
                 tuple(f + d for f, d in zip(friction, deltas, strict=True)) for deltas in spread
@@ -273,10 +288,22 @@ class BlockCompensation(BlockSetup):
         self.spring_friction = friction
         return x, tuple(np.zeros(n) for _ in ROPES)
 
+    def is_estimate(self, inputs: _SpringInputs, m: int, members: list[BandSolution]) -> bool:
+        """Member m solves as the estimate over this block's stage: it differs from it
+        only by its ringing factor, nothing rings over the stage, and it resumes from
+        the estimate's state (NaN where the estimate's is)."""
+        member, estimate = members[m], members[0]
+        if member._replace(ringing_scale=1.0, source="") != estimate._replace(source=""):
+            return False
+        ringing = inputs.ringing
+        if ringing is not None and ringing[self.stage_lo : self.stage_hi].any():
+            return False
+        return np.array_equal(self.carry.springs[m], self.carry.estimate, equal_nan=True)
+
     def solve_springs(
         self,
         inputs: _SpringInputs,
-        member: tuple[float, float, RopeSprings, float],
+        member: BandSolution,
         lo: int,
         hi: int,
         state: np.ndarray,
@@ -285,10 +312,15 @@ class BlockCompensation(BlockSetup):
         travel: np.ndarray | None = None,
     ) -> None:
         """:func:`~transforms.stick_slip.stick_slip` of one solution over [lo, hi) of
-        ``inputs`` (samples, or means with the drift's ``travel`` given)."""
-        capacity_scale, sigma0_scale, ropes, start = member
+        ``inputs`` (samples, or means with the drift's ``travel`` given, the member's
+        ringing in it)."""
+        capacity_scale, sigma0_scale, ropes, start, ringing_factor, _ = member
         nu = inputs.nu
         drift_p = None if inputs.drift_p is None or travel is not None else inputs.drift_p[lo:hi]
+        ringing = None
+        if inputs.ringing is not None and drift_p is not None:
+            ringing = inputs.ringing[lo:hi]
+            ringing = ringing * ringing_factor if ringing_factor != 1.0 else ringing
         stick_slip(
             tuple(p[lo:hi] for p in inputs.pressures), tuple(v[lo:hi] for v in inputs.logged),
             inputs.depth[lo:hi], inputs.segment[lo:hi], self.hoist, ropes,
@@ -299,22 +331,20 @@ class BlockCompensation(BlockSetup):
             start_at_capacity=start, drift_half_width_pa=inputs.drift_w,
             drift_pressure_pa=drift_p,
             drift_travel_pa=None if travel is None else travel[lo:hi],
-            drift_ringing_pa=(
-                None if inputs.ringing is None or drift_p is None else inputs.ringing[lo:hi]
-            ),
+            drift_ringing_pa=ringing,
             presliding_elements=self.weights.shape[0],
             out=(tuple(v[lo:hi] for v in out[0]), tuple(f[lo:hi] for f in out[1])),
         )  # fmt: skip
 
     def member_means(
         self, inputs: _SpringInputs, step_s: float
-    ) -> tuple[np.ndarray, _SpringInputs, np.ndarray | None]:
+    ) -> tuple[np.ndarray, _SpringInputs, Callable[[float], np.ndarray] | None]:
         """(first sample of each mean, the inputs' means, the drift's travel over each
-        mean or None) of :mod:`transforms.band_members`: means of ``step_s`` since the
-        epoch within each gap-free segment where the pressures stay within
-        :data:`~transforms.band_members.STEADY_SIGMAS` x their low-passed noise, else of
-        each sample; the drift's full-rate play resumed from the previous block and its
-        travel (the ringing's included) summed over each mean."""
+        mean for a ringing factor, or None) of :mod:`transforms.band_members`: means of
+        ``step_s`` since the epoch within each gap-free segment where the pressures stay
+        within :data:`~transforms.band_members.STEADY_SIGMAS` x their low-passed noise,
+        else of each sample; the drift's full-rate play resumed from the previous block
+        and its travel (the ringing's included, x the factor) summed over each mean."""
         steady_pa = STEADY_SIGMAS * self.pressure_noise_n() / self.hoist.cylinders.bore_area_m2
         starts = mean_starts(self.epoch_us, self.segment, step_s, inputs.pressures, steady_pa)
         travel = None
@@ -328,9 +358,13 @@ class BlockCompensation(BlockSetup):
                 )
 
             self.nxt.drift_play = self.staged(play, segment, self.carry.drift_play)
-            if inputs.ringing is not None:
-                per_sample += np.nan_to_num(inputs.ringing)
-            travel = group_sum(per_sample, starts)
+            ringing = None if inputs.ringing is None else np.nan_to_num(inputs.ringing)
+
+            def travel(factor: float) -> np.ndarray:
+                if ringing is None:
+                    return group_sum(per_sample, starts)
+                return group_sum(per_sample + factor * ringing, starts)
+
         nu = inputs.nu
         means = _SpringInputs(
             tuple(group_mean(p, starts) for p in inputs.pressures),
@@ -341,7 +375,7 @@ class BlockCompensation(BlockSetup):
         return starts, means, travel
 
     def member_at_rate(
-        self, inputs: _SpringInputs, m: int, member: tuple[float, float, RopeSprings, float]
+        self, inputs: _SpringInputs, m: int, member: BandSolution
     ) -> tuple[np.ndarray, ...]:
         """Band member m's friction per rope, solved at the sensors' rate (NaN outside the
         stage); its displacements go to this thread's work arrays."""
@@ -357,7 +391,7 @@ class BlockCompensation(BlockSetup):
     def member_spreads(
         self,
         inputs: _SpringInputs,
-        members: list[tuple[float, float, RopeSprings, float]],
+        members: list[BandSolution],
         step_s: float,
         pool: ThreadPoolExecutor,
     ) -> list[tuple[np.ndarray, ...]]:
@@ -377,8 +411,9 @@ class BlockCompensation(BlockSetup):
             x = tuple(self.buffer(f"member_x{k}", starts.size) for k in range(len(ROPES)))
             f = tuple(np.full(starts.size, np.nan) for _ in ROPES)
             run = functools.partial(
-                self.solve_springs, means, members[m], out=(x, f), dt_s=steps, travel=travel
-            )
+                self.solve_springs, means, members[m], out=(x, f), dt_s=steps,
+                travel=None if travel is None else travel(members[m].ringing_scale),
+            )  # fmt: skip
             self.nxt.springs[m] = self.staged(run, means.segment, self.carry.springs[m], bounds)
             return f
 
@@ -486,6 +521,7 @@ class BlockCompensation(BlockSetup):
                 out["tension"][core], seal,
                 [member[k][core] for member in self.member_friction], self.pressure_noise_n(),
                 seal_sigma_n=self.settings.friction_relative_sigma * np.abs(seal),
+                groups=self.member_sources,
             )  # fmt: skip
         estimates, blind = self.motion_share.result()
         # rope k's estimate is consumed (played above) and its blind motion is read
@@ -568,5 +604,6 @@ class BlockCompensation(BlockSetup):
         if self.mode == 3:  # the load's band: the members' frictions summed member by member
             members = [sum(f[k][core] for k in range(len(ROPES))) for f in self.member_friction]
         frame = block_frame(rows, np.negative(accel[core]), labels, pressures, columns,
-                            p_mean[core], sigma_n, load_members=members)  # fmt: skip
+                            p_mean[core], sigma_n, load_members=members,
+                            member_sources=self.member_sources if members else None)  # fmt: skip
         return frame, self.nxt

@@ -36,6 +36,7 @@ def block_frame(
     gaussian_sigma_n: tuple[float, float],
     *,
     load_members: list[np.ndarray] | None = None,
+    member_sources: tuple[int, ...] | None = None,
 ) -> pl.DataFrame:
     """The block's ``ROPE_TENSIONS`` rows.
 
@@ -44,7 +45,8 @@ def block_frame(
     pressures, ``columns`` each rope's output arrays by column name; ``load_raw`` is
     overwritten with the raw load; ``gaussian_sigma_n`` = (relative friction sigma,
     pressure noise [N]) of the band; ``load_members`` the summed frictions of the
-    stick-slip band's members (:func:`transforms.uncertainty.ensemble_band`), if any.
+    stick-slip band's members (:func:`transforms.uncertainty.ensemble_band`), if any,
+    ``member_sources`` the source of each (its ``groups``).
     """
     load = np.empty(rows.height)
     load_kernel(
@@ -58,7 +60,7 @@ def block_frame(
         noise = gaussian_sigma_n[1] * np.sqrt(len(frictions))  # independent sensors
         seals = gaussian_sigma_n[0] * np.sqrt(sum(f * f for f in frictions))  # and seals
         load_lo, load_hi = ensemble_band(
-            load, sum(frictions), load_members, noise, seal_sigma_n=seals
+            load, sum(frictions), load_members, noise, seal_sigma_n=seals, groups=member_sources
         )
     else:
         load_lo, load_hi = load_band(

@@ -114,6 +114,7 @@ the validation world's own shaking, not the paper's physics.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -129,10 +130,13 @@ from schemas.hoist import HoistDescription
 from transforms.seal_drift import played_travel
 
 __all__ = [
+    "BAND_SOURCES",
     "MAX_ALTERNATIVES",
     "MAX_SOLUTIONS",
     "MEMBER_STIFFNESS_LIMITS",
+    "RINGING_MEMBERS",
     "START_MEMBERS",
+    "BandSolution",
     "RopeSprings",
     "band_members",
     "band_solutions",
@@ -146,9 +150,17 @@ __all__ = [
 #: The most alternatives of the ropes a :class:`RopeSprings` carries (one per part of
 #: the record the identification repeats on, :data:`transforms.rope_identification.SPLITS`).
 MAX_ALTERNATIVES = 4
+#: Factors on the ringing's drift travel of the band's ringing members
+#: (:func:`band_solutions`; ``drift_ringing_pa`` of :func:`stick_slip`): halved and
+#: doubled, as the bristle stiffness's (:func:`band_members`).
+RINGING_MEMBERS = (0.5, 2.0)
+#: The independent sources of uncertainty the band's members stand for
+#: (:func:`band_solutions`), in the order of :func:`transforms.uncertainty.ensemble_band`'s
+#: groups: the law's capacity first (the seals' own departure from the law).
+BAND_SOURCES = ("law", "bristles", "ropes", "ringing")
 #: The most solutions :func:`band_solutions` gives: the estimate, the four of
-#: :func:`band_members` and one per alternative of the ropes.
-MAX_SOLUTIONS = 5 + MAX_ALTERNATIVES
+#: :func:`band_members`, one per alternative of the ropes and the ringing's two.
+MAX_SOLUTIONS = 5 + MAX_ALTERNATIVES + len(RINGING_MEMBERS)
 #: ``start_at_capacity`` of the members of :func:`band_members`, in its order: the softer
 #: bristles start the record with the seals down, the stiffer with them up (both of the
 #: law's capacity: the extremes +-F_s; the capacity members keep their own role).
@@ -158,11 +170,24 @@ START_MEMBERS = (0.0, 0.0, -1.0, 1.0)
 MEMBER_STIFFNESS_LIMITS = (0.5, 1.5)
 
 
+class BandSolution(NamedTuple):
+    """One solution of :func:`band_solutions`: :func:`stick_slip`'s ``capacity_scale``,
+    ``sigma0_scale``, ropes and ``start_at_capacity``, the factor on its
+    ``drift_ringing_pa``, and the source of uncertainty it stands for (one of
+    :data:`BAND_SOURCES`; the estimate's ``"estimate"``)."""
+
+    capacity_scale: float
+    sigma0_scale: float
+    ropes: RopeSprings
+    start_at_capacity: float
+    ringing_scale: float
+    source: str
+
+
 def band_solutions(
-    springs: RopeSprings, friction_relative_sigma: float
-) -> list[tuple[float, float, RopeSprings, float]]:
-    """(capacity factor, bristle-stiffness factor, ropes, start) of the estimate (first)
-    and of each member of the 95 % band: the friction law's members
+    springs: RopeSprings, friction_relative_sigma: float, *, ringing: bool = False
+) -> list[BandSolution]:
+    """The estimate (first) and each member of the 95 % band: the friction law's members
     (:func:`band_members`) on the identified ropes, the softer and the stiffer bristles
     also starting the record with every seal as far down or up as the ropes let it
     (``start_at_capacity`` of :func:`stick_slip`, :data:`START_MEMBERS`: nothing tells
@@ -172,32 +197,57 @@ def band_solutions(
     With LuGre seals the bristle stiffness also sets how fast they drift
     (:func:`stick_slip`), so its members span the drift too.
 
+    ``ringing`` (the seals drift, so the ringing the drift's play hides counts,
+    :func:`transforms.seal_drift.ringing_travel`): last, the estimate with that travel
+    halved and doubled (:data:`RINGING_MEMBERS`). It is inferred, not measured: counted
+    only where the ringing stands above the noise (a decaying ringing's tail below it
+    is not), and taken as the oil's common motion shared by the pistons' compliance,
+    where each piston's own path in a bounce can be longer. On validation day 104 (a
+    ringing hoist) the estimate's seals kept ~1.6 x the friction the truth's kept at
+    the pithead's stops (the travel doubled in the estimate: worst stop window 0.96 ->
+    0.71 %, coverage 90 %; a diagnosis, not a setting: the members' factors are the
+    bristles' halving and doubling). Members: coverage 74 -> 77 %, with the sources
+    in quadrature 90 % (:func:`transforms.uncertainty.ensemble_band`).
+
     One half of a record gave ropes (rope 2 0.01 stiffer than the whole's), the other
     none: the members reach t_1 = 12.7 x as far, on both sides.
 
+    Each member is a 95 % extreme of one of the independent sources of
+    :data:`BAND_SOURCES` (the bristles' stiffness and the record's start together);
+    :func:`transforms.uncertainty.ensemble_band` combines the sources in quadrature.
+
     >>> springs = RopeSprings((1.0, 1.02), (0.0, 1e-3), 1e-4, 100,
     ...                       (((1.0, 1.03), (0.0, 2e-3)),), parts=2)
-    >>> for c, s, r, start in band_solutions(springs, 0.1)[-4:]:
-    ...     print(c, s, round(r.stiffness_factors[1], 4), start)
-    1.0 0.5 1.02 -1.0
-    1.0 2.0 1.02 1.0
-    1.0 1.0 1.1471 0.0
-    1.0 1.0 0.8929 0.0
+    >>> for c, s, r, start, ring, source in band_solutions(springs, 0.1, ringing=True)[-6:]:
+    ...     print(c, s, round(r.stiffness_factors[1], 4), start, ring, source)
+    1.0 0.5 1.02 -1.0 1.0 bristles
+    1.0 2.0 1.02 1.0 1.0 bristles
+    1.0 1.0 1.1471 0.0 1.0 ropes
+    1.0 1.0 0.8929 0.0 1.0 ropes
+    1.0 1.0 1.02 0.0 0.5 ringing
+    1.0 1.0 1.02 0.0 2.0 ringing
     """
-    solutions = [(1.0, 1.0, springs, 0.0)]
+    if len(springs.alternatives) > MAX_ALTERNATIVES:  # the carried state has no rows
+        raise ValueError(f"{len(springs.alternatives)} alternatives of the ropes: at most "
+                         f"{MAX_ALTERNATIVES} (MAX_ALTERNATIVES)")  # fmt: skip
+    solutions = [BandSolution(1.0, 1.0, springs, 0.0, 1.0, "estimate")]
     solutions += [
-        (c, s, springs, start)
+        BandSolution(c, s, springs, start, 1.0, "law" if s == 1.0 else "bristles")
         for (c, s), start in zip(band_members(friction_relative_sigma), START_MEMBERS, strict=True)
     ]
     alternatives = range(len(springs.alternatives))
     if springs.alternatives:
         reach = parts_reach(len(springs.alternatives), springs.splits)
-        solutions += [(1.0, 1.0, springs.member(k, reach), 0.0) for k in alternatives]
+        solutions += [
+            BandSolution(1.0, 1.0, springs.member(k, reach), 0.0, 1.0, "ropes")
+            for k in alternatives
+        ]
         if len(springs.alternatives) == 1:  # its deviation's sign says nothing: both sides
-            solutions.append((1.0, 1.0, springs.member(0, -reach), 0.0))
-    if len(solutions) > MAX_SOLUTIONS:
-        raise ValueError(f"{len(springs.alternatives)} alternatives of the ropes: at most "
-                         f"{MAX_ALTERNATIVES} (MAX_ALTERNATIVES)")  # fmt: skip
+            solutions.append(BandSolution(1.0, 1.0, springs.member(0, -reach), 0.0, 1.0, "ropes"))
+    if ringing:
+        solutions += [
+            BandSolution(1.0, 1.0, springs, 0.0, factor, "ringing") for factor in RINGING_MEMBERS
+        ]
     return solutions
 
 

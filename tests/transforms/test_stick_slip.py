@@ -31,9 +31,11 @@ from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from transforms import rope_identification
 from transforms.rope_identification import SPLITS, identify_from_means, record_means
 from transforms.stick_slip import (
+    BAND_SOURCES,
     MAX_ALTERNATIVES,
     MAX_SOLUTIONS,
     MEMBER_STIFFNESS_LIMITS,
+    RINGING_MEMBERS,
     RopeSprings,
     band_solutions,
     stick_slip,
@@ -298,7 +300,7 @@ def test_the_ropes_members_hold_95_percent(splits, identified):
         whole = float(draw.mean())
         seen = tuple(((1.0,), (float(q),)) for q in draw[:identified])
         springs = RopeSprings((1.0,), (whole,), 0.0, 0, seen, parts=splits)
-        members = [ropes.length_offsets_m[0] for *_, ropes, _ in band_solutions(springs, 0.1)]
+        members = [ropes.length_offsets_m[0] for _, _, ropes, *_ in band_solutions(springs, 0.1)]
         inside += min(members) <= 0.0 <= max(members)
     assert 0.94 < inside / len(parts) < 0.99  # 95 % less three standard errors of the draws
 
@@ -309,7 +311,7 @@ def test_the_ropes_members_stay_within_their_limits():
     at least are refused."""
     part = ((1.0, 0.92), (0.0, 1e-3))
     springs = RopeSprings((1.0, 1.0), (0.0, 0.0), 0.0, 0, (part,), parts=2)
-    factors = [r.stiffness_factors[1] for *_, r, _ in band_solutions(springs, 0.1)[5:]]
+    factors = [r.stiffness_factors[1] for _, _, r, *_ in band_solutions(springs, 0.1)[5:]]
     assert factors == [MEMBER_STIFFNESS_LIMITS[0], MEMBER_STIFFNESS_LIMITS[1]]
     with pytest.raises(ValueError, match="two parts"):
         RopeSprings((1.0, 1.0), (0.0, 0.0), 0.0, 0, (part,))
@@ -543,8 +545,39 @@ def test_band_solutions_fit_the_carried_state():
     alternatives than the rows hold is an error, not a member silently left out."""
     ropes = ((1.0,) * 4, (0.0,) * 4)
     most = RopeSprings(*ropes, 1e-4, 100, (ropes,) * MAX_ALTERNATIVES)
-    solutions = band_solutions(most, 0.1)
+    solutions = band_solutions(most, 0.1, ringing=True)
     assert len(solutions) == MAX_SOLUTIONS
-    assert solutions[0] == (1.0, 1.0, most, 0.0)  # the estimate first
+    assert solutions[0] == (1.0, 1.0, most, 0.0, 1.0, "estimate")  # the estimate first
+    # every member stands for one of the sources the band combines
+    assert {m.source for m in solutions[1:]} == set(BAND_SOURCES)
+    assert len(band_solutions(most, 0.1)) == MAX_SOLUTIONS - len(RINGING_MEMBERS)
     with pytest.raises(ValueError, match="MAX_ALTERNATIVES"):
         band_solutions(RopeSprings(*ropes, 1e-4, 100, (ropes,) * (MAX_ALTERNATIVES + 1)), 0.1)
+
+
+def test_the_ringing_members_are_the_estimate_where_nothing_rings():
+    """A ringing member's travel is the estimate's ringing x its factor: where the
+    ringing is 0 it solves as the estimate, bit for bit (what lets the compensation copy
+    it instead of solving it); where the hoist rings, more ringing drains the seals
+    further (LuGre's drift takes the seal's friction toward 0)."""
+    n = 2000
+    p = 4.0e6 + 3.0e5 * np.sin(np.linspace(0, 2 * np.pi, n))
+    springs = RopeSprings((1.0, 1.03, 0.98, 1.01), (0.0, 2e-3, -1e-3, 0.5e-3), 0.0, 0)
+
+    def run(ringing: np.ndarray):
+        return stick_slip(
+            (p,) * 4, (np.zeros(n),) * 4, np.full(n, DEPTH), np.zeros(n, int), HOIST, springs,
+            dt_s=0.01, drift_pressure_pa=p, drift_half_width_pa=5e3, drift_ringing_pa=ringing,
+        )  # fmt: skip
+
+    quiet = np.zeros(n)
+    _, estimate = run(quiet)
+    for factor in RINGING_MEMBERS:
+        _, member = run(quiet * factor)
+        assert all(np.array_equal(a, b) for a, b in zip(member, estimate, strict=True))
+    rings = np.where(np.arange(n) > n // 2, 50.0, 0.0)
+    _, once = run(rings)
+    _, twice = run(rings * max(RINGING_MEMBERS))
+    tail = slice(n // 2 + 200, None)
+    assert np.array_equal(once[1][: n // 2], twice[1][: n // 2])
+    assert (np.abs(twice[1][tail]) < np.abs(once[1][tail])).mean() > 0.9

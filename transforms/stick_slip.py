@@ -154,6 +154,8 @@ MAX_ALTERNATIVES = 4
 #: (:func:`band_solutions`; ``drift_ringing_pa`` of :func:`stick_slip`): halved and
 #: doubled, as the bristle stiffness's (:func:`band_members`).
 RINGING_MEMBERS = (0.5, 2.0)
+#: Samples between the bound's checks of :func:`stick_slip_mismatch`.
+COMPARE_EVERY = 256
 #: The independent sources of uncertainty the band's members stand for
 #: (:func:`band_solutions`), in the order of :func:`transforms.uncertainty.ensemble_band`'s
 #: groups: the law's capacity first (the seals' own departure from the law).
@@ -542,10 +544,19 @@ def stick_slip_mismatch(
     branch: np.ndarray | None = None,
     drift_travel_pa: np.ndarray | None = None,
     presliding_elements: int = 1,
+    bounds: np.ndarray | None = None,
 ) -> np.ndarray:
     """For each row of candidate ropes, :func:`stick_slip`'s x against the logged x: the
     mean over the pistons with a logged x of each one's mean square of the model's x
     less the logged x (NaN samples left out) [m^2]; NaN where no piston has one.
+
+    ``bounds`` (one per candidate [m^2], default none): a candidate's solution stops
+    where what it has summed so far already exceeds its bound (each piston's squares
+    over its count of logged x, averaged over the pistons that have one: it only grows
+    to the mismatch), and that partial value, above the bound, is its answer; one
+    within its bound is the whole mismatch, the same to the last bit. What a search
+    needs that only asks whether a candidate beats a known one
+    (:func:`transforms.rope_identification.identify_rope_springs`).
 
     The rope identification's objective (:mod:`transforms.rope_identification`), for
     a whole population in one call to compiled code: on a short record the Python
@@ -564,6 +575,11 @@ def stick_slip_mismatch(
     ...     np.zeros(50, int), hoist, ropes, np.zeros((2, 4)), dt_s=0.01)
     >>> bool(mismatch[0] < mismatch[1])
     True
+    >>> bounded = stick_slip_mismatch((p,) * 4, (x,) * 4, np.full(50, 300.0),
+    ...     np.zeros(50, int), hoist, ropes, np.zeros((2, 4)), dt_s=0.01,
+    ...     bounds=np.full(2, mismatch[0]))
+    >>> bool(bounded[0] == mismatch[0]), bool(mismatch[0] < bounded[1] <= mismatch[1])
+    (True, True)
     """
     stiffness = np.atleast_2d(np.asarray(stiffness_factors, dtype=np.float64))
     offsets = np.atleast_2d(np.asarray(length_offsets_m, dtype=np.float64))
@@ -579,10 +595,15 @@ def stick_slip_mismatch(
     n = depth_m.shape[0]
     if not n:
         return np.full(stiffness.shape[0], np.nan)
+    limits = np.full(stiffness.shape[0], np.inf)
+    if bounds is not None:
+        limits = np.array(bounds, dtype=np.float64)
+        if limits.shape != (stiffness.shape[0],) or np.isnan(limits).any():
+            raise ValueError(f"bounds {limits.shape}: one number per candidate")
     scratch = tuple(np.empty(n) for _ in range(m)), tuple(np.empty(n) for _ in range(m))
     return _mismatch_kernel(
         head, np.ascontiguousarray(stiffness), np.ascontiguousarray(offsets), tail, *scratch,
-        stick_slip_state(m, presliding_elements).shape[0],
+        stick_slip_state(m, presliding_elements).shape[0], limits,
     )  # fmt: skip
 
 
@@ -684,7 +705,7 @@ def _kernel_inputs(
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _mismatch_kernel(
-    head, stiffness, offsets, tail, x_out, f_out, state_size
+    head, stiffness, offsets, tail, x_out, f_out, state_size, bounds
 ):  # pragma: no cover - numba
     """:func:`stick_slip_mismatch`'s loop over the candidates."""
     p_sensor, x_logged, depth, segment, dt, nu, with_loss, branch, const, law = head
@@ -692,35 +713,60 @@ def _mismatch_kernel(
     m = len(p_sensor)
     n = depth.shape[0]
     out = np.full(stiffness.shape[0], np.nan)
+    logged = np.zeros(m)  # each piston's logged samples: at least those compared
+    for i in range(m):
+        for t in range(n):
+            if not np.isnan(x_logged[i][t]):
+                logged[i] += 1.0
+    squares = np.zeros(m)
+    counts = np.zeros(m)
     for k in range(stiffness.shape[0]):
+        squares[:] = 0.0
+        counts[:] = 0.0
         _kernel(
             p_sensor, x_logged, depth, segment, dt, nu, with_loss, branch, const, law,
             stiffness[k], offsets[k], scale, start, drift_mode, drift, half_width, rings,
             ringing, element_k, element_w, x_out, f_out, np.zeros(state_size),
+            bounds[k], logged, squares, counts,
         )  # fmt: skip
         total = 0.0
         pistons = 0
         for i in range(m):
-            squares = 0.0
-            count = 0
-            for t in range(n):
-                d = x_out[i][t] - x_logged[i][t]
-                if not np.isnan(d):  # np.nanmean's: a NaN either side is left out
-                    squares += d * d
-                    count += 1
-            if count:
-                total += squares / count
+            if counts[i]:  # np.nanmean's: a NaN either side is left out
+                total += squares[i] / counts[i]
                 pistons += 1
         if pistons:
             out[k] = total / pistons
     return out
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _compare(x_out, x_logged, t, squares, counts):  # pragma: no cover - numba
+    """Sample t's squared differences of the model's x and the logged, summed by piston."""
+    for i in range(len(x_out)):
+        d = x_out[i][t] - x_logged[i][t]
+        if not np.isnan(d):
+            squares[i] += d * d
+            counts[i] += 1.0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _beyond(bound, squares, logged):  # pragma: no cover - numba
+    """What the squares summed so far make of the mismatch already exceeds ``bound``."""
+    total = 0.0
+    pistons = 0
+    for i in range(squares.shape[0]):
+        if logged[i]:
+            total += squares[i] / logged[i]
+            pistons += 1
+    return pistons > 0 and total / pistons > bound * (1.0 + 1e-9)
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _kernel(
     p_sensor, x_logged, depth, segment, steps, nu, with_loss, branch, const, law, a, c, scale,
     start, drift_mode, drift_p, drift_w, rings, ringing, element_k, element_w, x_out, f_out,
-    state,
+    state, bound=np.inf, logged=None, squares=None, counts=None,
 ):  # pragma: no cover - numba  # fmt: skip
     """Per sample: the seals' drift, the oil's Newton solve for s, each piston's seal step
     (module docstring).
@@ -773,7 +819,12 @@ def _kernel(
     hanging = state[4] if ran else headframe  # the last known depth's, carried
     per_sample = nu.shape[0] > 1
     per_step = steps.shape[0] > 1
+    compare = squares is not None  # the mismatch's sums (_mismatch_kernel), and its bound
     for t in range(n):
+        if compare and t > 0:
+            _compare(x_out, x_logged, t - 1, squares, counts)
+            if t % COMPARE_EVERY == 0 and _beyond(bound, squares, logged):
+                return  # the state is not kept: the mismatch's solutions start afresh
         dt = steps[t] if per_step else steps[0]
         # a new gap-free segment restarts the speeds and the drift's play, also where its
         # first pressures are unknown (the reset is then carried in the state)
@@ -924,6 +975,8 @@ def _kernel(
             x_out[i][t] = x[i]
             f_out[i][t] = z[i]
         p_last = p_mean
+    if compare and n:
+        _compare(x_out, x_logged, n - 1, squares, counts)
     if n and ran:
         state[0] = 1.0
         state[2], state[3], state[4] = s, p_last, hanging

@@ -458,6 +458,60 @@ def test_the_identification_finds_the_stiffer_rope(stiff_rope_day):
     )
 
 
+def test_the_search_stops_losing_trials_without_changing_its_answer(stiff_rope_day, monkeypatch):
+    """Each trial of the global search is solved only until it has lost to the member it
+    would replace (rope_identification._Parents mirrors scipy's deferred selection):
+    the same ropes, to the last bit, as every trial solved whole; and most trials stop."""
+    samples, _ = stiff_rope_day
+    means = record_means(samples, samples["time_utc"][0])
+    stopped = []
+    select = rope_identification._Parents.select
+
+    def counting(self, energies):
+        if self.energies is not None:
+            stopped.append(float(np.mean(energies > self.energies)))
+        select(self, energies)
+
+    monkeypatch.setattr(rope_identification._Parents, "select", counting)
+    bounded = rope_identification._identify(means, HOIST, parts=False)
+    monkeypatch.setattr(
+        rope_identification._Parents, "limits", lambda self, members: np.full(members, np.inf)
+    )
+    whole = rope_identification._identify(means, HOIST, parts=False)
+    assert (bounded.stiffness_factors, bounded.length_offsets_m, bounded.mismatch_m) == (
+        whole.stiffness_factors,
+        whole.length_offsets_m,
+        whole.mismatch_m,
+    )
+    assert np.mean(stopped) > 0.5  # the trials that lost (a stopped one loses too)
+
+
+def test_a_bounded_mismatch_is_whole_within_its_bound_and_a_lower_bound_beyond():
+    """stick_slip_mismatch's bounds: a candidate within its bound gets its mismatch to
+    the last bit; one beyond it stops with a value between the bound and its mismatch."""
+    n = 3000
+    t = np.arange(n) * 0.2
+    p = 4.0e6 + 3.0e5 * np.sin(2 * np.pi * t / 200.0)
+    rng = np.random.default_rng(8)
+    truth = RopeSprings((1.0, 1.03, 0.98, 1.01), (0.0, 2e-3, -1e-3, 0.5e-3), 0.0, 0)
+    depth, segment = np.full(n, DEPTH), np.zeros(n, int)
+    x, _ = stick_slip((p,) * 4, (np.zeros(n),) * 4, depth, segment, HOIST, truth, dt_s=0.2)
+    logged = tuple(np.round((xi + rng.normal(0, 2e-5, n)) / 1e-4) * 1e-4 for xi in x)
+    logged[2][100:300] = np.nan
+    a = 1.0 + rng.normal(0, 0.03, (40, 4))
+    c = rng.normal(0, 2e-3, (40, 4))
+    args = ((p,) * 4, logged, depth, segment, HOIST, a, c)
+    whole = stick_slip_mismatch(*args, dt_s=0.2)
+    bounds = np.median(whole) * rng.uniform(0.5, 1.5, 40)
+    bounded = stick_slip_mismatch(*args, dt_s=0.2, bounds=bounds)
+    within = whole <= bounds
+    assert 5 < within.sum() < 35
+    assert np.array_equal(bounded[within], whole[within])
+    assert (bounded[~within] > bounds[~within]).all()
+    assert (bounded[~within] <= whole[~within]).all()
+    assert (bounded[~within] < whole[~within]).any()  # some stopped early
+
+
 def _means_at_rest() -> pl.DataFrame:
     """The identification's means of a minute at rest (50 Hz, nothing moves)."""
     start = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)

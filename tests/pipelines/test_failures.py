@@ -390,6 +390,14 @@ def test_any_other_panic_and_blank_lines_pass_through_whole(stream):
         assert _relayed(stream, i, j) == (stream, False), (i, j)
 
 
+def test_glibcs_last_words_on_a_thread_it_cannot_end_are_dying_words():
+    """Measured under ``ulimit -v`` (the demo at 1.8 GB): glibc cannot register a
+    thread's TLS destructor and aborts; what came before passes through."""
+    stream = b"progress 1/2\nFatal glibc error: failed to register TLS destructor: out of memory\n"
+    for i, j in _splits(stream):
+        assert _relayed(stream, i, j) == (b"progress 1/2\n", True), (i, j)
+
+
 def test_a_starving_allocators_complaints_go_but_the_blank_lines_before_stay():
     assert _relayed(b"a\n\n<jemalloc>: x", 3) == (b"a\n\n", False)
 

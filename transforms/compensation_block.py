@@ -277,7 +277,7 @@ class BlockCompensation(BlockSetup):
                 frictions = dict(zip(solved, found, strict=True))
             self.nxt.estimate = estimate.result()
         if not on_means:
-            for m in copied:
+            for m in copied:  # copies: the rope kernel writes the estimate's in place
                 frictions[m] = tuple(f.copy() for f in friction)
                 self.nxt.springs[m] = self.nxt.estimate.copy()
             self.member_friction = [frictions[m] for m in range(1, len(members))]
@@ -521,7 +521,7 @@ class BlockCompensation(BlockSetup):
                 out["tension"][core], seal,
                 [member[k][core] for member in self.member_friction], self.pressure_noise_n(),
                 seal_sigma_n=self.settings.friction_relative_sigma * np.abs(seal),
-                groups=self.member_sources,
+                groups=self.member_sources, law_group=BAND_SOURCES.index("law"),
             )  # fmt: skip
         estimates, blind = self.motion_share.result()
         # rope k's estimate is consumed (played above) and its blind motion is read

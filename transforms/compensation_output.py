@@ -13,6 +13,7 @@ import polars as pl
 from schemas.tables import ROPE_TENSIONS
 from transforms.compensation_kernels import load_kernel
 from transforms.compensation_record import rope_cols
+from transforms.stick_slip import BAND_SOURCES
 from transforms.uncertainty import ensemble_band, load_band
 
 __all__ = ["OUTPUT_SCHEMA", "block_frame"]
@@ -60,7 +61,13 @@ def block_frame(
         noise = gaussian_sigma_n[1] * np.sqrt(len(frictions))  # independent sensors
         seals = gaussian_sigma_n[0] * np.sqrt(sum(f * f for f in frictions))  # and seals
         load_lo, load_hi = ensemble_band(
-            load, sum(frictions), load_members, noise, seal_sigma_n=seals, groups=member_sources
+            load,
+            sum(frictions),
+            load_members,
+            noise,
+            seal_sigma_n=seals,
+            groups=member_sources,
+            law_group=BAND_SOURCES.index("law"),
         )
     else:
         load_lo, load_hi = load_band(

@@ -286,6 +286,8 @@ def ensemble_band(
     sources = tuple(groups) if groups is not None else (0,) * len(members_n)
     if len(sources) != len(members_n) or any(g < 0 for g in sources):
         raise ValueError(f"groups {groups}: one source (>= 0) per member of {len(members_n)}")
+    if not 0 <= law_group <= max(sources, default=0):
+        raise ValueError(f"law_group {law_group}: not one of the groups' sources {sources}")
     n = value_n.shape[0]
     lo, hi = out if out is not None else (np.empty(n), np.empty(n))
     seal = np.zeros(1) if seal_sigma_n is None else np.ascontiguousarray(seal_sigma_n, np.float64)

@@ -24,6 +24,7 @@ from transforms.blocks import block_edges, compensate_blocks, record_context
 from transforms.compensation import (
     compensate,
 )
+from transforms.compensation_block import BlockCompensation
 from transforms.compensation_record import CompensationSettings, identification_means
 from transforms.reconciliation import (
     reconcile,
@@ -61,16 +62,16 @@ def _blocks(record: pl.DataFrame, **kwargs) -> pl.DataFrame:
     return pl.concat(list(_block_frames(record, **kwargs)))
 
 
-def _block_frames(record: pl.DataFrame, hoist=HOIST, **kwargs):
+def _block_frames(record: pl.DataFrame, hoist=HOIST, block=BLOCK, **kwargs):
     def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
         return record.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi))
 
     start = record["time_utc"][0]
     end = record["time_utc"][-1] + dt.timedelta(microseconds=1)
     # the statistics of the record read block by block (as ropeload run does)
-    context = record_context(read, hoist, start=start, end=end, rows=record.height, block=BLOCK)
+    context = record_context(read, hoist, start=start, end=end, rows=record.height, block=block)
     return compensate_blocks(
-        read, hoist, start=start, end=end, context=context, block=BLOCK, **kwargs
+        read, hoist, start=start, end=end, context=context, block=block, **kwargs
     )
 
 
@@ -133,6 +134,47 @@ def test_blocks_equal_whole_record_with_drifting_seals(tmp_path) -> None:
     means = identification_means(record, t0, hoist, settings)
     assert means["drift_travel_pa"].sum() > 0.0
     _assert_same(compensate(record, hoist), _blocks(record, hoist=hoist))
+
+
+def test_ringing_members_copied_where_nothing_rings_equal_those_solved(
+    tmp_path, monkeypatch
+) -> None:
+    """LuGre seals: a ringing member (the estimate's ringing halved or doubled) whose
+    block stage has no ringing and whose carried state is the estimate's is copied from
+    the estimate, not solved (BlockCompensation.is_estimate): on ropes damped critically
+    (nothing rings) every member is copied, and solving them all gives the same rows to
+    the last bit; on the example's ropes (damping ratio 0.02: ropeload's simulation
+    rings from its first stop) none is."""
+    lugre = EXAMPLE_HOIST.read_text().replace('"presliding_hysteresis",', "")
+    damped = lugre.replace("head_rope_damping_ratio = 0.02", "head_rope_damping_ratio = 1.0")
+    assert damped != lugre
+    decided = []
+    is_estimate = BlockCompensation.is_estimate
+
+    def counting(self, inputs, m, members):
+        answer = is_estimate(self, inputs, m, members)
+        if members[m].source == "ringing":  # the others differ from the estimate
+            decided.append(answer)
+        return answer
+
+    monkeypatch.setattr(BlockCompensation, "is_estimate", counting)
+    minute = dt.timedelta(minutes=1)
+    frames = {}
+    for name, text in (("rings", lugre), ("damped", damped)):
+        toml = tmp_path / f"{name}.toml"
+        toml.write_text(text)
+        hoist = load_hoist(toml)
+        record = generate_field_day(
+            hoist, date="2026-03-02", seed=6, trips=2, hours=0.1, sample_rate_hz=50.0
+        ).sensors
+        decided.clear()
+        frames[name] = _blocks(record, hoist=hoist, block=minute)
+        assert decided
+        assert all(decided) == (name == "damped")
+        assert any(decided) == all(decided)
+    monkeypatch.setattr(BlockCompensation, "is_estimate", lambda *args: False)
+    solved = _blocks(record, hoist=hoist, block=minute)
+    assert_frame_equal(solved, frames["damped"], check_exact=True)
 
 
 def test_blocks_equal_whole_record_pressure_only(record: pl.DataFrame) -> None:

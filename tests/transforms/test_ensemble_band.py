@@ -77,3 +77,5 @@ def test_a_member_without_a_value_leaves_its_source_out_there():
 def test_groups_must_name_a_source_per_member():
     with pytest.raises(ValueError, match="one source"):
         ensemble_band(VALUE, FRICTION, [FRICTION] * 3, 0.0, groups=(0, 1))
+    with pytest.raises(ValueError, match="law_group 2"):  # its range read past the sources
+        ensemble_band(VALUE, FRICTION, [FRICTION] * 2, 0.0, groups=(0, 1), law_group=2)

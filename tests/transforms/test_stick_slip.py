@@ -465,14 +465,17 @@ def test_the_search_stops_losing_trials_without_changing_its_answer(stiff_rope_d
     samples, _ = stiff_rope_day
     means = record_means(samples, samples["time_utc"][0])
     stopped = []
-    select = rope_identification._Parents.select
+    mismatch = rope_identification.stick_slip_mismatch
 
-    def counting(self, energies):
-        if self.energies is not None:
-            stopped.append(float(np.mean(energies > self.energies)))
-        select(self, energies)
+    def counting(*args, bounds=None, **kwargs):
+        energies = mismatch(*args, bounds=bounds, **kwargs)
+        if bounds is not None and np.isfinite(bounds).any() and len(stopped) < 4:
+            whole = mismatch(*args, **kwargs)  # a few generations solved whole too
+            assert (energies <= whole).all()
+            stopped.append(float(np.mean(energies < whole)))
+        return energies
 
-    monkeypatch.setattr(rope_identification._Parents, "select", counting)
+    monkeypatch.setattr(rope_identification, "stick_slip_mismatch", counting)
     bounded = rope_identification._identify(means, HOIST, parts=False)
     monkeypatch.setattr(
         rope_identification._Parents, "limits", lambda self, members: np.full(members, np.inf)
@@ -483,7 +486,8 @@ def test_the_search_stops_losing_trials_without_changing_its_answer(stiff_rope_d
         whole.length_offsets_m,
         whole.mismatch_m,
     )
-    assert np.mean(stopped) > 0.5  # the trials that lost (a stopped one loses too)
+    assert len(stopped) == 4
+    assert np.mean(stopped) > 0.3  # trials stopped before their end
 
 
 def test_a_bounded_mismatch_is_whole_within_its_bound_and_a_lower_bound_beyond():
@@ -609,11 +613,11 @@ def test_band_solutions_fit_the_carried_state():
         band_solutions(RopeSprings(*ropes, 1e-4, 100, (ropes,) * (MAX_ALTERNATIVES + 1)), 0.1)
 
 
-def test_the_ringing_members_are_the_estimate_where_nothing_rings():
-    """A ringing member's travel is the estimate's ringing x its factor: where the
-    ringing is 0 it solves as the estimate, bit for bit (what lets the compensation copy
-    it instead of solving it); where the hoist rings at rest, more ringing drains the
-    seals further (LuGre's drift takes each seal's friction toward 0)."""
+def test_ringing_drains_the_seals_and_more_ringing_drains_them_further():
+    """A ringing member's travel is the estimate's ringing x its factor: until the
+    ringing starts it solves as the estimate, bit for bit (the compensation copies it
+    there: tests/transforms/test_blocks.py); where the hoist rings at rest, more ringing
+    drains the seals further (LuGre's drift takes each seal's friction toward 0)."""
     n = 2000
     p = np.r_[np.linspace(4.0e6, 4.3e6, 500), np.full(n - 500, 4.3e6)]
     springs = RopeSprings((1.0, 1.03, 0.98, 1.01), (0.0, 2e-3, -1e-3, 0.5e-3), 0.0, 0)
@@ -624,11 +628,7 @@ def test_the_ringing_members_are_the_estimate_where_nothing_rings():
             dt_s=0.01, drift_pressure_pa=p, drift_half_width_pa=5e3, drift_ringing_pa=ringing,
         )  # fmt: skip
 
-    quiet = np.zeros(n)
-    _, estimate = run(quiet)
-    for factor in RINGING_MEMBERS:
-        _, member = run(quiet * factor)
-        assert all(np.array_equal(a, b) for a, b in zip(member, estimate, strict=True))
+    _, estimate = run(np.zeros(n))
     rings = np.where(np.arange(n) >= 1000, 50.0, 0.0)
     _, once = run(rings)
     _, twice = run(rings * max(RINGING_MEMBERS))

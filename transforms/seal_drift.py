@@ -22,6 +22,19 @@ step.
 The ropes' identification (:mod:`transforms.rope_identification`) runs the same
 solution on 0.2 s means, each with the travel of the full-rate samples it stands for
 (:func:`drift_travel`).
+
+What it leaves out: each piston's own motion beside its share of the oil's. LuGre's
+eq 15 drifts along that too, and at a reversal its bristle's force falls up to twice as
+fast as sigma_0 (the validation days' stop windows show it: 1.2 kN over 24 um, 1.35
+sigma_0). On validation days 101-104 every pithead arrival after an up trip keeps more
+friction than the truth's (the load 0.05-0.6 % high on average, most after trips that
+paused at the middle empty; with the truth's rope constants just as much), where pistons
+stick while another slides millimetres. Tried (session 33) and not kept: the drift
+along each piston's own solved x through a play as wide as the pressure's play in oil
+travel (5.8 um), in place of the shared travel: worst window 0.80 / 0.67 / 0.79 /
+0.96 -> 1.52 / 1.43 / 0.83 / 1.86 %, 35 windows worse than raw on day 104. The sensors'
+noise moves a sliding piston by 25 N / a k, 20 um at the pithead and 270 um at the
+bottom, as far as the real reversals, so no play tells them apart; it drained the seals.
 """
 
 from __future__ import annotations

@@ -35,6 +35,10 @@ travel (5.8 um), in place of the shared travel: worst window 0.80 / 0.67 / 0.79 
 0.96 -> 1.52 / 1.43 / 0.83 / 1.86 %, 35 windows worse than raw on day 104. The sensors'
 noise moves a sliding piston by 25 N / a k, 20 um at the pithead and 270 um at the
 bottom, as far as the real reversals, so no play tells them apart; it drained the seals.
+A play of each piston's own noise (3 x the pressure play's width through its last
+compliance, 0.65 um sticking) drained them more: day 104 (ringing) 0.74 % worst, none
+worse than raw, coverage 97 %, but days 101-103 2.8-3.9 %: the noise standing in for a
+ringing, not a model of it.
 """
 
 from __future__ import annotations

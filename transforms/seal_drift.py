@@ -38,7 +38,8 @@ bottom, as far as the real reversals, so no play tells them apart; it drained th
 A play of each piston's own noise (3 x the pressure play's width through its last
 compliance, 0.65 um sticking) drained them more: day 104 (ringing) 0.74 % worst, none
 worse than raw, coverage 97 %, but days 101-103 2.8-3.9 %: the noise standing in for a
-ringing, not a model of it.
+ringing, not a model of it. Counted only where the oil's played travel moves (not at
+rest): 101-103 still 1.6-2.3 %.
 """
 
 from __future__ import annotations

@@ -17,6 +17,7 @@ peak RSS and the ratios the issue targets: ropeload <= 3x the floor, >= 2x the p
 script's speed, peak <= 2 GB for a day and <= 1.1x when the day doubles. ``--small``
 adds the 2 h, 50 Hz case (ropeload <= 1.5x the pandas script); ``--backfill 4`` a
 ``ropeload backfill --workers 4`` of four hoists with the same day each (<= 8 GB).
+``--band-member-step S`` runs ropeload with its band's members on S-second means.
 
     uv run python benchmarks/bench_day.py                    # 24 h day
     uv run python benchmarks/bench_day.py --double --small   # 24 h, 48 h and 2 h 50 Hz
@@ -106,13 +107,15 @@ def _measure(kind: str, csv: Path, out: Path) -> dict:
     return _process([sys.executable, __file__, "--child", kind, str(csv), str(out)])
 
 
-def _ropeload(csv: Path, data: Path) -> dict:
-    """``ropeload ingest`` + ``ropeload run --no-sanity`` as two processes, wall and peak."""
+def _ropeload(csv: Path, data: Path, run_options: tuple[str, ...] = ()) -> dict:
+    """``ropeload ingest`` + ``ropeload run --no-sanity`` as two processes, wall and peak
+    (``run_options`` added to the run's)."""
+    run = ["run", "--data", str(data), "--hoist", str(HOIST), "--no-sanity", *run_options]
     steps = {
         name: _process([sys.executable, "-m", "pipelines.cli", *args])
         for name, args in (
             ("ingest", ["ingest", "--data", str(data), "--hoist", str(HOIST), str(csv)]),
-            ("run", ["run", "--data", str(data), "--hoist", str(HOIST), "--no-sanity"]),
+            ("run", run),
         )
     }
     return {
@@ -122,7 +125,7 @@ def _ropeload(csv: Path, data: Path) -> dict:
     }
 
 
-def case(hours: float, rate_hz: float, workdir: Path) -> dict:
+def case(hours: float, rate_hz: float, workdir: Path, run_options: tuple[str, ...] = ()) -> dict:
     csv = workdir / f"day-{hours:g}h-{rate_hz:g}hz.csv"
     if not csv.exists():  # in a child: the simulation's memory is not this process's
         _process([sys.executable, __file__, "--generate", str(hours), str(rate_hz), str(csv)])
@@ -135,7 +138,7 @@ def case(hours: float, rate_hz: float, workdir: Path) -> dict:
     result = {
         "floor": _measure("floor", csv, out),
         "pandas": _measure("pandas", csv, out),
-        "ropeload": _ropeload(csv, data),
+        "ropeload": _ropeload(csv, data, run_options),
     }
     shutil.rmtree(data, ignore_errors=True)
     size = csv.stat().st_size
@@ -201,6 +204,10 @@ def main() -> None:
         "--backfill", type=int, default=0, metavar="N", help="also a backfill of N hoist-days"
     )
     parser.add_argument("--workdir", type=Path, help="keep generated files here")
+    parser.add_argument(
+        "--band-member-step", type=float, default=0.0, metavar="S",
+        help="ropeload run --band-member-step S (default 0: the band's members at the rate)",
+    )  # fmt: skip
     parser.add_argument("--child", nargs=3, metavar=("KIND", "CSV", "OUT"), help=argparse.SUPPRESS)
     parser.add_argument("--generate", nargs=3, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -215,13 +222,14 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="ropeload-bench-day-") as tmp:
         workdir = args.workdir or Path(tmp)
         workdir.mkdir(parents=True, exist_ok=True)
-        one = case(args.hours, 100.0, workdir)
+        options = ("--band-member-step", f"{args.band_member_step:g}")
+        one = case(args.hours, 100.0, workdir, options)
         if args.double:
-            two = case(2 * args.hours, 100.0, workdir)
+            two = case(2 * args.hours, 100.0, workdir, options)
             ratio = two["ropeload"]["peak_rss_bytes"] / one["ropeload"]["peak_rss_bytes"]
             print(f"\nropeload peak RSS x2 day / x1 day: {ratio:.2f} (target <= 1.1)")
         if args.small:
-            case(2.0, 50.0, workdir)
+            case(2.0, 50.0, workdir, options)
         if args.backfill:
             backfill_case(args.hours, args.backfill, workdir)
 

@@ -39,7 +39,8 @@ A play of each piston's own noise (3 x the pressure play's width through its las
 compliance, 0.65 um sticking) drained them more: day 104 (ringing) 0.74 % worst, none
 worse than raw, coverage 97 %, but days 101-103 2.8-3.9 %: the noise standing in for a
 ringing, not a model of it. Counted only where the oil's played travel moves (not at
-rest): 101-103 still 1.6-2.3 %.
+rest): 101-103 still 1.6-2.3 %; only while the piston sticks (its presliding, the play
+restarted after each slide): 1.9-2.4 %, day 104 0.83 %.
 """
 
 from __future__ import annotations

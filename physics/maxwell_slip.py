@@ -82,7 +82,7 @@ def maxwell_slip_step(
     """
     total = 0.0
     for j in range(deltas.shape[0]):
-        limit = weights[j] / stiffness[j] * g  # (alpha_j / k_j) g: as the stick-slip kernel
+        limit = weights[j] * g / stiffness[j]
         d = deltas[j] + dx
         if d > limit:
             d = limit
@@ -133,7 +133,7 @@ def maxwell_slip_virgin(
         slope = 0.0
         nxt = np.inf
         for j in range(deltas.shape[0]):
-            limit = weights[j] / stiffness[j] * g
+            limit = weights[j] * g / stiffness[j]
             if limit > u:
                 slope += stiffness[j]
                 nxt = min(nxt, limit)
@@ -147,7 +147,7 @@ def maxwell_slip_virgin(
     sign = 1.0 if force_n >= 0.0 else -1.0
     total = 0.0
     for j in range(deltas.shape[0]):
-        deltas[j] = sign * min(u, weights[j] / stiffness[j] * g)
+        deltas[j] = sign * min(u, weights[j] * g / stiffness[j])
         total += stiffness[j] * deltas[j]
     return total
 

@@ -825,7 +825,8 @@ def _kernel(
     elements = element_k.shape[0] > 1  # Maxwell-slip seals: each element's deflection
     deltas = np.zeros((m, element_k.shape[0]))
     limits = np.zeros((m, element_k.shape[0]))  # each element's deflection limit [m]
-    # the limits per newton of capacity: x cap, maxwell_slip_step's own to the bit
+    # the limits per newton of capacity: x cap, maxwell_slip_step's own w g / k to
+    # within an ulp (a division a sample saved; its step clips at its own limit)
     per_capacity = element_w / element_k
     if elements and ran:
         for i in range(m):

@@ -36,11 +36,12 @@ travel (5.8 um), in place of the shared travel: worst window 0.80 / 0.67 / 0.79 
 noise moves a sliding piston by 25 N / a k, 20 um at the pithead and 270 um at the
 bottom, as far as the real reversals, so no play tells them apart; it drained the seals.
 A play of each piston's own noise (3 x the pressure play's width through its last
-compliance: 2.5 um while it sticks, 80 um sliding at the pithead) drained them more: day 104 (ringing) 0.74 % worst, none
-worse than raw, coverage 97 %, but days 101-103 2.8-3.9 %: the noise standing in for a
-ringing, not a model of it. Counted only where the oil's played travel moves (not at
-rest): 101-103 still 1.6-2.3 %; only while the piston sticks (its presliding, the play
-restarted after each slide): 1.9-2.4 %, day 104 0.83 %.
+compliance: 2.5 um while it sticks, 80 um sliding at the pithead) drained them more:
+day 104 (ringing) 0.74 % worst, none worse than raw, coverage 97 %, but days 101-103
+2.8-3.9 %: the noise standing in for a ringing, not a model of it. Counted only where
+the oil's played travel moves (not at rest): 101-103 still 1.6-2.3 %; only while the
+piston sticks (its presliding, the play restarted after each slide): 1.9-2.4 %, day
+104 0.83 %.
 """
 
 from __future__ import annotations

@@ -47,7 +47,7 @@ makes of a rope's tension at the pithead at a fixed stretch (-a k dc; the stiffn
 difference adds about (da / a) T there, which the print leaves out).
 
     uv run python benchmarks/eval_compensation.py [--days DIR] [--sims N] [--sims-lugre N]
-                                                  [--keep DIR]
+                                                  [--keep DIR] [--without-x]
 """
 
 from __future__ import annotations
@@ -325,6 +325,30 @@ def sims_case(k: int, work: Path, *, lugre: bool = False) -> DayCase:
     return DayCase(f"{name} (seed {1000 + k})", csv, hoist_path, truth_windows(day.truth, hoist))
 
 
+#: The contract-1a columns of the pistons' displacements (optional in a mine's log).
+X_COLUMNS = ("x1", "x2", "x3", "x4")
+
+
+def without_x(case: DayCase) -> DayCase:
+    """The same day with the pistons' displacement columns taken out of its CSV (a
+    logger without displacement transducers, contract 1a: optional): the compensation
+    then runs on the pressures alone, the ropes unidentified."""
+    lines = case.csv.read_text().splitlines(keepends=True)
+    header = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    delimiter = ";" if lines[header].count(";") > lines[header].count(",") else ","
+    names = lines[header].rstrip("\r\n").split(delimiter)
+    keep = [i for i, name in enumerate(names) if name.strip() not in X_COLUMNS]
+    if len(keep) == len(names):
+        raise RuntimeError(f"{case.csv}: no {'/'.join(X_COLUMNS)} columns to take out")
+    out = lines[:header]
+    for line in lines[header:]:
+        fields = line.rstrip("\r\n").split(delimiter)
+        out.append(delimiter.join(fields[i] for i in keep) + "\n")
+    csv = case.csv.with_name(f"{case.csv.stem}-without-x.csv")
+    csv.write_text("".join(out))
+    return DayCase(f"{case.name} without x", csv, case.hoist_path, case.windows)
+
+
 def compensate_day(case: DayCase, root: Path) -> pl.DataFrame:
     """Ingest the day into a fresh data root, run the whole record, read the landed rows."""
     data = DataRoot.resolve(root)
@@ -478,9 +502,10 @@ def _summary(figures: list[dict]) -> None:
         )
 
 
-def evaluate(days: Path, sims: int, work: Path, *, sims_lugre: int = 0) -> None:
+def evaluate(days: Path, sims: int, work: Path, *, sims_lugre: int = 0, no_x: bool = False) -> None:
     """Evaluate every validation day in ``days``, ``sims`` synthetic days and
-    ``sims_lugre`` synthetic days with LuGre seals under ``work``."""
+    ``sims_lugre`` synthetic days with LuGre seals under ``work`` (``no_x``: each without
+    its pistons' displacements, :func:`without_x`)."""
     figures = []
     gz_files = sorted(days.glob("*.csv.gz"))
     if not gz_files:
@@ -490,7 +515,7 @@ def evaluate(days: Path, sims: int, work: Path, *, sims_lugre: int = 0) -> None:
     cases += [(lambda k=k: sims_case(k, work / "inputs", lugre=True)) for k in range(sims_lugre)]
     for make in cases:
         started = time.perf_counter()
-        case = make()
+        case = without_x(make()) if no_x else make()
         root = work / "data" / case.csv.stem
         tensions = compensate_day(case, root)
         errors = window_errors(tensions, case.windows)
@@ -520,14 +545,19 @@ def main() -> None:
     ap.add_argument(
         "--keep", type=Path, default=None, help="work in DIR and keep it (inputs, data roots)"
     )
+    ap.add_argument(
+        "--without-x", action="store_true",
+        help="take the pistons' displacements (x1..x4) out of every day's CSV first",
+    )  # fmt: skip
     args = ap.parse_args()
     started = time.perf_counter()
+    options = {"sims_lugre": args.sims_lugre, "no_x": args.without_x}
     if args.keep is not None:
         args.keep.mkdir(parents=True, exist_ok=True)
-        evaluate(args.days, args.sims, args.keep.absolute(), sims_lugre=args.sims_lugre)
+        evaluate(args.days, args.sims, args.keep.absolute(), **options)
     else:
         with tempfile.TemporaryDirectory(prefix="ropeload-eval-") as tmp:
-            evaluate(args.days, args.sims, Path(tmp), sims_lugre=args.sims_lugre)
+            evaluate(args.days, args.sims, Path(tmp), **options)
     print(f"\nwall time {time.perf_counter() - started:.0f} s")
 
 

@@ -61,6 +61,15 @@ days 101-103 2.2 / 0.23, 2.1 / 0.27, 2.5 / 0.29 % (8.4 / 0.51, 8.0 / 0.48,
 lost about half of it. Tried and dropped: sharing the oil's motion by each seal's room
 to its static capacity (elastic-plastic, one common demand) without the rope springs:
 1.6-1.8 % median, the wrong piston saturates first.
+
+Without a logged x (``eval_compensation.py --without-x``, session 33), the quarter
+shares on the validation days 101-104: worst 2.93 / 2.93 / 3.38 / 5.86 %, median 1.40 /
+1.45 / 1.40 / 2.85 % (raw 2.75 / 2.69 / 2.85 / 0.74 %), 23 / 24 / 23 / 110 windows worse
+than raw by > 0.2 points, the band (+-5.8 %) holding every window; on ropeload's own
+simulation, whose pistons move alike, worst 0.43-1.42 %, median 0.12-0.21 %, one window
+worse. The stick-slip solution on the description's nominal ropes instead (tried, not
+kept: its band has no rope members) gave medians of 1.00-1.06 % and 0.33 % on day 104,
+worst still 2.8-3.2 %, 14-26 windows worse than raw.
 """
 
 from __future__ import annotations

@@ -119,3 +119,30 @@ def test_report_ropes_prints_the_offsets_part_at_the_pithead(evaluation, capsys)
     rope2 = capsys.readouterr().out.splitlines()[1]
     k = hoist.ropes.head_rope_axial_stiffness_n / hoist.shaft.headframe_height_m
     assert f"({-0.1:+.3f} mm: {1.05 * k * 1e-4:+.0f} N at the pithead from dc)" in rope2
+
+
+@pytest.mark.parametrize("delimiter", [",", ";"])
+def test_without_x_takes_the_displacements_out_and_keeps_the_rest(
+    evaluation, tmp_path, delimiter
+) -> None:
+    """A contract-1a CSV (either delimiter, decimal commas with ';') loses x1..x4 and
+    keeps its comment lines and every other column in order."""
+    point = "," if delimiter == ";" else "."
+    values = [f"4{point}{k}" for k in (9, 8, 7, 6)]
+    rows = [
+        ["timestamp", "p1", "p2", "p3", "p4", "x1", "x2", "x3", "x4", "depth", "speed"],
+        ["2026-02-10 06:00:00.000", *values, f"1{point}2", "-3", "0", "7", "0", "0"],
+    ]
+    csv = tmp_path / "day.csv"
+    csv.write_text("# site: s\n# hoist: h\n" + "\n".join(delimiter.join(r) for r in rows) + "\n")
+    case = evaluation.DayCase("day", csv, tmp_path / "h.toml", [])
+    out = evaluation.without_x(case)
+    lines = out.csv.read_text().splitlines()
+    assert lines[:2] == ["# site: s", "# hoist: h"]
+    assert lines[2].split(delimiter) == ["timestamp", "p1", "p2", "p3", "p4", "depth", "speed"]
+    assert lines[3].split(delimiter) == ["2026-02-10 06:00:00.000", *values, "0", "0"]
+    assert out.name == "day without x"
+    assert out.csv != csv
+    assert csv.read_text().count("x1") == 1  # the day's own file as it was
+    with pytest.raises(RuntimeError, match="no x1/x2/x3/x4 columns"):
+        evaluation.without_x(out)

@@ -24,6 +24,7 @@ import numpy as np
 import polars as pl
 
 from physics.closed_volume import common_mode_displacement
+from physics.oil import ATMOSPHERIC_PRESSURE_PA, effective_bulk_modulus
 from physics.trip_rule import trip_label_columns
 from schemas.tables import ROPES
 from transforms.band_members import (
@@ -440,6 +441,29 @@ class BlockCompensation(BlockSetup):
             pressure_cutoff_hz=settings.pressure_cutoff_hz, work=work,
         )  # fmt: skip
 
+    def ringing_drift(self) -> np.ndarray:
+        """Per sample, each piston's travel in a ringing at rest that its shared-out x
+        does not show [m] (LuGre seals without the stick-slip solution, ``mode`` 2): the
+        ringing below the drift's play (:func:`transforms.seal_drift.ringing_travel`, as
+        the stick-slip solution counts it) as the oil's motion, a quarter a piston (eq 5,
+        :func:`physics.closed_volume.common_mode_displacement`'s share); else a single
+        0. Waits for the pressures only (queued after their jobs)."""
+        if self.mode != 2 or not self.lugre_seals:
+            return np.zeros(1)
+        pressures = tuple(job.result() for job in self.p_jobs)
+        drift_p, drift_w = self.drift_pressure(pressures)
+        ringing = ringing_travel(
+            drift_p, self.segment, float_column(self.frame["depth_m"]), at_rest(self.frame),
+            self.hoist, sample_rate_hz=self.context.sample_rate_hz,
+            pressure_cutoff_hz=self.settings.pressure_cutoff_hz, half_width_pa=drift_w,
+        )  # fmt: skip
+        oil = self.hoist.oil
+        beta = effective_bulk_modulus(
+            np.fmax(drift_p, ATMOSPHERIC_PRESSURE_PA), oil.bulk_modulus_pa, oil.air_fraction,
+        )  # fmt: skip
+        volume, pistons = float(self.hoist.oil_volume_m3), self.hoist.ropes_n
+        return ringing * volume / (beta * pistons * self.hoist.cylinders.bore_area_m2)
+
     def played_motion(self, k: int) -> np.ndarray:
         """Rope k's piston displacement through the play operator of half-width
         ``displacement_deadband_m`` (:func:`transforms.filtering.play_operator`)."""
@@ -482,6 +506,7 @@ class BlockCompensation(BlockSetup):
         else:
             out["friction"] = self.x_jobs[k].result() if self.context.has_x else np.empty(n)
         v_flow = self.branch_flow(played)
+        drift = self.ringing_job.result()
         state = self.carry.rope[k].copy()
         rope_kernel(
             played[core], self.time_s[core], self.settings.gap_factor * self.dt_nominal,
@@ -489,7 +514,7 @@ class BlockCompensation(BlockSetup):
             v_flow[core] if v_flow.size == n else v_flow, nu[core] if nu.size == n else nu,
             self.branch, self.law_lines, self.mode, self.stiffness, self.weights,
             float(law.bristle_stiffness_n_m), float(law.bristle_damping_n_s_m),
-            self.hoist.cylinders.bore_area_m2,
+            self.hoist.cylinders.bore_area_m2, drift[core] if drift.size == n else drift,
             out["p_chamber"][core], out["friction"][core], out["tension_raw"][core],
             out["tension"][core], state,
         )  # fmt: skip
@@ -581,6 +606,7 @@ class BlockCompensation(BlockSetup):
             self.nu_job = pool.submit(viscosity, self.t_oil, self.hoist)
             self.smooth_jobs = [pool.submit(self.smoothed_logged, k) for k in range(len(ROPES))]
             self.motion_share = pool.submit(self.piston_motion)
+            self.ringing_job = pool.submit(self.ringing_drift)
             rope_jobs = [pool.submit(self.rope, k) for k in range(len(ROPES))]
             try:
                 # NaN stands for null from here on (the frame version filled NaN with null)

@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit
 
 from physics.friction_law import friction_law_at, stribeck_g
-from physics.lugre import lugre_force, lugre_z_step
+from physics.lugre import lugre_drift, lugre_force, lugre_z_step
 from physics.maxwell_slip import maxwell_slip_step
 from physics.oil import kinematic_viscosity
 from physics.sensor_branch import sensor_minus_chamber_at
@@ -159,6 +159,7 @@ def rope_kernel(
     sigma0,
     sigma1,
     area,
+    drift_m,
     p_chamber,
     friction,
     tension_raw,
@@ -177,7 +178,10 @@ def rope_kernel(
     (``mode`` 1, :func:`physics.maxwell_slip.maxwell_slip_step` plus Kv v) or LuGre
     (``mode`` 2, :func:`physics.lugre.lugre_z_step`, :func:`~physics.lugre.lugre_force`),
     given in ``friction`` on entry for ``mode`` 3, none for ``mode`` 0; tension by
-    :func:`physics.tension.rope_tension_n` (eq 2).
+    :func:`physics.tension.rope_tension_n` (eq 2). ``drift_m`` (``mode`` 2; one value per
+    sample, or a single 0): the piston's travel that its x does not show, along which
+    the bristles drift before the sample's step (:func:`physics.lugre.lugre_drift`: the
+    ringing below the play, :func:`transforms.seal_drift.ringing_travel`).
     ``state`` = [ran, last x, last time, LuGre z, Maxwell-slip deflections...] carries
     the friction state from the previous block (:func:`transforms.filtering.fresh_state`,
     :data:`transforms.compensation_record.ROPE_STATE_BASE` + elements).
@@ -223,6 +227,8 @@ def rope_kernel(
                 g = fs if v == 0.0 else stribeck_g(v, fc, fs, vs)
                 f = maxwell_slip_step(deltas, v * dt_i, stiffness, weights, g) + kv * v
             else:
+                if drift_m.shape[0] > 1 and drift_m[i] > 0.0:  # at rest: g = F_s
+                    z = lugre_drift(z, drift_m[i], sigma0, stribeck_g(v, fc, fs, vs))
                 z_before = z
                 if v != 0.0 and dt_i > 0.0:
                     z = lugre_z_step(z, v, dt_i, sigma0, stribeck_g(v, fc, fs, vs))

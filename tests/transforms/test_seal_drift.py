@@ -27,6 +27,7 @@ stop). Cases, each against an answer the code under test does not produce:
 
 from __future__ import annotations
 
+import datetime as dt
 import itertools
 
 import numpy as np
@@ -41,6 +42,7 @@ from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from sims.accuracy import position_accuracy
 from sims.field_day import generate_field_day
 from transforms.compensation import compensate
+from transforms.compensation_block import BlockCompensation
 from transforms.compensation_record import CompensationSettings, identification_means
 from transforms.filtering import despike_median3
 from transforms.lowpass import lowpass
@@ -227,6 +229,50 @@ def test_a_ringing_hoist_with_lugre_seals_is_compensated_to_its_truth(tmp_path):
     at_rest = visits.filter(pl.col("phase") == "standstill")
     assert (at_rest["error_after_fraction"].abs() < 0.002).all()
     assert at_rest["error_before_fraction"].abs().max() > 0.005  # the raw is off
+
+
+def test_without_x_a_ringing_drains_the_shared_out_seals_as_eq15_says(tmp_path, monkeypatch):
+    """Without a logged x (the oil's motion shared out, no stick-slip solution) LuGre
+    seals drift along the ringing below the play too (BlockCompensation.ringing_drift,
+    the travel :func:`ringing_travel` counts, a quarter a piston): a seal a 0.5 MPa
+    ramp loaded, then at rest through a 3 kPa ringing, keeps exp(-sigma_0 s / F_s) of
+    the friction it keeps without (eq 15's drift along the path s, at rest g = F_s)."""
+    toml = tmp_path / "lugre.toml"
+    toml.write_text(EXAMPLE_HOIST.read_text().replace('"presliding_hysteresis",', ""))
+    hoist = load_hoist(toml)
+    rate, zeta, p0 = 50.0, 0.03, 4.0e6
+    f_b = _bounce_hz(DEPTH, p0 + 0.5e6)
+    decay = 2 * np.pi * zeta * f_b
+    t = np.arange(int(90 * rate)) / rate
+    after = np.clip(t - 20.0, 0.0, None)
+    ringing = np.where(t >= 20.0, 3e3 * np.exp(-decay * after) * np.sin(2 * np.pi * f_b * after), 0)
+    p = p0 + 0.5e6 * np.clip((t - 5.0) / 5.0, 0.0, 1.0) + ringing
+    rng = np.random.default_rng(7)
+    start = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
+    frame = pl.DataFrame({
+        "time_utc": [start + dt.timedelta(seconds=float(s)) for s in t],
+        **{f"p{i}_pa": p + rng.normal(0.0, 100.0, t.size) for i in range(1, 5)},
+        **{f"x{i}_m": np.full(t.size, None, dtype=float) for i in range(1, 5)},
+        "depth_m": np.full(t.size, DEPTH), "speed_m_s": np.zeros(t.size),
+        "oil_temp_c": np.full(t.size, 40.0),
+    })  # fmt: skip
+    drifts = []
+    ringing_drift = BlockCompensation.ringing_drift
+
+    def counting(self):
+        drifts.append(ringing_drift(self))
+        return drifts[-1]
+
+    monkeypatch.setattr(BlockCompensation, "ringing_drift", counting)
+    drained = compensate(frame, hoist)["friction1_n"].to_numpy()
+    (path,) = drifts
+    assert path[t < 20.0].sum() == 0.0  # the ramp is not a ringing
+    monkeypatch.setattr(BlockCompensation, "ringing_drift", lambda self: np.zeros(1))
+    kept = compensate(frame, hoist)["friction1_n"].to_numpy()
+    assert abs(kept[-1]) > 200.0  # the ramp left the seal loaded, and rest keeps it
+    expected = kept[-1] * np.exp(-SIGMA0 * path.sum() / _static_n(p0 + 0.5e6))
+    assert expected < 0.97 * kept[-1]  # the ringing counted is worth a drain
+    assert drained[-1] == pytest.approx(expected, rel=0.02)
 
 
 def test_the_travel_given_drives_the_drift_as_the_pressure_does():

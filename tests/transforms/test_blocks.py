@@ -177,6 +177,29 @@ def test_ringing_members_copied_where_nothing_rings_equal_those_solved(
     assert_frame_equal(solved, frames["damped"], check_exact=True)
 
 
+def test_blocks_equal_whole_record_pressure_only_with_drifting_seals(tmp_path) -> None:
+    """LuGre seals without a logged x (the oil's motion shared out): the ringing the
+    seals drift along (BlockCompensation.ringing_drift) is the same across block edges."""
+    toml = tmp_path / "lugre.toml"
+    toml.write_text(EXAMPLE_HOIST.read_text().replace('"presliding_hysteresis",', ""))
+    hoist = load_hoist(toml)
+    record = generate_field_day(
+        hoist, date="2026-03-02", seed=6, trips=4, hours=0.25, sample_rate_hz=50.0
+    ).sensors.with_columns(pl.lit(None, dtype=pl.Float64).alias(f"x{i}_m") for i in range(1, 5))
+    drifts = []
+    ringing_drift = BlockCompensation.ringing_drift
+
+    def counting(self):
+        drifts.append(ringing_drift(self))
+        return drifts[-1]
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(BlockCompensation, "ringing_drift", counting)
+        whole = compensate(record, hoist)
+    assert any(d.size > 1 and d.max() > 0.0 for d in drifts)  # the simulation rings
+    _assert_same(whole, _blocks(record, hoist=hoist))
+
+
 def test_blocks_equal_whole_record_pressure_only(record: pl.DataFrame) -> None:
     pressure_only = record.with_columns(
         pl.lit(None, dtype=pl.Float64).alias(f"x{i}_m") for i in range(1, 5)

@@ -27,7 +27,9 @@ For each cylinder i of a hoist, per sample:
    with parameters linear in chamber pressure (eq 17 form); with
    ``presliding_hysteresis`` in the hoist's model, the Maxwell-slip elements (the
    Leuven / GMS idea) replace the single bristle. The state is carried through
-   standstill, so the friction left by the last motion is kept, not zeroed;
+   standstill, so the friction left by the last motion is kept, not zeroed, but for
+   LuGre's drift along a ringing at rest that the played motion hides
+   (:meth:`transforms.compensation_block.BlockCompensation.ringing_drift`);
 6. tension T_i = p_chamber,i A_bore + F_i (paper eq 2, F positive while the rod moves
    out), and the uncompensated T_raw,i = p_sensor,i A_bore (the paper's "before");
 7. a 95 % band for each tension and the load (:mod:`transforms.uncertainty`): the

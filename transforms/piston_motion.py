@@ -63,16 +63,17 @@ to its static capacity (elastic-plastic, one common demand) without the rope spr
 1.6-1.8 % median, the wrong piston saturates first.
 
 Without a logged x (``eval_compensation.py --without-x``, session 33), the quarter
-shares on the validation days 101-104: worst 2.93 / 2.93 / 3.38 / 4.43 %, median 1.40 /
-1.45 / 1.40 / 2.16 % (raw 2.75 / 2.69 / 2.85 / 0.74 %), 23 / 24 / 23 / 100 windows worse
-than raw by > 0.2 points, the band (+-5.8 %) holding every window; on ropeload's own
-simulation, whose pistons move alike, worst 0.43-1.42 %, median 0.07-0.21 %, one window
-worse. LuGre seals drift there along the ringing below the play as the stick-slip
-solution's do (:meth:`transforms.compensation_block.BlockCompensation.ringing_drift`;
-day 104 was 5.86 / 2.85 %, 110 windows, without it; own LuGre sims 0.98 -> 0.84 %
-worst). The stick-slip solution on the description's nominal ropes instead (tried, not
-kept: its band has no rope members) gave medians of 1.00-1.06 % and 0.33 % on day 104,
-worst still 2.8-3.2 %, 14-26 windows worse than raw.
+shares on the validation days 101-104: worst 2.93 / 2.93 / 3.38 / 2.66 %, median 1.40 /
+1.45 / 1.40 / 0.48 % (raw 2.75 / 2.69 / 2.85 / 0.74 %), 23 / 24 / 23 / 24 windows worse
+than raw by > 0.2 points, the band (+-5.5-6.0 %) holding every window; on ropeload's own
+simulation, whose pistons move alike, worst 0.43-1.42 %, median 0.08-0.21 %, one window
+worse. LuGre seals drift there along the ringing at rest that the shared-out x's
+deadband hides (:meth:`transforms.compensation_block.BlockCompensation.ringing_drift`;
+day 104 was 5.86 / 2.85 %, 110 windows, without it; own LuGre sims 0.98 -> 1.07 /
+1.26 % worst, median 0.15 / 0.12 -> 0.08 / 0.10 %). The stick-slip solution on the
+description's nominal ropes instead (tried before the drift, not kept: its band has no
+rope members) gave medians of 1.00-1.06 % and 0.33 % on day 104, worst still
+2.8-3.2 %, 14-26 windows worse than raw.
 """
 
 from __future__ import annotations

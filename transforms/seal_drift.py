@@ -185,10 +185,14 @@ def ringing_travel(
     sample_rate_hz: float,
     pressure_cutoff_hz: float,
     half_width_pa: float,
+    hidden_below_pa: float | None = None,
 ) -> np.ndarray:
     """Per sample, the travel of a ringing at rest that the drift's play hides [Pa]:
     4 A f_b per second where the ringing's amplitude A is below the play's half-width w
-    (above it the play counts it whole) and above the noise.
+    (above it the play counts it whole) and above the noise. ``hidden_below_pa``: count
+    it below this amplitude instead (a play of another width that hides it, e.g. the
+    shared-out x's deadband as the oil's pressure, :meth:`transforms.compensation_block.
+    BlockCompensation.ringing_drift`).
 
     A conveyance at rest rings at its bounce frequency f_b (:func:`physics.rope_spring.
     bounce_frequency_hz`: the ropes' hanging length from ``depth_m``, the last known
@@ -248,7 +252,8 @@ def ringing_travel(
     # amplitude at f_b has an RMS of 2 sigma (band / cut-off)^(1/2)
     cutoff = drift_cutoff_hz(hoist, pressure_cutoff_hz)
     noise = 2.0 * half_width_pa / DRIFT_SIGMAS * np.sqrt(band / cutoff)
-    counted = at_rest & known & (amplitude > RINGING_SIGMAS * noise) & (amplitude < half_width_pa)
+    below = half_width_pa if hidden_below_pa is None else hidden_below_pa
+    counted = at_rest & known & (amplitude > RINGING_SIGMAS * noise) & (amplitude < below)
     counted &= amplitude > RINGING_PEAK * beside
     out[counted] = 4.0 * amplitude[counted] * bounce[counted] / rate
     return out

@@ -32,7 +32,8 @@ eq 3-4 with Table 2, sum of T = (m_c + m_p + m_t(z)) (g + a)
 eq 5, continuity dV = V / beta dp
     beta with entrained air: :func:`physics.oil.effective_bulk_modulus` (scalar
     :func:`~physics.oil.effective_bulk_modulus_at`); the closed volume n A dx =
-    V / beta dp: :func:`physics.closed_volume.common_mode_displacement` --
+    V / beta dp: :func:`physics.closed_volume.common_mode_displacement` (per pascal:
+    :func:`~physics.closed_volume.common_mode_per_pa`) --
     tests/physics/test_oil.py, tests/transforms/test_compensation_arrays.py
 eq 6, Hagen-Poiseuille R = 128 mu l / (pi d^4)
     :func:`physics.branch_loss.laminar_resistance` -- tests/physics/test_branch_loss.py

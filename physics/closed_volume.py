@@ -12,10 +12,14 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from physics.oil import ATMOSPHERIC_PRESSURE_PA, effective_bulk_modulus_at
+from physics.oil import (
+    ATMOSPHERIC_PRESSURE_PA,
+    effective_bulk_modulus,
+    effective_bulk_modulus_at,
+)
 from schemas.hoist import HoistDescription
 
-__all__ = ["COMMON_MODE_STATE_SIZE", "common_mode_displacement"]
+__all__ = ["COMMON_MODE_STATE_SIZE", "common_mode_displacement", "common_mode_per_pa"]
 
 
 def common_mode_displacement(
@@ -50,6 +54,21 @@ def common_mode_displacement(
             np.zeros(COMMON_MODE_STATE_SIZE) if state is None else state,
         )
     return x
+
+
+def common_mode_per_pa(p_pa: np.ndarray | float, hoist: HoistDescription) -> np.ndarray:
+    r"""Each piston's common motion per pascal of the common pressure [m/Pa]: eq 5's
+    :math:`V / (\beta_e(p)\, n A_{bore})` at ``p_pa`` (at least 1 bar, 10 bar where
+    unknown, as :func:`common_mode_displacement` takes it).
+
+    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
+    >>> f"{float(common_mode_per_pa(4e6, load_hoist(EXAMPLE_HOIST))):.3g}"
+    '1.91e-10'
+    """
+    volume, n_area, oil = _common_mode_constants(hoist)
+    p = np.fmax(np.nan_to_num(np.asarray(p_pa, dtype=np.float64), nan=1e6), 1e5)
+    beta = effective_bulk_modulus(p, oil[0], oil[1], p_ref_pa=oil[2])
+    return volume / (n_area * beta)
 
 
 def _common_mode_constants(hoist: HoistDescription) -> tuple[float, float, np.ndarray]:

@@ -23,8 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from physics.closed_volume import common_mode_displacement
-from physics.oil import ATMOSPHERIC_PRESSURE_PA, effective_bulk_modulus
+from physics.closed_volume import common_mode_displacement, common_mode_per_pa
 from physics.trip_rule import trip_label_columns
 from schemas.tables import ROPES
 from transforms.band_members import (
@@ -449,30 +448,23 @@ class BlockCompensation(BlockSetup):
         example hoist's oil) moves no played x, so its whole travel
         (:func:`transforms.seal_drift.ringing_travel`, counted above the noise as the
         stick-slip solution counts it) is the seals' drift path, a quarter a piston
-        (eq 5, :func:`physics.closed_volume.common_mode_displacement`'s share); else a
+        (eq 5, :func:`physics.closed_volume.common_mode_per_pa`); else a
         single 0. Waits for the pressures only (queued after their jobs)."""
         if self.mode != 2 or not self.lugre_seals:
             return np.zeros(1)
         pressures = tuple(job.result() for job in self.p_jobs)
         drift_p, drift_w = self.drift_pressure(pressures)
-        oil, area = self.hoist.oil, self.hoist.cylinders.bore_area_m2
-        beta = effective_bulk_modulus(
-            np.fmax(drift_p, ATMOSPHERIC_PRESSURE_PA), oil.bulk_modulus_pa, oil.air_fraction,
-        )  # fmt: skip
-        oil_per_area = float(self.hoist.oil_volume_m3) / (self.hoist.ropes_n * area)
-        per_pa = oil_per_area / beta  # [m/Pa]
-        typical = effective_bulk_modulus(
-            max(self.context.typical_pressure_pa, ATMOSPHERIC_PRESSURE_PA),
-            oil.bulk_modulus_pa, oil.air_fraction,
-        )  # fmt: skip  # the record's, the same in every block
-        deadband_pa = self.settings.displacement_deadband_m * float(typical) / oil_per_area
+        # the deadband as the oil's pressure at the record's typical pressure (the same
+        # in every block)
+        typical = float(common_mode_per_pa(self.context.typical_pressure_pa, self.hoist))
+        deadband_pa = self.settings.displacement_deadband_m / typical
         ringing = ringing_travel(
             drift_p, self.segment, float_column(self.frame["depth_m"]), at_rest(self.frame),
             self.hoist, sample_rate_hz=self.context.sample_rate_hz,
             pressure_cutoff_hz=self.settings.pressure_cutoff_hz, half_width_pa=drift_w,
             hidden_below_pa=max(deadband_pa, drift_w),
         )  # fmt: skip
-        return ringing * per_pa
+        return ringing * common_mode_per_pa(drift_p, self.hoist)
 
     def played_motion(self, k: int) -> np.ndarray:
         """Rope k's piston displacement through the play operator of half-width

@@ -180,8 +180,9 @@ def rope_kernel(
     given in ``friction`` on entry for ``mode`` 3, none for ``mode`` 0; tension by
     :func:`physics.tension.rope_tension_n` (eq 2). ``drift_m`` (``mode`` 2; one value per
     sample, or a single 0): the piston's travel that its x does not show, along which
-    the bristles drift before the sample's step (:func:`physics.lugre.lugre_drift`: the
-    ringing below the play, :func:`transforms.seal_drift.ringing_travel`).
+    the bristles drift before the sample's step (:func:`physics.lugre.lugre_drift`: a
+    ringing at rest within the x's deadband, :meth:`transforms.compensation_block.
+    BlockCompensation.ringing_drift`).
     ``state`` = [ran, last x, last time, LuGre z, Maxwell-slip deflections...] carries
     the friction state from the previous block (:func:`transforms.filtering.fresh_state`,
     :data:`transforms.compensation_record.ROPE_STATE_BASE` + elements).

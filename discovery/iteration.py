@@ -25,7 +25,7 @@ from discovery.ranking import (
     score_bic,
     separating_excitation,
 )
-from discovery.refit import add_winner, as_added, winner_parameters
+from discovery.refit import add_winner, as_added, gap_without, winner_parameters
 from discovery.results import AMBIGUOUS, Finding, Params
 from schemas.effects import NO_EFFECT
 from sims.effects import parameters_json
@@ -303,7 +303,12 @@ def _add(
         fit.findings.append(_no_addition(fit, bl, NO_EFFECT, 0.0, ranking, msg))
         return False
     s_after = lay.flat(after.simulated)
-    where = locate_gap(plan, lay, bl.r, lay.y - s_after)
+    # the gap before: the same inputs, the effect left out (refit.gap_without); the
+    # baseline's own fit where that replay fails
+    gap_before, r_before = gap_without(plan, eng, fit.model, new_params, after)
+    if not np.isfinite(gap_before):
+        gap_before, r_before = bl.gap_before, bl.r
+    where = locate_gap(plan, lay, r_before, lay.y - s_after)
     fit.findings.append(
         Finding(
             bl.iteration,
@@ -311,7 +316,7 @@ def _add(
             parameters_json(new_params.get(top, {}), significant_digits=6),
             {k: parameters_json(v, significant_digits=6) for k, v in retuned.items()},
             float(share[top]),
-            bl.gap_before,
+            gap_before,
             gap_after,
             plan.noise_sigma_pa,
             bl.ratio,
@@ -320,7 +325,8 @@ def _add(
             where,
             message=f"added {top}; explains {explained:.0%} of the excess variance, "
             f"{_explained_x_noise(fit, bl, best['rss']):.1f} x the noise in RMS (its fitted "
-            f"change {size:.1f} x)",
+            f"change {size:.1f} x); the baseline's own fit left {bl.gap_before:.0f} Pa",
+            baseline_gap_pa=bl.gap_before,
         )
     )
     fit.model, fit.params, fit.current, fit.s0 = [*fit.model, top], new_params, after, s_after

@@ -23,7 +23,14 @@ Params = dict[str, dict[str, Any]]
 
 @dataclass(frozen=True)
 class Finding:
-    """One iteration's answer (one row of ``discovery_findings``)."""
+    """One iteration's answer (one row of ``discovery_findings``).
+
+    ``gap_before_pa`` is the model without the finding's effect replayed with the
+    inputs (payloads, loading ramps, retuned parameters) fitted with it
+    (:func:`discovery.refit.gap_without`), ``gap_after_pa`` with it; ``baseline_gap_pa``
+    the model's own fit before the effect was added (payloads fitted without it), what
+    the decision ran on. Where nothing is added the three are the same.
+    """
 
     iteration: int
     effect: str
@@ -40,6 +47,11 @@ class Finding:
     ambiguous_between: tuple[str, ...] = ()
     excitation: str = ""
     message: str = ""
+    baseline_gap_pa: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.baseline_gap_pa is None:
+            object.__setattr__(self, "baseline_gap_pa", self.gap_before_pa)
 
 
 @dataclass

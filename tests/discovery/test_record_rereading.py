@@ -10,6 +10,8 @@ import pytest
 from discovery import discover_in_record
 from discovery.cases import hidden_case
 from discovery.selection import discover_effects, fitted_baseline
+from physics.tension import tail_rope_mass_kg
+from schemas.hoist import G_STANDARD
 from sims.replay import replay
 
 
@@ -32,6 +34,23 @@ def test_the_record_is_planned_again_with_the_effect_added():
     )
     assert second.gap_before_pa == first.gap_after_pa
     assert first.gap_after_pa < 0.05 * first.gap_before_pa
+    # the gap before is the effect's own size: the tail ropes' weight over the scored
+    # samples, m_t(z) g / (n A) (eq 3-4); the baseline's own fit let each trip's payload
+    # take that weight's mean over the trip
+    weights = [
+        tail_rope_mass_kg(plan.hoist, tr.depth_m)
+        * G_STANDARD
+        / (plan.hoist.ropes_n * plan.hoist.cylinders.bore_area_m2)
+        for tr in plan.trips
+    ]
+    scored = [
+        np.broadcast_to(w[:, None], tr.valid.shape)[tr.valid]
+        for w, tr in zip(weights, plan.trips, strict=True)
+    ]
+    effect_rms = np.sqrt(np.mean(np.concatenate(scored) ** 2) + first.noise_pa**2)
+    about_trip_means = np.sqrt(np.mean(np.concatenate([w - w.mean() for w in scored]) ** 2))
+    assert first.gap_before_pa == pytest.approx(effect_rms, rel=0.01)
+    assert first.baseline_gap_pa == pytest.approx(about_trip_means, rel=0.02)
     assert second.effect == "none"
     assert any(n.startswith("planned again with") for n in result.notes)
 

@@ -88,6 +88,13 @@ def _metadata(path: Path, tdms: TdmsFile):
     lacking = [c for c in ("p1", "p2", "p3", "p4") if c not in channels]
     if lacking:
         raise RefusedFile(f"{path}: group 'hoist' lacks required channel(s) {', '.join(lacking)}")
+    stamps = channels.get("timestamp")
+    if stamps is not None and not np.issubdtype(
+        np.dtype(getattr(stamps, "dtype", np.float64)), np.datetime64
+    ):
+        raise RefusedFile(
+            f"{path}: channel hoist/timestamp: values of type {stamps.dtype} are not times"
+        )
     units: dict[str, tuple[float, float]] = {}
     timebase = None
     for name, channel in channels.items():
@@ -100,13 +107,11 @@ def _metadata(path: Path, tdms: TdmsFile):
                     f"{path}: channel hoist/{name}: waveform property {key!r} is missing "
                     "(no time base)"
                 )
-        base = (
-            np.datetime64(channel.properties["wf_start_time"], "us"),
-            float(channel.properties.get("wf_start_offset", 0.0)),
-            float(channel.properties["wf_increment"]),
-        )
-        if not base[2] > 0:
-            raise RefusedFile(f"{path}: channel hoist/{name}: wf_increment {base[2]} is not > 0")
+        base = _timebase(path, name, channel.properties)
+        if not np.issubdtype(np.dtype(getattr(channel, "dtype", np.float64)), np.number):
+            raise RefusedFile(
+                f"{path}: channel hoist/{name}: values of type {channel.dtype} are not numbers"
+            )
         if timebase is None:
             timebase = base
         elif base != timebase:
@@ -121,6 +126,34 @@ def _metadata(path: Path, tdms: TdmsFile):
         except QuantityError as exc:
             raise RefusedFile(f"{path}: channel hoist/{name}: unit_string: {exc}") from None
     return str(props["site"]).strip(), str(props["hoist"]).strip(), units, timebase
+
+
+def _timebase(path: Path, name: str, props) -> tuple[np.datetime64, float, float]:
+    """(start, offset [s], increment [s]) of a channel's waveform properties; refuse the
+    file naming the channel and property where one is not a time or a finite number."""
+    try:
+        start = np.datetime64(props["wf_start_time"], "us")
+    except (ValueError, TypeError, OverflowError):
+        raise RefusedFile(
+            f"{path}: channel hoist/{name}: wf_start_time {props['wf_start_time']!r} is not a time"
+        ) from None
+    if np.isnat(start):
+        raise RefusedFile(f"{path}: channel hoist/{name}: wf_start_time is not a time (NaT)")
+    numbers = []
+    for key, default in (("wf_start_offset", 0.0), ("wf_increment", None)):
+        value = props.get(key, default)
+        try:
+            number = float(value)
+        except (ValueError, TypeError, OverflowError):
+            number = float("nan")
+        if not np.isfinite(number):
+            raise RefusedFile(
+                f"{path}: channel hoist/{name}: {key} {value!r} is not a finite number"
+            )
+        numbers.append(number)
+    if not numbers[1] > 0:
+        raise RefusedFile(f"{path}: channel hoist/{name}: wf_increment {numbers[1]} is not > 0")
+    return start, numbers[0], numbers[1]
 
 
 def _batches(

@@ -185,6 +185,18 @@ def _ingest_file(
         result.status = "refused"
         result.message = str(exc)
         return result, earlier
+    except (OSError, duckdb.Error):
+        raise  # the data root's own trouble (disk, warehouse): not this file's
+    except Exception as exc:  # a reader's parse error the checks did not foresee
+        logger.debug("reading %s failed", path, exc_info=True)
+        what = f"{path}: unreadable ({type(exc).__name__}: {str(exc).splitlines()[0][:200]})"
+        if result.rows_read == 0:
+            result.status, result.message = "refused", what
+            return result, earlier
+        # what landed before it stays landed and counted; the rest is not read
+        result.status = "partial"
+        result.message = f"{what}; stopped after {result.rows_read} rows"
+        return result, earlier
     notes[:0] = reading.notes
     result.bytes_consumed = reading.bytes_consumed
     if reading.partial:

@@ -50,6 +50,10 @@ def _bad_files(corpus, folder: Path) -> dict[str, str]:
     corpus.csv_file(folder / "no-p4.csv", rows, columns=columns)
     corpus.mcap_file(folder / "proto.mcap", bad_encoding_topic="/rig/displacement")
     (folder / "junk.mcap").write_bytes(b"\x89MCAP0\r\n" + bytes(range(256)) * 8)
+    corpus.tdms_file(folder / "when.tdms", channel_properties={"wf_start_time": "yesterday"})
+    corpus.tdms_file(folder / "step.tdms", channel_properties={"wf_increment": "fast"})
+    corpus.tdms_file(folder / "text.tdms", text_in="p1")
+    corpus.tdms_file(folder / "stamps.tdms", text_in="timestamp")
     return {
         "no-site.csv": "lines 1-4: header lacks required key(s) 'site'",
         "psi.csv": "line 5: units: p1: unknown unit 'psi'",
@@ -58,6 +62,10 @@ def _bad_files(corpus, folder: Path) -> dict[str, str]:
         "no-p4.csv": "line 6: column line lacks required channel(s) p4",
         "proto.mcap": "topic /rig/displacement: schema encoding 'protobuf'",
         "junk.mcap": "no readable MCAP messages",
+        "when.tdms": "channel hoist/p2: wf_start_time 'yesterday' is not a time",
+        "step.tdms": "channel hoist/p2: wf_increment 'fast' is not a finite number",
+        "text.tdms": "channel hoist/p1: values of type",
+        "stamps.tdms": "channel hoist/timestamp: values of type",
     }
 
 

@@ -112,9 +112,13 @@ def tdms_file(
     start: dt.datetime = dt.datetime(2026, 3, 2, 6, 0, 0),
     p_mpa: float = 4.8,
     properties: dict[str, str] | None = None,
+    channel_properties: dict[str, object] | None = None,
+    text_in: str | None = None,
 ) -> Path:
-    """A contract-1b TDMS; ``omit`` names waveform properties left out of ``omit_in``;
-    ``properties`` replace file properties (``site``, ``hoist``, ``timezone``)."""
+    """A contract-1b TDMS; ``omit`` names waveform properties left out of ``omit_in``,
+    ``channel_properties`` replace some of its properties; ``properties`` replace file
+    properties (``site``, ``hoist``, ``timezone``); ``text_in`` names a channel written
+    as text."""
     t0 = np.datetime64(start.replace(tzinfo=None), "us")
     wave = {"wf_start_time": t0, "wf_increment": 0.01, "wf_start_offset": 0.0}
     channels = []
@@ -123,12 +127,17 @@ def tdms_file(
         "depth": (np.linspace(0, 600, n), "m"),
         "speed": (np.full(n, 1.0), "m/s"),
     }
+    if text_in == "timestamp":  # a sample-time channel, written as text below
+        values["timestamp"] = (np.arange(n, dtype=np.float64), "")
     values["p3"][0][5] = -9999.0  # a sentinel
     values["p1"][0][7] = 75.0  # impossible: above 60 MPa
     for name, (data, unit) in values.items():
         props = {"unit_string": unit, **wave}
         if name == omit_in:
             props = {k: v for k, v in props.items() if k not in omit}
+            props.update(channel_properties or {})
+        if name == text_in:
+            data = np.array([f"{v:.3f}" for v in data])
         channels.append(ChannelObject("hoist", name, data, properties=props))
     file_props = {"site": HEADER["site"], "hoist": "tdms-hoist", "timezone": "UTC"}
     root = RootObject({**file_props, **(properties or {})})

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import io
 import json
+import math
+from decimal import Decimal
 from typing import Literal
 
 import duckdb
@@ -125,7 +127,7 @@ def run_query(sql: str, *, data: DataRoot) -> pl.DataFrame:
     con = open_reader(data, sandbox=True)
     try:
         relation = con.sql(statement)
-        return pl.DataFrame() if relation is None else relation.pl()
+        return pl.DataFrame() if relation is None else _to_polars(relation)
     except duckdb.PermissionException as exc:
         reason = " ".join(str(exc).split()).removeprefix("Permission Error: Cannot")
         raise QueryRefused(
@@ -141,17 +143,91 @@ def run_query(sql: str, *, data: DataRoot) -> pl.DataFrame:
         con.close()
 
 
+#: DuckDB types every reader of a result takes as they are; a result column of any other
+#: type that polars cannot take (an INTERVAL, a UNION, a date at infinity) is shown as
+#: DuckDB writes it as text.
+_PLAIN_TYPES = frozenset(
+    "BOOLEAN TINYINT SMALLINT INTEGER BIGINT HUGEINT UTINYINT USMALLINT UINTEGER UBIGINT "
+    "FLOAT DOUBLE VARCHAR".split()
+)
+
+
+def _to_polars(relation: duckdb.DuckDBPyRelation) -> pl.DataFrame:
+    """The result as a polars frame; where polars cannot take a column's values, the
+    columns of other than plain types as DuckDB's text."""
+    try:
+        frame = relation.pl()
+        if not _beyond_python_dates(frame):
+            return frame
+    except pl.exceptions.PolarsError:
+        pass
+    except BaseException as exc:  # pyo3's PanicException
+        if type(exc).__name__ != "PanicException":
+            raise
+    columns = []
+    for name, kind in zip(relation.columns, relation.types, strict=True):
+        quoted = '"' + name.replace('"', '""') + '"'
+        plain = str(kind).split("(")[0] in _PLAIN_TYPES
+        columns.append(quoted if plain else f"CAST({quoted} AS VARCHAR) AS {quoted}")
+    return relation.project(", ".join(columns)).pl()
+
+
+#: Python's dates, 0001-01-01 to 9999-12-31, in days and seconds from 1970-01-01.
+_DAYS = (-719_162, 2_932_896)
+_SECONDS = (-62_135_596_800, 253_402_300_799)
+_PER_SECOND = {"ns": 10**9, "us": 10**6, "ms": 10**3}
+
+
+def _beyond_python_dates(frame: pl.DataFrame) -> bool:
+    """Whether a date or time column holds a value no Python date can (DuckDB's
+    ``infinity``): polars holds it, and panics when asked to show it."""
+    for name, kind in frame.schema.items():
+        if kind == pl.Date:
+            low, high = _DAYS
+        elif isinstance(kind, pl.Datetime):
+            per = _PER_SECOND[kind.time_unit or "us"]
+            low, high = _SECONDS[0] * per, _SECONDS[1] * per
+        else:
+            continue
+        physical = frame[name].to_physical()
+        if bool(((physical < low) | (physical > high)).any()):
+            return True
+    return False
+
+
+def _finite(value: object) -> object:
+    """``value`` with every NaN or infinite float inside it as None (JSON has neither)
+    and decimals as floats."""
+    if isinstance(value, Decimal):  # a DECIMAL column: a JSON number
+        value = float(value)
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    return value
+
+
 def format_result(frame: pl.DataFrame, output: OutputFormat) -> str:
     """Render a query result for people (``table``) or programs (``csv``, ``json``).
 
     The table shows every column, at full width and with whole strings (paths, hashes);
-    rows beyond 200 are elided in the middle, the shape line gives the count.
+    rows beyond 200 are elided in the middle, the shape line gives the count. CSV writes
+    a nested value (list, struct, map) as its JSON text; JSON is strict (NaN and
+    infinities as null).
     """
-    if output == "csv":
-        return frame.write_csv()
-    if output == "json":
+    if output == "csv":  # a nested value (list, struct, map) as its JSON text
+        nested = [c for c, t in frame.schema.items() if t.is_nested()]
+        flat = frame.with_columns(
+            pl.Series(c, [json.dumps(_finite(v), default=str) for v in frame[c].to_list()])
+            for c in nested
+        )
+        return flat.write_csv()
+    if output == "json":  # strict JSON: NaN and infinities as null
         buffer = io.StringIO()
-        buffer.write(json.dumps(frame.to_dicts(), default=str, indent=None))
+        rows = _finite(frame.to_dicts())
+        buffer.write(json.dumps(rows, default=str, indent=None, allow_nan=False))
         buffer.write("\n")
         return buffer.getvalue()
     with pl.Config(

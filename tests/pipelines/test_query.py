@@ -8,8 +8,10 @@ was, create none, and show none of the outside file's content.
 
 from __future__ import annotations
 
+import csv
 import datetime as dt
 import hashlib
+import io
 import json
 import os
 import subprocess
@@ -395,3 +397,36 @@ def test_query_sql_error_is_one_line(data, capsys):
     err = capsys.readouterr().err
     assert "no_such_table" in err
     assert len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    ("sql", "text"),
+    [
+        ("select interval '1 month 2 days' as span", "1 month 2 days"),
+        ("select 'infinity'::date as d", "infinity"),
+        ("select 'infinity'::timestamp as t", "infinity"),
+        ("select union_value(k := 1) as u", "1"),
+    ],
+)
+def test_results_polars_cannot_hold_are_shown_as_duckdb_text(data, capsys, sql, text):
+    """An interval, a date at infinity, a union: polars has no type for them; the
+    result shows DuckDB's text of the value instead of a traceback."""
+    for output in ("table", "csv", "json"):
+        assert main(["query", "--data", str(data.path), "--format", output, sql]) == 0
+        out = capsys.readouterr().out
+        assert text in out, (output, out)
+
+
+def test_csv_writes_nested_values_as_json_and_json_is_strict(data, capsys):
+    """A map or list column (the manifest's quarantine counts are one) goes to CSV as its
+    JSON text; a NaN or an infinity goes to JSON as null, never as bare NaN."""
+    sql = "select map(['a', 'b'], [1, 2]) as m, [1.5, 'nan'::double] as l"
+    assert main(["query", "--data", str(data.path), "--format", "csv", sql]) == 0
+    rows = list(csv.reader(io.StringIO(capsys.readouterr().out)))
+    assert rows[0] == ["m", "l"]
+    assert json.loads(rows[1][1]) == [1.5, None]
+    assert main(["query", "--data", str(data.path), "--format", "json",
+                 "select 'nan'::double as x, 'inf'::double as y, 1.5 as z"]) == 0  # fmt: skip
+    assert json.loads(capsys.readouterr().out, parse_constant=pytest.fail) == [
+        {"x": None, "y": None, "z": 1.5}
+    ]

@@ -28,7 +28,6 @@ _HEADER_LIMIT = 1 << 16
 _BOM = b"\xef\xbb\xbf"
 _REQUIRED_KEYS = ("site", "hoist", "units")
 _SEPARATORS = (",", ";", "\t")
-_DECIMAL_COMMA = re.compile(r"^[-+]?\d*,\d+$")
 _KELVIN = {"K": -273.15}
 _CONTROL_BYTES = re.compile(rb"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
 
@@ -43,6 +42,7 @@ class CsvHeader:
     sample_rate_hz: float | None
     columns: tuple[str, ...]
     separator: str
+    #: numbers may have a decimal comma: with ";" between fields (contract 1a)
     decimal_comma: bool
     #: raw channel name -> (factor, offset) to SI, for the channels present
     units: dict[str, tuple[float, float]]
@@ -94,9 +94,9 @@ def read_header(path: Path) -> CsvHeader:
             notes.append(f"line {meta['sample_rate_hz'][0]}: sample_rate_hz not a number, ignored")
     units = _units(path, meta["units"], columns)
     first_rows = _first_data_fields(head[pos:], separator)
-    decimal_comma = separator == ";" and any(
-        _DECIMAL_COMMA.match(v) for fields in first_rows for v in fields[1:]
-    )
+    # with ";" between fields a comma in a number can only be its decimal separator
+    # (contract 1a), wherever in the file it first appears
+    decimal_comma = separator == ";"
     example = first_rows[0][0].strip() if first_rows else ""
     return CsvHeader(
         site=meta["site"][1],

@@ -180,9 +180,10 @@ class _BatchParser:
         """The timestamp (unless all fast-parsed) and channel columns; typed if possible.
 
         Returns the frame and whether its channel columns are already floats. The typed
-        read is tried only when every numeric field is clean (see :mod:`.csv_scan`) and
-        the file has no decimal comma; a value polars cannot parse makes it raise, and
-        the batch falls back to strings + cast (which find the row and the reason).
+        read is tried only when every numeric field is clean (see :mod:`.csv_scan`; a
+        comma is not a number's byte, so such a batch has no decimal comma); a value
+        polars cannot parse makes it raise, and the batch falls back to strings + cast
+        (which find the row and the reason).
         """
         wanted = ([] if fast.all_times else [0]) + self.channel_index
         options = dict(
@@ -192,7 +193,7 @@ class _BatchParser:
             separator=self.header.separator,
             raise_if_empty=False,
         )
-        if fast.clean and not self.header.decimal_comma:
+        if fast.clean:  # no comma in any number: the typed read holds for ";" too
             typed = {name: pl.String for name in self.names}
             typed.update({self.names[i]: pl.Float64 for i in self.channel_index})
             try:

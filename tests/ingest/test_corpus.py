@@ -447,6 +447,23 @@ def test_decimal_comma_and_tab_give_the_same_values(corpus, tmp_path, root):
     assert comma["p1_pa"][0] == pytest.approx(4.812e6)
 
 
+def test_a_decimal_comma_first_seen_late_in_a_file_is_read(corpus, tmp_path, root):
+    """With ";" between fields a comma in a number is its decimal separator wherever it
+    first appears: 60 rows of whole numbers and empty fields, then decimal commas (was:
+    decided from the first 50 rows, the later ones quarantined as unparsable)."""
+    rows = corpus.data_rows(80)
+    for r in rows[:60]:
+        r[1:] = ["5", "", "-9999", "5", "12", "-3", "0", "8", "0", "1", "31"]
+    for r in rows[60:]:
+        r[1:] = [v.replace(".", ",") for v in r[1:]]
+    report = ingest_paths([corpus.csv_file(tmp_path / "late.csv", rows, sep=";")], data=root)
+    assert (report.files[0].rows_landed, report.files[0].rows_quarantined) == (80, 0)
+    frame = _only(root).sort("time_utc")
+    assert frame["p1_pa"][0] == pytest.approx(5e6)
+    assert frame["p1_pa"][79] == pytest.approx(4.812e6)
+    assert frame["x1_m"][79] == pytest.approx(12.1e-3)
+
+
 def test_offsets_give_one_utc_timeline(corpus, tmp_path, root):
     ingest_paths([case_iso_with_offsets(corpus, tmp_path)[0]], data=root)
     times = _only(root)["time_utc"].to_list()

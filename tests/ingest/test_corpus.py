@@ -553,6 +553,32 @@ def test_dst_repeated_hour_across_batches(corpus, tmp_path, root):
     assert _only(root)["time_utc"].n_unique() == 24
 
 
+def test_dst_a_file_that_starts_in_the_second_pass_of_the_repeated_hour(corpus, tmp_path, root):
+    """An hourly export cut at the change: it starts in the repeated hour and goes on
+    into standard time without going back, so it held the second pass (CET): one
+    continuous UTC timeline, no false hour's gap."""
+    stamps = [f"2026-10-25 02:{m:02d}:00.000" for m in range(30, 60, 5)]
+    stamps += ["2026-10-25 03:00:00.000", "2026-10-25 03:05:00.000"]
+    path = _berlin(corpus, tmp_path, "second.csv", stamps)
+    report = ingest_paths([path], data=root)
+    _check(report, root, Expect("landed", 8, 8))
+    start = dt.datetime(2026, 10, 25, 1, 30, tzinfo=UTC)  # 02:30 CET
+    assert _only(root)["time_utc"].to_list() == [
+        start + dt.timedelta(minutes=5 * k) for k in range(8)
+    ]
+
+
+def test_dst_a_file_that_enters_the_repeated_hour_keeps_the_first_pass(corpus, tmp_path, root):
+    """Coming into the repeated hour from before it: the first pass (CEST), as before."""
+    stamps = ["2026-10-25 01:55:00.000", "2026-10-25 02:00:00.000", "2026-10-25 02:05:00.000"]
+    report = ingest_paths([_berlin(corpus, tmp_path, "first.csv", stamps)], data=root)
+    _check(report, root, Expect("landed", 3, 3))
+    start = dt.datetime(2026, 10, 24, 23, 55, tzinfo=UTC)  # 01:55 CEST
+    assert _only(root)["time_utc"].to_list() == [
+        start + dt.timedelta(minutes=5 * k) for k in range(3)
+    ]
+
+
 def test_dst_skipped_hour_is_quarantined(corpus, tmp_path, root):
     # 2026-03-29: 02:00 CET -> 03:00 CEST, local 02:xx never happens
     stamps = [

@@ -20,7 +20,7 @@ import polars as pl
 
 from physics.tension import annulus_area_m2, bore_area_m2
 from pipelines.lake import lake_partitions, scan_lake
-from schemas.names import UnsafeNameError, safe_name
+from schemas.names import name_problem
 from warehouse.store import DataRoot
 
 __all__ = [
@@ -108,12 +108,12 @@ def read_rig_info(path: str | Path) -> RigInfo:
 
 
 def check_names(rig_id: str | None, parameter_set: str | None) -> None:
-    try:  # a rig id is a lake folder, a parameter set a hoist description's name
-        for key, value in (("--rig", rig_id), ("--parameter-set", parameter_set)):
-            if value is not None:
-                safe_name(value, key=key, source="ropeload calibrate")
-    except UnsafeNameError as exc:
-        raise CalibrationError(str(exc)) from None
+    # a rig id is a lake folder, a parameter set a hoist description's name
+    for key, value in (("rig", rig_id), ("parameter set", parameter_set)):
+        if value is not None:
+            problem = name_problem(value)
+            if problem is not None:
+                raise CalibrationError(f"{key}: {problem}")
 
 
 def select_rig(

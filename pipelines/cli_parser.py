@@ -106,6 +106,17 @@ def _parse_day(text: str):
     return dt.date.fromisoformat(text)
 
 
+def _safe_name(text: str) -> str:
+    """A name that becomes a folder or a key (a rig id, a parameter set): a usage error
+    unless it is a safe name (:func:`schemas.names.name_problem`)."""
+    from schemas.names import name_problem
+
+    problem = name_problem(text)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(problem)
+    return text
+
+
 def _positive_gb(text: str) -> float:
     value = float(text)
     if not value > 0:
@@ -262,9 +273,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _data_option(calibrate)
     calibrate.add_argument(
-        "--rig", metavar="RIG_ID", help="rig to calibrate (default: the only one)"
+        "--rig", metavar="RIG_ID", type=_safe_name, help="rig to calibrate (default: the only one)"
     )
-    calibrate.add_argument("--parameter-set", metavar="NAME", help="name of the parameter set")
+    calibrate.add_argument(
+        "--parameter-set", metavar="NAME", type=_safe_name, help="name of the parameter set"
+    )
     calibrate.add_argument(
         "--table1", metavar="FILE", type=Path, help="report OLS lines through paper Table 1 (CSV)"
     )

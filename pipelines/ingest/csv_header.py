@@ -16,10 +16,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pipelines.ingest.batch import RefusedFile
-from pipelines.ingest.field_checks import CHANNELS
+from pipelines.ingest.field_checks import CHANNELS, unit_to_si
 from pipelines.ingest.local_time import formats_for
 from schemas.names import UnsafeNameError, safe_name
-from schemas.quantities import QuantityError, unit_factor
+from schemas.quantities import QuantityError
 
 __all__ = ["CsvHeader", "read_header"]
 
@@ -28,7 +28,6 @@ _HEADER_LIMIT = 1 << 16
 _BOM = b"\xef\xbb\xbf"
 _REQUIRED_KEYS = ("site", "hoist", "units")
 _SEPARATORS = (",", ";", "\t")
-_KELVIN = {"K": -273.15}
 _CONTROL_BYTES = re.compile(rb"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
 
 
@@ -235,11 +234,8 @@ def _units(
                 f"{path}: line {line}: units line gives no unit for {name} "
                 f"(write e.g. '{channel.unit_key}={'MPa' if channel.unit_key == 'p' else 'mm'}')"
             )
-        if channel.dimension == "temperature" and unit in _KELVIN:
-            result[name] = (1.0, _KELVIN[unit])
-            continue
         try:
-            result[name] = (unit_factor(unit, channel.dimension), 0.0)
+            result[name] = unit_to_si(unit, channel)
         except QuantityError as exc:
             raise RefusedFile(f"{path}: line {line}: units: {name}: {exc}") from None
     return result

@@ -33,6 +33,7 @@ from pathlib import Path
 import polars as pl
 
 from schemas.hoist import HoistDescription, load_hoist
+from schemas.quantities import unit_factor
 
 __all__ = [
     "CHANNELS",
@@ -49,6 +50,7 @@ __all__ = [
     "hoist_lookup_from_files",
     "physical_reason",
     "to_si",
+    "unit_to_si",
 ]
 
 #: Pressure above which a sensor reading is impossible (contract 1a) [Pa].
@@ -89,6 +91,24 @@ CHANNELS: dict[str, Channel] = {
 }
 
 _SENTINEL = -9999.0
+
+
+#: Temperature units given as an offset from degC (the landed oil_temp_c).
+_TEMPERATURE_OFFSETS = {"K": -273.15}
+
+
+def unit_to_si(unit: str, channel: Channel) -> tuple[float, float]:
+    """(factor, offset) that take ``channel``'s values in ``unit`` to its landed column
+    (:func:`to_si`): a factor to SI, and for a temperature in kelvin the offset to degC.
+    Raises :class:`schemas.quantities.QuantityError` for a unit of another dimension or
+    none known. The one conversion of CSV ``units`` lines and TDMS ``unit_string``s.
+
+    >>> unit_to_si("bar", CHANNELS["p1"]), unit_to_si("K", CHANNELS["oil_temp"])
+    ((100000.0, 0.0), (1.0, -273.15))
+    """
+    if channel.dimension == "temperature" and unit in _TEMPERATURE_OFFSETS:
+        return 1.0, _TEMPERATURE_OFFSETS[unit]
+    return unit_factor(unit, channel.dimension), 0.0
 
 
 def to_si(value: pl.Expr, factor: float, offset: float = 0.0) -> pl.Expr:

@@ -36,9 +36,10 @@ from pipelines.ingest.field_checks import (
     depth_limits_m,
     physical_reason,
     to_si,
+    unit_to_si,
 )
 from schemas.names import UnsafeNameError, safe_name
-from schemas.quantities import QuantityError, unit_factor
+from schemas.quantities import QuantityError
 from schemas.tables import FIELD_SAMPLES
 
 __all__ = ["open_tdms"]
@@ -122,7 +123,7 @@ def _metadata(path: Path, tdms: TdmsFile):
         if unit is None:
             raise RefusedFile(f"{path}: channel hoist/{name}: no unit_string property")
         try:
-            units[name] = (unit_factor(unit, spec.dimension), 0.0)
+            units[name] = unit_to_si(unit, spec)
         except QuantityError as exc:
             raise RefusedFile(f"{path}: channel hoist/{name}: unit_string: {exc}") from None
     return str(props["site"]).strip(), str(props["hoist"]).strip(), units, timebase

@@ -464,6 +464,22 @@ def test_a_decimal_comma_first_seen_late_in_a_file_is_read(corpus, tmp_path, roo
     assert frame["x1_m"][79] == pytest.approx(12.1e-3)
 
 
+def test_an_oil_temperature_in_kelvin_lands_in_degc_from_csv_and_tdms(corpus, tmp_path, root):
+    """``oil_temp=K`` in a CSV ``units`` line and ``unit_string K`` on a TDMS channel are
+    one conversion (contract 1a/1b: the same units): 305.15 K lands as 32.0 degC."""
+    rows = corpus.data_rows(3)
+    for r in rows:
+        r[11] = "305.15"
+    header = {**corpus.HEADER, "units": "p=MPa, x=mm, depth=m, speed=m/s, oil_temp=K"}
+    csv_path = corpus.csv_file(tmp_path / "kelvin.csv", rows, header=header)
+    tdms_path = corpus.tdms_file(tmp_path / "kelvin.tdms", n=10, oil_temp=(305.15, "K"))
+    report = ingest_paths([csv_path, tdms_path], data=root)
+    assert [f.status for f in report.files] == ["landed", "landed"]
+    with open_reader(root) as con:
+        temps = con.sql("SELECT DISTINCT oil_temp_c FROM lake_field_samples").fetchall()
+    assert temps == [(pytest.approx(32.0),)]
+
+
 def test_offsets_give_one_utc_timeline(corpus, tmp_path, root):
     ingest_paths([case_iso_with_offsets(corpus, tmp_path)[0]], data=root)
     times = _only(root)["time_utc"].to_list()

@@ -213,8 +213,23 @@ def test_calibrate_refuses_unsafe_rig_and_parameter_set_names(option, value, roo
     from pipelines.calibrate import calibrate_rig
     from pipelines.calibrate_inputs import CalibrationError
 
-    flag = "--rig" if option == "rig_id" else "--parameter-set"
+    key = "rig" if option == "rig_id" else "parameter set"
     with pytest.raises(CalibrationError) as info:
         calibrate_rig(data=root, **{option: value})
-    assert str(info.value).startswith(f"ropeload calibrate: {flag}: unsafe name {value!r}")
+    assert str(info.value).startswith(f"{key}: unsafe name {value!r}")
+    assert not root.path.exists()
+
+
+@pytest.mark.parametrize(("flag", "value"), [("--rig", "../x"), ("--parameter-set", "a/b")])
+def test_calibrate_cli_says_an_unsafe_name_once_as_a_usage_error(flag, value, root, capsys):
+    """The command line refuses the name before anything runs: exit 2 (a usage error),
+    one line naming the option, the command's name said once."""
+    from pipelines.cli import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["calibrate", "--data", str(root.path), flag, value])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert f"argument {flag}: unsafe name {value!r}" in err
+    assert err.count("calibrate") == 1
     assert not root.path.exists()

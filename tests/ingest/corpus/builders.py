@@ -114,11 +114,12 @@ def tdms_file(
     properties: dict[str, str] | None = None,
     channel_properties: dict[str, object] | None = None,
     text_in: str | None = None,
+    oil_temp: tuple[float, str] | None = None,
 ) -> Path:
     """A contract-1b TDMS; ``omit`` names waveform properties left out of ``omit_in``,
     ``channel_properties`` replace some of its properties; ``properties`` replace file
     properties (``site``, ``hoist``, ``timezone``); ``text_in`` names a channel written
-    as text."""
+    as text; ``oil_temp`` (value, unit_string) adds that channel."""
     t0 = np.datetime64(start.replace(tzinfo=None), "us")
     wave = {"wf_start_time": t0, "wf_increment": 0.01, "wf_start_offset": 0.0}
     channels = []
@@ -127,6 +128,8 @@ def tdms_file(
         "depth": (np.linspace(0, 600, n), "m"),
         "speed": (np.full(n, 1.0), "m/s"),
     }
+    if oil_temp is not None:
+        values["oil_temp"] = (np.full(n, oil_temp[0]), oil_temp[1])
     if text_in == "timestamp":  # a sample-time channel, written as text below
         values["timestamp"] = (np.arange(n, dtype=np.float64), "")
     values["p3"][0][5] = -9999.0  # a sentinel

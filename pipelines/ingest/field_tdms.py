@@ -21,6 +21,7 @@ Quarantine rows of TDMS files have no line; ``raw`` starts with the 0-based samp
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -45,6 +46,10 @@ from schemas.tables import FIELD_SAMPLES
 __all__ = ["open_tdms"]
 
 _GROUP = "hoist"
+
+# a damaged file's complaints are the file's outcome (refused, partial), said once by
+# the ingest report: npTDMS's own warnings would be further stderr lines
+logging.getLogger("nptdms").setLevel(logging.ERROR)
 
 
 def open_tdms(path: Path, *, hoist_lookup: HoistLookup | None = None) -> Reading:
@@ -222,7 +227,8 @@ def _si_frame(
     if "timestamp" in arrays and len(arrays["timestamp"][1]) == n:
         times = pl.Series("time_utc", arrays["timestamp"][1].astype("datetime64[us]"))
     else:
-        step_us = np.rint((offset_s + index * increment_s) * 1e6).astype(np.int64)
+        with np.errstate(invalid="ignore", over="ignore"):  # beyond int64: quarantined
+            step_us = np.rint((offset_s + index * increment_s) * 1e6).astype(np.int64)
         times = pl.Series("time_utc", start + step_us.astype("timedelta64[us]"))
     columns = {"time_utc": times.dt.replace_time_zone("UTC"), "_row": index}
     values = []

@@ -90,6 +90,13 @@ def open_csv(
             reading.bytes_consumed = progress.bytes_consumed
         reading.bytes_consumed = progress.bytes_consumed
         reading.partial = progress.partial
+        if progress.ambiguity.undecided:
+            reading.notes.append(
+                f"{progress.ambiguity.undecided} sample(s) in the repeated hour of a "
+                "daylight-saving change with no time before or after them in the file: "
+                "taken as the first (daylight-saving) pass; export with UTC offsets to "
+                "be sure"
+            )
 
     reading.batches = batches()
     return reading

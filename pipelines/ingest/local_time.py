@@ -50,6 +50,8 @@ class AmbiguityState:
     seen_jump: bool = False
     #: an earlier batch of the file had a time (the file did not start in this one)
     earlier_rows: bool = False
+    #: samples of the repeated hour the file does not place (nothing before or after)
+    undecided: int = 0
 
 
 def formats_for(example: str) -> tuple[str, ...]:
@@ -147,26 +149,33 @@ def _localise(naive: pl.Series, zone: str, state: AmbiguityState) -> pl.Series:
     if ambiguous.any():
         rows = np.flatnonzero(ambiguous)
         values = naive.gather(rows).dt.epoch("us").to_numpy()
-        if not earlier_rows and _enters_in_second_pass(naive, ambiguous, rows[0]):
-            state.last_local_us, state.seen_jump = int(values[0]), True
+        if not earlier_rows:
+            entered = _enters_in_second_pass(naive, ambiguous, rows[0])
+            if entered is None:
+                state.undecided += int(rows.size)
+            elif entered:
+                state.last_local_us, state.seen_jump = int(values[0]), True
         second = _second_pass(values, state)
         if second.any():
             earliest = earliest.scatter(rows[second], latest.gather(rows[second]))
     return earliest.dt.convert_time_zone("UTC")
 
 
-def _enters_in_second_pass(naive: pl.Series, ambiguous: np.ndarray, first: int) -> bool:
+def _enters_in_second_pass(naive: pl.Series, ambiguous: np.ndarray, first: int) -> bool | None:
     """Whether the first run of repeated-hour samples of a file's first batch, starting
     at row ``first``, is the second pass: no time before it in the file (the file
     starts in the repeated hour) and, without a backward jump, the first time after it
     past the hour. A continuous log that leaves the repeated hour into standard time
-    without going back was in its second pass (an export cut at the change)."""
+    without going back was in its second pass (an export cut at the change). None
+    where the file holds only one pass of the hour (nothing tells which: the first is
+    taken, and the file's report says so)."""
     first = int(first)
     if naive.slice(0, first).null_count() < first:
         return False  # the file came into the hour from before it: the first pass
     after = np.flatnonzero(~ambiguous[first:])
-    if after.size == 0:
-        return False  # only the repeated hour: nothing tells the pass (the first taken)
+    if after.size == 0:  # only the repeated hour: one pass, unless it jumps back
+        times = naive.slice(first, None).drop_nulls().dt.epoch("us").to_numpy()
+        return None if bool((np.diff(times) >= 0).all()) else False
     out = first + int(after[0])
     if naive[out] is None:
         return False

@@ -595,6 +595,17 @@ def test_dst_a_file_that_enters_the_repeated_hour_keeps_the_first_pass(corpus, t
     ]
 
 
+def test_dst_a_file_of_one_pass_of_the_repeated_hour_says_it_took_the_first(corpus, tmp_path, root):
+    """Nothing in the file tells which pass it holds: the first is taken, and the
+    file's report says so."""
+    stamps = [f"2026-10-25 02:{m:02d}:00.000" for m in range(0, 30, 10)]
+    report = ingest_paths([_berlin(corpus, tmp_path, "onepass.csv", stamps)], data=root)
+    _check(report, root, Expect("landed", 3, 3))
+    assert "3 sample(s) in the repeated hour" in report.files[0].message
+    assert "taken as the first (daylight-saving) pass" in report.files[0].message
+    assert _only(root)["time_utc"][0] == dt.datetime(2026, 10, 25, 0, 0, tzinfo=UTC)
+
+
 def test_dst_skipped_hour_is_quarantined(corpus, tmp_path, root):
     # 2026-03-29: 02:00 CET -> 03:00 CEST, local 02:xx never happens
     stamps = [

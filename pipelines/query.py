@@ -19,7 +19,6 @@ from __future__ import annotations
 import io
 import json
 import math
-from decimal import Decimal
 from typing import Literal
 
 import duckdb
@@ -196,10 +195,8 @@ def _beyond_python_dates(frame: pl.DataFrame) -> bool:
 
 
 def _finite(value: object) -> object:
-    """``value`` with every NaN or infinite float inside it as None (JSON has neither)
-    and decimals as floats."""
-    if isinstance(value, Decimal):  # a DECIMAL column: a JSON number
-        value = float(value)
+    """``value`` with every NaN or infinite float inside it as None (JSON has neither).
+    Decimals stay exact, as text (``default=str``), as DuckDB's own CLI writes them."""
     if isinstance(value, float):
         return value if math.isfinite(value) else None
     if isinstance(value, dict):
@@ -215,7 +212,7 @@ def format_result(frame: pl.DataFrame, output: OutputFormat) -> str:
     The table shows every column, at full width and with whole strings (paths, hashes);
     rows beyond 200 are elided in the middle, the shape line gives the count. CSV writes
     a nested value (list, struct, map) as its JSON text; JSON is strict (NaN and
-    infinities as null).
+    infinities as null; a DECIMAL or HUGEINT exact, as text, as DuckDB's CLI writes it).
     """
     if output == "csv":  # a nested value (list, struct, map) as its JSON text
         nested = [c for c, t in frame.schema.items() if t.is_nested()]

@@ -72,12 +72,24 @@ class TrialOutcome:
     @property
     def variance_removed(self) -> float | None:
         """(gap_before^2 - gap_after^2) / effect_rms^2 of the finding that added the
-        hidden effect (``None`` when no finding named it or nothing is hidden)."""
+        hidden effect (``None`` when no finding named it or nothing is hidden): issue
+        14's figure, the gap before being the model's own fit (contract 5)."""
+        return self._removed("gap_before_pa")
+
+    @property
+    def effect_share(self) -> float | None:
+        """The same with the gap without the added effect at the inputs fitted with it
+        (``gap_without_effect_pa``): the variance the added effect itself accounts for,
+        of which the baseline's payloads had taken each trip's mean."""
+        return self._removed("gap_without_effect_pa")
+
+    def _removed(self, before_key: str) -> float | None:
         if self.hidden == "none" or self.effect_rms_pa <= 0:
             return None
         for f in self.report.get("findings") or [self.report]:
             if f.get("effect") == self.hidden:
-                before, after = float(f["gap_before_pa"]), float(f["gap_after_pa"])
+                before = float(f.get(before_key, f["gap_before_pa"]))
+                after = float(f["gap_after_pa"])
                 return (before**2 - after**2) / self.effect_rms_pa**2
         return None
 
@@ -168,7 +180,7 @@ def _trial_line(o: TrialOutcome) -> str:
         extra.append(f"unexplained {float(r['unexplained_gap_pa']) / 1e3:.1f} kPa")
     vr = o.variance_removed
     if vr is not None:
-        extra.append(f"var removed {vr:.0%}")
+        extra.append(f"var removed {vr:.0%} (the effect's own {o.effect_share:.0%})")
     if o.quarantined:
         extra.append(f"{o.quarantined} rows quarantined")
     if o.reason:
@@ -294,6 +306,13 @@ def _print_variance_removed(hidden: list[TrialOutcome]) -> float | None:
         + (f"{med_right:.0%} over the {len(right)} trials named right" if right else "no hits")
         + (f"; {np.median(all_vr):.0%} over all {len(all_vr)} (miss = 0)" if all_vr else "")
     )
+    own = [o.effect_share for o in hidden if o.answer == o.hidden and o.effect_share is not None]
+    if own:
+        print(
+            "  the added effect's own share, (gap_without_effect^2 - gap_after^2) / "
+            f"effect_rms^2 (the baseline's payloads took each trip's mean of it): "
+            f"{np.median(own):.0%} over the {len(own)} named"
+        )
     return med_right if right else None
 
 

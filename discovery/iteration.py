@@ -303,12 +303,9 @@ def _add(
         fit.findings.append(_no_addition(fit, bl, NO_EFFECT, 0.0, ranking, msg))
         return False
     s_after = lay.flat(after.simulated)
-    # the gap before: the same inputs, the effect left out (refit.gap_without); the
-    # baseline's own fit where that replay fails
-    gap_before, r_before = gap_without(plan, eng, fit.model, new_params, after)
-    if not np.isfinite(gap_before):
-        gap_before, r_before = bl.gap_before, bl.r
-    where = locate_gap(plan, lay, r_before, lay.y - s_after)
+    # what the effect itself accounts for: the same inputs, the effect left out
+    without, _ = gap_without(plan, eng, fit.model, new_params, after)
+    where = locate_gap(plan, lay, bl.r, lay.y - s_after)
     fit.findings.append(
         Finding(
             bl.iteration,
@@ -316,7 +313,7 @@ def _add(
             parameters_json(new_params.get(top, {}), significant_digits=6),
             {k: parameters_json(v, significant_digits=6) for k, v in retuned.items()},
             float(share[top]),
-            gap_before,
+            bl.gap_before,
             gap_after,
             plan.noise_sigma_pa,
             bl.ratio,
@@ -325,8 +322,9 @@ def _add(
             where,
             message=f"added {top}; explains {explained:.0%} of the excess variance, "
             f"{_explained_x_noise(fit, bl, best['rss']):.1f} x the noise in RMS (its fitted "
-            f"change {size:.1f} x); the baseline's own fit left {bl.gap_before:.0f} Pa",
-            baseline_gap_pa=bl.gap_before,
+            f"change {size:.1f} x); without it at the inputs fitted with it "
+            f"{without:.0f} Pa",
+            gap_without_effect_pa=without if np.isfinite(without) else None,
         )
     )
     fit.model, fit.params, fit.current, fit.s0 = [*fit.model, top], new_params, after, s_after

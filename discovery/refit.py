@@ -115,14 +115,13 @@ def gap_without(
     """(gap [Pa], residual) of ``model`` -- the winner left out -- replayed with the
     inputs fitted with the winner in: ``after``'s payloads, payloads before loading and
     loading ramps, and ``params`` (the retuned and the added term's values; the left-out
-    term's are not used). The gap a finding reports before its effect is added
-    (``gap_before_pa``, contract 5): adding the effect is then the only change, so
-    ``gap_before^2 - gap_after^2`` is the variance the effect takes out of the
-    residual, the measure issue 14 compares with the hidden effect's own
-    (``effect_rms_pa``). The baseline's own fit, with payloads fitted without the effect,
-    lets each trip's payload take the effect's mean over the trip (a tail rope's weight
-    1.49 MPa in RMS left a 0.78 MPa gap) and is reported beside it
-    (``Finding.baseline_gap_pa``)."""
+    term's are not used); NaN where that replay fails. A finding's
+    ``gap_without_effect_pa``: adding the effect is then the only change, so
+    ``gap_without^2 - gap_after^2`` is the variance the effect itself accounts for, to
+    compare with the hidden effect's own (issue 14's ``effect_rms_pa``). The finding's
+    ``gap_before_pa`` stays the model's own fit before the effect (contract 5: what the
+    model achieved), whose payloads take the effect's mean over each trip (a tail
+    rope's weight, 1.54 MPa in RMS over the trips, left 0.85 MPa)."""
     eng.count_replays(1)
     lay = eng.layout
     without = replay(

@@ -25,11 +25,14 @@ Params = dict[str, dict[str, Any]]
 class Finding:
     """One iteration's answer (one row of ``discovery_findings``).
 
-    ``gap_before_pa`` is the model without the finding's effect replayed with the
-    inputs (payloads, loading ramps, retuned parameters) fitted with it
-    (:func:`discovery.refit.gap_without`), ``gap_after_pa`` with it; ``baseline_gap_pa``
-    the model's own fit before the effect was added (payloads fitted without it), what
-    the decision ran on. Where nothing is added the three are the same.
+    ``gap_before_pa`` is the model's own fit before the finding's effect was added
+    (payloads fitted without it: what the model achieved, and what the decision ran
+    on), ``gap_after_pa`` with it; ``gap_without_effect_pa`` the model after, the effect
+    taken out, at the inputs (payloads, loading ramps, parameters) fitted with it
+    (:func:`discovery.refit.gap_without`): ``gap_without_effect^2 - gap_after^2`` is the
+    variance the effect itself accounts for, which the baseline's payloads partly took
+    (their mean of the effect over each trip). Where nothing is added the three are the
+    same.
     """
 
     iteration: int
@@ -47,11 +50,11 @@ class Finding:
     ambiguous_between: tuple[str, ...] = ()
     excitation: str = ""
     message: str = ""
-    baseline_gap_pa: float | None = None
+    gap_without_effect_pa: float | None = None
 
     def __post_init__(self) -> None:
-        if self.baseline_gap_pa is None:
-            object.__setattr__(self, "baseline_gap_pa", self.gap_before_pa)
+        if self.gap_without_effect_pa is None:
+            object.__setattr__(self, "gap_without_effect_pa", self.gap_before_pa)
 
 
 @dataclass

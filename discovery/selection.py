@@ -70,13 +70,13 @@ Method (one iteration)
 6. *Add, refit, re-simulate.* The winner is switched on at its fitted coordinates (and
    the re-tuned parameters updated), the trips re-simulated with payloads re-fitted,
    and the gap (RMS of y - s) before and after reported overall and per region (trip
-   phase, direction, shaft position, oil temperature, pressure level, cylinder): before
-   is the model without the winner replayed with the inputs fitted with it
-   (:func:`discovery.refit.gap_without`), so that adding the winner is the only change
-   and ``gap_before^2 - gap_after^2`` is the variance it takes out (the baseline's own
-   fit, whose payloads took the effect's mean over each trip, is reported beside it
-   as ``baseline_gap_pa``: a tail rope's weight of 1.54 MPa in RMS over the trips left
-   0.85 MPa, its spread about each trip's mean; what steps 2-5 decide on). A
+   phase, direction, shaft position, oil temperature, pressure level, cylinder); beside
+   them the gap without the winner at the inputs fitted with it
+   (:func:`discovery.refit.gap_without`, ``gap_without_effect_pa``), so that
+   ``gap_without^2 - gap_after^2`` is the variance the winner itself accounts for (the
+   gap before, the baseline's own fit, lets each trip's payload take the effect's mean
+   over the trip: a tail rope's weight of 1.54 MPa in RMS over the trips left 0.85 MPa,
+   its spread about each trip's mean). A
    term that is null and strongly nonlinear at its default (groove wear: it starts from
    a scan along the residual's differential signature, ``FitEngine.start``) is then
    fitted along its coordinates with payloads refitted (Brent,

@@ -13,9 +13,9 @@ a time, the record planned again after each effect added) and writes
 
   - ``"effects"``: every effect found, in order (empty for ``none``);
   - ``"gap_after_pa"``: the gap after *all* found effects were added
-    (``gap_before_pa`` is before any: the first effect left out with the inputs fitted
-    with it, :func:`discovery.refit.gap_without`; ``"baseline_gap_pa"`` the model's
-    own fit before it, payloads fitted without it);
+    (``gap_before_pa`` is before any, the model's own fit; ``"gap_without_effect_pa"``
+    the first effect taken out at the inputs fitted with it,
+    :func:`discovery.refit.gap_without`: what that effect itself accounts for);
   - ``"findings"``: one full contract-5 object per iteration (``effect`` a name,
     ``none`` or ``ambiguous``), each with its own ``gap_before_pa`` / ``gap_after_pa``,
     ``where`` (regions with ``gap_pa`` before and ``gap_after_pa`` after), ``ranking``
@@ -111,7 +111,7 @@ def _finding_object(f: Finding, hoist: HoistDescription, period: tuple[str, str]
         "where": f.where,
         "gap_before_pa": round(float(f.gap_before_pa), 1),
         "gap_after_pa": round(float(f.gap_after_pa), 1),
-        "baseline_gap_pa": round(float(f.baseline_gap_pa or f.gap_before_pa), 1),
+        "gap_without_effect_pa": round(float(f.gap_without_effect_pa or f.gap_before_pa), 1),
         "ranking": f.ranking,
         "retuned": f.retuned,
         "noise_pa": round(float(f.noise_pa), 1),
@@ -138,7 +138,7 @@ def report_objects(
         "where": first["where"],
         "gap_before_pa": first["gap_before_pa"],
         "gap_after_pa": per[-1]["gap_after_pa"] if found else first["gap_before_pa"],
-        "baseline_gap_pa": first["baseline_gap_pa"],
+        "gap_without_effect_pa": first["gap_without_effect_pa"],
         "ranking": first["ranking"],
         "effects": found,
         "model_effects_before": list(result.effects_before),
@@ -265,6 +265,9 @@ def discover_period(
     error of the discovery waits for the identification to end before it is raised,
     and an identification that fails fails the discovery.
     """
+    if json_path is not None:  # checked before anything runs, the plot beside it too
+        json_path = data.output_file(json_path, option="--json")
+        data.output_file(json_path.with_suffix(".png"), option="--json's plot")
     started = utc_now()
     hoist = load_hoist(hoist_path)
     site, name = hoist.hoist.site, hoist.hoist.name

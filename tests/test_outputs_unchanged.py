@@ -59,12 +59,7 @@ Newton step that stays on every piston's linear piece as the root (the values by
 to 7e-10 of their sums, the inferred payloads 3e-9; the ``compensate_*`` entries by
 1e-16, within their tolerance, not re-stored) and the band combines its members'
 sources in quadrature (:func:`transforms.uncertainty.ensemble_band`): sums of
-load_after_lo_n -0.14 %, load_after_hi_n +0.09 %, max_load_after_hi_n +0.05 %. The
-``discovery_*`` entries again (session 34) after a finding's ``gap_before_pa`` is its
-model replayed without the effect at the inputs fitted with it
-(:func:`discovery.refit.gap_without`): 10.21 -> 11.54 kPa for a 20 kPa offset on one of
-four sensors (10 kPa in RMS about their median, with 5 kPa of noise; the payloads had
-taken part of it), the other values within 3e-6 of their sums (run to run).
+load_after_lo_n -0.14 %, load_after_hi_n +0.09 %, max_load_after_hi_n +0.05 %.
 
 The compensation's input is written here with numpy (two trips, a payload step at a
 stop, a ringing rope, a logger gap, a warming oil), not by the simulation, so a change

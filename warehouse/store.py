@@ -62,6 +62,10 @@ STORAGE_VERSION = "v1.4.0"
 _ISO_DAY = re.compile(r"\d{4}-\d{2}-\d{2}")
 
 
+class OutputPathError(ValueError):
+    """A user-named output file that would land among the data root's own files."""
+
+
 @dataclass(frozen=True)
 class DataRoot:
     """Paths under one data root."""
@@ -99,6 +103,27 @@ class DataRoot:
         real_root, real = self.path.resolve(), path.resolve()
         if real != real_root and not real.is_relative_to(real_root):
             raise PathEscapeError(f"{path} resolves to {real}, outside the data root {real_root}")
+        return path
+
+    def output_file(self, path: str | os.PathLike[str], *, option: str) -> Path:
+        """``path``, a file the user names for a command's output (``--json FILE``),
+        if writing it cannot touch the data root's own files: it resolves (symlinks
+        followed) outside the data root or under its ``reports`` folder, and is not a
+        folder. Raises :class:`OutputPathError` (one line naming ``option``) otherwise,
+        before anything runs: a JSON written over ``warehouse.duckdb`` or into the lake
+        would destroy what every command reads.
+        """
+        path = Path(path).expanduser().absolute()
+        real, root = path.resolve(), self.path.resolve()
+        reports = (self.path / "reports").resolve()
+        inside = real == root or real.is_relative_to(root)
+        if inside and not real.is_relative_to(reports):
+            raise OutputPathError(
+                f"{option} {path}: inside the data root {root}, whose files ropeload "
+                f"keeps; write it outside the data root or under {self.path / 'reports'}"
+            )
+        if real.is_dir():
+            raise OutputPathError(f"{option} {path}: is a folder, not a file")
         return path
 
     def under(self, folder: str, *parts: str) -> Path:

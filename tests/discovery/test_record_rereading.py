@@ -34,9 +34,10 @@ def test_the_record_is_planned_again_with_the_effect_added():
     )
     assert second.gap_before_pa == first.gap_after_pa
     assert first.gap_after_pa < 0.05 * first.gap_before_pa
-    # the gap before is the effect's own size: the tail ropes' weight over the scored
-    # samples, m_t(z) g / (n A) (eq 3-4); the baseline's own fit let each trip's payload
-    # take that weight's mean over the trip
+    # without the effect at the inputs fitted with it, the gap is the effect's own
+    # size: the tail ropes' weight over the scored samples, m_t(z) g / (n A) (eq 3-4);
+    # the gap before, the baseline's own fit, let each trip's payload take that
+    # weight's mean over the trip
     weights = [
         tail_rope_mass_kg(plan.hoist, tr.depth_m)
         * G_STANDARD
@@ -49,8 +50,8 @@ def test_the_record_is_planned_again_with_the_effect_added():
     ]
     effect_rms = np.sqrt(np.mean(np.concatenate(scored) ** 2) + first.noise_pa**2)
     about_trip_means = np.sqrt(np.mean(np.concatenate([w - w.mean() for w in scored]) ** 2))
-    assert first.gap_before_pa == pytest.approx(effect_rms, rel=0.01)
-    assert first.baseline_gap_pa == pytest.approx(about_trip_means, rel=0.02)
+    assert first.gap_without_effect_pa == pytest.approx(effect_rms, rel=0.01)
+    assert first.gap_before_pa == pytest.approx(about_trip_means, rel=0.02)
     assert second.effect == "none"
     assert any(n.startswith("planned again with") for n in result.notes)
 

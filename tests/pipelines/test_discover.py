@@ -86,3 +86,34 @@ def test_cli_discover(lake_with_offset, tmp_path, capsys):
     )
     assert code == 0
     assert json.loads(capsys.readouterr().out)["effect"] == "sensor_offset"
+
+
+@pytest.mark.parametrize(
+    "target",
+    ["warehouse.duckdb", "lake/field_samples/evil.parquet", ".warehouse.lock", "lake", "."],
+)
+def test_cli_discover_refuses_a_json_among_the_data_roots_files(
+    lake_with_offset, tmp_path, capsys, target
+):
+    """``--json`` over the warehouse, into the lake or onto the lock (or a folder) is
+    refused before anything runs, one line, and the data root is as it was: a report
+    written there would destroy what every command reads."""
+    root, toml = lake_with_offset
+    before = sorted((p.relative_to(root), p.stat().st_size) for p in root.rglob("*"))
+    code = main(
+        ["discover", "--data", str(root), "--hoist", str(toml), "--json", str(root / target)]
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1
+    assert len(err) == 1, err
+    assert err[0].startswith("ropeload discover: --json "), err
+    assert sorted((p.relative_to(root), p.stat().st_size) for p in root.rglob("*")) == before
+
+
+def test_cli_discover_writes_under_the_data_roots_reports(lake_with_offset, capsys):
+    root, toml = lake_with_offset
+    target = root / "reports" / "discovery" / "r.json"
+    code = main(["discover", "--data", str(root), "--hoist", str(toml), "--json", str(target)])
+    assert code == 0
+    assert json.loads(target.read_text())["effect"] == "sensor_offset"
+    capsys.readouterr()

@@ -143,7 +143,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         f"{result.period_start_utc:%Y-%m-%d %H:%M:%S} .. {result.period_end_utc:%Y-%m-%d %H:%M:%S}"
         f" UTC, {result.samples} samples, {result.trip_summary.height} trips, "
         f"{result.position_summary.height} position visits, {result.alarms.height} alarms"
-        f"{checks}\nreport: {report}\n"
+        f"{checks}\nreport: {report or 'not written (its run_steps row says why)'}\n"
     )
     if error is not None:  # the run is landed and reported; the check's failure fails it
         raise error

@@ -261,14 +261,15 @@ class CheckedRun:
 
     ``sanity`` is what :func:`pipelines.hoist_day.check_sanity` returned, None when the
     check did not run; ``sanity_error`` an error it raised (then said in the report and
-    for the caller to raise); ``sanity_words`` how it went; ``report`` the HTML file.
+    for the caller to raise); ``sanity_words`` how it went; ``report`` the HTML file
+    (None where it could not be written: the ``report`` step landed says why).
     """
 
     result: RunResult
     sanity: object | None
     sanity_error: Exception | None
     sanity_words: str
-    report: Path
+    report: Path | None
 
 
 def _run_message(samples: int, alarms: int, settings: CompensationSettings) -> str:
@@ -336,7 +337,6 @@ def run_checked(
     if found is not None:
         step = Step("sanity check", found.step.status, found.step.message)
     report = write_run_report(data, result, hoist=hoist, steps=[step], command=command)
-    assert report.path is not None
     sentence = step.sentence()
     return CheckedRun(
         result=result,

@@ -222,7 +222,12 @@ def _record(
     outcome = (
         StepOutcome("report", "done", str(report.path))
         if error is None
-        else StepOutcome("report", "failed", f"{one_line(error)} (fallback {report.path})")
+        else StepOutcome(
+            "report",
+            "failed",
+            one_line(error)
+            + (f" (fallback {report.path})" if report.path is not None else " (not written)"),
+        )
     )
     if not runs:
         return
@@ -245,7 +250,9 @@ def write_run_report(
     command: str = "run",
 ) -> Report:
     """:func:`run_report`, written under ``<data>/reports/`` (``report.path``); its
-    outcome landed as the run's ``report`` step (a failure: a fallback report saying why).
+    outcome landed as the run's ``report`` step (a failure: a fallback report saying why;
+    where not even that can be written, e.g. ``reports`` is a file, the step is landed
+    failed and ``report.path`` stays None: the run stands).
     """
     try:
         report = run_report(data, result, hoist=hoist, steps=steps, command=command)
@@ -254,6 +261,9 @@ def write_run_report(
         error = exc
         report = _fallback(f"ropeload {command}: {result.site}/{result.hoist}", command, exc, ())
         report.file_name = run_report_path(data, result).name
-    write_report(report, data)
+    try:
+        write_report(report, data)
+    except (OSError, ValueError) as exc:  # the reports folder unusable: a finding
+        error = exc
     _record(data, [(result.run_id, result.site, result.hoist)], report, error)
     return report

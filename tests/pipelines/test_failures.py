@@ -489,3 +489,31 @@ def test_supervisor_signalled_the_child_cleans_up(signum):
         for pid in (server, child, proc.pid):
             if _alive(pid):
                 os.kill(pid, signal.SIGKILL)
+
+
+def test_a_report_that_cannot_be_written_is_the_runs_finding_not_its_failure(
+    tmp_path, capsys, small_csv
+):
+    """``<data>/reports`` a file: the run lands, says the report was not written, exits
+    0, and its ``report`` step is landed failed with the reason (as backfill does)."""
+    import duckdb
+
+    data = tmp_path / "data"
+    assert main(["ingest", "--data", str(data), str(small_csv(tmp_path / "in.csv", rows=200))]) == 0
+    (data / "reports").write_text("a file where the reports folder belongs")
+    status = main(["run", "--data", str(data), "--hoist", str(HOIST), "--no-sanity"])
+    out, err = capsys.readouterr()
+    assert status == 0, err
+    assert "report: not written" in out
+    con = duckdb.connect(str(data / "warehouse.duckdb"), read_only=True)
+    try:
+        steps = con.sql(
+            "SELECT step, status, message FROM run_steps WHERE step = 'report'"
+        ).fetchall()
+        runs = con.sql("SELECT status FROM runs").fetchall()
+    finally:
+        con.close()
+    assert runs == [("succeeded",)]
+    assert len(steps) == 1
+    assert steps[0][1] == "failed"
+    assert "not written" in steps[0][2]

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
+import math
 from pathlib import Path
 
 from pipelines.cli_commands import (
@@ -117,6 +118,17 @@ def _safe_name(text: str) -> str:
     return text
 
 
+def _payload_kg(text: str) -> float:
+    """A payload [kg]: a finite number, not negative (0: the conveyance empty)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number of kg, got {text!r}") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"must be a finite payload >= 0 kg, got {text}")
+    return value
+
+
 def _positive_gb(text: str) -> float:
     value = float(text)
     if not value > 0:
@@ -169,7 +181,9 @@ def _add_flow_commands(commands) -> None:
     _hoist_option(run, required=True)
     run.add_argument("--from", dest="start", type=_parse_time, metavar="T", help="UTC if no offset")
     run.add_argument("--to", dest="end", type=_parse_time, metavar="T", help="exclusive")
-    run.add_argument("--payload-kg", type=float, default=None, help="known payload at standstill")
+    run.add_argument(
+        "--payload-kg", type=_payload_kg, default=None, help="known payload at standstill"
+    )
     run.add_argument("--no-sanity", action="store_true", help="skip the simulation sanity check")
     run.add_argument(
         "--block-minutes",

@@ -517,3 +517,14 @@ def test_a_report_that_cannot_be_written_is_the_runs_finding_not_its_failure(
     assert len(steps) == 1
     assert steps[0][1] == "failed"
     assert "not written" in steps[0][2]
+
+
+@pytest.mark.parametrize("value", ["nan", "-500", "inf", "heavy"])
+def test_a_payload_that_is_no_payload_is_a_usage_error(value, tmp_path, capsys):
+    """``--payload-kg`` NaN, negative or not a number: refused before anything runs
+    (was: NaN errors in every position visit, or alarms from a negative payload)."""
+    with pytest.raises(SystemExit) as exit_info:
+        main(["run", "--data", str(tmp_path / "d"), "--hoist", str(HOIST), "--payload-kg", value])
+    assert exit_info.value.code == 2
+    assert "argument --payload-kg" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists()

@@ -73,7 +73,9 @@ from discovery.segmentation import (
     scored_samples,
     time_span,
 )
+from physics.trip_rule import TRIP_BRIDGE_S
 from schemas.hoist import HoistDescription
+from sims.device import CONTINUATION_DEPTH_TOLERANCE_M
 from sims.logged_motion import motion_knots, profile_from_knots, rope_damping_from_record
 from sims.replay import replay_profile
 from sims.replay_plan import ReplayPlan, ReplayTrip, SkippedTrip
@@ -229,14 +231,23 @@ def _planned_trips(
     a block started from rest leaves the seals without the forces the trips before
     left in them, which with ropes of unequal stiffness decides which piston slides (on
     a validation trial with nothing hidden, a block's first trip replayed 61 kPa from
-    rest and 8 kPa in a chain of 22 trips)."""
+    rest and 8 kPa in a chain of 22 trips). A logger gap longer than the trip rule
+    bridges (:data:`physics.trip_rule.TRIP_BRIDGE_S`) ends the window of a trip that ran
+    into it, and a trip that does not start where the one before it ended (by more than the
+    simulation's continuation tolerance) starts a new history, as a warm-up not compared:
+    what happened in the gap is not logged."""
     settle_s, score_rate_hz = rates
     motions = rec.motions
     trips: list[ReplayTrip] = []
     skipped: list[SkippedTrip] = []
     logged = motion == "logged"  # every planned trip follows the logged speed
+    # a logger gap the trip rule did not bridge: what the conveyance did in it is not
+    # logged, so the window of a trip that ran into it ends there (discovery.record:
+    # cut) and the history restarts after it
+    gap_starts = np.flatnonzero(np.diff(rec.t) > TRIP_BRIDGE_S)
     for b, block in enumerate(chosen):
         restart = True  # the next planned trip starts the block's history
+        end_depth = float("nan")
         # the trip before the block, unless it is the previous block's last
         before = block[0] - 1
         warm_up = before if before >= 0 and (b == 0 or before > chosen[b - 1][-1]) else None
@@ -247,17 +258,26 @@ def _planned_trips(
                     skipped.append(SkippedTrip(tm["trip_id"], tm["t_m"], tm["skip"]))
                 restart = True
                 continue
+            # not where the last planned trip left the conveyance: a gap between them
+            after_gap = bool(np.isfinite(end_depth)) and not (
+                abs(tm["d0"] - end_depth) <= CONTINUATION_DEPTH_TOLERANCE_M
+            )
+            restart = restart or after_gap
             next_ramp = timing[k + 1]["r0"] if k + 1 < len(motions) else trailing_ramp
             win_end = window_end(tm["t_e"], next_ramp, settle_s, rec.end_t)
+            if np.isin(motions[k][1], gap_starts):  # it ran into the gap: compared to it
+                win_end = min(win_end, float(rec.t[motions[k][1]]))
             trip = _planned_trip(
                 rec, hoist, k, tm, (b, restart), win_end, score_rate_hz, logged, notes
             )
-            if k == warm_up:
-                # the trip before the block: simulated from rest to load the seals'
-                # state (which pistons stick with what force), not compared
+            if k == warm_up or after_gap:
+                # the trip before the block (or the first after a logger gap): simulated
+                # from rest to load the seals' state (which pistons stick with what
+                # force), not compared
                 trip = dataclasses.replace(trip, valid=np.zeros_like(trip.valid))
             trips.append(trip)
             restart = False
+            end_depth = tm["d1"]
     return trips, skipped
 
 

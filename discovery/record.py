@@ -31,7 +31,7 @@ from discovery.segmentation import (
     record_trips,
     time_span,
 )
-from physics.trip_rule import STANDSTILL_SPEED_M_S
+from physics.trip_rule import STANDSTILL_SPEED_M_S, TRIP_BRIDGE_S
 from schemas.hoist import HoistDescription
 
 __all__ = [
@@ -176,6 +176,12 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
     next_start = float(t[motions[k + 1][0]]) if k + 1 < len(motions) else rec.end_t
     t_m, t_e, vmax_arg = motion_times(t, rec.speed, hoist.winder, a_i, b_i)
     d0, d1 = rec.stops[k], rec.stops[k + 1]
+    # a motion that runs into (or out of) a logger gap the trip rule did not bridge is
+    # cut there as by the record's end (start): the standstill beyond the gap is not its
+    if b_i + 1 < t.size and t[b_i + 1] - t[b_i] > TRIP_BRIDGE_S:
+        d1 = float("nan")
+    if a_i > 0 and t[a_i] - t[a_i - 1] > TRIP_BRIDGE_S:
+        d0 = float("nan")
     cut, skip = "", ""
     if not (np.isfinite(d0) and np.isfinite(d1)):
         # the record starts or ends while the conveyance moves (or the encoder depth

@@ -107,16 +107,16 @@ def period_extent(
     """Rows, first and last time of ``record`` (lead-in and lead-out included) and its
     rows in ``[start, end)``; None when it has no row in the period."""
     time = pl.col("time_utc")
-    inside = pl.lit(True)
-    if start is not None:
-        inside = inside & (time >= start)
-    if end is not None:
-        inside = inside & (time < end)
+    bounds = [
+        *([time >= start] if start is not None else []),
+        *([time < end] if end is not None else []),
+    ]
+    in_period = pl.all_horizontal(bounds).sum() if bounds else pl.len()
     extent = record.select(
         pl.len().alias("rows"),
         time.min().alias("first"),
         time.max().alias("last"),
-        inside.sum().alias("in_period"),
+        in_period.alias("in_period"),
     ).collect()
     rows, first, last, in_period = extent.row(0)
     if not rows or not in_period:

@@ -104,6 +104,32 @@ def test_a_logger_gap_after_a_stop_does_not_lose_the_loading(null_case):
     assert np.sqrt(np.mean(resid**2)) < 1.15 * gap_plan.noise_sigma_pa
 
 
+def test_a_logger_gap_in_the_middle_of_a_trip_cuts_it_and_restarts_the_history(null_case):
+    """Rows missing from 20 s into trip 0's motion to 5 s after it stopped: the trip is
+    cut there and compared up to the gap, not to the standstill after it (the gap hides
+    where it stopped);
+    the next trip does not start where trip 0's simulation left the conveyance, so it
+    starts a new history as an uncompared warm-up, and the replay runs (was: the chain
+    carried on from the gap's depth and the simulation refused the next trip)."""
+    plan, info = null_case
+    sensors = info["day"].sensors
+    first = plan.trips[0]
+    gap_from = _at(plan, first.motion_start_s + 20.0)
+    gap_to = _at(plan, first.motion_end_s + 5.0)
+    gapped = sensors.filter((pl.col("time_utc") < gap_from) | (pl.col("time_utc") > gap_to))
+    gap_plan = plan_replay(gapped, plan.hoist, settle_s=20.0)
+    cut, after = gap_plan.trips[0], gap_plan.trips[1]
+    assert cut.cut == "end"
+    assert _at(gap_plan, cut.window_end_s) <= gap_from
+    assert after.first_in_block
+    assert not after.valid.any()
+    assert gap_plan.trips[2].valid.any()  # the trip after the warm-up is compared
+    result = replay_fitted(gap_plan, passes=2)
+    assert result.ok, result.message
+    # what is compared replays as well as without the gap
+    assert _rms(result.residuals(gap_plan)[2]) < 1.3 * gap_plan.noise_sigma_pa
+
+
 # ------------------------------------------------- records that cut a trip, and their ends
 
 

@@ -40,6 +40,7 @@ from pathlib import Path
 
 import polars as pl
 
+from pipelines.ingest.field_checks import ForeignHoistError
 from pipelines.ingest.sources import expand_paths
 from pipelines.lake import scan_lake
 from schemas.hoist import HoistDescription, load_hoist
@@ -274,10 +275,17 @@ def lake_inputs(
 
 
 def hoist_lookup(source: HoistSource) -> Callable[[str, str], HoistDescription | None]:
-    """Ingest's ``hoist_lookup`` for one hoist's files (the depth-in-shaft check)."""
+    """Ingest's ``hoist_lookup`` for one hoist's files (the depth-in-shaft check); a
+    file whose header names another hoist is refused: it is in this hoist's incoming
+    folder, and would land in the other's lake unseen by this hoist's run."""
     description = source.description()
 
     def lookup(site: str, hoist: str) -> HoistDescription | None:
-        return description if (site, hoist) == (source.site, source.hoist) else None
+        if (site, hoist) != (source.site, source.hoist):
+            raise ForeignHoistError(
+                f"header names hoist {site}/{hoist}, but the file is in the incoming "
+                f"folder of {source.site}/{source.hoist}"
+            )
+        return description
 
     return lookup

@@ -45,6 +45,7 @@ __all__ = [
     "REASON_NON_UTF8",
     "REASON_TIMESTAMP",
     "Channel",
+    "ForeignHoistError",
     "HoistLookup",
     "depth_limits_m",
     "hoist_lookup_from_files",
@@ -65,6 +66,11 @@ REASON_DST_GAP = "local time in daylight-saving gap"
 REASON_CONFLICT = "conflicts with landed sample"
 
 HoistLookup = Callable[[str, str], HoistDescription | None]
+
+
+class ForeignHoistError(ValueError):
+    """Raised by a :data:`HoistLookup` for a file whose header names a hoist its caller
+    does not take here (a file in another hoist's incoming folder): ingest refuses it."""
 
 
 @dataclass(frozen=True)

@@ -42,7 +42,7 @@ import polars as pl
 
 from pipelines.ingest.batch import Batch, Reading, RefusedFile
 from pipelines.ingest.csv_scan import warm_up_in_background
-from pipelines.ingest.field_checks import REASON_CONFLICT, HoistLookup
+from pipelines.ingest.field_checks import REASON_CONFLICT, ForeignHoistError, HoistLookup
 from pipelines.ingest.field_csv import DEFAULT_BATCH_BYTES, open_csv
 from pipelines.ingest.landing import LakeTable, Landed
 from pipelines.ingest.manifest import (
@@ -147,7 +147,7 @@ def _ingest_file(
         return result, find_earlier(con, _EMPTY_SHA256)
     notes: list[str] = []
     if hoist_lookup is not None:
-        hoist_lookup = _noting_misses(hoist_lookup, notes)
+        hoist_lookup = _noting_misses(hoist_lookup, notes, path)
     if fmt == "csv":
         warm_up_in_background()
     candidates = resume_candidates(con, max_size=size) if fmt == "csv" else []
@@ -208,11 +208,16 @@ def _ingest_file(
     return result, earlier
 
 
-def _noting_misses(lookup: HoistLookup, notes: list[str]) -> HoistLookup:
-    """``lookup`` that adds a note when it has no description for a file's hoist."""
+def _noting_misses(lookup: HoistLookup, notes: list[str], path: Path) -> HoistLookup:
+    """``lookup`` that adds a note when it has no description for a file's hoist, and
+    refuses the file (naming it) where the lookup says it belongs to no hoist expected
+    here (:class:`.field_checks.ForeignHoistError`)."""
 
     def noting(site: str, hoist: str):
-        found = lookup(site, hoist)
+        try:
+            found = lookup(site, hoist)
+        except ForeignHoistError as exc:
+            raise RefusedFile(f"{path}: {exc}") from None
         if found is None:
             notes.append(
                 f"no hoist description for {site}/{hoist}: depth checked against the "

@@ -339,3 +339,37 @@ def test_deploy_serve_and_pool_take_the_switches_of_nightly(tmp_path):
         build_parser().parse_args(
             ["serve", "--hoists", "h", "--data", "d", "--lookback-days", "-1"]
         )
+
+
+def test_a_file_naming_another_hoist_in_a_hoists_folder_is_refused(tmp_path, capsys, small_csv):
+    """A log whose header names another hoist, dropped in main-shaft's incoming folder:
+    refused, named, nothing of it landed (was: landed silently in the other hoist's lake,
+    counted as main-shaft's rows)."""
+    hoists, incoming = tmp_path / "hoists", tmp_path / "incoming"
+    hoists.mkdir()
+    (hoists / "main-shaft.toml").write_text(EXAMPLE_HOIST.read_text(encoding="utf-8"))
+    folder = incoming / "paper-field-test" / "main-shaft"
+    folder.mkdir(parents=True)
+    small_csv(folder / "good.csv", rows=50)
+    foreign = small_csv(folder / "foreign.csv", rows=30, start="2026-03-02 07:00:00")
+    foreign.write_text(foreign.read_text().replace("# hoist: main-shaft", "# hoist: other-shaft"))
+    data = tmp_path / "data"
+    argv = ["nightly", "--hoists", str(hoists), "--incoming", str(incoming),
+            "--data", str(data), "--no-progress", "--no-sanity"]  # fmt: skip
+    status = main(argv)
+    out, err = capsys.readouterr()
+    assert status == 1
+    assert "1 refused" in out
+    assert "some files were refused" in err
+    con = open_reader(DataRoot.resolve(data))
+    try:
+        refused = con.sql(
+            "SELECT source_path, message FROM manifest WHERE status = 'refused'"
+        ).fetchall()
+    finally:
+        con.close()
+    assert len(refused) == 1
+    assert refused[0][0] == str(foreign)
+    assert "header names hoist paper-field-test/other-shaft" in refused[0][1]
+    lake = data / "lake" / "field_samples" / "site=paper-field-test"
+    assert not (lake / "hoist=other-shaft").exists()

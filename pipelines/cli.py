@@ -40,6 +40,8 @@ def _known_errors() -> tuple[type[BaseException], ...]:
         ("duckdb", "Error"),
         ("warehouse.lock", "LockTimeoutError"),
         ("pipelines.run_period", "NoSamplesError"),
+        # a lake file polars cannot read (damaged, not Parquet): its words, one line
+        ("polars.exceptions", "ComputeError"),
     ):
         loaded = sys.modules.get(module)
         if loaded is not None:

@@ -75,7 +75,10 @@ def _fleet_options(parser: argparse.ArgumentParser) -> None:
         help="raw logs as <incoming>/<site>/<hoist>/... (default <data>/incoming)",
     )
     parser.add_argument(
-        "--workers", type=int, default=2, help="hoist-days processed at a time (default 2)"
+        "--workers",
+        type=_at_least_one,
+        default=2,
+        help="hoist-days processed at a time (default 2)",
     )
     parser.add_argument(
         "--memory-budget-gb",
@@ -96,15 +99,34 @@ def _fleet_options(parser: argparse.ArgumentParser) -> None:
     _prefect_option(parser)
 
 
-def _parse_time(text: str):
-
-    value = dt.datetime.fromisoformat(text)
+def _parse_time(text: str) -> dt.datetime:
+    """An ISO 8601 time; UTC without an offset."""
+    try:
+        value = dt.datetime.fromisoformat(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"not an ISO 8601 time: {text!r} (e.g. 2026-03-02T06:00, UTC without an offset)"
+        ) from None
     return value.replace(tzinfo=dt.UTC) if value.tzinfo is None else value
 
 
-def _parse_day(text: str):
+def _parse_day(text: str) -> dt.date:
+    """A day, YYYY-MM-DD."""
+    try:
+        return dt.date.fromisoformat(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a day YYYY-MM-DD: {text!r}") from None
 
-    return dt.date.fromisoformat(text)
+
+def _at_least_one(text: str) -> int:
+    """A count of workers: a whole number >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
 
 
 def _safe_name(text: str) -> str:

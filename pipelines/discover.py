@@ -54,6 +54,7 @@ from discovery import DiscoveryResult, Finding, discover_in_record
 from pipelines.identified_ropes import identified_ropes
 from pipelines.lake import scan_lake
 from pipelines.provenance import hoist_run, new_run_id, utc_now
+from pipelines.run_period import check_period
 from schemas.effects import NO_EFFECT
 from schemas.hoist import HoistDescription, load_hoist
 from warehouse.landing import land_discovery_findings, land_run
@@ -265,6 +266,7 @@ def discover_period(
     error of the discovery waits for the identification to end before it is raised,
     and an identification that fails fails the discovery.
     """
+    check_period(start and start.astimezone(dt.UTC), end and end.astimezone(dt.UTC))
     if json_path is not None:  # checked before anything runs, the plot beside it too
         json_path = data.output_file(json_path, option="--json")
         data.output_file(json_path.with_suffix(".png"), option="--json's plot")

@@ -39,9 +39,11 @@ from warehouse.store import DataRoot, open_writer
 
 __all__ = [
     "LEAD_IN",
+    "LEAD_OUT",
     "CheckedRun",
     "NoSamplesError",
     "RunResult",
+    "check_period",
     "record_start",
     "run_checked",
     "run_period",
@@ -63,6 +65,15 @@ def record_start(period_start: dt.datetime, lead_in: dt.timedelta = LEAD_IN) -> 
     naive time is UTC): ``lead_in`` before it, so the filters and the friction state
     are settled when the period begins."""
     return as_utc(period_start) - lead_in
+
+
+def check_period(start: dt.datetime | None, end: dt.datetime | None) -> None:
+    """ValueError (one line) where ``end`` is not after ``start``: an empty period."""
+    if start is not None and end is not None and not end > start:
+        raise ValueError(
+            f"the period is empty: --to {end:%Y-%m-%d %H:%M:%S} UTC is not after "
+            f"--from {start:%Y-%m-%d %H:%M:%S} UTC"
+        )
 
 
 class NoSamplesError(LookupError):
@@ -174,6 +185,7 @@ def run_period(
     settings = settings or CompensationSettings()
     samples = FieldSamples(data, hoist.hoist.site, hoist.hoist.name)
     start, end = (None if t is None else as_utc(t) for t in (start, end))
+    check_period(start, end)
     scan_start = None if start is None else record_start(start, lead_in)
     scan_end = None if end is None else end + LEAD_OUT
     extent = period_extent(samples.scan(scan_start, scan_end), start, end)

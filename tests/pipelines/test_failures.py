@@ -528,3 +528,48 @@ def test_a_payload_that_is_no_payload_is_a_usage_error(value, tmp_path, capsys):
     assert exit_info.value.code == 2
     assert "argument --payload-kg" in capsys.readouterr().err
     assert not (tmp_path / "d").exists()
+
+
+@pytest.mark.parametrize("command", ["run", "discover"])
+def test_a_reversed_period_says_so(command, tmp_path, capsys, small_csv):
+    """--to before --from: one line saying the period is empty (was: 'no samples landed
+    in 23:00 .. 22:00', as if the data were missing)."""
+    data = tmp_path / "data"
+    assert main(["ingest", "--data", str(data), str(small_csv(tmp_path / "in.csv"))]) == 0
+    capsys.readouterr()
+    argv = [command, "--data", str(data), "--hoist", str(HOIST),
+            "--from", "2026-03-02T07:00", "--to", "2026-03-02T06:00"]  # fmt: skip
+    if command == "discover":
+        argv += ["--json", str(tmp_path / "r.json")]
+    assert main(argv) == 1
+    err = _one_line(capsys.readouterr().err, command)
+    assert "the period is empty" in err
+
+
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["backfill", "--workers", "0"], "argument --workers: must be at least 1, got 0"),
+        (["run", "--from", "yesterday"], "argument --from: not an ISO 8601 time: 'yesterday'"),
+    ],
+)
+def test_bad_option_values_are_usage_errors_in_words(argv, said, tmp_path, capsys):
+    """Exit 2 with the option and what is wrong, not a function's name."""
+    base = {"backfill": ["--hoists", str(tmp_path), "--from", "2026-03-01", "--to", "2026-03-02"],
+            "run": ["--hoist", str(HOIST)]}[argv[0]]  # fmt: skip
+    with pytest.raises(SystemExit) as exit_info:
+        main([argv[0], "--data", str(tmp_path / "d"), *base, *argv[1:]])
+    assert exit_info.value.code == 2
+    assert said in capsys.readouterr().err
+
+
+def test_a_damaged_file_in_the_lake_is_one_line(tmp_path, capsys, small_csv):
+    """Junk named ``*.parquet`` in a lake partition: ``run`` says polars' words on one
+    line and exits 1 (was a 29-line traceback)."""
+    data = tmp_path / "data"
+    assert main(["ingest", "--data", str(data), str(small_csv(tmp_path / "in.csv"))]) == 0
+    (partition,) = {p.parent for p in (data / "lake" / "field_samples").rglob("*.parquet")}
+    (partition / "junk.parquet").write_text("not parquet")
+    capsys.readouterr()
+    assert main(["run", "--data", str(data), "--hoist", str(HOIST), "--no-sanity"]) == 1
+    _one_line(capsys.readouterr().err, "run")

@@ -99,6 +99,16 @@ def read_record(samples: pl.DataFrame, hoist: HoistDescription) -> RecordArrays:
     missing = need - set(samples.columns)
     if missing:
         raise ValueError(f"samples: missing columns {sorted(missing)}")
+    unlogged = [
+        name
+        for column, name in (("depth_m", "depth"), ("speed_m_s", "speed"))
+        if samples[column].null_count() == samples.height
+    ]
+    if unlogged:  # optional in the logs (contract 1a), needed here
+        raise ValueError(
+            f"the record has no {' and no '.join(unlogged)} logged: the replay follows "
+            "the conveyance's encoder depth and speed"
+        )
     frame = samples.sort("time_utc").unique("time_utc", keep="first", maintain_order=True)
     t_ref = frame["time_utc"][0]
     t = (frame["time_utc"].dt.epoch("us").to_numpy() - int(t_ref.timestamp() * 1e6)) / 1e6

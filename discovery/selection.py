@@ -347,6 +347,13 @@ class EffectSelector:
         """The base replay (payloads and ramps fitted; ``base`` when given), its engine
         and layout."""
         hoist = plan.hoist
+        if not any(tr.valid.any() for tr in plan.trips):
+            why = "; ".join(f"trip {s.trip_id}: {s.reason}" for s in plan.skipped[:3])
+            raise ValueError(
+                f"no trip of the record can be compared ({plan.trips_found} found"
+                + (f"; {why}" if why else "")
+                + "): nothing to discover from"
+            )
         lib = (self.library or EFFECT_LIBRARY).fit(hoist)
         model = list(hoist.model.effects if self.effects is None else self.effects)
         params: Params = {k: dict(v) for k, v in (self.parameters or {}).items()}

@@ -267,3 +267,23 @@ def test_a_loading_soon_after_a_stop_is_replayed_from_where_it_started(null_case
     res = replay_fitted(long, passes=3)
     replayed_from = max(res.ramps_s[1, 0], before.window_end_s)  # as the replay starts it
     assert replayed_from == pytest.approx(truth[1]["start_s"], abs=0.1)
+
+
+def test_a_record_without_depth_or_without_a_comparable_trip_says_so(null_case):
+    """No encoder depth logged (contract 1a: optional): one line saying the replay needs
+    it (was: 'need at least one array to concatenate'); a record whose only trip is cut
+    at both ends: no trip to compare, and the reasons."""
+    from discovery.selection import discover_effects
+
+    plan, info = null_case
+    sensors = info["day"].sensors
+    with pytest.raises(ValueError, match="the record has no depth logged"):
+        plan_replay(sensors.with_columns(pl.lit(None, pl.Float64).alias("depth_m")), plan.hoist)
+    first = plan.trips[0]
+    middle = sensors.filter(
+        (pl.col("time_utc") > _at(plan, first.motion_start_s + 10.0))
+        & (pl.col("time_utc") < _at(plan, first.motion_end_s - 10.0))
+    )
+    cut_plan = plan_replay(middle, plan.hoist)
+    with pytest.raises(ValueError, match="no trip of the record can be compared"):
+        discover_effects(cut_plan, bootstrap=10)

@@ -39,8 +39,20 @@ DECISIVE_DBIC = 10.0
 #: change at least ``detectable_x_noise`` sigma in RMS) must take out of the residual: the
 #: gap's variance falls by at least the noise's own (step 5 of :mod:`discovery.selection`).
 NOTICEABLE_X_NOISE = 1.0
+#: The fewest compared trips a winner is named on: the stability test resamples trips
+#: (step 4 of :mod:`discovery.selection`), which one trip cannot (every resample is it:
+#: a share of 1 that says nothing; a probe named two effects on one trip of a record
+#: with nothing hidden).
+MIN_TRIPS = 2
 
-__all__ = ["DECISIVE_DBIC", "NOTICEABLE_X_NOISE", "DecisionThresholds", "FitState", "run_iteration"]
+__all__ = [
+    "DECISIVE_DBIC",
+    "MIN_TRIPS",
+    "NOTICEABLE_X_NOISE",
+    "DecisionThresholds",
+    "FitState",
+    "run_iteration",
+]
 
 
 @dataclass(frozen=True)
@@ -208,6 +220,13 @@ def run_iteration(fit: FitState, iteration: int) -> bool:
     excess = max(bl.rss0 - n_entries * fit.plan.noise_sigma_pa**2, 1e-30)
     explained = (bl.rss0 - chosen["rss"]) / excess
     refusal = _verdict(fit, bl, scores, share, ranking, explained)
+    trips = int(np.unique(lay.trip).size)
+    if refusal is None and trips < MIN_TRIPS:
+        refusal = _no_addition(
+            fit, bl, NO_EFFECT, 0.0, ranking,
+            f"{ranking[0]['effect']} scored best, but on {trips} compared trip: the trips "
+            f"cannot be resampled to test it (at least {MIN_TRIPS}); analyse a longer period",
+        )  # fmt: skip
     if refusal is not None:
         fit.findings.append(refusal)
         return False

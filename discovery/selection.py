@@ -43,7 +43,9 @@ Method (one iteration)
    is at least ``detectable_x_noise`` sigma in RMS, an explained RMS
    ``sqrt((RSS_0 - RSS_c) / N)`` of at least
    :data:`discovery.iteration.NOTICEABLE_X_NOISE` (1) sigma -- and it wins at least
-   ``stability`` of the resamples. The second route is for a baseline model that is
+   ``stability`` of the resamples, on at least :data:`discovery.iteration.MIN_TRIPS`
+   (2) compared trips (one trip cannot be resampled). The second route is for a
+   baseline model that is
    not perfect: on a hoist the model was not built with, the replay leaves an excess
    no candidate names (2-6 x the noise in RMS on an independent simulator's records
    with nothing hidden), and a hidden effect 30 x the noise, named first with BIC

@@ -365,3 +365,19 @@ def test_a_winner_is_credited_by_the_size_of_its_fitted_change():
     above = first(explain_fraction=1.0, detectable_x_noise=1.1 * size)
     assert above.effect == "none"
     assert f"its fitted change {size:.1f} x" in above.message
+
+
+def test_one_compared_trip_names_nothing_and_says_why():
+    """A sensor offset 4x the noise on one trip: it scores best, but one trip cannot be
+    resampled to test a finding's stability (every resample is that trip), so nothing is
+    named and the finding says why (a probe named two effects that were not there on a
+    one-trip period of an independent record)."""
+    from discovery.iteration import MIN_TRIPS
+
+    plan, _ = hidden_case("sensor_offset", trips=1)
+    assert sum(tr.valid.any() for tr in plan.trips) == 1 < MIN_TRIPS
+    result = discover_effects(plan, bootstrap=20, max_iterations=1)
+    (finding,) = result.findings
+    assert finding.effect == "none"
+    assert finding.ranking[0]["effect"] == "sensor_offset"
+    assert "cannot be resampled" in finding.message

@@ -10,13 +10,15 @@
   :meth:`warehouse.store.DataRoot.under`).
 
 File names: ``<run id>_<site>_<hoist>.html`` for a run (the run id starts with the
-command: ``run-...``, ``demo-...``), ``nightly-<UTC stamp>.html``,
-``backfill-<UTC stamp>_<from>_<to>.html``.
+command: ``run-...``, ``demo-...``), ``nightly-<UTC stamp>-<6 hex>.html``,
+``backfill-<UTC stamp>-<6 hex>_<from>_<to>.html`` (the hex digits keep two started in
+the same second apart).
 """
 
 from __future__ import annotations
 
 import datetime as dt
+import uuid
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -198,7 +200,9 @@ def _fallback(
 ) -> Report:
     """A report that only says why the report could not be made, and the outcomes."""
     stamp = dt.datetime.now(dt.UTC)
-    report = Report(title=title, file_name=f"{name}-{stamp:%Y%m%dT%H%M%SZ}.html")
+    report = Report(
+        title=title, file_name=f"{name}-{stamp:%Y%m%dT%H%M%SZ}-{uuid.uuid4().hex[:6]}.html"
+    )
     section = Section("The report could not be drawn", anchor="failed")
     reason = " ".join(str(exc).split()) or type(exc).__name__
     section.say(f"Report FAILED: {type(exc).__name__}: {reason}", "fail")

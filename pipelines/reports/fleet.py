@@ -10,6 +10,7 @@ over the whole range). Written by :func:`pipelines.reports.build.write_fleet_rep
 from __future__ import annotations
 
 import datetime as dt
+import uuid
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
@@ -60,7 +61,8 @@ def fleet_report(
     descriptions = {(s.site, s.hoist): s for s in sources}
     ran = sorted((o for o in outcomes if o.status == "succeeded" and o.run_id), key=lambda o: o.key)
     tables = run_tables(data, [o.run_id for o in ran if o.run_id])
-    name = f"{kind}-{stamp:%Y%m%dT%H%M%SZ}"
+    # two nights (or backfills) started in the same second must not share a file
+    name = f"{kind}-{stamp:%Y%m%dT%H%M%SZ}-{uuid.uuid4().hex[:6]}"
     if range_text:
         name += "_" + range_text.replace(" .. ", "_")
     report = Report(

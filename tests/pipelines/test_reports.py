@@ -525,3 +525,20 @@ def test_the_report_draws_every_figure_in_headless_chromium_without_network(demo
     assert (width, height) == (1400, rendering.height)
     assert height > 2500
     assert len(rendering.png) > 100_000  # drawn lines and tables, not a blank page
+
+
+def test_two_fleet_reports_started_in_the_same_second_do_not_share_a_file(tmp_path):
+    """Two nightlies (or backfills) started in the same second: two report files (was:
+    the second overwrote the first, both named by the second)."""
+    from pipelines.reports.fleet import fleet_report
+
+    data = DataRoot.resolve(tmp_path / "data")
+    stamp = dt.datetime(2026, 3, 3, 2, 0, tzinfo=dt.UTC)
+    names = {
+        fleet_report(
+            data, kind="nightly", outcomes=[], sources=[], sanity=False, stamp=stamp
+        ).file_name
+        for _ in range(2)
+    }
+    assert len(names) == 2
+    assert all(n.startswith("nightly-20260303T020000Z-") for n in names)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import logging
 import os
 import signal
 import sys
@@ -114,6 +115,26 @@ def _why_not_writable(path: Path) -> str:
     return "permission denied"
 
 
+class _UserErrorsInOneLine(logging.Filter):
+    """On Prefect's flow- and task-run loggers: a run that failed on an error the user
+    can cause (:func:`_known_errors`) is logged without its traceback; the command's
+    own one line says why. Other errors keep theirs (a bug report)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        error = record.exc_info[1] if record.exc_info else None
+        if error is not None and isinstance(error, _known_errors()):
+            record.exc_info = None
+            record.exc_text = None
+        return True
+
+
+def _quiet_user_errors_in_flow_logs() -> None:
+    for name in ("prefect.flow_runs", "prefect.task_runs"):
+        logger = logging.getLogger(name)
+        if not any(isinstance(f, _UserErrorsInOneLine) for f in logger.filters):
+            logger.addFilter(_UserErrorsInOneLine())
+
+
 def _supervised(args: argparse.Namespace) -> bool:
     """Whether the command starts servers or worker processes (then it is supervised)."""
     return bool(getattr(args, "prefect", False) or getattr(args, "dask", None))
@@ -138,6 +159,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     parser = build_parser()
     args = parser.parse_args(argv)
+    if getattr(args, "prefect", False):
+        _quiet_user_errors_in_flow_logs()
     configure_logging(getattr(args, "log_level", None))  # stderr; stdout: the result
     command: str = args.command
     handler: Callable[[argparse.Namespace], int] = args.handler

@@ -573,3 +573,30 @@ def test_a_damaged_file_in_the_lake_is_one_line(tmp_path, capsys, small_csv):
     capsys.readouterr()
     assert main(["run", "--data", str(data), "--hoist", str(HOIST), "--no-sanity"]) == 1
     _one_line(capsys.readouterr().err, "run")
+
+
+def test_a_flow_run_failing_on_a_user_error_is_logged_without_its_traceback():
+    """``--prefect``: Prefect logs a failed flow run with its traceback; for an error the
+    user caused (here a refused value) the record keeps its message and loses the
+    traceback, the command's one line says why. An internal error keeps it."""
+    import logging
+    import sys
+
+    from pipelines.cli import _quiet_user_errors_in_flow_logs
+
+    _quiet_user_errors_in_flow_logs()
+    logger = logging.getLogger("prefect.flow_runs")
+    records = []
+    for error in (ValueError("the period is empty"), KeyError("bug")):
+        try:
+            raise error
+        except (ValueError, KeyError):
+            record = logger.makeRecord(
+                logger.name, logging.ERROR, __file__, 1, "failed: %s", (error,), sys.exc_info()
+            )
+        logger.filter(record)
+        records.append(record)
+    user, internal = records
+    assert user.exc_info is None
+    assert user.getMessage() == "failed: the period is empty"
+    assert internal.exc_info is not None

@@ -31,7 +31,7 @@ from pipelines.ingest import ingest_paths
 from pipelines.lake import as_utc, scan_lake
 from pipelines.ledger import partition_states
 from pipelines.partitions import Partition, PartitionOutcome, failed_outcome, new_outcome
-from pipelines.run_period import LEAD_OUT, NoSamplesError, record_start, run_period
+from pipelines.run_period import NoSamplesError, record_start, run_period
 from pipelines.steps import StepOutcome, land_steps, one_line
 from schemas.hoist import HoistDescription, load_hoist
 from transforms.compensation_record import CompensationSettings
@@ -217,9 +217,8 @@ def run_partitions(
 #: Samples before a period that the sanity check replays to warm up the friction state.
 SANITY_LEAD_IN = dt.timedelta(hours=6)
 #: Samples after a period it reads so that a trip running across the period's end (a trip
-#: across UTC midnight) is checked whole, in the period it started in: as far as the run
-#: read (:data:`pipelines.run_period.LEAD_OUT`), which summarised that trip whole too.
-SANITY_LEAD_OUT = LEAD_OUT
+#: across UTC midnight) is checked whole, in the period it started in.
+SANITY_LEAD_OUT = dt.timedelta(minutes=15)
 
 
 def check_sanity(
@@ -265,8 +264,7 @@ def check_sanity(
         # the ropes as the run's compensation identified them: from where its record
         # starts, its means and the cached identification's (pipelines.identified_ropes)
         run_record = samples.filter(
-            (pl.col("time_utc") >= record_start(start))
-            & (pl.col("time_utc") < as_utc(end) + SANITY_LEAD_OUT)
+            (pl.col("time_utc") >= record_start(start)) & (pl.col("time_utc") < as_utc(end))
         )
         frame = sanity_check(
             samples,

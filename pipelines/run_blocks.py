@@ -38,7 +38,6 @@ __all__ = [
     "compensate_and_stage",
     "period_extent",
     "read_context",
-    "starting_in_period",
     "summarise_partials",
 ]
 
@@ -104,19 +103,13 @@ class Extent:
 def period_extent(
     record: pl.LazyFrame, start: dt.datetime | None, end: dt.datetime | None
 ) -> Extent | None:
-    """Rows, first and last time of ``record`` (lead-in and lead-out included) and its
-    rows in ``[start, end)``; None when it has no row in the period."""
-    time = pl.col("time_utc")
-    bounds = [
-        *([time >= start] if start is not None else []),
-        *([time < end] if end is not None else []),
-    ]
-    in_period = pl.all_horizontal(bounds).sum() if bounds else pl.len()
+    """Rows, first and last time of ``record`` and its rows from ``start`` on; None when
+    it has no row in the period."""
     extent = record.select(
         pl.len().alias("rows"),
-        time.min().alias("first"),
-        time.max().alias("last"),
-        in_period.alias("in_period"),
+        pl.col("time_utc").min().alias("first"),
+        pl.col("time_utc").max().alias("last"),
+        ((pl.col("time_utc") >= start).sum() if start is not None else pl.len()).alias("in_period"),
     ).collect()
     rows, first, last, in_period = extent.row(0)
     if not rows or not in_period:
@@ -164,9 +157,7 @@ def compensate_and_stage(
     block: dt.timedelta,
 ) -> tuple[list[pl.DataFrame], list[pl.DataFrame]]:
     """Compensate block by block, stage each block's rows of the period, and return the
-    blocks' stint and trip partials over the whole read (lead-in and lead-out: a trip
-    or visit the period's start or end cuts is summarised whole, and kept by the run
-    whose period holds its start, :func:`starting_in_period`).
+    blocks' stint and trip partials.
 
     A block's rows are written by a background thread while the next block is computed
     (at most one waits: memory stays bounded by two blocks; a writing error surfaces at
@@ -190,13 +181,10 @@ def compensate_and_stage(
             settings=settings,
             block=block,
         ):
-            in_period = tensions.filter(
-                (pl.col("time_utc") >= extent.period_start)
-                & (pl.col("time_utc") < extent.period_end)
-            )
+            tensions = tensions.filter(pl.col("time_utc") >= extent.period_start)
             if written is not None:
                 written.result()
-            written = writer.submit(stage.add, in_period)
+            written = writer.submit(stage.add, tensions)
             part, carry = stint_partials(tensions, hoist, carry=carry)
             stints.append(part)
             trips.append(trip_partials(tensions))
@@ -205,14 +193,6 @@ def compensate_and_stage(
     finally:
         writer.shutdown(wait=True)
     return stints, trips
-
-
-def starting_in_period(frame: pl.DataFrame, extent: Extent) -> pl.DataFrame:
-    """The rows (trips, position visits) whose ``time_start_utc`` is in the period: one
-    row per physical trip or visit across runs of adjacent or overlapping periods (the
-    landing replaces the rows starting in a run's period), each summarised whole."""
-    start = pl.col("time_start_utc")
-    return frame.filter((start >= extent.period_start) & (start < extent.period_end))
 
 
 def summarise_partials(

@@ -28,7 +28,6 @@ from pipelines.run_blocks import (
     compensate_and_stage,
     period_extent,
     read_context,
-    starting_in_period,
     summarise_partials,
 )
 from schemas.hoist import HoistDescription, load_hoist
@@ -39,7 +38,6 @@ from warehouse.store import DataRoot, open_writer
 
 __all__ = [
     "LEAD_IN",
-    "LEAD_OUT",
     "CheckedRun",
     "NoSamplesError",
     "RunResult",
@@ -54,10 +52,6 @@ logger = logging.getLogger(__name__)
 
 #: Default lead-in before a period (see :func:`run_period`).
 LEAD_IN = dt.timedelta(minutes=30)
-#: How far past a period's end a run reads, so that a trip or visit starting in the
-#: period and ending after it is summarised whole (a trip of the deepest shafts with a
-#: pause at the middle: minutes); its rope tensions past the end are the next period's.
-LEAD_OUT = dt.timedelta(minutes=15)
 
 
 def record_start(period_start: dt.datetime, lead_in: dt.timedelta = LEAD_IN) -> dt.datetime:
@@ -163,12 +157,7 @@ def run_period(
     lead_in : timedelta
         Samples this long before ``start`` are compensated too and then dropped: the
         filters and the seals' friction state start from the hoist's real history, not
-        from rest (the friction left by earlier motion persists for hours). Samples up
-        to :data:`LEAD_OUT` after ``end`` are read too: a trip or position visit that
-        starts in the period and ends after it is summarised whole, and one that
-        started before it is left to the run of the period holding its start (the
-        landing replaces the rows starting in the period: one row per trip across
-        adjacent or overlapping runs, a trip across UTC midnight in its first day's).
+        from rest (the friction left by earlier motion persists for hours).
     block : timedelta
         Samples are read, compensated, reconciled and staged for landing this many at a
         time (:mod:`transforms.blocks`; default an hour, 360 k samples at 100 Hz), so
@@ -187,8 +176,7 @@ def run_period(
     start, end = (None if t is None else as_utc(t) for t in (start, end))
     check_period(start, end)
     scan_start = None if start is None else record_start(start, lead_in)
-    scan_end = None if end is None else end + LEAD_OUT
-    extent = period_extent(samples.scan(scan_start, scan_end), start, end)
+    extent = period_extent(samples.scan(scan_start, end), start, end)
     if extent is None:
         raise NoSamplesError(_no_samples_message(data, samples.site, samples.hoist, start, end))
     run_id = new_run_id(command)
@@ -198,23 +186,19 @@ def run_period(
         extent.in_period, extent.rows - extent.in_period, block,
     )  # fmt: skip
     context = read_context(samples, hoist, extent, settings=settings, block=block)
-    inputs = tuple(sorted(samples.source_files(scan_start, scan_end)))
+    inputs = tuple(sorted(samples.source_files(scan_start, end)))
     stage = RopeTensionStage(data, site=samples.site, hoist=samples.hoist)
     try:
         stints, trips = compensate_and_stage(
             samples, hoist, stage, extent, context=context, settings=settings, block=block
         )
-        positions, all_trips = summarise_partials(
+        positions, trip_summary = summarise_partials(
             stints, trips, hoist, run_id=run_id, payload_kg=payload_kg
         )
         alarms = block_alarms(
-            stage, hoist, run_id=run_id, trips=all_trips, payload_kg=payload_kg,
+            stage, hoist, run_id=run_id, trips=trip_summary, payload_kg=payload_kg,
             start=extent.period_start, end=extent.period_end, block=block,
         )  # fmt: skip
-        # one row per trip and visit across runs: each in the run whose period holds its
-        # start, summarised whole (a run of the next period reads it as lead-in)
-        positions = starting_in_period(positions, extent)
-        trip_summary = starting_in_period(all_trips, extent)
         run = hoist_run(
             run_id=run_id, command=command, started_at_utc=started, hoist=hoist,
             hoist_path=hoist_path, period=(extent.period_start, extent.period_end),

@@ -186,7 +186,8 @@ def seeded(args: argparse.Namespace) -> None:
                 by_size[band][1] += 1
                 if f.effect == effect:
                     removed.append((f.gap_before_pa**2 - f.gap_after_pa**2) / size**2)
-                    without = f.gap_without_effect_pa or f.gap_before_pa
+                    without = f.gap_without_effect_pa
+                    without = f.gap_before_pa if without is None else without
                     own_share.append((without**2 - f.gap_after_pa**2) / size**2)
                 if excess(f.gap_before_pa, sigma) >= 2 * sigma:
                     strong_n += 1

@@ -248,6 +248,7 @@ def _planned_trips(
     for b, block in enumerate(chosen):
         restart = True  # the next planned trip starts the block's history
         end_depth = float("nan")
+        into_gap = False  # the last planned trip ran into a logger gap
         # the trip before the block, unless it is the previous block's last
         before = block[0] - 1
         warm_up = before if before >= 0 and (b == 0 or before > chosen[b - 1][-1]) else None
@@ -258,14 +259,17 @@ def _planned_trips(
                     skipped.append(SkippedTrip(tm["trip_id"], tm["t_m"], tm["skip"]))
                 restart = True
                 continue
-            # not where the last planned trip left the conveyance: a gap between them
-            after_gap = bool(np.isfinite(end_depth)) and not (
-                abs(tm["d0"] - end_depth) <= CONTINUATION_DEPTH_TOLERANCE_M
+            # after a trip that ran into a gap (its simulation stops there, wherever its
+            # completion ends), or not where the last planned trip left the conveyance
+            after_gap = into_gap or (
+                bool(np.isfinite(end_depth))
+                and not abs(tm["d0"] - end_depth) <= CONTINUATION_DEPTH_TOLERANCE_M
             )
             restart = restart or after_gap
             next_ramp = timing[k + 1]["r0"] if k + 1 < len(motions) else trailing_ramp
             win_end = window_end(tm["t_e"], next_ramp, settle_s, rec.end_t)
-            if np.isin(motions[k][1], gap_starts):  # it ran into the gap: compared to it
+            ran_into_gap = bool(np.isin(motions[k][1], gap_starts))
+            if ran_into_gap:  # compared up to the gap
                 win_end = min(win_end, float(rec.t[motions[k][1]]))
             trip = _planned_trip(
                 rec, hoist, k, tm, (b, restart), win_end, score_rate_hz, logged, notes
@@ -278,6 +282,7 @@ def _planned_trips(
             trips.append(trip)
             restart = False
             end_depth = tm["d1"]
+            into_gap = ran_into_gap
     return trips, skipped
 
 

@@ -112,7 +112,10 @@ def _finding_object(f: Finding, hoist: HoistDescription, period: tuple[str, str]
         "where": f.where,
         "gap_before_pa": round(float(f.gap_before_pa), 1),
         "gap_after_pa": round(float(f.gap_after_pa), 1),
-        "gap_without_effect_pa": round(float(f.gap_without_effect_pa or f.gap_before_pa), 1),
+        "gap_without_effect_pa": round(
+            float(f.gap_before_pa if f.gap_without_effect_pa is None else f.gap_without_effect_pa),
+            1,
+        ),
         "ranking": f.ranking,
         "retuned": f.retuned,
         "noise_pa": round(float(f.noise_pa), 1),

@@ -185,7 +185,8 @@ def _beyond_python_dates(frame: pl.DataFrame) -> bool:
             low, high = _DAYS
         elif isinstance(kind, pl.Datetime):
             per = _PER_SECOND[kind.time_unit or "us"]
-            low, high = _SECONDS[0] * per, _SECONDS[1] * per
+            # int64 nanoseconds (1677-2262) all lie within Python's dates
+            low, high = max(_SECONDS[0] * per, -(2**63)), min(_SECONDS[1] * per, 2**63 - 1)
         else:
             continue
         physical = frame[name].to_physical()

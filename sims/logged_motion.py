@@ -233,6 +233,8 @@ def _ringing_after_stop(
     # (and a seal's settling) has died out, a rope's ringing (decay time
     # 1 / (zeta omega), 2-7 s at zeta 0.03) has not
     first = (t_s >= t_stop + 3.0) & (t_s < t_stop + 7.0)
+    if first.sum() < 2 * rate:  # a logger gap over them: nothing to read
+        return None, None
     ratio = float(np.sqrt(np.mean(band[first] ** 2))) / noise
     if ratio < detect_ratio:
         return ratio, None

@@ -104,17 +104,20 @@ def test_a_logger_gap_after_a_stop_does_not_lose_the_loading(null_case):
     assert np.sqrt(np.mean(resid**2)) < 1.15 * gap_plan.noise_sigma_pa
 
 
-def test_a_logger_gap_in_the_middle_of_a_trip_cuts_it_and_restarts_the_history(null_case):
-    """Rows missing from 20 s into trip 0's motion to 5 s after it stopped: the trip is
-    cut there and compared up to the gap, not to the standstill after it (the gap hides
-    where it stopped);
-    the next trip does not start where trip 0's simulation left the conveyance, so it
-    starts a new history as an uncompared warm-up, and the replay runs (was: the chain
-    carried on from the gap's depth and the simulation refused the next trip)."""
+@pytest.mark.parametrize("into_s", [20.0, 40.0, -8.0, -3.0])
+def test_a_logger_gap_in_the_middle_of_a_trip_cuts_it_and_restarts_the_history(null_case, into_s):
+    """Rows missing from 20 or 40 s into trip 0's motion (or 8 or 3 s before it stops)
+    to 5 s after it stopped: the trip is cut there and compared up to the gap, not to
+    the standstill after it (the gap hides where it stopped); its simulation stops at
+    the gap, so the next trip starts a new history as an uncompared warm-up, whatever
+    the cut trip's completion guessed, and the replay runs (was: the chain carried on
+    from the gap's depth and the simulation refused the next trip)."""
     plan, info = null_case
     sensors = info["day"].sensors
     first = plan.trips[0]
-    gap_from = _at(plan, first.motion_start_s + 20.0)
+    # from ``into_s`` after the motion starts (before it stops, if negative)
+    at = first.motion_start_s + into_s if into_s > 0 else first.motion_end_s + into_s
+    gap_from = _at(plan, at)
     gap_to = _at(plan, first.motion_end_s + 5.0)
     gapped = sensors.filter((pl.col("time_utc") < gap_from) | (pl.col("time_utc") > gap_to))
     gap_plan = plan_replay(gapped, plan.hoist, settle_s=20.0)

@@ -430,3 +430,11 @@ def test_csv_writes_nested_values_as_json_and_json_is_strict(data, capsys):
     assert json.loads(capsys.readouterr().out, parse_constant=pytest.fail) == [
         {"x": None, "y": None, "z": "1.5"}  # a DECIMAL exact, as DuckDB's CLI writes it
     ]
+
+
+def test_a_nanosecond_timestamp_is_shown(data, capsys):
+    """A TIMESTAMP_NS result (its int64 nanoseconds all within Python's dates): shown,
+    not an overflow in the range check."""
+    sql = "select '2020-01-01 12:00:00'::TIMESTAMP_NS as t"
+    assert main(["query", "--data", str(data.path), "--format", "csv", sql]) == 0
+    assert "2020-01-01" in capsys.readouterr().out

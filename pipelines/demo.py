@@ -116,7 +116,7 @@ def run_demo(*, data: DataRoot, seed: int = 7, hours: float = 1.0) -> str:
     )
     footer = (
         f"\n  {checked.sanity_words}\n"
-        f"  report: {checked.report}\n"
+        f"  report: {checked.report or 'not written (its run_steps row says why)'}\n"
         f"  warehouse: {data.warehouse}\n"
         f'  try: ropeload query --data {data.path} "select * from position_summary"\n'
     )

@@ -172,14 +172,13 @@ def _enters_in_second_pass(naive: pl.Series, ambiguous: np.ndarray, first: int) 
     first = int(first)
     if naive.slice(0, first).null_count() < first:
         return False  # the file came into the hour from before it: the first pass
-    after = np.flatnonzero(~ambiguous[first:])
+    known = naive.is_not_null().to_numpy()  # an unparsable time tells nothing
+    after = np.flatnonzero(~ambiguous[first:] & known[first:])
     if after.size == 0:  # only the repeated hour: one pass, unless it jumps back
         times = naive.slice(first, None).drop_nulls().dt.epoch("us").to_numpy()
         return None if bool((np.diff(times) >= 0).all()) else False
     out = first + int(after[0])
-    if naive[out] is None:
-        return False
-    run = naive.slice(first, out - first).dt.epoch("us").to_numpy()
+    run = naive.slice(first, out - first).drop_nulls().dt.epoch("us").to_numpy()
     step_out = int(naive.slice(out, 1).dt.epoch("us")[0]) - int(run[-1])
     return bool((np.diff(run) >= 0).all() and 0 <= step_out <= _EPISODE_US)
 

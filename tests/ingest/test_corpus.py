@@ -582,6 +582,13 @@ def test_dst_a_file_that_starts_in_the_second_pass_of_the_repeated_hour(corpus, 
     assert _only(root)["time_utc"].to_list() == [
         start + dt.timedelta(minutes=5 * k) for k in range(8)
     ]
+    # one unparsable time among them changes nothing else (it is quarantined)
+    stamps[2] = "not a time"
+    root2 = DataRoot.resolve(tmp_path / "data2")
+    ingest_paths([_berlin(corpus, tmp_path, "second2.csv", stamps)], data=root2)
+    assert _only(root2)["time_utc"].to_list() == [
+        start + dt.timedelta(minutes=5 * k) for k in range(8) if k != 2
+    ]
 
 
 def test_dst_a_file_that_enters_the_repeated_hour_keeps_the_first_pass(corpus, tmp_path, root):

@@ -187,15 +187,15 @@ def _ingest_file(
         return result, earlier
     except (OSError, duckdb.Error):
         raise  # the data root's own trouble (disk, warehouse): not this file's
-    except Exception as exc:  # a reader's parse error the checks did not foresee
+    except Exception as exc:  # a reader's parse error the checks did not foresee (a bug too)
         logger.debug("reading %s failed", path, exc_info=True)
         what = f"{path}: unreadable ({type(exc).__name__}: {str(exc).splitlines()[0][:200]})"
-        if result.rows_read == 0:
-            result.status, result.message = "refused", what
-            return result, earlier
-        # what landed before it stays landed and counted; the rest is not read
-        result.status = "partial"
-        result.message = f"{what}; stopped after {result.rows_read} rows"
+        # refused, so that the next ingest tries it again (what landed before the error
+        # stays landed and counted, and is then an exact duplicate)
+        result.status = "refused"
+        result.message = what + (
+            f"; stopped after {result.rows_read} rows" if result.rows_read else ""
+        )
         return result, earlier
     notes[:0] = reading.notes
     result.bytes_consumed = reading.bytes_consumed

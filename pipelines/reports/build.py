@@ -18,7 +18,6 @@ the same second apart).
 from __future__ import annotations
 
 import datetime as dt
-import uuid
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -27,7 +26,7 @@ import polars as pl
 
 from pipelines.provenance import code_version
 from pipelines.reports.data import Zone, run_tables
-from pipelines.reports.document import Report, Section
+from pipelines.reports.document import Report, Section, stamped_stem
 from pipelines.reports.fleet import Kind, fleet_report, outcome_table
 from pipelines.reports.period import HoistPeriod, Step
 from pipelines.reports.sections import hoist_sections
@@ -200,9 +199,7 @@ def _fallback(
 ) -> Report:
     """A report that only says why the report could not be made, and the outcomes."""
     stamp = dt.datetime.now(dt.UTC)
-    report = Report(
-        title=title, file_name=f"{name}-{stamp:%Y%m%dT%H%M%SZ}-{uuid.uuid4().hex[:6]}.html"
-    )
+    report = Report(title=title, file_name=f"{stamped_stem(name, stamp)}.html")
     section = Section("The report could not be drawn", anchor="failed")
     reason = " ".join(str(exc).split()) or type(exc).__name__
     section.say(f"Report FAILED: {type(exc).__name__}: {reason}", "fail")

@@ -14,6 +14,7 @@ from __future__ import annotations
 import datetime as dt
 import html
 import re
+import uuid
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import cache
@@ -22,7 +23,7 @@ from typing import Literal
 
 import plotly.graph_objects as go
 
-__all__ = ["Note", "Report", "Section", "Table"]
+__all__ = ["Note", "Report", "Section", "Table", "stamped_stem"]
 
 Level = Literal["info", "ok", "warn", "fail"]
 _MD_ROWS = 30
@@ -99,6 +100,13 @@ class Section:
     def say(self, text: str, level: Level = "info") -> Section:
         self.notes.append(Note(text, level))
         return self
+
+
+def stamped_stem(kind: str, stamp: dt.datetime) -> str:
+    """``<kind>-<UTC stamp>-<6 hex>``: the file stem of a report not named by a run (a
+    night, a backfill, a fallback); the random hex digits keep two started in the same
+    second apart."""
+    return f"{kind}-{stamp:%Y%m%dT%H%M%SZ}-{uuid.uuid4().hex[:6]}"
 
 
 @dataclass

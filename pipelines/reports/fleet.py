@@ -10,7 +10,6 @@ over the whole range). Written by :func:`pipelines.reports.build.write_fleet_rep
 from __future__ import annotations
 
 import datetime as dt
-import uuid
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
@@ -20,7 +19,7 @@ import polars as pl
 from pipelines.provenance import code_version
 from pipelines.reports import check_figures
 from pipelines.reports.data import MIN_VISIT_SAMPLES, RunTables, run_tables
-from pipelines.reports.document import Report, Section, Table
+from pipelines.reports.document import Report, Section, Table, stamped_stem
 from pipelines.reports.period import HoistPeriod, Step
 from pipelines.reports.sections import hoist_sections
 from transforms.alarms import rule_thresholds
@@ -61,8 +60,7 @@ def fleet_report(
     descriptions = {(s.site, s.hoist): s for s in sources}
     ran = sorted((o for o in outcomes if o.status == "succeeded" and o.run_id), key=lambda o: o.key)
     tables = run_tables(data, [o.run_id for o in ran if o.run_id])
-    # two nights (or backfills) started in the same second must not share a file
-    name = f"{kind}-{stamp:%Y%m%dT%H%M%SZ}-{uuid.uuid4().hex[:6]}"
+    name = stamped_stem(kind, stamp)
     if range_text:
         name += "_" + range_text.replace(" .. ", "_")
     report = Report(

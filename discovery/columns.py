@@ -68,10 +68,10 @@ class FitEngine:
             [
                 [
                     payload_from_pressure(
-                        self.hoist, effects, prm, tr.p_after_pa, tr.start_depth_m
+                        self.hoist, effects, prm, tr.p_after_pa, tr.levels_depth_m
                     ),
                     payload_from_pressure(
-                        self.hoist, effects, prm, tr.p_before_pa, tr.start_depth_m
+                        self.hoist, effects, prm, tr.p_before_pa, tr.levels_depth_m
                     ),
                 ]
                 for tr in self.plan.trips

@@ -180,6 +180,7 @@ def _planned_trip(
         oil_temp_c=oil if np.isfinite(oil) else hoist.oil.reference_temperature_c,
         p_before_pa=p_pre if np.isfinite(p_pre) else p_post,
         p_after_pa=p_post,
+        levels_depth_m=tm["levels_depth"] if np.isfinite(tm["levels_depth"]) else d0,
         time_s=t[idx],
         measured_pa=meas,
         valid=valid,
@@ -190,7 +191,7 @@ def _planned_trip(
         profile_fit_m=fit,
         cut=tm["cut"],
         motion_knots=knots,
-        x_start_m=_pistons_before(rec, r0) if tm["cut"] != "start" else None,
+        x_start_m=_pistons_before(rec, r0 if tm["cut"] != "start" else tm["a_t"]),
     )
 
 

@@ -211,12 +211,18 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
     else:
         s_lo = max(prev_end + 2.0, float(t[0]))
         r0, r1, p_pre, p_post = loading_ramp(t, pc, pcs, s_lo, t_m - 0.3, rec.ramp_threshold)
+    # the depth the levels are read at: the tail rope hanging below it weighs in them
+    levels_depth = d0
     if not np.isfinite(p_post):
         # no standstill before the motion in the record: the payload does not change
-        # during a trip, so the level after its stop (or, cut there too, while moving)
+        # during a trip, so the level after its stop (or, cut there too, while moving),
+        # with the tail rope that hangs there (at the start's depth, a trip down from
+        # mid-shaft had taken 2 x 6.2 kg/m x 320 m of tail rope for payload)
         p_post = plateau_median(t, pcs, t_e + 2.0, next_start - 0.3, 2.0, from_start=True)
+        p_pre, levels_depth = float("nan"), d1  # both levels one, read where it stopped
         if not np.isfinite(p_post):
             p_post = median_in(t, pc, t[a_i], t[b_i])
+            levels_depth = median_in(t, rec.depth, t[a_i], t[b_i])
         if not np.isfinite(p_post) and not skip:
             skip = "no pressure logged to infer the payload from"
     return {
@@ -227,6 +233,7 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
         "r1": r1,
         "p_pre": p_pre,
         "p_post": p_post,
+        "levels_depth": levels_depth,
         "d0": d0,
         "d1": d1,
         "cut": cut,

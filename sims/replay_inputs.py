@@ -134,12 +134,12 @@ def replay_inputs(
     hoist = plan.hoist
     if payload_kg is None:
         payload_kg = [
-            payload_from_pressure(hoist, names, prm, tr.p_after_pa, tr.start_depth_m)
+            payload_from_pressure(hoist, names, prm, tr.p_after_pa, tr.levels_depth_m)
             for tr in plan.trips
         ]
     if payload_before_kg is None:
         payload_before_kg = [
-            payload_from_pressure(hoist, names, prm, tr.p_before_pa, tr.start_depth_m)
+            payload_from_pressure(hoist, names, prm, tr.p_before_pa, tr.levels_depth_m)
             for tr in plan.trips
         ]
     if ramps_s is None:

@@ -35,9 +35,15 @@ class ReplayTrip:
     ``t_ref``], speed [m/s, + down], depth [m]) is the logged motion that drives the
     simulation (:mod:`sims.logged_motion`); None for a trip cut at its start (driven by
     the fitted winder profile). ``x_start_m`` (n,) the pistons' logged positions just
-    before the window [m] (None where they are not logged, or the trip is cut at its
-    start): where a block that starts with this trip puts them
-    (:attr:`ReplayPlan.rope_offsets_m`).
+    before the window [m] (for a trip cut at its start, over the record's first seconds
+    of it; None where they are not logged): where a block that starts with this trip
+    puts them
+    (:attr:`ReplayPlan.rope_offsets_m`). ``p_before_pa`` and ``p_after_pa`` are the
+    mean sensor levels at rest before and after the trip's loading, from which its
+    payloads are first inferred (:func:`sims.replay_inputs.payload_from_pressure`), read
+    at ``levels_depth_m``: the start's depth, or where a trip without a standstill
+    before it in the record (cut at its start, or after a logger gap) stopped, the
+    hanging tail rope's weight differing by its length between the two.
     """
 
     trip_id: int
@@ -56,6 +62,7 @@ class ReplayTrip:
     oil_temp_c: float
     p_before_pa: float
     p_after_pa: float
+    levels_depth_m: float
     time_s: np.ndarray
     measured_pa: np.ndarray
     valid: np.ndarray

@@ -188,6 +188,36 @@ def test_a_record_starting_mid_trip_warms_up_on_it(null_case):
     assert _rms(result.residuals(cut_plan)[1]) < 1.3 * cut_plan.noise_sigma_pa
 
 
+def test_a_record_starting_during_a_trip_up_infers_its_payload_where_it_stopped(null_case):
+    """The logger starts 5 s into the trip up from the bottom (600 m): the payload of
+    the trip it cuts can only be read from the standstill after its stop, at the
+    pithead, where the whole tail rope hangs below the conveyance (eq 3-4). Read with
+    the start's tail rope (none at the bottom) it was 13.1 t for a true 5.9 t, the
+    next trip's loading then replayed from it; read where it stopped it is the true
+    payload to within the seals' friction held at rest (~2 kN here)."""
+    plan, info = null_case
+    truth = info["day"].info["trips"][1]
+    assert truth["direction"] == "up"
+    assert truth["start_depth_m"] == pytest.approx(600.0)
+    start = _at(plan, plan.trips[1].motion_start_s + 5.0)
+    cut_plan = plan_replay(
+        info["day"].sensors.filter(pl.col("time_utc") >= start), plan.hoist, settle_s=20.0
+    )
+    first = cut_plan.trips[0]
+    assert first.cut == "start"
+    assert first.levels_depth_m == pytest.approx(truth["end_depth_m"], abs=0.05)
+    # a block starting with it puts the pistons where the record first logs them
+    logged = info["day"].sensors.filter(
+        pl.col("time_utc").is_between(start, start + dt.timedelta(seconds=2.0))
+    )
+    first_x = [logged[f"x{i}_m"].median() for i in range(1, 5)]
+    np.testing.assert_allclose(first.x_start_m, first_x, atol=1e-4)  # the logger step
+    result = replay_fitted(cut_plan, passes=3)
+    assert result.ok, result.message
+    assert result.payload_kg[0] == pytest.approx(truth["payload_kg"], abs=300.0)
+    assert _rms(result.residuals(cut_plan)[1]) < 1.3 * cut_plan.noise_sigma_pa
+
+
 def test_a_record_inside_one_trip_skips_it_with_the_reason(null_case):
     plan, info = null_case
     tr = plan.trips[1]

@@ -232,7 +232,7 @@ def _reported_verdicts(
     verdicts: list[tuple[int, str, str, float]] = []
     for tr, res, why in zip(plan.trips, result.residuals(plan), messages, strict=True):
         verdict = _trip_verdict(tr, res, why, sigma, threshold)
-        if reported(tr.motion_start_s) and verdict is not None:
+        if reported(tr.motion_start_s):
             verdicts.append((tr.trip_id, *verdict))
     verdicts += [
         (gone.trip_id, "skipped", gone.reason, float("nan"))
@@ -242,19 +242,29 @@ def _reported_verdicts(
     return verdicts
 
 
+#: Why a trip that starts a replay history has no verdict (:func:`_trip_verdict`).
+WARM_UP_WORDS = (
+    "a replay history starts with this trip (the record's first, the first after a "
+    "logger gap, or the one before a block of the trips checked): it only loads the "
+    "seals' state for the next one"
+)
+
+
 def _trip_verdict(
     tr: ReplayTrip, res: np.ndarray, why: str, sigma: float, threshold: float
-) -> tuple[str, str, float] | None:
-    """(status, message, RMS gap [Pa]) of one replayed trip; None for a warm-up trip,
-    which only loads the seals' friction state."""
+) -> tuple[str, str, float]:
+    """(status, message, RMS gap [Pa]) of one replayed trip; a trip that starts a replay
+    history (the record's first, the first after a logger gap, or the one before a
+    block of the trips checked) is skipped with that reason: it only loads the seals'
+    friction state, and the audit still finds a row for it."""
     nan = float("nan")
     if not (np.isfinite(sigma) and sigma > 0):
         return "skipped", "the pressure noise could not be estimated", nan
     if tr.cut == "start":
         return "skipped", ("the record starts during this trip: it only loads "
                            "the seals' state for the next one"), nan  # fmt: skip
-    if tr.first_in_block:
-        return None
+    if tr.first_in_block:  # its own failure, if its simulation failed, says more
+        return "skipped", why or WARM_UP_WORDS, nan
     finite = res[np.isfinite(res)]
     if not finite.size:
         return "skipped", why or "no sample of the trip could be compared", nan

@@ -56,7 +56,10 @@ def test_a_night_takes_new_files_only_and_moves_the_watermark(site):
     assert all(o.checks >= 1 for o in first.runs.outcomes)
     assert sum(o.checks_failed for o in first.runs.outcomes) == 0
     assert first.discoveries == {}
-    assert fingerprint(data)["sanity_checks"][0] == sum(o.checks for o in first.runs.outcomes)
+    # a row per trip, the warm-ups' skipped with their reason
+    assert fingerprint(data)["sanity_checks"][0] == sum(
+        o.checks + o.checks_skipped for o in first.runs.outcomes
+    )
     marks = watermarks(data)
     assert marks[("paper-field-test", "shaft-1")] == first.hoists[0].watermark_after
     assert marks[("paper-field-test", "shaft-1")].date() == dt.date(2026, 3, 3)
@@ -210,12 +213,12 @@ def test_a_trip_across_midnight_and_a_record_ending_mid_trip_are_a_done_night(mi
     try:
         checks = con.sql(
             "SELECT r.period_start_utc, c.trip_id, c.status, c.message FROM sanity_checks c "
-            "JOIN runs r USING (run_id) ORDER BY 1"
+            "JOIN runs r USING (run_id) ORDER BY 1, 2"
         ).fetchall()
         # each check names its run's trip: the direction it states is that trip's
         named = con.sql(
             "SELECT c.message, t.direction FROM sanity_checks c JOIN trip_summary t "
-            "USING (run_id, trip_id) ORDER BY t.time_start_utc"
+            "USING (run_id, trip_id) WHERE c.status <> 'skipped' ORDER BY t.time_start_utc"
         ).fetchall()
         steps = con.sql(
             "SELECT s.step, s.status, s.message FROM run_steps s JOIN runs r USING (run_id) "
@@ -225,14 +228,19 @@ def test_a_trip_across_midnight_and_a_record_ending_mid_trip_are_a_done_night(mi
         con.close()
     # each run numbers trips from its lead-in (30 min before its day): the cut trip is
     # the 3 March run's trip 2 (trip 0 of its record ended before midnight)
+    # (the record's first trip only warms the replay up: skipped, with its row)
     assert [(start.date(), trip, status) for start, trip, status, _ in checks] == [
+        (dt.date(2026, 3, 2), 0, "skipped"),
         (dt.date(2026, 3, 2), 1, "passed"),
         (dt.date(2026, 3, 3), 2, "passed"),
     ]
     assert [message.split()[0] for message, _ in named] == [d for _, d in named]
     assert len(named) == 2
-    assert "cut by the end of the record" in checks[1][3]
-    assert steps == [("sanity_check", "done", "1 of 1 trips passed")] * 2
+    assert "cut by the end of the record" in checks[2][3]
+    assert steps == [
+        ("sanity_check", "done", "1 of 1 trips passed, 1 skipped (reasons in sanity_checks)"),
+        ("sanity_check", "done", "1 of 1 trips passed"),
+    ]
     # the next night: nothing is new, nothing is recomputed
     runs, files, prints = _runs(data), _lake_files(data), fingerprint(data)
     assert main(argv) == 0

@@ -8,7 +8,7 @@ import polars as pl
 import pytest
 
 from discovery.cases import hidden_case
-from pipelines.sanity import sanity_check, sanity_step
+from pipelines.sanity import WARM_UP_WORDS, sanity_check, sanity_step
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from schemas.tables import SANITY_CHECKS
 from sims.field_day import generate_field_day
@@ -21,10 +21,11 @@ def test_complete_model_passes_and_missing_effect_fails():
     sensors = info["day"].sensors
     good = sanity_check(sensors, plan_ok.hoist, run_id="r1", settle_s=20.0)
     assert good.columns == SANITY_CHECKS.names
-    assert good.height == 1  # two trips; the first only warms up the friction state
-    assert good["passed"].all()
-    assert good["status"].to_list() == ["passed"]
-    assert (good["rms_gap_pa"] / good["noise_pa"]).max() < 1.2
+    # two trips; the first only warms up the friction state: skipped, with its reason
+    assert good["status"].to_list() == ["skipped", "passed"]
+    assert good["passed"].to_list() == [None, True]
+    assert good["message"][0] == WARM_UP_WORDS
+    assert (good["rms_gap_pa"] / good["noise_pa"]).drop_nans().max() < 1.2
     lacking = plan_ok.hoist.model_copy(
         update={
             "model": plan_ok.hoist.model.model_copy(
@@ -35,10 +36,9 @@ def test_complete_model_passes_and_missing_effect_fails():
         }
     )
     bad = sanity_check(sensors, lacking, run_id="r2", settle_s=20.0)
-    assert bad.height == 1
-    assert not bad["passed"].any()
-    assert bad["status"].to_list() == ["failed"]
-    assert bad["message"][0].startswith(("down", "up"))
+    assert bad["status"].to_list() == ["skipped", "failed"]
+    assert bad["passed"].to_list() == [None, False]
+    assert bad["message"][1].startswith(("down", "up"))
 
 
 def test_threshold_validated():
@@ -58,7 +58,7 @@ def test_trips_before_report_from_only_warm_up():
         settle_s=20.0,
         report_from=sensors["time_utc"].max(),
     )
-    assert everything.height == 1
+    assert everything["status"].to_list() == ["skipped", "passed"]
     assert late.height == 0
 
 
@@ -92,10 +92,12 @@ def test_a_10_hz_record_ending_mid_trip_checks_the_cut_trip(ten_hz):
     hoist, day = ten_hz
     cut = day.sensors.filter(pl.col("time_utc") < _seconds(day, 350.0))  # trip 2 moving
     checks = sanity_check(cut, hoist, run_id="r", settle_s=20.0)
-    assert checks["trip_id"].to_list() == [1, 2]
-    assert checks["status"].to_list() == ["passed", "passed"], checks["message"].to_list()
-    assert "cut by the end of the record" in checks["message"][1]
-    assert sanity_step(checks).message == "2 of 2 trips passed"
+    assert checks["trip_id"].to_list() == [0, 1, 2]
+    assert checks["status"].to_list() == ["skipped", "passed", "passed"], checks["message"]
+    assert "cut by the end of the record" in checks["message"][2]
+    assert sanity_step(checks).message == (
+        "2 of 2 trips passed, 1 skipped (reasons in sanity_checks)"
+    )
 
 
 def test_a_record_starting_mid_trip_says_the_cut_trip_only_warmed_up(ten_hz):
@@ -123,11 +125,12 @@ def test_a_trip_that_cannot_be_simulated_is_skipped_with_the_reason(ten_hz):
     # the bottom
     record = day.sensors.filter(pl.col("time_utc") >= _seconds(day, 149.0))
     checks = sanity_check(record, worn, run_id="r", settle_s=20.0)
-    assert checks["trip_id"].to_list() == [1]
-    assert checks["status"].to_list() == ["skipped"]
-    assert checks["passed"][0] is None
-    assert checks["message"][0].startswith("not simulated: trip 0 before it could not be simulated")
-    assert "stroke" in checks["message"][0]
+    assert checks["trip_id"].to_list() == [0, 1]
+    assert checks["status"].to_list() == ["skipped", "skipped"]
+    assert checks["passed"].to_list() == [None, None]
+    assert checks["message"][0].startswith("simulation failed")  # its own reason
+    assert checks["message"][1].startswith("not simulated: trip 0 before it could not be simulated")
+    assert "stroke" in checks["message"][1]
 
 
 def test_only_trips_starting_in_the_reported_period_are_reported(ten_hz):
@@ -194,10 +197,10 @@ def test_a_sensor_40_kpa_off_fails_at_the_default_limit():
     plan, info = hidden_case(None)
     sensors = info["day"].sensors
     good = sanity_check(sensors, plan.hoist, run_id="r1", settle_s=20.0)
-    assert good["status"].to_list() == ["passed"]
+    assert good["status"].to_list() == ["skipped", "passed"]  # the first warms up
     off = sensors.with_columns(pl.col("p2_pa") + 40e3)
     bad = sanity_check(off, plan.hoist, run_id="r2", settle_s=20.0)
-    assert bad["status"].to_list() == ["failed"]
-    ratio = (bad["rms_gap_pa"] / bad["noise_pa"]).item()
+    assert bad["status"].to_list() == ["skipped", "failed"]
+    ratio = (bad["rms_gap_pa"] / bad["noise_pa"])[1]
     assert 3.0 < ratio < 5.0, bad["message"].to_list()
-    assert "limit 3 x" in bad["message"][0]
+    assert "limit 3 x" in bad["message"][1]

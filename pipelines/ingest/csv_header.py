@@ -17,7 +17,7 @@ from pathlib import Path
 
 from pipelines.ingest.batch import RefusedFile
 from pipelines.ingest.field_checks import CHANNELS, unit_to_si
-from pipelines.ingest.local_time import formats_for
+from pipelines.ingest.local_time import formats_for, has_utc_offset
 from schemas.names import UnsafeNameError, safe_name
 from schemas.quantities import QuantityError
 
@@ -50,6 +50,27 @@ class CsvHeader:
     data_line: int
     timestamp_formats: tuple[str, ...]
     notes: tuple[str, ...] = ()
+    #: the line that states ``timezone`` (0: none, so UTC by default)
+    timezone_line: int = 0
+    #: whether the first data timestamp carries its UTC offset
+    offsets: bool = False
+
+    def zone_note(self, described: str) -> str | None:
+        """A note when timestamps without offset are taken in another zone than the
+        hoist description's ``[hoist] timezone`` (``described``): a logger exporting
+        local time without a ``timezone`` line lands hours off, and nothing in the data
+        says so. None when they agree or the timestamps carry their offsets."""
+        if self.offsets or self.timezone == described:
+            return None
+        taken = (
+            f"as local time in {self.timezone} (line {self.timezone_line})"
+            if self.timezone_line
+            else "as UTC (the file has no timezone line; contract 1a)"
+        )
+        return (
+            f"timestamps without a UTC offset taken {taken}, but the hoist's description "
+            f"says {described}: check the export"
+        )
 
 
 def read_header(path: Path) -> CsvHeader:
@@ -110,6 +131,8 @@ def read_header(path: Path) -> CsvHeader:
         data_line=col_no + 1,
         timestamp_formats=formats_for(example),
         notes=tuple(notes),
+        timezone_line=zone[0],
+        offsets=has_utc_offset(example),
     )
 
 

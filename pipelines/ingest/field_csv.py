@@ -82,6 +82,9 @@ def open_csv(
         notes=list(header.notes),
         bytes_consumed=offset,
     )
+    zone_note = header.zone_note(hoist.hoist.timezone) if hoist is not None else None
+    if zone_note is not None:
+        reading.notes.append(zone_note)
     parser = _BatchParser(header, depth_limits_m(hoist), progress.ambiguity)
 
     def batches() -> Iterator[Batch]:

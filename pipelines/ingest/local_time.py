@@ -54,9 +54,19 @@ class AmbiguityState:
     undecided: int = 0
 
 
+def has_utc_offset(example: str) -> bool:
+    """Whether timestamp ``example`` carries its UTC offset (``Z`` or ``+hh:mm``), which
+    makes the file's ``timezone`` irrelevant to it (contract 1a).
+
+    >>> has_utc_offset("2026-03-02 06:00:00.000"), has_utc_offset("2026-03-02T06:00:00+08:00")
+    (False, True)
+    """
+    return example.endswith("Z") or (len(example) > 19 and example[-6] in "+-")
+
+
 def formats_for(example: str) -> tuple[str, ...]:
     """Formats to try, the one matching ``example`` (first data timestamp) first."""
-    aware = example.endswith("Z") or (len(example) > 19 and example[-6] in "+-")
+    aware = has_utc_offset(example)
     t_sep = len(example) > 10 and example[10] == "T"
     naive = _NAIVE[::-1] if t_sep else _NAIVE
     offset = _AWARE if t_sep else _AWARE[::-1]

@@ -531,6 +531,52 @@ def test_depth_outside_the_shaft_with_a_hoist_description(corpus, tmp_path, root
     _check(report, root, Expect("landed", 6, 5, 1, reasons={"depth outside the shaft": 1}))
 
 
+@pytest.mark.parametrize(
+    ("zone", "offsets", "note"),
+    [
+        (
+            None,
+            False,
+            "timestamps without a UTC offset taken as UTC (the file has no "
+            "timezone line; contract 1a), but the hoist's description says Asia/Shanghai: "
+            "check the export",
+        ),
+        (
+            "Europe/Berlin",
+            False,
+            "taken as local time in Europe/Berlin (line 5), but the "
+            "hoist's description says Asia/Shanghai",
+        ),
+        ("Asia/Shanghai", False, None),
+        (None, True, None),  # the offsets say where they are
+    ],
+)
+def test_a_log_whose_zone_differs_from_its_hoist_lands_with_a_note(
+    corpus, tmp_path, root, zone, offsets, note
+):
+    """Timestamps without offset are local time in the header's zone, UTC without a
+    ``timezone`` line (contract 1a): a logger that exports the mine's local time
+    without that line lands 8 h off for a hoist in Shanghai. The rows land as the
+    contract says; the file's report says the zones differ."""
+    hoist = load_hoist(EXAMPLE_HOIST)
+    assert hoist.hoist.timezone == "Asia/Shanghai"
+    header = {k: v for k, v in corpus.HEADER.items() if k != "timezone"}
+    if zone is not None:
+        header["timezone"] = zone
+    rows = corpus.data_rows(3)
+    if offsets:
+        for k, row in enumerate(rows):
+            row[0] = f"2026-03-02T06:00:00.0{k}0Z"
+    path = corpus.csv_file(tmp_path / "zone.csv", rows, header=header)
+    report = ingest_paths([path], data=root, hoist_lookup=lambda site, name: hoist)
+    _check(report, root, Expect("landed", 3, 3))
+    message = report.files[0].message
+    if note is None:
+        assert "check the export" not in message
+    else:
+        assert note in message
+
+
 # --------------------------------------------------------------------- daylight saving
 def _berlin(corpus, tmp, name: str, stamps: list[str]) -> Path:
     rows = corpus.data_rows(len(stamps))

@@ -178,21 +178,32 @@ _PER_SECOND = {"ns": 10**9, "us": 10**6, "ms": 10**3}
 
 
 def _beyond_python_dates(frame: pl.DataFrame) -> bool:
-    """Whether a date or time column holds a value no Python date can (DuckDB's
-    ``infinity``): polars holds it, and panics when asked to show it."""
-    for name, kind in frame.schema.items():
-        if kind == pl.Date:
-            low, high = _DAYS
-        elif isinstance(kind, pl.Datetime):
-            per = _PER_SECOND[kind.time_unit or "us"]
-            # int64 nanoseconds (1677-2262) all lie within Python's dates
-            low, high = max(_SECONDS[0] * per, -(2**63)), min(_SECONDS[1] * per, 2**63 - 1)
-        else:
-            continue
-        physical = frame[name].to_physical()
-        if bool(((physical < low) | (physical > high)).any()):
-            return True
-    return False
+    """Whether a date or time value, in a column or inside a list, array, struct or map,
+    lies where no Python date can (DuckDB's ``infinity``): polars holds it, and panics
+    when asked to show it."""
+    return any(_series_beyond(frame[name]) for name in frame.columns)
+
+
+def _series_beyond(series: pl.Series) -> bool:
+    kind = series.dtype
+    if isinstance(kind, pl.Map):  # as its entries: a list of key-value structs
+        entries = pl.List(pl.Struct({"key": kind.key, "value": kind.value}))
+        return _series_beyond(series.cast(entries))
+    if isinstance(kind, pl.List | pl.Array):
+        inner = series.list.explode() if isinstance(kind, pl.List) else series.arr.explode()
+        return _series_beyond(inner)
+    if isinstance(kind, pl.Struct):
+        return any(_series_beyond(field) for field in series.struct.unnest().iter_columns())
+    if kind == pl.Date:
+        low, high = _DAYS
+    elif isinstance(kind, pl.Datetime):
+        per = _PER_SECOND[kind.time_unit or "us"]
+        # int64 nanoseconds (1677-2262) all lie within Python's dates
+        low, high = max(_SECONDS[0] * per, -(2**63)), min(_SECONDS[1] * per, 2**63 - 1)
+    else:
+        return False
+    physical = series.to_physical()
+    return bool(((physical < low) | (physical > high)).any())
 
 
 def _finite(value: object) -> object:

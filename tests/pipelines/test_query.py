@@ -406,11 +406,16 @@ def test_query_sql_error_is_one_line(data, capsys):
         ("select 'infinity'::date as d", "infinity"),
         ("select 'infinity'::timestamp as t", "infinity"),
         ("select union_value(k := 1) as u", "1"),
+        ("select ['infinity'::timestamp] as l", "[infinity]"),
+        ("select {'a': 'infinity'::date} as s", "{'a': infinity}"),
+        ("select map {'k': 'infinity'::date} as m", "{k=infinity}"),
+        ("select [[{'d': '-infinity'::date}]] as l", "-infinity"),
     ],
 )
 def test_results_polars_cannot_hold_are_shown_as_duckdb_text(data, capsys, sql, text):
-    """An interval, a date at infinity, a union: polars has no type for them; the
-    result shows DuckDB's text of the value instead of a traceback."""
+    """An interval, a date at infinity (also inside a list, struct or map), a union:
+    polars has no type for them; the result shows DuckDB's text of the value instead of
+    a traceback (polars panicked on a nested one)."""
     for output in ("table", "csv", "json"):
         assert main(["query", "--data", str(data.path), "--format", output, sql]) == 0
         out = capsys.readouterr().out

@@ -262,9 +262,13 @@ def _planned_trips(
                 continue
             # after a trip that ran into a gap (its simulation stops there, wherever its
             # completion ends), or not where the last planned trip left the conveyance
-            after_gap = into_gap or (
-                bool(np.isfinite(end_depth))
-                and not abs(tm["d0"] - end_depth) <= CONTINUATION_DEPTH_TOLERANCE_M
+            after_gap = (
+                into_gap
+                or tm["gap_before"]
+                or (
+                    bool(np.isfinite(end_depth))
+                    and not abs(tm["d0"] - end_depth) <= CONTINUATION_DEPTH_TOLERANCE_M
+                )
             )
             restart = restart or after_gap
             next_ramp = timing[k + 1]["r0"] if k + 1 < len(motions) else trailing_ramp

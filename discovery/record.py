@@ -161,19 +161,74 @@ def _stop_depths(
     t: np.ndarray, depth: np.ndarray, motions: list[tuple[int, int]], shaft: float
 ) -> list[float]:
     """Standstill depths between motions: shared by the trip before and after (chaining);
-    NaN where the record holds no standstill (it starts or ends while moving)."""
-    stops = []
+    NaN where the record holds no standstill (it starts or ends while moving). A
+    standstill that a logger gap interrupts has a depth on each side of it
+    (:func:`trip_timing`)."""
     bounds = (
         [(-np.inf, t[motions[0][0]])]
         + [(t[motions[k][1]], t[motions[k + 1][0]]) for k in range(len(motions) - 1)]
         + [(t[motions[-1][1]], np.inf)]
     )
-    for lo, hi in bounds:
-        d = median_in(t, depth, lo + 1.0, hi - 0.5)
-        if not np.isfinite(d):  # a standstill shorter than 1.5 s at the record's edge
-            d = median_in(t, depth, lo + 0.05, hi - 0.05)
-        stops.append(float(np.clip(d, 0.0, shaft)) if np.isfinite(d) else float("nan"))
-    return stops
+    return [_stop_depth(t, depth, lo, hi, shaft) for lo, hi in bounds]
+
+
+def _stop_depth(t: np.ndarray, depth: np.ndarray, lo: float, hi: float, shaft: float) -> float:
+    """The logged depth of the standstill between times ``lo`` and ``hi`` (its median,
+    within the shaft); NaN where no depth is logged there."""
+    d = median_in(t, depth, lo + 1.0, hi - 0.5)
+    if not np.isfinite(d):  # a standstill shorter than 1.5 s at the record's edge
+        d = median_in(t, depth, lo + 0.05, hi - 0.05)
+    return float(np.clip(d, 0.0, shaft)) if np.isfinite(d) else float("nan")
+
+
+def shortest_round_trip_s(hoist: HoistDescription) -> float:
+    """The least time a trip between the two nearest named positions and back takes
+    [s]: the winder's trapezoid each way, at full speed, without its creep (a lower
+    bound). A logger gap at rest shorter than this cannot hide trips that leave the
+    conveyance where it was (:func:`trip_timing`: ``gap_before``).
+
+    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
+    >>> round(shortest_round_trip_s(load_hoist(EXAMPLE_HOIST)), 1)  # 280 m each way
+    82.7
+    """
+    depths = sorted(set(hoist.shaft.positions_m.values()) | {0.0})
+    gaps = np.diff(depths)
+    distance = float(gaps[gaps > 0].min()) if np.any(gaps > 0) else hoist.shaft.depth_m
+    w = hoist.winder
+    v, a, b = w.max_speed_m_s, w.acceleration_m_s2, w.deceleration_m_s2
+    reach = 0.5 * v * v * (1.0 / a + 1.0 / b)  # the distance to reach full speed and stop
+    if distance >= reach:
+        one_way = distance / v + 0.5 * v * (1.0 / a + 1.0 / b)
+    else:  # a triangle: the top speed reached halfway through (a = b) or so
+        one_way = float(np.sqrt(2.0 * distance * (1.0 / a + 1.0 / b)))
+    return 2.0 * one_way
+
+
+#: A standstill's logged depth either side of a logger gap differing by more than this
+#: [m] says the conveyance moved in the gap (:func:`trip_timing`).
+STANDSTILL_DEPTH_M = 0.5
+
+
+def _around_gaps(
+    t: np.ndarray, depth: np.ndarray, lo: float, gaps: np.ndarray, hi: float, shaft: float
+) -> tuple[float, float]:
+    """The standstill's depth logged before its first logger gap and after its last
+    (``gaps``: :func:`_gap_starts` of the standstill between times ``lo`` and ``hi``)."""
+    pre = _stop_depth(t, depth, lo, float(t[gaps[0]]), shaft)
+    return pre, _stop_depth(t, depth, float(t[gaps[-1] + 1]), hi, shaft)
+
+
+def _moved(pre: float, post: float) -> bool:
+    """Whether the depths either side of a logger gap say the conveyance moved in it."""
+    return bool(np.isfinite(pre) and np.isfinite(post) and abs(pre - post) > STANDSTILL_DEPTH_M)
+
+
+def _gap_starts(t: np.ndarray, lo: int, hi: int) -> np.ndarray:
+    """Indices j in [lo, hi) after which the logger stopped for more than
+    :data:`~physics.trip_rule.TRIP_BRIDGE_S` (t[j + 1] - t[j])."""
+    if hi <= lo:
+        return np.zeros(0, dtype=np.int64)
+    return lo + np.flatnonzero(np.diff(t[lo : hi + 1]) > TRIP_BRIDGE_S)
 
 
 def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str, Any]:
@@ -186,6 +241,27 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
     next_start = float(t[motions[k + 1][0]]) if k + 1 < len(motions) else rec.end_t
     t_m, t_e, vmax_arg = motion_times(t, rec.speed, hoist.winder, a_i, b_i)
     d0, d1 = rec.stops[k], rec.stops[k + 1]
+    # a logger gap in the standstill before (after) the motion: the depth, the levels and
+    # the loading are those logged after (before) it; one long enough to hide trips
+    # that came back to the same depth ends the seals' known history (gap_before)
+    shaft = hoist.shaft.depth_m
+    before = _gap_starts(t, motions[k - 1][1] if k > 0 else 0, a_i)
+    after = _gap_starts(t, b_i, motions[k + 1][0] if k + 1 < len(motions) else t.size - 1)
+    gap_before = False
+    if before.size and before[-1] + 1 < a_i:
+        lo = float(t[motions[k - 1][1]]) if k > 0 else -np.inf
+        resumed = float(t[before[-1] + 1])
+        pre, post = _around_gaps(t, rec.depth, lo, before, float(t[a_i]), shaft)
+        gap_before = bool(np.max(t[before + 1] - t[before]) >= shortest_round_trip_s(hoist))
+        if gap_before or _moved(pre, post):
+            # it moved, or may have, in the gap: only what is logged after it is this
+            # trip's standstill (a shorter gap may hide a loading: bridged)
+            d0, prev_end = post, resumed - 2.0
+    if after.size and after[0] > b_i:
+        hi = float(t[motions[k + 1][0]]) if k + 1 < len(motions) else np.inf
+        pre, post = _around_gaps(t, rec.depth, float(t[b_i]), after, hi, shaft)
+        if _moved(pre, post):
+            d1, next_start = pre, min(next_start, float(t[after[0]]))
     # a motion that runs into (or out of) a logger gap the trip rule did not bridge is
     # cut there as by the record's end (start): the standstill beyond the gap is not its
     if b_i + 1 < t.size and t[b_i + 1] - t[b_i] > TRIP_BRIDGE_S:
@@ -234,6 +310,7 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
         "p_pre": p_pre,
         "p_post": p_post,
         "levels_depth": levels_depth,
+        "gap_before": gap_before,
         "d0": d0,
         "d1": d1,
         "cut": cut,

@@ -39,6 +39,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
+from physics.trip_rule import TRIP_BRIDGE_S
 from sims.trips import TripProfile
 
 __all__ = ["motion_knots", "profile_from_knots", "rope_damping_from_record"]
@@ -180,12 +181,21 @@ def rope_damping_from_record(
     if rate < 2.5 * band_hz[1]:
         return None, f"logged at {rate:.0f} Hz: too slow to see the rope bounce"
     sos = signal.butter(2, band_hz, btype="bandpass", fs=rate, output="sos")
-    band = signal.sosfiltfilt(sos, common_pa)
+    # each stretch between logger gaps on its own: filtered across a gap, the pressure's
+    # jump rang the band filter, and a stop just before a gap read as ringing (the
+    # described damping then kept, the replay rang where the record does not)
+    gaps = np.flatnonzero(np.diff(t_s) > TRIP_BRIDGE_S)
+    band = np.full(t_s.size, np.nan)
+    envelope = np.full(t_s.size, np.nan)
+    for part in np.split(np.arange(t_s.size), gaps + 1):
+        if part.size > 3 * rate:  # too short to filter: unread
+            band[part] = signal.sosfiltfilt(sos, common_pa[part])
+            envelope[part] = np.abs(signal.hilbert(band[part]))
+    usable = quiet & np.isfinite(band)
     # robust RMS (1.4826 MAD): a load change at standstill rings the band filter too
-    noise = 1.4826 * float(np.median(np.abs(band[quiet]))) if quiet.sum() > 10 * rate else np.nan
+    noise = 1.4826 * float(np.median(np.abs(band[usable]))) if usable.sum() > 10 * rate else np.nan
     if not np.isfinite(noise) or noise <= 0.0:
         return None, "no quiet standstill to compare the rope bounce with"
-    envelope = np.abs(signal.hilbert(band))
     rings, decays = [], []
     for t_stop in stops_s:
         ratio, decay = _ringing_after_stop(
@@ -233,8 +243,8 @@ def _ringing_after_stop(
     # (and a seal's settling) has died out, a rope's ringing (decay time
     # 1 / (zeta omega), 2-7 s at zeta 0.03) has not
     first = (t_s >= t_stop + 3.0) & (t_s < t_stop + 7.0)
-    if first.sum() < 2 * rate:  # a logger gap over them: nothing to read
-        return None, None
+    if first.sum() < 2 * rate or not np.isfinite(band[w]).all():
+        return None, None  # a logger gap over them, or a stretch too short: nothing read
     ratio = float(np.sqrt(np.mean(band[first] ** 2))) / noise
     if ratio < detect_ratio:
         return ratio, None

@@ -502,7 +502,7 @@ def first_trips_gap(
     the last :data:`_REMEMBERED_GAPS` answers are remembered, keyed by the very trip
     objects (frozen, their arrays read-only) and an equal hoist and replay settings.
     """
-    block = tuple(tr for tr in plan.trips if tr.block == plan.trips[0].block)[:trips]
+    block = _first_compared(plan, trips)
     trial = dataclasses.replace(plan, hoist=plan.hoist if hoist is None else hoist, trips=block)
     with _GAPS_LOCK:
         for known, gap in _GAPS:
@@ -513,6 +513,20 @@ def first_trips_gap(
     with _GAPS_LOCK:
         _GAPS.append((trial, gap))
     return gap
+
+
+def _first_compared(plan: ReplayPlan, trips: int) -> tuple[ReplayTrip, ...]:
+    """The first block's trips up to its ``trips``-th compared one (a warm-up after a
+    logger gap, whose samples are not compared, is replayed but not counted: three
+    trips with one warm-up among them judged a choice on two)."""
+    chosen: list[ReplayTrip] = []
+    compared = 0
+    for tr in plan.trips:
+        if tr.block != plan.trips[0].block or compared >= trips:
+            break
+        chosen.append(tr)
+        compared += bool(tr.valid.any())
+    return tuple(chosen)
 
 
 def first_trips_gaps(

@@ -133,6 +133,56 @@ def test_a_logger_gap_in_the_middle_of_a_trip_cuts_it_and_restarts_the_history(n
     assert _rms(result.residuals(gap_plan)[2]) < 1.3 * gap_plan.noise_sigma_pa
 
 
+@pytest.fixture(scope="module")
+def four_trips():
+    return hidden_case(None, trips=4, seed=2)
+
+
+def test_a_gap_at_rest_that_hides_a_round_trip_restarts_the_history(four_trips):
+    """Rows missing from just after trip 0 stops (at the bottom) to just before trip 3
+    starts (at the bottom again): trips 1 and 2 went up and came back unseen, so the
+    depth matches but the seals' history does not. Trip 3 starts a new history, a
+    warm-up not compared (was: chained on, and failed where it replays to the noise)."""
+    plan, info = four_trips
+    sensors = info["day"].sensors
+    assert [tr.start_depth_m for tr in plan.trips] == pytest.approx([0, 600, 0, 600], abs=0.1)
+    gap_from = _at(plan, plan.trips[0].motion_end_s + 4.0)
+    gap_to = _at(plan, plan.trips[3].motion_start_s - 6.0)
+    gapped = sensors.filter((pl.col("time_utc") < gap_from) | (pl.col("time_utc") > gap_to))
+    gap_plan = plan_replay(gapped, plan.hoist, settle_s=20.0)
+    assert len(gap_plan.trips) == 2
+    after = gap_plan.trips[1]
+    assert after.start_depth_m == pytest.approx(600.0, abs=0.1)
+    assert after.first_in_block
+    assert not after.valid.any()
+    assert replay_fitted(gap_plan, passes=2).ok
+
+
+def test_a_gap_at_rest_that_hides_a_trip_reads_each_side_s_depth(four_trips):
+    """Rows missing from just after trip 0 stops (at the bottom) to the middle of the
+    standstill after trip 1 (at the pithead): the standstill's depth is read on each
+    side of the gap, so trip 0 ends at the bottom and trip 2 starts at the pithead,
+    going down (the median over both sides had made a trip down from the bottom an
+    'up' trip and the next trip's simulation refuse its start), and trip 2 starts a
+    new history."""
+    plan, info = four_trips
+    sensors = info["day"].sensors
+    gap_from = _at(plan, plan.trips[0].motion_end_s + 4.0)
+    gap_to = _at(plan, 0.5 * (plan.trips[1].motion_end_s + plan.trips[2].motion_start_s))
+    gapped = sensors.filter((pl.col("time_utc") < gap_from) | (pl.col("time_utc") > gap_to))
+    gap_plan = plan_replay(gapped, plan.hoist, settle_s=20.0)
+    first, second = gap_plan.trips[:2]
+    assert (first.start_depth_m, first.end_depth_m) == pytest.approx((0.0, 600.0), abs=0.1)
+    assert (second.start_depth_m, second.end_depth_m) == pytest.approx((0.0, 600.0), abs=0.1)
+    assert second.direction == "down"
+    assert second.first_in_block
+    result = replay_fitted(gap_plan, passes=2)
+    assert result.ok, result.message
+    # the trip after the warm-up (trip 3) replays as well as in the whole record
+    whole = _rms(replay_fitted(plan, passes=2).residuals(plan)[3])
+    assert _rms(result.residuals(gap_plan)[2]) < 1.1 * whole
+
+
 # ------------------------------------------------- records that cut a trip, and their ends
 
 

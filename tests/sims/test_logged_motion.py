@@ -104,6 +104,23 @@ def test_a_record_without_ringing_reads_as_critically_damped():
     assert "no rope bounce above the noise after 6 of 6 stops" in how
 
 
+def test_a_logger_gap_after_a_stop_is_not_read_as_ringing():
+    """Rows missing from 6 s after each stop of a record without ringing, the pressure
+    200 kPa higher after the gap (a trip happened in it): each stretch between gaps is
+    filtered on its own. Filtered across the gaps, the pressure's jumps rang the band
+    filter inside the stops' 3-7 s windows, the ropes read as ringing and the
+    description's light damping was kept (the replay then rang where the record does
+    not: validation day 102 with a 5-minute gap)."""
+    t, p, stops, quiet = _record(None)
+    keep = np.ones(t.size, bool)
+    for k, ts in enumerate(stops):
+        keep &= ~((t >= ts + 6.0) & (t < ts + 40.0))
+        p[t >= ts + 40.0] += 2e5 * (-1) ** k
+    got, how = rope_damping_from_record(t[keep], p[keep], stops, quiet[keep])
+    assert got == 1.0, how
+    assert "no rope bounce above the noise after 6 of 6 stops" in how
+
+
 def test_a_record_too_slow_for_the_bounce_keeps_the_description():
     t, p, stops, quiet = _record(0.02)
     got, how = rope_damping_from_record(t[::10], p[::10], stops, quiet[::10])  # 5 Hz

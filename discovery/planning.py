@@ -257,7 +257,9 @@ def _planned_trips(
             tm = timing[k]
             if tm["skip"]:
                 if k != warm_up:
-                    skipped.append(SkippedTrip(tm["trip_id"], tm["t_m"], tm["skip"]))
+                    # one the record cuts at its start began before its first sample
+                    start = max(tm["t_m"], tm["a_t"]) if tm["cut"] == "start" else tm["t_m"]
+                    skipped.append(SkippedTrip(tm["trip_id"], start, tm["skip"]))
                 restart = True
                 continue
             # after a trip that ran into a gap (its simulation stops there, wherever its

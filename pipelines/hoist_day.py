@@ -309,12 +309,15 @@ def land_sanity_checks(
     step: StepOutcome | None = None,
 ) -> int:
     """Land a run's sanity checks (and, with ``step``, the check's outcome in
-    ``run_steps``, same transaction); drop the hoist's checks whose run was replaced."""
+    ``run_steps``, same transaction); drop the hoist's checks whose trip a later run
+    replaced (a run of part of an earlier run's period takes over its trips there: the
+    earlier checks of those trips are no one's)."""
     run_ids = sorted(set(frame["run_id"].to_list()) | ({run_id} if run_id else set()))
     with open_writer(data) as con:
         con.execute(
-            "DELETE FROM sanity_checks WHERE list_contains(?, run_id) OR (site = ? AND hoist = ? "
-            "AND run_id NOT IN (SELECT run_id FROM trip_summary))",
+            "DELETE FROM sanity_checks c WHERE list_contains(?, c.run_id) OR (c.site = ? "
+            "AND c.hoist = ? AND NOT EXISTS (SELECT 1 FROM trip_summary t "
+            "WHERE t.run_id = c.run_id AND t.trip_id = c.trip_id))",
             [run_ids, site, hoist],
         )
         landed = insert_frame(con, "sanity_checks", frame)

@@ -201,7 +201,7 @@ def _rows(
             "site": hoist.hoist.site,
             "hoist": hoist.hoist.name,
             "trip_id": trip_id,
-            "rms_gap_pa": rms,
+            "rms_gap_pa": rms if np.isfinite(rms) else None,  # NULL, not NaN, in SQL
             "noise_pa": noise_pa,
             "passed": None if status == "skipped" else status == "passed",
             "message": message,
@@ -231,8 +231,8 @@ def _reported_verdicts(
 
     verdicts: list[tuple[int, str, str, float]] = []
     for tr, res, why in zip(plan.trips, result.residuals(plan), messages, strict=True):
-        verdict = _trip_verdict(tr, res, why, sigma, threshold)
-        if reported(tr.motion_start_s):
+        verdict = _trip_verdict(tr, res, why, sigma, threshold, last=tr is plan.trips[-1])
+        if reported(_logged_start_s(tr)):
             verdicts.append((tr.trip_id, *verdict))
     verdicts += [
         (gone.trip_id, "skipped", gone.reason, float("nan"))
@@ -240,6 +240,15 @@ def _reported_verdicts(
         if reported(gone.motion_start_s)
     ]
     return verdicts
+
+
+def _logged_start_s(tr: ReplayTrip) -> float:
+    """When trip ``tr`` starts moving in the record [s after the plan's reference]: a
+    trip the record cuts at its start began before its first sample (the fitted start),
+    and is the period's where that first sample is, as its ``trip_summary`` row."""
+    if tr.cut == "start" and tr.time_s.size:
+        return max(tr.motion_start_s, float(tr.time_s[0]))
+    return tr.motion_start_s
 
 
 #: Why a trip that starts a replay history has no verdict (:func:`_trip_verdict`).
@@ -251,7 +260,7 @@ WARM_UP_WORDS = (
 
 
 def _trip_verdict(
-    tr: ReplayTrip, res: np.ndarray, why: str, sigma: float, threshold: float
+    tr: ReplayTrip, res: np.ndarray, why: str, sigma: float, threshold: float, *, last: bool
 ) -> tuple[str, str, float]:
     """(status, message, RMS gap [Pa]) of one replayed trip; a trip that starts a replay
     history (the record's first, the first after a logger gap, or the one before a
@@ -270,7 +279,9 @@ def _trip_verdict(
         return "skipped", why or "no sample of the trip could be compared", nan
     rms = float(np.sqrt(np.mean(finite**2)))
     ok = bool(rms <= threshold * sigma)
-    cut = ", cut by the end of the record" if tr.cut == "end" else ""
+    # cut where the record ends, or (not its last trip) where a logger gap begins
+    ends = "the end of the record" if last else "a logger gap"
+    cut = f", cut by {ends}" if tr.cut == "end" else ""
     message = (
         f"{tr.direction} trip{cut}, oil {tr.oil_temp_c:.1f} degC: gap {rms / 1e3:.1f} kPa "
         f"vs noise {sigma / 1e3:.1f} kPa ({rms / sigma:.2f} x, limit {threshold:g} x)"

@@ -97,6 +97,40 @@ def test_rerun_of_twenty_minutes_rewrites_only_its_hour(record: Path, tmp_path: 
     assert landed["time_utc"].is_unique().all()  # replaced, not duplicated
 
 
+def test_a_rerun_of_part_of_a_period_leaves_no_check_of_a_replaced_trip(
+    record: Path, tmp_path: Path, capsys
+):
+    """The whole record run with its sanity check, then 20 minutes of it again: the
+    trips the second run takes over leave the first run's ``trip_summary``, and their
+    sanity checks go with them (they stayed, a verdict on a trip no run had any more).
+    Every check names a trip of its run."""
+    data = tmp_path / "checked"
+    assert main(["ingest", "--data", str(data), "--hoist", str(HOIST_PATH), str(record)]) == 0
+    base = ["run", "--data", str(data), "--hoist", str(HOIST_PATH)]
+    assert main(base) == 0
+    assert (
+        main([*base, "--from", "2026-03-02T00:00:00+00:00", "--to", "2026-03-02T00:30:00+00:00"])
+        == 0
+    )
+    capsys.readouterr()
+    con = open_reader(DataRoot.resolve(data))
+    try:
+        runs = con.sql("SELECT count(DISTINCT run_id) FROM sanity_checks").fetchall()[0][0]
+        orphans = con.sql(
+            "SELECT c.run_id, c.trip_id FROM sanity_checks c ANTI JOIN trip_summary t "
+            "USING (run_id, trip_id)"
+        ).fetchall()
+        moved = con.sql(
+            "SELECT count(*) FROM trip_summary WHERE time_start_utc >= '2026-03-02 00:00:00+00'"
+            " AND time_start_utc < '2026-03-02 00:30:00+00' GROUP BY run_id"
+        ).fetchall()
+    finally:
+        con.close()
+    assert runs == 2
+    assert len(moved) == 1  # the period's trips are the second run's only
+    assert orphans == []
+
+
 def test_a_block_of_no_minutes_is_refused(tmp_path: Path, capsys) -> None:
     with pytest.raises(SystemExit) as exit_info:
         main(["run", "--data", str(tmp_path), "--hoist", str(HOIST_PATH), "--block-minutes", "0"])

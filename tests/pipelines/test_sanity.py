@@ -111,6 +111,11 @@ def test_a_record_starting_mid_trip_says_the_cut_trip_only_warmed_up(ten_hz):
     step = sanity_step(checks)
     assert step.status == "done"
     assert step.message == "2 of 2 trips passed, 1 skipped (reasons in sanity_checks)"
+    # a period that starts with the record: the cut trip is the period's (its first
+    # sample is in it), though its fitted start lies before (it had no row)
+    first = cut["time_utc"].min()
+    period = sanity_check(cut, hoist, run_id="r", settle_s=20.0, report_from=first)
+    assert period["trip_id"].to_list() == [0, 1, 2]
 
 
 def test_a_trip_that_cannot_be_simulated_is_skipped_with_the_reason(ten_hz):

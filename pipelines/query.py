@@ -19,6 +19,8 @@ from __future__ import annotations
 import io
 import json
 import math
+import re
+from collections.abc import Callable
 from typing import Literal
 
 import duckdb
@@ -151,11 +153,29 @@ _PLAIN_TYPES = frozenset(
 )
 
 
+#: DuckDB types polars takes wrongly or only by panicking (a UHUGEINT as a negative
+#: decimal, a BIT as its internal bytes, an INTERVAL inside a list or struct, panicking
+#: on the way): a column whose type holds one is DuckDB's text from the start.
+_TEXT_TYPES = re.compile(r"\b(UHUGEINT|BIT|INTERVAL|UNION)\b")
+#: A HUGEINT polars holds as a 38-digit decimal: beyond it, Python's copy is rounded.
+_DECIMAL_DIGITS = 38
+
+
 def _to_polars(relation: duckdb.DuckDBPyRelation) -> pl.DataFrame:
     """The result as a polars frame; where polars cannot take a column's values, the
     columns of other than plain types as DuckDB's text."""
+    kinds = dict(zip(relation.columns, map(str, relation.types), strict=True))
+    if any(_TEXT_TYPES.search(kind) for kind in kinds.values()):
+        relation = _as_text(relation, lambda name, kind: bool(_TEXT_TYPES.search(kind)))
     try:
         frame = relation.pl()
+        wide = [
+            name
+            for name, kind in kinds.items()
+            if kind == "HUGEINT" and _beyond_digits(frame[name].to_physical())
+        ]
+        if wide:
+            return _as_text(relation, lambda name, kind: name in wide).pl()
         if not _beyond_python_dates(frame):
             return frame
     except pl.exceptions.PolarsError:
@@ -163,12 +183,24 @@ def _to_polars(relation: duckdb.DuckDBPyRelation) -> pl.DataFrame:
     except BaseException as exc:  # pyo3's PanicException
         if type(exc).__name__ != "PanicException":
             raise
+    return _as_text(relation, lambda name, kind: kind.split("(")[0] not in _PLAIN_TYPES).pl()
+
+
+def _as_text(
+    relation: duckdb.DuckDBPyRelation, text: Callable[[str, str], bool]
+) -> duckdb.DuckDBPyRelation:
+    """``relation`` with the columns ``text(name, type)`` picks cast to DuckDB's text."""
     columns = []
     for name, kind in zip(relation.columns, relation.types, strict=True):
         quoted = '"' + name.replace('"', '""') + '"'
-        plain = str(kind).split("(")[0] in _PLAIN_TYPES
-        columns.append(quoted if plain else f"CAST({quoted} AS VARCHAR) AS {quoted}")
-    return relation.project(", ".join(columns)).pl()
+        picked = text(name, str(kind))
+        columns.append(f"CAST({quoted} AS VARCHAR) AS {quoted}" if picked else quoted)
+    return relation.project(", ".join(columns))
+
+
+def _beyond_digits(physical: pl.Series) -> bool:
+    limit = 10**_DECIMAL_DIGITS
+    return bool(((physical >= limit) | (physical <= -limit)).any())
 
 
 #: Python's dates, 0001-01-01 to 9999-12-31, in days and seconds from 1970-01-01.

@@ -410,6 +410,17 @@ def test_query_sql_error_is_one_line(data, capsys):
         ("select {'a': 'infinity'::date} as s", "{'a': infinity}"),
         ("select map {'k': 'infinity'::date} as m", "{k=infinity}"),
         ("select [[{'d': '-infinity'::date}]] as l", "-infinity"),
+        # polars took these wrongly: a UHUGEINT as -1, a HUGEINT beyond 38 digits
+        # rounded in JSON, a BIT as its internal bytes
+        (
+            "select 340282366920938463463374607431768211455::uhugeint as u",
+            "340282366920938463463374607431768211455",
+        ),
+        (
+            "select 170141183460469231731687303715884105727::hugeint as h",
+            "170141183460469231731687303715884105727",
+        ),
+        ("select '10101'::bit as b", "10101"),
     ],
 )
 def test_results_polars_cannot_hold_are_shown_as_duckdb_text(data, capsys, sql, text):
@@ -420,6 +431,17 @@ def test_results_polars_cannot_hold_are_shown_as_duckdb_text(data, capsys, sql, 
         assert main(["query", "--data", str(data.path), "--format", output, sql]) == 0
         out = capsys.readouterr().out
         assert text in out, (output, out)
+
+
+def test_an_interval_inside_a_list_is_text_without_a_panic_on_stderr(data, capfd):
+    """polars panics on an INTERVAL inside a list or struct; the panic was caught but
+    Rust had already printed it (19 lines with RUST_BACKTRACE set): such a column is
+    DuckDB's text from the start."""
+    sql = "select [interval 2 day] as s, {'a': interval 1 hour} as t"
+    assert main(["query", "--data", str(data.path), "--format", "json", sql]) == 0
+    out, err = capfd.readouterr()
+    assert json.loads(out) == [{"s": "[2 days]", "t": "{'a': '01:00:00'}"}]
+    assert "panicked" not in err
 
 
 def test_csv_writes_nested_values_as_json_and_json_is_strict(data, capsys):

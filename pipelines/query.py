@@ -164,18 +164,18 @@ _DECIMAL_DIGITS = 38
 def _to_polars(relation: duckdb.DuckDBPyRelation) -> pl.DataFrame:
     """The result as a polars frame; where polars cannot take a column's values, the
     columns of other than plain types as DuckDB's text."""
-    kinds = dict(zip(relation.columns, map(str, relation.types), strict=True))
-    if any(_TEXT_TYPES.search(kind) for kind in kinds.values()):
-        relation = _as_text(relation, lambda name, kind: bool(_TEXT_TYPES.search(kind)))
+    kinds = [str(kind) for kind in relation.types]  # by position: names may repeat
+    if any(_TEXT_TYPES.search(kind) for kind in kinds):
+        relation = _as_text(relation, lambda i, kind: bool(_TEXT_TYPES.search(kind)))
     try:
         frame = relation.pl()
-        wide = [
-            name
-            for name, kind in kinds.items()
-            if kind == "HUGEINT" and _beyond_digits(frame[name].to_physical())
-        ]
+        wide = {
+            i
+            for i, kind in enumerate(kinds)
+            if kind == "HUGEINT" and _beyond_digits(frame.to_series(i).to_physical())
+        }
         if wide:
-            return _as_text(relation, lambda name, kind: name in wide).pl()
+            return _as_text(relation, lambda i, kind: i in wide).pl()
         if not _beyond_python_dates(frame):
             return frame
     except pl.exceptions.PolarsError:
@@ -183,22 +183,29 @@ def _to_polars(relation: duckdb.DuckDBPyRelation) -> pl.DataFrame:
     except BaseException as exc:  # pyo3's PanicException
         if type(exc).__name__ != "PanicException":
             raise
-    return _as_text(relation, lambda name, kind: kind.split("(")[0] not in _PLAIN_TYPES).pl()
+    return _as_text(relation, lambda i, kind: kind.split("(")[0] not in _PLAIN_TYPES).pl()
 
 
 def _as_text(
-    relation: duckdb.DuckDBPyRelation, text: Callable[[str, str], bool]
+    relation: duckdb.DuckDBPyRelation, text: Callable[[int, str], bool]
 ) -> duckdb.DuckDBPyRelation:
-    """``relation`` with the columns ``text(name, type)`` picks cast to DuckDB's text."""
+    """``relation`` with the columns ``text(position, type)`` picks cast to DuckDB's text,
+    each column taken by its position (a result may repeat a name)."""
     columns = []
-    for name, kind in zip(relation.columns, relation.types, strict=True):
+    for i, (name, kind) in enumerate(zip(relation.columns, relation.types, strict=True)):
         quoted = '"' + name.replace('"', '""') + '"'
-        picked = text(name, str(kind))
-        columns.append(f"CAST({quoted} AS VARCHAR) AS {quoted}" if picked else quoted)
+        column = f"#{i + 1}"
+        picked = text(i, str(kind))
+        columns.append(
+            f"CAST({column} AS VARCHAR) AS {quoted}" if picked else f"{column} AS {quoted}"
+        )
     return relation.project(", ".join(columns))
 
 
 def _beyond_digits(physical: pl.Series) -> bool:
+    """Whether a HUGEINT column's values (polars' Int128) go beyond 38 digits."""
+    if physical.dtype != pl.Int128:
+        return False
     limit = 10**_DECIMAL_DIGITS
     return bool(((physical >= limit) | (physical <= -limit)).any())
 

@@ -433,6 +433,18 @@ def test_results_polars_cannot_hold_are_shown_as_duckdb_text(data, capsys, sql, 
         assert text in out, (output, out)
 
 
+def test_a_result_repeating_a_column_name_keeps_each_column_s_values(data, capsys):
+    """A join's two ``n`` (the second a HUGEINT sum), a BIT beside an int of the same
+    name: each column keeps its own values (the text casts went by name: a traceback,
+    or the first column's value twice)."""
+    sql = (
+        "with a as (select 1 id, 5 n), b as (select 1 id, 7 n) "
+        "select a.n, sum(b.n) as n, 7 as v, '101'::bit as v from a join b using (id) group by a.n"
+    )
+    assert main(["query", "--data", str(data.path), "--format", "json", sql]) == 0
+    assert json.loads(capsys.readouterr().out) == [{"n": 5, "n_1": "7", "v": 7, "v_1": "101"}]
+
+
 def test_an_interval_inside_a_list_is_text_without_a_panic_on_stderr(data, capfd):
     """polars panics on an INTERVAL inside a list or struct; the panic was caught but
     Rust had already printed it (19 lines with RUST_BACKTRACE set): such a column is

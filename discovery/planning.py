@@ -191,7 +191,10 @@ def _planned_trip(
         profile_fit_m=fit,
         cut=tm["cut"],
         motion_knots=knots,
-        x_start_m=_pistons_before(rec, r0 if tm["cut"] != "start" else tm["a_t"]),
+        # a trip cut at its start: over the first seconds the record holds of it
+        x_start_m=_pistons_before(
+            rec, r0 if tm["cut"] != "start" else tm["a_t"] + PISTONS_BEFORE_S
+        ),
     )
 
 
@@ -267,6 +270,7 @@ def _planned_trips(
             after_gap = (
                 into_gap
                 or tm["gap_before"]
+                or tm["cut"] == "start"  # the record starts, or resumes, while it moves
                 or (
                     bool(np.isfinite(end_depth))
                     and not abs(tm["d0"] - end_depth) <= CONTINUATION_DEPTH_TOLERANCE_M

@@ -253,15 +253,18 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
         resumed = float(t[before[-1] + 1])
         pre, post = _around_gaps(t, rec.depth, lo, before, float(t[a_i]), shaft)
         gap_before = bool(np.max(t[before + 1] - t[before]) >= shortest_round_trip_s(hoist))
+        d0 = post if np.isfinite(post) else d0  # where it stood when it left
         if gap_before or _moved(pre, post):
             # it moved, or may have, in the gap: only what is logged after it is this
             # trip's standstill (a shorter gap may hide a loading: bridged)
-            d0, prev_end = post, resumed - 2.0
+            prev_end = resumed - 2.0
     if after.size and after[0] > b_i:
+        # where it stopped, and its payload there, are what is logged before the gap
+        # (the motion after the gap may start straight out of another)
         hi = float(t[motions[k + 1][0]]) if k + 1 < len(motions) else np.inf
-        pre, post = _around_gaps(t, rec.depth, float(t[b_i]), after, hi, shaft)
-        if _moved(pre, post):
-            d1, next_start = pre, min(next_start, float(t[after[0]]))
+        pre, _ = _around_gaps(t, rec.depth, float(t[b_i]), after, hi, shaft)
+        d1 = pre if np.isfinite(pre) else d1
+        next_start = min(next_start, float(t[after[0]]))
     # a motion that runs into (or out of) a logger gap the trip rule did not bridge is
     # cut there as by the record's end (start): the standstill beyond the gap is not its
     if b_i + 1 < t.size and t[b_i + 1] - t[b_i] > TRIP_BRIDGE_S:

@@ -181,7 +181,10 @@ def chosen_trips(count: int, max_trips: int, blocks: int) -> list[list[int]]:
 
 
 #: How a trip the record cuts is named in notes and reasons.
-CUT_WORDS = {"start": "the record starts during this trip", "end": "the record ends during it"}
+CUT_WORDS = {
+    "start": "the record starts (or resumes after a logger gap) during this trip",
+    "end": "the record ends (or breaks off in a logger gap) during it",
+}
 
 
 def complete_cut_trip(

@@ -48,6 +48,7 @@ import polars as pl
 
 from discovery.planning import plan_replay
 from discovery.rope_stiffness import Identified
+from discovery.segmentation import CUT_WORDS
 from pipelines.steps import StepOutcome
 from schemas.hoist import HoistDescription
 from schemas.tables import SANITY_CHECKS, conform
@@ -254,8 +255,8 @@ def _logged_start_s(tr: ReplayTrip) -> float:
 #: Why a trip that starts a replay history has no verdict (:func:`_trip_verdict`).
 WARM_UP_WORDS = (
     "a replay history starts with this trip (the record's first, the first after a "
-    "logger gap, or the one before a block of the trips checked): it only loads the "
-    "seals' state for the next one"
+    "logger gap or after a trip that could not be replayed, or the one before a block "
+    "of the trips checked): it only loads the seals' state for the next one"
 )
 
 
@@ -270,8 +271,8 @@ def _trip_verdict(
     if not (np.isfinite(sigma) and sigma > 0):
         return "skipped", "the pressure noise could not be estimated", nan
     if tr.cut == "start":
-        return "skipped", ("the record starts during this trip: it only loads "
-                           "the seals' state for the next one"), nan  # fmt: skip
+        return "skipped", (f"{CUT_WORDS['start']}: it only loads the seals' state for "
+                           "the next one"), nan  # fmt: skip
     if tr.first_in_block:  # its own failure, if its simulation failed, says more
         return "skipped", why or WARM_UP_WORDS, nan
     finite = res[np.isfinite(res)]

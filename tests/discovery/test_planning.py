@@ -14,7 +14,7 @@ from discovery.cases import hidden_case
 from discovery.planning import plan_replay
 from discovery.record import RAMP_LEAD_S
 from discovery.replay_choices import choose_motion
-from discovery.segmentation import estimate_noise_sigma
+from discovery.segmentation import CUT_WORDS, estimate_noise_sigma
 from sims.replay import replay_fitted
 from sims.replay_plan import replay_frame
 
@@ -183,6 +183,31 @@ def test_a_gap_at_rest_that_hides_a_trip_reads_each_side_s_depth(four_trips):
     assert _rms(result.residuals(gap_plan)[2]) < 1.1 * whole
 
 
+def test_a_trip_s_stop_before_two_gaps_is_where_it_stopped(four_trips):
+    """Rows missing from just after trip 1 stops (at the pithead) to after trip 2, and
+    again until trip 3 is moving (review): trip 1 ends where the record logged it
+    stopping, not at the median over the standstills either side of the gap (it
+    planned as 'up 600 -> 600', 394 m off the profile, and failed at 4.8 x the noise),
+    and trip 3, which the record resumes during, starts a new history."""
+    plan, info = four_trips
+    trips = plan.trips
+    sensors = info["day"].sensors
+    gaps = [
+        (trips[1].motion_end_s + 4.0, trips[2].motion_end_s + 3.0),
+        (trips[2].motion_end_s + 8.0, trips[3].motion_start_s + 3.0),
+    ]
+    kept = pl.lit(True)
+    for lo, hi in gaps:
+        kept &= ~pl.col("time_utc").is_between(_at(plan, lo), _at(plan, hi))
+    gap_plan = plan_replay(sensors.filter(kept), plan.hoist, settle_s=20.0)
+    second, resumed = gap_plan.trips[1], gap_plan.trips[2]
+    assert (second.start_depth_m, second.end_depth_m) == pytest.approx((600.0, 0.0), abs=0.1)
+    assert resumed.cut == "start"
+    assert resumed.first_in_block
+    result = replay_fitted(gap_plan, passes=2)
+    assert _rms(result.residuals(gap_plan)[1]) < 2.0 * gap_plan.noise_sigma_pa
+
+
 # ------------------------------------------------- records that cut a trip, and their ends
 
 
@@ -211,7 +236,7 @@ def test_a_record_ending_mid_trip_replays_what_is_logged(null_case):
     assert tr.motion_start_s == pytest.approx(truth[2]["start_s"] + 10.0, abs=0.05)
     assert tr.end_depth_m > 300.0  # going down, past the depth logged when it stopped
     assert _at(cut_plan, tr.time_s[-1]) < end
-    assert any("record ends during it" in note for note in cut_plan.notes)
+    assert any(CUT_WORDS["end"] in note for note in cut_plan.notes)
     result = replay_fitted(cut_plan, passes=3)
     assert result.ok, result.message
     assert np.isfinite(result.simulated[2]).all()
@@ -279,7 +304,7 @@ def test_a_record_inside_one_trip_skips_it_with_the_reason(null_case):
     cut_plan = plan_replay(inside, plan.hoist, settle_s=20.0)
     assert cut_plan.trips == ()
     assert [(s.trip_id, s.reason) for s in cut_plan.skipped] == [
-        (0, "the record starts during this trip: the record holds neither its start nor its stop")
+        (0, CUT_WORDS["start"] + ": the record holds neither its start nor its stop")
     ]
 
 

@@ -10,6 +10,7 @@ The rows are :mod:`.field_csv`'s.
 
 from __future__ import annotations
 
+import datetime as dt
 import re
 import zoneinfo
 from dataclasses import dataclass
@@ -60,7 +61,7 @@ class CsvHeader:
         hoist description's ``[hoist] timezone`` (``described``): a logger exporting
         local time without a ``timezone`` line lands hours off, and nothing in the data
         says so. None when they agree or the timestamps carry their offsets."""
-        if self.offsets or self.timezone == described:
+        if self.offsets or _same_clock(self.timezone, described):
             return None
         taken = (
             f"as local time in {self.timezone} (line {self.timezone_line})"
@@ -71,6 +72,20 @@ class CsvHeader:
             f"timestamps without a UTC offset taken {taken}, but the hoist's description "
             f"says {described}: check the export"
         )
+
+
+def _same_clock(zone: str, other: str) -> bool:
+    """Whether two IANA zones keep the same clock: the same name, or an alias
+    (``Etc/UTC`` and ``UTC``, ``PRC`` and ``Asia/Shanghai``) with the same UTC offsets
+    in January and in July (winter and summer time)."""
+    if zone == other:
+        return True
+    try:
+        a, b = zoneinfo.ZoneInfo(zone), zoneinfo.ZoneInfo(other)
+    except (zoneinfo.ZoneInfoNotFoundError, ValueError):
+        return False
+    instants = [dt.datetime(2026, month, 1, 12, tzinfo=dt.UTC) for month in (1, 7)]
+    return all(t.astimezone(a).utcoffset() == t.astimezone(b).utcoffset() for t in instants)
 
 
 def read_header(path: Path) -> CsvHeader:

@@ -548,6 +548,7 @@ def test_depth_outside_the_shaft_with_a_hoist_description(corpus, tmp_path, root
             "hoist's description says Asia/Shanghai",
         ),
         ("Asia/Shanghai", False, None),
+        ("PRC", False, None),  # an alias of the same clock
         (None, True, None),  # the offsets say where they are
     ],
 )

@@ -295,7 +295,7 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
     if not np.isfinite(p_post):
         # no standstill before the motion in the record: the payload does not change
         # during a trip, so the level after its stop (or, cut there too, while moving),
-        # with the tail rope that hangs there (at the start's depth, a trip down from
+        # with the tail rope that hangs there (at the start's depth, a trip up from
         # mid-shaft had taken 2 x 6.2 kg/m x 320 m of tail rope for payload)
         p_post = plateau_median(t, pcs, t_e + 2.0, next_start - 0.3, 2.0, from_start=True)
         p_pre, levels_depth = float("nan"), d1  # both levels one, read where it stopped

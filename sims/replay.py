@@ -492,7 +492,8 @@ CLOSER_SHARE = 0.9
 def first_trips_gap(
     plan: ReplayPlan, hoist: HoistDescription | None = None, trips: int = 3
 ) -> float:
-    """RMS gap [Pa] of the plan's first block's first ``trips`` trips replayed with
+    """RMS gap [Pa] of the plan's first block's first ``trips`` compared trips (and the
+    warm-ups among them, :func:`_first_compared`) replayed with
     ``hoist`` (default the plan's), payloads fitted (two passes); inf when nothing was
     simulated. The yardstick the replay's choices from the record use (the ropes'
     damping and stiffness spread, the motion that drives the trips).

@@ -296,8 +296,10 @@ SANITY_CHECKS = _schema(
         pa.field("message", pa.string()),
         pa.field("status", pa.string()),
     ],
-    "one row per trip: RMS of measured minus simulated sensor pressure; status passed, "
-    "failed or skipped (passed null, the reason in message)",
+    "one row per trip the check replays: RMS of measured minus simulated sensor pressure; "
+    "status passed, failed or skipped (passed and rms_gap_pa null, the reason in message: "
+    "a warm-up that starts a replay history, a trip cut at the record's start, one that "
+    "could not be simulated)",
 )
 
 #: One row per discrepancy report (contract section 5), the JSON kept whole.

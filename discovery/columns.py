@@ -25,7 +25,8 @@ from discovery.library import EffectLibrary, EffectTerm, term_parameters
 from discovery.normal_equations import normal_equations, solve_normal
 from discovery.results import Params, merge_parameters
 from sims.effects import resolve_effects
-from sims.replay import payload_from_pressure, replay_fitted, replay_many
+from sims.replay import replay_fitted, replay_many
+from sims.replay_inputs import static_payloads_kg
 from sims.replay_plan import ReplayPlan, ReplayResult
 
 __all__ = ["FitEngine", "TermColumns", "replay_refitted"]
@@ -63,20 +64,7 @@ class FitEngine:
         self.base_static = np.zeros((len(plan.trips), 2))
 
     def _static_payloads(self, effects: list[str], params: Params) -> np.ndarray:
-        prm = term_parameters(self.hoist, params, effects)
-        return np.array(
-            [
-                [
-                    payload_from_pressure(
-                        self.hoist, effects, prm, tr.p_after_pa, tr.levels_depth_m
-                    ),
-                    payload_from_pressure(
-                        self.hoist, effects, prm, tr.p_before_pa, tr.levels_depth_m
-                    ),
-                ]
-                for tr in self.plan.trips
-            ]
-        )
+        return static_payloads_kg(self.plan, effects, term_parameters(self.hoist, params, effects))
 
     def count_replays(self, n: int) -> None:
         """Count ``n`` more replays (:attr:`replays`)."""

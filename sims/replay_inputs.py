@@ -25,7 +25,13 @@ from sims.effects import resolve_effects
 from sims.replay_plan import ReplayPlan
 from sims.trips import TripProfile, trip
 
-__all__ = ["payload_from_pressure", "replay_inputs", "replay_profile", "sensor_gain_offset"]
+__all__ = [
+    "payload_from_pressure",
+    "replay_inputs",
+    "replay_profile",
+    "sensor_gain_offset",
+    "static_payloads_kg",
+]
 
 
 def replay_profile(
@@ -121,6 +127,25 @@ def payload_from_pressure(
     return max(p * hoist.ropes_n * area / G_STANDARD - hoist.conveyance.mass_kg - tail, 0.0)
 
 
+def static_payloads_kg(
+    plan: ReplayPlan, effects: Iterable[str], parameters: Mapping[str, Any] | None
+) -> np.ndarray:
+    """Each trip's payload after and before its loading [kg], (trips, 2), from its levels
+    at rest (``p_after_pa``, ``p_before_pa``) where they were read
+    (``levels_depth_m``; :func:`payload_from_pressure`)."""
+    hoist = plan.hoist
+    return np.array(
+        [
+            [
+                payload_from_pressure(hoist, effects, parameters, level, tr.levels_depth_m)
+                for level in (tr.p_after_pa, tr.p_before_pa)
+            ]
+            for tr in plan.trips
+        ],
+        dtype=float,
+    ).reshape(-1, 2)
+
+
 def replay_inputs(
     plan: ReplayPlan,
     names: frozenset[str],
@@ -131,17 +156,10 @@ def replay_inputs(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(payload after, payload before, loading ramps) per trip, the defaults of
     :func:`sims.replay.replay` filled in: payloads from the static pressures, the plan's ramps."""
-    hoist = plan.hoist
-    if payload_kg is None:
-        payload_kg = [
-            payload_from_pressure(hoist, names, prm, tr.p_after_pa, tr.levels_depth_m)
-            for tr in plan.trips
-        ]
-    if payload_before_kg is None:
-        payload_before_kg = [
-            payload_from_pressure(hoist, names, prm, tr.p_before_pa, tr.levels_depth_m)
-            for tr in plan.trips
-        ]
+    if payload_kg is None or payload_before_kg is None:
+        static = static_payloads_kg(plan, names, prm)
+        payload_kg = static[:, 0] if payload_kg is None else payload_kg
+        payload_before_kg = static[:, 1] if payload_before_kg is None else payload_before_kg
     if ramps_s is None:
         ramps_s = np.array([[tr.ramp_start_s, tr.ramp_end_s] for tr in plan.trips])
     ramps = np.asarray(ramps_s, dtype=float).reshape(-1, 2)

@@ -37,11 +37,10 @@ class ReplayTrip:
     the fitted winder profile). ``x_start_m`` (n,) the pistons' logged positions just
     before the window [m] (for a trip cut at its start, over the record's first seconds
     of it; None where they are not logged): where a block that starts with this trip
-    puts them
-    (:attr:`ReplayPlan.rope_offsets_m`). ``p_before_pa`` and ``p_after_pa`` are the
-    mean sensor levels at rest before and after the trip's loading, from which its
-    payloads are first inferred (:func:`sims.replay_inputs.payload_from_pressure`), read
-    at ``levels_depth_m``: the start's depth, or where a trip without a standstill
+    puts them (:attr:`ReplayPlan.rope_offsets_m`). ``p_before_pa`` and ``p_after_pa``
+    are the mean sensor levels at rest before and after the trip's loading, from which
+    its payloads are first inferred (:func:`sims.replay_inputs.static_payloads_kg`),
+    read at ``levels_depth_m``: the start's depth, or where a trip without a standstill
     before it in the record (cut at its start, or after a logger gap) stopped, the
     hanging tail rope's weight differing by its length between the two.
     """

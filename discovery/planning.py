@@ -173,6 +173,7 @@ def _planned_trip(
         ramp_end_s=r1,
         motion_start_s=t_m,
         motion_end_s=t_e,
+        rule_start_s=tm["a_t"],
         start_depth_m=d0,
         end_depth_m=d1,
         max_speed_m_s=vmax_arg,
@@ -260,9 +261,7 @@ def _planned_trips(
             tm = timing[k]
             if tm["skip"]:
                 if k != warm_up:
-                    # one the record cuts at its start began before its first sample
-                    start = max(tm["t_m"], tm["a_t"]) if tm["cut"] == "start" else tm["t_m"]
-                    skipped.append(SkippedTrip(tm["trip_id"], start, tm["skip"]))
+                    skipped.append(SkippedTrip(tm["trip_id"], tm["a_t"], tm["skip"]))
                 restart = True
                 continue
             # after a trip that ran into a gap (its simulation stops there, wherever its

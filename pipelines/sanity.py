@@ -140,8 +140,10 @@ def sanity_check(
     dt_s, settle_s : float
         Replay integrator step [s] and standstill simulated after each stop [s].
     report_from, report_to : datetime, optional
-        Only trips that start moving in ``[report_from, report_to)`` are reported; the
-        others are replayed (state warm-up, or a trip of the next period read so that
+        Only trips that start moving in ``[report_from, report_to)`` (their first
+        sample the trip rule counts as moving, :attr:`sims.replay_plan.ReplayTrip.
+        rule_start_s`: the period that holds the trip's first ``trip_summary`` row) are
+        reported; the others are replayed (state warm-up, or a trip of the next period read so that
         the last one of this period ends in the record) but not reported.
     number_from : datetime, optional
         Trips are numbered by the trip rule from the first one with a sample at or after
@@ -233,23 +235,16 @@ def _reported_verdicts(
     verdicts: list[tuple[int, str, str, float]] = []
     for tr, res, why in zip(plan.trips, result.residuals(plan), messages, strict=True):
         verdict = _trip_verdict(tr, res, why, sigma, threshold, last=tr is plan.trips[-1])
-        if reported(_logged_start_s(tr)):
+        # the trip rule's first moving sample, not the fitted start a fraction of a
+        # second away: the period holding it has the trip's trip_summary row
+        if reported(tr.rule_start_s):
             verdicts.append((tr.trip_id, *verdict))
     verdicts += [
         (gone.trip_id, "skipped", gone.reason, float("nan"))
         for gone in plan.skipped
-        if reported(gone.motion_start_s)
+        if reported(gone.rule_start_s)
     ]
     return verdicts
-
-
-def _logged_start_s(tr: ReplayTrip) -> float:
-    """When trip ``tr`` starts moving in the record [s after the plan's reference]: a
-    trip the record cuts at its start began before its first sample (the fitted start),
-    and is the period's where that first sample is, as its ``trip_summary`` row."""
-    if tr.cut == "start" and tr.time_s.size:
-        return max(tr.motion_start_s, float(tr.time_s[0]))
-    return tr.motion_start_s
 
 
 #: Why a trip that starts a replay history has no verdict (:func:`_trip_verdict`).

@@ -43,6 +43,10 @@ class ReplayTrip:
     read at ``levels_depth_m``: the start's depth, or where a trip without a standstill
     before it in the record (cut at its start, or after a logger gap) stopped, the
     hanging tail rope's weight differing by its length between the two.
+    ``motion_start_s`` is the fitted winder profile's start; ``rule_start_s`` the first
+    sample the trip rule counts as moving (:mod:`physics.trip_rule`), the first of the
+    trip's labelled rows: the period whose rows hold it reports the trip, as its
+    ``trip_summary`` row (:mod:`pipelines.sanity`).
     """
 
     trip_id: int
@@ -54,6 +58,7 @@ class ReplayTrip:
     ramp_end_s: float
     motion_start_s: float
     motion_end_s: float
+    rule_start_s: float
     start_depth_m: float
     end_depth_m: float
     max_speed_m_s: float | None
@@ -85,10 +90,10 @@ class ReplayTrip:
 @dataclass(frozen=True)
 class SkippedTrip:
     """A trip of the record that :func:`discovery.planning.plan_replay` could not prepare
-    or does not replay, and why."""
+    or does not replay, and why; ``rule_start_s`` as :attr:`ReplayTrip.rule_start_s`."""
 
     trip_id: int
-    motion_start_s: float
+    rule_start_s: float
     reason: str
 
 

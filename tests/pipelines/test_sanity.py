@@ -8,6 +8,7 @@ import polars as pl
 import pytest
 
 from discovery.cases import hidden_case
+from physics.trip_rule import STANDSTILL_SPEED_M_S
 from pipelines.sanity import WARM_UP_WORDS, sanity_check, sanity_step
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from schemas.tables import SANITY_CHECKS
@@ -150,6 +151,33 @@ def test_only_trips_starting_in_the_reported_period_are_reported(ten_hz):
     )
     assert checks["trip_id"].to_list() == [1]  # numbered from the record's first sample
     assert checks["status"].to_list() == ["passed"]
+
+
+def test_a_trip_is_reported_by_the_period_holding_its_first_moving_sample(ten_hz):
+    """A period edge between the fitted start of a trip's motion and the first sample
+    the trip rule counts as moving (a fraction of a second apart) gives the trip to the
+    period holding that sample, the one with its trip_summary row, on either side of
+    the fitted start: reported by exactly one of two adjoining periods."""
+    hoist, day = ten_hz
+    moving = day.sensors.filter(
+        (pl.col("time_utc") > _seconds(day, 100.0))
+        & (pl.col("speed_m_s").abs() >= STANDSTILL_SPEED_M_S)
+    )
+    first_moving = moving["time_utc"].min()  # trip 1's first labelled row
+    tick = dt.timedelta(milliseconds=1)
+    for edge in (first_moving, first_moving + tick):
+        before = sanity_check(
+            day.sensors,
+            hoist,
+            run_id="r",
+            settle_s=20.0,
+            report_from=_seconds(day, 100.0),
+            report_to=edge,
+        )
+        after = sanity_check(day.sensors, hoist, run_id="r", settle_s=20.0,
+                             report_from=edge, report_to=_seconds(day, 300.0))  # fmt: skip
+        assert before["trip_id"].to_list() + after["trip_id"].to_list() == [1]
+        assert (before.height == 1) == (edge > first_moving)
 
 
 def _jogged(day, at_s: float) -> pl.DataFrame:

@@ -34,7 +34,7 @@ import polars as pl
 
 from physics.tension import expected_load_n
 from schemas.hoist import EXAMPLE_HOIST, HoistDescription, load_hoist
-from schemas.tables import FIELD_SAMPLES, ROPE_TENSIONS
+from schemas.tables import FIELD_SAMPLES, ROPE_TENSIONS, polars_schema
 from transforms.compensation import (
     CompensationContext,
     CompensationSettings,
@@ -86,7 +86,7 @@ def synthetic_day(hours: float, rate_hz: float = 100.0, seed: int = 1) -> pl.Dat
             "source_line": np.arange(n),
         }
     )
-    schema = pl.Schema(pl.from_arrow(FIELD_SAMPLES.empty_table()).schema)
+    schema = polars_schema(FIELD_SAMPLES)
     return frame.select(pl.col(k).cast(v) for k, v in schema.items())
 
 

@@ -10,7 +10,7 @@ import datetime as dt
 
 import polars as pl
 
-from schemas.tables import TABLES
+from schemas.tables import TABLES, polars_schema
 from warehouse.store import DataRoot
 
 __all__ = ["lake_partitions", "scan_lake"]
@@ -48,7 +48,7 @@ def scan_lake(
         last = as_utc(end).date().isoformat() if end is not None else "9999-12-31"
         files = [f for f in files if first <= f.parent.name.removeprefix("date=") <= last]
     if not files:
-        return pl.LazyFrame(schema=pl.Schema(pl.from_arrow(schema.empty_table()).schema))
+        return pl.LazyFrame(schema=polars_schema(schema))
     frame = pl.scan_parquet(files, hive_partitioning=False)
     if start is not None:
         frame = frame.filter(pl.col("time_utc") >= as_utc(start))

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
-from schemas.tables import ROPE_TENSIONS
+from schemas.tables import ROPE_TENSIONS, polars_schema
 from transforms.compensation_kernels import load_kernel
 from transforms.compensation_record import rope_cols
 from transforms.stick_slip import BAND_SOURCES
@@ -19,7 +19,7 @@ from transforms.uncertainty import ensemble_band, load_band
 __all__ = ["OUTPUT_SCHEMA", "block_frame"]
 
 #: The polars schema of a ``ROPE_TENSIONS`` frame.
-OUTPUT_SCHEMA = pl.Schema(pl.from_arrow(ROPE_TENSIONS.empty_table()).schema)
+OUTPUT_SCHEMA = polars_schema(ROPE_TENSIONS)
 
 
 def _nullable(name: str, values: np.ndarray, dtype: type = pl.Float64) -> pl.Series:

@@ -48,7 +48,7 @@ from pipelines.ingest.field_checks import (
     to_si,
 )
 from pipelines.ingest.local_time import AmbiguityState, parse_timestamps
-from schemas.tables import FIELD_SAMPLES
+from schemas.tables import FIELD_SAMPLES, polars_schema
 
 __all__ = ["DEFAULT_BATCH_BYTES", "open_csv"]
 
@@ -370,4 +370,4 @@ class _FastPath:
 
 
 def _sample_schema() -> dict[str, pl.DataType]:
-    return dict(pl.from_arrow(FIELD_SAMPLES.empty_table()).schema)
+    return dict(polars_schema(FIELD_SAMPLES))

@@ -27,6 +27,8 @@ A last line without a newline is held back: the file may still be growing
 
 from __future__ import annotations
 
+import datetime as dt
+import zoneinfo
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -85,7 +87,10 @@ def open_csv(
     zone_note = header.zone_note(hoist.hoist.timezone) if hoist is not None else None
     if zone_note is not None:
         reading.notes.append(zone_note)
-    parser = _BatchParser(header, depth_limits_m(hoist), progress.ambiguity)
+    limits = depth_limits_m(hoist)
+    if offset > header.data_offset:  # the prefix's place in a repeated hour carries over
+        progress.ambiguity = prefix_ambiguity(path, header, offset, limits)
+    parser = _BatchParser(header, limits, progress.ambiguity)
 
     def batches() -> Iterator[Batch]:
         for chunk, first_line, n_lines in iter_chunks(path, offset, line, batch_bytes, progress):
@@ -103,6 +108,61 @@ def open_csv(
 
     reading.batches = batches()
     return reading
+
+
+#: The prefix read back on resume covers at least this much time before its last sample,
+#: more than a repeated hour's two passes (:data:`.local_time._EPISODE_US`).
+_PREFIX_SPAN = dt.timedelta(hours=3)
+_PREFIX_PROBE_BYTES = 64 << 10
+
+
+def prefix_ambiguity(
+    path: Path, header: CsvHeader, offset: int, depth_limits: tuple[float, float]
+) -> AmbiguityState:
+    """Where the file's first ``offset`` bytes (an earlier ingest's, ending with a line)
+    left the repeated hour of a daylight-saving change: the state a whole read would
+    carry into the line at ``offset`` (:class:`.local_time.AmbiguityState`).
+
+    A resumed read starts from it, not afresh: a file grown within the repeated hour
+    (an earlier version cut in its second pass) would otherwise take its new samples
+    for the first pass, which the lake already holds, and quarantine them as
+    conflicts. Its tail is read again, growing by 4x from 64 KB until it spans
+    :data:`_PREFIX_SPAN` or reaches the data's start; where the zone's offset stays put
+    over that span either side, only that the file did not start here counts.
+    """
+    state = AmbiguityState(earlier_rows=True)
+    if header.timezone == "UTC":
+        return state
+    size = _PREFIX_PROBE_BYTES
+    with path.open("rb") as handle:
+        while True:
+            start = max(header.data_offset, offset - size)
+            handle.seek(start)
+            tail = handle.read(offset - start)
+            if start > header.data_offset:  # from the first whole line
+                tail = tail[tail.find(b"\n") + 1 :]
+            trial = AmbiguityState(earlier_rows=start > header.data_offset)
+            parser = _BatchParser(header, depth_limits, trial)
+            n_lines = tail.count(b"\n")
+            times = parser.parse(tail, 0, n_lines).samples["time_utc"] if n_lines else None
+            first, last = (times.min(), times.max()) if times is not None else (None, None)
+            if first is None or last is None:  # no readable time: nothing to carry
+                if start == header.data_offset:
+                    return state
+            elif _offset_steady(first - _PREFIX_SPAN, last + _PREFIX_SPAN, header.timezone):
+                return state
+            elif start == header.data_offset or last - first >= _PREFIX_SPAN:
+                return AmbiguityState(trial.last_local_us, trial.seen_jump, earlier_rows=True)
+            size *= 4
+
+
+def _offset_steady(low: dt.datetime, high: dt.datetime, zone: str) -> bool:
+    """Whether ``zone``'s UTC offset is one between the UTC instants ``low`` and ``high``
+    (checked hourly: a daylight-saving change moves it for months)."""
+    tz = zoneinfo.ZoneInfo(zone)
+    hours = int((high - low) / dt.timedelta(hours=1)) + 1
+    probes = (low + dt.timedelta(hours=k) for k in range(hours + 1))
+    return len({probe.astimezone(tz).utcoffset() for probe in probes}) == 1
 
 
 class _Lines:

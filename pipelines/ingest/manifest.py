@@ -11,6 +11,10 @@ is resumed when a longer file arrives whose first ``size_bytes`` bytes hash to t
 row's ``source_sha256``: appending keeps the old content as a prefix, so the prefix
 hash identifies it without storing anything extra.
 Ingest then starts at the old ``bytes_consumed`` (the first line not yet landed).
+A landed CSV (it ended with a whole line) that grows later under the same path is
+resumed the same way after all it held, so its rows are not read again (its rejects
+not quarantined twice); a landed content under another name is not looked for, so a
+new file of a backfill keeps reading while it is hashed.
 """
 
 from __future__ import annotations
@@ -50,7 +54,7 @@ class Earlier:
 
 @dataclass(frozen=True)
 class Resume:
-    """A partial, growing earlier version of a file: where to pick up."""
+    """An earlier version of a growing file (partial, or landed whole): where to pick up."""
 
     sha256: str
     size_bytes: int
@@ -76,13 +80,18 @@ def size_seen(con: duckdb.DuckDBPyConnection, size: int) -> bool:
     return bool(rows)
 
 
-def resume_candidates(con: duckdb.DuckDBPyConnection, *, max_size: int) -> list[Resume]:
-    """Partial CSV manifest rows that a file of ``max_size`` bytes could extend."""
+def resume_candidates(
+    con: duckdb.DuckDBPyConnection, *, max_size: int, path: Path | None = None
+) -> list[Resume]:
+    """CSV manifest rows that a file of ``max_size`` bytes could extend: the partial ones,
+    and the landed ones of the same ``path`` (module docstring)."""
     rows = con.execute(
         "SELECT source_sha256, size_bytes, bytes_consumed FROM manifest "
-        "WHERE format = 'csv' AND status = 'partial' AND bytes_consumed IS NOT NULL "
-        "AND bytes_consumed < size_bytes AND size_bytes < ? ORDER BY size_bytes",
-        [max_size],
+        "WHERE format = 'csv' AND bytes_consumed IS NOT NULL AND size_bytes < ? AND ("
+        "(status = 'partial' AND bytes_consumed < size_bytes) OR "
+        "(status = 'landed' AND bytes_consumed = size_bytes AND source_path = ?)) "
+        "ORDER BY size_bytes",
+        [max_size, None if path is None else str(path)],
     ).fetchall()
     return [Resume(*row) for row in rows]
 

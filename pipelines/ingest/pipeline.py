@@ -10,8 +10,10 @@ published every ``commit_every`` files):
    manifest row is replaced by the new outcome. A CSV whose size no manifest row has
    (so certainly new) is opened and its first batch read while the hash runs on a
    thread.
-2. A partial earlier version that this file extends -> resume after its
-   ``bytes_consumed`` (:mod:`.manifest`).
+2. An earlier version that this file extends (partial, or landed under the same path)
+   -> resume after its ``bytes_consumed`` (:mod:`.manifest`), in the place of a
+   daylight-saving change's repeated hour that version ended in
+   (:func:`.field_csv.prefix_ambiguity`).
 3. The format's reader yields batches (:mod:`.field_csv`, :mod:`.field_tdms`,
    :mod:`.rig_mcap`); rejected rows go to ``quarantine``, samples are landed with dedup
    (:mod:`.landing`), conflicts quarantined. Batch N lands on a worker thread while
@@ -150,7 +152,7 @@ def _ingest_file(
         hoist_lookup = _noting_misses(hoist_lookup, notes, path)
     if fmt == "csv":
         warm_up_in_background()
-    candidates = resume_candidates(con, max_size=size) if fmt == "csv" else []
+    candidates = resume_candidates(con, max_size=size, path=path) if fmt == "csv" else []
     started: _Started | None = None
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="ropeload-hash") as hasher:
         digests = hasher.submit(file_digests, path, [c.size_bytes for c in candidates])
@@ -273,7 +275,7 @@ def _open(
                 line = 1 + _count_newlines(handle, resume.bytes_consumed)
             notes.append(
                 f"resumed at byte {resume.bytes_consumed} (line {line}) after the earlier "
-                f"partial version {resume.sha256[:12]}"
+                f"version {resume.sha256[:12]}"
             )
             return open_csv(
                 path,

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import datetime as dt
 import hashlib
 import shutil
+from zoneinfo import ZoneInfo
 
 import polars as pl
 
@@ -96,6 +98,56 @@ def test_growing_file_is_picked_up_where_it_stopped(corpus, tmp_path, root):
     assert sorted(lake["source_line"].to_list()) == list(range(7, 37))
     # small appends merge into the partition's newest part: one part, not one per pickup
     assert len(list(root.table_dir("field_samples").rglob("*.parquet"))) == 1
+
+
+def test_a_landed_file_that_grows_is_resumed_not_read_again(corpus, tmp_path, root):
+    """A logger that flushes whole lines: the file lands whole, then grows under the
+    same name; the second ingest reads only the new rows, and the first version's bad
+    rows stay quarantined once."""
+    rows = corpus.data_rows(40)
+    rows[5][1], rows[6][1] = "abc", "-1"
+    live = tmp_path / "live.csv"
+    live.write_bytes(corpus.csv_file(tmp_path / "first.csv", rows[:20]).read_bytes())
+    first = ingest_paths([live], data=root).files[0]
+    assert (first.status, first.rows_landed, first.rows_quarantined) == ("landed", 18, 2)
+    live.write_bytes(corpus.csv_file(tmp_path / "full.csv", rows).read_bytes())
+    second = ingest_paths([live], data=root).files[0]
+    assert second.status == "landed"
+    assert "resumed at byte" in second.message
+    assert (second.rows_read, second.rows_landed, second.rows_duplicate) == (20, 20, 0)
+    assert second.rows_quarantined == 0
+    assert _lake_checksum(root)[0] == 38
+    assert _counts(root) == (2, 2)  # two manifest rows, the two bad lines once each
+
+
+def test_a_file_growing_through_the_repeated_hour_lands_each_pass_once(corpus, tmp_path, root):
+    """A New York logger at 1 Hz across the end of daylight-saving time (local times
+    01:00-01:59 twice), picked up cut in the second pass, again later in it, then whole:
+    every sample lands once at its true instant, as the whole file read at once does
+    (each resumed read starts where the earlier version left the repeated hour)."""
+    zone = ZoneInfo("America/New_York")
+    instants = [
+        dt.datetime(2026, 11, 1, 4, 50, tzinfo=dt.UTC) + dt.timedelta(seconds=k)
+        for k in range(2 * 3600 + 1)  # 00:50 EDT .. 01:50 EST
+    ]
+    rows = corpus.data_rows(len(instants))
+    for row, t in zip(rows, instants, strict=True):
+        row[0] = t.astimezone(zone).strftime("%Y-%m-%d %H:%M:%S.000")
+    header = {**corpus.HEADER, "timezone": "America/New_York"}
+    full = corpus.csv_file(tmp_path / "full.csv", rows, header=header).read_bytes()
+    live = tmp_path / "live.csv"
+    for cut_at in (dt.datetime(2026, 11, 1, 6, 20), dt.datetime(2026, 11, 1, 6, 40)):
+        k = instants.index(cut_at.replace(tzinfo=dt.UTC))  # 01:20 and 01:40 EST
+        at = full.index(rows[k][0].encode(), full.index(b"01:59:59.000"))  # second pass
+        live.write_bytes(full[: at + 12])  # the line at cut_at cut off
+        assert ingest_paths([live], data=root).files[0].status == "partial"
+    live.write_bytes(full)
+    last = ingest_paths([live], data=root).files[0]
+    assert last.status == "landed"
+    lake = pl.read_parquet(sorted(root.table_dir("field_samples").rglob("*.parquet")))
+    assert lake.height == len(instants)
+    assert lake["time_utc"].sort().to_list() == instants
+    assert _counts(root)[1] == 0  # nothing quarantined as a conflict
 
 
 def test_truncated_tdms_then_the_complete_file_lands_every_sample_once(corpus, tmp_path, root):

@@ -11,9 +11,11 @@ times (LabVIEW logs jitter and drop samples) and is used; otherwise
 (UTC), so ``timezone`` is informational here. A value channel without ``wf_increment``
 or ``wf_start_time`` refuses the file, naming the channel.
 
-A truncated file (channels of the last chunk end unevenly: the logger stopped
-mid-write) lands the samples every channel has and is ``partial``; the complete file,
-exported later, lands the rest (the first part as exact duplicates).
+A truncated file (channels end unevenly: the logger stopped mid-write) lands the
+samples every channel has and is ``partial``; the complete file, exported later, lands
+the rest (the first part as exact duplicates). Channels written in segments of their
+own (or in uneven pieces) are aligned by their offsets. A sample whose time no
+calendar date holds is quarantined as an unreadable timestamp.
 
 Quarantine rows of TDMS files have no line; ``raw`` starts with the 0-based sample index
 (the samples' ``_row``).
@@ -46,6 +48,9 @@ from schemas.tables import FIELD_SAMPLES
 __all__ = ["open_tdms"]
 
 _GROUP = "hoist"
+#: The times a sample may have: those of Python's datetime (years 1-9999).
+_EARLIEST = np.datetime64("0001-01-01T00:00:00", "us")
+_LATEST = np.datetime64("9999-12-31T23:59:59.999999", "us")
 
 # a damaged file's complaints are the file's outcome (refused, partial), said once by
 # the ingest report: npTDMS's own warnings would be further stderr lines
@@ -169,48 +174,46 @@ def _batches(
     limits: tuple[float, float],
     reading: Reading,
 ) -> Iterator[Batch]:
-    """Batches per data chunk. A chunk whose channels end unevenly is a truncated file
-    (the logger stopped mid-write): the samples every channel has land, the reading
-    stops there and is ``partial`` (a channel filled with nulls instead would land
-    wrong rows that the complete file's rows then conflict with)."""
+    """Batches of the samples every channel has, as the data chunks bring them.
+
+    A chunk holds what one segment wrote of each channel, at the channel's offset: all
+    channels alike, or (a logger that writes each group of channels in a segment of its
+    own) some of them, or uneven lengths whose totals agree. Each channel's values are
+    held until every channel has them; a batch lands the samples all have so far.
+    Channels that end unevenly are a truncated file (the logger stopped mid-write): the
+    samples every channel has land and the reading is ``partial`` (a channel filled with
+    nulls instead would land wrong rows that the complete file's rows then conflict
+    with)."""
+    names = [c.name for c in tdms[_GROUP].channels() if c.name in units or c.name == "timestamp"]
+    held: dict[str, list[np.ndarray]] = {name: [] for name in names}
+    ends = dict.fromkeys(names, 0)  # each channel's values read so far
+    landed = 0  # the samples every channel had, batched already
     try:
         for chunk in tdms.data_chunks():
-            group = chunk[_GROUP]
-            arrays = {c.name: (c.offset, c[:]) for c in group.channels()}
-            if "p1" not in arrays:
+            for channel in chunk[_GROUP].channels():
+                if channel.name in held and len(channel):
+                    held[channel.name].append(channel[:])
+                    ends[channel.name] = channel.offset + len(channel)
+            n = min(ends.values()) - landed
+            if n <= 0:
                 continue
-            first, n, arrays = _even_channels(arrays, units, reading)
-            si, present = _si_frame(arrays, units, timebase, first, n)
+            arrays = {}
+            for name in names:
+                values = np.concatenate(held[name]) if len(held[name]) > 1 else held[name][0]
+                arrays[name] = (landed, values[:n])
+                held[name] = [values[n:]] if len(values) > n else []
+            si, present = _si_frame(arrays, units, timebase, landed, n)
+            landed += n
             yield _screened_batch(si, present, limits)
-            if reading.partial:
-                break
+        if max(ends.values()) > landed:
+            short = min(ends, key=ends.__getitem__)
+            reading.partial = (
+                f"truncated: channel hoist/{short} ends at sample {landed}, "
+                f"{max(ends.values()) - landed} sample(s) before the longest channel; "
+                "landed the samples every channel has"
+            )
     finally:
         tdms.close()
-
-
-def _even_channels(
-    arrays: dict[str, tuple[int, np.ndarray]],
-    units: dict[str, tuple[float, float]],
-    reading: Reading,
-) -> tuple[int, int, dict[str, tuple[int, np.ndarray]]]:
-    """The chunk's first sample, the samples every channel has and the channels cut to
-    them; a channel ending early marks the reading ``partial`` (a truncated file)."""
-    first = arrays["p1"][0]
-    lengths = {
-        name: len(data)
-        for name, (offset, data) in arrays.items()
-        if (name in units or name == "timestamp") and offset == first
-    }
-    n = min(lengths.values())
-    if n < max(lengths.values()):
-        short = min(lengths, key=lengths.__getitem__)
-        reading.partial = (
-            f"truncated: channel hoist/{short} ends at sample {first + n}, "
-            f"{max(lengths.values()) - n} sample(s) before the longest channel; landed "
-            "the samples every channel has"
-        )
-        arrays = {name: (offset, data[:n]) for name, (offset, data) in arrays.items()}
-    return first, n, arrays
 
 
 def _si_frame(
@@ -225,11 +228,15 @@ def _si_frame(
     start, offset_s, increment_s = timebase
     index = np.arange(first, first + n, dtype=np.int64)
     if "timestamp" in arrays and len(arrays["timestamp"][1]) == n:
-        times = pl.Series("time_utc", arrays["timestamp"][1].astype("datetime64[us]"))
+        stamps = arrays["timestamp"][1].astype("datetime64[us]")
     else:
         with np.errstate(invalid="ignore", over="ignore"):  # beyond int64: quarantined
             step_us = np.rint((offset_s + index * increment_s) * 1e6).astype(np.int64)
-        times = pl.Series("time_utc", start + step_us.astype("timedelta64[us]"))
+        stamps = start + step_us.astype("timedelta64[us]")
+    # a time no calendar date holds (a garbage stamp: npTDMS reads NaT as year 294181)
+    # is no time: quarantined as such, not landed in a partition of that "date"
+    stamps = np.where((stamps >= _EARLIEST) & (stamps <= _LATEST), stamps, np.datetime64("NaT"))
+    times = pl.Series("time_utc", stamps)
     columns = {"time_utc": times.dt.replace_time_zone("UTC"), "_row": index}
     values = []
     for name, spec in CHANNELS.items():

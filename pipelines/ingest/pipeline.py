@@ -189,7 +189,10 @@ def _ingest_file(
         return result, earlier
     except (OSError, duckdb.Error):
         raise  # the data root's own trouble (disk, warehouse): not this file's
-    except Exception as exc:  # a reader's parse error the checks did not foresee (a bug too)
+    except (KeyboardInterrupt, SystemExit):
+        raise
+    except BaseException as exc:  # a reader's parse error the checks did not foresee (a
+        # bug too; a panic in polars' Rust is a BaseException): this file's, not the run's
         logger.debug("reading %s failed", path, exc_info=True)
         what = f"{path}: unreadable ({type(exc).__name__}: {str(exc).splitlines()[0][:200]})"
         # refused, so that the next ingest tries it again (what landed before the error

@@ -115,11 +115,16 @@ def tdms_file(
     channel_properties: dict[str, object] | None = None,
     text_in: str | None = None,
     oil_temp: tuple[float, str] | None = None,
+    stamps: np.ndarray | None = None,
+    segments: str = "one",
 ) -> Path:
     """A contract-1b TDMS; ``omit`` names waveform properties left out of ``omit_in``,
     ``channel_properties`` replace some of its properties; ``properties`` replace file
     properties (``site``, ``hoist``, ``timezone``); ``text_in`` names a channel written
-    as text; ``oil_temp`` (value, unit_string) adds that channel."""
+    as text; ``oil_temp`` (value, unit_string) adds that channel; ``stamps`` adds a
+    ``timestamp`` channel of those times. ``segments``: ``"one"``; ``"groups"`` the
+    pressures in one segment, the other channels in a second; ``"uneven"`` two segments
+    with the pressures cut after 90 % of the samples, the others after 50 %."""
     t0 = np.datetime64(start.replace(tzinfo=None), "us")
     wave = {"wf_start_time": t0, "wf_increment": 0.01, "wf_start_offset": 0.0}
     channels = []
@@ -132,6 +137,8 @@ def tdms_file(
         values["oil_temp"] = (np.full(n, oil_temp[0]), oil_temp[1])
     if text_in == "timestamp":  # a sample-time channel, written as text below
         values["timestamp"] = (np.arange(n, dtype=np.float64), "")
+    elif stamps is not None:
+        values["timestamp"] = (stamps, "")
     values["p3"][0][5] = -9999.0  # a sentinel
     values["p1"][0][7] = 75.0  # impossible: above 60 MPa
     for name, (data, unit) in values.items():
@@ -141,11 +148,26 @@ def tdms_file(
             props.update(channel_properties or {})
         if name == text_in:
             data = np.array([f"{v:.3f}" for v in data])
-        channels.append(ChannelObject("hoist", name, data, properties=props))
+        channels.append((name, data, props))
     file_props = {"site": HEADER["site"], "hoist": "tdms-hoist", "timezone": "UTC"}
     root = RootObject({**file_props, **(properties or {})})
+    pressure = {f"p{i}" for i in range(1, 5)}
+    if segments == "one":
+        cuts = {name: n for name, _, _ in channels}
+    elif segments == "groups":  # the pressures first, whole; the rest after
+        cuts = {name: (n if name in pressure else 0) for name, _, _ in channels}
+    else:
+        cuts = {name: (n * 9 // 10 if name in pressure else n // 2) for name, _, _ in channels}
     with TdmsWriter(path) as writer:
-        writer.write_segment([root, GroupObject("hoist"), *channels])
+        parts = [
+            [ChannelObject("hoist", name, data[:cut], properties=props)
+             for name, data, props in channels if (cut := cuts[name]) > 0],
+            [ChannelObject("hoist", name, data[cuts[name]:], properties=props)
+             for name, data, props in channels if cuts[name] < n],
+        ]  # fmt: skip
+        writer.write_segment([root, GroupObject("hoist"), *parts[0]])
+        if parts[1]:
+            writer.write_segment([root, GroupObject("hoist"), *parts[1]])
     return path
 
 

@@ -28,6 +28,8 @@ __all__ = ["CsvHeader", "read_header"]
 _HEADER_LIMIT = 1 << 16
 _BOM = b"\xef\xbb\xbf"
 _REQUIRED_KEYS = ("site", "hoist", "units")
+#: The header keys ingest reads: stated twice with two values, the file is refused.
+_READ_KEYS = (*_REQUIRED_KEYS, "timezone", "sample_rate_hz")
 _SEPARATORS = (",", ";", "\t")
 _CONTROL_BYTES = re.compile(rb"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
 
@@ -176,8 +178,14 @@ def _header_lines(
                 break
             body = text[1:].strip()
             key, colon, value = body.partition(":")
+            name = key.strip().lower()
+            if colon and name in _READ_KEYS and name in meta and meta[name][1] != value.strip():
+                raise RefusedFile(
+                    f"{path}: line {line_no}: {name!r} stated again ({value.strip()!r}) "
+                    f"unlike line {meta[name][0]} ({meta[name][1]!r}): which one holds?"
+                )
             if colon:
-                meta[key.strip().lower()] = (line_no, value.strip())
+                meta[name] = (line_no, value.strip())
             else:
                 notes.append(f"line {line_no}: header line without 'key: value' ignored")
             pos = next_pos

@@ -276,6 +276,22 @@ def case_latin1_header_comment(corpus, tmp):
     return path, Expect("landed", 100, 100, message="line 4: not UTF-8 text, read as cp1252")
 
 
+def case_hoist_stated_twice_with_two_values(corpus, tmp):
+    # two exports' headers pasted together: which hoist the rows belong to is not said
+    path = corpus.csv_file(tmp / "twice.csv", corpus.data_rows(3))
+    _with_header_line(path, b"# timezone", b"# Hoist : other-hoist")
+    return path, Expect(
+        "refused", 0, 0,
+        message="line 4: 'hoist' stated again ('other-hoist') unlike line 2 ('main-shaft-1')",
+    )  # fmt: skip
+
+
+def case_a_read_key_repeated_alike_and_a_free_key_twice(corpus, tmp):
+    path = corpus.csv_file(tmp / "alike.csv", corpus.data_rows(4))
+    _with_header_line(path, b"# timezone", b"# timezone: UTC\n# note: one\n# note: two")
+    return path, Expect("landed", 4, 4)
+
+
 def case_stray_bytes_in_free_comment(corpus, tmp):
     # bytes no code page defines (0x81, 0x8d, 0x90 are holes in cp1252) in a line
     # without 'key: value': read as Latin-1, ignored as a comment

@@ -267,7 +267,8 @@ def _rig_id(path: Path, info: pl.DataFrame) -> str:
 
 
 def _screened_pressure(pressure: pl.DataFrame) -> pl.DataFrame:
-    """The pressures in Pa with ``_reason`` set where one is negative or above 60 MPa."""
+    """The pressures in Pa with ``_reason`` set where one is not a number (NaN, which
+    polars orders above every number), negative or above 60 MPa."""
     samples = pressure.select(
         "time_utc",
         "_row",
@@ -277,6 +278,7 @@ def _screened_pressure(pressure: pl.DataFrame) -> pl.DataFrame:
     reasons = []
     for column in ("p_rodless_pa", "p_rod_pa"):
         name = column.removesuffix("_pa")
+        reasons.append(pl.when(pl.col(column).is_nan()).then(pl.lit(f"not a number ({name})")))
         reasons.append(
             pl.when(pl.col(column) < 0).then(pl.lit(f"negative absolute pressure ({name})"))
         )

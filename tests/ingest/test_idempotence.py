@@ -242,6 +242,13 @@ def test_non_jsonschema_topic_refuses_the_file(corpus, tmp_path, root):
     assert not root.table_dir("rig_samples").exists()
 
 
+def test_a_pressure_message_of_nan_is_quarantined_as_not_a_number(corpus, tmp_path, root):
+    path = corpus.mcap_file(tmp_path / "nan.mcap", nan_messages=2)
+    (file,) = ingest_paths([path], data=root).files
+    assert (file.rows_landed, file.rows_quarantined) == (1998, 2)
+    assert file.quarantined_by_reason == {"not a number (p_rodless)": 2}
+
+
 def test_invalid_pressure_messages_are_quarantined_with_topic(corpus, tmp_path, root):
     path = corpus.mcap_file(tmp_path / "bad.mcap", bad_messages=3)
     (file,) = ingest_paths([path], data=root).files

@@ -180,6 +180,7 @@ def mcap_file(
     unknown_topic: bool = False,
     bad_encoding_topic: str | None = None,
     bad_messages: int = 0,
+    nan_messages: int = 0,
     truncate_fraction: float | None = None,
     chunk_size: int = 16 * 1024,
 ) -> Path:
@@ -241,6 +242,8 @@ def mcap_file(
             payload = {"p_rodless_mpa": 2.0 + i // 500 + 0.001 * (i % 7), "p_rod_mpa": 0.5}
             if i < bad_messages:
                 payload = {"p_rodless_mpa": "high"}
+            elif i < bad_messages + nan_messages:  # json.dumps writes NaN
+                payload["p_rodless_mpa"] = float("nan")
             put("/rig/pressure", t + 100_000, payload)
         writer.finish()
     if truncate_fraction is not None:

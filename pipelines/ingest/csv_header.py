@@ -201,6 +201,11 @@ def _header_lines(
     if column_line is None:
         if len(head) == _HEADER_LIMIT:
             raise RefusedFile(f"{path}: no column line within the first {_HEADER_LIMIT} bytes")
+        if b"\r" in head and b"\n" not in head:
+            raise RefusedFile(
+                f"{path}: line 1: its lines end with a bare carriage return (classic Mac "
+                "OS), not a newline: export with LF or CRLF line ends"
+            )
         raise RefusedFile(f"{path}: line {line_no}: header only, no column line and no data")
     return meta, notes, column_line, pos
 
@@ -245,14 +250,21 @@ def _check_columns(path: Path, line: int, columns: tuple[str, ...], notes: list[
     seen = set()
     for name in columns:
         if name in seen:
-            raise RefusedFile(f"{path}: line {line}: column {name!r} appears twice")
+            raise RefusedFile(
+                f"{path}: line {line}: column {name!r} appears twice"
+                + (" (separators at the end of the line?)" if not name else "")
+            )
         seen.add(name)
     lacking = [c for c in ("p1", "p2", "p3", "p4") if c not in seen]
     if lacking:
         raise RefusedFile(
             f"{path}: line {line}: column line lacks required channel(s) {', '.join(lacking)}"
         )
-    unknown = [c for c in columns[1:] if c not in CHANNELS]
+    unknown = [
+        c or f"unnamed column {k + 2} (a separator at the end of the line?)"
+        for k, c in enumerate(columns[1:])
+        if c not in CHANNELS
+    ]
     if unknown:
         notes.append(f"line {line}: unknown column(s) {', '.join(unknown)} ignored")
 

@@ -320,6 +320,25 @@ def case_non_utf8_rows_among_good_ones(corpus, tmp):
     return path, Expect("landed", 12, 10, 2, reasons={"non-UTF-8 bytes": 2})
 
 
+def case_classic_mac_line_ends(corpus, tmp):
+    path = corpus.csv_file(tmp / "mac.csv", corpus.data_rows(5))
+    path.write_bytes(path.read_bytes().replace(b"\n", b"\r"))
+    return path, Expect(
+        "refused", 0, 0, message="line 1: its lines end with a bare carriage return"
+    )
+
+
+def case_separator_at_the_end_of_every_line(corpus, tmp):
+    path = corpus.csv_file(tmp / "trailing.csv", corpus.data_rows(6))
+    lines = path.read_bytes().split(b"\n")
+    at = next(i for i, line in enumerate(lines) if line.startswith(b"timestamp"))
+    lines[at:-1] = [line + b"," for line in lines[at:-1]]
+    path.write_bytes(b"\n".join(lines))
+    return path, Expect(
+        "landed", 6, 6, message="unknown column(s) unnamed column 13 (a separator at the end"
+    )
+
+
 def case_binary_garbage(corpus, tmp):
     path = tmp / "garbage.csv"
     path.write_bytes(bytes(range(256)) * 8)

@@ -23,6 +23,8 @@ OUTPUT_SCHEMA = polars_schema(ROPE_TENSIONS)
 
 
 def _nullable(name: str, values: np.ndarray, dtype: type = pl.Float64) -> pl.Series:
+    """``values`` as a column, NaN (no value: a pressure not logged) as null: in SQL a
+    NaN is greater than every number, so an analyst's max() of a tension would be NaN."""
     series = pl.Series(name, values, dtype=dtype)
     return series.fill_nan(None) if np.isnan(values).any() else series
 
@@ -89,11 +91,11 @@ def block_frame(
         **{
             name: _nullable(name, values, pl.Float32)  # the band (schemas.tables)
             if name.endswith(("_lo_n", "_hi_n"))
-            else pl.Series(name, values, dtype=pl.Float64)
+            else _nullable(name, values)
             for name, values in columns.items()
         },
-        "load_raw_n": pl.Series("load_raw_n", load_raw, dtype=pl.Float64),
-        "load_n": pl.Series("load_n", load, dtype=pl.Float64),
+        "load_raw_n": _nullable("load_raw_n", load_raw),
+        "load_n": _nullable("load_n", load),
         "load_lo_n": _nullable("load_lo_n", load_lo, pl.Float32),
         "load_hi_n": _nullable("load_hi_n", load_hi, pl.Float32),
     }

@@ -66,6 +66,21 @@ def test_output_has_rope_tension_schema():
     assert out.height == 200
 
 
+def test_a_pressure_not_logged_gives_null_tensions_not_nan():
+    """Rope 2's sensor silent for 0.5 s: its tension, friction and the load there are
+    null (SQL's max() would take a NaN for the largest value); the others have theirs."""
+    p = np.full((4, 300), 4.2e6)
+    p[1, 100:150] = np.nan
+    frame = _frame(p, np.zeros(300)).with_columns(pl.col("p2_pa").fill_nan(None))
+    out = compensate(frame, HOIST)
+    floats = [c for c, t in out.schema.items() if t.is_float()]
+    assert out.select(pl.col(floats).is_nan().any()).row(0) == (False,) * len(floats)
+    silent = out.slice(100, 50)
+    assert silent["tension2_n"].null_count() == silent["load_n"].null_count() == 50
+    assert silent["tension1_n"].null_count() == 0
+    assert out["tension2_n"].max() == pytest.approx(4.2e6 * AREA, rel=1e-3)
+
+
 def test_at_rest_without_history_tension_is_pressure_times_area():
     out = compensate(_frame(np.full(500, 4.2e6), np.zeros(500)), HOIST)
     assert out["tension1_n"].to_numpy() == pytest.approx(4.2e6 * AREA, rel=1e-9)

@@ -21,10 +21,14 @@ damage and is reported ``partial`` with the reason.
 
 Row accounting counts ``/rig/pressure`` messages: read = landed + quarantined +
 duplicates. Bad messages of the other topics are quarantined too (with their topic)
-but are not rows of ``rig_samples``; the report message counts them.
+but are not rows of ``rig_samples``; the report message counts them. A quarantine
+row's ``raw`` says where the message is (its index among its topic's messages and its
+log time: ``line`` is null in a binary file), then its payload.
 """
 
 from __future__ import annotations
+
+import datetime as dt
 
 import json
 from collections import Counter
@@ -191,7 +195,7 @@ def _decode(
             "row": bad["_row"],
             "topic": topic,
             "reason": bad["_reason"],
-            "raw": [payloads[i].decode("utf-8", errors="replace") for i in bad["_row"]],
+            "raw": [_located(i, times[i], payloads[i]) for i in bad["_row"]],
         },
         schema=REJECTED_SCHEMA,
     )
@@ -203,6 +207,16 @@ def _decode(
         .alias("time_utc")
     ).sort("_ns", "_row")
     return good, rejected
+
+
+_EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.UTC)
+
+
+def _located(row: int, log_time_ns: int, payload: bytes) -> str:
+    """A quarantined message's raw text: where it is in the recording (its 0-based index
+    among its topic's messages, its log time), then its payload, as a TDMS sample's."""
+    at = (_EPOCH + dt.timedelta(microseconds=log_time_ns // 1000)).isoformat()
+    return f"message {row}, log time {at}: {payload.decode('utf-8', errors='replace')}"
 
 
 def _typed(value: Any, dtype: pl.DataType) -> Any:
@@ -224,10 +238,10 @@ def _reading(path: Path, collected: _Collected, partial: str | None) -> Reading:
         pl.lit(rig_id).alias("rig_id")
     )
     bad = aligned.filter(pl.col("_reason").is_not_null())
-    payloads = collected.payloads["/rig/pressure"]
+    payloads, times = collected.payloads["/rig/pressure"], collected.times["/rig/pressure"]
 
     def raw_of(rows: list[int]) -> list[str | None]:
-        return [payloads[r].decode("utf-8", errors="replace") for r in rows]
+        return [_located(r, times[r], payloads[r]) for r in rows]
 
     rejected = pl.concat(
         [

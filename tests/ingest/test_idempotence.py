@@ -247,6 +247,13 @@ def test_a_pressure_message_of_nan_is_quarantined_as_not_a_number(corpus, tmp_pa
     (file,) = ingest_paths([path], data=root).files
     assert (file.rows_landed, file.rows_quarantined) == (1998, 2)
     assert file.quarantined_by_reason == {"not a number (p_rodless)": 2}
+    with open_reader(root) as con:
+        raw = con.sql("SELECT raw FROM quarantine ORDER BY raw").fetchall()
+    # where each is in the recording: the builder's first two pressure messages
+    assert [r[0][:48] for r in raw] == [
+        "message 0, log time 2026-03-02T14:00:00.000100+0",
+        "message 1, log time 2026-03-02T14:00:00.001100+0",
+    ]
 
 
 def test_invalid_pressure_messages_are_quarantined_with_topic(corpus, tmp_path, root):

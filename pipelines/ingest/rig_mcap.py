@@ -29,7 +29,6 @@ log time: ``line`` is null in a binary file), then its payload.
 from __future__ import annotations
 
 import datetime as dt
-
 import json
 from collections import Counter
 from collections.abc import Callable

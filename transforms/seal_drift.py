@@ -159,17 +159,22 @@ def drift_pressure(
     """The mean pressure that drives the seals' drift in
     :func:`transforms.stick_slip.stick_slip`, and the half-width of the play on it [Pa].
 
-    The mean of the sensors (already low-passed at ``pressure_cutoff_hz``), low-passed
+    The mean of the sensors logged at each sample (already low-passed at
+    ``pressure_cutoff_hz``), low-passed
     again at :func:`drift_cutoff_hz`; the play's half-width is :data:`DRIFT_SIGMAS` x
     that mean's noise, ``pressure_sigma_pa`` white per sensor through the two filters.
     ``work``: scratch of :func:`transforms.lowpass.lowpass_work_size` samples at that
     cut-off.
     """
     cutoff = drift_cutoff_hz(hoist, pressure_cutoff_hz)
-    mean = np.array(pressures[0], dtype=np.float64)
-    for p in pressures[1:]:
-        mean += p
-    mean /= len(pressures)
+    mean = np.zeros(np.shape(pressures[0]))
+    count = np.zeros(np.shape(pressures[0]))
+    for p in pressures:  # a sensor not logged at a sample: the others' mean
+        known = ~np.isnan(p)
+        mean += np.where(known, p, 0.0)
+        count += known
+    with np.errstate(invalid="ignore"):
+        mean /= count  # none logged: NaN
     lowpass(mean, segment_id, sample_rate_hz=sample_rate_hz, cutoff_hz=cutoff, out=mean, work=work)
     share = min(1.0, 2.0 * cutoff / sample_rate_hz)
     return mean, DRIFT_SIGMAS * pressure_sigma_pa * float(np.sqrt(share / len(pressures)))

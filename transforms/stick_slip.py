@@ -814,6 +814,7 @@ def _kernel(
     damping = np.zeros(m)
     cap = np.zeros(m)
     ka = np.zeros(m)
+    p_now = np.zeros(m)  # each sensor's pressure at the sample, the others' mean if unknown
     ran = state[0] != 0.0
     resume = ran and state[1] != 0.0
     s, p_last = state[2], state[3]
@@ -864,10 +865,17 @@ def _kernel(
                 v[i] = 0.0
         if drift_mode == 2:
             pending += drift_p[t]
+        # a sensor not logged here takes the others' mean: the chambers share the oil
+        # (equal at rest, apart by branch losses while it flows); none logged: held
         p_mean = 0.0
+        known = 0
         for i in range(m):
-            p_mean += p_sensor[i][t]
-        p_mean /= m
+            if np.isfinite(p_sensor[i][t]):
+                p_mean += p_sensor[i][t]
+                known += 1
+        p_mean = p_mean / known if known else np.nan
+        for i in range(m):
+            p_now[i] = p_sensor[i][t] if np.isfinite(p_sensor[i][t]) else p_mean
         if np.isfinite(depth[t]):
             hanging = headframe + max(depth[t], 0.0)
         if not np.isfinite(p_mean):
@@ -895,13 +903,13 @@ def _kernel(
             den = 0.0
             for i in range(m):
                 x[i] = x_logged[i][t] if np.isfinite(x_logged[i][t]) else 0.0
-                num += p_sensor[i][t] * area + ka[i] * (x[i] + c[i])
+                num += p_now[i] * area + ka[i] * (x[i] + c[i])
                 den += ka[i]
             s = num / den
             if start != 0.0:  # the common stretch that takes the seals farthest that way
                 reach = s
                 for i in range(m):
-                    at_cap = (start * scale * fs + p_sensor[i][t] * area) / ka[i] + x[i] + c[i]
+                    at_cap = (start * scale * fs + p_now[i] * area) / ka[i] + x[i] + c[i]
                     reach = (
                         at_cap
                         if i == 0
@@ -909,7 +917,7 @@ def _kernel(
                     )
                 s = max(s, reach) if start > 0.0 else min(s, reach)
             for i in range(m):
-                force = ka[i] * (s - x[i] - c[i]) - p_sensor[i][t] * area
+                force = ka[i] * (s - x[i] - c[i]) - p_now[i] * area
                 z[i] = min(max(force, -scale * fs), scale * fs)
                 if elements:
                     z[i] = maxwell_slip_virgin(z[i], deltas[i], element_k, element_w, cap[i])
@@ -941,7 +949,7 @@ def _kernel(
             total = 0.0
             slope = 0.0
             for i in range(m):
-                demand[i] = ka[i] * (s + ds - x[i] - c[i]) - p_sensor[i][t] * area
+                demand[i] = ka[i] * (s + ds - x[i] - c[i]) - p_now[i] * area
                 if elements:
                     step[i], given[i], lo[i], hi[i] = elements_on_rope_step(
                         demand[i], deltas[i], element_k, limits[i], ka[i] + damping[i]
@@ -984,7 +992,7 @@ def _kernel(
         s += ds
         for i in range(m):
             if not solved:  # the iterations ran out: evaluate at the last s
-                demand[i] = ka[i] * (s - x[i] - c[i]) - p_sensor[i][t] * area
+                demand[i] = ka[i] * (s - x[i] - c[i]) - p_now[i] * area
                 if elements:
                     step[i], given[i], lo[i], hi[i] = elements_on_rope_step(
                         demand[i], deltas[i], element_k, limits[i], ka[i] + damping[i]

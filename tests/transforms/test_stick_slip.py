@@ -87,6 +87,24 @@ def test_every_seal_sticks_through_a_small_rise():
         assert abs(f[i][-1]) < _static_n(p[-1])  # it did stick
 
 
+def test_a_sensor_not_logged_takes_the_others_mean_and_the_seals_go_on():
+    """The small rise of the test above with sensor 4 silent over its middle third: the
+    chambers share the oil, so its pressure is the others' (equal here) and every seal
+    follows as with four sensors, not held until the sensor returns (the first wave
+    held all four for the gap, then caught up in one step)."""
+    p0, dp = 4.0e6, 2.0e4
+    p = np.r_[np.full(10, p0), np.linspace(p0, p0 + dp, 200)[1:]]
+    n = p.size
+    silent = p.copy()
+    silent[70:140] = np.nan
+    args = (np.full(n, DEPTH), np.zeros(n, int), HOIST, EQUAL)
+    _, whole = stick_slip((p,) * 4, (np.zeros(n),) * 4, *args, dt_s=0.01)
+    _, gap = stick_slip((p, p, p, silent), (np.zeros(n),) * 4, *args, dt_s=0.01)
+    for i in range(4):
+        np.testing.assert_allclose(gap[i], whole[i], rtol=1e-12)  # a mean of 3, not 4
+    assert whole[0][139] - whole[0][70] > 0.3 * whole[0][-1]  # they moved in the gap
+
+
 def test_the_mismatch_of_a_population_is_each_ones_mean_square_off_the_logged_x():
     """Every seal sticks through a small rise (the test above: each piston takes a quarter
     of the oil's compression); piston 2 has no logged x, piston 3 half of it, piston 4's

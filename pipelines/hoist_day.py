@@ -35,7 +35,7 @@ from pipelines.run_period import NoSamplesError, record_start, run_period
 from pipelines.steps import StepOutcome, land_steps, one_line
 from schemas.hoist import HoistDescription, load_hoist
 from transforms.compensation_record import CompensationSettings
-from warehouse.landing import insert_frame
+from warehouse.landing import drop_orphan_sanity_checks, insert_frame
 from warehouse.store import DataRoot, open_writer
 
 if TYPE_CHECKING:
@@ -314,12 +314,8 @@ def land_sanity_checks(
     earlier checks of those trips are no one's)."""
     run_ids = sorted(set(frame["run_id"].to_list()) | ({run_id} if run_id else set()))
     with open_writer(data) as con:
-        con.execute(
-            "DELETE FROM sanity_checks c WHERE list_contains(?, c.run_id) OR (c.site = ? "
-            "AND c.hoist = ? AND NOT EXISTS (SELECT 1 FROM trip_summary t "
-            "WHERE t.run_id = c.run_id AND t.trip_id = c.trip_id))",
-            [run_ids, site, hoist],
-        )
+        con.execute("DELETE FROM sanity_checks WHERE list_contains(?, run_id)", [run_ids])
+        drop_orphan_sanity_checks(con, site=site, hoist=hoist)
         landed = insert_frame(con, "sanity_checks", frame)
         if step is not None and run_id is not None:
             land_steps(con, run_id=run_id, site=site, hoist=hoist, outcomes=[step])

@@ -49,6 +49,7 @@ from warehouse.store import DataRoot
 __all__ = [
     "RopeTensionStage",
     "RunRecord",
+    "drop_orphan_sanity_checks",
     "insert_frame",
     "land_discovery_findings",
     "land_friction_parameter_sets",
@@ -137,7 +138,9 @@ def land_results(
     alarms: pl.DataFrame | None = None,
     sanity_checks: pl.DataFrame | None = None,
 ) -> dict[str, int]:
-    """Land a run and its marts, replacing what the run (or its period) landed before.
+    """Land a run and its marts, replacing what the run (or its period) landed before;
+    with ``trip_summary``, the sanity checks of trips no run holds any more go too
+    (:func:`drop_orphan_sanity_checks`).
 
     Returns rows inserted per table. Raises ValueError when a frame's ``run_id`` (or
     site / hoist) is not the run's.
@@ -170,11 +173,24 @@ def land_results(
                 params.append(ids)
             con.execute(f"DELETE FROM {table} WHERE {clause}", params)
             inserted[table] = insert_frame(con, table, frame)
+        if trip_summary is not None and run.site is not None and run.hoist is not None:
+            drop_orphan_sanity_checks(con, site=run.site, hoist=run.hoist)
         con.execute("COMMIT")
     except BaseException:
         con.execute("ROLLBACK")
         raise
     return inserted
+
+
+def drop_orphan_sanity_checks(con: duckdb.DuckDBPyConnection, *, site: str, hoist: str) -> None:
+    """Drop the hoist's sanity checks whose trip has no ``trip_summary`` row: a later run
+    over the period (with or without a check of its own) took its trips over, and a
+    verdict on a trip no run holds would still count in the audit."""
+    con.execute(
+        "DELETE FROM sanity_checks c WHERE c.site = ? AND c.hoist = ? AND NOT EXISTS "
+        "(SELECT 1 FROM trip_summary t WHERE t.run_id = c.run_id AND t.trip_id = c.trip_id)",
+        [site, hoist],
+    )
 
 
 def land_friction_parameter_sets(con: duckdb.DuckDBPyConnection, frame: pl.DataFrame) -> int:

@@ -246,6 +246,10 @@ def test_sanity_checks_and_findings_are_replaced_not_duplicated(tmp_path):
         con.close()
     assert sanity == [("b", 2)]
     assert findings == [("b", 1)]
+    with open_writer(root) as con:  # a run without a check (a backfill's default)
+        land_results(con, _run("c"), trip_summary=_trips("c", 3))
+    with open_reader(root) as con:  # b's verdicts were on trips no run holds now
+        assert con.sql("SELECT count(*) FROM sanity_checks").fetchall() == [(0,)]
 
 
 def _legacy_day(root: DataRoot, minutes: list[int]) -> tuple[object, pl.DataFrame]:

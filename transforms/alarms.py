@@ -42,6 +42,7 @@ __all__ = [
     "AlarmRule",
     "RuleThresholds",
     "alarm_id",
+    "alarm_margin_s",
     "evaluate_alarms",
     "evaluate_alarms_in_blocks",
     "merge_alarm_pieces",
@@ -132,8 +133,29 @@ def _alarm_frame(
 
 #: Margin [s] around a block when alarms are evaluated block by block
 #: (:func:`merge_alarm_pieces`): longer than a debounce plus a merge gap, so an event
-#: shorter than it is seen whole in at least one window.
+#: shorter than it is seen whole in at least one window. At least; a hoist whose
+#: ``[alarms]`` durations are longer gets a longer one (:func:`alarm_margin_s`).
 ALARM_MARGIN_S = 120.0
+
+
+def alarm_margin_s(hoist: HoistDescription, merge_gap_s: float = 2.0) -> float:
+    """The margin around a block for ``hoist``: :data:`ALARM_MARGIN_S`, or the longest of
+    its ``[alarms]`` durations (``min_duration``, ``flatline_duration``,
+    ``dropout_duration``) plus the merge gap, twice over, if that is longer.
+
+    An event across a block edge is then seen in one of the two windows for at least
+    the duration its rule asks (a window reaches past its edge by more than that), so
+    ``--block-minutes`` does not decide whether it is raised (a 5-minute
+    ``min_duration`` lost an event of 340 s across an edge).
+
+    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
+    >>> alarm_margin_s(load_hoist(EXAMPLE_HOIST))
+    120.0
+    """
+    alarms = hoist.alarms
+    longest = max(alarms.min_duration_s, alarms.flatline_duration_s, alarms.dropout_duration_s)
+    return max(ALARM_MARGIN_S, 2.0 * (longest + merge_gap_s))
+
 
 #: Rules whose peak is the smallest value (the others: the largest; rope imbalance: the
 #: largest magnitude, its sign kept; durations are recomputed).
@@ -153,12 +175,12 @@ def evaluate_alarms_in_blocks(
     """:func:`evaluate_alarms` of a long record, one block at a time (issue 16).
 
     ``read(lo, hi)`` returns the ROPE_TENSIONS rows ``lo <= t < hi``; each block of
-    ``blocks`` is read with :data:`ALARM_MARGIN_S` either side and the alarms of all the
+    ``blocks`` is read with :func:`alarm_margin_s` either side and the alarms of all the
     windows are merged (:func:`merge_alarm_pieces`). A logger gap longer than two
     margins has no window holding both its sides: its two bounding samples are checked
     on their own, so its "no samples logged" alarm is raised as on the whole record.
     """
-    margin = dt.timedelta(seconds=ALARM_MARGIN_S)
+    margin = dt.timedelta(seconds=alarm_margin_s(hoist))
     pieces = []
     tail: pl.DataFrame | None = None
     for lo, hi in blocks:

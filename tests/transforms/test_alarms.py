@@ -354,3 +354,39 @@ def test_tight_rope(hoist):
     _assert_events(_events(alarms, "rope_imbalance"), [(i, *window) for i in (1, 2, 3, 4)])
     assert imbalance["peak_value"][0] > 0.1
     assert (imbalance["peak_value"][1:] < -0.1).all()
+
+
+def test_a_long_debounce_across_a_block_edge_is_raised_as_on_the_whole_record(hoist):
+    """``min_duration = 5 min`` (a valid setting) and a 340 s imbalance of rope 1 at rest
+    straddling a block edge: evaluated in 10-minute blocks it is raised once, with the
+    start and end the whole record gives (the fixed 120 s margin lost it: neither window
+    saw 300 s of it)."""
+    from transforms.alarms import evaluate_alarms_in_blocks
+
+    alarms_section = hoist.alarms.model_copy(update={"min_duration_s": 300.0})
+    slow = hoist.model_copy(update={"alarms": alarms_section})
+    frame, segments = synthetic_day(slow, [3000.0], standstill_s=420.0)
+    rest = next(s for s in segments if s[0] == "unload")
+    event = (rest[2] + 20.0, rest[2] + 360.0)  # within the stay's first, unloaded half
+    frame = finish(
+        frame.with_columns(
+            pl.when(_at(frame, *event)).then(pl.col("tension1_n") * 1.25)
+            .otherwise(pl.col("tension1_n")).alias("tension1_n")
+        ),
+        slow,
+    )  # fmt: skip
+    edge = T0 + dt.timedelta(seconds=event[0] + 170.0)
+    blocks, lo = [], frame["time_utc"].min()
+    while lo <= frame["time_utc"].max():
+        hi = edge if lo < edge else lo + dt.timedelta(minutes=10)
+        blocks.append((lo, hi))
+        lo = hi
+    t = pl.col("time_utc")
+
+    def read(a: dt.datetime, b: dt.datetime) -> pl.DataFrame:
+        return frame.filter((t >= a) & (t < b))
+
+    whole = _events(evaluate_alarms(frame, slow, run_id="r"), "rope_imbalance")
+    blocked = _events(evaluate_alarms_in_blocks(read, blocks, slow, run_id="r"), "rope_imbalance")
+    _assert_events(whole, [(1, *event)])
+    _assert_events(blocked, whole, tol_s=0.05)

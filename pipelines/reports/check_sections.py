@@ -144,12 +144,13 @@ def discovery_sections(data: DataRoot, period: HoistPeriod) -> list[Section]:
         "Effects found: " + (", ".join(found) if found else "none (the model explains the data)")
         + "."
     )  # fmt: skip
+    zone_words = zone.label(period.start_utc, period.end_utc)
     section.tables.insert(
         0,
         Table(
             "",
             ["discovery run", "iteration", "effect", "confidence", "gap before [kPa]",
-             "gap after [kPa]", "noise [kPa]", f"period ({zone.label(period.start_utc)})"],
+             "gap after [kPa]", "noise [kPa]", f"period ({zone_words})"],
             table_rows,
             key="discovery",
         ),

@@ -107,7 +107,7 @@ def _head(period: HoistPeriod, tables: RunTables, zone: Zone) -> Section:
     head.say(
         f"Period {zone.text(period.start_utc, '%Y-%m-%d %H:%M')} .. "
         f"{zone.text(period.end_utc, '%Y-%m-%d %H:%M')} local time "
-        f"({zone.label(period.start_utc)}), "
+        f"({zone.label(period.start_utc, period.end_utc)}), "
         f"{period.start_utc:%Y-%m-%d %H:%M} .. {period.end_utc:%Y-%m-%d %H:%M} UTC; run "
         f"{period.run_id}."
     )

@@ -122,7 +122,7 @@ def alarms_section(
             title=f"Alarms by rope, {period.site}/{period.hoist}, {period.label}",
         )
     )
-    tz = zone.label(period.start_utc)
+    tz = zone.label(period.start_utc, period.end_utc)
     rows = []
     for row in alarms.sort("start_utc").iter_rows(named=True):
         duration = (row["end_utc"] - row["start_utc"]).total_seconds()
@@ -244,7 +244,7 @@ def trips_section(
         (pl.col("worst_fraction") * 100).alias("worst_pct"),
         pl.format("{} {}", pl.col("trip_id"), pl.col("direction").fill_null("")).alias("label"),
     )
-    tz = zone.label(period.start_utc)
+    tz = zone.label(period.start_utc, period.end_utc)
     rows = []
     for row in trips.iter_rows(named=True):
         seconds = (row["time_end_utc"] - row["time_start_utc"]).total_seconds()

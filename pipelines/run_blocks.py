@@ -19,6 +19,7 @@ import polars as pl
 from pipelines.lake import scan_lake
 from schemas.hoist import HoistDescription
 from schemas.tables import ALARMS, ROPES, conform
+from transforms.alarm_checks import LOGGED_PRESSURE
 from transforms.alarms import evaluate_alarms_in_blocks
 from transforms.blocks import CompensationContext, block_edges, compensate_blocks, record_context
 from transforms.compensation import CompensationSettings
@@ -227,16 +228,26 @@ def block_alarms(
     start: dt.datetime,
     end: dt.datetime,
     block: dt.timedelta,
+    logged: FieldSamples | None = None,
 ) -> pl.DataFrame:
     """Alarms of the staged rope tensions, block by block
-    (:func:`transforms.alarms.evaluate_alarms_in_blocks`)."""
+    (:func:`transforms.alarms.evaluate_alarms_in_blocks`); the sensor rules read the
+    pressures as ``logged`` (the landed field samples) holds them, where given
+    (:data:`transforms.alarm_checks.LOGGED_PRESSURE`: the staged ones are filtered)."""
     files = stage.files()
     if not files:
         return conform(pl.DataFrame(), ALARMS)
     staged = pl.scan_parquet(files).select(_ALARM_COLUMNS)
 
     def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
-        return staged.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi)).collect()
+        rows = staged.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi))
+        if logged is not None:
+            sensors = logged.scan(lo, hi).select(
+                "time_utc",
+                *(pl.col(f"p{i}_pa").alias(LOGGED_PRESSURE.format(i=i)) for i in ROPES),
+            )
+            rows = rows.join(sensors, on="time_utc", how="left", maintain_order="left")
+        return rows.collect()
 
     return evaluate_alarms_in_blocks(
         read,

@@ -197,7 +197,7 @@ def run_period(
         )
         alarms = block_alarms(
             stage, hoist, run_id=run_id, trips=trip_summary, payload_kg=payload_kg,
-            start=extent.period_start, end=extent.period_end, block=block,
+            start=extent.period_start, end=extent.period_end, block=block, logged=samples,
         )  # fmt: skip
         run = hoist_run(
             run_id=run_id, command=command, started_at_utc=started, hoist=hoist,

@@ -26,15 +26,23 @@ from transforms.alarm_events import (
 )
 from transforms.alarm_rules import STANDSTILL_SPEED_M_S, RuleThresholds
 
-__all__ = ["load_alarms", "pressures_pa", "rope_alarms", "sensor_alarms"]
+__all__ = ["LOGGED_PRESSURE", "load_alarms", "pressures_pa", "rope_alarms", "sensor_alarms"]
+
+
+#: The sensor rules' column of each sensor's logged pressure (as ingest landed it, not
+#: calibrated, despiked or low-passed): a flat line repeats the logged value, which no
+#: filtered value does, and a reading outside the sensor's scale is the logged one.
+LOGGED_PRESSURE = "logged_p{i}_pa"
 
 
 def pressures_pa(frame: pl.DataFrame, hoist: HoistDescription) -> list[np.ndarray]:
-    """Sensor pressure per rope: ``p{i}_pa``, else raw tension / bore area."""
+    """Sensor pressure per rope: the logged ``logged_p{i}_pa`` where the frame has it
+    (:data:`LOGGED_PRESSURE`), else ``p{i}_pa``, else raw tension / bore area."""
     area = hoist.cylinders.bore_area_m2
     out = []
     for i in ROPES:
-        p = column(frame, f"p{i}_pa")
+        logged = LOGGED_PRESSURE.format(i=i)
+        p = column(frame, logged if logged in frame.columns else f"p{i}_pa")
         if np.all(np.isnan(p)):
             p = column(frame, f"tension_raw{i}_n") / area
         out.append(p)

@@ -8,6 +8,8 @@ hour files it touches. A block of 0 minutes is refused with a one-line error.
 
 from __future__ import annotations
 
+import dataclasses
+import datetime as dt
 from pathlib import Path
 
 import polars as pl
@@ -163,3 +165,36 @@ def test_band_members_on_means_are_asked_for_and_recorded(record: Path, tmp_path
     assert (
         "--band-member-step: must be 0 or a whole fraction of a second" in capsys.readouterr().err
     )
+
+
+def test_a_sensor_that_repeats_its_logged_value_raises_a_flatline(tmp_path: Path, capsys):
+    """Sensor 3 logs one value for 40 s while the conveyance travels (a frozen
+    transmitter): ``ropeload run`` raises ``sensor_flatline`` on rope 3 over that
+    stretch. The rule reads the logged pressures: the staged ones are low-passed, and
+    a low-passed value never repeats (the alarm never fired in a run)."""
+    day = generate_field_day(HOIST, date="2026-03-02", seed=3, trips=2, hours=0.25,
+                             sample_rate_hz=20.0)  # fmt: skip
+    moving = day.truth.filter(pl.col("trip_id") == 0, pl.col("phase") == "run")
+    frozen_from = moving["time_utc"].min()
+    frozen_to = frozen_from + dt.timedelta(seconds=40)
+    window = pl.col("time_utc").is_between(frozen_from, frozen_to, closed="left")
+    held = day.sensors.filter(window)["p3_pa"].drop_nulls()[0]
+    sensors = day.sensors.with_columns(
+        pl.when(window & pl.col("p3_pa").is_not_null()).then(held)
+        .otherwise(pl.col("p3_pa")).alias("p3_pa")
+    )  # fmt: skip
+    written = write_field_day(
+        dataclasses.replace(day, sensors=sensors), tmp_path / "logs", formats=("csv",)
+    )
+    path = written[0]
+    data = tmp_path / "data"
+    _run(path, data)
+    capsys.readouterr()
+    with open_reader(DataRoot.resolve(data)) as con:
+        flat = con.sql(
+            "SELECT rope, start_utc, end_utc FROM alarms WHERE rule = 'sensor_flatline'"
+        ).fetchall()
+    assert [rope for rope, _, _ in flat] == [3]
+    ((_, start, end),) = flat
+    assert abs((start - frozen_from).total_seconds()) < 1.0
+    assert abs((end - frozen_to).total_seconds()) < 1.0

@@ -173,6 +173,8 @@ def land_results(
                 params.append(ids)
             con.execute(f"DELETE FROM {table} WHERE {clause}", params)
             inserted[table] = insert_frame(con, table, frame)
+            if table == "alarms" and frame.height and run.period_start_utc is not None:
+                inserted[table] -= _drop_covered_alarms(con, run)
         if trip_summary is not None and run.site is not None and run.hoist is not None:
             drop_orphan_sanity_checks(con, site=run.site, hoist=run.hoist)
         con.execute("COMMIT")
@@ -180,6 +182,24 @@ def land_results(
         con.execute("ROLLBACK")
         raise
     return inserted
+
+
+def _drop_covered_alarms(con: duckdb.DuckDBPyConnection, run: RunRecord) -> int:
+    """Drop the run's alarms that an earlier run's alarm of the same rule and rope holds
+    whole, begun before this run's period: an event across the period's start, seen by
+    this run from the start on (a re-run of part of a day counted it twice). Returns
+    how many went."""
+    covered = (
+        "FROM alarms n WHERE n.run_id = ? AND EXISTS (SELECT 1 FROM alarms o "
+        "WHERE o.run_id <> n.run_id AND o.site = n.site AND o.hoist = n.hoist "
+        "AND o.rule = n.rule AND o.rope IS NOT DISTINCT FROM n.rope AND o.start_utc < ? "
+        "AND o.start_utc <= n.start_utc AND o.end_utc >= n.end_utc)"
+    )
+    params = [run.run_id, run.period_start_utc]
+    (count,) = con.execute(f"SELECT count(*) {covered}", params).fetchone()
+    if count:
+        con.execute(f"DELETE {covered}", params)
+    return int(count)
 
 
 def drop_orphan_sanity_checks(con: duckdb.DuckDBPyConnection, *, site: str, hoist: str) -> None:

@@ -315,3 +315,32 @@ def test_staging_folders_of_dead_runs_are_removed(tmp_path):
     RopeTensionStage(root, site="s", hoist="h")  # a second run does not remove a live one
     assert live.folder.exists()
     live.discard()
+
+
+def test_an_alarm_across_a_rerun_start_is_not_landed_twice(tmp_path):
+    """A whole day's run holds a 60 s imbalance from 00:45:00; a re-run of 00:45:30 ..
+    01:00 sees it from its start to 00:46:00: the earlier alarm holds that piece whole,
+    so it is not landed beside it. A new event of the re-run is."""
+    root = DataRoot(tmp_path)
+
+    def alarm(run_id: str, start_s: int, end_s: int) -> dict:
+        start = DAY + dt.timedelta(seconds=start_s)
+        return {"alarm_id": f"{run_id}{start_s}", "run_id": run_id, "site": "s", "hoist": "h",
+                "rule": "rope_imbalance", "rope": 2, "start_utc": start,
+                "end_utc": DAY + dt.timedelta(seconds=end_s)}  # fmt: skip
+
+    with open_writer(root) as con:
+        land_results(con, _run("day"), alarms=_conform(pl.DataFrame([alarm("day", 2700, 2760)]),
+                                                       ALARMS))  # fmt: skip
+    part = RunRecord(
+        run_id="part", command="run", code_version="test", started_at_utc=DAY, site="s",
+        hoist="h", period_start_utc=DAY + dt.timedelta(seconds=2730),
+        period_end_utc=DAY + dt.timedelta(hours=1), parameter_set="p",
+    )  # fmt: skip
+    new = [alarm("part", 2730, 2760), alarm("part", 3000, 3010)]
+    with open_writer(root) as con:
+        inserted = land_results(con, part, alarms=_conform(pl.DataFrame(new), ALARMS))
+    assert inserted["alarms"] == 1
+    with open_reader(root) as con:
+        rows = con.sql("SELECT run_id, start_utc FROM alarms ORDER BY start_utc").fetchall()
+    assert [(r, (t - DAY).total_seconds()) for r, t in rows] == [("day", 2700), ("part", 3000)]

@@ -5,7 +5,7 @@ Contents
 Rules (:data:`ALARM_RULES`: name -> citation, unit)
     ``rope_imbalance``, ``slack_rope``, ``tight_rope``, ``overload``,
     ``reconciliation_residual``, ``sensor_flatline``, ``sensor_stuck``,
-    ``sensor_out_of_range``, ``sensor_dropout``.
+    ``sensor_out_of_range``, ``sensor_dropout``, ``sensor_disagreement``.
 Entry point
     :func:`evaluate_alarms` -- ROPE_TENSIONS-shaped samples in, ALARMS frame out.
 Helpers
@@ -41,7 +41,12 @@ Reading of the regulations (paraphrased; check the current text before relying o
   while another sensor moves), ``sensor_stuck`` (all four repeat while the conveyance
   travels: a frozen logger), ``sensor_out_of_range`` (below 0 or above the sensor's
   ``full_scale``), ``sensor_dropout`` (a logging gap longer than ``dropout_duration``,
-  or one sensor missing for that long).
+  or one sensor missing for that long), ``sensor_disagreement`` (at standstill one
+  calibrated sensor departs from the median of the four by more than half the
+  imbalance fraction for ``flatline_duration``: the pipes equalise the chambers at
+  rest, contract 1a, so that is the sensor, not the oil; the compensation takes every
+  sensor as a pressure, so while it lasts the other ropes' tensions move too, and the
+  faulty rope's imbalance is pulled in by its seal's friction).
 
 Debounce: a condition must hold ``min_duration`` before an alarm starts (the reported
 start is where the condition began); once started, the alarm lasts while the condition
@@ -105,6 +110,12 @@ ALARM_RULES: dict[str, AlarmRule] = {
         AlarmRule("sensor_stuck", "ropeload sensor diagnostics: all sensors frozen", "s", False),
         AlarmRule("sensor_out_of_range", "ropeload sensor diagnostics: out of range", "Pa", True),
         AlarmRule("sensor_dropout", "ropeload sensor diagnostics: data gap", "s", False),
+        AlarmRule(
+            "sensor_disagreement",
+            "ropeload sensor diagnostics: one sensor off the others at rest (contract 1a)",
+            "1",
+            True,
+        ),
     )
 }
 

@@ -258,7 +258,7 @@ def _more_extreme(row: dict[str, object], current: dict[str, object]) -> bool:
         return old is None or old != old
     if row["rule"] in _PEAK_MIN:
         return new < old
-    if row["rule"] == "rope_imbalance":
+    if row["rule"] in ("rope_imbalance", "sensor_disagreement"):  # signed peaks
         return abs(new) > abs(old)
     if row["rule"] == "sensor_out_of_range":
         return abs(new - row["threshold"] / 2.0) > abs(old - current["threshold"] / 2.0)

@@ -390,3 +390,27 @@ def test_a_long_debounce_across_a_block_edge_is_raised_as_on_the_whole_record(ho
     blocked = _events(evaluate_alarms_in_blocks(read, blocks, slow, run_id="r"), "rope_imbalance")
     _assert_events(whole, [(1, *event)])
     _assert_events(blocked, whole, tol_s=0.05)
+
+
+def test_a_sensor_off_the_others_at_rest_is_a_disagreement(hoist):
+    """Sensor 1 reads 20 % high for 60 s at rest (its ropes' shares differ by up to 3 %,
+    a real imbalance the sensors show while the ropes hold it): one
+    ``sensor_disagreement`` on rope 1 over those 60 s, its peak the departure from the
+    median of the four (at least 1.02 x 1.2 / median - 1 = +0.22); a 20 s step, shorter than
+    ``flatline_duration``, and the same step while travelling are not."""
+    frame, segments = synthetic_day(hoist, [3000.0], seed=5, standstill_s=200.0)
+    frame = finish(frame, hoist)
+    rest = next(s for s in segments if s[0] == "unload")
+    up = next(s for s in segments if s[0] == "up")
+    step = (rest[2] + 10.0, rest[2] + 70.0)
+    short = (rest[2] + 120.0, rest[2] + 140.0)
+    moving = (up[2] + 10.0, up[2] + 50.0)
+    windows = _at(frame, *step) | _at(frame, *short) | _at(frame, *moving)
+    frame = frame.with_columns(
+        pl.when(windows).then(pl.col("p1_pa") * 1.2).otherwise(pl.col("p1_pa")).alias("p1_pa")
+    )
+    alarms = evaluate_alarms(frame, hoist, run_id="r")
+    _assert_events(_events(alarms, "sensor_disagreement"), [(1, *step)], tol_s=0.05)
+    peak = alarms.filter(pl.col("rule") == "sensor_disagreement")["peak_value"][0]
+    shares = np.array([1.02 * 1.2, 0.99, 1.01, 0.98])
+    assert 0.0 < shares[0] / np.median(shares) - 1.0 <= peak < 0.3  # signed, noise on top

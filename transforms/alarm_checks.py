@@ -9,8 +9,6 @@ thresholds are :mod:`transforms.alarm_rules`'s, the debounce :mod:`transforms.al
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import polars as pl
 
@@ -27,6 +25,7 @@ from transforms.alarm_events import (
     unchanged,
 )
 from transforms.alarm_rules import STANDSTILL_SPEED_M_S, RuleThresholds
+from transforms.compensation_record import departure_from_median
 
 __all__ = ["LOGGED_PRESSURE", "load_alarms", "pressures_pa", "rope_alarms", "sensor_alarms"]
 
@@ -193,7 +192,10 @@ def sensor_alarms(
         message="all pressure sensors repeat their values while the conveyance travels",
     )  # fmt: skip
 
-    rows += _disagreement_alarms(ctx, frame, hoist, pressures, merge_gap_s=merge_gap_s, dt_s=dt_s)
+    rows += _disagreement_alarms(
+        ctx, frame, hoist, pressures, thresholds.disagreement_fraction,
+        merge_gap_s=merge_gap_s, dt_s=dt_s,
+    )  # fmt: skip
     gaps = np.diff(t_s)
     gap_at = np.flatnonzero(gaps > alarms.dropout_duration_s)
     rows += event_rows(
@@ -209,40 +211,35 @@ def _disagreement_alarms(
     frame: pl.DataFrame,
     hoist: HoistDescription,
     pressures: list[np.ndarray],
+    limit: float,
     *,
     merge_gap_s: float,
     dt_s: float,
 ) -> list[dict[str, object]]:
     """``sensor_disagreement``: at standstill a calibrated sensor (p - offset) / gain
-    departs from the median of the four by more than half the hoist's imbalance
-    fraction of it for ``flatline_duration`` (the module docstring of
-    :mod:`transforms.alarm_rules`); the peak is the signed departure (a fraction)."""
-    alarms = hoist.alarms
+    departs from the median of the four by more than ``limit`` (a fraction of it) for
+    ``flatline_duration`` (the module docstring of :mod:`transforms.alarm_rules`); the
+    peak is the signed departure."""
     calibrated = [p.copy() for p in pressures]
     for sensor in hoist.sensors:
         k = sensor.cylinder - 1
         if 0 <= k < len(calibrated):
             calibrated[k] = (calibrated[k] - sensor.offset_pa) / sensor.gain
-    stack = np.vstack(calibrated)
-    with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # a sample no sensor logged: NaN
-        median = np.nanmedian(stack, axis=0)
-        departure = (stack - median) / median
+    departure = departure_from_median(calibrated)
     at_rest = np.abs(column(frame, "speed_m_s")) < STANDSTILL_SPEED_M_S
-    limit = 0.5 * alarms.imbalance_fraction
     rows: list[dict[str, object]] = []
     for k, i in enumerate(ROPES):
         with np.errstate(invalid="ignore"):
             off = at_rest & (np.abs(departure[k]) > limit)
         s, e = debounced(
-            ctx.t_s, off, off, min_duration_s=alarms.flatline_duration_s,
+            ctx.t_s, off, off, min_duration_s=hoist.alarms.flatline_duration_s,
             merge_gap_s=merge_gap_s, dt_s=dt_s,
         )  # fmt: skip
         rows += event_rows(
             ctx, "sensor_disagreement", i, s, e, peak_of=np.abs(departure[k]),
             peak_max=True, report=departure[k], threshold=limit,
             message=f"pressure sensor {i} reads {limit:.0%}+ off the others at rest: the "
-            "sensor, not the oil (the pipes equalise the chambers); every rope's "
-            "tension is unreliable while it lasts",
+            "sensor, not the oil (the pipes equalise the chambers); the compensation "
+            "takes the others' mean for it while it lasts",
         )  # fmt: skip
     return rows

@@ -45,6 +45,7 @@ from transforms.compensation_record import (
     CompensationCarry,
     at_rest,
     calibrated,
+    disagreeing_as_unknown,
     float_column,
     mean_horizontal,
     rope_cols,
@@ -232,7 +233,12 @@ class BlockCompensation(BlockSetup):
         frictions are kept for the ropes' jobs. NaN outside the stage. Blind motion:
         none."""
         n, springs = self.n, self.context.rope_springs
-        pressures = tuple(job.result() for job in self.p_jobs)
+        rest = at_rest(self.frame)
+        # a filtered step reaches 3 / cut-off seconds either side
+        reach = int(np.ceil(3.0 * self.settings.sample_rate_hz / self.settings.pressure_cutoff_hz))
+        pressures = disagreeing_as_unknown(
+            tuple(job.result() for job in self.p_jobs), rest, self.disagreement_fraction, reach
+        )
         logged = tuple(job.result() for job in self.x_jobs)
         depth = float_column(self.frame["depth_m"])
         nu = np.atleast_1d(np.asarray(self.nu_job.result(), dtype=float))
@@ -240,7 +246,7 @@ class BlockCompensation(BlockSetup):
         ringing = None
         if drift_p is not None:
             ringing = ringing_travel(
-                drift_p, self.segment, depth, at_rest(self.frame), self.hoist,
+                drift_p, self.segment, depth, rest, self.hoist,
                 sample_rate_hz=self.context.sample_rate_hz,
                 pressure_cutoff_hz=self.settings.pressure_cutoff_hz, half_width_pa=drift_w,
             )  # fmt: skip

@@ -10,6 +10,8 @@ itself: :mod:`transforms.compensation`.
 from __future__ import annotations
 
 import datetime as dt
+import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -44,6 +46,8 @@ __all__ = [
     "compensation_margins_s",
     "context_sample",
     "context_stride",
+    "departure_from_median",
+    "disagreeing_as_unknown",
     "displacement_noise_sigma",
     "float_column",
     "identification_means",
@@ -273,6 +277,52 @@ def calibrated(frame: pl.DataFrame, column: str, hoist: HoistDescription) -> np.
             np.subtract(values, sensor.offset_pa, out=values)
             np.divide(values, sensor.gain, out=values)
     return values
+
+
+def departure_from_median(pressures: Sequence[np.ndarray]) -> np.ndarray:
+    """(sensors, samples): each sensor's pressure less the median of the sensors logged
+    at the sample, over that median (NaN where the sensor, or every sensor, is unknown).
+
+    >>> departure_from_median([np.array([4.0e6]), np.array([4.0e6]), np.array([5.0e6])])
+    array([[0.  ],
+           [0.  ],
+           [0.25]])
+    """
+    stack = np.vstack([np.asarray(p, dtype=np.float64) for p in pressures])
+    with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a sample no sensor logged
+        median = np.nanmedian(stack, axis=0)
+        return (stack - median) / median
+
+
+def disagreeing_as_unknown(
+    pressures: Sequence[np.ndarray], rest: np.ndarray, limit: float, spread: int = 0
+) -> tuple[np.ndarray, ...]:
+    """``pressures`` with NaN (unknown) where, at ``rest``, a sensor departs from the
+    median of the four by more than ``limit`` (a fraction), and ``spread`` samples
+    either side (the low-pass filter's reach: a filtered step climbs to the limit
+    through smaller departures, which would still move the seals): the pipes equalise
+    the chambers at rest (contract 1a), so that is the sensor, not the oil, and the
+    stick-slip solution takes the others' mean for it (:func:`transforms.stick_slip.
+    stick_slip`) instead of moving every seal to explain it. The arrays themselves
+    where no sensor does (the ordinary case: results unchanged to the bit).
+    The alarm of the same condition is ``sensor_disagreement``
+    (:mod:`transforms.alarm_rules`).
+
+    >>> step = np.full(7, 4e6)
+    >>> step[3] = 5e6
+    >>> out = disagreeing_as_unknown([np.full(7, 4e6)] * 3 + [step], np.ones(7, bool), 0.05, 1)
+    >>> np.isnan(out[3]).astype(int), out[0] is not None
+    (array([0, 0, 1, 1, 1, 0, 0]), True)
+    """
+    with np.errstate(invalid="ignore"):
+        off = (np.abs(departure_from_median(pressures)) > limit) & rest
+    if not off.any():
+        return tuple(pressures)
+    if spread > 0:  # any off sample within `spread` of each sample
+        counts = np.cumsum(np.pad(off, ((0, 0), (spread + 1, spread))), axis=1)
+        off = counts[:, 2 * spread + 1 :] > counts[:, : -(2 * spread + 1)]
+    return tuple(np.where(o, np.nan, p) for p, o in zip(pressures, off, strict=True))
 
 
 def at_rest(frame: pl.DataFrame) -> np.ndarray:

@@ -153,6 +153,22 @@ def read_header(path: Path) -> CsvHeader:
     )
 
 
+def _same(a: str, b: str) -> bool:
+    """Two header values alike: the same text but for case and blanks, or the same
+    number (``100`` and ``100.0``).
+
+    >>> _same("UTC", " utc"), _same("100", "100.0"), _same("main-shaft", "other")
+    (True, True, False)
+    """
+    a, b = a.strip(), b.strip()
+    if a.casefold() == b.casefold():
+        return True
+    try:
+        return float(a) == float(b)
+    except ValueError:
+        return False
+
+
 def _header_lines(
     path: Path, head: bytes
 ) -> tuple[dict[str, tuple[int, str]], list[str], tuple[int, str], int]:
@@ -179,12 +195,12 @@ def _header_lines(
             body = text[1:].strip()
             key, colon, value = body.partition(":")
             name = key.strip().lower()
-            if colon and name in _READ_KEYS and name in meta and meta[name][1] != value.strip():
+            if colon and name in _READ_KEYS and name in meta and not _same(meta[name][1], value):
                 raise RefusedFile(
                     f"{path}: line {line_no}: {name!r} stated again ({value.strip()!r}) "
                     f"unlike line {meta[name][0]} ({meta[name][1]!r}): which one holds?"
                 )
-            if colon:
+            if colon and name not in meta:  # stated again alike: the first holds
                 meta[name] = (line_no, value.strip())
             else:
                 notes.append(f"line {line_no}: header line without 'key: value' ignored")
@@ -199,13 +215,14 @@ def _header_lines(
         pos = next_pos
         break
     if column_line is None:
-        if len(head) == _HEADER_LIMIT:
-            raise RefusedFile(f"{path}: no column line within the first {_HEADER_LIMIT} bytes")
-        if b"\r" in head and b"\n" not in head:
+        if b"\r" in head and b"\n" not in head:  # checked first: such a file's head is
+            # one "line" to the limit
             raise RefusedFile(
                 f"{path}: line 1: its lines end with a bare carriage return (classic Mac "
                 "OS), not a newline: export with LF or CRLF line ends"
             )
+        if len(head) == _HEADER_LIMIT:
+            raise RefusedFile(f"{path}: no column line within the first {_HEADER_LIMIT} bytes")
         raise RefusedFile(f"{path}: line {line_no}: header only, no column line and no data")
     return meta, notes, column_line, pos
 

@@ -41,6 +41,7 @@ from pathlib import Path
 
 import duckdb
 import polars as pl
+from polars.exceptions import PanicException
 
 from pipelines.ingest.batch import Batch, Reading, RefusedFile
 from pipelines.ingest.csv_scan import warm_up_in_background
@@ -189,12 +190,12 @@ def _ingest_file(
         return result, earlier
     except (OSError, duckdb.Error):
         raise  # the data root's own trouble (disk, warehouse): not this file's
-    except (KeyboardInterrupt, SystemExit):
-        raise
-    except BaseException as exc:  # a reader's parse error the checks did not foresee (a
-        # bug too; a panic in polars' Rust is a BaseException): this file's, not the run's
+    except (Exception, PanicException) as exc:  # a reader's parse error the checks did
+        # not foresee (a bug too; a panic in polars' Rust is a BaseException, caught by
+        # name so that a cancellation's signal still ends the run): this file's
         logger.debug("reading %s failed", path, exc_info=True)
-        what = f"{path}: unreadable ({type(exc).__name__}: {str(exc).splitlines()[0][:200]})"
+        first = (str(exc).splitlines() or [""])[0][:200]
+        what = f"{path}: unreadable ({type(exc).__name__}: {first})"
         # refused, so that the next ingest tries it again (what landed before the error
         # stays landed and counted, and is then an exact duplicate)
         result.status = "refused"

@@ -51,3 +51,26 @@ def test_a_garbage_sample_time_is_quarantined_and_the_command_goes_on(corpus, tm
     assert first.quarantined_by_reason[REASON_TIMESTAMP] == 2
     assert first.rows_landed == n - 3  # and the builder's sample at 75 MPa
     assert (second.status, second.rows_landed) == ("landed", 10)
+
+
+def test_a_panic_in_a_reader_refuses_that_file_and_the_command_goes_on(
+    corpus, tmp_path, root, monkeypatch
+):
+    """A panic in polars' Rust (a BaseException, not an Exception) while one file is
+    read: that file is refused as unreadable, naming the panic, and the next file
+    lands (the panic ended the whole command, no manifest row written). Injected: no
+    known input panics any more."""
+    from polars.exceptions import PanicException
+
+    from pipelines.ingest import field_tdms
+
+    def panics(*args, **kwargs):
+        raise PanicException("DateTime + TimeDelta overflowed")
+
+    monkeypatch.setattr(field_tdms, "_si_frame", panics)
+    tdms = corpus.tdms_file(tmp_path / "log.tdms", n=20)
+    csv = corpus.csv_file(tmp_path / "day.csv", corpus.data_rows(10))
+    first, second = ingest_paths([tdms, csv], data=root).files
+    assert first.status == "refused"
+    assert "unreadable (PanicException: DateTime + TimeDelta overflowed)" in first.message
+    assert (second.status, second.rows_landed) == ("landed", 10)

@@ -13,6 +13,7 @@ import zoneinfo
 from dataclasses import dataclass
 from typing import Annotated, Literal
 
+import numpy as np
 from pydantic import (
     AfterValidator,
     BaseModel,
@@ -271,12 +272,19 @@ class Oil(Section):
 
 
 class Sensor(Section):
-    """``[[sensors]]``: one pressure sensor per cylinder; calibration applied at ingest."""
+    """``[[sensors]]``: one pressure sensor per cylinder. Ingest lands what the sensor
+    read; the compensation and the rules that compare sensors apply :meth:`calibrated`."""
 
     cylinder: int = Field(ge=1, le=8)
     offset_pa: SignedPressure = Field(0.0, alias="offset")
     gain: float = Field(1.0, gt=0.5, lt=2.0)
     full_scale_pa: Pressure = Field(alias="full_scale")
+
+    def calibrated(self, reading_pa: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """The pressure [Pa] from the sensor's reading: (reading - offset) / gain
+        (``out``: in place, as numpy's)."""
+        values = np.subtract(reading_pa, self.offset_pa, out=out)
+        return np.divide(values, self.gain, out=values)
 
 
 @dataclass(frozen=True)

@@ -36,14 +36,23 @@ __all__ = ["LOGGED_PRESSURE", "load_alarms", "pressures_pa", "rope_alarms", "sen
 LOGGED_PRESSURE = "logged_p{i}_pa"
 
 
-def pressures_pa(frame: pl.DataFrame, hoist: HoistDescription) -> list[np.ndarray]:
+def pressures_pa(
+    frame: pl.DataFrame, hoist: HoistDescription, *, calibrate: bool = False
+) -> list[np.ndarray]:
     """Sensor pressure per rope: the logged ``logged_p{i}_pa`` where the frame has it
-    (:data:`LOGGED_PRESSURE`), else ``p{i}_pa``, else raw tension / bore area."""
+    (:data:`LOGGED_PRESSURE`; with ``calibrate``, the sensor's calibration applied),
+    else the calibrated ``p{i}_pa``, else raw tension / bore area."""
     area = hoist.cylinders.bore_area_m2
+    sensors = {sensor.cylinder: sensor for sensor in hoist.sensors}
     out = []
     for i in ROPES:
         logged = LOGGED_PRESSURE.format(i=i)
-        p = column(frame, logged if logged in frame.columns else f"p{i}_pa")
+        if logged in frame.columns:
+            p = column(frame, logged)
+            if calibrate and i in sensors:
+                p = sensors[i].calibrated(p)
+        else:
+            p = column(frame, f"p{i}_pa")
         if np.all(np.isnan(p)):
             p = column(frame, f"tension_raw{i}_n") / area
         out.append(p)
@@ -193,7 +202,7 @@ def sensor_alarms(
     )  # fmt: skip
 
     rows += _disagreement_alarms(
-        ctx, frame, hoist, pressures, thresholds.disagreement_fraction,
+        ctx, frame, hoist, pressures_pa(frame, hoist, calibrate=True), thresholds,
         merge_gap_s=merge_gap_s, dt_s=dt_s,
     )  # fmt: skip
     gaps = np.diff(t_s)
@@ -210,23 +219,19 @@ def _disagreement_alarms(
     ctx: EventContext,
     frame: pl.DataFrame,
     hoist: HoistDescription,
-    pressures: list[np.ndarray],
-    limit: float,
+    calibrated: list[np.ndarray],
+    thresholds: RuleThresholds,
     *,
     merge_gap_s: float,
     dt_s: float,
 ) -> list[dict[str, object]]:
-    """``sensor_disagreement``: at standstill a calibrated sensor (p - offset) / gain
-    departs from the median of the four by more than ``limit`` (a fraction of it) for
+    """``sensor_disagreement``: at standstill a calibrated sensor departs from the
+    median of the four by more than the thresholds' fraction of it for
     ``flatline_duration`` (the module docstring of :mod:`transforms.alarm_rules`); the
     peak is the signed departure."""
-    calibrated = [p.copy() for p in pressures]
-    for sensor in hoist.sensors:
-        k = sensor.cylinder - 1
-        if 0 <= k < len(calibrated):
-            calibrated[k] = (calibrated[k] - sensor.offset_pa) / sensor.gain
-    departure = departure_from_median(calibrated)
+    departure = departure_from_median(calibrated, floor_pa=thresholds.disagreement_floor_pa)
     at_rest = np.abs(column(frame, "speed_m_s")) < STANDSTILL_SPEED_M_S
+    limit = thresholds.disagreement_fraction
     rows: list[dict[str, object]] = []
     for k, i in enumerate(ROPES):
         with np.errstate(invalid="ignore"):

@@ -144,6 +144,9 @@ class RuleThresholds:
     #: a sensor this far off the median of the four at rest is the sensor, not the oil
     #: (``sensor_disagreement``, :data:`SENSOR_DISAGREEMENT_FRACTION`)
     disagreement_fraction: float = SENSOR_DISAGREEMENT_FRACTION
+    #: ... where the median is at least this [Pa]: the slack threshold's pressure (below
+    #: it, a hoist off its ropes or depressurised, a fraction of nearly nothing is noise)
+    disagreement_floor_pa: float = 0.0
 
 
 def rule_thresholds(hoist: HoistDescription) -> RuleThresholds:
@@ -164,6 +167,9 @@ def rule_thresholds(hoist: HoistDescription) -> RuleThresholds:
         reconciliation_tolerance_fraction=alarms.reconciliation_tolerance_fraction,
         full_scale_pa=tuple(s.full_scale_pa for s in sensors),
         disagreement_fraction=SENSOR_DISAGREEMENT_FRACTION,
+        disagreement_floor_pa=alarms.slack_fraction_of_empty
+        * empty_share_n
+        / hoist.cylinders.bore_area_m2,
     )
 
 

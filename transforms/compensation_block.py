@@ -237,8 +237,10 @@ class BlockCompensation(BlockSetup):
         # a filtered step reaches 3 / cut-off seconds either side
         reach = int(np.ceil(3.0 * self.settings.sample_rate_hz / self.settings.pressure_cutoff_hz))
         pressures = disagreeing_as_unknown(
-            tuple(job.result() for job in self.p_jobs), rest, self.disagreement_fraction, reach
-        )
+            tuple(job.result() for job in self.p_jobs), rest,
+            self.disagreement.disagreement_fraction, reach,
+            self.disagreement.disagreement_floor_pa,
+        )  # fmt: skip
         logged = tuple(job.result() for job in self.x_jobs)
         depth = float_column(self.frame["depth_m"])
         nu = np.atleast_1d(np.asarray(self.nu_job.result(), dtype=float))

@@ -274,14 +274,14 @@ def calibrated(frame: pl.DataFrame, column: str, hoist: HoistDescription) -> np.
     values = float_column(frame[column])
     for sensor in hoist.sensors:
         if column == f"p{sensor.cylinder}_pa":
-            np.subtract(values, sensor.offset_pa, out=values)
-            np.divide(values, sensor.gain, out=values)
+            sensor.calibrated(values, out=values)
     return values
 
 
-def departure_from_median(pressures: Sequence[np.ndarray]) -> np.ndarray:
+def departure_from_median(pressures: Sequence[np.ndarray], floor_pa: float = 0.0) -> np.ndarray:
     """(sensors, samples): each sensor's pressure less the median of the sensors logged
-    at the sample, over that median (NaN where the sensor, or every sensor, is unknown).
+    at the sample, over that median (NaN where the sensor, or every sensor, is unknown,
+    and where the median is below ``floor_pa``).
 
     >>> departure_from_median([np.array([4.0e6]), np.array([4.0e6]), np.array([5.0e6])])
     array([[0.  ],
@@ -292,14 +292,19 @@ def departure_from_median(pressures: Sequence[np.ndarray]) -> np.ndarray:
     with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # a sample no sensor logged
         median = np.nanmedian(stack, axis=0)
-        return (stack - median) / median
+        return (stack - median) / np.where(median >= floor_pa, median, np.nan)
 
 
 def disagreeing_as_unknown(
-    pressures: Sequence[np.ndarray], rest: np.ndarray, limit: float, spread: int = 0
+    pressures: Sequence[np.ndarray],
+    rest: np.ndarray,
+    limit: float,
+    spread: int = 0,
+    floor_pa: float = 0.0,
 ) -> tuple[np.ndarray, ...]:
     """``pressures`` with NaN (unknown) where, at ``rest``, a sensor departs from the
-    median of the four by more than ``limit`` (a fraction), and ``spread`` samples
+    median of the four (at least ``floor_pa``) by more than ``limit`` (a fraction), and
+    ``spread`` samples
     either side (the low-pass filter's reach: a filtered step climbs to the limit
     through smaller departures, which would still move the seals): the pipes equalise
     the chambers at rest (contract 1a), so that is the sensor, not the oil, and the
@@ -316,7 +321,7 @@ def disagreeing_as_unknown(
     (array([0, 0, 1, 1, 1, 0, 0]), True)
     """
     with np.errstate(invalid="ignore"):
-        off = (np.abs(departure_from_median(pressures)) > limit) & rest
+        off = (np.abs(departure_from_median(pressures, floor_pa)) > limit) & rest
     if not off.any():
         return tuple(pressures)
     if spread > 0:  # any off sample within `spread` of each sample

@@ -20,7 +20,7 @@ from physics.friction_law import friction_law_at, law_array
 from physics.maxwell_slip import maxwell_slip_elements
 from physics.sensor_branch import sensor_branch
 from schemas.hoist import HoistDescription
-from transforms.alarm_rules import SENSOR_DISAGREEMENT_FRACTION
+from transforms.alarm_rules import rule_thresholds
 from transforms.compensation_kernels import long_segments
 from transforms.compensation_record import (
     CompensationCarry,
@@ -92,7 +92,7 @@ class BlockSetup:
         self.local = threading.local()
         self.presliding_range_m = self._presliding_range_m()
         # a sensor this far off the others at rest is not a pressure (contract 1a)
-        self.disagreement_fraction = SENSOR_DISAGREEMENT_FRACTION
+        self.disagreement = rule_thresholds(hoist)  # its sensor_disagreement fraction, floor
 
     # -- set-up ---------------------------------------------------------------------------
     def _friction_setup(self, effects: set[str]) -> None:

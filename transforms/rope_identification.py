@@ -350,7 +350,7 @@ def _identify(
         p = means[f"p{i}_pa"].to_numpy().astype(np.float64)
         for sensor in hoist.sensors:
             if sensor.cylinder == i:
-                p = (p - sensor.offset_pa) / sensor.gain
+                p = sensor.calibrated(p)
         pressures.append(p)
     effects = set(hoist.model.effects)
     branch = sensor_branch(hoist) if {"pipe_laminar_loss", "local_loss"} & effects else None

@@ -815,6 +815,7 @@ def _kernel(
     cap = np.zeros(m)
     ka = np.zeros(m)
     p_now = np.zeros(m)  # each sensor's pressure at the sample, the others' mean if unknown
+    known_last = m  # sensors logged at the last sample solved
     ran = state[0] != 0.0
     resume = ran and state[1] != 0.0
     s, p_last = state[2], state[3]
@@ -882,6 +883,7 @@ def _kernel(
             for i in range(m):
                 x_out[i][t] = x[i]
                 f_out[i][t] = z[i]
+            known_last = 0
             continue
         k = head_rope_stiffness_n_m(ea, hanging)
         p_law = max(p_mean, 1e5)
@@ -941,7 +943,20 @@ def _kernel(
                 for i in range(m):
                     if cap[i] > 0.0:
                         z[i] = lugre_drift(z[i], path * compliance[i], sigma0, cap[i])
-        target = volume / (beta * area) * (p_mean - p_last)
+        dp = p_mean - p_last
+        if (known < m or known_last < m) and t > 0:
+            # a sensor leaves or rejoins the mean: the oil's change from those logged at
+            # both samples, not a step of their mean's make-up
+            common = 0.0
+            both = 0
+            for i in range(m):
+                if np.isfinite(p_sensor[i][t]) and np.isfinite(p_sensor[i][t - 1]):
+                    common += p_sensor[i][t] - p_sensor[i][t - 1]
+                    both += 1
+            if both:
+                dp = common / both
+        known_last = known
+        target = volume / (beta * area) * dp
         ds = 0.0
         below, above = -np.inf, np.inf  # the root's bracket (the sum rises with ds)
         solved = False  # step, friction and compliance of the last evaluation are at s + ds

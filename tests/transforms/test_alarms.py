@@ -414,3 +414,27 @@ def test_a_sensor_off_the_others_at_rest_is_a_disagreement(hoist):
     peak = alarms.filter(pl.col("rule") == "sensor_disagreement")["peak_value"][0]
     shares = np.array([1.02 * 1.2, 0.99, 1.01, 0.98])
     assert 0.0 < shares[0] / np.median(shares) - 1.0 <= peak < 0.3  # signed, noise on top
+
+
+def test_a_sensor_with_its_declared_gain_agrees_and_so_does_a_hoist_off_its_ropes(hoist):
+    """Sensor 1 declared with a gain of 1.15: its reading (the logged column) is 15 %
+    high and its calibrated pressure (``p1_pa``) is not; neither disagrees (the rule
+    calibrated ``p1_pa`` a second time). At rest with the pressures near zero (a hoist
+    off its ropes) 20 % of nearly nothing is below the slack floor: no alarm."""
+    from transforms.alarm_checks import LOGGED_PRESSURE
+
+    sensors = [s.model_copy(update={"gain": 1.15}) if s.cylinder == 1 else s
+               for s in hoist.sensors]  # fmt: skip
+    gained = hoist.model_copy(update={"sensors": sensors})
+    frame, _ = synthetic_day(gained, [3000.0], seed=7, standstill_s=100.0)
+    frame = finish(frame, gained)
+    assert _events(evaluate_alarms(frame, gained, run_id="r"), "sensor_disagreement") == []
+    logged = frame.with_columns(
+        *(pl.col(f"p{i}_pa").alias(LOGGED_PRESSURE.format(i=i)) for i in range(2, 5)),
+        (pl.col("p1_pa") * 1.15).alias(LOGGED_PRESSURE.format(i=1)),
+    )
+    assert _events(evaluate_alarms(logged, gained, run_id="r"), "sensor_disagreement") == []
+    off_ropes = frame.with_columns(
+        pl.col("p1_pa") * 0.0 + 2e4 * 1.2, *(pl.col(f"p{i}_pa") * 0.0 + 2e4 for i in (2, 3, 4))
+    )
+    assert _events(evaluate_alarms(off_ropes, hoist, run_id="r"), "sensor_disagreement") == []

@@ -2,7 +2,7 @@
 
 :func:`rope_alarms` (imbalance, slack and tight rope), :func:`load_alarms` (overload
 and the reconciliation residual at rest) and :func:`sensor_alarms` (flat line, stuck,
-out of range, dropout) return the event rows of their rules;
+out of range, dropout, disagreement at rest) return the event rows of their rules;
 :func:`transforms.alarms.evaluate_alarms` prepares the samples and calls them. The
 thresholds are :mod:`transforms.alarm_rules`'s, the debounce :mod:`transforms.alarm_events`'.
 """
@@ -140,7 +140,9 @@ def sensor_alarms(
     merge_gap_s: float,
     dt_s: float,
 ) -> list[dict[str, object]]:
-    """Flat-line, stuck, out-of-range and dropout rules (see the module docstring)."""
+    """Flat-line, stuck, out-of-range, dropout and disagreement rules (the module
+    docstring of :mod:`transforms.alarm_rules`), on the logged pressures where the
+    frame has them (:func:`pressures_pa`)."""
     alarms = hoist.alarms
     t_s = ctx.t_s
     rows: list[dict[str, object]] = []

@@ -213,7 +213,7 @@ def merge_alarm_pieces(
     """Alarms of overlapping windows of one record, merged into the record's alarms.
 
     Block processing (issue 16) evaluates :func:`evaluate_alarms` on each block with
-    :data:`ALARM_MARGIN_S` either side. An event is then seen whole in one window,
+    :func:`alarm_margin_s` either side. An event is then seen whole in one window,
     twice (in an overlap) or in pieces cut at window edges. Pieces of the same rule and
     rope that overlap or are at most ``merge_gap_s`` apart become one alarm: the earliest
     start, the latest end, the most extreme peak of the pieces (durations recomputed),

@@ -65,7 +65,9 @@ class Zone:
         return zoneinfo.ZoneInfo(self.name)
 
     def label(self, start: dt.datetime, end: dt.datetime | None = None) -> str:
-        """``Asia/Shanghai, UTC+08:00`` (both offsets when daylight saving changes)."""
+        """``Asia/Shanghai, UTC+08:00``: the offsets at ``start`` and ``end`` (both when
+        daylight saving changes between them; a period holding two changes, spring and
+        autumn, names the one its ends share)."""
         offsets = []
         for moment in (start, end or start):
             offset = moment.astimezone(self.info).strftime("%z")

@@ -89,7 +89,7 @@ def open_csv(
         reading.notes.append(zone_note)
     limits = depth_limits_m(hoist)
     if offset > header.data_offset:  # the prefix's place in a repeated hour carries over
-        progress.ambiguity = prefix_ambiguity(path, header, offset, limits)
+        progress.ambiguity = prefix_ambiguity(path, header, offset, limits, batch_bytes)
     parser = _BatchParser(header, limits, progress.ambiguity)
 
     def batches() -> Iterator[Batch]:
@@ -110,14 +110,20 @@ def open_csv(
     return reading
 
 
-#: The prefix read back on resume covers at least this much time before its last sample,
-#: more than a repeated hour's two passes (:data:`.local_time._EPISODE_US`).
-_PREFIX_SPAN = dt.timedelta(hours=3)
+#: The prefix read back on resume covers at least this much time before its last sample:
+#: a repeated hour's two passes (:data:`.local_time._EPISODE_US`), and the hour a tail
+#: that begins in the second pass, read without the first, shifts its times by.
+_PREFIX_SPAN = dt.timedelta(hours=4)
+#: The tail read first, to see whether a change is near and how many bytes an hour is.
 _PREFIX_PROBE_BYTES = 64 << 10
 
 
 def prefix_ambiguity(
-    path: Path, header: CsvHeader, offset: int, depth_limits: tuple[float, float]
+    path: Path,
+    header: CsvHeader,
+    offset: int,
+    depth_limits: tuple[float, float],
+    batch_bytes: int = DEFAULT_BATCH_BYTES,
 ) -> AmbiguityState:
     """Where the file's first ``offset`` bytes (an earlier ingest's, ending with a line)
     left the repeated hour of a daylight-saving change: the state a whole read would
@@ -126,34 +132,69 @@ def prefix_ambiguity(
     A resumed read starts from it, not afresh: a file grown within the repeated hour
     (an earlier version cut in its second pass) would otherwise take its new samples
     for the first pass, which the lake already holds, and quarantine them as
-    conflicts. Its tail is read again, growing by 4x from 64 KB until it spans
-    :data:`_PREFIX_SPAN` or reaches the data's start; where the zone's offset stays put
-    over that span either side, only that the file did not start here counts.
+    conflicts. Nothing to carry where the zone is UTC, where the timestamps carry their
+    offsets, or where the zone's offset stays put from :data:`_PREFIX_SPAN` before the
+    prefix's last 64 KB to as long after (the ordinary resume: one 64 KB parse). Near
+    a change the prefix's last :data:`_PREFIX_SPAN` (sized from those 64 KB's bytes per
+    hour, with a quarter to spare) is read again in batches of ``batch_bytes``, as the
+    whole read would, and its state carried.
     """
     state = AmbiguityState(earlier_rows=True)
-    if header.timezone == "UTC":
+    if header.timezone == "UTC" or header.offsets:
         return state
-    size = _PREFIX_PROBE_BYTES
+    probe = _prefix_times(path, header, max(header.data_offset, offset - _PREFIX_PROBE_BYTES),
+                          offset, depth_limits, batch_bytes)  # fmt: skip
+    if probe is None:  # no readable time in the tail: nothing to place
+        return state
+    first, last = probe
+    if _offset_steady(first - _PREFIX_SPAN, last + _PREFIX_SPAN, header.timezone):
+        return state
+    probed = min(offset - header.data_offset, _PREFIX_PROBE_BYTES)
+    seconds = (last - first).total_seconds()
+    wanted = probed * 1.25 * _PREFIX_SPAN.total_seconds() / seconds if seconds > 0 else offset
+    trial = AmbiguityState()
+    _prefix_times(path, header, max(header.data_offset, offset - int(wanted)), offset,
+                  depth_limits, batch_bytes, trial)  # fmt: skip
+    return AmbiguityState(trial.last_local_us, trial.seen_jump, earlier_rows=True)
+
+
+def _prefix_times(
+    path: Path,
+    header: CsvHeader,
+    start: int,
+    offset: int,
+    depth_limits: tuple[float, float],
+    batch_bytes: int,
+    state: AmbiguityState | None = None,
+) -> tuple[dt.datetime, dt.datetime] | None:
+    """Bytes ``[start, offset)`` of the file (from the first whole line after ``start``
+    unless it is the data's start) parsed in batches of about ``batch_bytes`` through
+    ``state`` (a fresh one if None; it did not start the file unless ``start`` is the
+    data's start); the 1st and 99th percentile of their times (a garbage time does not
+    stretch the span), None without any."""
+    state = state if state is not None else AmbiguityState()
+    state.earlier_rows = start > header.data_offset
+    parser = _BatchParser(header, depth_limits, state)
+    low: list[dt.datetime] = []
+    high: list[dt.datetime] = []
     with path.open("rb") as handle:
-        while True:
-            start = max(header.data_offset, offset - size)
+        handle.seek(start)
+        if start > header.data_offset:
+            start += len(handle.readline())
+        while start < offset:
             handle.seek(start)
-            tail = handle.read(offset - start)
-            if start > header.data_offset:  # from the first whole line
-                tail = tail[tail.find(b"\n") + 1 :]
-            trial = AmbiguityState(earlier_rows=start > header.data_offset)
-            parser = _BatchParser(header, depth_limits, trial)
-            n_lines = tail.count(b"\n")
-            times = parser.parse(tail, 0, n_lines).samples["time_utc"] if n_lines else None
-            first, last = (times.min(), times.max()) if times is not None else (None, None)
-            if first is None or last is None:  # no readable time: nothing to carry
-                if start == header.data_offset:
-                    return state
-            elif _offset_steady(first - _PREFIX_SPAN, last + _PREFIX_SPAN, header.timezone):
-                return state
-            elif start == header.data_offset or last - first >= _PREFIX_SPAN:
-                return AmbiguityState(trial.last_local_us, trial.seen_jump, earlier_rows=True)
-            size *= 4
+            block = handle.read(min(batch_bytes, offset - start))
+            if start + len(block) < offset:  # whole lines only
+                block += handle.readline()
+            n_lines = block.count(b"\n")
+            if not n_lines:
+                break
+            times = parser.parse(block, 0, n_lines).samples["time_utc"].drop_nulls()
+            if times.len():
+                low.append(times.quantile(0.01, "lower"))
+                high.append(times.quantile(0.99, "higher"))
+            start += len(block)
+    return (min(low), max(high)) if low else None
 
 
 def _offset_steady(low: dt.datetime, high: dt.datetime, zone: str) -> bool:

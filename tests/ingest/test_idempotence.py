@@ -124,11 +124,13 @@ def test_a_file_growing_through_the_repeated_hour_lands_each_pass_once(corpus, t
     """A New York logger at 1 Hz across the end of daylight-saving time (local times
     01:00-01:59 twice), picked up cut in the second pass, again later in it, then whole:
     every sample lands once at its true instant, as the whole file read at once does
-    (each resumed read starts where the earlier version left the repeated hour)."""
+    (each resumed read starts where the earlier version left the repeated hour; the
+    file's 8 hours are more than the 4 a resume reads back, so the tail is sized from
+    the bytes of an hour, not the whole prefix)."""
     zone = ZoneInfo("America/New_York")
     instants = [
-        dt.datetime(2026, 11, 1, 4, 50, tzinfo=dt.UTC) + dt.timedelta(seconds=k)
-        for k in range(2 * 3600 + 1)  # 00:50 EDT .. 01:50 EST
+        dt.datetime(2026, 10, 31, 22, 50, tzinfo=dt.UTC) + dt.timedelta(seconds=k)
+        for k in range(8 * 3600 + 1)  # 18:50 EDT .. 01:50 EST
     ]
     rows = corpus.data_rows(len(instants))
     for row, t in zip(rows, instants, strict=True):

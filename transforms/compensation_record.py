@@ -10,7 +10,6 @@ itself: :mod:`transforms.compensation`.
 from __future__ import annotations
 
 import datetime as dt
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -288,11 +287,36 @@ def departure_from_median(pressures: Sequence[np.ndarray], floor_pa: float = 0.0
            [0.  ],
            [0.25]])
     """
-    stack = np.vstack([np.asarray(p, dtype=np.float64) for p in pressures])
-    with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # a sample no sensor logged
-        median = np.nanmedian(stack, axis=0)
-        return (stack - median) / np.where(median >= floor_pa, median, np.nan)
+    columns = tuple(np.ascontiguousarray(p, dtype=np.float64) for p in pressures)
+    out = np.empty((len(columns), columns[0].shape[0]))
+    _departure_kernel(columns, float(floor_pa), out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _departure_kernel(arrays, floor_pa, out):  # pragma: no cover - numba
+    """Per sample: the median of the non-NaN values (insertion-sorted, the middle one or
+    two), then each value's departure from it over it (NaN where the value is NaN or the
+    median is below ``floor_pa`` or unknown)."""
+    m = len(arrays)
+    values = np.empty(m)
+    for i in range(out.shape[1]):
+        count = 0
+        for k in range(m):
+            v = arrays[k][i]
+            if not np.isnan(v):
+                j = count
+                while j > 0 and values[j - 1] > v:
+                    values[j] = values[j - 1]
+                    j -= 1
+                values[j] = v
+                count += 1
+        median = 0.5 * (values[(count - 1) // 2] + values[count // 2]) if count else np.nan
+        for k in range(m):
+            if count and median >= floor_pa:
+                out[k, i] = (arrays[k][i] - median) / median
+            else:
+                out[k, i] = np.nan
 
 
 def disagreeing_as_unknown(

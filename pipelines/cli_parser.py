@@ -153,8 +153,8 @@ def _payload_kg(text: str) -> float:
 
 def _positive_gb(text: str) -> float:
     value = float(text)
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"must be a positive number of GB, got {text}")
+    if not 0 < value < math.inf:
+        raise argparse.ArgumentTypeError(f"must be a positive, finite number of GB, got {text}")
     return value
 
 

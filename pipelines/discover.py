@@ -154,6 +154,9 @@ def report_objects(
         "trips_in_period": result.plan.trips_found,
         "findings": per,
     }
+    if "ambiguous_between" in first:  # contract 5: the pair comes with the top-level answer
+        report["ambiguous_between"] = first["ambiguous_between"]
+        report["excitation"] = first["excitation"]
     left = unexplained_gap_pa(report["gap_after_pa"], report["noise_pa"])
     if left is not None:
         report["unexplained_gap_pa"] = left

@@ -117,3 +117,30 @@ def test_cli_discover_writes_under_the_data_roots_reports(lake_with_offset, caps
     assert code == 0
     assert json.loads(target.read_text())["effect"] == "sensor_offset"
     capsys.readouterr()
+
+
+def test_an_ambiguous_answer_names_its_pair_at_the_top_level():
+    """Contract 5: ``effect: ambiguous`` comes with ``ambiguous_between`` and
+    ``excitation`` in the report object itself (they were only in ``findings[0]``)."""
+    from types import SimpleNamespace
+
+    from discovery.results import Finding
+    from pipelines.discover import report_objects
+    from schemas.hoist import EXAMPLE_HOIST, load_hoist
+
+    finding = Finding(
+        iteration=1, effect="ambiguous", parameters={}, retuned={}, confidence=0.5,
+        gap_before_pa=9000.0, gap_after_pa=9000.0, noise_pa=5000.0, variance_ratio=3.2,
+        autocorrelation_time=1.0, where=[],
+        ranking=[{"effect": "local_loss", "score": 10.0},
+                 {"effect": "pipe_laminar_loss", "score": 9.5}],
+        ambiguous_between=("local_loss", "pipe_laminar_loss"),
+        excitation="trips at different speeds",
+    )  # fmt: skip
+    plan = SimpleNamespace(hoist=load_hoist(EXAMPLE_HOIST), trips=[], trips_found=0)
+    result = SimpleNamespace(plan=plan, findings=[finding], effects_found=[],
+                             effects_before=(), effects_after=())  # fmt: skip
+    report, _ = report_objects(result, ("2026-03-02T00:00:00+00:00", "2026-03-03T00:00:00+00:00"))
+    assert report["effect"] == "ambiguous"
+    assert report["ambiguous_between"] == ["local_loss", "pipe_laminar_loss"]
+    assert report["excitation"] == "trips at different speeds"

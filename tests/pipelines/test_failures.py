@@ -530,6 +530,21 @@ def test_a_payload_that_is_no_payload_is_a_usage_error(value, tmp_path, capsys):
     assert not (tmp_path / "d").exists()
 
 
+@pytest.mark.parametrize("value", ["nan", "0", "-1", "inf", "1e400"])
+def test_a_memory_budget_that_is_no_budget_is_a_usage_error(value, tmp_path, capsys):
+    """``--memory-budget-gb`` not a positive finite number: refused with the usage
+    status before anything runs (infinity was a traceback: int(inf))."""
+    with pytest.raises(SystemExit) as exit_info:
+        main(["backfill", "--hoists", str(tmp_path / "h"), "--data", str(tmp_path / "d"),
+              "--from", "2026-03-02", "--to", "2026-03-02",
+              "--memory-budget-gb", value])  # fmt: skip
+    assert exit_info.value.code == 2
+    assert "argument --memory-budget-gb: must be a positive, finite number of GB" in (
+        capsys.readouterr().err
+    )
+    assert not (tmp_path / "d").exists()
+
+
 @pytest.mark.parametrize("command", ["run", "discover"])
 def test_a_reversed_period_says_so(command, tmp_path, capsys, small_csv):
     """--to before --from: one line saying the period is empty (was: 'no samples landed

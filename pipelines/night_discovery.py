@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from pipelines.hoists import HoistSource
+from pipelines.night_pending import PendingWork, save_pending
 from pipelines.partitions import Partition, PartitionOutcome
 from pipelines.steps import StepOutcome, one_line, record_steps
 from warehouse.store import DataRoot
@@ -76,20 +77,17 @@ def discovery_outcome(path: Path | None, exc: BaseException | None = None) -> St
 
 
 def land_discoveries(
-    outcomes: Sequence[PartitionOutcome], found: dict[str, StepOutcome], data: DataRoot
+    run_ids: dict[str, str], found: dict[str, StepOutcome], data: DataRoot
 ) -> None:
-    """Land each discovery's outcome as a step of the day's run it analysed (never
-    raises: the outcome is said on stdout anyway)."""
-    runs = {o.key: o for o in outcomes if o.run_id}
+    """Land each discovery's outcome as a step of the day's run it analysed (``run_ids``
+    by ``site/hoist/day``; never raises: the outcome is said on stdout anyway)."""
     for key, step in found.items():
-        outcome = runs.get(key)
-        if outcome is None or outcome.run_id is None:
+        run_id = run_ids.get(key)
+        if run_id is None:
             continue
+        site, hoist, _ = key.split("/")
         try:
-            record_steps(
-                data, run_id=outcome.run_id, site=outcome.site, hoist=outcome.hoist,
-                outcomes=[step],
-            )  # fmt: skip
+            record_steps(data, run_id=run_id, site=site, hoist=hoist, outcomes=[step])
         except Exception as exc:
             logger.warning("%s: discovery outcome not landed: %s", key, one_line(exc))
 
@@ -106,15 +104,32 @@ def discover_days(
     sources: Sequence[HoistSource],
     outcomes: Sequence[PartitionOutcome],
     data: DataRoot,
+    pending: PendingWork | None = None,
 ) -> tuple[dict[str, StepOutcome], float]:
     """Discovery over each hoist's latest day with a failed check (:func:`discover_day`
     on ``executor``); its outcome per ``site/hoist/day``, also landed with the day's run,
     and the seconds the discoveries took. An optional step: a discovery that fails is a
-    finding, it never fails the night."""
+    finding, it never fails the night. With ``pending`` (:mod:`pipelines.night_pending`)
+    a hoist without such a day tonight takes the day an earlier night planned to
+    discover and did not finish; the plan is kept until each outcome is landed."""
     by_key = {(s.site, s.hoist): s for s in sources}
+    run_ids = {o.key: o.run_id for o in outcomes if o.run_id}
     days = [
         Partition(by_key[(site, hoist)], day) for site, hoist, day in days_to_discover(outcomes)
     ]
+    if pending is not None:
+        tonight = {(d.source.site, d.source.hoist) for d in days}
+        for key, run_id in sorted(pending.discoveries.items()):
+            site, hoist, day = key.split("/")
+            if (site, hoist) in by_key and (site, hoist) not in tonight:
+                days.append(Partition(by_key[(site, hoist)], dt.date.fromisoformat(day)))
+                run_ids[key] = run_id
+                tonight.add((site, hoist))
+        ours = set(by_key)
+        pending.discoveries = {
+            k: v for k, v in pending.discoveries.items() if tuple(k.split("/")[:2]) not in ours
+        } | {d.key: run_ids[d.key] for d in days if d.key in run_ids}
+        save_pending(data, pending)
     done = {d.item.key: d for d in executor.map(discover_day, days, data=data)}
     found: dict[str, StepOutcome] = {}
     seconds = 0.0
@@ -129,5 +144,9 @@ def discover_days(
             assert result.value is not None
             found[day.key] = discovery_outcome(result.value[0])
             seconds += result.value[1]
-    land_discoveries(outcomes, found, data)
+    land_discoveries(run_ids, found, data)
+    if pending is not None:
+        for key in found:
+            pending.discoveries.pop(key, None)
+        save_pending(data, pending)
     return found, seconds

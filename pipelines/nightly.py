@@ -66,6 +66,7 @@ from pipelines.hoists import HoistSource, find_new_files, hoist_lookup, incoming
 from pipelines.ingest import IngestReport, ingest_paths
 from pipelines.ledger import completed_partitions, record_failures
 from pipelines.night_discovery import discover_days, discovery_words
+from pipelines.night_pending import PendingWork, load_pending, save_pending
 from pipelines.partitions import BackfillReport, Partition, PartitionOutcome, fleet_report
 from warehouse.store import DataRoot, open_reader
 
@@ -181,17 +182,30 @@ def failed_night(source: HoistSource, exc: BaseException) -> HoistNight:
 
 
 def nightly_partitions(
-    nights: Sequence[HoistNight], *, data: DataRoot, lookback_days: int = 3, sanity: bool = True
+    nights: Sequence[HoistNight],
+    *,
+    data: DataRoot,
+    lookback_days: int = 3,
+    sanity: bool = True,
+    pending: PendingWork | None = None,
 ) -> list[Partition]:
     """Hoist-days to run: days new files touched (and the day after, whose run reads
-    them as lead-in), plus not-done days among the ``lookback_days`` before each
-    hoist's watermark. Days the ledger marks done are left out."""
+    them as lead-in), not-done days among the ``lookback_days`` before each hoist's
+    watermark, and the hoist's days an earlier night planned and did not finish
+    (``pending``, :mod:`pipelines.night_pending`). Days the ledger marks done are left
+    out."""
     candidates: list[Partition] = []
     for night in nights:
         days = set(night.days) | {d + dt.timedelta(days=1) for d in night.days}
         if night.watermark_after is not None:
             last = night.watermark_after.date()
             days |= {last - dt.timedelta(days=k) for k in range(max(lookback_days, 0))}
+        if pending is not None:
+            source = night.source
+            days |= {
+                dt.date.fromisoformat(key.rsplit("/", 1)[1])
+                for key in pending.runs_of(source.site, source.hoist)
+            }
         candidates += [Partition(night.source, day) for day in sorted(days)]
     candidates = [p for p in candidates if has_samples_or_error(p, data)]
     done = completed_partitions(data, candidates, sanity=sanity)
@@ -304,14 +318,24 @@ def nightly(
     t0 = time.perf_counter()
     notes = incoming_notes(sources)
     nights = _ingest(executor, sources, data=data)
-    partitions = nightly_partitions(nights, data=data, lookback_days=lookback_days, sanity=sanity)
+    pending = load_pending(data)
+    partitions = nightly_partitions(
+        nights, data=data, lookback_days=lookback_days, sanity=sanity, pending=pending
+    )
+    # the plan is kept before the work starts: a night killed now is finished by the next
+    ours = {(n.source.site, n.source.hoist) for n in nights}
+    pending.runs = {k for k in pending.runs if tuple(k.split("/")[:2]) not in ours}
+    pending.runs |= {p.key for p in partitions}
+    save_pending(data, pending)
     if on_plan is not None:
         on_plan(partitions)
     outcomes = run_partitions(
         executor, partitions, data=data, command="nightly", sanity=sanity, progress=progress
     )
     executor.call(record_failures, data, outcomes, command="nightly")
-    found, discover_s = discover_days(executor, sources, outcomes, data)
+    pending.runs -= {o.key for o in outcomes if o.status != "failed"}
+    save_pending(data, pending)
+    found, discover_s = discover_days(executor, sources, outcomes, data, pending=pending)
     discoveries = {key: discovery_words(step) for key, step in found.items()}
     runs = BackfillReport(outcomes=outcomes, wall_s=time.perf_counter() - t0)
     night = NightlyReport(

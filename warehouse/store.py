@@ -32,6 +32,7 @@ import datetime as dt
 import os
 import re
 import shutil
+import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,6 +49,7 @@ __all__ = [
     "open_reader",
     "open_writer",
     "storage_version",
+    "write_text_atomic",
 ]
 
 DATA_ENV = "ROPELOAD_DATA"
@@ -60,6 +62,22 @@ DEFAULT_DATA = Path("ropeload-data")
 #: and the demo warehouse is the same size in both (warehouse/README.md, "DuckDB CLI").
 STORAGE_VERSION = "v1.4.0"
 _ISO_DAY = re.compile(r"\d{4}-\d{2}-\d{2}")
+
+
+def write_text_atomic(path: Path, text: str) -> Path:
+    """Write ``text`` (UTF-8) as ``path``, whole or not at all: a temporary file of its
+    own beside it, renamed into place (a reader never sees half a file, a crash leaves
+    the old one). Returns ``path``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "w", encoding="utf-8") as out:
+            out.write(text)
+        Path(name).replace(path)
+    except BaseException:
+        Path(name).unlink(missing_ok=True)
+        raise
+    return path
 
 
 class OutputPathError(ValueError):

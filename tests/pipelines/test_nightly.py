@@ -100,6 +100,32 @@ def test_a_late_file_reopens_only_its_day(site):
     assert rerun.select("hoist", "day").rows() == [("shaft-1", dt.date(2026, 3, 2))]
 
 
+class _Killed(BaseException):
+    """A night's process killed (as by ``kill -9``: nothing of the night's own catches it)."""
+
+
+def test_a_night_killed_after_its_plan_is_finished_by_the_next(site):
+    """The first night ingests both hoists' two days and is killed once it knows what to
+    run: the files are in the manifest (no longer new) and no day has a run. The next
+    night, with no lookback, runs the four days the killed one planned (it ran none and
+    said nothing: a week of arrears was lost the same way), then nothing is pending."""
+    hoists, incoming, data = site
+    sources = load_hoists(hoists, data=data, incoming=incoming)
+
+    def killed(partitions):
+        assert len(partitions) == 4
+        raise _Killed
+
+    with pytest.raises(_Killed):
+        nightly(sources, data=data, lookback_days=0, sanity=False, on_plan=killed)
+    assert [len(find_new_files(s, known_files(data))) for s in sources] == [0, 0]
+    night = nightly(sources, data=data, lookback_days=0, sanity=False)
+    assert sorted(o.key for o in night.runs.outcomes if o.status == "succeeded") == [
+        f"paper-field-test/shaft-{k}/2026-03-0{d}" for k in (1, 2) for d in (2, 3)
+    ]
+    assert nightly(sources, data=data, lookback_days=0, sanity=False).runs.outcomes == []
+
+
 def test_a_recalibrated_hoist_is_rerun_within_the_lookback(site):
     hoists, incoming, data = site
     sources = load_hoists(hoists, data=data, incoming=incoming)
@@ -371,3 +397,26 @@ def test_a_file_naming_another_hoist_in_a_hoists_folder_is_refused(tmp_path, cap
     assert "header names hoist paper-field-test/other-shaft" in refused[0][1]
     lake = data / "lake" / "field_samples" / "site=paper-field-test"
     assert not (lake / "hoist=other-shaft").exists()
+
+
+def test_a_discovery_a_killed_night_planned_is_run_by_the_next(midnight, monkeypatch):
+    """The day a night planned to discover (its check failed) and was killed before the
+    discovery's outcome landed: the next night, with nothing new, discovers it and lands
+    the outcome with that day's run (it was never done again: the day's check had its
+    outcome, and a night only looked at its own runs)."""
+    from pipelines import night_discovery
+    from pipelines.executors import PlainExecutor
+    from pipelines.night_pending import PendingWork, load_pending, save_pending
+
+    hoists, incoming, data = midnight
+    sources = load_hoists(hoists, data=data, incoming=incoming)
+    assert nightly(sources, data=data, sanity=False).ok
+    day = partition_ledger(data).row(1, named=True)  # 2026-03-03
+    key = f"{day['site']}/{day['hoist']}/{day['day']}"
+    save_pending(data, PendingWork(discoveries={key: day["run_id"]}))  # as a killed night left it
+    found, _ = night_discovery.discover_days(
+        PlainExecutor(1, 0), sources, [], data, pending=load_pending(data)
+    )
+    assert list(found) == [key]
+    assert steps_of(data, [day["run_id"]]).filter(pl.col("step") == "discovery").height == 1
+    assert load_pending(data).discoveries == {}

@@ -1,0 +1,76 @@
+"""What a night set out to do and has not done yet, kept in the data root.
+
+A night plans its hoist-days from the files that are new to it (:mod:`pipelines.nightly`)
+and its discoveries from the days whose sanity check failed this night
+(:mod:`pipelines.night_discovery`). Killed between planning and finishing, the next
+night would see neither again: the files are in the manifest (no longer new) and the
+days' checks have their outcomes, so a week of arrears beyond the lookback, or a
+discovery cut short, was never done, and nothing said so. The plan is written to
+``<data>/state/nightly-pending.json`` before the work starts; each night adds the pending
+items of its hoists to its own plan and keeps those not done yet (a failed hoist-day
+stays pending until a night runs it; a discovery is done once its outcome, a report or
+a failure, is landed).
+
+The file holds partition keys (``site/hoist/YYYY-MM-DD``) of hoist-days to run and, per
+key, the run id of a day to discover. It is written atomically; a missing or unreadable
+file is an empty plan (the work it named is then found only as before).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from warehouse.store import DataRoot, write_text_atomic
+
+__all__ = ["PendingWork", "load_pending", "save_pending"]
+
+logger = logging.getLogger(__name__)
+
+#: The file under the data root's ``state`` folder.
+PENDING_FILE = "nightly-pending.json"
+
+
+@dataclass
+class PendingWork:
+    """Hoist-days a night planned to run, and days (with the run to land the outcome
+    with) it planned to discover, not done yet."""
+
+    runs: set[str] = field(default_factory=set)
+    discoveries: dict[str, str] = field(default_factory=dict)
+
+    def runs_of(self, site: str, hoist: str) -> set[str]:
+        """The pending hoist-days of one hoist (their keys)."""
+        prefix = f"{site}/{hoist}/"
+        return {key for key in self.runs if key.startswith(prefix)}
+
+
+def _path(data: DataRoot) -> Path:
+    return data.path / "state" / PENDING_FILE
+
+
+def load_pending(data: DataRoot) -> PendingWork:
+    """The pending work of the data root (empty without a readable file)."""
+    path = _path(data)
+    try:
+        raw = json.loads(path.read_text())
+        return PendingWork(
+            runs={str(k) for k in raw.get("runs", [])},
+            discoveries={str(k): str(v) for k, v in raw.get("discoveries", {}).items()},
+        )
+    except FileNotFoundError:
+        return PendingWork()
+    except (OSError, ValueError, AttributeError) as exc:
+        logger.warning("%s unreadable, taken as no pending work: %s", path, exc)
+        return PendingWork()
+
+
+def save_pending(data: DataRoot, work: PendingWork) -> None:
+    """Write the pending work, whole or not at all."""
+    text = json.dumps(
+        {"runs": sorted(work.runs), "discoveries": dict(sorted(work.discoveries.items()))},
+        indent=1,
+    )
+    write_text_atomic(_path(data), text)

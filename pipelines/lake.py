@@ -45,7 +45,12 @@ def scan_lake(
     files = sorted(root.glob("date=*/*.parquet"))
     if start is not None or end is not None:
         first = as_utc(start).date().isoformat() if start is not None else ""
-        last = as_utc(end).date().isoformat() if end is not None else "9999-12-31"
+        # the end is exclusive: a period ending at midnight reads nothing of the next day
+        last = (
+            (as_utc(end) - dt.timedelta(microseconds=1)).date().isoformat()
+            if end is not None
+            else "9999-12-31"
+        )
         files = [f for f in files if first <= f.parent.name.removeprefix("date=") <= last]
     if not files:
         return pl.LazyFrame(schema=polars_schema(schema))

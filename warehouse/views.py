@@ -29,12 +29,18 @@ a lake table. A reader whose data root moved since the last writer can call it w
 
 from __future__ import annotations
 
+import logging
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import duckdb
+import pyarrow as pa
+import pyarrow.parquet as pq
 
 from schemas.tables import LAKE_PARTITIONS, TABLES, duckdb_columns
+
+logger = logging.getLogger(__name__)
 
 if TYPE_CHECKING:
     from warehouse.store import DataRoot
@@ -82,21 +88,39 @@ def _sql_columns(table: str) -> list[tuple[str, str]]:
     return columns
 
 
-def raw_view_sql(root: DataRoot, table: str) -> str:
-    """``SELECT`` of one lake table: typed columns of its Arrow schema + Hive keys."""
+def raw_view_sql(root: DataRoot, table: str, files: Sequence[Path] | None = None) -> str:
+    """``SELECT`` of one lake table: typed columns of its Arrow schema + Hive keys (of
+    ``files`` only, where given, else every file of the table)."""
     columns = _sql_columns(table)
     columns += [(key, _PARTITION_TYPES[key]) for key in LAKE_PARTITIONS]
     directory = root.table_dir(table)
-    if not any(directory.glob("site=*/hoist=*/date=*/*.parquet")):
+    if not (files if files is not None else any(directory.glob("site=*/hoist=*/date=*/*.parquet"))):
         select = ", ".join(f"CAST(NULL AS {sql_type}) AS {name}" for name, sql_type in columns)
         return f"SELECT {select} WHERE false"
     pattern = str(directory / "site=*" / "hoist=*" / "date=*" / "*.parquet")
+    source = _quote(pattern)
+    if files is not None:  # the readable files only (:func:`refresh_views`)
+        source = "[" + ", ".join(_quote(str(f)) for f in files) + "]"
     hive_types = ", ".join(f"{_quote(k)}: {_PARTITION_TYPES[k]}" for k in LAKE_PARTITIONS)
     select = ", ".join(f"CAST({name} AS {sql_type}) AS {name}" for name, sql_type in columns)
     return (
-        f"SELECT {select} FROM read_parquet({_quote(pattern)}, hive_partitioning = true, "
+        f"SELECT {select} FROM read_parquet({source}, hive_partitioning = true, "
         f"union_by_name = true, hive_types = {{{hive_types}}})"
     )
+
+
+def readable_files(directory: Path) -> tuple[list[Path], list[Path]]:
+    """The lake table's Parquet files under ``directory`` that open (their footer
+    reads), and those that do not (damaged from outside: a truncated copy, a stray
+    ``touch``; the pipeline's own writes are atomic)."""
+    good, bad = [], []
+    for path in sorted(directory.glob("site=*/hoist=*/date=*/*.parquet")):
+        try:
+            pq.read_metadata(path)
+            good.append(path)
+        except (OSError, pa.ArrowException):
+            bad.append(path)
+    return good, bad
 
 
 def refresh_views(
@@ -114,7 +138,19 @@ def refresh_views(
             con.execute(f"DROP VIEW IF EXISTS {view}")
     created = []
     for view, table in LAKE_VIEWS.items():
-        con.execute(f"CREATE OR REPLACE {kind} {view} AS {raw_view_sql(root, table)}")
+        try:
+            con.execute(f"CREATE OR REPLACE {kind} {view} AS {raw_view_sql(root, table)}")
+        except duckdb.Error:
+            # a damaged file would fail every writer of the data root, every hoist's:
+            # the view leaves it out and says so (a run reading its day fails there)
+            good, bad = readable_files(root.table_dir(table))
+            if not bad:
+                raise
+            logger.warning(
+                "%s: %d unreadable Parquet file(s) left out of the view: %s",
+                view, len(bad), ", ".join(str(p) for p in bad),
+            )  # fmt: skip
+            con.execute(f"CREATE OR REPLACE {kind} {view} AS {raw_view_sql(root, table, good)}")
         created.append(view)
     for path in model_files():
         body = path.read_text(encoding="utf-8").strip().rstrip(";")

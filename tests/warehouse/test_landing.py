@@ -344,3 +344,39 @@ def test_an_alarm_across_a_rerun_start_is_not_landed_twice(tmp_path):
     with open_reader(root) as con:
         rows = con.sql("SELECT run_id, start_utc FROM alarms ORDER BY start_utc").fetchall()
     assert [(r, (t - DAY).total_seconds()) for r, t in rows] == [("day", 2700), ("part", 3000)]
+
+
+def test_a_damaged_lake_file_is_left_out_of_the_views_not_every_writer(tmp_path, caplog):
+    """One hoist's field-sample file truncated to nothing from outside (the pipeline's
+    own writes are atomic): a writer still opens (every writer refreshed the views and
+    failed on it, the other hoists' too), the view holds the other files' rows and the
+    log names the file; a day's scan of the lake does not open the next day's files."""
+    import logging
+
+    from pipelines.lake import scan_lake
+    from schemas.tables import FIELD_SAMPLES
+    from warehouse.parquet_files import write_parquet_atomic
+
+    root = DataRoot(tmp_path)
+    for hoist, day in (("a", 2), ("a", 3), ("b", 2)):
+        start = dt.datetime(2026, 3, day, tzinfo=dt.UTC)
+        frame = conform(
+            pl.DataFrame({"time_utc": [start + dt.timedelta(seconds=k) for k in range(5)],
+                          "p1_pa": [4e6] * 5, "source_sha256": ["0" * 64] * 5,
+                          "source_line": list(range(5))}),
+            FIELD_SAMPLES,
+        )  # fmt: skip
+        folder = root.partition_dir("field_samples", site="s", hoist=hoist, date=start.date())
+        folder.mkdir(parents=True)
+        write_parquet_atomic(frame, folder / "part-1.parquet", FIELD_SAMPLES)
+    damaged = root.partition_dir("field_samples", site="s", hoist="a", date=dt.date(2026, 3, 3))
+    (damaged / "part-1.parquet").write_bytes(b"")
+    with caplog.at_level(logging.WARNING, logger="warehouse.views"), open_writer(root) as con:
+        rows = con.sql("SELECT hoist, count(*) FROM lake_field_samples GROUP BY 1 ORDER BY 1")
+        assert rows.fetchall() == [("a", 5), ("b", 5)]
+    assert "1 unreadable Parquet file(s) left out" in caplog.text
+    assert str(damaged / "part-1.parquet") in caplog.text
+    day = scan_lake(root, "field_samples", site="s", hoist="a",
+                    start=dt.datetime(2026, 3, 2, tzinfo=dt.UTC),
+                    end=dt.datetime(2026, 3, 3, tzinfo=dt.UTC)).collect()  # fmt: skip
+    assert day.height == 5

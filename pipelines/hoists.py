@@ -237,7 +237,8 @@ def incoming_notes(sources: Sequence[HoistSource]) -> list[str]:
 
 
 def known_files(data: DataRoot) -> set[tuple[str, int]]:
-    """(absolute path, size) of every file in the ingest manifest.
+    """(absolute path, size) of every file in the ingest manifest, and of every file
+    ingest skipped as content the manifest holds under another path (``manifest_aliases``).
 
     A raw file whose path and size are here has been ingested (or refused) already: the
     manifest is the watermark. A file that grew since (a logger still writing) is new.
@@ -246,7 +247,10 @@ def known_files(data: DataRoot) -> set[tuple[str, int]]:
         return set()
     con = open_reader(data)
     try:
-        rows = con.sql("SELECT source_path, size_bytes FROM manifest").fetchall()
+        rows = con.sql(
+            "SELECT source_path, size_bytes FROM manifest "
+            "UNION ALL SELECT source_path, size_bytes FROM manifest_aliases"
+        ).fetchall()
     finally:
         con.close()
     return {(str(path), int(size)) for path, size in rows}

@@ -23,6 +23,7 @@ __all__ = [
     "FRICTION_PARAMETER_SETS",
     "LAKE_PARTITIONS",
     "MANIFEST",
+    "MANIFEST_ALIASES",
     "POSITION_SUMMARY",
     "QUARANTINE",
     "RIG_SAMPLES",
@@ -338,11 +339,24 @@ RUN_STEPS = _schema(
     "skipped or failed, and why",
 )
 
+#: A path whose content the manifest holds under another path (migration 0006).
+MANIFEST_ALIASES = _schema(
+    [
+        pa.field("source_path", pa.string(), nullable=False),
+        pa.field("size_bytes", pa.int64(), nullable=False),
+        pa.field("source_sha256", pa.string(), nullable=False),
+        pa.field("seen_at_utc", TIME, nullable=False),
+    ],
+    "one row per (path, size) of a raw file skipped as content the manifest already "
+    "holds under another path (a re-export under a new name)",
+)
+
 TABLES: dict[str, pa.Schema] = {
     "field_samples": FIELD_SAMPLES,
     "rig_samples": RIG_SAMPLES,
     "quarantine": QUARANTINE,
     "manifest": MANIFEST,
+    "manifest_aliases": MANIFEST_ALIASES,
     "runs": RUNS,
     "rope_tensions": ROPE_TENSIONS,
     "position_summary": POSITION_SUMMARY,

@@ -35,6 +35,7 @@ __all__ = [
     "find_earlier",
     "forget",
     "record",
+    "record_alias",
     "resume_candidates",
     "size_seen",
 ]
@@ -113,6 +114,16 @@ def file_digests(path: Path, prefixes: list[int]) -> tuple[str, dict[int, str]]:
             digest.update(block[start:])
             position += len(block)
     return digest.hexdigest(), found
+
+
+def record_alias(con: duckdb.DuckDBPyConnection, result: FileResult) -> None:
+    """Record a skipped file's (path, size) as another path of content the manifest
+    holds (``manifest_aliases``): the nightly's new-file test (:func:`pipelines.hoists.
+    known_files`) then knows it, and does not read and hash it again every night."""
+    con.execute(
+        "INSERT OR REPLACE INTO manifest_aliases VALUES (?, ?, ?, ?)",
+        [str(result.path), result.size_bytes, result.sha256, dt.datetime.now(dt.UTC)],
+    )
 
 
 def record(con: duckdb.DuckDBPyConnection, result: FileResult) -> None:

@@ -54,6 +54,7 @@ from pipelines.ingest.manifest import (
     find_earlier,
     forget,
     record,
+    record_alias,
     resume_candidates,
     size_seen,
 )
@@ -94,6 +95,8 @@ def ingest_paths(
                 result, earlier = _ingest_file(path, con, data, lakes, hoist_lookup, batch_bytes)
                 if result.status != "skipped" and result.sha256:
                     _record(con, result, earlier)
+                elif earlier is not None and earlier.path != str(path):
+                    record_alias(con, result)  # the same content under another path
                 report.files.append(result)
                 _log_file(result)
     return report

@@ -265,3 +265,20 @@ def test_invalid_pressure_messages_are_quarantined_with_topic(corpus, tmp_path, 
     with open_reader(root) as con:
         topics = con.sql("SELECT DISTINCT topic, line FROM quarantine").fetchall()
     assert topics == [("/rig/pressure", None)]
+
+
+def test_a_re_export_under_a_new_name_is_known_after_its_first_skip(corpus, tmp_path, root):
+    """The same content under a new name is skipped (nothing landed twice) and its path
+    recorded: the nightly's new-file test knows it from then on (it read and hashed it
+    again every night, counting it new)."""
+    from pipelines.hoists import is_new, known_files
+
+    path = corpus.csv_file(tmp_path / "day.csv", corpus.data_rows(20))
+    ingest_paths([path], data=root)
+    copy = tmp_path / "export-again.csv"
+    shutil.copy(path, copy)
+    assert is_new(copy, known_files(root))
+    assert ingest_paths([copy], data=root).files[0].status == "skipped"
+    assert not is_new(copy, known_files(root))
+    assert _counts(root) == (1, 0)  # still one manifest row
+    assert ingest_paths([copy], data=root).files[0].status == "skipped"  # and again: alike

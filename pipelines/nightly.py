@@ -48,11 +48,12 @@ folder or raw files -- is named, one line each (exit status unchanged).
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
 import importlib.util
 import logging
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -68,6 +69,7 @@ from pipelines.ledger import completed_partitions, record_failures
 from pipelines.night_discovery import discover_days, discovery_words
 from pipelines.night_pending import PendingWork, load_pending, save_pending
 from pipelines.partitions import BackfillReport, Partition, PartitionOutcome, fleet_report
+from warehouse.lock import LockTimeoutError, WarehouseLock, describe_holder, read_holder
 from warehouse.store import DataRoot, open_reader
 
 if TYPE_CHECKING:
@@ -307,14 +309,58 @@ def nightly(
     :class:`~pipelines.executors.PlainExecutor` of ``max_workers`` threads and
     ``retries`` (the Prefect flow passes its own and ignores those two).
 
-    Never raises for a failed partition or a refused file: see ``report.ok``.
+    Never raises for a failed partition or a refused file: see ``report.ok``. Raises
+    :class:`NightRunningError` where another night holds the data root.
     ``on_plan(partitions)`` is called once the hoist-days to run are known. With
     ``write_report`` the night's HTML report is written under ``<data>/reports/``
     (:func:`pipelines.reports.write_fleet_report`; ``report.report_path``; published as
     ``nightly-report`` by a Prefect executor).
     """
-    if executor is None:
-        executor = PlainExecutor(max_workers, retries)
+    with _one_night_at_a_time(data):
+        return _night(
+            sources, data=data, executor=executor or PlainExecutor(max_workers, retries),
+            lookback_days=lookback_days, sanity=sanity, progress=progress, on_plan=on_plan,
+            write_report=write_report,
+        )  # fmt: skip
+
+
+class NightRunningError(RuntimeError):
+    """Another night holds the data root: this one does nothing."""
+
+
+@contextlib.contextmanager
+def _one_night_at_a_time(data: DataRoot) -> Iterator[None]:
+    """Hold ``<data>/.nightly.lock`` for the night, or raise :class:`NightRunningError`
+    naming the holder at once: two nights at once (a scheduled one over a manual one)
+    both planned the same days before either landed one, and both computed them. The
+    lock goes with its process (``flock``): a killed night leaves nothing to clear."""
+    data.path.mkdir(parents=True, exist_ok=True)
+    lock = WarehouseLock(data.path / ".nightly.lock", timeout_s=0.0, on_wait=lambda _: None)
+    try:
+        lock.acquire()
+    except LockTimeoutError:
+        holder = describe_holder(read_holder(lock.path))
+        raise NightRunningError(
+            f"another nightly runs on {data.path}: {holder}; this one did nothing"
+        ) from None
+    try:
+        yield
+    finally:
+        lock.release()
+
+
+def _night(
+    sources: Sequence[HoistSource],
+    *,
+    data: DataRoot,
+    executor: Executor,
+    lookback_days: int,
+    sanity: bool,
+    progress: Callable[[PartitionOutcome], None] | None,
+    on_plan: Callable[[list[Partition]], None] | None,
+    write_report: bool,
+) -> NightlyReport:
+    """:func:`nightly`'s night, under its lock."""
     t0 = time.perf_counter()
     notes = incoming_notes(sources)
     nights = _ingest(executor, sources, data=data)

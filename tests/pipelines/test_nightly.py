@@ -420,3 +420,28 @@ def test_a_discovery_a_killed_night_planned_is_run_by_the_next(midnight, monkeyp
     assert list(found) == [key]
     assert steps_of(data, [day["run_id"]]).filter(pl.col("step") == "discovery").height == 1
     assert load_pending(data).discoveries == {}
+
+
+def test_a_night_while_another_holds_the_data_root_does_nothing_and_says_who(site):
+    """A second night started while one runs (held here as a night holds it): it stops
+    at once naming the holder, before ingesting anything (two nights both planned the
+    same days and computed each twice). Once the first is gone, a night runs."""
+    import os as _os
+
+    from pipelines.nightly import NightRunningError
+    from warehouse.lock import WarehouseLock
+
+    hoists, incoming, data = site
+    sources = load_hoists(hoists, data=data, incoming=incoming)
+    data.path.mkdir(parents=True, exist_ok=True)
+    first = WarehouseLock(data.path / ".nightly.lock", timeout_s=0.0)
+    first.acquire()
+    try:
+        with pytest.raises(
+            NightRunningError, match=f"another nightly runs on .*pid {_os.getpid()}"
+        ):
+            nightly(sources, data=data, sanity=False)
+        assert not data.warehouse.exists()  # nothing ingested
+    finally:
+        first.release()
+    assert nightly(sources, data=data, sanity=False).runs.count("succeeded") == 4

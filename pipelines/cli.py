@@ -41,6 +41,7 @@ def _known_errors() -> tuple[type[BaseException], ...]:
         ("duckdb", "Error"),
         ("warehouse.lock", "LockTimeoutError"),
         ("pipelines.run_period", "NoSamplesError"),
+        ("pipelines.nightly", "NightRunningError"),
         # a lake file polars cannot read (damaged, not Parquet): its words, one line
         ("polars.exceptions", "ComputeError"),
     ):

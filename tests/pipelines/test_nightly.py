@@ -422,7 +422,7 @@ def test_a_discovery_a_killed_night_planned_is_run_by_the_next(midnight, monkeyp
     assert load_pending(data).discoveries == {}
 
 
-def test_a_night_while_another_holds_the_data_root_does_nothing_and_says_who(site):
+def test_a_night_while_another_holds_the_data_root_does_nothing_and_says_who(site, capsys):
     """A second night started while one runs (held here as a night holds it): it stops
     at once naming the holder, before ingesting anything (two nights both planned the
     same days and computed each twice). Once the first is gone, a night runs."""
@@ -442,6 +442,13 @@ def test_a_night_while_another_holds_the_data_root_does_nothing_and_says_who(sit
         ):
             nightly(sources, data=data, sanity=False)
         assert not data.warehouse.exists()  # nothing ingested
+        command = ["nightly", "--hoists", str(hoists), "--incoming", str(incoming),
+                   "--data", str(data.path), "--no-sanity", "--no-progress"]  # fmt: skip
+        capsys.readouterr()
+        assert main(command) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1
+        assert err[0].startswith("ropeload nightly: another nightly runs on")
     finally:
         first.release()
     assert nightly(sources, data=data, sanity=False).runs.count("succeeded") == 4

@@ -247,10 +247,11 @@ def known_files(data: DataRoot) -> set[tuple[str, int]]:
         return set()
     con = open_reader(data)
     try:
-        rows = con.sql(
-            "SELECT source_path, size_bytes FROM manifest "
-            "UNION ALL SELECT source_path, size_bytes FROM manifest_aliases"
-        ).fetchall()
+        sql = "SELECT source_path, size_bytes FROM manifest"
+        tables = con.sql("SELECT table_name FROM information_schema.tables").fetchall()
+        if ("manifest_aliases",) in tables:  # a warehouse before migration 0006 lacks it
+            sql += " UNION ALL SELECT source_path, size_bytes FROM manifest_aliases"
+        rows = con.sql(sql).fetchall()
     finally:
         con.close()
     return {(str(path), int(size)) for path, size in rows}

@@ -111,7 +111,8 @@ def discover_days(
     and the seconds the discoveries took. An optional step: a discovery that fails is a
     finding, it never fails the night. With ``pending`` (:mod:`pipelines.night_pending`)
     a hoist without such a day tonight takes the day an earlier night planned to
-    discover and did not finish; the plan is kept until each outcome is landed."""
+    discover and did not finish; the plan is kept until each discovery has run (its
+    outcome, a report or a failure, said and landed where it can be)."""
     by_key = {(s.site, s.hoist): s for s in sources}
     run_ids = {o.key: o.run_id for o in outcomes if o.run_id}
     days = [

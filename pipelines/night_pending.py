@@ -18,8 +18,10 @@ file is an empty plan (the work it named is then found only as before).
 
 from __future__ import annotations
 
+import datetime as dt
 import json
 import logging
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -51,20 +53,43 @@ def _path(data: DataRoot) -> Path:
     return data.path / "state" / PENDING_FILE
 
 
+#: A partition key: site/hoist/YYYY-MM-DD (safe names hold no "/").
+_KEY = re.compile(r"[^/]+/[^/]+/\d{4}-\d{2}-\d{2}")
+
+
+def _valid_key(key: object) -> bool:
+    if not isinstance(key, str) or not _KEY.fullmatch(key):
+        return False
+    try:
+        dt.date.fromisoformat(key.rsplit("/", 1)[1])
+    except ValueError:
+        return False
+    return True
+
+
 def load_pending(data: DataRoot) -> PendingWork:
-    """The pending work of the data root (empty without a readable file)."""
+    """The pending work of the data root (empty without a readable file; an entry that
+    is not a partition key is left out, said in a warning naming the file)."""
     path = _path(data)
     try:
         raw = json.loads(path.read_text())
-        return PendingWork(
-            runs={str(k) for k in raw.get("runs", [])},
-            discoveries={str(k): str(v) for k, v in raw.get("discoveries", {}).items()},
-        )
     except FileNotFoundError:
         return PendingWork()
-    except (OSError, ValueError, AttributeError) as exc:
+    except (OSError, ValueError) as exc:
         logger.warning("%s unreadable, taken as no pending work: %s", path, exc)
         return PendingWork()
+    runs = raw.get("runs", []) if isinstance(raw, dict) else []
+    found = raw.get("discoveries", {}) if isinstance(raw, dict) else {}
+    runs = runs if isinstance(runs, list) else []
+    found = found if isinstance(found, dict) else {}
+    work = PendingWork(
+        runs={k for k in runs if _valid_key(k)},
+        discoveries={k: v for k, v in found.items() if _valid_key(k) and isinstance(v, str)},
+    )
+    left = len(runs) - len(work.runs) + len(found) - len(work.discoveries)
+    if left or not isinstance(raw, dict):
+        logger.warning("%s: %d entr(ies) not hoist-days left out", path, max(left, 1))
+    return work
 
 
 def save_pending(data: DataRoot, work: PendingWork) -> None:

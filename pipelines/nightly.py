@@ -365,6 +365,13 @@ def _night(
     notes = incoming_notes(sources)
     nights = _ingest(executor, sources, data=data)
     pending = load_pending(data)
+    configured = {(source.site, source.hoist) for source in sources}
+    elsewhere = sorted(
+        {"/".join(k.split("/")[:2]) for k in [*pending.runs, *pending.discoveries]}
+        - {f"{site}/{hoist}" for site, hoist in configured}
+    )
+    if elsewhere:  # kept for when the hoist is back; said, not dropped
+        notes.append(f"pending work of hoist(s) not in the hoists folder: {', '.join(elsewhere)}")
     partitions = nightly_partitions(
         nights, data=data, lookback_days=lookback_days, sanity=sanity, pending=pending
     )

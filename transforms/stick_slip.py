@@ -378,9 +378,9 @@ def stick_slip_state(pistons: int, elements: int = 1) -> np.ndarray:
     length, per piston the seal's force (its elements' total), x, v, the drift's play
     output and heading, per piston the compliance, the given drift travel not yet
     applied]``, then with ``elements`` > 1 Maxwell-slip elements per seal each
-    element's deflection;
+    element's deflection, then each sensor's reading at the last sample solved;
     :func:`transforms.filtering.fresh_state`)."""
-    return np.zeros(8 + 4 * pistons + (pistons * elements if elements > 1 else 0))
+    return np.zeros(8 + 4 * pistons + (pistons * elements if elements > 1 else 0) + pistons)
 
 
 def _constants(hoist: HoistDescription) -> np.ndarray:
@@ -815,7 +815,11 @@ def _kernel(
     cap = np.zeros(m)
     ka = np.zeros(m)
     p_now = np.zeros(m)  # each sensor's pressure at the sample, the others' mean if unknown
-    known_last = m  # sensors logged at the last sample solved
+    # each sensor's reading at the last sample solved (NaN: not logged), carried in the
+    # state after the elements: where a sensor leaves or rejoins the mean, the oil's
+    # change is taken from those logged at both samples, also across a block's edge
+    prev_at = 8 + 4 * m + (m * element_k.shape[0] if element_k.shape[0] > 1 else 0)
+    p_prev = np.full(m, np.nan)
     ran = state[0] != 0.0
     resume = ran and state[1] != 0.0
     s, p_last = state[2], state[3]
@@ -843,6 +847,8 @@ def _kernel(
         for i in range(m):
             compliance[i] = state[7 + 3 * m + i]
     if ran:
+        for i in range(m):
+            p_prev[i] = state[prev_at + i]
         for i in range(m):
             z[i] = state[5 + i]
             x[i] = state[5 + m + i]
@@ -883,7 +889,7 @@ def _kernel(
             for i in range(m):
                 x_out[i][t] = x[i]
                 f_out[i][t] = z[i]
-            known_last = 0
+                p_prev[i] = np.nan
             continue
         k = head_rope_stiffness_n_m(ea, hanging)
         p_law = max(p_mean, 1e5)
@@ -925,6 +931,7 @@ def _kernel(
                     z[i] = maxwell_slip_virgin(z[i], deltas[i], element_k, element_w, cap[i])
                 x_out[i][t] = x[i]
                 f_out[i][t] = z[i]
+                p_prev[i] = p_sensor[i][t]
             ran = True
             p_last = p_mean
             continue
@@ -944,18 +951,22 @@ def _kernel(
                     if cap[i] > 0.0:
                         z[i] = lugre_drift(z[i], path * compliance[i], sigma0, cap[i])
         dp = p_mean - p_last
-        if (known < m or known_last < m) and t > 0:
+        steady = known == m
+        for i in range(m):
+            steady = steady and not np.isnan(p_prev[i])
+        if not steady:
             # a sensor leaves or rejoins the mean: the oil's change from those logged at
             # both samples, not a step of their mean's make-up
             common = 0.0
             both = 0
             for i in range(m):
-                if np.isfinite(p_sensor[i][t]) and np.isfinite(p_sensor[i][t - 1]):
-                    common += p_sensor[i][t] - p_sensor[i][t - 1]
+                if np.isfinite(p_sensor[i][t]) and np.isfinite(p_prev[i]):
+                    common += p_sensor[i][t] - p_prev[i]
                     both += 1
             if both:
                 dp = common / both
-        known_last = known
+        for i in range(m):
+            p_prev[i] = p_sensor[i][t]
         target = volume / (beta * area) * dp
         ds = 0.0
         below, above = -np.inf, np.inf  # the root's bracket (the sum rises with ds)
@@ -1044,5 +1055,7 @@ def _kernel(
             for i in range(m):
                 for j in range(element_k.shape[0]):
                     state[8 + 4 * m + i * element_k.shape[0] + j] = deltas[i, j]
+        for i in range(m):
+            state[prev_at + i] = p_prev[i]
     state[7 + 4 * m] = pending
     return True

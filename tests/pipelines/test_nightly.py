@@ -452,3 +452,24 @@ def test_a_night_while_another_holds_the_data_root_does_nothing_and_says_who(sit
     finally:
         first.release()
     assert nightly(sources, data=data, sanity=False).runs.count("succeeded") == 4
+
+
+def test_a_pending_file_with_entries_that_are_no_hoist_days_is_read_without_them(tmp_path):
+    """Entries of the pending work that are not partition keys (a hand edit, an older
+    layout) are left out with a warning; the others stand (a bad date made every night
+    fail after its ingest, losing that night's days)."""
+    import json
+
+    from pipelines.night_pending import load_pending
+
+    data = DataRoot.resolve(tmp_path / "data")
+    (data.path / "state").mkdir(parents=True)
+    (data.path / "state" / "nightly-pending.json").write_text(json.dumps({
+        "runs": ["s/h/2026-03-02", "s/h/2026-3-2x", 7, "a/b"],
+        "discoveries": {"s/h/2026-03-03": "run-1", "s/h": "run-2"},
+    }))  # fmt: skip
+    work = load_pending(data)
+    assert work.runs == {"s/h/2026-03-02"}
+    assert work.discoveries == {"s/h/2026-03-03": "run-1"}
+    (data.path / "state" / "nightly-pending.json").write_text('{"runs": "abc"}')
+    assert load_pending(data).runs == set()

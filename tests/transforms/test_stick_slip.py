@@ -105,6 +105,35 @@ def test_a_sensor_not_logged_takes_the_others_mean_and_the_seals_go_on():
     assert whole[0][139] - whole[0][70] > 0.3 * whole[0][-1]  # they moved in the gap
 
 
+def test_a_sensor_leaving_or_rejoining_the_mean_puts_no_step_in_the_oil():
+    """A rising load, sensor 4 reading 40 kPa above the others (a differential the oil's
+    flow may make) and silent at the record's first sample and from sample 200 on: the
+    pistons' displacements still sum to the oil's compression (eq 5, A sum dx = V dp /
+    beta) at every sample, whole or in two blocks split where it leaves (the mean of
+    four and of three differ by 10 kPa: taken as the oil's change, that step displaced
+    the pistons, and a split there gave another answer, 48 N of friction)."""
+    n = 400
+    p = np.linspace(4.0e6, 4.02e6, n)
+    p4 = p + 4e4
+    p4[0] = np.nan
+    p4[200:] = np.nan
+    pressures, logged = (p, p, p, p4), (np.zeros(n),) * 4
+    args = (np.full(n, DEPTH), np.zeros(n, int), HOIST, EQUAL)
+    x, whole = stick_slip(pressures, logged, *args, dt_s=0.01)
+    total = sum(x)
+    for t in (1, 100, 199, 200, 300, n - 1):
+        assert total[t] == pytest.approx(_oil_volume(p[: t + 1]), rel=1e-9, abs=1e-15)
+    state = stick_slip_state(4)
+    halves = [
+        stick_slip(tuple(q[part] for q in pressures), tuple(v[part] for v in logged),
+                   np.full(200, DEPTH), np.zeros(200, int), HOIST, EQUAL, dt_s=0.01,
+                   state=state)[1]
+        for part in (slice(0, 200), slice(200, n))
+    ]  # fmt: skip
+    for i in range(4):
+        np.testing.assert_array_equal(np.r_[halves[0][i], halves[1][i]], whole[i])
+
+
 def test_the_mismatch_of_a_population_is_each_ones_mean_square_off_the_logged_x():
     """Every seal sticks through a small rise (the test above: each piston takes a quarter
     of the oil's compression); piston 2 has no logged x, piston 3 half of it, piston 4's

@@ -152,3 +152,23 @@ def test_issue18_renames_keep_old_rows_and_retire_the_raw_views(tmp_path):
     assert {"lake_rope_tensions", "hoists", "rope_trip_extremes"} <= views
     # old rows have no per-rope extremes: the view still has the trip's four ropes, empty
     assert extremes == [(i, None, None) for i in (1, 2, 3, 4)]
+
+
+def test_the_new_file_test_reads_a_warehouse_from_before_the_aliases(tmp_path):
+    """A warehouse migrated up to 0005 (before ``manifest_aliases``): the nightly's
+    new-file test, which runs before any writer migrates it, reads the manifest alone
+    (it failed every night with a catalog error until another command migrated it)."""
+    from pipelines.hoists import known_files
+
+    root = DataRoot(tmp_path)
+    with open_writer(root) as con:
+        con.execute(
+            "INSERT INTO manifest (source_sha256, source_path, format, size_bytes, rows_read, "
+            "rows_landed, rows_quarantined, rows_duplicate, status, ingested_at_utc) "
+            "VALUES ('s', '/in/a.csv', 'csv', 10, 0, 0, 0, 0, 'landed', now())"
+        )
+    con = duckdb.connect(str(root.warehouse))
+    con.execute("DROP TABLE manifest_aliases")
+    con.execute("DELETE FROM schema_migrations WHERE version = 6")
+    con.close()
+    assert known_files(root) == {("/in/a.csv", 10)}

@@ -65,7 +65,7 @@ from pipelines.executors import PlainExecutor
 from pipelines.hoist_day import run_partitions
 from pipelines.hoists import HoistSource, find_new_files, hoist_lookup, incoming_notes, known_files
 from pipelines.ingest import IngestReport, ingest_paths
-from pipelines.ledger import completed_partitions, record_failures
+from pipelines.ledger import completed_partitions, partition_states, record_failures
 from pipelines.night_discovery import discover_days, discovery_words
 from pipelines.night_pending import PendingWork, load_pending, save_pending
 from pipelines.partitions import BackfillReport, Partition, PartitionOutcome, fleet_report
@@ -193,9 +193,11 @@ def nightly_partitions(
 ) -> list[Partition]:
     """Hoist-days to run: days new files touched (and the day after, whose run reads
     them as lead-in), not-done days among the ``lookback_days`` before each hoist's
-    watermark, and the hoist's days an earlier night planned and did not finish
-    (``pending``, :mod:`pipelines.night_pending`). Days the ledger marks done are left
-    out."""
+    watermark, the hoist's days an earlier night planned and did not finish
+    (``pending``, :mod:`pipelines.night_pending`), and the days never run of files
+    ingested in the last :data:`RECENT_INGEST` (:func:`recently_ingested_days`: a night
+    killed during its ingest had saved no plan, and its files were no longer new). Days
+    the ledger marks done are left out."""
     candidates: list[Partition] = []
     for night in nights:
         days = set(night.days) | {d + dt.timedelta(days=1) for d in night.days}
@@ -208,6 +210,13 @@ def nightly_partitions(
                 dt.date.fromisoformat(key.rsplit("/", 1)[1])
                 for key in pending.runs_of(source.site, source.hoist)
             }
+        recent = [
+            Partition(night.source, day)
+            for day in recently_ingested_days(data, night.source.site, night.source.hoist)
+            if day not in days
+        ]
+        never_run = partition_states(data, recent)  # (a recalibration's are the lookback's)
+        days |= {p.day for p in recent if never_run[p.key][1] is None}
         candidates += [Partition(night.source, day) for day in sorted(days)]
     candidates = [p for p in candidates if has_samples_or_error(p, data)]
     done = completed_partitions(data, candidates, sanity=sanity)
@@ -322,6 +331,35 @@ def nightly(
             lookback_days=lookback_days, sanity=sanity, progress=progress, on_plan=on_plan,
             write_report=write_report,
         )  # fmt: skip
+
+
+#: Files ingested this recently have their days checked by every night (done days cost
+#: a ledger lookup): a night killed during its ingest is finished within this time.
+RECENT_INGEST = dt.timedelta(days=7)
+
+
+def recently_ingested_days(
+    data: DataRoot, site: str, hoist: str, within: dt.timedelta = RECENT_INGEST
+) -> set[dt.date]:
+    """UTC days (and the day after each, its lead-in's reader) of the hoist's files that
+    landed rows in the last ``within``, from the manifest; none without a warehouse."""
+    if not data.warehouse.exists():
+        return set()
+    since = dt.datetime.now(dt.UTC) - within
+    con = open_reader(data)
+    try:
+        spans = con.execute(
+            "SELECT time_start_utc, time_end_utc FROM manifest WHERE site = ? AND hoist = ? "
+            "AND rows_landed > 0 AND ingested_at_utc >= ? AND time_start_utc IS NOT NULL",
+            [site, hoist, since],
+        ).fetchall()
+    finally:
+        con.close()
+    days: set[dt.date] = set()
+    for start, end in spans:
+        first, last = start.astimezone(dt.UTC).date(), (end or start).astimezone(dt.UTC).date()
+        days |= {first + dt.timedelta(days=k) for k in range((last - first).days + 2)}
+    return days
 
 
 class NightRunningError(RuntimeError):

@@ -126,6 +126,27 @@ def test_a_night_killed_after_its_plan_is_finished_by_the_next(site):
     assert nightly(sources, data=data, lookback_days=0, sanity=False).runs.outcomes == []
 
 
+def test_files_a_killed_night_ingested_before_its_plan_are_run_by_the_next(site):
+    """A night killed during its ingest (here: the files ingested as that night's
+    ingest lands them, and no plan saved): the next night, with no lookback and nothing
+    new, runs the days of those files, never run (they were no longer new, and no plan
+    named them)."""
+    from pipelines.hoists import hoist_lookup, raw_files
+    from pipelines.ingest import ingest_paths
+
+    hoists, incoming, data = site
+    sources = load_hoists(hoists, data=data, incoming=incoming)
+    for source in sources:
+        report = ingest_paths(raw_files(source), data=data, hoist_lookup=hoist_lookup(source))
+        assert report.ok
+    assert [len(find_new_files(s, known_files(data))) for s in sources] == [0, 0]
+    night = nightly(sources, data=data, lookback_days=0, sanity=False)
+    assert sorted(o.key for o in night.runs.outcomes if o.status == "succeeded") == [
+        f"paper-field-test/shaft-{k}/2026-03-0{d}" for k in (1, 2) for d in (2, 3)
+    ]
+    assert nightly(sources, data=data, lookback_days=0, sanity=False).runs.outcomes == []
+
+
 def test_a_recalibrated_hoist_is_rerun_within_the_lookback(site):
     hoists, incoming, data = site
     sources = load_hoists(hoists, data=data, incoming=incoming)

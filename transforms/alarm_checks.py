@@ -246,7 +246,8 @@ def _disagreement_alarms(
             ctx, "sensor_disagreement", i, s, e, peak_of=np.abs(departure[k]),
             peak_max=True, report=departure[k], threshold=limit,
             message=f"pressure sensor {i} reads {limit:.0%}+ off the others at rest: the "
-            "sensor, not the oil (the pipes equalise the chambers); the compensation "
-            "takes the others' mean for it while it lasts",
+            "sensor, not the oil (the pipes equalise the chambers); the stick-slip "
+            "compensation leaves its readings that far off out, its rope's tension "
+            "shows them",
         )  # fmt: skip
     return rows

@@ -368,12 +368,13 @@ class NightRunningError(RuntimeError):
 
 @contextlib.contextmanager
 def _one_night_at_a_time(data: DataRoot) -> Iterator[None]:
-    """Hold ``<data>/.nightly.lock`` for the night, or raise :class:`NightRunningError`
-    naming the holder at once: two nights at once (a scheduled one over a manual one)
-    both planned the same days before either landed one, and both computed them. The
-    lock goes with its process (``flock``): a killed night leaves nothing to clear."""
+    """Hold the data root's night lock (``<data>/.nightly.lock``) for the night, or
+    raise :class:`NightRunningError` naming the holder at once: two nights at once (a
+    scheduled one over a manual one) both planned the same days before either landed
+    one, and both computed them. The lock goes with its process (``flock``): a killed
+    night leaves nothing to clear."""
     data.path.mkdir(parents=True, exist_ok=True)
-    lock = WarehouseLock(data.path / ".nightly.lock", timeout_s=0.0, on_wait=lambda _: None)
+    lock = WarehouseLock(data.night_lock_file, timeout_s=0.0, on_wait=lambda _: None)
     try:
         lock.acquire()
     except LockTimeoutError:

@@ -6,6 +6,8 @@ Data root layout (``--data DIR``, ``$ROPELOAD_DATA``, default ``./ropeload-data`
     <data>/reports/...               report figures, discovery JSON
     <data>/warehouse.duckdb          the published warehouse (readers open this)
     <data>/.warehouse.lock           writers serialise on this (flock)
+    <data>/.nightly.lock             one night at a time (flock, pipelines.nightly)
+    <data>/state/nightly-pending.json  what a night planned and has not done
 
 Nothing derived from input data becomes a path outside the data root: site, hoist
 and rig names are safe names (:mod:`schemas.names`, checked where they enter), and
@@ -110,6 +112,10 @@ class DataRoot:
     @property
     def lock_file(self) -> Path:
         return self.path / ".warehouse.lock"
+
+    @property
+    def night_lock_file(self) -> Path:
+        return self.path / ".nightly.lock"
 
     def inside(self, path: str | os.PathLike[str]) -> Path:
         """``path`` if it resolves (symlinks followed) to the data root or below it.

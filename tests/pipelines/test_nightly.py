@@ -455,7 +455,7 @@ def test_a_night_while_another_holds_the_data_root_does_nothing_and_says_who(sit
     hoists, incoming, data = site
     sources = load_hoists(hoists, data=data, incoming=incoming)
     data.path.mkdir(parents=True, exist_ok=True)
-    first = WarehouseLock(data.path / ".nightly.lock", timeout_s=0.0)
+    first = WarehouseLock(data.night_lock_file, timeout_s=0.0)
     first.acquire()
     try:
         with pytest.raises(

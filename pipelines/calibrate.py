@@ -90,7 +90,10 @@ def _fit(
     moving = frame.filter(pl.col("velocity_setpoint_m_s").fill_null(0.0) != 0.0)
     dropped = moving["segment"].n_unique() - steps.height
     if dropped:
-        notes.append(f"{dropped} moving step(s) without {0.1:g} s of steady data were left out")
+        notes.append(
+            f"{dropped} moving step(s) without {0.1:g} s of steady data, or that did not "
+            "follow their velocity setpoint (stalled), were left out"
+        )
     per_pressure, fits = fit_pressure_levels(steps)
     logger.info(
         "calibrate rig %s: %d samples, %d steady steps, %d pressure level(s) fitted",

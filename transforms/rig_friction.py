@@ -179,6 +179,12 @@ def _steady_start(
     return int(bad[-1]) + 1 if bad.size else 0
 
 
+#: A moving step whose measured speed is below this fraction of its setpoint (or the
+#: other way) stalled: static friction held the piston, there is no sliding friction to
+#: read (kept, its speed of ~1e-15 m/s forced the Stribeck fit through -F_s at zero).
+STALLED_FRACTION = 0.2
+
+
 def steady_steps(
     frame: pl.DataFrame,
     *,
@@ -200,7 +206,9 @@ def steady_steps(
     biases the step mean far less than the band: it decays exponentially with travel.
     The last ``smooth_s`` of a step is left out (the derivative windows there reach
     into the next step's speed ramp). Steps with less than ``min_steady_s`` of steady
-    data are dropped. The step's speed is the least-squares slope of x over the steady part
+    data are dropped, and so are steps that stalled (a speed below
+    :data:`STALLED_FRACTION` of the setpoint, or against it). The step's speed is the
+    least-squares slope of x over the steady part
     (the derivative averaged without the Savitzky-Golay edge effects); its friction
     the mean of ``friction_n`` there, with its standard error.
 
@@ -231,6 +239,9 @@ def steady_steps(
         tk, xk, fk = t[keep], part["x_m"].to_numpy()[keep], force[keep]
         slope = float(np.polyfit(tk - tk.mean(), xk, 1)[0])
         first = part.row(0, named=True)
+        setpoint = float(first["velocity_setpoint_m_s"])
+        if not slope * setpoint >= (STALLED_FRACTION * setpoint) ** 2:
+            continue  # the piston did not follow its setpoint: stuck, not sliding
         rows.append(
             {
                 "segment": int(first["segment"]),

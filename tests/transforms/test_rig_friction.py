@@ -120,6 +120,26 @@ def test_steady_steps_drop_the_transient_and_keep_moving_steps_only():
     assert row["p_rodless_pa"] == pytest.approx(5.01e6)
 
 
+def test_a_step_whose_piston_did_not_follow_its_setpoint_is_not_a_sliding_step():
+    """The moving step of the frame above again, its piston held by static friction
+    (x constant, the friction below breakaway) and once driven backwards: neither is
+    a sliding step (a stalled step's ~0 m/s speed forced the Stribeck fit through
+    -F_s at zero and ruined every level's fit); the moving step is kept."""
+    frame = _step_frame()
+    moving = frame.filter(pl.col("segment") == 0)
+    stalled = moving.with_columns(
+        pl.lit(3).alias("segment"), pl.lit(4, pl.Int32).alias("step"),
+        pl.col("t_s") + 3.0, pl.lit(0.0).alias("x_m"), pl.lit(0.0).alias("v_m_s"),
+        pl.lit(-0.6).alias("friction_n"),
+    )  # fmt: skip
+    backwards = moving.with_columns(
+        pl.lit(4).alias("segment"), pl.lit(5, pl.Int32).alias("step"), pl.col("t_s") + 4.0,
+        -pl.col("x_m"), -pl.col("v_m_s"),
+    )  # fmt: skip
+    steps = steady_steps(pl.concat([frame, stalled, backwards]))
+    assert steps["segment"].to_list() == [0]
+
+
 def test_fit_pressure_levels_recovers_each_level_and_skips_thin_ones():
     speeds = np.r_[-np.geomspace(1e-3, 5e-2, 6), np.geomspace(1e-3, 5e-2, 6)]
     truth = {2e6: (600.0, 1400.0, 7e-3, 1.6e4), 7e6: (1600.0, 2400.0, 5.5e-3, 2e4)}

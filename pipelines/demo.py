@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import datetime as dt
 import logging
+import shutil
 from pathlib import Path
 
 import polars as pl
@@ -86,6 +87,29 @@ def demo_summary(result: RunResult, truth: pl.DataFrame, hoist: HoistDescription
     return "\n".join(lines) + "\n"
 
 
+def _write_logs(day, incoming: Path, seed: int) -> list[Path]:
+    """Write the simulated day's files into ``incoming`` (beside it first): refused
+    where a demo log of the same name there differs, another seed's (its samples are
+    landed for the same times: this seed's would conflict, and the run would compare
+    the old samples with the new simulation's truth)."""
+    staging = incoming.with_name(f".{incoming.name}-next")
+    shutil.rmtree(staging, ignore_errors=True)
+    try:
+        written = write_field_day(day, staging, formats=("csv",))
+        for path in written:
+            old = incoming / path.name
+            if path.suffix == ".csv" and old.exists() and old.read_bytes() != path.read_bytes():
+                raise ValueError(
+                    f"{incoming.parent.parent} already holds the demo of another seed "
+                    f"({old.name} differs): run the demo with --seed {seed} in a fresh "
+                    "--data folder"
+                )
+        incoming.mkdir(parents=True, exist_ok=True)
+        return [path.replace(incoming / path.name) for path in written]
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+
+
 def run_demo(*, data: DataRoot, seed: int = 7, hours: float = 1.0) -> str:
     """Generate, ingest, compensate, reconcile and land a synthetic day; return a summary."""
     hoist = load_hoist(EXAMPLE_HOIST)
@@ -94,7 +118,7 @@ def run_demo(*, data: DataRoot, seed: int = 7, hours: float = 1.0) -> str:
         hoist, date=DEMO_DATE, seed=seed, trips=trips, hours=hours, start_hour=6.0
     )
     incoming = data.path / "incoming" / "demo"
-    written = write_field_day(day, incoming, formats=("csv",))
+    written = _write_logs(day, incoming, seed)
     logs = [p for p in written if p.suffix == ".csv"]
     logger.info("demo: %d synthetic log file(s) written to %s", len(logs), incoming)
     report = ingest_paths(logs, data=data, hoist_lookup=lambda site, name: hoist)

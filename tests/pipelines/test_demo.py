@@ -69,3 +69,19 @@ def test_demo_again_creates_no_duplicates(demo_run, capsys):
     before = _counts(warehouse)
     _demo(data, capsys)
     assert _counts(warehouse) == before
+
+
+def test_the_demo_of_another_seed_in_the_same_folder_is_refused(demo_run, capsys):
+    """A demo with another seed where one is landed: refused with one line, nothing
+    landed (its samples conflicted with the landed ones, the run compared the old
+    samples with the new simulation's truth: 7-10 % 'errors')."""
+    data, warehouse = demo_run
+    if not warehouse.exists():  # run alone: seed 3's demo first
+        _demo(data, capsys)
+    before = _counts(warehouse)
+    assert main(["demo", "--data", str(data), "--hours", "0.25", "--seed", "4"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1
+    assert "already holds the demo of another seed" in err[0]
+    assert _counts(warehouse) == before
+    assert not list((data / "incoming").glob(".demo-next*"))

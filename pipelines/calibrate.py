@@ -108,6 +108,7 @@ def _fit(
             f"steady steps ({steps.height} steady steps in all); need 3 levels for the eq-17 "
             "lines"
         )
+    notes += _undetermined(per_pressure)
     law, lines = fit_friction_law(
         per_pressure["p_rodless_pa"].to_numpy(),
         fits,
@@ -116,6 +117,35 @@ def _fit(
         presliding_elements=presliding_elements,
     )
     return steps, per_pressure, fits, law, lines
+
+
+#: The Stribeck parameters a level's fit must pin down: (name, value, its 1-sigma).
+_DETERMINED = (
+    ("Fc", "coulomb_n", "coulomb_sigma_n"),
+    ("Fs", "static_n", "static_sigma_n"),
+    ("vs", "stribeck_speed_m_s", "stribeck_speed_sigma_m_s"),
+)
+
+
+def _undetermined(per_pressure: pl.DataFrame) -> list[str]:
+    """A note per pressure level whose Coulomb, static or Stribeck-speed value the
+    recording does not pin down (its 1-sigma above half of it, or not finite): the
+    set is landed as fitted, but its lines through such a level are not to be trusted
+    (three speeds a direction left Fc 687 +- 48.6 MPa-equivalent N, vs 3.9 +- 5713 mm/s)."""
+    notes = []
+    for row in per_pressure.iter_rows(named=True):
+        loose = [
+            name
+            for name, value, sigma in _DETERMINED
+            if not abs(row[sigma]) <= 0.5 * abs(row[value])  # NaN, inf: not determined
+        ]
+        if loose:
+            notes.append(
+                f"level {row['p_rodless_pa'] / 1e6:.2f} MPa: {', '.join(loose)} not determined "
+                "by the recording (1-sigma above half the value): more speeds each way, "
+                "around the Stribeck speed, would pin them down"
+            )
+    return notes
 
 
 def calibrate_rig(

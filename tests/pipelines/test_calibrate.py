@@ -272,3 +272,24 @@ def test_cli_table1(tmp_path, capsys):
     assert main(["calibrate", "--table1", str(tmp_path / "missing.csv")]) == 1
     assert capsys.readouterr().err.startswith("ropeload calibrate:")
     assert main(["calibrate", "--table1", str(csv), "x.mcap"]) == 2
+
+
+def test_a_level_the_recording_does_not_pin_down_is_said():
+    """A level whose Coulomb, static or Stribeck-speed 1-sigma exceeds half its value
+    (or is not finite) gets a note naming them; a determined level none (a recording of
+    three speeds a direction was landed with Fc +- 7000 %, vs +- 150000 %, silently)."""
+    import math
+
+    import polars as pl
+
+    from pipelines.calibrate import _undetermined
+
+    levels = pl.DataFrame({
+        "p_rodless_pa": [2e6, 7e6],
+        "coulomb_n": [380.0, 687.0], "coulomb_sigma_n": [0.5, 48.6e6 * 7.85e-3],
+        "static_n": [620.0, 900.0], "static_sigma_n": [0.4, 3.0],
+        "stribeck_speed_m_s": [5e-3, 3.86e-3], "stribeck_speed_sigma_m_s": [1e-5, math.inf],
+    })  # fmt: skip
+    notes = _undetermined(levels)
+    assert len(notes) == 1
+    assert notes[0].startswith("level 7.00 MPa: Fc, vs not determined")

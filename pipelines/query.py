@@ -155,8 +155,9 @@ _PLAIN_TYPES = frozenset(
 
 #: DuckDB types polars takes wrongly or only by panicking (a UHUGEINT as a negative
 #: decimal, a BIT as its internal bytes, an INTERVAL inside a list or struct, panicking
-#: on the way): a column whose type holds one is DuckDB's text from the start.
-_TEXT_TYPES = re.compile(r"\b(UHUGEINT|BIT|INTERVAL|UNION)\b")
+#: on the way), or that its CSV writer refuses (a BLOB): a column whose type holds one is
+#: DuckDB's text from the start (a BLOB as DuckDB's escaped bytes, ``a\x00b``).
+_TEXT_TYPES = re.compile(r"\b(UHUGEINT|BIT|INTERVAL|UNION|BLOB)\b")
 #: A HUGEINT polars holds as a 38-digit decimal: beyond it, Python's copy is rounded.
 _DECIMAL_DIGITS = 38
 

@@ -421,6 +421,8 @@ def test_query_sql_error_is_one_line(data, capsys):
             "170141183460469231731687303715884105727",
         ),
         ("select '10101'::bit as b", "10101"),
+        # polars' CSV writer refused a BLOB (and JSON had Python's repr)
+        ("select 'abc'::blob as b", "abc"),
     ],
 )
 def test_results_polars_cannot_hold_are_shown_as_duckdb_text(data, capsys, sql, text):

@@ -47,6 +47,7 @@ __all__ = [
     "LEDGER_COMMANDS",
     "PartitionState",
     "completed_partitions",
+    "days_with_runs",
     "fingerprint",
     "partition_ledger",
     "partition_states",
@@ -112,6 +113,12 @@ def _latest_runs(data: DataRoot) -> pl.DataFrame:
         .last()
         .select(empty.columns)
     )
+
+
+def days_with_runs(data: DataRoot) -> set[tuple[str, str, dt.date]]:
+    """(site, hoist, UTC day) of every day a ledger run covered exactly, whatever its
+    outcome: a day not here was never run (the nightly's recently ingested days)."""
+    return {(r["site"], r["hoist"], r["day"]) for r in _latest_runs(data).iter_rows(named=True)}
 
 
 PartitionState = Literal["done", "sanity", "todo"]

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from pipelines.hoists import HoistSource
-from pipelines.night_pending import PendingWork, save_pending
+from pipelines.night_pending import PendingWork, key_parts, save_pending
 from pipelines.partitions import Partition, PartitionOutcome
 from pipelines.steps import StepOutcome, one_line, record_steps
 from warehouse.store import DataRoot
@@ -85,7 +85,7 @@ def land_discoveries(
         run_id = run_ids.get(key)
         if run_id is None:
             continue
-        site, hoist, _ = key.split("/")
+        site, hoist, _ = key_parts(key)
         try:
             record_steps(data, run_id=run_id, site=site, hoist=hoist, outcomes=[step])
         except Exception as exc:
@@ -121,14 +121,14 @@ def discover_days(
     if pending is not None:
         tonight = {(d.source.site, d.source.hoist) for d in days}
         for key, run_id in sorted(pending.discoveries.items()):
-            site, hoist, day = key.split("/")
+            site, hoist, day = key_parts(key)
             if (site, hoist) in by_key and (site, hoist) not in tonight:
-                days.append(Partition(by_key[(site, hoist)], dt.date.fromisoformat(day)))
+                days.append(Partition(by_key[(site, hoist)], day))
                 run_ids[key] = run_id
                 tonight.add((site, hoist))
         ours = set(by_key)
         pending.discoveries = {
-            k: v for k, v in pending.discoveries.items() if tuple(k.split("/")[:2]) not in ours
+            k: v for k, v in pending.discoveries.items() if key_parts(k)[:2] not in ours
         } | {d.key: run_ids[d.key] for d in days if d.key in run_ids}
         save_pending(data, pending)
     done = {d.item.key: d for d in executor.map(discover_day, days, data=data)}

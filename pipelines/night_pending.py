@@ -27,7 +27,7 @@ from pathlib import Path
 
 from warehouse.store import DataRoot, write_text_atomic
 
-__all__ = ["PendingWork", "load_pending", "save_pending"]
+__all__ = ["PendingWork", "key_parts", "load_pending", "save_pending"]
 
 logger = logging.getLogger(__name__)
 
@@ -43,10 +43,16 @@ class PendingWork:
     runs: set[str] = field(default_factory=set)
     discoveries: dict[str, str] = field(default_factory=dict)
 
-    def runs_of(self, site: str, hoist: str) -> set[str]:
-        """The pending hoist-days of one hoist (their keys)."""
-        prefix = f"{site}/{hoist}/"
-        return {key for key in self.runs if key.startswith(prefix)}
+    def days_of(self, site: str, hoist: str) -> set[dt.date]:
+        """The pending hoist-days of one hoist."""
+        return {day for s, h, day in map(key_parts, self.runs) if (s, h) == (site, hoist)}
+
+
+def key_parts(key: str) -> tuple[str, str, dt.date]:
+    """(site, hoist, day) of a partition key ``site/hoist/YYYY-MM-DD``
+    (:attr:`pipelines.partitions.Partition.key`)."""
+    site, hoist, day = key.split("/")
+    return site, hoist, dt.date.fromisoformat(day)
 
 
 def _path(data: DataRoot) -> Path:
@@ -61,7 +67,7 @@ def _valid_key(key: object) -> bool:
     if not isinstance(key, str) or not _KEY.fullmatch(key):
         return False
     try:
-        dt.date.fromisoformat(key.rsplit("/", 1)[1])
+        key_parts(key)
     except ValueError:
         return False
     return True

@@ -65,9 +65,9 @@ from pipelines.executors import PlainExecutor
 from pipelines.hoist_day import run_partitions
 from pipelines.hoists import HoistSource, find_new_files, hoist_lookup, incoming_notes, known_files
 from pipelines.ingest import IngestReport, ingest_paths
-from pipelines.ledger import completed_partitions, partition_states, record_failures
+from pipelines.ledger import completed_partitions, days_with_runs, record_failures
 from pipelines.night_discovery import discover_days, discovery_words
-from pipelines.night_pending import PendingWork, load_pending, save_pending
+from pipelines.night_pending import PendingWork, key_parts, load_pending, save_pending
 from pipelines.partitions import BackfillReport, Partition, PartitionOutcome, fleet_report
 from warehouse.lock import LockTimeoutError, WarehouseLock, describe_holder, read_holder
 from warehouse.store import DataRoot, open_reader
@@ -199,24 +199,20 @@ def nightly_partitions(
     killed during its ingest had saved no plan, and its files were no longer new). Days
     the ledger marks done are left out."""
     candidates: list[Partition] = []
+    ran = days_with_runs(data)
     for night in nights:
         days = set(night.days) | {d + dt.timedelta(days=1) for d in night.days}
         if night.watermark_after is not None:
             last = night.watermark_after.date()
             days |= {last - dt.timedelta(days=k) for k in range(max(lookback_days, 0))}
+        site, hoist = night.source.site, night.source.hoist
         if pending is not None:
-            source = night.source
-            days |= {
-                dt.date.fromisoformat(key.rsplit("/", 1)[1])
-                for key in pending.runs_of(source.site, source.hoist)
-            }
-        recent = [
-            Partition(night.source, day)
-            for day in recently_ingested_days(data, night.source.site, night.source.hoist)
-            if day not in days
-        ]
-        never_run = partition_states(data, recent)  # (a recalibration's are the lookback's)
-        days |= {p.day for p in recent if never_run[p.key][1] is None}
+            days |= pending.days_of(site, hoist)
+        # never run only (a recalibration's re-runs are the lookback's)
+        days |= {
+            day for day in recently_ingested_days(data, site, hoist)
+            if (site, hoist, day) not in ran
+        }  # fmt: skip
         candidates += [Partition(night.source, day) for day in sorted(days)]
     candidates = [p for p in candidates if has_samples_or_error(p, data)]
     done = completed_partitions(data, candidates, sanity=sanity)
@@ -406,7 +402,7 @@ def _night(
     pending = load_pending(data)
     configured = {(source.site, source.hoist) for source in sources}
     elsewhere = sorted(
-        {"/".join(k.split("/")[:2]) for k in [*pending.runs, *pending.discoveries]}
+        {"/".join(key_parts(k)[:2]) for k in [*pending.runs, *pending.discoveries]}
         - {f"{site}/{hoist}" for site, hoist in configured}
     )
     if elsewhere:  # kept for when the hoist is back; said, not dropped
@@ -416,7 +412,7 @@ def _night(
     )
     # the plan is kept before the work starts: a night killed now is finished by the next
     ours = {(n.source.site, n.source.hoist) for n in nights}
-    pending.runs = {k for k in pending.runs if tuple(k.split("/")[:2]) not in ours}
+    pending.runs = {k for k in pending.runs if key_parts(k)[:2] not in ours}
     pending.runs |= {p.key for p in partitions}
     save_pending(data, pending)
     if on_plan is not None:

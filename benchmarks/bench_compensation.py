@@ -44,7 +44,7 @@ from transforms.compensation import (
     context_sample,
     context_stride,
 )
-from transforms.stick_slip import RopeSprings
+from transforms.stick_slip_band import RopeSprings
 from warehouse.parquet_files import write_parquet_atomic
 
 

@@ -73,7 +73,7 @@ from pipelines.run_period import run_period
 from schemas.hoist import EXAMPLE_HOIST, HoistDescription, load_hoist
 from schemas.tables import ROPES
 from sims.field_day import generate_field_day, write_field_day
-from transforms.stick_slip import RopeSprings
+from transforms.stick_slip_band import RopeSprings
 from warehouse.store import DataRoot
 
 DEFAULT_DAYS = Path(__file__).resolve().parents[1].parent / "shared" / "validation" / "days"

@@ -83,7 +83,7 @@ __all__ = [
 
 class IdentifiedRopes(Protocol):
     """The head ropes' constants as the compensation identifies them from the logged x
-    (``transforms.stick_slip.RopeSprings`` is one): rope i pulls its piston with
+    (``transforms.stick_slip_band.RopeSprings`` is one): rope i pulls its piston with
     a_i k (s - x_i - c_i)."""
 
     @property

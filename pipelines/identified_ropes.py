@@ -27,7 +27,7 @@ from schemas.hoist import HoistDescription
 from transforms.compensation import CompensationSettings
 from transforms.compensation_record import identification_means
 from transforms.rope_identification import identify_from_means
-from transforms.stick_slip import RopeSprings
+from transforms.stick_slip_band import RopeSprings
 from warehouse.store import DataRoot
 
 __all__ = ["identified_ropes"]

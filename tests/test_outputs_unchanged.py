@@ -38,7 +38,7 @@ uncertainty beyond what its members span (:func:`transforms.uncertainty.ensemble
 the load band's bounds move by < 0.5 N of 155 kN (sum of load_after_lo_n -0.47 N).
 The ``demo_position_summary`` and ``demo_trip_summary`` entries again (session 16) after
 the band's rope members take Student's t on the parts' spread
-(:func:`transforms.stick_slip.parts_reach`; the demo's 15 min record is split in two
+(:func:`transforms.stick_slip_band.parts_reach`; the demo's 15 min record is split in two
 halves, of which one gives ropes: t_1 = 12.7, mirrored) and the bristle members start
 the record with the seals as far down or up as the ropes let them: only the load bands
 move (sums of load_after_lo_n -0.65 %, load_after_hi_n +0.54 %, max_load_after_hi_n

@@ -3,7 +3,7 @@
 Opt-in (``CompensationSettings(band_member_step_s=...)``; the default runs every member
 at the sensors' rate). The friction's part of the 95 % band (:mod:`transforms.uncertainty`)
 is the spread of :func:`transforms.stick_slip.stick_slip` over the members of
-:func:`transforms.stick_slip.band_solutions`: the law's capacity, the bristles'
+:func:`transforms.stick_slip_band.band_solutions`: the law's capacity, the bristles'
 stiffness, the seals' unknown start and the ropes as identified on parts of the record.
 At the sensors' rate each member costs what the estimate costs, and the eight of them
 are most of the compensation's compute (2 h at 100 Hz of the example hoist, its seals

@@ -61,7 +61,8 @@ from transforms.seal_drift import (
     played_travels_into,
     ringing_travel,
 )
-from transforms.stick_slip import BAND_SOURCES, BandSolution, band_solutions, stick_slip
+from transforms.stick_slip import stick_slip
+from transforms.stick_slip_band import BAND_SOURCES, BandSolution, band_solutions
 from transforms.uncertainty import ensemble_band, rope_band
 
 __all__ = ["BlockCompensation"]
@@ -228,7 +229,7 @@ class BlockCompensation(BlockSetup):
     def stick_slip_motion(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
         """Each piston's displacement and friction from its identified rope spring
         (:mod:`transforms.stick_slip`) over the first stage, and the frictions of the
-        band's members (:func:`~transforms.stick_slip.band_solutions`; at the sensors'
+        band's members (:func:`~transforms.stick_slip_band.band_solutions`; at the sensors'
         rate, or on means with ``band_member_step_s``: :meth:`member_spreads`); the
         frictions are kept for the ropes' jobs. NaN outside the stage. Blind motion:
         none."""

@@ -13,7 +13,7 @@ import polars as pl
 from schemas.tables import ROPE_TENSIONS, polars_schema
 from transforms.compensation_kernels import load_kernel
 from transforms.compensation_record import rope_cols
-from transforms.stick_slip import BAND_SOURCES
+from transforms.stick_slip_band import BAND_SOURCES
 from transforms.uncertainty import ensemble_band, load_band
 
 __all__ = ["OUTPUT_SCHEMA", "block_frame"]

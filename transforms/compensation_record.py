@@ -31,7 +31,8 @@ from transforms.seal_drift import (
     drift_travel,
     seals_drift,
 )
-from transforms.stick_slip import MAX_SOLUTIONS, RopeSprings, stick_slip_state
+from transforms.stick_slip import stick_slip_state
+from transforms.stick_slip_band import MAX_SOLUTIONS, RopeSprings
 
 __all__ = [
     "CONTEXT_ROWS",
@@ -457,7 +458,7 @@ class CompensationCarry:
     ``resume_s`` before the block's start, the friction and trip labels at its start.
     ``estimate`` is the stick-slip estimate's :func:`~transforms.stick_slip.
     stick_slip_state`; ``springs`` holds one row per solution of
-    :func:`~transforms.stick_slip.band_solutions`, in its order: its band members at the
+    :func:`~transforms.stick_slip_band.band_solutions`, in its order: its band members at the
     sensors' rate (row 0 unused), or with ``band_member_step_s`` every solution on the
     means of :mod:`transforms.band_members` (rows past the record's solutions unused);
     ``drift_play`` the play whose travel drives the means' drift

@@ -36,8 +36,8 @@ How well the record pins the constants down is measured, not assumed: the same s
 runs again on each quarter of the means (:data:`SPLITS`; in a record under 40 min,
 fewer parts of :data:`PART_MEANS` each, at least two), and the parts' constants are
 the ropes' alternatives, from which the uncertainty band's rope members are made
-(:func:`transforms.stick_slip.band_solutions`: Student's t on their spread,
-:func:`transforms.stick_slip.parts_reach`; two halves gave a spread of one degree of
+(:func:`transforms.stick_slip_band.band_solutions`: Student's t on their spread,
+:func:`transforms.stick_slip_band.parts_reach`; two halves gave a spread of one degree of
 freedom, and the band missed 5-16 % of the validation days' windows on one rope). A
 Hessian of the objective would understate it: the misfit (0.044-0.059 mm RMS on the
 validation days) is the model's, correlated over whole trips, not the logger's white
@@ -113,7 +113,8 @@ from physics.sensor_branch import sensor_branch
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPES
 from transforms.seal_drift import seal_elements
-from transforms.stick_slip import MAX_ALTERNATIVES, RopeSprings, stick_slip_mismatch
+from transforms.stick_slip import stick_slip_mismatch
+from transforms.stick_slip_band import MAX_ALTERNATIVES, RopeSprings
 
 __all__ = [
     "IDENTIFICATION_VERSION",

@@ -33,7 +33,7 @@ static range, the honest answer of a pressure-only record.
 Where the ropes are identified (:mod:`transforms.stick_slip`), the forces decide which
 piston slides: there is no blind motion. The friction's part of the band is then the
 spread of the stick-slip solution over what the mine does not know well
-(:func:`transforms.stick_slip.band_solutions`: the law's capacity +-1.96 x its
+(:func:`transforms.stick_slip_band.band_solutions`: the law's capacity +-1.96 x its
 uncertainty, the bristle stiffness halved and doubled (with LuGre seals also their
 drift's rate), the seals' unknown friction where the record starts (every seal as far
 down or up as the ropes let it, forgotten as the pistons slide), and the ropes'

@@ -213,7 +213,7 @@ def test_a_later_block_starts_with_the_pistons_where_the_record_logged_them():
 
 @dataclasses.dataclass(frozen=True)
 class _Ropes:
-    """Identified ropes as ``transforms.stick_slip.RopeSprings`` carries them."""
+    """Identified ropes as ``transforms.stick_slip_band.RopeSprings`` carries them."""
 
     stiffness_factors: tuple[float, ...]
     length_offsets_m: tuple[float, ...]

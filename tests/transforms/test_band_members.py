@@ -29,7 +29,8 @@ from transforms.band_members import mean_starts
 from transforms.blocks import block_edges, compensate_blocks, record_context
 from transforms.compensation import compensate
 from transforms.compensation_record import CompensationSettings
-from transforms.stick_slip import RopeSprings, stick_slip, stick_slip_state
+from transforms.stick_slip import stick_slip, stick_slip_state
+from transforms.stick_slip_band import RopeSprings
 
 BLOCK = dt.timedelta(minutes=4)
 BAND = ["load_lo_n", "load_hi_n"] + [f"tension{i}_{e}_n" for i in range(1, 5) for e in ("lo", "hi")]

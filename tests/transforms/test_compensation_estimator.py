@@ -166,7 +166,7 @@ def test_a_sensor_off_the_others_at_rest_does_not_move_the_other_seals():
         context_sample,
         context_stride,
     )
-    from transforms.stick_slip import RopeSprings
+    from transforms.stick_slip_band import RopeSprings
 
     n = 1500
     p = _payload_change(n, 300, 2e5)

@@ -56,7 +56,8 @@ from transforms.seal_drift import (
     ringing_travel,
     seals_drift,
 )
-from transforms.stick_slip import RopeSprings, stick_slip
+from transforms.stick_slip import stick_slip
+from transforms.stick_slip_band import RopeSprings
 
 HOIST = load_hoist(EXAMPLE_HOIST)
 AREA = HOIST.cylinders.bore_area_m2

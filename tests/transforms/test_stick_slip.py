@@ -30,7 +30,8 @@ from physics.oil import effective_bulk_modulus_at
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from transforms import rope_identification
 from transforms.rope_identification import SPLITS, identify_from_means, record_means
-from transforms.stick_slip import (
+from transforms.stick_slip import stick_slip, stick_slip_mismatch, stick_slip_state
+from transforms.stick_slip_band import (
     BAND_SOURCES,
     MAX_ALTERNATIVES,
     MAX_SOLUTIONS,
@@ -38,9 +39,6 @@ from transforms.stick_slip import (
     RINGING_MEMBERS,
     RopeSprings,
     band_solutions,
-    stick_slip,
-    stick_slip_mismatch,
-    stick_slip_state,
 )
 
 HOIST = load_hoist(EXAMPLE_HOIST)

@@ -310,6 +310,13 @@ def sims_case(k: int, work: Path, *, lugre: bool = False) -> DayCase:
         text = text.replace('"presliding_hysteresis",', "")
         if text == EXAMPLE_HOIST.read_text():
             raise RuntimeError(f"{EXAMPLE_HOIST}: no presliding_hysteresis effect to take out")
+    # the simulator's ropes are the description's (sims.device_params: EA each): its
+    # description says so, as a mine that measured its ropes would (without a logged x
+    # the compensation then takes them as known, not their prior spread)
+    stated = "head_rope_stiffness_factors = [1.0, 1.0, 1.0, 1.0]\n"
+    text = text.replace("[ropes]\n", "[ropes]\n" + stated, 1)
+    if stated not in text:
+        raise RuntimeError(f"{EXAMPLE_HOIST}: no [ropes] section to state the factors in")
     name = f"sims_lugre_{k}" if lugre else f"sims_{k}"
     folder = work / name
     folder.mkdir(parents=True, exist_ok=True)

@@ -62,10 +62,10 @@ from transforms.seal_drift import (
     ringing_travel,
 )
 from transforms.stick_slip import stick_slip
-from transforms.stick_slip_band import BAND_SOURCES, BandSolution, band_solutions
+from transforms.stick_slip_band import BAND_SOURCES, BandSolution, band_groups, band_solutions
 from transforms.uncertainty import ensemble_band, rope_band
 
-__all__ = ["BlockCompensation"]
+__all__ = ["BlockCompensation", "prior_mean"]
 
 Kernel = Callable[[int, int, np.ndarray], None]
 
@@ -256,7 +256,7 @@ class BlockCompensation(BlockSetup):
         members = band_solutions(
             springs, self.settings.friction_relative_sigma, ringing=ringing is not None
         )
-        self.member_sources = tuple(BAND_SOURCES.index(m.source) for m in members[1:])
+        self.member_sources = band_groups(members)
         inputs = _SpringInputs(
             pressures, logged, depth, self.segment, nu, drift_p, drift_w, ringing
         )
@@ -294,6 +294,9 @@ class BlockCompensation(BlockSetup):
             self.member_friction = [
                 tuple(f + d for f, d in zip(friction, deltas, strict=True)) for deltas in spread
             ]
+        if springs.prior_sigma > 0:  # the description's ropes join the band as a member
+            self.member_friction.append(prior_mean(friction, self.member_friction, members[1:]))
+            self.member_sources += (BAND_SOURCES.index("stiffness"),)
         self.spring_friction = friction
         return x, tuple(np.zeros(n) for _ in ROPES)
 
@@ -644,3 +647,37 @@ class BlockCompensation(BlockSetup):
                             p_mean[core], sigma_n, load_members=members,
                             member_sources=self.member_sources if members else None)  # fmt: skip
         return frame, self.nxt
+
+
+def prior_mean(
+    friction: tuple[np.ndarray, ...],
+    member_friction: list[tuple[np.ndarray, ...]],
+    members: list[BandSolution],
+) -> tuple[np.ndarray, ...]:
+    """Ropes no record identified (:func:`transforms.stick_slip_band.prior_rope_springs`):
+    the estimate's friction becomes the mean over the prior's sigma points' solutions
+    (the unscented transform's, equal weights), in place; the other members keep their
+    difference from the description's ropes' solution (shifted alike), and each sigma
+    point's difference from the mean is stretched by 1.96 / sqrt(m / 2) (m points: each
+    stands at sqrt(m / 2) standard deviations along its direction, a member of the band
+    at 1.96). ``member_friction`` and ``members`` are the band's, the estimate left out.
+
+    Returns the description's ropes' solution (the estimate's friction before): ropes
+    alike, the spread's one end. The seals' friction summed over the pistons saturates
+    as the ropes' differences grow (the pistons that slide apart end at opposite
+    capacities), so the points, each as far out as the spread's standard deviations
+    along its direction, cancel more of it than ropes that differ less would: the band
+    takes that end as a member too."""
+    points = [j for j, member in enumerate(members) if member.source == "stiffness"]
+    stretch = 1.96 / np.sqrt(len(points) / 2.0)
+    alike = tuple(f.copy() for f in friction)
+    for k, estimate in enumerate(friction):
+        mean = sum(member_friction[j][k] for j in points) / len(points)
+        shift = mean - estimate
+        for j, member in enumerate(member_friction):
+            if j in points:
+                member[k][:] = mean + stretch * (member[k] - mean)
+            else:
+                member[k][:] += shift
+        estimate[:] = mean
+    return alike

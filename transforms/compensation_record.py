@@ -32,7 +32,7 @@ from transforms.seal_drift import (
     seals_drift,
 )
 from transforms.stick_slip import stick_slip_state
-from transforms.stick_slip_band import MAX_SOLUTIONS, RopeSprings
+from transforms.stick_slip_band import MAX_SOLUTIONS, RopeSprings, prior_rope_springs
 
 __all__ = [
     "CONTEXT_ROWS",
@@ -100,6 +100,16 @@ class CompensationSettings:
         Identify the head ropes from the record and solve each piston's stick-slip on
         its rope spring (:mod:`transforms.stick_slip`) where the logged x allow it; False:
         always share out the oil's motion by the logged x (:mod:`transforms.piston_motion`).
+    rope_stiffness_sigma : float
+        Where no logged x identifies the head ropes and the description states no
+        stiffness factors of its own (``[ropes] head_rope_stiffness_factors``, then
+        taken as known), their relative stiffness spread about the nominal EA (1 sigma):
+        the stick-slip solution runs on the sigma points of that spread and takes their
+        mean (:func:`transforms.stick_slip_band.prior_rope_springs`); 0: the share-out
+        of :mod:`transforms.piston_motion` instead. The default 0.05 is the
+        identification's search range, 0.9-1.1
+        (:data:`transforms.rope_identification.STIFFNESS_BOUNDS`), as two standard
+        deviations: real ropes of one hoist differ by several percent.
     band_member_step_s : float
         0 (the default): the stick-slip band's members run at the sensors' rate, each
         costing what the estimate costs. > 0: they run on means of this many seconds
@@ -127,6 +137,7 @@ class CompensationSettings:
     friction_relative_sigma: float = 0.10
     pressure_sigma_pa: float = 5e3
     rope_springs: bool = True
+    rope_stiffness_sigma: float = 0.05
     band_member_step_s: float = 0.0
 
     def __post_init__(self) -> None:
@@ -254,9 +265,11 @@ class CompensationContext:
         Every rope's displacement is logged somewhere in the record.
     rope_springs : RopeSprings or None
         The head ropes' constants identified from the record
-        (:mod:`transforms.rope_identification`); None: not identified (no logged x, no
-        piston motion, no constants fit the logged x to 0.5 mm, or
-        ``CompensationSettings(rope_springs=False)``): the pistons' motion is shared out
+        (:mod:`transforms.rope_identification`), or without a logged x their prior
+        (:func:`transforms.stick_slip_band.prior_rope_springs`, ``rope_stiffness_sigma``);
+        None: not identified (no piston motion, no constants fit the logged x to 0.5 mm,
+        or ``CompensationSettings(rope_springs=False)``, or without a logged x
+        ``rope_stiffness_sigma=0``): the pistons' motion is shared out
         (:mod:`transforms.piston_motion`).
     """
 
@@ -437,6 +450,13 @@ def compensation_context(
     typical = float(np.nanmedian(mean)) if np.isfinite(mean).any() else 0.0
     identify = settings.rope_springs and has_x and means is not None
     springs = identify_from_means(means, hoist, cache_dir=cache_dir) if identify else None
+    stated = hoist.ropes.head_rope_stiffness_factors
+    if springs is None and not has_x and settings.rope_springs and stated is not None:
+        # no logged x, the description states its ropes: the stick-slip solution on them
+        springs = RopeSprings(tuple(stated), (0.0,) * len(stated), float("nan"), 0)
+    elif springs is None and not has_x and settings.rope_springs and settings.rope_stiffness_sigma:
+        # nothing identifies the ropes: the stick-slip solution on their prior spread
+        springs = prior_rope_springs((1.0,) * len(ROPES), settings.rope_stiffness_sigma)
     return CompensationContext(
         sample_rate_hz=rate_hz,
         spike_sigma=spike_sigma,

@@ -25,13 +25,17 @@ __all__ = [
     "MAX_ALTERNATIVES",
     "MAX_SOLUTIONS",
     "MEMBER_STIFFNESS_LIMITS",
+    "PRIOR_ROPES",
     "RINGING_MEMBERS",
     "START_MEMBERS",
     "BandSolution",
     "RopeSprings",
+    "band_groups",
     "band_members",
     "band_solutions",
     "parts_reach",
+    "prior_rope_springs",
+    "prior_sigma_points",
 ]
 
 #: The most alternatives of the ropes a :class:`RopeSprings` carries (one per part of
@@ -44,11 +48,18 @@ MAX_ALTERNATIVES = 4
 RINGING_MEMBERS = (0.5, 2.0)
 #: The independent sources of uncertainty the band's members stand for
 #: (:func:`band_solutions`), in the order of :func:`transforms.uncertainty.ensemble_band`'s
-#: groups: the law's capacity first (the seals' own departure from the law).
-BAND_SOURCES = ("law", "bristles", "ropes", "ringing")
+#: groups: the law's capacity first (the seals' own departure from the law);
+#: ``stiffness``: the ropes' stiffness spread where no record identified them
+#: (:func:`prior_rope_springs`; each of its directions a source of its own,
+#: :func:`band_groups`).
+BAND_SOURCES = ("law", "bristles", "ropes", "ringing", "stiffness")
+#: The head ropes whose prior sigma points :data:`MAX_SOLUTIONS` makes room for: the
+#: compensation's four (:data:`transforms.compensation_record.ROPES`).
+PRIOR_ROPES = 4
 #: The most solutions :func:`band_solutions` gives: the estimate, the four of
-#: :func:`band_members`, one per alternative of the ropes and the ringing's two.
-MAX_SOLUTIONS = 5 + MAX_ALTERNATIVES + len(RINGING_MEMBERS)
+#: :func:`band_members`, one per alternative of the ropes (identified, or the prior's
+#: 2 (n - 1) sigma points) and the ringing's two.
+MAX_SOLUTIONS = 5 + max(MAX_ALTERNATIVES, 2 * (PRIOR_ROPES - 1)) + len(RINGING_MEMBERS)
 #: ``start_at_capacity`` of the members of :func:`band_members`, in its order: the softer
 #: bristles start the record with the seals down, the stiffer with them up (both of the
 #: law's capacity: the extremes +-F_s; the capacity members keep their own role).
@@ -98,6 +109,10 @@ def band_solutions(
     bristles' halving and doubling). Members: coverage 74 -> 77 %, with the sources
     in quadrature 90 % (:func:`transforms.uncertainty.ensemble_band`).
 
+    Ropes no record identified (:func:`prior_rope_springs`, ``prior_sigma`` > 0): the
+    prior's sigma points instead, each as it is (source ``stiffness``); the compensation
+    takes their solutions' mean for the estimate (:func:`prior_sigma_points`).
+
     One half of a record gave ropes (rope 2 0.01 stiffer than the whole's), the other
     none: the members reach t_1 = 12.7 x as far, on both sides.
 
@@ -116,16 +131,22 @@ def band_solutions(
     1.0 1.0 1.02 0.0 0.5 ringing
     1.0 1.0 1.02 0.0 2.0 ringing
     """
-    if len(springs.alternatives) > MAX_ALTERNATIVES:  # the carried state has no rows
+    most = 2 * (PRIOR_ROPES - 1) if springs.prior_sigma > 0 else MAX_ALTERNATIVES
+    if len(springs.alternatives) > most:  # the carried state has no rows
         raise ValueError(f"{len(springs.alternatives)} alternatives of the ropes: at most "
-                         f"{MAX_ALTERNATIVES} (MAX_ALTERNATIVES)")  # fmt: skip
+                         f"{most} (MAX_ALTERNATIVES; a prior's: of PRIOR_ROPES)")  # fmt: skip
     solutions = [BandSolution(1.0, 1.0, springs, 0.0, 1.0, "estimate")]
     solutions += [
         BandSolution(c, s, springs, start, 1.0, "law" if s == 1.0 else "bristles")
         for (c, s), start in zip(band_members(friction_relative_sigma), START_MEMBERS, strict=True)
     ]
     alternatives = range(len(springs.alternatives))
-    if springs.alternatives:
+    if springs.prior_sigma > 0:  # the prior's sigma points, as they are
+        solutions += [
+            BandSolution(1.0, 1.0, springs.member(k, 1.0), 0.0, 1.0, "stiffness")
+            for k in alternatives
+        ]
+    elif springs.alternatives:
         reach = parts_reach(len(springs.alternatives), springs.splits)
         solutions += [
             BandSolution(1.0, 1.0, springs.member(k, reach), 0.0, 1.0, "ropes")
@@ -208,6 +229,11 @@ class RopeSprings:
     parts : int
         How many parts the identification ran on (those that gave no ropes have no
         alternative); 0: as many as :attr:`alternatives`.
+    prior_sigma : float
+        0: identified. > 0: no record identified these ropes (no logged x): the
+        constants are the description's and :attr:`alternatives` the sigma points of a
+        relative stiffness spread of this standard deviation about them
+        (:func:`prior_rope_springs`).
     """
 
     stiffness_factors: tuple[float, ...]
@@ -216,6 +242,7 @@ class RopeSprings:
     samples: int
     alternatives: tuple[tuple[tuple[float, ...], tuple[float, ...]], ...] = ()
     parts: int = 0
+    prior_sigma: float = 0.0
 
     def __post_init__(self) -> None:
         if self.parts and len(self.alternatives) > self.parts:
@@ -253,3 +280,103 @@ class RopeSprings:
             self.mismatch_m,
             self.samples,
         )
+
+
+def prior_sigma_points(ropes: int, sigma: float) -> np.ndarray:
+    r"""Stiffness deviations of the unscented transform's sigma points for ``ropes`` head
+    ropes whose stiffnesses scatter independently by the relative standard deviation
+    ``sigma`` about the description's, (2 (n - 1), n).
+
+    Only the ropes' differences move the pistons apart (a common factor is the
+    description's EA), so the points span the n - 1 directions of zero sum: an
+    orthonormal basis :math:`v_j` of that subspace (the normalised Hadamard contrasts
+    where n is a power of two, every rope moved alike, else Helmert's), each point
+    :math:`\pm\sqrt{n-1}\,\sigma\, v_j` with weight 1 / (2 (n - 1)) (Julier and
+    Uhlmann 1997, kappa = 0): their mean is 0 and their covariance
+    :math:`\sigma^2 (I - 11^T / n)`, the independent scatter's less its common part;
+    a smooth function's mean over them is its expectation to second order.
+
+    >>> points = prior_sigma_points(4, 0.05)
+    >>> points.shape, float(abs(points).max().round(5))
+    ((6, 4), 0.0433)
+    >>> np.allclose(points.T @ points / 6, 0.05**2 * (np.eye(4) - 1 / 4))
+    True
+    """
+    if ropes < 2 or not 0.0 < sigma < np.inf:
+        raise ValueError(
+            f"prior sigma points of {ropes} ropes at {sigma}: two ropes and a sigma > 0"
+        )
+    if ropes & (ropes - 1) == 0:  # Sylvester's Hadamard matrix, its first row dropped
+        basis = np.ones((1, 1))
+        while basis.shape[0] < ropes:
+            basis = np.block([[basis, basis], [basis, -basis]])
+        directions = basis[1:] / np.sqrt(ropes)
+    else:  # Helmert's contrasts
+        directions = np.zeros((ropes - 1, ropes))
+        for j in range(1, ropes):
+            directions[j - 1, :j] = 1.0
+            directions[j - 1, j] = -float(j)
+            directions[j - 1] /= np.sqrt(j * (j + 1.0))
+    step = np.sqrt(ropes - 1.0) * sigma * directions
+    return np.stack([side * row for row in step for side in (1.0, -1.0)])
+
+
+def prior_rope_springs(stiffness_factors: tuple[float, ...], sigma: float) -> RopeSprings:
+    """Head ropes no record identified (no logged piston x): the description's stiffness
+    factors (``stiffness_factors``: 1 each where it states none) with no length offsets
+    (without a logged x the pistons start where equal tensions put them, and a rope's
+    length offset only shifts its piston), and as :attr:`RopeSprings.alternatives` the
+    sigma points (:func:`prior_sigma_points`) of a relative stiffness spread ``sigma``.
+
+    Why: the pistons slide apart where the ropes' rates differ (a rope's stretch
+    T / (a_i k) changes with the load and the hanging length, most at the pithead), and
+    those that slide apart hold friction of opposite signs. Ropes taken alike move
+    every piston alike and put every seal at the same friction: their sum is the most
+    the seals can hold, about twice what independent simulators' and real seals keep
+    (issue 13: with x left out, the validation days' pithead stops after a payload
+    change were compensated to -2.7 % against a raw +2.4 %). The mean over the sigma
+    points is the estimate, their spread a source of its band.
+
+    >>> springs = prior_rope_springs((1.0,) * 4, 0.05)
+    >>> springs.prior_sigma, len(springs.alternatives)
+    (0.05, 6)
+    >>> [round(a, 4) for a in springs.alternatives[0][0]]
+    [1.0433, 0.9567, 1.0433, 0.9567]
+    """
+    base = np.asarray(stiffness_factors, dtype=float)
+    points = base + prior_sigma_points(base.size, sigma) * base
+    offsets = (0.0,) * base.size
+    return RopeSprings(
+        tuple(float(a) for a in base),
+        offsets,
+        float("nan"),
+        0,
+        tuple((tuple(round(float(a), 12) for a in row), offsets) for row in points),
+        parts=len(points),
+        prior_sigma=float(sigma),
+    )
+
+
+def band_groups(solutions: list[BandSolution]) -> tuple[int, ...]:
+    """Each band member's source as :func:`transforms.uncertainty.ensemble_band`'s
+    ``groups`` (``solutions`` as :func:`band_solutions` gives them, the estimate first
+    and left out): its index in :data:`BAND_SOURCES`, but each pair of a prior's sigma
+    points (one direction of the ropes' spread, :func:`prior_sigma_points`) a source of
+    its own, numbered after them: the directions are independent and combine in
+    quadrature.
+
+    >>> springs = prior_rope_springs((1.0,) * 4, 0.05)
+    >>> band_groups(band_solutions(springs, 0.1))
+    (0, 0, 1, 1, 4, 4, 5, 5, 6, 6)
+    """
+    groups = []
+    pair = 0
+    for member in solutions[1:]:
+        if member.source == "stiffness":
+            groups.append(
+                BAND_SOURCES.index("stiffness") if pair < 2 else len(BAND_SOURCES) + pair // 2 - 1
+            )
+            pair += 1
+        else:
+            groups.append(BAND_SOURCES.index(member.source))
+    return tuple(groups)

@@ -69,7 +69,10 @@ def _block_frames(record: pl.DataFrame, hoist=HOIST, block=BLOCK, **kwargs):
     start = record["time_utc"][0]
     end = record["time_utc"][-1] + dt.timedelta(microseconds=1)
     # the statistics of the record read block by block (as ropeload run does)
-    context = record_context(read, hoist, start=start, end=end, rows=record.height, block=block)
+    context = record_context(
+        read, hoist, start=start, end=end, rows=record.height, block=block,
+        settings=kwargs.get("settings"),
+    )  # fmt: skip
     return compensate_blocks(
         read, hoist, start=start, end=end, context=context, block=block, **kwargs
     )
@@ -177,9 +180,16 @@ def test_ringing_members_copied_where_nothing_rings_equal_those_solved(
     assert_frame_equal(solved, frames["damped"], check_exact=True)
 
 
+#: Without a logged x, the oil's motion shared out (transforms.piston_motion).
+SHARED = CompensationSettings(rope_stiffness_sigma=0.0)
+
+
 def test_blocks_equal_whole_record_pressure_only_with_drifting_seals(tmp_path) -> None:
-    """LuGre seals without a logged x (the oil's motion shared out): the ringing the
-    seals drift along (BlockCompensation.ringing_drift) is the same across block edges."""
+    """LuGre seals without a logged x, the oil's motion shared out
+    (``rope_stiffness_sigma=0``): the ringing the seals drift along
+    (BlockCompensation.ringing_drift) is the same across block edges. (The stick-slip
+    solution on the ropes' prior spread, the default without x, is
+    test_blocks_equal_whole_record_pressure_only's.)"""
     toml = tmp_path / "lugre.toml"
     toml.write_text(EXAMPLE_HOIST.read_text().replace('"presliding_hysteresis",', ""))
     hoist = load_hoist(toml)
@@ -195,9 +205,11 @@ def test_blocks_equal_whole_record_pressure_only_with_drifting_seals(tmp_path) -
 
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(BlockCompensation, "ringing_drift", counting)
-        whole = compensate(record, hoist)
+        whole = compensate(record, hoist, settings=SHARED)
     assert any(d.size > 1 and d.max() > 0.0 for d in drifts)  # the simulation rings
-    _assert_same(whole, _blocks(record, hoist=hoist))
+    _assert_same(whole, _blocks(record, hoist=hoist, settings=SHARED))
+    # and the default: the stick-slip solution on the ropes' prior spread, drifting too
+    _assert_same(compensate(record, hoist), _blocks(record, hoist=hoist))
 
 
 def test_blocks_equal_whole_record_pressure_only(record: pl.DataFrame) -> None:

@@ -39,6 +39,7 @@ from transforms.stick_slip_band import (
     RINGING_MEMBERS,
     RopeSprings,
     band_solutions,
+    prior_rope_springs,
 )
 
 HOIST = load_hoist(EXAMPLE_HOIST)
@@ -649,11 +650,14 @@ def test_band_solutions_fit_the_carried_state():
     ropes = ((1.0,) * 4, (0.0,) * 4)
     most = RopeSprings(*ropes, 1e-4, 100, (ropes,) * MAX_ALTERNATIVES)
     solutions = band_solutions(most, 0.1, ringing=True)
-    assert len(solutions) == MAX_SOLUTIONS
+    assert len(solutions) == 5 + MAX_ALTERNATIVES + len(RINGING_MEMBERS) <= MAX_SOLUTIONS
     assert solutions[0] == (1.0, 1.0, most, 0.0, 1.0, "estimate")  # the estimate first
     # every member stands for one of the sources the band combines
-    assert {m.source for m in solutions[1:]} == set(BAND_SOURCES)
-    assert len(band_solutions(most, 0.1)) == MAX_SOLUTIONS - len(RINGING_MEMBERS)
+    assert {m.source for m in solutions[1:]} == set(BAND_SOURCES) - {"stiffness"}
+    # ropes no record identified: the prior's six sigma points fill the rows
+    prior = band_solutions(prior_rope_springs((1.0,) * 4, 0.05), 0.1, ringing=True)
+    assert len(prior) == MAX_SOLUTIONS
+    assert {m.source for m in prior[1:]} == set(BAND_SOURCES) - {"ropes"}
     with pytest.raises(ValueError, match="MAX_ALTERNATIVES"):
         band_solutions(RopeSprings(*ropes, 1e-4, 100, (ropes,) * (MAX_ALTERNATIVES + 1)), 0.1)
 

@@ -1,0 +1,127 @@
+"""Compensation without a logged x: the stick-slip solution on the ropes' prior spread.
+
+Without x nothing identifies the head ropes, so the compensation solves the stick-slip
+estimate on the sigma points of a stiffness spread about the description's ropes
+(:func:`transforms.stick_slip_band.prior_rope_springs`) and takes their mean
+(:func:`transforms.compensation_block.prior_mean`). Checked here on a small record of the
+example hoist at the pithead (stiff ropes) with payload changes at rest:
+
+- the estimate is the mean of the six sigma points' solutions, each solved alone as if
+  identified (the unscented transform's mean, equal weights), to rounding;
+- ropes that differ cancel part of the seals' friction: the mean's friction summed over
+  the pistons is smaller than that of ropes taken alike, which share every slide;
+- the band holds the estimate and spans the ropes-alike solution (the spread's end);
+- the spread set to 0 gives the share-out of transforms.piston_motion, as before.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+
+import numpy as np
+import polars as pl
+
+from schemas.hoist import EXAMPLE_HOIST, load_hoist
+from transforms.compensation import (
+    CompensationSettings,
+    compensate,
+    compensate_window,
+    compensation_context,
+    context_sample,
+    context_stride,
+)
+from transforms.stick_slip_band import RopeSprings, prior_rope_springs
+
+HOIST = load_hoist(EXAMPLE_HOIST)
+RATE = 50.0
+
+
+def _record(seconds: float = 60.0) -> pl.DataFrame:
+    """At rest at the pithead, no x logged; the load steps up by ~6 % and back down."""
+    n = int(seconds * RATE)
+    k = np.arange(n)
+    ramp = np.clip((k - 10 * RATE) / RATE, 0, 1) - np.clip((k - 35 * RATE) / RATE, 0, 1)
+    p = 4.5e6 + 0.3e6 * ramp + np.random.default_rng(3).normal(0, 2e3, n)
+    start = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
+    data: dict = {
+        "time_utc": pl.datetime_range(
+            start,
+            start + dt.timedelta(seconds=(n - 1) / RATE),
+            dt.timedelta(seconds=1 / RATE),
+            eager=True,
+            time_zone="UTC",
+        ),
+        **{f"p{i}_pa": p for i in range(1, 5)},
+        **{f"x{i}_m": [None] * n for i in range(1, 5)},
+        "depth_m": np.zeros(n),
+        "speed_m_s": np.zeros(n),
+        "oil_temp_c": np.full(n, 35.0),
+    }
+    return pl.DataFrame(data, schema_overrides={f"x{i}_m": pl.Float64 for i in range(1, 5)})
+
+
+def _context(frame: pl.DataFrame, settings: CompensationSettings):
+    stride = context_stride(frame.height)
+    return compensation_context(context_sample(frame, stride).collect(), HOIST, settings, stride)
+
+
+def _frictions(out: pl.DataFrame) -> np.ndarray:
+    return np.vstack([out[f"friction{i}_n"].to_numpy() for i in range(1, 5)])
+
+
+def test_without_x_the_estimate_is_the_mean_of_the_sigma_points_solutions():
+    frame = _record()
+    settings = CompensationSettings()
+    context = _context(frame, settings)
+    springs = context.rope_springs
+    prior = prior_rope_springs((1.0,) * 4, settings.rope_stiffness_sigma)
+    assert springs is not None
+    assert springs.prior_sigma == settings.rope_stiffness_sigma
+    assert springs.alternatives == prior.alternatives
+    estimate = _frictions(compensate(frame, HOIST))
+    alone = []
+    for stiffness, offsets in springs.alternatives:  # each point as if identified
+        point = RopeSprings(stiffness, offsets, 0.0, 0)
+        out, _ = compensate_window(
+            frame, HOIST, context=dataclasses.replace(context, rope_springs=point)
+        )
+        alone.append(_frictions(out))
+    np.testing.assert_allclose(estimate, np.mean(alone, axis=0), rtol=0, atol=1e-6)
+    # the points differ: which pistons slide, and so each one's friction
+    held = int(30 * RATE)
+    assert np.ptp([a[0, held] for a in alone]) > 100.0
+
+
+def test_ropes_that_differ_cancel_friction_that_ropes_alike_would_add_up():
+    frame = _record()
+    context = _context(frame, CompensationSettings())
+    alike = RopeSprings((1.0,) * 4, (0.0,) * 4, 0.0, 0)
+    out_alike, _ = compensate_window(
+        frame, HOIST, context=dataclasses.replace(context, rope_springs=alike)
+    )
+    out = compensate(frame, HOIST)
+    held = slice(int(25 * RATE), int(34 * RATE))  # at the raised load, after the slide
+    sum_alike = _frictions(out_alike)[:, held].sum(axis=0).mean()
+    sum_mean = _frictions(out)[:, held].sum(axis=0).mean()
+    assert sum_alike > 0  # the load rose: the seals resist the rods' pull
+    assert 0 < sum_mean < sum_alike
+    # ropes alike share the slide: every seal holds the same friction
+    f = _frictions(out_alike)[:, held]
+    np.testing.assert_allclose(f, np.broadcast_to(f[0], f.shape), rtol=1e-6)
+    # the band holds the estimate and reaches the ropes-alike load
+    load = out["load_n"].to_numpy()
+    lo, hi = out["load_lo_n"].to_numpy(), out["load_hi_n"].to_numpy()
+    assert np.all(lo <= load + 1.0)
+    assert np.all(load <= hi + 1.0)
+    alike_load = out_alike["load_n"].to_numpy()[held]
+    assert np.all(alike_load <= hi[held] + 1.0)
+
+
+def test_no_spread_falls_back_to_the_share_out():
+    frame = _record()
+    settings = CompensationSettings(rope_stiffness_sigma=0.0)
+    assert _context(frame, settings).rope_springs is None
+    shared = compensate(frame, HOIST, settings=settings)
+    without = compensate(frame, HOIST, settings=CompensationSettings(rope_springs=False))
+    np.testing.assert_array_equal(_frictions(shared), _frictions(without))

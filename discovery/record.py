@@ -136,6 +136,11 @@ def read_record(samples: pl.DataFrame, hoist: HoistDescription) -> RecordArrays:
     if quiet.sum() < 50:
         quiet = np.abs(np.nan_to_num(speed)) < STANDSTILL_SPEED_M_S
     sigma = estimate_noise_sigma(p, ~quiet)
+    if not sigma > 0.0:  # every gap is set against it: no scale, no comparison
+        raise ValueError(
+            "samples: the pressure noise cannot be estimated (the sensors' readings do "
+            "not vary at standstill)"
+        )
     pc = np.nanmean(p, axis=1)
     rate = 1.0 / max(float(np.median(np.diff(t))), 1e-6)
     # 1-s moving average of the common-mode pressure (O(n); a median over a day at 100 Hz

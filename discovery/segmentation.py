@@ -64,15 +64,38 @@ def estimate_noise_sigma(pressures: np.ndarray, moving: np.ndarray) -> float:
     if p.ndim == 1:
         p = p[:, None]
     still = ~np.asarray(moving, dtype=bool)
-    ok = still[2:] & still[1:-1] & still[:-2]
-    if ok.sum() < 20:
-        ok = np.ones(p.shape[0] - 2, dtype=bool)
-    d2 = (p[2:] - 2.0 * p[1:-1] + p[:-2])[ok]
-    d2 = d2[np.isfinite(d2)]
+    parts = [_held_second_differences(p[:, j], still) for j in range(p.shape[1])]
+    d2 = np.concatenate(parts) if parts else np.empty(0)
     if d2.size == 0:
         return float("nan")
     mad = np.median(np.abs(d2 - np.median(d2)))
     return float(mad / 0.6745 / np.sqrt(6.0))
+
+
+def _held_second_differences(p: np.ndarray, still: np.ndarray) -> np.ndarray:
+    """One sensor's finite second differences at standstill (all its samples when fewer
+    than 20 triplets stand still). A sensor that updates slower than the logger logs
+    (a 10 Hz transducer on a 50 Hz logger: each reading repeated, most differences
+    exactly 0, whose MAD is 0) is differenced over its readings, each run of repeats
+    taken once.
+
+    >>> held = np.repeat(np.random.default_rng(1).normal(0, 5e3, 4000), 5)
+    >>> d2 = _held_second_differences(held, np.ones(held.size, bool))
+    >>> round(float(np.median(np.abs(d2)) / 0.6745 / np.sqrt(6.0) / 5e3), 1)
+    1.0
+    >>> _held_second_differences(np.full(100, 5e6), np.ones(100, bool)).size  # no reading
+    0
+    """
+    d1 = np.diff(p)
+    finite = np.isfinite(d1)
+    if finite.any() and np.mean(d1[finite] == 0.0) > 0.5:  # held: one sample a reading
+        keep = np.r_[True, d1 != 0.0]
+        p, still = p[keep], still[keep]
+    ok = still[2:] & still[1:-1] & still[:-2]
+    if ok.sum() < 20:
+        ok = np.ones(max(p.size - 2, 0), dtype=bool)
+    d2 = (p[2:] - 2.0 * p[1:-1] + p[:-2])[ok]
+    return d2[np.isfinite(d2)]
 
 
 def record_trips(

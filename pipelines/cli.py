@@ -170,6 +170,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValueError as exc:
         sys.stderr.write(f"ropeload {command}: {exc}\n")
         return 2
+    start, end = getattr(args, "start", None), getattr(args, "end", None)
+    if command in ("run", "discover") and start is not None and end is not None:
+        # --to (exclusive) not after --from: a bad value of the options, status 2
+        from pipelines.run_period import check_period
+
+        try:
+            check_period(start, end)
+        except ValueError as exc:
+            sys.stderr.write(f"ropeload {command}: {exc}\n")
+            return 2
     problem = _data_root_problem(args)
     if problem is not None:
         sys.stderr.write(f"ropeload {command}: {problem}\n")

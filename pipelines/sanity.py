@@ -205,7 +205,7 @@ def _rows(
             "hoist": hoist.hoist.name,
             "trip_id": trip_id,
             "rms_gap_pa": rms if np.isfinite(rms) else None,  # NULL, not NaN, in SQL
-            "noise_pa": noise_pa,
+            "noise_pa": noise_pa if np.isfinite(noise_pa) else None,
             "passed": None if status == "skipped" else status == "passed",
             "message": message,
             "status": status,

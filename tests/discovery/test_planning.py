@@ -30,6 +30,23 @@ def test_noise_estimate_white_noise():
     assert estimate_noise_sigma(p, np.zeros(30000, bool)) == pytest.approx(3e3, rel=0.05)
 
 
+def test_noise_estimate_of_sensors_updating_slower_than_the_logger():
+    """A 10 Hz transducer on a 50 Hz logger repeats each reading five times: most
+    differences are exactly 0 (their MAD 0, and every gap divided by it); the noise is
+    the readings' own. Pressures that never vary give no estimate, and planning a
+    replay on them says so in one line (a probe crashed ``discover`` with a
+    ZeroDivisionError there)."""
+    rng = np.random.default_rng(1)
+    readings = 5e6 + np.linspace(0, 2e5, 6000)[:, None] + rng.normal(0, 3e3, (6000, 4))
+    held = np.repeat(readings, 5, axis=0)
+    assert estimate_noise_sigma(held, np.zeros(held.shape[0], bool)) == pytest.approx(3e3, rel=0.05)
+    assert np.isnan(estimate_noise_sigma(np.full((500, 4), 5e6), np.zeros(500, bool)))
+    plan, info = hidden_case(None, trips=2, seed=2)
+    flat = info["day"].sensors.with_columns(pl.lit(5e6).alias(f"p{i}_pa") for i in range(1, 5))
+    with pytest.raises(ValueError, match="noise cannot be estimated"):
+        plan_replay(flat, plan.hoist)
+
+
 def test_plan_recovers_trip_inputs(null_case):
     plan, info = null_case
     trips = info["day"].info["trips"]

@@ -548,7 +548,8 @@ def test_a_memory_budget_that_is_no_budget_is_a_usage_error(value, tmp_path, cap
 @pytest.mark.parametrize("command", ["run", "discover"])
 def test_a_reversed_period_says_so(command, tmp_path, capsys, small_csv):
     """--to before --from: one line saying the period is empty (was: 'no samples landed
-    in 23:00 .. 22:00', as if the data were missing)."""
+    in 23:00 .. 22:00', as if the data were missing), and the status of a bad option's
+    value, 2 (was 1, a run's failure)."""
     data = tmp_path / "data"
     assert main(["ingest", "--data", str(data), str(small_csv(tmp_path / "in.csv"))]) == 0
     capsys.readouterr()
@@ -556,7 +557,7 @@ def test_a_reversed_period_says_so(command, tmp_path, capsys, small_csv):
             "--from", "2026-03-02T07:00", "--to", "2026-03-02T06:00"]  # fmt: skip
     if command == "discover":
         argv += ["--json", str(tmp_path / "r.json")]
-    assert main(argv) == 1
+    assert main(argv) == 2
     err = _one_line(capsys.readouterr().err, command)
     assert "the period is empty" in err
 

@@ -107,6 +107,7 @@ def _driving_motion(
             d0,
             d1,
             at_rest_after=tm["cut"] != "end",
+            knot_s=rec.knot_s,
         )
     driven = profile
     if knots is not None:

@@ -13,6 +13,7 @@ levels around it; :func:`trailing_ramp_start` a load change after the last stop;
 from __future__ import annotations
 
 import datetime as dt
+import functools
 from dataclasses import dataclass
 from typing import Any
 
@@ -33,6 +34,7 @@ from discovery.segmentation import (
 )
 from physics.trip_rule import STANDSTILL_SPEED_M_S, TRIP_BRIDGE_S
 from schemas.hoist import HoistDescription
+from sims.logged_motion import knot_spacing_s
 
 __all__ = [
     "RAMP_LEAD_S",
@@ -84,6 +86,12 @@ class RecordArrays:
     short_trips: list[tuple[int, int, int]]
     #: the logged piston positions (samples, n) [m]; None unless every one is logged
     x: np.ndarray | None = None
+
+    @functools.cached_property
+    def knot_s(self) -> float:
+        """Knot spacing of the logged motion for this record's speed
+        (:func:`sims.logged_motion.knot_spacing_s`)."""
+        return knot_spacing_s(self.t, self.speed)
 
     @property
     def end_t(self) -> float:

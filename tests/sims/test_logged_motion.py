@@ -14,7 +14,13 @@ import pytest
 from discovery.cases import scenario_hoist
 from discovery.planning import plan_replay
 from sims.field_day import generate_field_day
-from sims.logged_motion import motion_knots, profile_from_knots, rope_damping_from_record
+from sims.logged_motion import (
+    KNOT_ACCELERATION_SIGMA,
+    knot_spacing_s,
+    motion_knots,
+    profile_from_knots,
+    rope_damping_from_record,
+)
 from sims.replay import replay_fitted
 
 
@@ -189,3 +195,30 @@ def test_a_read_damping_near_the_described_one_is_used_when_it_replays_closer(
     assert plan.hoist.ropes.head_rope_damping_ratio == pytest.approx(0.02, rel=0.3)
     assert "replaces the description's 0.035" in plan.rope_bounce, plan.rope_bounce
     assert _gap(plan) < 1.2 * plan.noise_sigma_pa
+
+
+def test_a_coarsely_quantised_speed_gets_knots_wide_enough_for_its_acceleration():
+    """A constant 0.8 m/s2 logged at 50 Hz as a speed rounded to 0.01 m/s (with the
+    encoder's 3 mm/s of noise that dithers it): at the default 0.1 s knots the
+    acceleration between knots scatters by ~q / sqrt(6 r dt^3) = 0.018 m/s2 (a probe's
+    record replayed a jagged inertia that a valve loss was named for); at the spacing
+    knot_spacing_s chooses it stays within KNOT_ACCELERATION_SIGMA (0.005 m/s2), and a
+    speed logged to 1 mm/s keeps the default."""
+    rng = np.random.default_rng(4)
+    t = np.arange(0.0, 32.5, 0.02)  # 12.5 s at 0.8 m/s2, then 20 s at 10 m/s
+    v_true = np.minimum(0.8 * t, 10.0)
+    logged = np.round(v_true + rng.normal(0.0, 0.003, t.size), 2)
+    spacing = knot_spacing_s(t, logged)
+    assert spacing > 0.2
+
+    def scatter(knot_s: float) -> float:
+        knots = motion_knots(t, logged, 0.0, 12.4, 0.0, 62.5, at_rest_before=False,
+                             at_rest_after=False, knot_s=knot_s)  # fmt: skip
+        assert knots is not None
+        centres, speed, _ = knots
+        return float(np.std(np.diff(speed) / np.diff(centres)))
+
+    assert scatter(0.1) > 2.5 * KNOT_ACCELERATION_SIGMA
+    assert scatter(spacing) < 1.5 * KNOT_ACCELERATION_SIGMA
+    fine = np.round(v_true + rng.normal(0.0, 0.003, t.size), 3)
+    assert knot_spacing_s(t, fine) == 0.1

@@ -221,7 +221,8 @@ def run_iteration(fit: FitState, iteration: int) -> bool:
     explained = (bl.rss0 - chosen["rss"]) / excess
     refusal = _verdict(fit, bl, scores, share, ranking, explained)
     trips = int(np.unique(lay.trip).size)
-    if refusal is None and trips < MIN_TRIPS:
+    # one trip tells no winner, and no pair apart either: its resamples are all alike
+    if (refusal is None or refusal.effect == AMBIGUOUS) and trips < MIN_TRIPS:
         refusal = _no_addition(
             fit, bl, NO_EFFECT, 0.0, ranking,
             f"{ranking[0]['effect']} scored best, but on {trips} compared trip: the trips "

@@ -146,8 +146,8 @@ def read_record(samples: pl.DataFrame, hoist: HoistDescription) -> RecordArrays:
     sigma = estimate_noise_sigma(p, ~quiet)
     if not sigma > 0.0:  # every gap is set against it: no scale, no comparison
         raise ValueError(
-            "samples: the pressure noise cannot be estimated (the sensors' readings do "
-            "not vary at standstill)"
+            "samples: the pressure noise cannot be estimated (no pressure logged at "
+            "standstill, or its readings never vary)"
         )
     pc = np.nanmean(p, axis=1)
     rate = 1.0 / max(float(np.median(np.diff(t))), 1e-6)

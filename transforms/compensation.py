@@ -13,8 +13,11 @@ For each cylinder i of a hoist, per sample:
    bristle, eq 15's drift along the oil's back-and-forth: a ringing hoist shakes its
    seals loose), and the closed oil volume, A sum dx_i = V dp / beta, fixes the sum of
    the motions; solved per sample (:mod:`transforms.stick_slip`), it says which piston
-   slides and what friction the sticking ones keep. Otherwise (no logged x, a record
-   at rest, ropes the model does not fit, or ``CompensationSettings(rope_springs=False)``)
+   slides and what friction the sticking ones keep; without a logged x, on the sigma
+   points of the ropes' prior stiffness spread, their mean the estimate
+   (:func:`transforms.stick_slip_band.prior_rope_springs`). Otherwise (a record
+   at rest, ropes the model does not fit, ``CompensationSettings(rope_springs=False)``,
+   or without x ``rope_stiffness_sigma=0``)
    the oil's motion is shared out to the pistons the smoothed, played logged x show
    moving, the part within the seals' presliding range equally
    (:mod:`transforms.piston_motion`); the friction state is then driven by the

@@ -2,8 +2,10 @@ r"""Each piston's motion from the closed oil volume and the logged displacements
 
 Since session 12 the compensation's fallback: where the head ropes are identified from
 the record, each piston's motion and friction come from its rope spring
-(:mod:`transforms.stick_slip`); this share-out runs without a logged x, when the logged
-x do not identify the ropes, or with ``CompensationSettings(rope_springs=False)``.
+(:mod:`transforms.stick_slip`, without a logged x on the ropes' prior spread); this
+share-out runs when the logged x do not identify the ropes, or with
+``CompensationSettings(rope_springs=False)``, or without a logged x with
+``rope_stiffness_sigma=0``.
 
 The seal friction of a piston depends on the history of *its own* motion (paper eq 15:
 the bristle state follows the piston's increments), so the compensation needs each
@@ -62,7 +64,8 @@ lost about half of it. Tried and dropped: sharing the oil's motion by each seal'
 to its static capacity (elastic-plastic, one common demand) without the rope springs:
 1.6-1.8 % median, the wrong piston saturates first.
 
-Without a logged x (``eval_compensation.py --without-x``, session 33), the quarter
+Without a logged x (``eval_compensation.py --without-x``, session 33; since session 37
+the stick-slip solution on the ropes' prior spread runs there instead), the quarter
 shares on the validation days 101-104: worst 2.93 / 2.93 / 3.38 / 2.66 %, median 1.40 /
 1.45 / 1.40 / 0.48 % (raw 2.75 / 2.69 / 2.85 / 0.74 %), 23 / 24 / 23 / 24 windows worse
 than raw by > 0.2 points, the band (+-5.5-6.0 %) holding every window; on ropeload's own

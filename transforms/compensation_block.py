@@ -243,6 +243,8 @@ class BlockCompensation(BlockSetup):
             self.disagreement.disagreement_floor_pa,
         )  # fmt: skip
         logged = tuple(job.result() for job in self.x_jobs)
+        if springs.prior_sigma > 0:  # no length offsets: an x logged for some ropes only
+            logged = tuple(np.full(n, np.nan) for _ in logged)  # would be one without them
         depth = float_column(self.frame["depth_m"])
         nu = np.atleast_1d(np.asarray(self.nu_job.result(), dtype=float))
         drift_p, drift_w = self.drift_pressure(pressures)

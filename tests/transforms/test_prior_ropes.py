@@ -125,3 +125,17 @@ def test_no_spread_falls_back_to_the_share_out():
     shared = compensate(frame, HOIST, settings=settings)
     without = compensate(frame, HOIST, settings=CompensationSettings(rope_springs=False))
     np.testing.assert_array_equal(_frictions(shared), _frictions(without))
+
+
+def test_an_x_logged_for_some_ropes_only_is_not_taken_for_where_the_pistons_start():
+    """x1 missing, x2-x4 logged at mid-stroke (0.15 m): nothing identifies the ropes
+    (every rope's x is needed), and the prior's ropes have no length offsets, so the
+    logged positions would put three pistons 0.15 m from the first, ~100 kN of rope
+    force: the solution starts as without any x."""
+    frame = _record()
+    partial = frame.with_columns(
+        pl.lit(0.15 + 1e-4 * i, dtype=pl.Float64).alias(f"x{i}_m") for i in (2, 3, 4)
+    )
+    np.testing.assert_array_equal(
+        _frictions(compensate(partial, HOIST)), _frictions(compensate(frame, HOIST))
+    )

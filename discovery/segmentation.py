@@ -69,28 +69,37 @@ def estimate_noise_sigma(pressures: np.ndarray, moving: np.ndarray) -> float:
     if d2.size == 0:
         return float("nan")
     mad = np.median(np.abs(d2 - np.median(d2)))
+    if mad == 0.0:  # a quantisation coarse against the noise: most differences 0
+        return float(np.sqrt(np.mean(d2**2) / 6.0))
     return float(mad / 0.6745 / np.sqrt(6.0))
 
 
 def _held_second_differences(p: np.ndarray, still: np.ndarray) -> np.ndarray:
     """One sensor's finite second differences at standstill (all its samples when fewer
     than 20 triplets stand still). A sensor that updates slower than the logger logs
-    (a 10 Hz transducer on a 50 Hz logger: each reading repeated, most differences
-    exactly 0, whose MAD is 0) is differenced over its readings, each run of repeats
-    taken once.
+    (a 10 Hz transducer on a 50 Hz logger: each reading repeated about as often, most
+    differences exactly 0, whose MAD is 0) is differenced over its readings, each run of
+    repeats taken once. A reading quantised coarsely against its noise repeats too, but
+    irregularly: its differences are kept (:func:`estimate_noise_sigma` then takes their
+    RMS, the noise with the quantisation's q^2 / 12).
 
     >>> held = np.repeat(np.random.default_rng(1).normal(0, 5e3, 4000), 5)
     >>> d2 = _held_second_differences(held, np.ones(held.size, bool))
     >>> round(float(np.median(np.abs(d2)) / 0.6745 / np.sqrt(6.0) / 5e3), 1)
     1.0
-    >>> _held_second_differences(np.full(100, 5e6), np.ones(100, bool)).size  # no reading
-    0
+    >>> float(np.abs(_held_second_differences(np.full(100, 5e6), np.ones(100, bool))).max())
+    0.0
     """
     d1 = np.diff(p)
-    finite = np.isfinite(d1)
-    if finite.any() and np.mean(d1[finite] == 0.0) > 0.5:  # held: one sample a reading
-        keep = np.r_[True, d1 != 0.0]
-        p, still = p[keep], still[keep]
+    changes = np.flatnonzero(np.isfinite(d1) & (d1 != 0.0))
+    runs = np.diff(changes)  # samples from one change of reading to the next
+    if runs.size > 10 and np.median(runs) >= 2:
+        # held readings repeat a regular number of times (the rates' ratio); a coarse
+        # quantisation's repeats are irregular (estimate_noise_sigma takes those)
+        typical = np.bincount(runs).argmax()
+        if np.mean(np.abs(runs - typical) <= 1) >= 0.8:
+            keep = np.r_[True, d1 != 0.0]
+            p, still = p[keep], still[keep]
     ok = still[2:] & still[1:-1] & still[:-2]
     if ok.sum() < 20:
         ok = np.ones(max(p.size - 2, 0), dtype=bool)

@@ -44,6 +44,7 @@ from sims.trips import TripProfile
 
 __all__ = [
     "KNOT_ACCELERATION_SIGMA",
+    "KNOT_MAX_S",
     "KNOT_S",
     "knot_spacing_s",
     "motion_knots",
@@ -59,6 +60,9 @@ KNOT_S = 0.1
 #: [m/s2]: 0.005 m/s2 of a ~20 t conveyance is ~100 N, under the pressure sensors' noise
 #: (5 kPa on four 100 mm pistons, ~160 N).
 KNOT_ACCELERATION_SIGMA = 0.005
+#: The widest knot spacing [s]: half a winder's jerk phase (~1 s), which the knots'
+#: straight segments must still follow.
+KNOT_MAX_S = 0.5
 
 
 def knot_spacing_s(t_s: np.ndarray, speed_m_s: np.ndarray) -> float:
@@ -73,8 +77,9 @@ def knot_spacing_s(t_s: np.ndarray, speed_m_s: np.ndarray) -> float:
     :math:`\sigma_a` at :data:`KNOT_ACCELERATION_SIGMA`: an encoder's 1 mm/s at 50 Hz
     needs 0.05 s (the default 0.1 s stands); a speed logged to 0.01 m/s 0.24 s (0.1 s
     left the acceleration 0.018 m/s2 off in RMS, which a flow-squared valve loss took
-    for its own: issue 14's probe named a local loss on a record hiding nothing). q is
-    the smallest step between the distinct logged speeds (to 1 um/s).
+    for its own: issue 14's probe named a local loss on a record hiding nothing), at
+    most :data:`KNOT_MAX_S`. q is the smallest step between the distinct logged speeds
+    (to 1 um/s) that three pairs of them share (one value off the grid does not set it).
 
     >>> t = np.arange(0, 60, 0.02)
     >>> v = np.minimum(0.8 * t, 10.0) + np.random.default_rng(0).normal(0, 0.003, t.size)
@@ -88,9 +93,12 @@ def knot_spacing_s(t_s: np.ndarray, speed_m_s: np.ndarray) -> float:
     dt = dt[dt > 0.0]
     if steps.size == 0 or dt.size == 0:
         return KNOT_S
-    q, rate = float(steps.min()), 1.0 / float(np.median(dt))
+    values, counts = np.unique(steps, return_counts=True)
+    shared = values[counts >= 3]  # a value off the grid makes steps of its own, once
+    q = float(shared[0] if shared.size else values[0])
+    rate = 1.0 / float(np.median(dt))
     wanted = (q / (np.sqrt(6.0 * rate) * KNOT_ACCELERATION_SIGMA)) ** (2.0 / 3.0)
-    return float(max(KNOT_S, wanted))
+    return float(min(max(KNOT_S, wanted), KNOT_MAX_S))
 
 
 def motion_knots(

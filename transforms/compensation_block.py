@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import functools
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -243,8 +243,10 @@ class BlockCompensation(BlockSetup):
             self.disagreement.disagreement_floor_pa,
         )  # fmt: skip
         logged = tuple(job.result() for job in self.x_jobs)
-        if springs.prior_sigma > 0:  # no length offsets: an x logged for some ropes only
-            logged = tuple(np.full(n, np.nan) for _ in logged)  # would be one without them
+        if not np.isfinite(springs.mismatch_m):  # not identified from this record (the
+            # description's ropes or their prior spread): no length offsets, so an x
+            # logged for some ropes only would be a start without them
+            logged = tuple(np.full(n, np.nan) for _ in logged)
         depth = float_column(self.frame["depth_m"])
         nu = np.atleast_1d(np.asarray(self.nu_job.result(), dtype=float))
         drift_p, drift_w = self.drift_pressure(pressures)
@@ -277,11 +279,13 @@ class BlockCompensation(BlockSetup):
         others = range(1, len(members))
         copied = [] if on_means else [m for m in others if self.is_estimate(inputs, m, members)]
         solved = [m for m in others if m not in copied]
+        # the prior's sigma points make the estimate (prior_mean): at the sensors' rate
+        points = [m for m in others if members[m].source == "stiffness"]
         # the kernel releases the GIL: the members run beside the estimate
         with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
             estimate = pool.submit(self.staged, run, self.segment, self.carry.estimate)
             if on_means:
-                spread = self.member_spreads(inputs, members, step_s, pool)
+                spread = self.member_spreads(inputs, members, step_s, pool, at_rate=points)
             else:
                 at_rate = functools.partial(self.member_at_rate, inputs)
                 found = pool.map(at_rate, solved, [members[m] for m in solved])
@@ -294,7 +298,10 @@ class BlockCompensation(BlockSetup):
             self.member_friction = [frictions[m] for m in range(1, len(members))]
         if spread is not None:  # the estimate plus each member's difference
             self.member_friction = [
-                tuple(f + d for f, d in zip(friction, deltas, strict=True)) for deltas in spread
+                deltas
+                if m in points
+                else tuple(f + d for f, d in zip(friction, deltas, strict=True))
+                for m, deltas in zip(others, spread, strict=True)
             ]
         if springs.prior_sigma > 0:  # the description's ropes join the band as a member
             self.member_friction.append(prior_mean(friction, self.member_friction, members[1:]))
@@ -408,11 +415,14 @@ class BlockCompensation(BlockSetup):
         members: list[BandSolution],
         step_s: float,
         pool: ThreadPoolExecutor,
+        *,
+        at_rate: Sequence[int] = (),
     ) -> list[tuple[np.ndarray, ...]]:
         """Each band member's friction less the estimate's, per rope, at the sensors' rate:
         both solved on the means of :meth:`member_means` (on ``pool``) and the difference
         held over each mean's samples (NaN outside the stage;
-        :mod:`transforms.band_members`)."""
+        :mod:`transforms.band_members`); the members ``at_rate`` are solved at the
+        sensors' rate instead (:meth:`member_at_rate`), their own friction in the list."""
         n = self.n
         starts, means, travel = self.member_means(inputs, step_s)
         steps = mean_steps(starts, n, self.dt_nominal)
@@ -432,11 +442,19 @@ class BlockCompensation(BlockSetup):
             return f
 
         # on the pool: beside the estimate, then on both its threads
-        frictions = list(pool.map(solve, range(len(members))))
-        return [
-            tuple(held(fm - f0, starts, n) for fm, f0 in zip(f_m, frictions[0], strict=True))
-            for f_m in frictions[1:]
-        ]
+        on_means = [m for m in range(len(members)) if m not in at_rate]
+        frictions = dict(zip(on_means, pool.map(solve, on_means), strict=True))
+        rate = functools.partial(self.member_at_rate, inputs)
+        solved = list(pool.map(rate, at_rate, [members[m] for m in at_rate]))
+        frictions |= dict(zip(at_rate, solved, strict=True))
+
+        def spread(m: int) -> tuple[np.ndarray, ...]:
+            if m in at_rate:
+                return frictions[m]
+            f_0, f_m = frictions[0], frictions[m]
+            return tuple(held(fm - f0, starts, n) for fm, f0 in zip(f_m, f_0, strict=True))
+
+        return [spread(m) for m in range(1, len(members))]
 
     def drift_pressure(self, pressures: tuple[np.ndarray, ...]) -> tuple[np.ndarray | None, float]:
         """:func:`transforms.seal_drift.drift_pressure` when the seals drift (LuGre's single

@@ -141,6 +141,11 @@ class CompensationSettings:
     band_member_step_s: float = 0.0
 
     def __post_init__(self) -> None:
+        if not 0.0 <= self.rope_stiffness_sigma < 0.5:
+            raise ValueError(
+                f"rope_stiffness_sigma {self.rope_stiffness_sigma}: a relative spread in "
+                "[0, 0.5) (0: the share-out without x)"
+            )
         step = self.band_member_step_s
         if step == 0:
             return
@@ -265,11 +270,12 @@ class CompensationContext:
         Every rope's displacement is logged somewhere in the record.
     rope_springs : RopeSprings or None
         The head ropes' constants identified from the record
-        (:mod:`transforms.rope_identification`), or without a logged x their prior
+        (:mod:`transforms.rope_identification`), or without a logged x the ropes the
+        description states (``head_rope_stiffness_factors``, four) or else their prior
         (:func:`transforms.stick_slip_band.prior_rope_springs`, ``rope_stiffness_sigma``);
         None: not identified (no piston motion, no constants fit the logged x to 0.5 mm,
-        or ``CompensationSettings(rope_springs=False)``, or without a logged x
-        ``rope_stiffness_sigma=0``): the pistons' motion is shared out
+        or ``CompensationSettings(rope_springs=False)``, or without a logged x and
+        stated ropes ``rope_stiffness_sigma=0``): the pistons' motion is shared out
         (:mod:`transforms.piston_motion`).
     """
 
@@ -451,10 +457,19 @@ def compensation_context(
     identify = settings.rope_springs and has_x and means is not None
     springs = identify_from_means(means, hoist, cache_dir=cache_dir) if identify else None
     stated = hoist.ropes.head_rope_stiffness_factors
+    if stated is not None and len(stated) != len(ROPES):
+        stated = None  # not the compensation's four ropes: the share-out
     if springs is None and not has_x and settings.rope_springs and stated is not None:
         # no logged x, the description states its ropes: the stick-slip solution on them
         springs = RopeSprings(tuple(stated), (0.0,) * len(stated), float("nan"), 0)
-    elif springs is None and not has_x and settings.rope_springs and settings.rope_stiffness_sigma:
+    elif (
+        springs is None
+        and not has_x
+        and settings.rope_springs
+        and settings.rope_stiffness_sigma
+        and hoist.ropes.head_rope_stiffness_factors is None
+        and hoist.ropes_n == len(ROPES)
+    ):
         # nothing identifies the ropes: the stick-slip solution on their prior spread
         springs = prior_rope_springs((1.0,) * len(ROPES), settings.rope_stiffness_sigma)
     return CompensationContext(

@@ -330,6 +330,7 @@ _IDENTIFIED: dict[str, RopeSprings | None] = {}
 _MODEL_MODULES = (
     __name__,
     "transforms.stick_slip",
+    "transforms.stick_slip_band",
     "transforms.seal_drift",
     "physics.lugre",
     "physics.maxwell_slip",

@@ -218,7 +218,9 @@ class RopeSprings:
     length_offsets_m : tuple of float
         c_i, each rope's length offset [m] (c_1 = 0).
     mismatch_m : float
-        RMS of the model's x minus the logged x over the identification samples [m].
+        RMS of the model's x minus the logged x over the identification samples [m];
+        NaN: not identified from the record (the description's ropes or their prior,
+        :func:`prior_rope_springs`), whose logged x the solution does not start from.
     samples : int
         Samples the identification used.
     alternatives : tuple of (a, c)

@@ -40,7 +40,12 @@ def test_noise_estimate_of_sensors_updating_slower_than_the_logger():
     readings = 5e6 + np.linspace(0, 2e5, 6000)[:, None] + rng.normal(0, 3e3, (6000, 4))
     held = np.repeat(readings, 5, axis=0)
     assert estimate_noise_sigma(held, np.zeros(held.shape[0], bool)) == pytest.approx(3e3, rel=0.05)
-    assert np.isnan(estimate_noise_sigma(np.full((500, 4), 5e6), np.zeros(500, bool)))
+    assert not estimate_noise_sigma(np.full((500, 4), 5e6), np.zeros(500, bool)) > 0.0
+    # a reading quantised coarsely against its noise repeats irregularly: not held; its
+    # noise with the quantisation's, sqrt(2^2 + 10^2 / 12) = 3.5 kPa, to 10 %
+    smooth = 5e6 + np.linspace(0, 2e5, 6000)[:, None]
+    coarse = np.round((smooth + rng.normal(0, 2e3, (6000, 4))) / 1e4) * 1e4
+    assert estimate_noise_sigma(coarse, np.zeros(6000, bool)) == pytest.approx(3.5e3, rel=0.1)
     plan, info = hidden_case(None, trips=2, seed=2)
     flat = info["day"].sensors.with_columns(pl.lit(5e6).alias(f"p{i}_pa") for i in range(1, 5))
     with pytest.raises(ValueError, match="noise cannot be estimated"):

@@ -16,6 +16,7 @@ from discovery.planning import plan_replay
 from sims.field_day import generate_field_day
 from sims.logged_motion import (
     KNOT_ACCELERATION_SIGMA,
+    KNOT_MAX_S,
     knot_spacing_s,
     motion_knots,
     profile_from_knots,
@@ -222,3 +223,6 @@ def test_a_coarsely_quantised_speed_gets_knots_wide_enough_for_its_acceleration(
     assert scatter(spacing) < 1.5 * KNOT_ACCELERATION_SIGMA
     fine = np.round(v_true + rng.normal(0.0, 0.003, t.size), 3)
     assert knot_spacing_s(t, fine) == 0.1
+    # one value off the grid does not set the quantisation; the spacing has a ceiling
+    assert knot_spacing_s(t, np.r_[logged[:-1], 0.1234]) == spacing
+    assert knot_spacing_s(t, np.round(v_true, 1)) == KNOT_MAX_S

@@ -139,3 +139,33 @@ def test_an_x_logged_for_some_ropes_only_is_not_taken_for_where_the_pistons_star
     np.testing.assert_array_equal(
         _frictions(compensate(partial, HOIST)), _frictions(compensate(frame, HOIST))
     )
+
+
+def test_band_members_on_means_leave_the_prior_estimate_as_it_is():
+    """band_member_step_s runs the band's members on means, never the estimate: the
+    prior's sigma points make the estimate, so they stay at the sensors' rate."""
+    frame = _record()
+    at_rate = compensate(frame, HOIST)
+    on_means = compensate(frame, HOIST, settings=CompensationSettings(band_member_step_s=0.2))
+    assert on_means["load_n"].equals(at_rate["load_n"])
+    assert not on_means["load_hi_n"].equals(at_rate["load_hi_n"])  # the members moved
+
+
+def test_stated_ropes_are_taken_as_known_and_a_partial_x_as_no_start():
+    """A description that states its ropes' stiffness factors: without x the solution
+    runs on them alone (no spread); an x logged for some ropes only does not start it."""
+    stated = HOIST.model_copy(
+        update={"ropes": HOIST.ropes.model_copy(update={"head_rope_stiffness_factors": [1.0] * 4})}
+    )
+    frame = _record()
+    springs = compensation_context(
+        context_sample(frame, context_stride(frame.height)).collect(), stated,
+        CompensationSettings(), context_stride(frame.height),
+    ).rope_springs  # fmt: skip
+    assert springs is not None
+    assert springs.stiffness_factors == (1.0,) * 4
+    assert springs.alternatives == ()
+    partial = frame.with_columns(pl.lit(0.15, dtype=pl.Float64).alias(f"x{i}_m") for i in (2, 3))
+    np.testing.assert_array_equal(
+        _frictions(compensate(partial, stated)), _frictions(compensate(frame, stated))
+    )

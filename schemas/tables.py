@@ -123,6 +123,12 @@ MANIFEST = _schema(
         pa.field("status", pa.string(), nullable=False),
         pa.field("message", pa.string()),
         pa.field("ingested_at_utc", TIME, nullable=False),
+        # where the logger clock stood at bytes_consumed (migration 0007): the latest
+        # sample time read, and the clock step back the reading ended inside (its first
+        # line, its size in s; null when none)
+        pa.field("clock_latest_utc", TIME),
+        pa.field("clock_step_line", pa.int64()),
+        pa.field("clock_step_s", pa.float64()),
     ],
     "one row per distinct source content (sha256); status landed | partial | refused",
 )

@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 
 import polars as pl
 
+from pipelines.ingest.clock import ClockState
+
 __all__ = ["REJECTED_SCHEMA", "Batch", "Reading", "RefusedFile", "rejected_frame"]
 
 #: Rows a reader rejected: ``row`` is the 1-based line (CSV), the sample index (TDMS)
@@ -37,15 +39,23 @@ class Batch:
     counts both (plus nothing else), so ``rows_read = samples + rejected``.
     ``raw_of`` gives the raw text of rows by ``_row`` (for rows quarantined later,
     e.g. conflicts found while landing).
+
+    ``held``: rows of a logger clock's step back (:mod:`.clock`), with the samples'
+    columns and their ``_reason``. They land nowhere: after the batch's samples have
+    landed, each one equal in every value to a landed sample of its time is an exact
+    duplicate (a logger that wrote a stretch again), the others are quarantined with
+    their reason (:meth:`.landing.LakeTable.landed_duplicates`).
     """
 
     samples: pl.DataFrame
     rejected: pl.DataFrame
     raw_of: Callable[[list[int]], list[str | None]]
+    held: pl.DataFrame | None = None
 
     @property
     def rows_read(self) -> int:
-        return self.samples.height + self.rejected.height
+        held = 0 if self.held is None else self.held.height
+        return self.samples.height + self.rejected.height + held
 
 
 @dataclass
@@ -53,7 +63,8 @@ class Reading:
     """An opened source file: identity, lake table and its batches.
 
     After ``batches`` is exhausted, ``bytes_consumed`` and ``partial`` describe how far
-    the file could be read; ``notes`` collect things the report should say.
+    the file could be read, and ``clock`` where the logger's clock stood there (field
+    logs; :mod:`.clock`); ``notes`` collect things the report should say.
     """
 
     table: str
@@ -63,3 +74,4 @@ class Reading:
     notes: list[str] = field(default_factory=list)
     bytes_consumed: int | None = None
     partial: str | None = None
+    clock: ClockState | None = None

@@ -14,8 +14,11 @@ oil_temp   oil_temp_c     degC - optional
 
 Missing values (empty field, ``NaN``/``nan``, ``-9999``/``-9999.0``) become null.
 A sample is quarantined with the first reason that applies, in this order:
-unparsable timestamp, local time in a daylight-saving gap, unparsable value (per
-channel), negative absolute pressure, pressure above 60 MPa, depth outside the shaft.
+unparsable timestamp, local time in a daylight-saving gap, a logger clock that stepped
+back (:mod:`.clock`: "the logger clock stepped back 30.0 s at line N: time before the
+latest already read"; such a row without another fault is an exact duplicate where it
+equals a landed sample), unparsable value (per channel), negative absolute pressure,
+pressure above 60 MPa, depth outside the shaft.
 
 Depth outside the shaft: with a hoist description the landed range is
 ``[-DEPTH_MARGIN_M, shaft depth + DEPTH_MARGIN_M]`` (overtravel and encoder slack);

@@ -16,13 +16,14 @@ memory stays bounded however large the file is. Each batch goes through:
    unparsable values can be told from empty ones. Both give the same values.
 3. Polars expressions: timestamps to UTC (:mod:`.local_time`), numbers with decimal
    comma and sentinels to SI floats, one quarantine reason per row
-   (:mod:`.field_checks`).
+   (:mod:`.field_checks`; a clock stepping back: :mod:`.clock`).
 
 The header (``#`` lines, column line, units) is read by :mod:`.csv_header`.
 
 A last line without a newline is held back: the file may still be growing
 (``Reading.partial``, ``bytes_consumed`` stops before it). ``start_offset`` /
-``start_line`` resume a grown file after the part an earlier ingest consumed.
+``start_line`` resume a grown file after the part an earlier ingest consumed;
+``start_clock`` is where that part left the logger's clock (:class:`.clock.ClockState`).
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ import numpy as np
 import polars as pl
 
 from pipelines.ingest.batch import REJECTED_SCHEMA, Batch, Reading, rejected_frame
+from pipelines.ingest.clock import ClockState, clock_steps, steps_note, tolerance_us
 from pipelines.ingest.csv_chunks import ChunkProgress, iter_chunks
 from pipelines.ingest.csv_header import CsvHeader, read_header
 from pipelines.ingest.csv_scan import NUMBER_BYTES, scan_chunk
@@ -65,11 +67,14 @@ def open_csv(
     start_offset: int | None = None,
     start_line: int | None = None,
     batch_bytes: int = DEFAULT_BATCH_BYTES,
+    start_clock: ClockState | None = None,
 ) -> Reading:
     """Open a CSV field log; batches are produced lazily as ``Reading.batches`` is iterated.
 
     ``start_offset``/``start_line`` (both or neither) resume after an already ingested
-    prefix; they must point at the start of a line past the header.
+    prefix; they must point at the start of a line past the header. ``start_clock`` is
+    the clock state that prefix's reading ended with (the manifest's); without it a
+    resume takes it from the prefix's last 64 KB (:func:`prefix_clock`).
     """
     header = read_header(path)
     hoist = hoist_lookup(header.site, header.hoist) if hoist_lookup is not None else None
@@ -90,7 +95,14 @@ def open_csv(
     limits = depth_limits_m(hoist)
     if offset > header.data_offset:  # the prefix's place in a repeated hour carries over
         progress.ambiguity = prefix_ambiguity(path, header, offset, limits, batch_bytes)
-    parser = _BatchParser(header, limits, progress.ambiguity)
+    if start_clock is not None:
+        clock = start_clock
+    elif offset > header.data_offset:
+        clock = prefix_clock(path, header, offset, line, limits)
+    else:
+        clock = ClockState()
+    reading.clock = clock
+    parser = _BatchParser(header, limits, progress.ambiguity, clock)
 
     def batches() -> Iterator[Batch]:
         for chunk, first_line, n_lines in iter_chunks(path, offset, line, batch_bytes, progress):
@@ -105,9 +117,33 @@ def open_csv(
                 "taken as the first (daylight-saving) pass; export with UTC offsets to "
                 "be sure"
             )
+        if clock.steps:
+            reading.notes.append(steps_note(clock.steps, "line"))
 
     reading.batches = batches()
     return reading
+
+
+def prefix_clock(
+    path: Path, header: CsvHeader, offset: int, line: int, depth_limits: tuple[float, float]
+) -> ClockState:
+    """The clock state of the file's first ``offset`` bytes (``line`` the line after
+    them) as their last 64 KB give it: for a resume whose earlier reading left none in
+    the manifest (ingested before the manifest kept it). A step back that began before
+    those 64 KB is not seen."""
+    state = ClockState()
+    start = max(header.data_offset, offset - _PREFIX_PROBE_BYTES)
+    with path.open("rb") as handle:
+        handle.seek(start)
+        block = handle.read(offset - start)
+    if start > header.data_offset:  # from the first whole line
+        block = block[block.find(b"\n") + 1 :]
+    n_lines = block.count(b"\n")
+    if n_lines:
+        parser = _BatchParser(header, depth_limits, AmbiguityState(earlier_rows=True), state)
+        parser.parse(block, line - n_lines, n_lines)
+    state.steps.clear()
+    return state
 
 
 #: The prefix read back on resume covers at least this much time before its last sample:
@@ -228,11 +264,20 @@ class _Lines:
 
 class _BatchParser:
     def __init__(
-        self, header: CsvHeader, depth_limits: tuple[float, float], ambiguity: AmbiguityState
+        self,
+        header: CsvHeader,
+        depth_limits: tuple[float, float],
+        ambiguity: AmbiguityState,
+        clock: ClockState | None = None,
     ) -> None:
+        """``clock``: the file's clock state, carried over its batches; None parses the
+        times alone (no clock-step check: a probe of a file's tail, a parser test)."""
         self.header = header
         self.depth_limits = depth_limits
         self.ambiguity = ambiguity
+        self.clock = clock
+        rate = header.sample_rate_hz
+        self.clock_tolerance = tolerance_us(1 / rate if rate and rate > 0 else None)
         self.names = [f"c{i}" for i in range(len(header.columns))]
         self.separator_byte = ord(header.separator)
         #: raw column index of each known channel, in column order
@@ -281,11 +326,11 @@ class _BatchParser:
         def raw_of(rows: list[int]) -> list[str | None]:
             return [lines.text(r - first_line) for r in rows]
 
-        samples, rejected = self._parse_rows(
+        samples, rejected, held = self._parse_rows(
             data, row_numbers, raw_of, _FastPath(naive_us, ts_ok, bool(clean.all()))
         )
         rejected_all = pl.concat([rejected_frame(rejected_rows), rejected])
-        return Batch(samples=samples, rejected=rejected_all, raw_of=raw_of)
+        return Batch(samples=samples, rejected=rejected_all, raw_of=raw_of, held=held)
 
     def _read(self, data: bytes, fast: _FastPath) -> tuple[pl.DataFrame, bool]:
         """The timestamp (unless all fast-parsed) and channel columns; typed if possible.
@@ -321,11 +366,11 @@ class _BatchParser:
 
     def _parse_rows(
         self, data: bytes, row_numbers: np.ndarray, raw_of, fast: _FastPath
-    ) -> tuple[pl.DataFrame, pl.DataFrame]:
+    ) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFrame | None]:
         columns = [f.name for f in FIELD_SAMPLES if f.name not in ("source_sha256",)]
         if row_numbers.size == 0:
             empty = pl.DataFrame(schema={**_sample_schema(), "_row": pl.Int64})
-            return empty.select(*columns, "_row"), rejected_frame([])
+            return empty.select(*columns, "_row"), rejected_frame([]), None
         text, typed = self._read(data, fast)
         time_utc, time_reason = parse_timestamps(
             None if fast.all_times else text["c0"],
@@ -334,6 +379,9 @@ class _BatchParser:
             self.ambiguity,
             prefilled=fast.naive(),
         )
+        stepped = None
+        if self.clock is not None:  # a row in a clock step has a time: no time reason
+            stepped = clock_steps(time_utc, row_numbers, self.clock, self.clock_tolerance)
         present, raw_of_column, casts = self._casts(typed)
         # Stage 1: one cast per column (in parallel; nothing to do when read typed).
         # Stage 2 only does work where the cheap whole-column statistics say there is
@@ -368,6 +416,7 @@ class _BatchParser:
             pl.lit(rows).alias("_row"),
             pl.lit(rows).alias("source_line"),
             pl.lit(time_reason).alias("_reason"),
+            *([] if stepped is None else [pl.lit(stepped).alias("_clock")]),
         )
         return self._split(parsed, list(present), columns, raw_of)
 
@@ -426,8 +475,10 @@ class _BatchParser:
 
     def _split(
         self, parsed: pl.DataFrame, present: list[str], columns: list[str], raw_of
-    ) -> tuple[pl.DataFrame, pl.DataFrame]:
-        """The samples and the rejected rows (physically impossible values included)."""
+    ) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFrame | None]:
+        """The samples, the rejected rows (physically impossible values included) and
+        the rows held back by a clock step (``_clock``; see :class:`.batch.Batch`): those
+        with no other fault, the others rejected with the step's reason."""
         physical = physical_reason(present, self.depth_limits)
         if physical:
             any_bad = parsed.select(
@@ -437,8 +488,17 @@ class _BatchParser:
                 parsed = parsed.with_columns(
                     pl.coalesce(pl.col("_reason"), *physical).alias("_reason")
                 )
+        held = None
+        if "_clock" in parsed.columns:
+            holding = pl.col("_clock").is_not_null() & pl.col("_reason").is_null()
+            held = parsed.filter(holding).select(
+                *columns, "_row", pl.col("_clock").alias("_reason")
+            )
+            parsed = parsed.filter(~holding).with_columns(
+                pl.coalesce("_clock", "_reason").alias("_reason")
+            )
         if parsed["_reason"].null_count() == parsed.height:
-            return parsed.select(*columns, "_row"), rejected_frame([])
+            return parsed.select(*columns, "_row"), rejected_frame([]), held
         samples = parsed.filter(pl.col("_reason").is_null())
         bad = parsed.filter(pl.col("_reason").is_not_null())
         bad_rows = bad["_row"].to_list()
@@ -446,7 +506,7 @@ class _BatchParser:
             {"row": bad_rows, "topic": None, "reason": bad["_reason"], "raw": raw_of(bad_rows)},
             schema=REJECTED_SCHEMA,
         )
-        return samples.select(*columns, "_row"), rejected
+        return samples.select(*columns, "_row"), rejected, held
 
 
 @dataclass(frozen=True)

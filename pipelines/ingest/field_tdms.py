@@ -15,7 +15,9 @@ A truncated file (channels end unevenly: the logger stopped mid-write) lands the
 samples every channel has and is ``partial``; the complete file, exported later, lands
 the rest (the first part as exact duplicates). Channels written in segments of their
 own (or in uneven pieces) are aligned by their offsets. A sample whose time no
-calendar date holds is quarantined as an unreadable timestamp.
+calendar date holds is quarantined as an unreadable timestamp. A ``timestamp`` channel
+whose clock steps back has the repeated stretch quarantined as the CSV reader does
+(:mod:`.clock`; the reason names the 0-based sample where the step began).
 
 Quarantine rows of TDMS files have no line; ``raw`` starts with the 0-based sample index
 (the samples' ``_row``).
@@ -32,6 +34,7 @@ import polars as pl
 from nptdms import TdmsFile
 
 from pipelines.ingest.batch import REJECTED_SCHEMA, Batch, Reading, RefusedFile, rejected_frame
+from pipelines.ingest.clock import ClockState, clock_steps, steps_note, tolerance_us
 from pipelines.ingest.field_checks import (
     CHANNELS,
     REASON_TIMESTAMP,
@@ -188,6 +191,8 @@ def _batches(
     held: dict[str, list[np.ndarray]] = {name: [] for name in names}
     ends = dict.fromkeys(names, 0)  # each channel's values read so far
     landed = 0  # the samples every channel had, batched already
+    clock = reading.clock = ClockState()
+    tolerance = tolerance_us(timebase[2] if timebase is not None else None)
     try:
         for chunk in tdms.data_chunks():
             for channel in chunk[_GROUP].channels():
@@ -204,7 +209,7 @@ def _batches(
                 held[name] = [values[n:]] if len(values) > n else []
             si, present = _si_frame(arrays, units, timebase, landed, n)
             landed += n
-            yield _screened_batch(si, present, limits)
+            yield _screened_batch(si, present, limits, clock, tolerance)
         if max(ends.values()) > landed:
             short = min(ends, key=ends.__getitem__)
             reading.partial = (
@@ -212,6 +217,8 @@ def _batches(
                 f"{max(ends.values()) - landed} sample(s) before the longest channel; "
                 "landed the samples every channel has"
             )
+        if clock.steps:
+            reading.notes.append(steps_note(clock.steps, "sample"))
     finally:
         tdms.close()
 
@@ -253,20 +260,39 @@ def _si_frame(
     return frame.select("time_utc", "_row", *values), present
 
 
-def _screened_batch(si: pl.DataFrame, present: list[str], limits: tuple[float, float]) -> Batch:
-    """The chunk's samples that pass the timestamp and physical checks, and the rejected
-    rows with their reason and raw text."""
+def _screened_batch(
+    si: pl.DataFrame,
+    present: list[str],
+    limits: tuple[float, float],
+    clock: ClockState,
+    tolerance: int,
+) -> Batch:
+    """The chunk's samples that pass the timestamp, clock-step and physical checks, and
+    the rejected rows with their reason and raw text."""
+    stepped = clock_steps(si["time_utc"], si["_row"].to_numpy(), clock, tolerance, "sample")
     reasons = [
         pl.when(pl.col("time_utc").is_null()).then(pl.lit(REASON_TIMESTAMP)),
         *physical_reason(present, limits),
     ]
     si = si.with_columns(pl.coalesce(*reasons).alias("_reason"))
+    names = [f.name for f in FIELD_SAMPLES if f.name != "source_sha256"]
+    every = si  # raw text of any row, held ones included
+    held = None
+    if stepped is not None:  # rows of a clock step: held (see Batch.held) unless faulty
+        si = si.with_columns(pl.lit(stepped).alias("_clock"))
+        holding = pl.col("_clock").is_not_null() & pl.col("_reason").is_null()
+        held = (
+            si.filter(holding)
+            .with_columns(pl.col("_row").alias("source_line"))
+            .select(*names, "_row", pl.col("_clock").alias("_reason"))
+        )
+        si = si.filter(~holding).with_columns(pl.coalesce("_clock", "_reason").alias("_reason"))
+        si = si.drop("_clock")
     good = si.filter(pl.col("_reason").is_null())
     bad = si.filter(pl.col("_reason").is_not_null())
-    names = [f.name for f in FIELD_SAMPLES if f.name != "source_sha256"]
     samples = good.with_columns(pl.col("_row").alias("source_line")).select(*names, "_row")
 
-    def raw_of(rows: list[int], si: pl.DataFrame = si) -> list[str | None]:
+    def raw_of(rows: list[int], si: pl.DataFrame = every) -> list[str | None]:
         picked = si.filter(pl.col("_row").is_in(rows)).drop("_reason")
         texts = {r["_row"]: _raw_text(r) for r in picked.iter_rows(named=True)}
         return [texts.get(r) for r in rows]
@@ -284,7 +310,7 @@ def _screened_batch(si: pl.DataFrame, present: list[str], limits: tuple[float, f
         if bad.height
         else rejected_frame([])
     )
-    return Batch(samples=samples, rejected=rejected, raw_of=raw_of)
+    return Batch(samples=samples, rejected=rejected, raw_of=raw_of, held=held)
 
 
 def _raw_text(row: dict) -> str:

@@ -96,6 +96,24 @@ class LakeTable:
                 result.landed += part.height
         return result
 
+    def landed_duplicates(self, rows: pl.DataFrame, *, site: str, hoist: str) -> list[int]:
+        """The ``_row`` of those ``rows`` (the samples' columns, plus ``_row``) equal in
+        every value column to a landed sample of the same time: rows a reader held back
+        (a logger clock's step back, :attr:`.batch.Batch.held`) that are exact
+        duplicates. Nothing is written."""
+        if rows.height == 0:
+            return []
+        frame = rows.sort("time_utc", "_row")
+        found: list[int] = []
+        for date, part in _by_date(frame):
+            directory = self.data.partition_dir(self.table, site=site, hoist=hoist, date=date)
+            probe = Landed()
+            kept = self._drop_landed(directory, part, probe)
+            matched = part.join(kept.select("_row"), on="_row", how="anti")
+            conflicts = set(probe.conflicts)
+            found.extend(r for r in matched["_row"].to_list() if r not in conflicts)
+        return found
+
     def _drop_batch_duplicates(self, frame: pl.DataFrame, result: Landed) -> pl.DataFrame:
         time = frame["time_utc"]
         repeated = (time == time.shift(1)).fill_null(False)

@@ -10,7 +10,9 @@ A CSV that was still growing (``status = 'partial'``, ``bytes_consumed < size_by
 is resumed when a longer file arrives whose first ``size_bytes`` bytes hash to that
 row's ``source_sha256``: appending keeps the old content as a prefix, so the prefix
 hash identifies it without storing anything extra.
-Ingest then starts at the old ``bytes_consumed`` (the first line not yet landed).
+Ingest then starts at the old ``bytes_consumed`` (the first line not yet landed), with
+the logger clock where that row left it (``clock_latest_utc``, ``clock_step_line``,
+``clock_step_s``; :mod:`.clock`): a clock step back the old part ended inside goes on.
 A landed CSV (it ended with a whole line) that grows later under the same path is
 resumed the same way after all it held, so its rows are not read again (its rejects
 not quarantined twice); a landed content under another name is not looked for, so a
@@ -26,6 +28,7 @@ from pathlib import Path
 
 import duckdb
 
+from pipelines.ingest.clock import ClockState
 from pipelines.ingest.report import FileResult
 
 __all__ = [
@@ -60,6 +63,17 @@ class Resume:
     sha256: str
     size_bytes: int
     bytes_consumed: int
+    clock_latest_utc: dt.datetime | None = None
+    clock_step_line: int | None = None
+    clock_step_s: float | None = None
+
+    @property
+    def clock(self) -> ClockState | None:
+        """The clock state the earlier version's reading ended with; None where its row
+        has none (ingested before the manifest kept it)."""
+        if self.clock_latest_utc is None:
+            return None
+        return ClockState.carried(self.clock_latest_utc, self.clock_step_line, self.clock_step_s)
 
 
 def find_earlier(con: duckdb.DuckDBPyConnection, sha256: str) -> Earlier | None:
@@ -87,7 +101,8 @@ def resume_candidates(
     """CSV manifest rows that a file of ``max_size`` bytes could extend: the partial ones,
     and the landed ones of the same ``path`` (module docstring)."""
     rows = con.execute(
-        "SELECT source_sha256, size_bytes, bytes_consumed FROM manifest "
+        "SELECT source_sha256, size_bytes, bytes_consumed, clock_latest_utc, clock_step_line, "
+        "clock_step_s FROM manifest "
         "WHERE format = 'csv' AND bytes_consumed IS NOT NULL AND size_bytes < ? AND ("
         "(status = 'partial' AND bytes_consumed < size_bytes) OR "
         "(status = 'landed' AND bytes_consumed = size_bytes AND source_path = ?)) "
@@ -131,7 +146,7 @@ def record(con: duckdb.DuckDBPyConnection, result: FileResult) -> None:
     reasons = result.quarantined_by_reason
     con.execute(
         "INSERT INTO manifest VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
-        "MAP(?::VARCHAR[], ?::BIGINT[]), ?, ?, ?, ?, ?)",
+        "MAP(?::VARCHAR[], ?::BIGINT[]), ?, ?, ?, ?, ?, ?, ?, ?)",
         [
             result.sha256,
             str(result.path),
@@ -151,5 +166,8 @@ def record(con: duckdb.DuckDBPyConnection, result: FileResult) -> None:
             result.status,
             result.message or None,
             dt.datetime.now(dt.UTC),
+            result.clock.latest_utc if result.clock is not None else None,
+            result.clock.step_line if result.clock is not None else None,
+            result.clock.step_s if result.clock is not None else None,
         ],
     )

@@ -13,7 +13,8 @@ published every ``commit_every`` files):
 2. An earlier version that this file extends (partial, or landed under the same path)
    -> resume after its ``bytes_consumed`` (:mod:`.manifest`), in the place of a
    daylight-saving change's repeated hour that version ended in
-   (:func:`.field_csv.prefix_ambiguity`).
+   (:func:`.field_csv.prefix_ambiguity`), with the logger clock where it left it (a
+   clock step back it ended inside goes on: :mod:`.clock`, kept in the manifest).
 3. The format's reader yields batches (:mod:`.field_csv`, :mod:`.field_tdms`,
    :mod:`.rig_mcap`); rejected rows go to ``quarantine``, samples are landed with dedup
    (:mod:`.landing`), conflicts quarantined. Batch N lands on a worker thread while
@@ -208,6 +209,7 @@ def _ingest_file(
         return result, earlier
     notes[:0] = reading.notes
     result.bytes_consumed = reading.bytes_consumed
+    result.clock = reading.clock
     if reading.partial:
         result.status = "partial"
         notes.append(f"partial: {reading.partial}")
@@ -290,6 +292,7 @@ def _open(
                 start_offset=resume.bytes_consumed,
                 start_line=line,
                 batch_bytes=batch_bytes,
+                start_clock=resume.clock,
             )
         return open_csv(path, hoist_lookup=hoist_lookup, batch_bytes=batch_bytes)
     if fmt == "tdms":
@@ -332,10 +335,30 @@ def _land_all(
     reasons: Counter[str] = Counter()
     has_lines = result.format == "csv"
 
-    def account(batch: Batch, landing: Future[Landed]) -> None:
-        landed = landing.result()
+    def land(batch: Batch) -> tuple[Landed, pl.DataFrame | None]:
+        """Land the samples, then sort the held rows: exact duplicates of landed samples
+        (counted so) or quarantined with their reason (the rows returned)."""
+        landed = lake.land(
+            batch.samples, site=reading.site, hoist=reading.hoist, source_sha256=result.sha256
+        )
+        held = batch.held
+        if held is None or held.height == 0:
+            return landed, None
+        same = lake.landed_duplicates(held.drop("_reason"), site=reading.site, hoist=reading.hoist)
+        landed.duplicate += len(same)
+        return landed, held.filter(~pl.col("_row").is_in(same))
+
+    def account(batch: Batch, landing: Future[tuple[Landed, pl.DataFrame | None]]) -> None:
+        landed, held = landing.result()
         result.rows_read += batch.rows_read
         rejected = batch.rejected
+        if held is not None and held.height:
+            rows = held["_row"].to_list()
+            stepped = pl.DataFrame(
+                {"row": rows, "topic": None, "reason": held["_reason"], "raw": batch.raw_of(rows)},
+                schema=rejected.schema,
+            )
+            rejected = pl.concat([rejected, stepped])
         if landed.conflicts:
             conflicts = pl.DataFrame(
                 {
@@ -362,20 +385,13 @@ def _land_all(
             result.time_end_utc = max(high, result.time_end_utc or high)
 
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="ropeload-land") as worker:
-        pending: tuple[Batch, Future[Landed]] | None = None
+        pending: tuple[Batch, Future[tuple[Landed, pl.DataFrame | None]]] | None = None
         try:
             for batch in reading.batches:
                 if pending is not None:
                     landing, pending = pending, None
                     account(*landing)
-                future = worker.submit(
-                    lake.land,
-                    batch.samples,
-                    site=reading.site,
-                    hoist=reading.hoist,
-                    source_sha256=result.sha256,
-                )
-                pending = (batch, future)
+                pending = (batch, worker.submit(land, batch))
         finally:
             if pending is not None:  # also when reading failed: the landed part counts
                 account(*pending)

@@ -31,6 +31,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from pipelines.ingest.clock import ClockState
+
 __all__ = ["STATUSES", "FileResult", "FilesRefused", "IngestReport"]
 
 STATUSES = ("landed", "partial", "refused", "skipped")
@@ -56,6 +58,8 @@ class FileResult:
     time_start_utc: dt.datetime | None = None
     time_end_utc: dt.datetime | None = None
     message: str = ""
+    #: where the logger clock stood at ``bytes_consumed`` (field logs; :mod:`.clock`)
+    clock: ClockState | None = None
 
     @property
     def reason(self) -> str:

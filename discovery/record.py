@@ -32,7 +32,8 @@ from discovery.segmentation import (
     record_trips,
     time_span,
 )
-from physics.trip_rule import STANDSTILL_SPEED_M_S, TRIP_BRIDGE_S
+from physics.conveyance import conveyance_speed
+from physics.trip_rule import STANDSTILL_SPEED_M_S, TRIP_BRIDGE_S, segment_ids
 from schemas.hoist import HoistDescription
 from sims.logged_motion import knot_spacing_s
 
@@ -112,17 +113,22 @@ def read_record(samples: pl.DataFrame, hoist: HoistDescription) -> RecordArrays:
         for column, name in (("depth_m", "depth"), ("speed_m_s", "speed"))
         if samples[column].null_count() == samples.height
     ]
-    if unlogged:  # optional in the logs (contract 1a), needed here
+    if "depth" in unlogged:  # optional in the logs (contract 1a), needed here
         raise ValueError(
             f"the record has no {' and no '.join(unlogged)} logged: the replay follows "
-            "the conveyance's encoder depth and speed"
+            "the conveyance's encoder depth (and its speed, else the depth's derivative)"
         )
     frame = samples.sort("time_utc").unique("time_utc", keep="first", maintain_order=True)
     t_ref = frame["time_utc"][0]
     t = (frame["time_utc"].dt.epoch("us").to_numpy() - int(t_ref.timestamp() * 1e6)) / 1e6
     p = frame.select(pcols).to_numpy().astype(float)
     depth = frame["depth_m"].to_numpy().astype(float)
-    speed = frame["speed_m_s"].to_numpy().astype(float)
+    # where the speed is missing, the depth's derivative (isolated holes interpolated)
+    steps = np.diff(t)
+    speed = conveyance_speed(
+        t, frame["speed_m_s"].to_numpy().astype(float), depth, segment_ids(t),
+        dt_s=float(np.median(steps)) if steps.size else 1.0,
+    )  # fmt: skip
     temp = (
         frame["oil_temp_c"].to_numpy().astype(float)
         if "oil_temp_c" in frame.columns

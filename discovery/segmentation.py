@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage, optimize
 
+from physics.conveyance import conveyance_speed
 from physics.trip_rule import segment_ids, trip_label_codes
 from schemas.hoist import HoistDescription, Winder
 from sims.trips import TripProfile, fit_cut_trip
@@ -112,13 +113,19 @@ def record_trips(
 ) -> tuple[list[tuple[int, int]], list[int], list[tuple[int, int, int]]]:
     """The record's trips by the pipeline's trip rule (:mod:`physics.trip_rule`: a trip
     is a run of samples with ``|v| >= 0.02 m/s``, a short logger gap bridged), numbered
-    as the compensation numbers them from the record's first sample.
+    as the compensation numbers them from the record's first sample; where the speed is
+    missing it is the conveyance's speed from its depth
+    (:func:`physics.conveyance.conveyance_speed`, as the compensation reads it).
 
     Returns the (first, last) sample of each trip moving at least :data:`_MIN_MOTION_S`
     (the ones replayed), their trip ids, and (first, last, trip id) of the shorter ones
     (a jog: numbered, not replayed).
     """
     segment = segment_ids(t)
+    steps = np.diff(t)
+    speed = conveyance_speed(
+        t, speed, depth, segment, dt_s=float(np.median(steps)) if steps.size else 1.0
+    )  # where the log lacks it: an isolated hole interpolated, else the depth's derivative
     speed0 = np.nan_to_num(speed)
     _, _, trip = trip_label_codes(t, speed0, np.zeros(t.size), segment, depth, hoist)
     moving = np.flatnonzero(trip >= 0)

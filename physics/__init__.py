@@ -72,6 +72,10 @@ the trip rule (not printed), phase, direction, trip and shaft position
     the logger's gap segments :func:`~physics.trip_rule.segment_ids`
     -- tests/physics/test_trip_rule.py, tests/transforms/test_kinematics.py,
     tests/pipelines/test_sanity.py (the check names the run's trips)
+the conveyance's motion (not printed), its speed where the log lacks it
+    :func:`physics.conveyance.conveyance_speed` (the depth's derivative), the smoothed
+    derivative every step takes :func:`~physics.conveyance.smoothed_derivative`
+    -- tests/physics/test_conveyance.py, tests/discovery/test_segmentation.py
 
 Errata are corrected where the equation is written: eq 10 and eq 11
 (:mod:`physics.two_cylinder`), the name of eq 15 (:mod:`physics.lugre`), eq 17's

@@ -44,6 +44,8 @@ __all__ = [
     "DIRECTIONS",
     "LABEL_STATE_SIZE",
     "PHASES",
+    "RATE_RATIO",
+    "RATE_RUN",
     "STANDSTILL_SPEED_M_S",
     "TRIP_BRIDGE_S",
     "TRIP_BRIDGE_SPEED_FRACTION",
@@ -281,9 +283,25 @@ def trip_label_columns(
 
 
 def segment_ids(
-    t_s: np.ndarray, *, gap_factor: float = 3.0, nominal_dt_s: float | None = None
+    t_s: np.ndarray,
+    *,
+    gap_factor: float = 3.0,
+    nominal_dt_s: float | None = None,
+    rate_changes: bool = True,
 ) -> np.ndarray:
-    """Number contiguous segments: a new segment starts after each gap.
+    """Number contiguous segments: a new segment starts after each gap and where the
+    logger's rate changes.
+
+    A gap is a spacing above ``gap_factor`` times the spacing of the logger's rate at
+    that point. That rate starts as ``nominal_dt_s``; where :data:`RATE_RUN` consecutive
+    spacings agree with their mean within a factor :data:`RATE_RATIO` and that mean is
+    off the current rate's spacing by more than that factor (a logger switched from
+    50 Hz to 100 Hz, or to 10 Hz, mid-file), the rate changes to that mean and a new
+    segment starts: each segment is rate-homogeneous, so a filter or a derivative of a
+    segment can take one spacing (:func:`physics.conveyance.smoothed_derivative`), and
+    the steps of a slower rate are not each taken for a gap. At a record's first sample
+    the rate is adopted without a new segment. A constant-rate record (jitter, isolated
+    dropouts) never changes rate: its segments are the gaps' alone.
 
     Parameters
     ----------
@@ -293,6 +311,10 @@ def segment_ids(
         A spacing above ``gap_factor * nominal_dt_s`` is a gap [-].
     nominal_dt_s : float, optional
         Nominal sample spacing [s]; default the median spacing.
+    rate_changes : bool
+        Whether a change of the logger's rate starts a segment (and sets the spacing
+        gaps are measured in); False: every spacing above ``gap_factor *
+        nominal_dt_s`` is a gap, whatever the rate (a bridge of so many seconds).
 
     Returns
     -------
@@ -301,22 +323,54 @@ def segment_ids(
 
     >>> segment_ids(np.array([0.0, 0.01, 0.02, 0.5, 0.51])).tolist()
     [0, 0, 0, 1, 1]
+    >>> t = np.r_[np.arange(0.0, 0.2, 0.02), 0.2 + np.arange(0.0, 2.0, 0.1)]  # 50 -> 10 Hz
+    >>> np.unique(segment_ids(t, nominal_dt_s=0.02), return_counts=True)[1].tolist()
+    [11, 19]
     """
     t = np.ascontiguousarray(t_s, dtype=np.float64)
     if t.size < 2:
         return np.zeros(t.size, dtype=np.int64)
     nominal = float(np.median(np.diff(t))) if nominal_dt_s is None else nominal_dt_s
     out = np.empty(t.size, dtype=np.int64)
-    _segment_kernel(t, gap_factor * nominal, out)
+    _segment_kernel(t, gap_factor, nominal, RATE_RATIO, RATE_RUN if rate_changes else 0, out)
     return out
 
 
+#: A logger's rate changes where :data:`RATE_RUN` consecutive spacings agree with their
+#: mean within this factor and the mean is off the current rate's spacing by more [-] ...
+RATE_RATIO = 1.5
+#: ... over this many spacings (:func:`segment_ids`).
+RATE_RUN = 10
+
+
 @njit(cache=True, nogil=True)
-def _segment_kernel(t, max_step, out):  # pragma: no cover - numba
-    """out[i] = number of steps t[j] - t[j-1] > max_step for j <= i (cumsum of the breaks)."""
+def _segment_kernel(t, gap_factor, nominal, ratio, run, out):  # pragma: no cover - numba
+    """out[i] = number of segment starts at samples j <= i: a step t[j] - t[j-1] above
+    ``gap_factor`` x the current spacing h (a gap), or a change of h (a rate change,
+    :func:`segment_ids`); a rate change right after a gap does not start another one.
+    ``run`` 0: no rate changes."""
     count = 0
     out[0] = 0
-    for i in range(1, t.shape[0]):
-        if t[i] - t[i - 1] > max_step:
+    h = nominal
+    n = t.shape[0]
+    started = True  # a segment started at the previous sample
+    for i in range(1, n):
+        d = t[i] - t[i - 1]
+        changed = False
+        if run and (d > ratio * h or d * ratio < h) and i + run <= n:
+            mean = (t[i + run - 1] - t[i - 1]) / run
+            if mean > ratio * h or mean * ratio < h:
+                agree = True
+                for j in range(i, i + run):
+                    step = t[j] - t[j - 1]
+                    if step > ratio * mean or step * ratio < mean:
+                        agree = False
+                        break
+                if agree:
+                    h = mean
+                    changed = True
+        start = d > gap_factor * h or (changed and not started)
+        if start:
             count += 1
+        started = start
         out[i] = count

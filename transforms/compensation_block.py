@@ -159,10 +159,12 @@ class BlockCompensation(BlockSetup):
 
     def kinematics(self) -> tuple[np.ndarray, dict[str, pl.Series]]:
         """Conveyance acceleration, then the trip labels that depend on it."""
-        speed = float_column(self.frame["speed_m_s"], fill=0.0)
+        # unknown where neither speed nor depth is logged: standing still, as before
+        speed = np.where(np.isnan(self.speed), 0.0, self.speed)
         accel = smoothed_derivative(
-            speed, self.segment, dt_s=self.dt_nominal, window_s=self.settings.acceleration_window_s
-        )
+            speed, self.segment, dt_s=self.dt_nominal,
+            window_s=self.settings.acceleration_window_s, time_s=self.time_s,
+        )  # fmt: skip
         depth = float_column(self.frame["depth_m"])
         state = self.carry.labels.copy()
         state[1] = _continues(self.segment, self.core_lo)
@@ -523,6 +525,7 @@ class BlockCompensation(BlockSetup):
             dt_s=self.dt_nominal,
             window_s=self.settings.velocity_window_s,
             out=self.buffer("work_a", hi - lo),
+            time_s=self.time_s[lo:hi],
         )
         return v_flow
 

@@ -120,7 +120,7 @@ def smoothed_noise(settings: CompensationSettings) -> float:
 
 def long_segments(time_s: np.ndarray, bridge_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Segment id per sample and segment bounds [0, ..., n], split only at gaps > bridge_s."""
-    segment = segment_ids(time_s, gap_factor=1.0, nominal_dt_s=bridge_s)
+    segment = segment_ids(time_s, gap_factor=1.0, nominal_dt_s=bridge_s, rate_changes=False)
     starts = np.flatnonzero(segment[1:] != segment[:-1]) + 1
     return segment, np.r_[0, starts, time_s.size]
 

@@ -2,7 +2,8 @@
 
 :class:`BlockSetup` reads what the steps of :class:`transforms.compensation_block.
 BlockCompensation` need before any of them runs: the settings at the record's sample
-rate, the times and gap-free segments, the block's core, first-stage span and hand-over
+rate, the times and gap-free segments, the conveyance's speed (from its depth where the
+log lacks it), the block's core, first-stage span and hand-over
 (the bounds the carried state is saved at), the friction mode with its law and
 presliding elements, the logged oil temperature and one seal's presliding range.
 """
@@ -16,6 +17,7 @@ from dataclasses import replace
 import numpy as np
 import polars as pl
 
+from physics.conveyance import conveyance_speed
 from physics.friction_law import friction_law_at, law_array
 from physics.maxwell_slip import maxwell_slip_elements
 from physics.sensor_branch import sensor_branch
@@ -139,6 +141,25 @@ class BlockSetup:
         self.long_segment, self.long_bounds = long_segments(
             self.time_s, self.settings.differential_bridge_s
         )
+        self.speed = self._conveyance_speed()
+
+    def _conveyance_speed(self) -> np.ndarray:
+        """The conveyance's speed (NaN where unknown): the logged one, where it is missing
+        the depth's derivative or an isolated hole interpolated
+        (:func:`physics.conveyance.conveyance_speed`). The frame's ``speed_m_s`` becomes it,
+        so the rest standstill, the output and the alarms read the same speed as the trip
+        labels; a record logging its speed throughout is left as it is."""
+        logged = self.frame["speed_m_s"]
+        speed = float_column(logged)
+        if not np.isnan(speed).any():
+            return speed
+        speed = conveyance_speed(
+            self.time_s, speed, float_column(self.frame["depth_m"]), self.segment,
+            dt_s=self.dt_nominal, window_s=self.settings.acceleration_window_s,
+        )  # fmt: skip
+        filled = pl.Series("speed_m_s", speed, dtype=pl.Float64).fill_nan(None)
+        self.frame = self.frame.with_columns(filled.cast(logged.dtype))
+        return speed
 
     def _oil_temperature(self, effects: set[str]) -> np.ndarray | None:
         """The logged oil temperature (gaps filled), when the viscosity follows it."""

@@ -1,7 +1,8 @@
 """Piston and hoist kinematics, trip phases and shaft positions.
 
 Derivatives
-    :func:`smoothed_derivative` -- Savitzky-Golay derivative per contiguous segment.
+    :func:`smoothed_derivative` -- Savitzky-Golay derivative per contiguous segment (its
+    home is :mod:`physics.conveyance`, beside the conveyance's speed from its depth).
     :func:`with_piston_velocity` -- piston velocity and chamber outflow per cylinder.
     :func:`with_acceleration` -- conveyance acceleration from its speed.
 
@@ -22,15 +23,13 @@ frames out (DataFrame or LazyFrame); sorted by time, with a segment id column
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Sequence
 from typing import TypeVar
 
 import numpy as np
 import polars as pl
-from numba import njit
-from scipy import signal
 
+from physics.conveyance import conveyance_speed, smoothed_derivative
 from physics.trip_rule import (
     DIRECTIONS,
     PHASES,
@@ -53,156 +52,6 @@ __all__ = [
 ]
 
 Frame = TypeVar("Frame", pl.DataFrame, pl.LazyFrame)
-
-
-def smoothed_derivative(
-    y: np.ndarray,
-    segment_id: np.ndarray | None,
-    *,
-    dt_s: float,
-    window_s: float = 0.1,
-    polyorder: int = 2,
-    out: np.ndarray | None = None,
-) -> np.ndarray:
-    """Time derivative by a Savitzky-Golay filter, each segment on its own.
-
-    A least-squares polynomial of degree ``polyorder`` over a centred window of
-    ``window_s`` (odd number of samples, at least ``polyorder + 2``) is
-    differentiated at each sample; edges use the polynomial fitted to the first/last
-    window (``mode="interp"``). Segments shorter than the window fall back to
-    ``numpy.gradient``; single samples give 0. NaN in, NaN out (bridged linearly for
-    the filter).
-
-    Parameters
-    ----------
-    y : numpy.ndarray
-        Uniformly sampled values within each segment.
-    segment_id : numpy.ndarray or None
-        Segment id per sample; None: one segment.
-    dt_s : float
-        Nominal sample spacing [s].
-    window_s : float
-        Smoothing window [s].
-    polyorder : int
-        Polynomial degree.
-    out : numpy.ndarray, optional
-        Float64 array of ``y``'s length to write into (a reused buffer); every element
-        is written.
-
-    Returns
-    -------
-    numpy.ndarray
-        dy/dt in units of y per second.
-
-    >>> t = np.arange(0.0, 1.0, 0.01)
-    >>> dy = smoothed_derivative(3.0 * t**2, None, dt_s=0.01)
-    >>> bool(np.allclose(dy, 6.0 * t))
-    True
-
-    References
-    ----------
-    Savitzky, A., Golay, M. J. E. (1964), Anal. Chem. 36(8), 1627-1639,
-    doi:10.1021/ac60214a047.
-    """
-    y = np.asarray(y, dtype=np.float64)
-    seg = np.zeros(y.size, dtype=np.int64) if segment_id is None else np.asarray(segment_id)
-    n_win = max(round(window_s / dt_s) | 1, polyorder + 2 | 1)
-    if out is None:
-        out = np.zeros_like(y)
-    if y.size == 0:
-        return out
-    starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]]))
-    bounds = [*starts.tolist(), y.size]
-    for a, b in itertools.pairwise(bounds):
-        _segment_derivative(y[a:b], n_win, polyorder, dt_s, out=out[a:b])
-    return out
-
-
-def _segment_derivative(
-    part: np.ndarray, n_win: int, polyorder: int, dt_s: float, *, out: np.ndarray
-) -> None:
-    """:func:`smoothed_derivative` of one segment, written into ``out`` (its slice)."""
-    bad = ~np.isfinite(part)
-    if bad.all():
-        out[:] = np.nan
-        return
-    if bad.any():
-        idx = np.arange(part.size)
-        part = np.interp(idx, idx[~bad], part[~bad])
-    if part.size >= _DIRECT_FACTOR * n_win:
-        d = _savgol_derivative(part, n_win, polyorder, dt_s, out=out)
-        if bad.any():
-            d[bad] = np.nan
-        return
-    if part.size >= n_win:
-        d = signal.savgol_filter(part, n_win, polyorder, deriv=1, delta=dt_s, mode="interp")
-    elif part.size >= 2:
-        d = np.gradient(part, dt_s)
-    else:
-        d = np.zeros(1)
-    d[bad] = np.nan
-    out[:] = d
-
-
-#: Segments at least this many windows long take the direct convolution path.
-_DIRECT_FACTOR = 4
-
-
-@njit(cache=True, nogil=True)
-def _correlate_antisymmetric(y, weights, out):  # pragma: no cover - numba
-    """out[i] = sum_k weights[k] (y[i + k + 1] - y[i - k - 1]) for every i whose window fits.
-
-    An odd-symmetric (derivative) filter applied to differences: half the products of a
-    plain correlation, and a flat stretch of ``y`` gives exactly 0. Each sum is taken in
-    k order; the outputs are computed a block at a time, tap by tap, so that the
-    compiler vectorises across them.
-    """
-    h = weights.shape[0]
-    stop = y.shape[0] - h
-    block = 512
-    acc = np.empty(block)
-    for start in range(h, stop, block):
-        m = min(block, stop - start)
-        for j in range(m):
-            acc[j] = 0.0
-        for k in range(h):
-            w = weights[k]
-            ahead = y[start + k + 1 : start + k + 1 + m]
-            behind = y[start - k - 1 : start - k - 1 + m]
-            for j in range(m):
-                acc[j] += w * (ahead[j] - behind[j])
-        for j in range(m):
-            out[start + j] = acc[j]
-
-
-def _savgol_derivative(
-    y: np.ndarray, n_win: int, polyorder: int, dt_s: float, *, out: np.ndarray | None = None
-) -> np.ndarray:
-    """``savgol_filter(y, n_win, polyorder, deriv=1, delta=dt_s, mode="interp")``, faster.
-
-    The interior is the same filter (``savgol_coeffs``), whose first-derivative
-    coefficients are odd-symmetric, applied to the differences y[i + k] - y[i - k] by a
-    compiled loop (equal to scipy to ~1e-14 relative; scipy's least-squares coefficients
-    are odd only to ~1e-14, and a flat signal here gives exactly 0, not ~1e-14 y); the
-    ``n_win // 2`` samples at each end are scipy's own polynomial fits, taken from
-    ``savgol_filter`` on the first and last 2 ``n_win`` samples, which only see the first
-    and last window.
-    """
-    y = np.ascontiguousarray(y, dtype=np.float64)
-    h = n_win // 2
-    # correlation weights for y[i + k] and y[i - k], k = 1..h (savgol_coeffs is in
-    # convolution order), made exactly odd
-    coeffs = signal.savgol_coeffs(n_win, polyorder, deriv=1, delta=dt_s)[::-1]
-    odd = 0.5 * (coeffs[h + 1 :] - coeffs[:h][::-1])
-    if out is None:
-        out = np.empty_like(y)
-    _correlate_antisymmetric(y, np.ascontiguousarray(odd), out)
-    span = 2 * n_win
-    head = signal.savgol_filter(y[:span], n_win, polyorder, deriv=1, delta=dt_s, mode="interp")
-    tail = signal.savgol_filter(y[-span:], n_win, polyorder, deriv=1, delta=dt_s, mode="interp")
-    out[:h] = head[:h]
-    out[-h:] = tail[-h:]
-    return out
 
 
 def _derivative_expr(
@@ -292,7 +141,9 @@ def with_trip_phases(
     """Label each sample with trip ``phase``, ``direction`` and ``trip_id``.
 
     The trip rule of :mod:`physics.trip_rule` (:func:`~physics.trip_rule.trip_label_codes`
-    with the thresholds given here) on the frame's columns; a null speed gives nulls.
+    with the thresholds given here) on the frame's columns; a null speed is the
+    conveyance's speed from its depth (:func:`physics.conveyance.conveyance_speed`), and
+    gives nulls where the depth is unknown too.
     ``depth_col`` is optional (without it a logger gap longer than
     :data:`~physics.trip_rule.TRIP_BRIDGE_S` inside a motion starts a new trip).
 
@@ -317,19 +168,25 @@ def with_trip_phases(
         pl.col(segment_col).cast(pl.Int64).alias("segment"),
         depth.fill_null(np.nan).alias("depth"),
     )
-    speed = columns["v"]
+    t, segment = columns["t"].to_numpy(), columns["segment"].to_numpy()
+    depth = columns["depth"].to_numpy()
+    steps = np.diff(t)
+    speed = conveyance_speed(
+        t, columns["v"].fill_null(np.nan).to_numpy(), depth, segment,
+        dt_s=float(np.median(steps)) if steps.size else 1.0,
+    )  # fmt: skip
+    unknown = ~np.isfinite(speed)
     phase, direction, trip_id = trip_label_codes(
-        columns["t"].to_numpy(),
-        speed.fill_null(0.0).to_numpy(),
+        t,
+        np.where(unknown, 0.0, speed),
         columns["a"].to_numpy(),
-        columns["segment"].to_numpy(),
-        columns["depth"].to_numpy(),
+        segment,
+        depth,
         hoist,
         standstill_speed_m_s=standstill_speed_m_s,
         acceleration_fraction=acceleration_fraction,
         creep_factor=creep_factor,
     )
-    unknown = speed.is_null().to_numpy()
     phase[unknown], direction[unknown], trip_id[unknown] = -1, -1, -1
     labels = pl.DataFrame(
         [

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from transforms.kinematics import _savgol_derivative
+from physics.conveyance import _savgol_derivative
 
 
 @pytest.mark.parametrize("n_win", [5, 21, 51])

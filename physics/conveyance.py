@@ -1,0 +1,293 @@
+"""The conveyance's motion: the smoothed time derivative the pipeline takes of logged
+signals, and the conveyance's speed where the log lacks it.
+
+Not an equation of the paper; the kinematics every step that speaks of the conveyance's
+motion reads (the compensation's acceleration and trip labels, the frames of
+:mod:`transforms.kinematics`, discovery's trips and replays), written once here so that
+``transforms`` and ``discovery`` (which imports no transforms) share it.
+
+Functions
+    :func:`smoothed_derivative` -- Savitzky-Golay derivative per gap-free segment, at each
+    segment's own logger rate when sample times are given.
+    :func:`conveyance_speed` -- the logged speed where present, else isolated holes
+    interpolated, else the depth's smoothed time derivative.
+
+Conventions (contract section 1a): depth [m] below the pithead, increasing downwards;
+speed [m/s] positive downwards, so speed = d depth / dt.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+from numba import njit
+from scipy import signal
+
+from physics.trip_rule import RATE_RATIO, RATE_RUN
+
+__all__ = ["SPEED_HOLE_S", "conveyance_speed", "smoothed_derivative"]
+
+#: A hole in the logged speed at most this long [s] (from the last logged sample before
+#: it to the first after, in one gap-free segment) is interpolated linearly in time.
+SPEED_HOLE_S = 1.0
+
+
+def smoothed_derivative(
+    y: np.ndarray,
+    segment_id: np.ndarray | None,
+    *,
+    dt_s: float,
+    window_s: float = 0.1,
+    polyorder: int = 2,
+    out: np.ndarray | None = None,
+    time_s: np.ndarray | None = None,
+) -> np.ndarray:
+    """Time derivative by a Savitzky-Golay filter, each segment on its own.
+
+    A least-squares polynomial of degree ``polyorder`` over a centred window of
+    ``window_s`` (odd number of samples, at least ``polyorder + 2``) is
+    differentiated at each sample; edges use the polynomial fitted to the first/last
+    window (``mode="interp"``). Segments shorter than the window fall back to
+    ``numpy.gradient``; single samples give 0. NaN in, NaN out (bridged linearly for
+    the filter).
+
+    Parameters
+    ----------
+    y : numpy.ndarray
+        Uniformly sampled values within each segment.
+    segment_id : numpy.ndarray or None
+        Segment id per sample; None: one segment. With ``time_s``, segments of one
+        logger rate each (:func:`physics.trip_rule.segment_ids`).
+    dt_s : float
+        Nominal sample spacing [s].
+    window_s : float
+        Smoothing window [s].
+    polyorder : int
+        Polynomial degree.
+    out : numpy.ndarray, optional
+        Float64 array of ``y``'s length to write into (a reused buffer); every element
+        is written.
+    time_s : numpy.ndarray, optional
+        Sample times [s]. Given, and a segment's mean spacing off ``dt_s`` by more than
+        :data:`physics.trip_rule.RATE_RATIO` (a logger that changed its rate mid-file),
+        each segment is differentiated with its own spacing (its median step) and a
+        window of ``window_s`` at that spacing; else (one rate) all with ``dt_s``, as
+        without times.
+
+    Returns
+    -------
+    numpy.ndarray
+        dy/dt in units of y per second.
+
+    >>> t = np.arange(0.0, 1.0, 0.01)
+    >>> dy = smoothed_derivative(3.0 * t**2, None, dt_s=0.01)
+    >>> bool(np.allclose(dy, 6.0 * t))
+    True
+    >>> t = np.r_[np.arange(0.0, 1.0, 0.02), 1.0 + np.arange(0.0, 1.0, 0.01)]  # 50, 100 Hz
+    >>> seg = (t >= 1.0).astype(np.int64)
+    >>> dy = smoothed_derivative(3.0 * t**2, seg, dt_s=0.02, time_s=t)
+    >>> bool(np.allclose(dy, 6.0 * t))
+    True
+
+    References
+    ----------
+    Savitzky, A., Golay, M. J. E. (1964), Anal. Chem. 36(8), 1627-1639,
+    doi:10.1021/ac60214a047.
+    """
+    y = np.asarray(y, dtype=np.float64)
+    seg = np.zeros(y.size, dtype=np.int64) if segment_id is None else np.asarray(segment_id)
+    if out is None:
+        out = np.zeros_like(y)
+    if y.size == 0:
+        return out
+    starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]]))
+    bounds = [*starts.tolist(), y.size]
+    own = time_s is not None and _rates_differ(time_s, bounds, dt_s)
+    for a, b in itertools.pairwise(bounds):
+        step = _segment_spacing(time_s, a, b, dt_s) if own else dt_s
+        n_win = max(round(window_s / step) | 1, polyorder + 2 | 1)
+        _segment_derivative(y[a:b], n_win, polyorder, step, out=out[a:b])
+    return out
+
+
+def _rates_differ(time_s: np.ndarray, bounds: list[int], dt_s: float) -> bool:
+    """Whether a segment of more than :data:`~physics.trip_rule.RATE_RUN` samples has a
+    mean step off ``dt_s`` by more than :data:`~physics.trip_rule.RATE_RATIO`: the
+    logger changed its rate, and ``dt_s`` (the record's median step, which then lies
+    anywhere among the rates' steps) is no segment's own spacing."""
+    a = np.asarray(bounds[:-1])
+    b = np.asarray(bounds[1:])
+    long = b - a > RATE_RUN
+    if not long.any():
+        return False
+    a, b = a[long], b[long]
+    mean = (time_s[b - 1] - time_s[a]) / (b - a - 1)
+    return bool(((mean > RATE_RATIO * dt_s) | (mean * RATE_RATIO < dt_s)).any())
+
+
+def _segment_spacing(time_s: np.ndarray, a: int, b: int, dt_s: float) -> float:
+    """A segment's own spacing, its median step (``dt_s`` for a single sample)."""
+    if b - a < 2:
+        return dt_s
+    return float(np.median(np.diff(time_s[a:b])))
+
+
+def _segment_derivative(
+    part: np.ndarray, n_win: int, polyorder: int, dt_s: float, *, out: np.ndarray
+) -> None:
+    """:func:`smoothed_derivative` of one segment, written into ``out`` (its slice)."""
+    bad = ~np.isfinite(part)
+    if bad.all():
+        out[:] = np.nan
+        return
+    if bad.any():
+        idx = np.arange(part.size)
+        part = np.interp(idx, idx[~bad], part[~bad])
+    if part.size >= _DIRECT_FACTOR * n_win:
+        d = _savgol_derivative(part, n_win, polyorder, dt_s, out=out)
+        if bad.any():
+            d[bad] = np.nan
+        return
+    if part.size >= n_win:
+        d = signal.savgol_filter(part, n_win, polyorder, deriv=1, delta=dt_s, mode="interp")
+    elif part.size >= 2:
+        d = np.gradient(part, dt_s)
+    else:
+        d = np.zeros(1)
+    d[bad] = np.nan
+    out[:] = d
+
+
+#: Segments at least this many windows long take the direct convolution path.
+_DIRECT_FACTOR = 4
+
+
+@njit(cache=True, nogil=True)
+def _correlate_antisymmetric(y, weights, out):  # pragma: no cover - numba
+    """out[i] = sum_k weights[k] (y[i + k + 1] - y[i - k - 1]) for every i whose window fits.
+
+    An odd-symmetric (derivative) filter applied to differences: half the products of a
+    plain correlation, and a flat stretch of ``y`` gives exactly 0. Each sum is taken in
+    k order; the outputs are computed a block at a time, tap by tap, so that the
+    compiler vectorises across them.
+    """
+    h = weights.shape[0]
+    stop = y.shape[0] - h
+    block = 512
+    acc = np.empty(block)
+    for start in range(h, stop, block):
+        m = min(block, stop - start)
+        for j in range(m):
+            acc[j] = 0.0
+        for k in range(h):
+            w = weights[k]
+            ahead = y[start + k + 1 : start + k + 1 + m]
+            behind = y[start - k - 1 : start - k - 1 + m]
+            for j in range(m):
+                acc[j] += w * (ahead[j] - behind[j])
+        for j in range(m):
+            out[start + j] = acc[j]
+
+
+def _savgol_derivative(
+    y: np.ndarray, n_win: int, polyorder: int, dt_s: float, *, out: np.ndarray | None = None
+) -> np.ndarray:
+    """``savgol_filter(y, n_win, polyorder, deriv=1, delta=dt_s, mode="interp")``, faster.
+
+    The interior is the same filter (``savgol_coeffs``), whose first-derivative
+    coefficients are odd-symmetric, applied to the differences y[i + k] - y[i - k] by a
+    compiled loop (equal to scipy to ~1e-14 relative; scipy's least-squares coefficients
+    are odd only to ~1e-14, and a flat signal here gives exactly 0, not ~1e-14 y); the
+    ``n_win // 2`` samples at each end are scipy's own polynomial fits, taken from
+    ``savgol_filter`` on the first and last 2 ``n_win`` samples, which only see the first
+    and last window.
+    """
+    y = np.ascontiguousarray(y, dtype=np.float64)
+    h = n_win // 2
+    # correlation weights for y[i + k] and y[i - k], k = 1..h (savgol_coeffs is in
+    # convolution order), made exactly odd
+    coeffs = signal.savgol_coeffs(n_win, polyorder, deriv=1, delta=dt_s)[::-1]
+    odd = 0.5 * (coeffs[h + 1 :] - coeffs[:h][::-1])
+    if out is None:
+        out = np.empty_like(y)
+    _correlate_antisymmetric(y, np.ascontiguousarray(odd), out)
+    span = 2 * n_win
+    head = signal.savgol_filter(y[:span], n_win, polyorder, deriv=1, delta=dt_s, mode="interp")
+    tail = signal.savgol_filter(y[-span:], n_win, polyorder, deriv=1, delta=dt_s, mode="interp")
+    out[:h] = head[:h]
+    out[-h:] = tail[-h:]
+    return out
+
+
+def conveyance_speed(
+    time_s: np.ndarray,
+    speed: np.ndarray,
+    depth: np.ndarray,
+    segment_id: np.ndarray,
+    *,
+    dt_s: float,
+    window_s: float = 0.5,
+    hole_s: float = SPEED_HOLE_S,
+) -> np.ndarray:
+    """The conveyance's speed [m/s, positive down] where the log lacks it (a new array).
+
+    The logged ``speed`` where it is finite; a hole of it no longer than ``hole_s``
+    between logged samples of one gap-free segment interpolated linearly in time (an
+    isolated missing value); elsewhere the time derivative of ``depth`` [m, increasing
+    downwards], :func:`smoothed_derivative` over ``window_s`` within each gap-free segment
+    (``segment_id``, :func:`physics.trip_rule.segment_ids`; ``dt_s`` its nominal spacing
+    [s]). NaN where neither is known (a log with neither speed nor depth keeps NaN: the
+    caller's fill applies as before). ``time_s`` [s], increasing.
+
+    >>> t = np.arange(0.0, 10.0, 0.02)
+    >>> depth = 0.25 * t**2  # 0.5 m/s2 downwards from rest
+    >>> v = conveyance_speed(t, np.full(t.size, np.nan), depth, np.zeros(t.size, np.int64),
+    ...                      dt_s=0.02)
+    >>> bool(np.allclose(v, 0.5 * t))
+    True
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    v = np.array(speed, dtype=np.float64)  # a copy: filled below
+    missing = ~np.isfinite(v)
+    if not missing.any():
+        return v
+    seg = np.asarray(segment_id)
+    known = np.flatnonzero(~missing)
+    if known.size:
+        holes = np.flatnonzero(missing)
+        after = np.searchsorted(known, holes)  # the first logged sample after each hole
+        inside = (after > 0) & (after < known.size)
+        holes, after = holes[inside], after[inside]
+        p, q = known[after - 1], known[after]
+        short = (seg[p] == seg[q]) & (t[q] - t[p] <= hole_s)
+        holes, p, q = holes[short], p[short], q[short]
+        share = (t[holes] - t[p]) / (t[q] - t[p])
+        v[holes] = v[p] + share * (v[q] - v[p])
+        missing = ~np.isfinite(v)
+    z = np.asarray(depth, dtype=np.float64)
+    if missing.any() and np.isfinite(z[missing]).any():
+        # dz/dt = (dz/di) / (dt/di), the same filter on both, t on the logger's grid: a
+        # dropped sample (at 10 m/s a 0.2 m step of the depth, which a derivative on a
+        # uniform grid spreads as 0.4 m/s over its window) counts, the timestamps'
+        # jitter does not (the encoder is read on the grid: its depth follows that)
+        rate = smoothed_derivative(z, seg, dt_s=dt_s, window_s=window_s, time_s=t)
+        grid = _grid_time(t, seg, dt_s)
+        pace = smoothed_derivative(grid, seg, dt_s=dt_s, window_s=window_s, time_s=t)
+        # (dt_s, or a segment's own spacing, cancels in the ratio)
+        ok = pace > 0.0
+        v[missing] = np.where(ok, rate / np.where(ok, pace, 1.0), rate)[missing]
+    return v
+
+
+def _grid_time(t: np.ndarray, seg: np.ndarray, dt_s: float) -> np.ndarray:
+    """Sample times on the logger's grid [s, from each segment's start]: each step rounded
+    to whole steps (at least one) of its segment's spacing (:func:`_segment_spacing`)."""
+    grid = np.zeros(t.size)
+    starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]]))
+    for a, b in itertools.pairwise([*starts.tolist(), t.size]):
+        if b - a < 2:
+            continue
+        step = _segment_spacing(t, a, b, dt_s)
+        grid[a + 1 : b] = np.cumsum(np.maximum(1.0, np.round(np.diff(t[a:b]) / step))) * step
+    return grid

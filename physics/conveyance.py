@@ -276,7 +276,18 @@ def conveyance_speed(
         pace = smoothed_derivative(grid, seg, dt_s=dt_s, window_s=window_s, time_s=t)
         # (dt_s, or a segment's own spacing, cancels in the ratio)
         ok = pace > 0.0
-        v[missing] = np.where(ok, rate / np.where(ok, pace, 1.0), rate)[missing]
+        derived = np.where(ok, rate / np.where(ok, pace, 1.0), rate)
+        # an encoder's noise at standstill is no motion: a least-squares slope over n
+        # samples scatters by sigma_z / (dt sqrt(n (n^2 - 1) / 12)); within 4 of those
+        # the conveyance stands (a noisy depth made 343 trips of two)
+        d2 = np.diff(z[missing], 2)
+        d2 = d2[np.isfinite(d2)]
+        if d2.size > 20:
+            sigma_z = float(np.median(np.abs(d2 - np.median(d2)))) / 0.6745 / np.sqrt(6.0)
+            n = max(window_s / dt_s, 3.0)
+            deadband = 4.0 * sigma_z / (dt_s * np.sqrt(n * (n * n - 1.0) / 12.0))
+            derived = np.where(np.abs(derived) < deadband, 0.0, derived)
+        v[missing] = derived[missing]
     return v
 
 

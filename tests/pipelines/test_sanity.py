@@ -9,7 +9,7 @@ import pytest
 
 from discovery.cases import hidden_case
 from physics.trip_rule import STANDSTILL_SPEED_M_S
-from pipelines.sanity import WARM_UP_WORDS, sanity_check, sanity_step
+from pipelines.sanity import NO_SPEED_WORDS, WARM_UP_WORDS, sanity_check, sanity_step
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from schemas.tables import SANITY_CHECKS
 from sims.field_day import generate_field_day
@@ -40,6 +40,20 @@ def test_complete_model_passes_and_missing_effect_fails():
     assert bad["status"].to_list() == ["skipped", "failed"]
     assert bad["passed"].to_list() == [None, False]
     assert bad["message"][1].startswith(("down", "up"))
+
+
+def test_a_log_without_speed_skips_every_trip_saying_why():
+    """Without the encoder's speed the trips are found by the depth's derivative, which
+    the replay cannot follow (a healthy log failed 15 of 16 trips that way): each trip
+    is skipped with the reason, none passed or failed."""
+    plan, info = hidden_case(None)
+    # landed, a log without the column has it null
+    sensors = info["day"].sensors.with_columns(pl.lit(None, dtype=pl.Float64).alias("speed_m_s"))
+    checks = sanity_check(sensors, plan.hoist, run_id="r", settle_s=20.0)
+    assert checks.height == 2
+    assert checks["status"].to_list() == ["skipped", "skipped"]
+    assert checks["passed"].to_list() == [None, None]
+    assert set(checks["message"].to_list()) == {NO_SPEED_WORDS}
 
 
 def test_threshold_validated():

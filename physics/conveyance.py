@@ -26,7 +26,13 @@ from scipy import signal
 
 from physics.trip_rule import RATE_RATIO, RATE_RUN
 
-__all__ = ["SPEED_HOLE_S", "conveyance_speed", "smoothed_derivative"]
+__all__ = [
+    "DEADBAND_SIGMAS",
+    "SPEED_HOLE_S",
+    "conveyance_speed",
+    "depth_noise_m",
+    "smoothed_derivative",
+]
 
 #: A hole in the logged speed at most this long [s] (from the last logged sample before
 #: it to the first after, in one gap-free segment) is interpolated linearly in time.
@@ -220,6 +226,13 @@ def _savgol_derivative(
     return out
 
 
+#: The derived speed's standstill, in standard deviations of its scatter from the
+#: depth's noise: a day's 10^6-10^7 samples cross 6 sigma by chance about never (a
+#: Gaussian's two tails beyond 6 sigma hold 2e-9), where 4 sigma made a trip of
+#: every few thousand samples.
+DEADBAND_SIGMAS = 6.0
+
+
 def conveyance_speed(
     time_s: np.ndarray,
     speed: np.ndarray,
@@ -229,6 +242,7 @@ def conveyance_speed(
     dt_s: float,
     window_s: float = 0.5,
     hole_s: float = SPEED_HOLE_S,
+    depth_sigma_m: float | None = None,
 ) -> np.ndarray:
     """The conveyance's speed [m/s, positive down] where the log lacks it (a new array).
 
@@ -237,8 +251,12 @@ def conveyance_speed(
     isolated missing value); elsewhere the time derivative of ``depth`` [m, increasing
     downwards], :func:`smoothed_derivative` over ``window_s`` within each gap-free segment
     (``segment_id``, :func:`physics.trip_rule.segment_ids`; ``dt_s`` its nominal spacing
-    [s]). NaN where neither is known (a log with neither speed nor depth keeps NaN: the
-    caller's fill applies as before). ``time_s`` [s], increasing.
+    [s]), zero within :data:`DEADBAND_SIGMAS` x its scatter from the depth's noise
+    (``depth_sigma_m`` [m], else :func:`depth_noise_m` of these samples: a record
+    compensated block by block gives the record's, so each block stands still alike),
+    4 x that within half a window of a segment's ends. NaN where neither is known
+    (a log with neither speed nor depth keeps NaN: the caller's fill applies as before).
+    ``time_s`` [s], increasing.
 
     >>> t = np.arange(0.0, 10.0, 0.02)
     >>> depth = 0.25 * t**2  # 0.5 m/s2 downwards from rest
@@ -278,17 +296,42 @@ def conveyance_speed(
         ok = pace > 0.0
         derived = np.where(ok, rate / np.where(ok, pace, 1.0), rate)
         # an encoder's noise at standstill is no motion: a least-squares slope over n
-        # samples scatters by sigma_z / (dt sqrt(n (n^2 - 1) / 12)); within 4 of those
-        # the conveyance stands (a noisy depth made 343 trips of two)
-        d2 = np.diff(z[missing], 2)
-        d2 = d2[np.isfinite(d2)]
-        if d2.size > 20:
-            sigma_z = float(np.median(np.abs(d2 - np.median(d2)))) / 0.6745 / np.sqrt(6.0)
+        # samples scatters by sigma_z / (dt sqrt(n (n^2 - 1) / 12)); within
+        # DEADBAND_SIGMAS of those the conveyance stands (a noisy depth made 343 trips
+        # of two)
+        sigma_z = depth_noise_m(z) if depth_sigma_m is None else depth_sigma_m
+        if sigma_z > 0.0:
             n = max(window_s / dt_s, 3.0)
-            deadband = 4.0 * sigma_z / (dt_s * np.sqrt(n * (n * n - 1.0) / 12.0))
-            derived = np.where(np.abs(derived) < deadband, 0.0, derived)
+            deadband = DEADBAND_SIGMAS * sigma_z / (dt_s * np.sqrt(n * (n * n - 1.0) / 12.0))
+            # within half a window of a segment's ends the filter fits one side only:
+            # its slope scatters up to ~4 x as much (a noisy record's last 0.1 s was a trip)
+            first = np.concatenate([[True], seg[1:] != seg[:-1]])
+            last = np.concatenate([seg[1:] != seg[:-1], [True]])
+            index = np.arange(z.size)
+            start = np.maximum.accumulate(np.where(first, index, 0))
+            end = np.minimum.accumulate(np.where(last, index, z.size)[::-1])[::-1]
+            edge = np.minimum(index - start, end - index) < n / 2.0
+            band = np.where(edge, 4.0 * deadband, deadband)
+            derived = np.where(np.abs(derived) < band, 0.0, derived)
         v[missing] = derived[missing]
     return v
+
+
+def depth_noise_m(depth_m: np.ndarray) -> float:
+    """The logged depth's white noise [m]: the MAD of its second differences / 0.6745 /
+    sqrt(6) (a conveyance's motion is smooth, its second differences ~a dt^2); 0 where
+    fewer than 20 are known or the depth does not jitter (an encoder read to the
+    centimetre at rest).
+
+    >>> depth = 300.0 + np.random.default_rng(0).normal(0, 0.01, 5000)
+    >>> round(depth_noise_m(depth), 3), float(depth_noise_m(np.full(100, 300.0)))
+    (0.01, 0.0)
+    """
+    d2 = np.diff(np.asarray(depth_m, dtype=np.float64), 2)
+    d2 = d2[np.isfinite(d2)]
+    if d2.size < 20:
+        return 0.0
+    return float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / np.sqrt(6.0))
 
 
 def _grid_time(t: np.ndarray, seg: np.ndarray, dt_s: float) -> np.ndarray:
@@ -299,6 +342,10 @@ def _grid_time(t: np.ndarray, seg: np.ndarray, dt_s: float) -> np.ndarray:
     for a, b in itertools.pairwise([*starts.tolist(), t.size]):
         if b - a < 2:
             continue
+        # the record's spacing where the segment's is within 1.5 x of it: a record read
+        # block by block then grids each block's part alike (a part's median moves with
+        # the timestamps' jitter, and the speed from the depth by 1e-4 with it)
         step = _segment_spacing(t, a, b, dt_s)
+        step = dt_s if 1.0 / 1.5 <= step / dt_s <= 1.5 else step
         grid[a + 1 : b] = np.cumsum(np.maximum(1.0, np.round(np.diff(t[a:b]) / step))) * step
     return grid

@@ -268,6 +268,9 @@ class CompensationContext:
         Median of the ropes' mean calibrated pressure [Pa] (the presliding range's F_s).
     has_x : bool
         Every rope's displacement is logged somewhere in the record.
+    depth_sigma_m : float
+        The logged depth's white noise [m] (:func:`physics.conveyance.depth_noise_m`, on
+        the sample's consecutive triplets), the standstill of a speed taken from it.
     rope_springs : RopeSprings or None
         The head ropes' constants identified from the record
         (:mod:`transforms.rope_identification`), or without a logged x the ropes the
@@ -285,6 +288,7 @@ class CompensationContext:
     typical_pressure_pa: float
     has_x: bool
     rope_springs: RopeSprings | None = None
+    depth_sigma_m: float = 0.0
 
 
 def calibrated(frame: pl.DataFrame, column: str, hoist: HoistDescription) -> np.ndarray:
@@ -452,6 +456,12 @@ def compensation_context(
         has_x = has_x and bool(np.isfinite(x).any())
         d2 = (x[triple + 2] - x[triple + 1]) - (x[triple + 1] - x[triple])
         displacement_sigma.append(second_difference_sigma(d2))
+    depth = (
+        float_column(sample["depth_m"])
+        if "depth_m" in sample.columns
+        else np.full(row.size, np.nan)
+    )
+    depth_d2 = (depth[triple + 2] - depth[triple + 1]) - (depth[triple + 1] - depth[triple])
     mean = mean_horizontal(pressures) if pressures and row.size else np.empty(0)
     typical = float(np.nanmedian(mean)) if np.isfinite(mean).any() else 0.0
     identify = settings.rope_springs and has_x and means is not None
@@ -476,6 +486,7 @@ def compensation_context(
         sample_rate_hz=rate_hz,
         spike_sigma=spike_sigma,
         displacement_sigma_m=tuple(displacement_sigma),
+        depth_sigma_m=second_difference_sigma(depth_d2),
         typical_pressure_pa=typical,
         has_x=has_x,
         rope_springs=springs,

@@ -31,6 +31,7 @@ __all__ = [
     "SPEED_HOLE_S",
     "conveyance_speed",
     "depth_noise_m",
+    "longest_unlogged_s",
     "smoothed_derivative",
 ]
 
@@ -349,3 +350,26 @@ def _grid_time(t: np.ndarray, seg: np.ndarray, dt_s: float) -> np.ndarray:
         step = dt_s if 1.0 / 1.5 <= step / dt_s <= 1.5 else step
         grid[a + 1 : b] = np.cumsum(np.maximum(1.0, np.round(np.diff(t[a:b]) / step))) * step
     return grid
+
+
+def longest_unlogged_s(time_s: np.ndarray, speed: np.ndarray, lo_s: float, hi_s: float) -> float:
+    """The longest stretch [s] of ``[lo_s, hi_s]`` without a logged (finite) speed: from
+    the last logged sample before it (or ``lo_s``) to the first after (or ``hi_s``).
+    A replay follows the logged speed; where it is missing longer than
+    :data:`SPEED_HOLE_S` the depth's derivative stands in, which a simulation
+    differentiating it again cannot follow (``pipelines.sanity``, ``ropeload discover``).
+
+    >>> t = np.arange(0.0, 10.0, 0.1)
+    >>> v = np.where((t > 3.0) & (t < 5.0), np.nan, 1.0)
+    >>> round(longest_unlogged_s(t, v, 0.0, 10.0), 1), longest_unlogged_s(t, v, 6.0, 9.0)
+    (2.0, 0.0)
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    inside = (t >= lo_s) & (t <= hi_s)
+    logged = t[inside & np.isfinite(np.asarray(speed, dtype=np.float64))]
+    if logged.size == 0:
+        return float(hi_s - lo_s)
+    edges = np.concatenate([[lo_s], logged, [hi_s]])
+    gaps = np.diff(edges)
+    # a sample's own spacing is no hole: count only beyond the logged neighbours
+    return float(gaps.max()) if gaps.max() > 1.5 * float(np.median(np.diff(t))) else 0.0

@@ -287,6 +287,16 @@ def discover_period(
             f"no landed samples for site {site!r}, hoist {name!r} in the period "
             f"[{start or '-inf'}, {end or '+inf'}): ingest its logs first"
         )
+    if (
+        "speed_m_s" not in samples.columns
+        or samples["speed_m_s"].cast(pl.Float64).is_finite().sum() == 0
+    ):
+        raise ValueError(
+            f"no speed logged for site {site!r}, hoist {name!r} in the period: the replay "
+            "follows the encoder's speed, for which the depth's derivative does not stand "
+            "in (a record hiding nothing was found to lack an effect); ropeload run "
+            "compensates such a log"
+        )
     p_start = (start or samples["time_utc"].min()).astimezone(dt.UTC)
     p_end = (end or samples["time_utc"].max() + dt.timedelta(microseconds=1)).astimezone(dt.UTC)
     logger.info("discover %s/%s %s .. %s: replaying trips", site, name, p_start, p_end)

@@ -51,6 +51,7 @@ import polars as pl
 from discovery.planning import plan_replay
 from discovery.rope_stiffness import Identified
 from discovery.segmentation import CUT_WORDS
+from physics.conveyance import SPEED_HOLE_S, longest_unlogged_s
 from pipelines.steps import StepOutcome
 from schemas.hoist import HoistDescription
 from schemas.tables import SANITY_CHECKS, conform
@@ -187,13 +188,34 @@ def sanity_check(
         if "no trip" in str(exc):
             return empty
         raise
-    speed = frame["speed_m_s"] if "speed_m_s" in frame.columns else None
-    logged = speed is not None and bool(speed.cast(pl.Float64).is_finite().fill_null(False).any())
+    speed = (
+        frame["speed_m_s"].cast(pl.Float64).fill_null(np.nan).to_numpy()
+        if "speed_m_s" in frame.columns
+        else np.full(frame.height, np.nan)
+    )
+    logged = bool(np.isfinite(speed).any())
     # the replay follows the encoder's logged speed: depth's derivative, which the
     # trips are found by where none is logged, differentiated again in the simulation
     # leaves tens of kPa of ripple (a healthy log without speed failed 15 of 16 trips)
     result = replay_fitted(plan, passes=3) if logged else None
     verdicts = _reported_verdicts(plan, result, threshold, report_from, report_to)
+    if logged:  # and a trip whose speed is missing for longer than a hole: skipped alike
+        t = (frame["time_utc"] - plan.t_ref).dt.total_microseconds().to_numpy() / 1e6
+        first, last = float(np.nanmin(t)), float(np.nanmax(t))  # a cut trip: what is logged
+        blind = {
+            tr.trip_id
+            for tr in plan.trips
+            if longest_unlogged_s(
+                t, speed, max(tr.motion_start_s, first), min(tr.motion_end_s, last)
+            )
+            > SPEED_HOLE_S
+        }
+        verdicts = [
+            (v[0], "skipped", PART_SPEED_WORDS, float("nan"))
+            if v[0] in blind and v[1] != "skipped"
+            else v
+            for v in verdicts
+        ]
     rows = _rows(verdicts, run_id, hoist, plan.noise_sigma_pa)
     return conform(pl.DataFrame(rows), SANITY_CHECKS) if rows else empty
 
@@ -221,6 +243,11 @@ def _rows(
     ]
 
 
+#: Why a trip whose logged speed is missing for longer than a hole has no verdict.
+PART_SPEED_WORDS = (
+    "speed not logged for part of this trip: the replay follows the encoder's speed, "
+    "for which the depth's derivative does not stand in"
+)
 #: Why no trip has a verdict on a log without the conveyance's speed (:func:`sanity_check`).
 NO_SPEED_WORDS = (
     "no speed logged: the replay follows the encoder's speed, for which the depth's "

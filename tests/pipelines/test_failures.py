@@ -562,6 +562,31 @@ def test_a_reversed_period_says_so(command, tmp_path, capsys, small_csv):
     assert "the period is empty" in err
 
 
+def test_discover_without_a_logged_speed_says_so(tmp_path, capsys, small_csv):
+    """A log without the conveyance's speed: discover refuses in one line (a probe's
+    record hiding nothing, replayed on the depth's derivative, named an effect)."""
+    data = tmp_path / "data"
+    csv = small_csv(tmp_path / "in.csv")
+    lines = csv.read_text().splitlines()
+    header = next(i for i, line in enumerate(lines) if line.startswith("timestamp"))
+    cut = [",".join(f for k, f in enumerate(line.split(",")) if k != 10) for line in lines[header:]]
+    assert lines[header].split(",")[10] == "speed"
+    csv.write_text("\n".join(lines[:header] + cut) + "\n")
+    assert main(["ingest", "--data", str(data), str(csv)]) == 0
+    capsys.readouterr()
+    argv = [
+        "discover",
+        "--data",
+        str(data),
+        "--hoist",
+        str(HOIST),
+        "--json",
+        str(tmp_path / "r.json"),
+    ]
+    assert main(argv) == 1
+    assert "no speed logged" in _one_line(capsys.readouterr().err, "discover")
+
+
 @pytest.mark.parametrize(
     ("argv", "said"),
     [

@@ -9,7 +9,13 @@ import pytest
 
 from discovery.cases import hidden_case
 from physics.trip_rule import STANDSTILL_SPEED_M_S
-from pipelines.sanity import NO_SPEED_WORDS, WARM_UP_WORDS, sanity_check, sanity_step
+from pipelines.sanity import (
+    NO_SPEED_WORDS,
+    PART_SPEED_WORDS,
+    WARM_UP_WORDS,
+    sanity_check,
+    sanity_step,
+)
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from schemas.tables import SANITY_CHECKS
 from sims.field_day import generate_field_day
@@ -54,6 +60,23 @@ def test_a_log_without_speed_skips_every_trip_saying_why():
     assert checks["status"].to_list() == ["skipped", "skipped"]
     assert checks["passed"].to_list() == [None, None]
     assert set(checks["message"].to_list()) == {NO_SPEED_WORDS}
+
+
+def test_a_trip_whose_speed_is_missing_for_a_stretch_is_skipped_saying_why():
+    """Speed blank for 5 s inside the second trip's motion: that trip is skipped (the
+    replay would follow the depth's derivative there), the first keeps its warm-up."""
+    plan, info = hidden_case(None)
+    sensors = info["day"].sensors
+    second = plan.trips[1]
+    t = (sensors["time_utc"] - plan.t_ref).dt.total_microseconds() / 1e6
+    lo = second.motion_start_s + 10.0
+    blank = (t >= lo) & (t < lo + 5.0)
+    holed = sensors.with_columns(
+        pl.when(blank).then(None).otherwise(pl.col("speed_m_s")).alias("speed_m_s")
+    )
+    checks = sanity_check(holed, plan.hoist, run_id="r", settle_s=20.0)
+    assert checks["status"].to_list() == ["skipped", "skipped"]
+    assert checks["message"].to_list() == [WARM_UP_WORDS, PART_SPEED_WORDS]
 
 
 def test_threshold_validated():

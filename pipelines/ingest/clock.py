@@ -113,7 +113,8 @@ def steps_note(steps: list[tuple[int, float]], where: str) -> str:
     more = f" and {len(steps) - 5} more" if len(steps) > 5 else ""
     return (
         f"the logger clock stepped back {len(steps)} time(s) ({shown}{more}): the rows "
-        "until its time passed the latest already read are quarantined, not merged"
+        "until its time passed the latest already read are quarantined or counted as exact "
+        "duplicates, not merged"
     )
 
 

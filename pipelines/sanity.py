@@ -32,9 +32,11 @@ passes the run's).
 Every reported trip gets a ``status``: ``passed``, ``failed`` (the gap exceeds the limit)
 or ``skipped`` with the reason in ``message`` (``passed`` is then null): a trip the
 replay could not prepare or simulate, or one the record cuts at its start (simulated
-only to load the seals' state), and every trip of a log without the conveyance's speed
+only to load the seals' state), every trip of a log without the conveyance's speed
 (:data:`NO_SPEED_WORDS`: the trips are found by the depth's derivative there, which
-the replay cannot follow). Ordinary data never make the check raise: a record that
+the replay cannot follow) and a trip whose speed is missing for longer than a hole
+(:data:`PART_SPEED_WORDS`; its replay still loads the seals' state for the next trip).
+Ordinary data never make the check raise: a record that
 starts or ends while the conveyance moves (a trip across the period's edge) has that
 trip completed by the winder profile fitted to its logged depth
 (:func:`sims.trips.fit_cut_trip`) and scored for what is logged.

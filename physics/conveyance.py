@@ -354,7 +354,8 @@ def _grid_time(t: np.ndarray, seg: np.ndarray, dt_s: float) -> np.ndarray:
 
 def longest_unlogged_s(time_s: np.ndarray, speed: np.ndarray, lo_s: float, hi_s: float) -> float:
     """The longest stretch [s] of ``[lo_s, hi_s]`` without a logged (finite) speed: from
-    the last logged sample before it (or ``lo_s``) to the first after (or ``hi_s``).
+    the last logged sample before it (or ``lo_s``) to the first after (or ``hi_s``);
+    ``time_s`` increasing.
     A replay follows the logged speed; where it is missing longer than
     :data:`SPEED_HOLE_S` the depth's derivative stands in, which a simulation
     differentiating it again cannot follow (``pipelines.sanity``, ``ropeload discover``).
@@ -365,11 +366,15 @@ def longest_unlogged_s(time_s: np.ndarray, speed: np.ndarray, lo_s: float, hi_s:
     (2.0, 0.0)
     """
     t = np.asarray(time_s, dtype=np.float64)
-    inside = (t >= lo_s) & (t <= hi_s)
-    logged = t[inside & np.isfinite(np.asarray(speed, dtype=np.float64))]
+    # the window by bisection (``time_s`` increasing): a check per trip of a day-long
+    # record reads its trip's samples, not the day's
+    a, b = np.searchsorted(t, lo_s, side="left"), np.searchsorted(t, hi_s, side="right")
+    window = np.asarray(speed[a:b], dtype=np.float64)
+    logged = t[a:b][np.isfinite(window)]
     if logged.size == 0:
         return float(hi_s - lo_s)
     edges = np.concatenate([[lo_s], logged, [hi_s]])
     gaps = np.diff(edges)
     # a sample's own spacing is no hole: count only beyond the logged neighbours
-    return float(gaps.max()) if gaps.max() > 1.5 * float(np.median(np.diff(t))) else 0.0
+    step = float(np.median(np.diff(t[a:b]))) if b - a > 1 else 0.0
+    return float(gaps.max()) if gaps.max() > 1.5 * step else 0.0

@@ -190,11 +190,13 @@ def sanity_check(
         if "no trip" in str(exc):
             return empty
         raise
-    speed = (
-        frame["speed_m_s"].cast(pl.Float64).fill_null(np.nan).to_numpy()
+    motion = frame.select(
+        "time_utc",
+        pl.col("speed_m_s").cast(pl.Float64).fill_null(np.nan)
         if "speed_m_s" in frame.columns
-        else np.full(frame.height, np.nan)
-    )
+        else pl.lit(np.nan).alias("speed_m_s"),
+    ).sort("time_utc")
+    speed = motion["speed_m_s"].to_numpy()
     logged = bool(np.isfinite(speed).any())
     # the replay follows the encoder's logged speed: depth's derivative, which the
     # trips are found by where none is logged, differentiated again in the simulation
@@ -202,8 +204,8 @@ def sanity_check(
     result = replay_fitted(plan, passes=3) if logged else None
     verdicts = _reported_verdicts(plan, result, threshold, report_from, report_to)
     if logged:  # and a trip whose speed is missing for longer than a hole: skipped alike
-        t = (frame["time_utc"] - plan.t_ref).dt.total_microseconds().to_numpy() / 1e6
-        first, last = float(np.nanmin(t)), float(np.nanmax(t))  # a cut trip: what is logged
+        t = (motion["time_utc"] - plan.t_ref).dt.total_microseconds().to_numpy() / 1e6
+        first, last = float(t[0]), float(t[-1])  # a cut trip: what is logged
         blind = {
             tr.trip_id
             for tr in plan.trips

@@ -199,6 +199,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return handler(args)
     except _known_errors() as exc:
         message = " ".join(str(exc).split()) or type(exc).__name__
+        if exits.memory_exhausted(exc, limit):  # DuckDB's own out-of-memory error
+            message = exits.out_of_memory(command, limit)
     except KeyboardInterrupt as exc:
         signum = getattr(exc, "signum", signal.SIGINT)
         sys.stderr.write(f"ropeload {command}: interrupted ({signal.Signals(signum).name})\n")

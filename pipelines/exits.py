@@ -121,12 +121,17 @@ def out_of_memory(command: str, limit: MemoryLimit | None, *, what: str = "out o
 def memory_exhausted(exc: BaseException, limit: MemoryLimit | None) -> bool:
     """Whether ``exc`` is the Python face of memory exhaustion.
 
-    MemoryError (numpy, pyarrow's ArrowMemoryError), an OSError ENOMEM, an ImportError
-    of a library that could not be mapped; under a finite limit also a SystemError (C
-    code that failed to allocate and did not say so) and "can't start new thread" (no
-    room for its stack), both measured under ``ulimit -v``.
+    MemoryError (numpy, pyarrow's ArrowMemoryError), DuckDB's OutOfMemoryException, an
+    OSError ENOMEM, an ImportError of a library that could not be mapped; under a finite
+    limit also a SystemError (C code that failed to allocate and did not say so) and
+    "can't start new thread" (no room for its stack), both measured under ``ulimit -v``.
     """
     if isinstance(exc, MemoryError):
+        return True
+    if type(exc).__name__ == "OutOfMemoryException" and type(exc).__module__ in (
+        "duckdb",
+        "_duckdb",
+    ):  # DuckDB's (an OperationalError, not a MemoryError): seen under ulimit -v 1.8 GiB
         return True
     if isinstance(exc, OSError) and exc.errno == errno.ENOMEM:
         return True

@@ -10,6 +10,7 @@ itself: :mod:`transforms.compensation`.
 from __future__ import annotations
 
 import datetime as dt
+import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,7 +25,12 @@ from schemas.hoist import HoistDescription
 from schemas.tables import ROPES
 from transforms.filtering import PLAY_STATE_SIZE, first_difference_sigma, fresh_state
 from transforms.piston_motion import share_state
-from transforms.rope_identification import IDENTIFY_SPAN, identify_from_means, record_means
+from transforms.rope_identification import (
+    IDENTIFY_SPAN,
+    identify_from_means,
+    pistons_moved,
+    record_means,
+)
 from transforms.seal_drift import (
     PLAYED_TRAVEL_STATE_SIZE,
     RINGING_BANDWIDTH_HZ,
@@ -56,6 +62,8 @@ __all__ = [
     "rope_cols",
     "second_difference_sigma",
 ]
+
+_LOG = logging.getLogger(__name__)
 
 #: Length of the rope kernel's state before its Maxwell-slip elements
 #: (:func:`transforms.compensation_kernels.rope_kernel`).
@@ -449,11 +457,12 @@ def compensation_context(
         spike_sigma[column] = first_difference_sigma(values[pair + 1] - values[pair])
         if column in p_cols:
             pressures.append(values[first])
-    displacement_sigma = []
+    displacement_sigma, logged = [], []
     has_x = True
     for column in x_cols:
         x = float_column(sample[column]) if column in sample.columns else np.full(row.size, np.nan)
         has_x = has_x and bool(np.isfinite(x).any())
+        logged.append(x)
         d2 = (x[triple + 2] - x[triple + 1]) - (x[triple + 1] - x[triple])
         displacement_sigma.append(second_difference_sigma(d2))
     depth = (
@@ -466,22 +475,37 @@ def compensation_context(
     typical = float(np.nanmedian(mean)) if np.isfinite(mean).any() else 0.0
     identify = settings.rope_springs and has_x and means is not None
     springs = identify_from_means(means, hoist, cache_dir=cache_dir) if identify else None
+    # nothing identified the ropes: no logged x, or one that shows no piston motion (a
+    # record at rest: x within 5 logger steps), where the share-out of
+    # transforms.piston_motion would read equal shares of every slide from it and turn
+    # seals the wrong way at a payload change at rest (issue 13: 23-24 stop windows
+    # worse than raw on the validation days). A logged x that shows motion the
+    # identification could not match still decides the pistons' shares (the share-out).
+    moved = has_x and pistons_moved(tuple(logged))
+    unidentified = springs is None and settings.rope_springs and not moved
     stated = hoist.ropes.head_rope_stiffness_factors
     if stated is not None and len(stated) != len(ROPES):
         stated = None  # not the compensation's four ropes: the share-out
-    if springs is None and not has_x and settings.rope_springs and stated is not None:
-        # no logged x, the description states its ropes: the stick-slip solution on them
+    if unidentified and stated is not None:
+        # the description states its ropes: the stick-slip solution on them
         springs = RopeSprings(tuple(stated), (0.0,) * len(stated), float("nan"), 0)
     elif (
-        springs is None
-        and not has_x
-        and settings.rope_springs
+        unidentified
         and settings.rope_stiffness_sigma
         and hoist.ropes.head_rope_stiffness_factors is None
         and hoist.ropes_n == len(ROPES)
     ):
-        # nothing identifies the ropes: the stick-slip solution on their prior spread
+        # the stick-slip solution on the ropes' prior spread
         springs = prior_rope_springs((1.0,) * len(ROPES), settings.rope_stiffness_sigma)
+    if identify and (springs is None or unidentified):
+        _LOG.warning(
+            "the logged x did not identify the head ropes; the compensation runs on %s",
+            "the pistons' share-out of the logged x"
+            if springs is None
+            else "the described ropes"
+            if stated is not None
+            else "their prior spread (a wider band)",
+        )
     return CompensationContext(
         sample_rate_hz=rate_hz,
         spike_sigma=spike_sigma,

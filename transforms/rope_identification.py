@@ -126,6 +126,7 @@ __all__ = [
     "SPLITS",
     "identify_from_means",
     "identify_rope_springs",
+    "pistons_moved",
     "record_means",
 ]
 
@@ -463,7 +464,7 @@ def identify_rope_springs(
     usable = np.isfinite(depth_m)
     for p, x in zip(p_sensor, x_logged, strict=True):
         usable &= np.isfinite(p) & np.isfinite(x)
-    if usable.sum() < 60 or not _pistons_moved(x_logged):
+    if usable.sum() < 60 or not pistons_moved(x_logged):
         return None
     step = float(np.median(np.diff(time_s))) if time_s.size > 1 else 1.0
     segment = np.cumsum(np.r_[0, np.diff(time_s) > 3.0 * step])
@@ -637,7 +638,7 @@ def _first_population(ropes: int, size: int, lows: np.ndarray, seed: int) -> np.
     return population
 
 
-def _pistons_moved(x_logged: tuple[np.ndarray, ...], *, least_m: float = 0.5e-3) -> bool:
+def pistons_moved(x_logged: tuple[np.ndarray, ...], *, least_m: float = 0.5e-3) -> bool:
     """Some piston's logged x spans more than ``least_m`` (5 logger steps)."""
     return any(
         np.isfinite(x).any() and float(np.nanmax(x) - np.nanmin(x)) > least_m for x in x_logged

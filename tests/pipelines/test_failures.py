@@ -245,6 +245,25 @@ def test_out_of_memory_under_an_address_space_limit_is_one_line(kib, args, advic
     assert "memory allocation of" not in err
 
 
+def test_duckdbs_own_out_of_memory_error_is_memory_exhaustion():
+    """DuckDB reports exhaustion as an OperationalError of its own (seen by the demo under
+    ``ulimit -v`` 1.8 GiB, where polars' allocator usually aborts first): the same one
+    line as any out-of-memory, not DuckDB's text; its other errors are not."""
+    import duckdb
+
+    from pipelines import exits
+
+    con = duckdb.connect()
+    con.execute("SET memory_limit = '2MB'")
+    con.execute("SET threads = 1")
+    with pytest.raises(duckdb.Error) as exhausted:
+        con.execute("SELECT string_agg(range::VARCHAR, ',') FROM range(3000000)").fetchall()
+    with pytest.raises(duckdb.Error) as other:
+        con.execute("SELECT * FROM no_such_table")
+    assert exits.memory_exhausted(exhausted.value, None)
+    assert not exits.memory_exhausted(other.value, None)
+
+
 ABORTING = textwrap.dedent(
     """
     import os, resource, sys

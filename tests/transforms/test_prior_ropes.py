@@ -169,3 +169,25 @@ def test_stated_ropes_are_taken_as_known_and_a_partial_x_as_no_start():
     np.testing.assert_array_equal(
         _frictions(compensate(partial, stated)), _frictions(compensate(frame, stated))
     )
+
+
+def test_a_logged_x_that_identifies_nothing_runs_on_the_prior_as_without_x(caplog):
+    """Every rope's x logged, but the pistons never move beyond the transducer's noise
+    (0.1 mm steps): the identification has nothing to match, so the compensation runs
+    on the ropes' prior spread, the logged x taken for no start (its offsets are
+    unknown): the same tensions and band as the record without x, and a warning, not
+    the share-out (which reads each piston's share of the slides from that x)."""
+    frame = _record()
+    rng = np.random.default_rng(5)
+    logged = frame.with_columns(
+        pl.Series(f"x{i}_m", np.round((0.1 + rng.normal(0, 2e-5, frame.height)) / 1e-4) * 1e-4)
+        for i in range(1, 5)
+    )
+    with caplog.at_level("WARNING", logger="transforms.compensation_record"):
+        out = compensate(logged, HOIST)
+    assert "did not identify the head ropes" in caplog.text
+    without = compensate(frame, HOIST)
+    for column in ("load_n", "load_lo_n", "load_hi_n", "tension1_n", "tension1_hi_n"):
+        np.testing.assert_allclose(out[column], without[column], rtol=0, atol=1e-6)
+    shared = compensate(logged, HOIST, settings=CompensationSettings(rope_stiffness_sigma=0.0))
+    assert np.max(np.abs(_frictions(shared) - _frictions(out))) > 10.0  # not the share-out

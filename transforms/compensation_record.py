@@ -109,7 +109,8 @@ class CompensationSettings:
         its rope spring (:mod:`transforms.stick_slip`) where the logged x allow it; False:
         always share out the oil's motion by the logged x (:mod:`transforms.piston_motion`).
     rope_stiffness_sigma : float
-        Where no logged x identifies the head ropes and the description states no
+        Where nothing identifies the head ropes (no logged x, or one that shows no
+        piston motion: a record at rest) and the description states no
         stiffness factors of its own (``[ropes] head_rope_stiffness_factors``, then
         taken as known), their relative stiffness spread about the nominal EA (1 sigma):
         the stick-slip solution runs on the sigma points of that spread and takes their

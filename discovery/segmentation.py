@@ -25,6 +25,7 @@ from scipy import ndimage, optimize
 
 from physics.conveyance import conveyance_speed
 from physics.trip_rule import segment_ids, trip_label_codes
+from physics.white_noise import difference_noise_sigma, mad
 from schemas.hoist import HoistDescription, Winder
 from sims.trips import TripProfile, fit_cut_trip
 
@@ -53,8 +54,8 @@ def estimate_noise_sigma(pressures: np.ndarray, moving: np.ndarray) -> float:
 
     For white noise of standard deviation s, ``p[k+1] - 2 p[k] + p[k-1]`` has standard
     deviation ``sqrt(6) s``; a slow signal (loading ramp, held state) contributes almost
-    nothing. Robust: MAD / 0.6745 over every sensor's standstill triplets, spikes and
-    transients do not move it.
+    nothing. Robust: :func:`physics.white_noise.difference_noise_sigma` of every
+    sensor's standstill triplets, spikes and transients do not move it.
 
     >>> rng = np.random.default_rng(0)
     >>> p = 5e6 + np.linspace(0, 1e5, 20000)[:, None] + rng.normal(0, 5e3, (20000, 4))
@@ -69,10 +70,9 @@ def estimate_noise_sigma(pressures: np.ndarray, moving: np.ndarray) -> float:
     d2 = np.concatenate(parts) if parts else np.empty(0)
     if d2.size == 0:
         return float("nan")
-    mad = np.median(np.abs(d2 - np.median(d2)))
-    if mad == 0.0:  # a quantisation coarse against the noise: most differences 0
+    if mad(d2) == 0.0:  # a quantisation coarse against the noise: most differences 0
         return float(np.sqrt(np.mean(d2**2) / 6.0))
-    return float(mad / 0.6745 / np.sqrt(6.0))
+    return difference_noise_sigma(d2, 2)
 
 
 def _held_second_differences(p: np.ndarray, still: np.ndarray) -> np.ndarray:
@@ -86,7 +86,7 @@ def _held_second_differences(p: np.ndarray, still: np.ndarray) -> np.ndarray:
 
     >>> held = np.repeat(np.random.default_rng(1).normal(0, 5e3, 4000), 5)
     >>> d2 = _held_second_differences(held, np.ones(held.size, bool))
-    >>> round(float(np.median(np.abs(d2)) / 0.6745 / np.sqrt(6.0) / 5e3), 1)
+    >>> round(difference_noise_sigma(d2, 2) / 5e3, 1)
     1.0
     >>> float(np.abs(_held_second_differences(np.full(100, 5e6), np.ones(100, bool))).max())
     0.0

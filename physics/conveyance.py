@@ -25,6 +25,7 @@ from numba import njit
 from scipy import signal
 
 from physics.trip_rule import RATE_RATIO, RATE_RUN
+from physics.white_noise import difference_noise_sigma
 
 __all__ = [
     "DEADBAND_SIGMAS",
@@ -319,20 +320,19 @@ def conveyance_speed(
 
 
 def depth_noise_m(depth_m: np.ndarray) -> float:
-    """The logged depth's white noise [m]: the MAD of its second differences / 0.6745 /
-    sqrt(6) (a conveyance's motion is smooth, its second differences ~a dt^2); 0 where
-    fewer than 20 are known or the depth does not jitter (an encoder read to the
-    centimetre at rest).
+    """The logged depth's white noise [m]: :func:`physics.white_noise.
+    difference_noise_sigma` of its second differences (a conveyance's motion is smooth,
+    its second differences ~a dt^2); 0 where fewer than 20 are known or the depth does
+    not jitter (an encoder read to the centimetre at rest).
 
     >>> depth = 300.0 + np.random.default_rng(0).normal(0, 0.01, 5000)
     >>> round(depth_noise_m(depth), 3), float(depth_noise_m(np.full(100, 300.0)))
     (0.01, 0.0)
     """
     d2 = np.diff(np.asarray(depth_m, dtype=np.float64), 2)
-    d2 = d2[np.isfinite(d2)]
-    if d2.size < 20:
+    if np.count_nonzero(np.isfinite(d2)) < 20:
         return 0.0
-    return float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / np.sqrt(6.0))
+    return difference_noise_sigma(d2, 2)
 
 
 def _grid_time(t: np.ndarray, seg: np.ndarray, dt_s: float) -> np.ndarray:

@@ -40,6 +40,7 @@ import numpy as np
 from scipy import signal
 
 from physics.trip_rule import TRIP_BRIDGE_S
+from physics.white_noise import MAD_TO_SIGMA
 from sims.trips import TripProfile
 
 __all__ = [
@@ -244,8 +245,13 @@ def rope_damping_from_record(
             band[part] = signal.sosfiltfilt(sos, common_pa[part])
             envelope[part] = np.abs(signal.hilbert(band[part]))
     usable = quiet & np.isfinite(band)
-    # robust RMS (1.4826 MAD): a load change at standstill rings the band filter too
-    noise = 1.4826 * float(np.median(np.abs(band[usable]))) if usable.sum() > 10 * rate else np.nan
+    # robust RMS (the normal's MAD_TO_SIGMA x the median of |band|, whose median is 0): a
+    # load change at standstill rings the band filter too
+    noise = (
+        MAD_TO_SIGMA * float(np.median(np.abs(band[usable])))
+        if usable.sum() > 10 * rate
+        else np.nan
+    )
     if not np.isfinite(noise) or noise <= 0.0:
         return None, "no quiet standstill to compare the rope bounce with"
     rings, decays = [], []

@@ -75,7 +75,6 @@ from transforms.compensation_record import (
     identification_means,
     logger_rate_hz,
     rope_cols,
-    second_difference_sigma,
 )
 from transforms.seal_drift import seal_elements
 
@@ -93,7 +92,6 @@ __all__ = [
     "context_stride",
     "displacement_noise_sigma",
     "logger_rate_hz",
-    "second_difference_sigma",
 ]
 
 

@@ -21,9 +21,10 @@ from numba import njit
 
 from physics.closed_volume import COMMON_MODE_STATE_SIZE
 from physics.trip_rule import LABEL_STATE_SIZE, STANDSTILL_SPEED_M_S
+from physics.white_noise import difference_noise_sigma
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPES
-from transforms.filtering import PLAY_STATE_SIZE, first_difference_sigma, fresh_state
+from transforms.filtering import PLAY_STATE_SIZE, fresh_state
 from transforms.piston_motion import share_state
 from transforms.rope_identification import (
     IDENTIFY_SPAN,
@@ -60,7 +61,6 @@ __all__ = [
     "logger_rate_hz",
     "mean_horizontal",
     "rope_cols",
-    "second_difference_sigma",
 ]
 
 _LOG = logging.getLogger(__name__)
@@ -190,24 +190,15 @@ def logger_rate_hz(time_s: np.ndarray, *, default_hz: float = 100.0) -> float:
 def displacement_noise_sigma(x: np.ndarray) -> float:
     """Robust white-noise sigma of a sampled signal from its second differences [unit of x].
 
-    For white noise of variance s^2, the second difference has variance 6 s^2; the
-    median absolute deviation (x 1.4826) makes the estimate ignore real motion and steps.
+    :func:`physics.white_noise.difference_noise_sigma` of (at most ~200 k of) its second
+    differences: the median absolute deviation ignores real motion and steps.
     """
     x = np.asarray(x, dtype=np.float64)
     # every step-th second difference (the median of 200 k of them is plenty), as
     # np.diff(x, 2)[::step] without differencing the whole record
     step = max(1, (x.size - 2) // 200_000)
     at = np.arange(0, max(x.size - 2, 0), step)
-    return second_difference_sigma((x[at + 2] - x[at + 1]) - (x[at + 1] - x[at]))
-
-
-def second_difference_sigma(d2: np.ndarray) -> float:
-    """White-noise sigma from second differences: 1.4826 MAD / sqrt 6 (non-finite ignored)."""
-    d2 = np.asarray(d2, dtype=np.float64)
-    d2 = d2[np.isfinite(d2)]
-    if d2.size == 0:
-        return 0.0
-    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
+    return difference_noise_sigma((x[at + 2] - x[at + 1]) - (x[at + 1] - x[at]), 2)
 
 
 def float_column(series: pl.Series, *, fill: float = np.nan, scale: float = 1.0) -> np.ndarray:
@@ -269,10 +260,11 @@ class CompensationContext:
         ``settings.sample_rate_hz`` when set.
     spike_sigma : dict of str to float
         White-noise sigma of each calibrated pressure and logged displacement column
-        (:func:`transforms.filtering.first_difference_sigma`), for the despiking.
+        (:func:`physics.white_noise.difference_noise_sigma`), for the despiking.
     displacement_sigma_m : tuple of float
         White-noise sigma of each rope's logged displacement from second differences
-        [m] (:func:`second_difference_sigma`), for the differential's play band.
+        [m] (:func:`~physics.white_noise.difference_noise_sigma` of second differences),
+        for the differential's play band.
     typical_pressure_pa : float
         Median of the ropes' mean calibrated pressure [Pa] (the presliding range's F_s).
     has_x : bool
@@ -282,13 +274,14 @@ class CompensationContext:
         the sample's consecutive triplets), the standstill of a speed taken from it.
     rope_springs : RopeSprings or None
         The head ropes' constants identified from the record
-        (:mod:`transforms.rope_identification`), or without a logged x the ropes the
-        description states (``head_rope_stiffness_factors``, four) or else their prior
+        (:mod:`transforms.rope_identification`), or where nothing identifies them (no
+        logged x, or one that shows no piston motion) the ropes the description states
+        (``head_rope_stiffness_factors``, four) or else their prior
         (:func:`transforms.stick_slip_band.prior_rope_springs`, ``rope_stiffness_sigma``);
-        None: not identified (no piston motion, no constants fit the logged x to 0.5 mm,
-        or ``CompensationSettings(rope_springs=False)``, or without a logged x and
-        stated ropes ``rope_stiffness_sigma=0``): the pistons' motion is shared out
-        (:mod:`transforms.piston_motion`).
+        None: a logged x that shows motion but no constants fit it to 0.5 mm, or
+        ``CompensationSettings(rope_springs=False)``, or nothing identifies them, no
+        ropes are stated and ``rope_stiffness_sigma=0``: the pistons' motion is shared
+        out by the logged x (:mod:`transforms.piston_motion`).
     """
 
     sample_rate_hz: float
@@ -455,7 +448,7 @@ def compensation_context(
             if column in sample.columns
             else np.full(row.size, np.nan)
         )
-        spike_sigma[column] = first_difference_sigma(values[pair + 1] - values[pair])
+        spike_sigma[column] = difference_noise_sigma(values[pair + 1] - values[pair], 1)
         if column in p_cols:
             pressures.append(values[first])
     displacement_sigma, logged = [], []
@@ -465,7 +458,7 @@ def compensation_context(
         has_x = has_x and bool(np.isfinite(x).any())
         logged.append(x)
         d2 = (x[triple + 2] - x[triple + 1]) - (x[triple + 1] - x[triple])
-        displacement_sigma.append(second_difference_sigma(d2))
+        displacement_sigma.append(difference_noise_sigma(d2, 2))
     depth = (
         float_column(sample["depth_m"])
         if "depth_m" in sample.columns
@@ -511,7 +504,7 @@ def compensation_context(
         sample_rate_hz=rate_hz,
         spike_sigma=spike_sigma,
         displacement_sigma_m=tuple(displacement_sigma),
-        depth_sigma_m=second_difference_sigma(depth_d2),
+        depth_sigma_m=difference_noise_sigma(depth_d2, 2),
         typical_pressure_pa=typical,
         has_x=has_x,
         rope_springs=springs,

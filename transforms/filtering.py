@@ -7,8 +7,8 @@ Segments
     :func:`seconds_expr` -- a time column as float seconds (expression).
 
 Spikes and noise
-    :func:`despike_median3` -- single-sample spikes against a 3-point median (numba).
-    :func:`first_difference_sigma` -- white-noise sigma from first differences.
+    :func:`despike_median3` -- single-sample spikes against a 3-point median (numba),
+    the noise :func:`physics.white_noise.difference_noise_sigma` of first differences.
 
 Smoothing and play
     :func:`box_smooth` / :func:`box_smooth_into` -- near-Gaussian, monotone smoothing.
@@ -32,16 +32,15 @@ import polars as pl
 from numba import njit
 
 from physics.trip_rule import segment_ids
+from physics.white_noise import difference_noise_sigma
 from transforms.lowpass import lowpass
 
 __all__ = [
-    "MAD_TO_SIGMA",
     "MAX_CUTOFF_SHARE",
     "box_smooth",
     "box_smooth_into",
     "despike_median3",
     "despiked_lowpass",
-    "first_difference_sigma",
     "fresh_state",
     "play_kernel",
     "play_operator",
@@ -53,9 +52,6 @@ __all__ = [
 ]
 
 Frame = TypeVar("Frame", pl.DataFrame, pl.LazyFrame)
-
-#: Scale from median absolute deviation to standard deviation for Gaussian noise.
-MAD_TO_SIGMA = 1.4826
 
 
 def seconds_expr(frame_schema: pl.Schema, time_col: str) -> pl.Expr:
@@ -292,7 +288,7 @@ def despike_median3(
     Returns the despiked signal and the sigma used. ``out``: a float64 array of x's
     length to write into; may be ``x`` itself (despiked in place). ``sigma``: the
     noise sigma, when it is known from a longer record than ``x`` (a block of a day,
-    :func:`first_difference_sigma` of the day's differences).
+    :func:`~physics.white_noise.difference_noise_sigma` of the day's first differences).
 
     >>> despike_median3(np.array([0.0, 0.1, 9.0, 0.0, 0.1, 0.0, 0.1]))[0].tolist()
     [0.0, 0.1, 0.1, 0.0, 0.1, 0.0, 0.1]
@@ -303,7 +299,7 @@ def despike_median3(
         # differencing the whole record
         step = max(1, (values.size - 1) // 200_000)
         at = np.arange(0, max(values.size - 1, 0), step)
-        sigma = first_difference_sigma(values[at + 1] - values[at])
+        sigma = difference_noise_sigma(values[at + 1] - values[at], 1)
     seg = (
         np.zeros(values.shape[0], dtype=np.int64)
         if segment_id is None
@@ -347,18 +343,3 @@ def despiked_lowpass(
         values, segment_id, sample_rate_hz=sample_rate_hz, cutoff_hz=cutoff_hz, out=values,
         work=work,
     )  # fmt: skip
-
-
-def first_difference_sigma(differences: np.ndarray) -> float:
-    """White-noise sigma from first differences x[i+1] - x[i]: 1.4826 MAD / sqrt 2.
-
-    Non-finite differences are ignored; 0 when none is left.
-
-    >>> round(first_difference_sigma(np.array([0.1, -0.1, 0.1, -0.1, np.nan])), 6)
-    0.104836
-    """
-    d = np.asarray(differences, dtype=np.float64)
-    d = d[np.isfinite(d)]
-    if d.size == 0:
-        return 0.0
-    return float(MAD_TO_SIGMA * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0))

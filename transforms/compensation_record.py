@@ -474,7 +474,14 @@ def compensation_context(
     # transforms.piston_motion would read equal shares of every slide from it and turn
     # seals the wrong way at a payload change at rest (issue 13: 23-24 stop windows
     # worse than raw on the validation days). A logged x that shows motion the
-    # identification could not match still decides the pistons' shares (the share-out).
+    # identification could not match still decides the pistons' shares (the share-out):
+    # the measured motion, which the rope springs may not hold (a groove's wear pays the
+    # ropes out at different rates, the pistons slide apart on every trip). Measured on
+    # validation days 101-104 with the identification made to fail, x kept (session 38,
+    # not kept as the rule): the share-out's stop windows 2.1-2.5 % worst, 4-6 worse
+    # than raw, its band holding 65-82 % of them at 4.2-4.7 % half-width; the prior's
+    # (ignoring x) 0.8-3.5 %, 0-2, 98-100 % at 0.6-1.8 %; but those days' grooves are
+    # alike and their ropes identify.
     moved = has_x and pistons_moved(tuple(logged))
     unidentified = springs is None and settings.rope_springs and not moved
     stated = hoist.ropes.head_rope_stiffness_factors

@@ -171,23 +171,46 @@ def test_stated_ropes_are_taken_as_known_and_a_partial_x_as_no_start():
     )
 
 
-def test_a_logged_x_that_identifies_nothing_runs_on_the_prior_as_without_x(caplog):
-    """Every rope's x logged, but the pistons never move beyond the transducer's noise
-    (0.1 mm steps): the identification has nothing to match, so the compensation runs
-    on the ropes' prior spread, the logged x taken for no start (its offsets are
-    unknown): the same tensions and band as the record without x, and a warning, not
-    the share-out (which reads each piston's share of the slides from that x)."""
-    frame = _record()
+def _logged_x(frame: pl.DataFrame, speed_m_s: float) -> pl.DataFrame:
+    """``frame`` with every rope's x logged (0.1 mm steps, 0.02 mm noise): ropes 1-2
+    sliding out and 3-4 in at ``speed_m_s`` (0: still)."""
     rng = np.random.default_rng(5)
-    logged = frame.with_columns(
-        pl.Series(f"x{i}_m", np.round((0.1 + rng.normal(0, 2e-5, frame.height)) / 1e-4) * 1e-4)
-        for i in range(1, 5)
+    drift = speed_m_s * np.arange(frame.height) / RATE
+    return frame.with_columns(
+        pl.Series(
+            f"x{i}_m",
+            np.round((0.1 + sign * drift + rng.normal(0, 2e-5, frame.height)) / 1e-4) * 1e-4,
+        )
+        for i, sign in zip(range(1, 5), (1, 1, -1, -1), strict=True)
     )
+
+
+def test_a_logged_x_that_shows_no_motion_runs_on_the_prior_as_without_x(caplog):
+    """Every rope's x logged, but the pistons never move beyond the transducer's noise
+    (a record at rest): nothing identifies the ropes, so the compensation runs on their
+    prior spread, the logged x taken for no start (its offsets are unknown): the same
+    tensions and band as the record without x, and a warning; not the share-out, which
+    would read equal shares of every slide from that x."""
+    frame = _record()
+    logged = _logged_x(frame, 0.0)
     with caplog.at_level("WARNING", logger="transforms.compensation_record"):
         out = compensate(logged, HOIST)
     assert "did not identify the head ropes" in caplog.text
+    assert "prior spread" in caplog.text
     without = compensate(frame, HOIST)
     for column in ("load_n", "load_lo_n", "load_hi_n", "tension1_n", "tension1_hi_n"):
         np.testing.assert_allclose(out[column], without[column], rtol=0, atol=1e-6)
     shared = compensate(logged, HOIST, settings=CompensationSettings(rope_stiffness_sigma=0.0))
     assert np.max(np.abs(_frictions(shared) - _frictions(out))) > 10.0  # not the share-out
+
+
+def test_a_logged_x_whose_motion_no_ropes_explain_is_followed(caplog):
+    """The pistons slide 2 mm/s apart while the pressures say nothing moves them (a
+    groove's wear, which the rope springs do not hold): no constants match, and the
+    measured motion decides the pistons' shares (the share-out), with a warning."""
+    logged = _logged_x(_record(), 2e-3)
+    with caplog.at_level("WARNING", logger="transforms.compensation_record"):
+        out = compensate(logged, HOIST)
+    assert "share-out of the logged x" in caplog.text
+    shared = compensate(logged, HOIST, settings=CompensationSettings(rope_springs=False))
+    np.testing.assert_array_equal(_frictions(out), _frictions(shared))

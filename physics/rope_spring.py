@@ -11,7 +11,10 @@ with EA the hoist description's nominal axial stiffness, h + z the hanging lengt
 common stretch coordinate, x_i the piston displacement (rod out positive), and two
 constants of each rope that the mine does not know: a_i its stiffness relative to the
 nominal EA and c_i its length offset (real ropes differ by several percent and by up
-to ~10 mm, ``../shared/validation/README.md``).
+to ~10 mm, ``../shared/validation/README.md``). With ``groove_wear`` (contract 4:
+unequal drum groove radii) rope i pays out z (1 + dr_i / R) for the drum's z, so its
+offset grows with depth, c_i + z dr_i / R (:func:`groove_payout_m`; :mod:`sims.device`
+the same, its lengths equal at the pithead).
 
 The seal is elasto-plastic: bristles of stiffness sigma_0 (the hoist's
 ``bristle_stiffness``) whose force is capped by the eq 17 capacity g(v) (the Stribeck
@@ -27,6 +30,7 @@ elastic range up to the capacity, the one-element Maxwell-slip model
 (:func:`physics.maxwell_slip.maxwell_slip_step`) driven by a force.
 
     :func:`head_rope_stiffness_n_m` -- k(z) (numba).
+    :func:`groove_payout_m` -- a worn groove's extra payout z dr_i / R (numba).
     :func:`bounce_frequency_hz` -- the conveyance's bounce on its ropes.
     :func:`seal_on_rope_step` -- one quasi-static step of a piston between its rope and
     its seal (numba).
@@ -52,9 +56,30 @@ ArrayOrFloat = TypeVar("ArrayOrFloat", float, np.ndarray)
 __all__ = [
     "bounce_frequency_hz",
     "elements_on_rope_step",
+    "groove_payout_m",
     "head_rope_stiffness_n_m",
     "seal_on_rope_step",
 ]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def groove_payout_m(depth_m: float, relative_deviation: float) -> float:
+    r"""A rope's length beyond the drum's payout where its groove's radius deviates [m].
+
+    .. math:: o_i = z \, \frac{\Delta r_i}{R}
+
+    The drum turns through z / R for the conveyance's depth z below the pithead, and a
+    rope in a groove of radius R + dr_i pays out (R + dr_i) z / R: the ropes' lengths
+    drift apart with travel (contract 4, ``groove_wear``; equal at the pithead), and the
+    pistons take up the difference. Added to the rope's length offset c_i.
+
+    ``relative_deviation``: dr_i / R (``[drum] groove_radius_deviation`` over
+    ``radius``).
+
+    >>> round(groove_payout_m(600.0, 0.5e-3 / 2.0), 6)  # 0.5 mm on a 2 m drum, 600 m down
+    0.15
+    """
+    return depth_m * relative_deviation
 
 
 @njit(cache=True, nogil=True, inline="always")

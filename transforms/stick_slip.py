@@ -10,7 +10,9 @@ device's own physics, and two constants per rope identified from the record.
 
 - Rope i pulls its piston with T_i = a_i k(z) (s - x_i - c_i) (:mod:`physics.rope_spring`:
   k = EA / (headframe + depth), a_i the rope's stiffness relative to the nominal EA,
-  c_i its length offset), s the conveyance's common stretch.
+  c_i its length offset, plus where the hoist declares ``groove_wear`` its groove's
+  payout z dr_i / R, :func:`physics.rope_spring.groove_payout_m`), s the conveyance's
+  common stretch.
 - Each piston obeys eq 2, T_i = p_i A + F_i, with p_i the chamber pressure (the sensor's
   minus the branch loss of the piston's flow, contract 1a, eq 12-14) and F_i an
   elasto-plastic seal, F' = clip(F + sigma_0 dx, -g(v), g(v)) with the eq 17 capacity
@@ -134,13 +136,19 @@ from physics.friction_law import friction_law_at, law_array, stribeck_g
 from physics.lugre import lugre_drift
 from physics.maxwell_slip import maxwell_slip_elements, maxwell_slip_step, maxwell_slip_virgin
 from physics.oil import ATMOSPHERIC_PRESSURE_PA, effective_bulk_modulus_at
-from physics.rope_spring import elements_on_rope_step, head_rope_stiffness_n_m, seal_on_rope_step
+from physics.rope_spring import (
+    elements_on_rope_step,
+    groove_payout_m,
+    head_rope_stiffness_n_m,
+    seal_on_rope_step,
+)
 from physics.sensor_branch import sensor_minus_chamber_at
 from schemas.hoist import HoistDescription
 from transforms.seal_drift import played_travel
 from transforms.stick_slip_band import RopeSprings
 
 __all__ = [
+    "groove_deviations",
     "stick_slip",
     "stick_slip_mismatch",
     "stick_slip_state",
@@ -158,6 +166,24 @@ def stick_slip_state(pistons: int, elements: int = 1) -> np.ndarray:
     element's deflection, then each sensor's reading at the last sample solved;
     :func:`transforms.filtering.fresh_state`)."""
     return np.zeros(8 + 4 * pistons + (pistons * elements if elements > 1 else 0) + pistons)
+
+
+def groove_deviations(hoist: HoistDescription, ropes: int) -> np.ndarray:
+    """Each rope's groove radius deviation over the drum's radius, dr_i / R, where the
+    hoist's model declares ``groove_wear`` (:func:`physics.rope_spring.groove_payout_m`),
+    else zeros.
+
+    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
+    >>> groove_deviations(load_hoist(EXAMPLE_HOIST), 4).tolist()
+    [0.0, 0.0, 0.0, 0.0]
+    """
+    if "groove_wear" not in hoist.model.effects:
+        return np.zeros(ropes)
+    deviations = np.asarray(hoist.drum.groove_radius_deviation_m, dtype=np.float64)
+    if deviations.shape != (ropes,):
+        raise ValueError(f"drum.groove_radius_deviation: {deviations.size} values for "
+                         f"{ropes} ropes")  # fmt: skip
+    return deviations / hoist.drum.radius_m
 
 
 def _constants(hoist: HoistDescription) -> np.ndarray:
@@ -476,6 +502,7 @@ def _kernel_inputs(
         np.zeros(6) if branch is None else branch,
         _constants(hoist) * np.r_[np.ones(7), sigma0_scale],
         law_array(hoist.friction_law),
+        groove_deviations(hoist, len(p_sensor)),
     )
     tail = (
         float(capacity_scale),
@@ -496,7 +523,7 @@ def _mismatch_kernel(
     head, stiffness, offsets, tail, x_out, f_out, state_size, bounds
 ):  # pragma: no cover - numba
     """:func:`stick_slip_mismatch`'s loop over the candidates."""
-    p_sensor, x_logged, depth, segment, dt, nu, with_loss, branch, const, law = head
+    p_sensor, x_logged, depth, segment, dt, nu, with_loss, branch, const, law, groove = head
     scale, start, drift_mode, drift, half_width, rings, ringing, element_k, element_w = tail
     m = len(p_sensor)
     n = depth.shape[0]
@@ -512,7 +539,7 @@ def _mismatch_kernel(
         squares[:] = 0.0
         counts[:] = 0.0
         whole = _kernel(
-            p_sensor, x_logged, depth, segment, dt, nu, with_loss, branch, const, law,
+            p_sensor, x_logged, depth, segment, dt, nu, with_loss, branch, const, law, groove,
             stiffness[k], offsets[k], scale, start, drift_mode, drift, half_width, rings,
             ringing, element_k, element_w, x_out, f_out, np.zeros(state_size),
             bounds[k], logged, squares, counts,
@@ -564,9 +591,9 @@ def _beyond(bound, squares, logged):  # pragma: no cover - numba
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _kernel(
-    p_sensor, x_logged, depth, segment, steps, nu, with_loss, branch, const, law, a, c, scale,
-    start, drift_mode, drift_p, drift_w, rings, ringing, element_k, element_w, x_out, f_out,
-    state, bound=np.inf, logged=None, squares=None, counts=None,
+    p_sensor, x_logged, depth, segment, steps, nu, with_loss, branch, const, law, groove, a, c,
+    scale, start, drift_mode, drift_p, drift_w, rings, ringing, element_k, element_w, x_out,
+    f_out, state, bound=np.inf, logged=None, squares=None, counts=None,
 ):  # pragma: no cover - numba  # fmt: skip
     """Per sample: the seals' drift, the oil's Newton solve for s, each piston's seal step
     (module docstring).
@@ -591,6 +618,7 @@ def _kernel(
     damping = np.zeros(m)
     cap = np.zeros(m)
     ka = np.zeros(m)
+    off = np.zeros(m)  # each rope's length offset at the sample (c_i, a worn groove's payout)
     p_now = np.zeros(m)  # each sensor's pressure at the sample, the others' mean if unknown
     # each sensor's reading at the last sample solved (NaN: not logged), carried in the
     # state after the elements: where a sensor leaves or rejoins the mean, the oil's
@@ -673,6 +701,7 @@ def _kernel(
         fc, fs, vs, kv = friction_law_at(p_law, law)
         for i in range(m):
             ka[i] = a[i] * k
+            off[i] = c[i] + groove_payout_m(hanging - headframe, groove[i])
             damping[i] = 0.0
             if with_loss:  # the branch loss as a damper, implicit (explicit it diverges)
                 speed = v[i] if abs(v[i]) > 1e-6 else 1e-6
@@ -688,13 +717,13 @@ def _kernel(
             den = 0.0
             for i in range(m):
                 x[i] = x_logged[i][t] if np.isfinite(x_logged[i][t]) else 0.0
-                num += p_now[i] * area + ka[i] * (x[i] + c[i])
+                num += p_now[i] * area + ka[i] * (x[i] + off[i])
                 den += ka[i]
             s = num / den
             if start != 0.0:  # the common stretch that takes the seals farthest that way
                 reach = s
                 for i in range(m):
-                    at_cap = (start * scale * fs + p_now[i] * area) / ka[i] + x[i] + c[i]
+                    at_cap = (start * scale * fs + p_now[i] * area) / ka[i] + x[i] + off[i]
                     reach = (
                         at_cap
                         if i == 0
@@ -702,7 +731,7 @@ def _kernel(
                     )
                 s = max(s, reach) if start > 0.0 else min(s, reach)
             for i in range(m):
-                force = ka[i] * (s - x[i] - c[i]) - p_now[i] * area
+                force = ka[i] * (s - x[i] - off[i]) - p_now[i] * area
                 z[i] = min(max(force, -scale * fs), scale * fs)
                 if elements:
                     z[i] = maxwell_slip_virgin(z[i], deltas[i], element_k, element_w, cap[i])
@@ -752,7 +781,7 @@ def _kernel(
             total = 0.0
             slope = 0.0
             for i in range(m):
-                demand[i] = ka[i] * (s + ds - x[i] - c[i]) - p_now[i] * area
+                demand[i] = ka[i] * (s + ds - x[i] - off[i]) - p_now[i] * area
                 if elements:
                     step[i], given[i], lo[i], hi[i] = elements_on_rope_step(
                         demand[i], deltas[i], element_k, limits[i], ka[i] + damping[i]
@@ -795,7 +824,7 @@ def _kernel(
         s += ds
         for i in range(m):
             if not solved:  # the iterations ran out: evaluate at the last s
-                demand[i] = ka[i] * (s - x[i] - c[i]) - p_now[i] * area
+                demand[i] = ka[i] * (s - x[i] - off[i]) - p_now[i] * area
                 if elements:
                     step[i], given[i], lo[i], hi[i] = elements_on_rope_step(
                         demand[i], deltas[i], element_k, limits[i], ka[i] + damping[i]

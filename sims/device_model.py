@@ -28,6 +28,7 @@ from physics.branch_loss import BLASIUS, pipe_loss_pa
 from physics.friction_law import friction_law_at, stribeck_g
 from physics.lugre import lugre_force, lugre_z_step
 from physics.maxwell_slip import maxwell_slip_step
+from physics.rope_spring import groove_payout_m
 from sims.device_params import (
     BETA,
     CROPE,
@@ -275,8 +276,9 @@ def rhs(y: np.ndarray, args: tuple, out: np.ndarray) -> None:
         v = y[b + 2]
         q = y[b + 3]
         s_off, s_rate = _interp(t, src_t, src_s[:, i])
-        e = eta - x - u * groove[i] / par[RDRUM] - s_off
-        ed = etad - v - ud * groove[i] / par[RDRUM] - s_rate
+        worn = groove[i] / par[RDRUM]  # a groove's payout and its rate
+        e = eta - x - groove_payout_m(u, worn) - s_off
+        ed = etad - v - groove_payout_m(ud, worn) - s_rate
         tension = k_rope * par[KF0 + i] * e + c_rope * ed  # rope i's EA factor
         ff, _ = friction_step(p, x - x_start[i], h, par, z[i], deltas[i], ms_k, ms_w, cap, False)
         f_stop = 0.0

@@ -482,7 +482,9 @@ def compensation_context(
     # than raw, its band holding 65-82 % of them at 4.2-4.7 % half-width; the prior's
     # (ignoring x) 0.8-3.5 %, 0-2, 98-100 % at 0.6-1.8 %; but those days' grooves are
     # alike and their ropes identify.
-    moved = has_x and pistons_moved(tuple(logged))
+    # on each triplet's median: a single-sample spike of a transducer at rest (what the
+    # despiking removes; the identification's 0.2 s means average it away) is no motion
+    moved = has_x and pistons_moved(tuple(_triplet_medians(x, triple) for x in logged))
     unidentified = springs is None and settings.rope_springs and not moved
     stated = hoist.ropes.head_rope_stiffness_factors
     if stated is not None and len(stated) != len(ROPES):
@@ -516,6 +518,20 @@ def compensation_context(
         has_x=has_x,
         rope_springs=springs,
     )
+
+
+def _triplet_medians(x: np.ndarray, triple: np.ndarray) -> np.ndarray:
+    """The median of each of the sample's consecutive triplets of ``x`` (rows ``triple``,
+    +1, +2; NaN where none is finite); ``x`` itself where the sample has no triplet."""
+    if triple.size == 0:
+        return x
+    with np.errstate(all="ignore"):
+        stacked = np.stack([x[triple], x[triple + 1], x[triple + 2]])
+        finite = np.isfinite(stacked).any(axis=0)
+        out = np.full(triple.size, np.nan)
+        if finite.any():
+            out[finite] = np.nanmedian(stacked[:, finite], axis=0)
+    return out
 
 
 @dataclass

@@ -214,3 +214,15 @@ def test_a_logged_x_whose_motion_no_ropes_explain_is_followed(caplog):
     assert "share-out of the logged x" in caplog.text
     shared = compensate(logged, HOIST, settings=CompensationSettings(rope_springs=False))
     np.testing.assert_array_equal(_frictions(out), _frictions(shared))
+
+
+def test_a_single_spike_in_a_logged_x_at_rest_is_no_motion():
+    """One 2 mm spike of one transducer at rest (what the despiking removes, and the
+    identification's 0.2 s means average away) does not make the record's x one that
+    shows motion: the prior, as without the spike, not the share-out."""
+    logged = _logged_x(_record(), 0.0)
+    x1 = logged["x1_m"].to_numpy().copy()
+    x1[1500] += 2e-3
+    spiky = logged.with_columns(pl.Series("x1_m", x1))
+    springs = _context(spiky, CompensationSettings()).rope_springs
+    assert springs is not None and springs.prior_sigma > 0

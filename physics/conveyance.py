@@ -302,21 +302,56 @@ def conveyance_speed(
         # DEADBAND_SIGMAS of those the conveyance stands (a noisy depth made 343 trips
         # of two)
         sigma_z = depth_noise_m(z) if depth_sigma_m is None else depth_sigma_m
-        if sigma_z > 0.0:
-            n = max(window_s / dt_s, 3.0)
-            deadband = DEADBAND_SIGMAS * sigma_z / (dt_s * np.sqrt(n * (n * n - 1.0) / 12.0))
-            # within half a window of a segment's ends the filter fits one side only:
-            # its slope scatters up to ~4 x as much (a noisy record's last 0.1 s was a trip)
-            first = np.concatenate([[True], seg[1:] != seg[:-1]])
-            last = np.concatenate([seg[1:] != seg[:-1], [True]])
-            index = np.arange(z.size)
-            start = np.maximum.accumulate(np.where(first, index, 0))
-            end = np.minimum.accumulate(np.where(last, index, z.size)[::-1])[::-1]
-            edge = np.minimum(index - start, end - index) < n / 2.0
-            band = np.where(edge, 4.0 * deadband, deadband)
-            derived = np.where(np.abs(derived) < band, 0.0, derived)
+        band = _deadband(t, z, seg, sigma_z, dt_s=dt_s, window_s=window_s)
+        derived = np.where(np.abs(derived) < band, 0.0, derived)
         v[missing] = derived[missing]
     return v
+
+
+def _deadband(
+    t: np.ndarray,
+    z: np.ndarray,
+    seg: np.ndarray,
+    sigma_z: float,
+    *,
+    dt_s: float,
+    window_s: float,
+    polyorder: int = 2,
+) -> np.ndarray:
+    """Per sample, the derived speed's standstill [m/s] (:func:`conveyance_speed`), for the
+    derivative :func:`smoothed_derivative` takes there: each segment at the spacing it
+    is differentiated with (its own where the logger's rate changes), a segment shorter
+    than the window at ``numpy.gradient``'s scatter, and at least the filter's response
+    to one quantisation step of the depth (an encoder read to the centimetre that
+    toggles between two counts at rest: 1.5 q / window, 0.03 m/s at 1 cm over 0.5 s)."""
+    band = np.zeros(z.size)
+    starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]]))
+    bounds = [*starts.tolist(), z.size]
+    own = _rates_differ(t, bounds, dt_s)
+    d1 = np.abs(np.diff(z))
+    d1 = np.round(d1[np.isfinite(d1) & (d1 > 0.0)], 9)
+    q = float(d1.min()) if d1.size else 0.0
+    for a, b in itertools.pairwise(bounds):
+        step = _segment_spacing(t, a, b, dt_s) if own else dt_s
+        n_win = max(round(window_s / step) | 1, polyorder + 2 | 1)
+        if b - a < 2:
+            continue
+        if b - a < n_win:  # numpy.gradient: (z[i+1] - z[i-1]) / 2 dt, one-sided at ends
+            band[a:b] = max(DEADBAND_SIGMAS * np.sqrt(2.0) * sigma_z, q) / step
+            continue
+        # a least-squares slope over n samples scatters by sigma_z / (dt sqrt(n (n^2 - 1)
+        # / 12)); one quantisation step moves it by up to 1.5 q / (n dt)
+        n = max(window_s / step, 3.0)
+        deadband = max(
+            DEADBAND_SIGMAS * sigma_z / (step * np.sqrt(n * (n * n - 1.0) / 12.0)),
+            1.5 * q / (n * step),
+        )
+        # within half a window of a segment's ends the filter fits one side only: its
+        # slope scatters up to ~4 x as much (a noisy record's last 0.1 s was a trip)
+        index = np.arange(b - a)
+        edge = np.minimum(index, b - a - 1 - index) < n / 2.0
+        band[a:b] = np.where(edge, 4.0 * deadband, deadband)
+    return band
 
 
 def depth_noise_m(depth_m: np.ndarray) -> float:

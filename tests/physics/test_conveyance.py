@@ -117,3 +117,35 @@ def test_neither_speed_nor_depth_stays_unknown():
     t = _times((50.0,), 5.0)
     nan = np.full(t.size, np.nan)
     assert np.isnan(conveyance_speed(t, nan, nan, segment_ids(t), dt_s=0.02)).all()
+
+
+def _at_rest_trips(t: np.ndarray, depth: np.ndarray, nominal_dt_s: float) -> int:
+    seg = segment_ids(t, nominal_dt_s=nominal_dt_s)
+    v = conveyance_speed(t, np.full(t.size, np.nan), depth, seg, dt_s=nominal_dt_s)
+    _, _, trip = trip_label_codes(t, v, np.zeros(t.size), seg, depth, HOIST)
+    return int(np.unique(trip[trip >= 0]).size)
+
+
+def test_a_noisy_depth_at_rest_makes_no_trip_at_a_slower_rate_or_between_gaps():
+    """At rest, 1 cm of depth noise: no trip in a part logged at 10 Hz after 100 Hz (its
+    derivative scatters ~3 x the 100 Hz one's), nor in a 0.3 s stretch between two logger
+    gaps (shorter than the window: numpy.gradient's scatter)."""
+    rng = np.random.default_rng(0)
+    t = np.r_[np.arange(0.0, 120.0, 0.01), 120.0 + np.arange(0.0, 120.0, 0.1)]
+    assert _at_rest_trips(t, 300.0 + rng.normal(0.0, 0.01, t.size), 0.01) == 0
+    t = np.arange(0.0, 120.0, 0.01)
+    keep = np.ones(t.size, bool)
+    keep[6000:6100] = keep[6130:6230] = False
+    t = t[keep]
+    assert _at_rest_trips(t, 300.0 + rng.normal(0.0, 0.01, t.size), 0.01) == 0
+
+
+def test_a_depth_read_to_the_centimetre_that_toggles_at_rest_makes_no_trip():
+    """An encoder at rest on a count's edge: its depth toggles by 1 cm now and then
+    (most differences 0, so no noise is measured); one count's step is no motion."""
+    t = np.arange(0.0, 600.0, 0.01)
+    depth = np.full(t.size, 300.0)
+    rng = np.random.default_rng(0)
+    for s in rng.integers(0, t.size - 200, 20):
+        depth[s : s + rng.integers(5, 100)] += 0.01
+    assert _at_rest_trips(t, depth, 0.01) == 0

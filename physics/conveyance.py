@@ -388,9 +388,10 @@ def _grid_time(t: np.ndarray, seg: np.ndarray, dt_s: float) -> np.ndarray:
 
 
 def longest_unlogged_s(time_s: np.ndarray, speed: np.ndarray, lo_s: float, hi_s: float) -> float:
-    """The longest stretch [s] of ``[lo_s, hi_s]`` without a logged (finite) speed: from
-    the last logged sample before it (or ``lo_s``) to the first after (or ``hi_s``);
-    ``time_s`` increasing.
+    """The longest stretch [s] of ``[lo_s, hi_s]`` whose samples lack a logged (finite)
+    speed: from the last logged sample before them (or ``lo_s``) to the first after (or
+    ``hi_s``); ``time_s`` increasing. A logger gap (no samples at all, bridged by the
+    trip rule) is not counted: nothing of it is the depth's derivative.
     A replay follows the logged speed; where it is missing longer than
     :data:`SPEED_HOLE_S` the depth's derivative stands in, which a simulation
     differentiating it again cannot follow (``pipelines.sanity``, ``ropeload discover``).
@@ -399,17 +400,27 @@ def longest_unlogged_s(time_s: np.ndarray, speed: np.ndarray, lo_s: float, hi_s:
     >>> v = np.where((t > 3.0) & (t < 5.0), np.nan, 1.0)
     >>> round(longest_unlogged_s(t, v, 0.0, 10.0), 1), longest_unlogged_s(t, v, 6.0, 9.0)
     (2.0, 0.0)
+    >>> gap = np.r_[np.arange(0.0, 5.0, 0.1), np.arange(6.5, 10.0, 0.1)]  # 1.5 s, no rows
+    >>> longest_unlogged_s(gap, np.ones(gap.size), 0.0, 10.0)
+    0.0
     """
     t = np.asarray(time_s, dtype=np.float64)
     # the window by bisection (``time_s`` increasing): a check per trip of a day-long
     # record reads its trip's samples, not the day's
     a, b = np.searchsorted(t, lo_s, side="left"), np.searchsorted(t, hi_s, side="right")
     window = np.asarray(speed[a:b], dtype=np.float64)
-    logged = t[a:b][np.isfinite(window)]
-    if logged.size == 0:
-        return float(hi_s - lo_s)
+    at = np.flatnonzero(np.isfinite(window))
+    if at.size == 0:
+        return float(hi_s - lo_s) if b > a else 0.0
+    logged = t[a:b][at]
     edges = np.concatenate([[lo_s], logged, [hi_s]])
     gaps = np.diff(edges)
+    # rows without a speed between the edges (the ends: rows before the first logged
+    # sample, after the last)
+    missing = np.diff(np.concatenate([[-1], at, [b - a]])) > 1
+    gaps = gaps[missing]
+    if gaps.size == 0:
+        return 0.0
     # a sample's own spacing is no hole: count only beyond the logged neighbours
     step = float(np.median(np.diff(t[a:b]))) if b - a > 1 else 0.0
     return float(gaps.max()) if gaps.max() > 1.5 * step else 0.0

@@ -33,6 +33,7 @@ __all__ = [
     "conveyance_speed",
     "depth_noise_m",
     "longest_unlogged_s",
+    "reading_quantum_m",
     "smoothed_derivative",
 ]
 
@@ -245,6 +246,7 @@ def conveyance_speed(
     window_s: float = 0.5,
     hole_s: float = SPEED_HOLE_S,
     depth_sigma_m: float | None = None,
+    depth_quantum_m: float | None = None,
 ) -> np.ndarray:
     """The conveyance's speed [m/s, positive down] where the log lacks it (a new array).
 
@@ -256,7 +258,10 @@ def conveyance_speed(
     [s]), zero within :data:`DEADBAND_SIGMAS` x its scatter from the depth's noise
     (``depth_sigma_m`` [m], else :func:`depth_noise_m` of these samples: a record
     compensated block by block gives the record's, so each block stands still alike),
-    4 x that within half a window of a segment's ends. NaN where neither is known
+    4 x that within half a window of a segment's ends, and at least the slope one step
+    of the depth's reading makes (``depth_quantum_m`` [m], else :func:`reading_quantum_m`
+    of these samples' changes; a record's own, given, for its blocks alike). NaN where
+    neither is known
     (a log with neither speed nor depth keeps NaN: the caller's fill applies as before).
     ``time_s`` [s], increasing.
 
@@ -302,7 +307,8 @@ def conveyance_speed(
         # DEADBAND_SIGMAS of those the conveyance stands (a noisy depth made 343 trips
         # of two)
         sigma_z = depth_noise_m(z) if depth_sigma_m is None else depth_sigma_m
-        band = _deadband(t, z, seg, sigma_z, dt_s=dt_s, window_s=window_s)
+        q = reading_quantum_m(np.diff(z)) if depth_quantum_m is None else depth_quantum_m
+        band = _deadband(t, z, seg, sigma_z, q, dt_s=dt_s, window_s=window_s)
         derived = np.where(np.abs(derived) < band, 0.0, derived)
         v[missing] = derived[missing]
     return v
@@ -313,6 +319,7 @@ def _deadband(
     z: np.ndarray,
     seg: np.ndarray,
     sigma_z: float,
+    q: float,
     *,
     dt_s: float,
     window_s: float,
@@ -322,15 +329,12 @@ def _deadband(
     derivative :func:`smoothed_derivative` takes there: each segment at the spacing it
     is differentiated with (its own where the logger's rate changes), a segment shorter
     than the window at ``numpy.gradient``'s scatter, and at least the filter's response
-    to one quantisation step of the depth (an encoder read to the centimetre that
+    to one quantisation step ``q`` of the depth (an encoder read to the centimetre that
     toggles between two counts at rest: 1.5 q / window, 0.03 m/s at 1 cm over 0.5 s)."""
     band = np.zeros(z.size)
     starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]]))
     bounds = [*starts.tolist(), z.size]
     own = _rates_differ(t, bounds, dt_s)
-    d1 = np.abs(np.diff(z))
-    d1 = np.round(d1[np.isfinite(d1) & (d1 > 0.0)], 9)
-    q = float(d1.min()) if d1.size else 0.0
     for a, b in itertools.pairwise(bounds):
         step = _segment_spacing(t, a, b, dt_s) if own else dt_s
         n_win = max(round(window_s / step) | 1, polyorder + 2 | 1)
@@ -352,6 +356,29 @@ def _deadband(
         edge = np.minimum(index, b - a - 1 - index) < n / 2.0
         band[a:b] = np.where(edge, 4.0 * deadband, deadband)
     return band
+
+
+def reading_quantum_m(changes_m: np.ndarray) -> float:
+    """A quantised reading's step from the changes between consecutive readings (the
+    depth's [m]): the smallest size that at least three of its reversals share (a change
+    whose next non-zero change goes the other way: an encoder read to the centimetre
+    that toggles between two counts at rest, 0.01 m); 0 where none repeats (a
+    continuous reading, whose noise :func:`depth_noise_m` measures, or a motion that
+    never turns back: the steps of a steady travel are no quantum).
+
+    >>> toggling = np.tile([300.0, 300.0, 300.01, 300.01], 10)
+    >>> steady = np.linspace(0.0, 1.0, 11)
+    >>> reading_quantum_m(np.diff(toggling)), reading_quantum_m(np.diff(steady))
+    (0.01, 0.0)
+    """
+    d1 = np.asarray(changes_m, dtype=np.float64)
+    d1 = d1[np.isfinite(d1) & (d1 != 0.0)]
+    turns = np.abs(d1[:-1][np.sign(d1[:-1]) != np.sign(d1[1:])])
+    if turns.size == 0:
+        return 0.0
+    sizes, counts = np.unique(np.round(turns, 9), return_counts=True)
+    shared = sizes[counts >= 3]
+    return float(shared[0]) if shared.size else 0.0
 
 
 def depth_noise_m(depth_m: np.ndarray) -> float:

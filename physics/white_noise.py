@@ -8,11 +8,14 @@ the second. The median absolute deviation about the median, x :data:`MAD_TO_SIGM
 estimates a normal distribution's standard deviation and ignores the few differences a
 step, a spike or a transient makes (the breakdown point is 50 %).
 
-Every noise estimate of the pipeline is this one: the pressures' spikes and the logged
+The noise estimates from differences are this one: the pressures' spikes and the logged
 x and depth (:mod:`transforms.compensation_record`, :mod:`transforms.filtering`,
 :func:`physics.conveyance.depth_noise_m`) and the discovery's pressure noise at
 standstill (:func:`discovery.segmentation.estimate_noise_sigma`, which picks the
-differences and falls back to their RMS for a coarse quantisation).
+differences and falls back to their RMS for a coarse quantisation). Not: the friction
+rig's settling test (:mod:`transforms.rig_friction`, the median of |differences|
+without centring, which the rig's calibration was measured with) and the ringing's
+robust RMS of a band-passed signal (:mod:`sims.logged_motion`).
 
 References
 ----------

@@ -230,8 +230,9 @@ class BlockCompensation(BlockSetup):
 
     def stick_slip_motion(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
         """Each piston's displacement and friction from its identified rope spring
-        (:mod:`transforms.stick_slip`; without a logged x the mean over the ropes' prior
-        spread, :func:`prior_mean`) over the first stage, and the frictions of the
+        (:mod:`transforms.stick_slip`; where nothing identifies the ropes the friction is
+        the mean over their prior spread, :func:`prior_mean`, the displacement that of
+        the ropes alike) over the first stage, and the frictions of the
         band's members (:func:`~transforms.stick_slip_band.band_solutions`; at the sensors'
         rate, or on means with ``band_member_step_s``: :meth:`member_spreads`); the
         frictions are kept for the ropes' jobs. NaN outside the stage. Blind motion:

@@ -20,6 +20,7 @@ import polars as pl
 from numba import njit
 
 from physics.closed_volume import COMMON_MODE_STATE_SIZE
+from physics.conveyance import reading_quantum_m
 from physics.trip_rule import LABEL_STATE_SIZE, STANDSTILL_SPEED_M_S
 from physics.white_noise import difference_noise_sigma
 from schemas.hoist import HoistDescription
@@ -270,8 +271,12 @@ class CompensationContext:
     has_x : bool
         Every rope's displacement is logged somewhere in the record.
     depth_sigma_m : float
-        The logged depth's white noise [m] (:func:`physics.conveyance.depth_noise_m`, on
-        the sample's consecutive triplets), the standstill of a speed taken from it.
+        The logged depth's white noise [m] (:func:`physics.white_noise.
+        difference_noise_sigma` of the second differences of the sample's consecutive
+        triplets), the standstill of a speed taken from it.
+    depth_quantum_m : float
+        The depth's reading step [m] (:func:`physics.conveyance.reading_quantum_m` of the
+        sample's consecutive pairs; 0: a continuous reading): one step is no motion.
     rope_springs : RopeSprings or None
         The head ropes' constants identified from the record
         (:mod:`transforms.rope_identification`), or where nothing identifies them (no
@@ -291,6 +296,7 @@ class CompensationContext:
     has_x: bool
     rope_springs: RopeSprings | None = None
     depth_sigma_m: float = 0.0
+    depth_quantum_m: float = 0.0
 
 
 def calibrated(frame: pl.DataFrame, column: str, hoist: HoistDescription) -> np.ndarray:
@@ -514,6 +520,7 @@ def compensation_context(
         spike_sigma=spike_sigma,
         displacement_sigma_m=tuple(displacement_sigma),
         depth_sigma_m=difference_noise_sigma(depth_d2, 2),
+        depth_quantum_m=reading_quantum_m(depth[pair + 1] - depth[pair]),
         typical_pressure_pa=typical,
         has_x=has_x,
         rope_springs=springs,

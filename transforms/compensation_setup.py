@@ -157,6 +157,7 @@ class BlockSetup:
             self.time_s, speed, float_column(self.frame["depth_m"]), self.segment,
             dt_s=self.dt_nominal, window_s=self.settings.acceleration_window_s,
             depth_sigma_m=self.context.depth_sigma_m,
+            depth_quantum_m=self.context.depth_quantum_m,
         )  # fmt: skip
         filled = pl.Series("speed_m_s", speed, dtype=pl.Float64).fill_nan(None)
         self.frame = self.frame.with_columns(filled.cast(logged.dtype))

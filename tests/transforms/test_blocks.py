@@ -281,9 +281,10 @@ def test_reconciliation_and_alarms_from_blocks_equal_whole_record(record: pl.Dat
 
 
 def test_blocks_equal_whole_record_without_speed(record: pl.DataFrame) -> None:
-    """No speed logged: the speed is the depth's derivative, its standstill at 4 x the
-    scatter the depth's noise gives it (physics.conveyance.conveyance_speed), that noise
-    the record's (CompensationContext.depth_sigma_m), not each block's own."""
+    """No speed logged: the speed is the depth's derivative, its standstill within
+    DEADBAND_SIGMAS x the scatter the depth's noise gives it (physics.conveyance.
+    conveyance_speed), that noise the record's (CompensationContext.depth_sigma_m), not
+    each block's own."""
     noise = np.random.default_rng(11).normal(0.0, 0.005, record.height)
     no_speed = record.with_columns(
         pl.lit(None, dtype=pl.Float64).alias("speed_m_s"),

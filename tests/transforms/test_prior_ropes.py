@@ -225,4 +225,5 @@ def test_a_single_spike_in_a_logged_x_at_rest_is_no_motion():
     x1[1500] += 2e-3
     spiky = logged.with_columns(pl.Series("x1_m", x1))
     springs = _context(spiky, CompensationSettings()).rope_springs
-    assert springs is not None and springs.prior_sigma > 0
+    assert springs is not None
+    assert springs.prior_sigma > 0

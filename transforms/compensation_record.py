@@ -488,9 +488,14 @@ def compensation_context(
     # than raw, its band holding 65-82 % of them at 4.2-4.7 % half-width; the prior's
     # (ignoring x) 0.8-3.5 %, 0-2, 98-100 % at 0.6-1.8 %; but those days' grooves are
     # alike and their ropes identify.
-    # on each triplet's median: a single-sample spike of a transducer at rest (what the
-    # despiking removes; the identification's 0.2 s means average it away) is no motion
-    moved = has_x and pistons_moved(tuple(_triplet_medians(x, triple) for x in logged))
+    # the motion the identification saw, on its 0.2 s means (a transducer's noise and
+    # single-sample spikes averaged away); not asked, on each of the sample's triplets'
+    # median (a single-sample spike at rest, which the despiking removes, is no motion)
+    if means is not None:
+        seen = tuple(float_column(means[c]) for c in x_cols if c in means.columns)
+    else:
+        seen = tuple(_triplet_medians(x, triple) for x in logged)
+    moved = has_x and pistons_moved(seen)
     unidentified = springs is None and settings.rope_springs and not moved
     stated = hoist.ropes.head_rope_stiffness_factors
     if stated is not None and len(stated) != len(ROPES):

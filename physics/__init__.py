@@ -24,7 +24,8 @@ eq 2, T = p_chamber A + F
     :func:`physics.rope_spring.seal_on_rope_step`, :func:`~physics.rope_spring.
     head_rope_stiffness_n_m`; with Maxwell-slip elements :func:`~physics.rope_spring.
     elements_on_rope_step`, their virgin state :func:`physics.maxwell_slip.
-    maxwell_slip_virgin` -- tests/transforms/test_stick_slip.py,
+    maxwell_slip_virgin`; a worn groove's payout (contract 4, ``groove_wear``)
+    :func:`~physics.rope_spring.groove_payout_m` -- tests/transforms/test_stick_slip.py,
     tests/physics/test_rope_spring.py
 eq 3-4 with Table 2, sum of T = (m_c + m_p + m_t(z)) (g + a)
     :func:`physics.tension.expected_load_n`, :func:`~physics.tension.tail_rope_mass_kg`,
@@ -76,6 +77,9 @@ the conveyance's motion (not printed), its speed where the log lacks it
     :func:`physics.conveyance.conveyance_speed` (the depth's derivative), the smoothed
     derivative every step takes :func:`~physics.conveyance.smoothed_derivative`
     -- tests/physics/test_conveyance.py, tests/discovery/test_segmentation.py
+white noise from differences (not printed; von Neumann et al. 1941, the MAD's 1.4826)
+    :func:`physics.white_noise.difference_noise_sigma` -- its doctests,
+    tests/discovery/test_planning.py
 
 Errata are corrected where the equation is written: eq 10 and eq 11
 (:mod:`physics.two_cylinder`), the name of eq 15 (:mod:`physics.lugre`), eq 17's

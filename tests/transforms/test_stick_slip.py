@@ -735,10 +735,10 @@ def test_the_device_simulations_worn_groove_is_the_one_the_solution_holds():
     """ropeload's device simulation (its own equations: consistency, not accuracy) of a
     hoist whose rope 3 runs in a groove 0.1 mm wider, x logged to a 0.1 mm step: the
     described ropes' stick-slip x matches the logged x best with the deviation as
-    declared (0.3 mm RMS over 0.2 s means), ten times better than without the wear.
-    (The ropes' identification on such a record does not find them yet: on the
-    search's 0.4-2 s strides a piston that slides through a whole trip is solved coarsely
-    and other ropes match better; it then gives none, and the logged x is shared out.)"""
+    declared (0.3 mm RMS over 0.2 s means), ten times better than without the wear; the
+    identification, on its finer strides for a worn groove (rope_identification.
+    WORN_GROOVE_COARSE_S), finds the ropes alike (the simulation's), and without the
+    wear declared finds none (the logged x is then shared out)."""
     from sims.field_day import generate_field_day
 
     day = generate_field_day(_worn((0.0, 0.0, 1e-4, 0.0)), date="2026-03-02", seed=5,
@@ -763,3 +763,8 @@ def test_the_device_simulations_worn_groove_is_the_one_the_solution_holds():
     assert min(rms, key=rms.get) == 1.0
     assert rms[1.0] < 0.5e-3
     assert rms[0.0] > 10 * rms[1.0]
+    worn = identify_from_means(means, _worn((0.0, 0.0, 1e-4, 0.0)))
+    assert worn is not None
+    assert worn.stiffness_factors == pytest.approx((1.0,) * 4, abs=0.01)
+    assert worn.mismatch_m < 0.1e-3
+    assert identify_from_means(means, HOIST) is None

@@ -46,7 +46,9 @@ Reading of the regulations (paraphrased; check the current text before relying o
   :data:`SENSOR_DISAGREEMENT_FRACTION` for ``flatline_duration``: the pipes equalise the chambers at
   rest, contract 1a, so that is the sensor, not the oil; the stick-slip compensation
   takes the others' mean for it at those samples, :func:`transforms.compensation_record.
-  disagreeing_as_unknown`, and its rope's tension still shows the reading).
+  disagreeing_as_unknown`, and its rope's tension still shows the reading, its band and
+  the load's reaching the others' reading too, :func:`transforms.uncertainty.
+  disagreeing_sensor_shifts`).
 
 Debounce: a condition must hold ``min_duration`` before an alarm starts (the reported
 start is where the condition began); once started, the alarm lasts while the condition

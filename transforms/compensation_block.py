@@ -241,11 +241,16 @@ class BlockCompensation(BlockSetup):
         rest = at_rest(self.frame)
         # a filtered step reaches 3 / cut-off seconds either side
         reach = int(np.ceil(3.0 * self.settings.sample_rate_hz / self.settings.pressure_cutoff_hz))
+        given = tuple(job.result() for job in self.p_jobs)
         pressures = disagreeing_as_unknown(
-            tuple(job.result() for job in self.p_jobs), rest,
-            self.disagreement.disagreement_fraction, reach,
+            given, rest, self.disagreement.disagreement_fraction, reach,
             self.disagreement.disagreement_floor_pa,
         )  # fmt: skip
+        if pressures[0] is not given[0]:  # a sensor off the others at rest: the bands
+            # reach the others' reading too (transforms.uncertainty.disagreeing_sensor_shifts)
+            self.off_sensors = tuple(
+                np.isnan(p) & np.isfinite(g) for p, g in zip(pressures, given, strict=True)
+            )
         logged = tuple(job.result() for job in self.x_jobs)
         if not np.isfinite(springs.mismatch_m):  # not identified from this record (the
             # description's ropes or their prior spread): no length offsets, so an x
@@ -637,6 +642,7 @@ class BlockCompensation(BlockSetup):
         its differential displacement while the common mode is still being integrated.
         """
         self.common_mode: Future[np.ndarray] = Future()
+        self.off_sensors: tuple[np.ndarray, ...] | None = None
         workers = min(len(ROPES), os.cpu_count() or 1)
         with ThreadPoolExecutor(max_workers=workers) as pool:
             kinematics_job = pool.submit(self.kinematics)
@@ -668,9 +674,11 @@ class BlockCompensation(BlockSetup):
         members = None
         if self.mode == 3:  # the load's band: the members' frictions summed member by member
             members = [sum(f[k][core] for k in range(len(ROPES))) for f in self.member_friction]
+        off = None if self.off_sensors is None else [o[core] for o in self.off_sensors]
         frame = block_frame(rows, np.negative(accel[core]), labels, pressures, columns,
                             p_mean[core], sigma_n, load_members=members,
-                            member_sources=self.member_sources if members else None)  # fmt: skip
+                            member_sources=self.member_sources if members else None,
+                            off_sensors=off, area_m2=self.hoist.cylinders.bore_area_m2)  # fmt: skip
         return frame, self.nxt
 
 

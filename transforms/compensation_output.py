@@ -14,7 +14,12 @@ from schemas.tables import ROPE_TENSIONS, polars_schema
 from transforms.compensation_kernels import load_kernel
 from transforms.compensation_record import rope_cols
 from transforms.stick_slip_band import BAND_SOURCES
-from transforms.uncertainty import ensemble_band, load_band
+from transforms.uncertainty import (
+    disagreeing_sensor_shifts,
+    ensemble_band,
+    load_band,
+    widen_for_shifts,
+)
 
 __all__ = ["OUTPUT_SCHEMA", "block_frame"]
 
@@ -40,6 +45,8 @@ def block_frame(
     *,
     load_members: list[np.ndarray] | None = None,
     member_sources: tuple[int, ...] | None = None,
+    off_sensors: list[np.ndarray] | None = None,
+    area_m2: float = 0.0,
 ) -> pl.DataFrame:
     """The block's ``ROPE_TENSIONS`` rows.
 
@@ -49,7 +56,11 @@ def block_frame(
     overwritten with the raw load; ``gaussian_sigma_n`` = (relative friction sigma,
     pressure noise [N]) of the band; ``load_members`` the summed frictions of the
     stick-slip band's members (:func:`transforms.uncertainty.ensemble_band`), if any,
-    ``member_sources`` the source of each (its ``groups``).
+    ``member_sources`` the source of each (its ``groups``); ``off_sensors`` where each
+    sensor departs from the others at rest (:func:`transforms.compensation_record.
+    disagreeing_as_unknown`), whose rope's band and the load's then reach the others'
+    reading too (:func:`transforms.uncertainty.disagreeing_sensor_shifts`, ``area_m2``
+    the piston's).
     """
     load = np.empty(rows.height)
     load_kernel(
@@ -80,6 +91,14 @@ def block_frame(
             frictions,
             gaussian_sigma_n=gaussian_sigma_n,
         )
+    if off_sensors is not None:
+        shifts = disagreeing_sensor_shifts(pressures, off_sensors, area_m2)
+        for i, shift in zip(rope_cols("{i}"), shifts, strict=True):
+            lo, hi = f"tension{i}_lo_n", f"tension{i}_hi_n"
+            columns[lo], columns[hi] = widen_for_shifts(
+                columns[f"tension{i}_n"], columns[lo], columns[hi], shift
+            )
+        load_lo, load_hi = widen_for_shifts(load, load_lo, load_hi, sum(shifts))
     p_cols = rope_cols("p{i}_pa")
     out: dict[str, pl.Series] = {
         "time_utc": rows["time_utc"],

@@ -64,7 +64,14 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["Z95", "ensemble_band", "load_band", "rope_band"]
+__all__ = [
+    "Z95",
+    "disagreeing_sensor_shifts",
+    "ensemble_band",
+    "load_band",
+    "rope_band",
+    "widen_for_shifts",
+]
 
 #: Two-sided 95 % coverage factor of a normal distribution.
 Z95 = 1.959963984540054
@@ -344,3 +351,46 @@ def _ensemble_band_kernel(
         noise = Z95 * sigma
         lo[t] = value[t] - np.sqrt(down) - noise
         hi[t] = value[t] + np.sqrt(up) + noise
+
+
+def disagreeing_sensor_shifts(
+    pressures: list[np.ndarray], off: list[np.ndarray], area_m2: float
+) -> list[np.ndarray]:
+    """Each rope's tension shift [N] were its sensor, where it departs from the others at
+    rest (``off``: :func:`transforms.compensation_record.disagreeing_as_unknown`'s
+    samples), reading the mean of those that do not: the pipes equalise the chambers at
+    rest (contract 1a), so it is the sensor or the oil, and the record cannot say which
+    (the ``sensor_disagreement`` alarm names it). The rope's tension keeps its reading;
+    its band, and the load's, reach the other answer too (:func:`widen_for_shifts`).
+    0 where the sensor agrees, or no other is known.
+
+    >>> p = [np.full(3, 4e6), np.full(3, 4e6), np.array([4e6, 4.4e6, 4e6])]
+    >>> off = [np.zeros(3, bool), np.zeros(3, bool), np.array([False, True, False])]
+    >>> [float(v) for v in disagreeing_sensor_shifts(p, off, 0.01)[2]]
+    [0.0, -4000.0, 0.0]
+    """
+    p = np.vstack(pressures)
+    flagged = np.vstack(off)
+    good = ~flagged & np.isfinite(p)
+    count = good.sum(axis=0)
+    others = np.where(good, p, 0.0).sum(axis=0) / np.maximum(count, 1)
+    return [
+        np.where(flagged[k] & (count > 0) & np.isfinite(p[k]), (others - p[k]) * area_m2, 0.0)
+        for k in range(p.shape[0])
+    ]
+
+
+def widen_for_shifts(
+    value: np.ndarray, lo: np.ndarray, hi: np.ndarray, shift: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``lo``, ``hi`` reaching ``value + shift`` too (an alternative the record cannot rule
+    out, e.g. :func:`disagreeing_sensor_shifts`); as they are where ``shift`` is 0.
+
+    >>> lo, hi = widen_for_shifts(np.array([10.0, 10.0]), np.array([9.0, 9.0]),
+    ...                           np.array([11.0, 11.0]), np.array([0.0, -3.0]))
+    >>> lo.tolist(), hi.tolist()
+    ([9.0, 7.0], [11.0, 11.0])
+    """
+    other = value + shift
+    moved = shift != 0.0
+    return np.where(moved, np.fmin(lo, other), lo), np.where(moved, np.fmax(hi, other), hi)

@@ -157,7 +157,8 @@ def test_a_sensor_off_the_others_at_rest_does_not_move_the_other_seals():
     solution takes the others' mean for it there (and as far either side as the
     low-pass filter spreads the step), so seals 2-4 keep the friction they have without
     the fault (every seal moved to explain it before: up to 2.4 kN here, the other ropes 10 %
-    off on a probe's record), and rope 1's tension still shows its reading."""
+    off on a probe's record), and rope 1's tension still shows its reading, its band and
+    the load's reaching what the others read too."""
     import dataclasses
 
     from transforms.compensation import (
@@ -188,3 +189,17 @@ def test_a_sensor_off_the_others_at_rest_does_not_move_the_other_seals():
     assert abs(a["friction2_n"][900] - a["friction2_n"][100]) > 10.0  # the seals moved
     inside = b["tension_raw1_n"].to_numpy()[1050:1150] / a["tension_raw1_n"].to_numpy()[1050:1150]
     assert np.median(inside) == pytest.approx(1.2, rel=2e-3)
+    # the record cannot say whether it is the sensor or the oil: rope 1's band, and the
+    # load's, reach the others' reading too (their tension had sensor 1 read as they do:
+    # the healthy record's, within the filter's tail and the seal's few newtons)
+    core = slice(1050, 1150)
+    for name, healthy_values in (("tension1", a["tension1_n"]), ("load", a["load_n"])):
+        lo, hi = (b[f"{name}{s}_n"].to_numpy()[core] for s in ("_lo", "_hi"))
+        other = healthy_values.to_numpy()[core]
+        assert np.all(lo <= other + 5.0)
+        assert np.all(b[f"{name}_n"].to_numpy()[core] <= hi + 1.0)
+        assert np.all(hi - lo > 0.15 * 4e6 * AREA)  # ~20 % of a rope's tension, not a few %
+    # away from the fault the bands are the healthy record's
+    before = slice(600, 900)
+    for column in ("load_lo_n", "load_hi_n", "tension1_lo_n", "tension1_hi_n"):
+        np.testing.assert_allclose(b[column][before], a[column][before], rtol=1e-6)

@@ -240,14 +240,20 @@ def block_alarms(
     staged = pl.scan_parquet(files).select(_ALARM_COLUMNS)
 
     def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
-        rows = staged.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi))
-        if logged is not None:
-            sensors = logged.scan(lo, hi).select(
+        rows = staged.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi)).collect()
+        if logged is None:
+            return rows
+        sensors = (
+            logged.scan(lo, hi)
+            .select(
                 "time_utc",
                 *(pl.col(f"p{i}_pa").alias(LOGGED_PRESSURE.format(i=i)) for i in ROPES),
             )
-            rows = rows.join(sensors, on="time_utc", how="left", maintain_order="left")
-        return rows.collect()
+            .collect()
+        )
+        if sensors["time_utc"].equals(rows["time_utc"]):  # the staged rows are the logged
+            return rows.hstack(sensors.drop("time_utc"))  # ones, in order: no join needed
+        return rows.join(sensors, on="time_utc", how="left", maintain_order="left")
 
     return evaluate_alarms_in_blocks(
         read,

@@ -33,7 +33,9 @@ __all__ = [
     "conveyance_speed",
     "depth_noise_m",
     "longest_unlogged_s",
+    "quantum_of_turns",
     "reading_quantum_m",
+    "reading_turns",
     "smoothed_derivative",
 ]
 
@@ -358,27 +360,53 @@ def _deadband(
     return band
 
 
+def reading_turns(changes_m: np.ndarray, keep: int = 64) -> tuple[np.ndarray, np.ndarray]:
+    """(sizes, counts) of a reading's reversals (a change whose next non-zero change goes
+    the other way), sizes rounded to 1e-9, the ``keep`` smallest: what
+    :func:`reading_quantum_m` reads, and what parts of a record read apart add up to
+    (:func:`quantum_of_turns` of their concatenation).
+
+    >>> reading_turns(np.diff([0.0, 0.01, 0.0, 0.01, 0.03, 0.01]))
+    (array([0.01, 0.02]), array([2, 1]))
+    """
+    d1 = np.asarray(changes_m, dtype=np.float64)
+    d1 = d1[np.isfinite(d1) & (d1 != 0.0)]
+    turns = np.abs(d1[:-1][np.sign(d1[:-1]) != np.sign(d1[1:])])
+    sizes, counts = np.unique(np.round(turns, 9), return_counts=True)
+    return sizes[:keep], counts[:keep]
+
+
+def quantum_of_turns(sizes: np.ndarray, counts: np.ndarray) -> float:
+    """The smallest reversal size that at least three reversals share, 0 if none: sizes
+    and counts of :func:`reading_turns`, of one record or of its parts concatenated
+    (a size listed by several parts counts their sum).
+
+    >>> quantum_of_turns(np.array([0.01, 0.02, 0.01]), np.array([2, 1, 1]))
+    0.01
+    """
+    sizes, counts = np.asarray(sizes, dtype=np.float64), np.asarray(counts)
+    if sizes.size == 0:
+        return 0.0
+    unique, where = np.unique(sizes, return_inverse=True)
+    total = np.bincount(where, weights=counts)
+    shared = unique[total >= 3]
+    return float(shared[0]) if shared.size else 0.0
+
+
 def reading_quantum_m(changes_m: np.ndarray) -> float:
     """A quantised reading's step from the changes between consecutive readings (the
-    depth's [m]): the smallest size that at least three of its reversals share (a change
-    whose next non-zero change goes the other way: an encoder read to the centimetre
-    that toggles between two counts at rest, 0.01 m); 0 where none repeats (a
-    continuous reading, whose noise :func:`depth_noise_m` measures, or a motion that
-    never turns back: the steps of a steady travel are no quantum).
+    depth's [m]): the smallest size that at least three of its reversals share
+    (:func:`reading_turns`; an encoder read to the centimetre that toggles between two
+    counts at rest, 0.01 m); 0 where none repeats (a continuous reading, whose noise
+    :func:`depth_noise_m` measures, or a motion that never turns back: the steps of a
+    steady travel are no quantum).
 
     >>> toggling = np.tile([300.0, 300.0, 300.01, 300.01], 10)
     >>> steady = np.linspace(0.0, 1.0, 11)
     >>> reading_quantum_m(np.diff(toggling)), reading_quantum_m(np.diff(steady))
     (0.01, 0.0)
     """
-    d1 = np.asarray(changes_m, dtype=np.float64)
-    d1 = d1[np.isfinite(d1) & (d1 != 0.0)]
-    turns = np.abs(d1[:-1][np.sign(d1[:-1]) != np.sign(d1[1:])])
-    if turns.size == 0:
-        return 0.0
-    sizes, counts = np.unique(np.round(turns, 9), return_counts=True)
-    shared = sizes[counts >= 3]
-    return float(shared[0]) if shared.size else 0.0
+    return quantum_of_turns(*reading_turns(changes_m))
 
 
 def depth_noise_m(depth_m: np.ndarray) -> float:

@@ -38,6 +38,7 @@ import itertools
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+import numpy as np
 import polars as pl
 
 from schemas.hoist import HoistDescription
@@ -51,7 +52,7 @@ from transforms.compensation import (
     context_sample,
     context_stride,
 )
-from transforms.compensation_record import identification_means
+from transforms.compensation_record import depth_turns, identification_means
 from transforms.rope_identification import IDENTIFY_SPAN
 
 __all__ = ["DEFAULT_BLOCK", "block_edges", "compensate_blocks", "record_context"]
@@ -152,8 +153,14 @@ def record_context(
     settings = settings or CompensationSettings()
     stride = context_stride(rows)
     parts, early, offset = [], [], 0
+    sizes, counts = [], []  # the depth's reversals, block by block (a turn across an
+    # edge is not counted: the step is found three times over)
     for lo, hi in block_edges(start, end, block):
         frame = read(lo, hi)
+        turns = depth_turns(frame)
+        if turns is not None:
+            sizes.append(turns[0])
+            counts.append(turns[1])
         parts.append(context_sample(frame, stride, offset=offset).collect())
         if settings.rope_springs and lo < start + IDENTIFY_SPAN:  # averaged once below
             early.append(frame.filter(pl.col("time_utc") < start + IDENTIFY_SPAN))
@@ -166,4 +173,5 @@ def record_context(
     return compensation_context(
         pl.concat(parts, how="vertical_relaxed"), hoist, settings, stride, means=means,
         cache_dir=cache_dir,
+        depth_turns=(np.concatenate(sizes), np.concatenate(counts)) if sizes else None,
     )  # fmt: skip

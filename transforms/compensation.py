@@ -71,6 +71,7 @@ from transforms.compensation_record import (
     compensation_margins_s,
     context_sample,
     context_stride,
+    depth_turns,
     displacement_noise_sigma,
     identification_means,
     logger_rate_hz,
@@ -141,6 +142,7 @@ def compensate(
             if settings.rope_springs
             else None
         ),
+        depth_turns=depth_turns(frame),
     )  # fmt: skip
     result, _ = compensate_window(frame, hoist, context=context, settings=settings)
     return result

@@ -20,7 +20,7 @@ import polars as pl
 from numba import njit
 
 from physics.closed_volume import COMMON_MODE_STATE_SIZE
-from physics.conveyance import reading_quantum_m
+from physics.conveyance import quantum_of_turns, reading_turns
 from physics.trip_rule import LABEL_STATE_SIZE, STANDSTILL_SPEED_M_S
 from physics.white_noise import difference_noise_sigma
 from schemas.hoist import HoistDescription
@@ -55,6 +55,7 @@ __all__ = [
     "context_sample",
     "context_stride",
     "departure_from_median",
+    "depth_turns",
     "disagreeing_as_unknown",
     "displacement_noise_sigma",
     "float_column",
@@ -275,8 +276,8 @@ class CompensationContext:
         difference_noise_sigma` of the second differences of the sample's consecutive
         triplets), the standstill of a speed taken from it.
     depth_quantum_m : float
-        The depth's reading step [m] (:func:`physics.conveyance.reading_quantum_m` of the
-        sample's consecutive pairs; 0: a continuous reading): one step is no motion.
+        The depth's reading step [m] (:func:`physics.conveyance.reading_quantum_m` of
+        every row's changes; 0: a continuous reading): one step is no motion.
     rope_springs : RopeSprings or None
         The head ropes' constants identified from the record
         (:mod:`transforms.rope_identification`), or where nothing identifies them (no
@@ -297,6 +298,15 @@ class CompensationContext:
     rope_springs: RopeSprings | None = None
     depth_sigma_m: float = 0.0
     depth_quantum_m: float = 0.0
+
+
+def depth_turns(frame: pl.DataFrame) -> tuple[np.ndarray, np.ndarray] | None:
+    """The reversals of every row's logged depth (:func:`physics.conveyance.
+    reading_turns`; ``frame`` sorted by time, a block of the record or all of it), None
+    without a depth column: ``compensation_context``'s ``depth_turns``."""
+    if "depth_m" not in frame.columns:
+        return None
+    return reading_turns(np.diff(float_column(frame["depth_m"])))
 
 
 def calibrated(frame: pl.DataFrame, column: str, hoist: HoistDescription) -> np.ndarray:
@@ -431,11 +441,14 @@ def compensation_context(
     *,
     means: pl.DataFrame | None = None,
     cache_dir: Path | None = None,
+    depth_turns: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> CompensationContext:
     """:class:`CompensationContext` from a :func:`context_sample` of the record and, to
     identify the ropes, its :func:`identification_means` (the
     ropes remembered in ``cache_dir``, :func:`~transforms.rope_identification.
-    identify_from_means`)."""
+    identify_from_means`); ``depth_turns`` the depth's reversals over every row
+    (:func:`physics.conveyance.reading_turns`, the parts' concatenated), else those of
+    the sample's pairs, which on a long record catch too few of an encoder's toggles."""
     row = sample["_row"].to_numpy()
     first = row % stride == 0
     pair = np.flatnonzero(first[:-1] & (row[1:] == row[:-1] + 1))
@@ -488,14 +501,12 @@ def compensation_context(
     # than raw, its band holding 65-82 % of them at 4.2-4.7 % half-width; the prior's
     # (ignoring x) 0.8-3.5 %, 0-2, 98-100 % at 0.6-1.8 %; but those days' grooves are
     # alike and their ropes identify.
-    # the motion the identification saw, on its 0.2 s means (a transducer's noise and
-    # single-sample spikes averaged away); not asked, on each of the sample's triplets'
-    # median (a single-sample spike at rest, which the despiking removes, is no motion)
-    if means is not None:
-        seen = tuple(float_column(means[c]) for c in x_cols if c in means.columns)
-    else:
-        seen = tuple(_triplet_medians(x, triple) for x in logged)
-    moved = has_x and pistons_moved(seen)
+    # motion on the sample's triplets' medians over the whole record (a single-sample
+    # spike at rest, which the despiking removes, is no motion), or on the
+    # identification's 0.2 s means of its first IDENTIFY_SPAN (what it saw)
+    moved = has_x and pistons_moved(tuple(_triplet_medians(x, triple) for x in logged))
+    if has_x and not moved and means is not None:
+        moved = pistons_moved(tuple(float_column(means[c]) for c in x_cols if c in means.columns))
     unidentified = springs is None and settings.rope_springs and not moved
     stated = hoist.ropes.head_rope_stiffness_factors
     if stated is not None and len(stated) != len(ROPES):
@@ -525,7 +536,9 @@ def compensation_context(
         spike_sigma=spike_sigma,
         displacement_sigma_m=tuple(displacement_sigma),
         depth_sigma_m=difference_noise_sigma(depth_d2, 2),
-        depth_quantum_m=reading_quantum_m(depth[pair + 1] - depth[pair]),
+        depth_quantum_m=quantum_of_turns(
+            *(reading_turns(depth[pair + 1] - depth[pair]) if depth_turns is None else depth_turns)
+        ),
         typical_pressure_pa=typical,
         has_x=has_x,
         rope_springs=springs,

@@ -21,11 +21,13 @@ from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from sims.field_day import generate_field_day
 from transforms.alarms import evaluate_alarms, evaluate_alarms_in_blocks
 from transforms.blocks import block_edges, compensate_blocks, record_context
-from transforms.compensation import (
-    compensate,
-)
+from transforms.compensation import compensate, compensation_context, context_sample
 from transforms.compensation_block import BlockCompensation
-from transforms.compensation_record import CompensationSettings, identification_means
+from transforms.compensation_record import (
+    CompensationSettings,
+    depth_turns,
+    identification_means,
+)
 from transforms.reconciliation import (
     reconcile,
     stint_partials,
@@ -294,3 +296,46 @@ def test_blocks_equal_whole_record_without_speed(record: pl.DataFrame) -> None:
     _assert_same(whole, _blocks(no_speed))
     logged = compensate(record, HOIST)
     assert whole["trip_id"].drop_nulls().n_unique() == logged["trip_id"].drop_nulls().n_unique()
+
+
+def test_a_depth_read_to_the_centimetre_is_seen_on_every_row_not_the_sample():
+    """At rest, no speed logged, the depth read to the centimetre and toggling by one
+    count now and then: the reading's step (CompensationContext.depth_quantum_m, one
+    step is no motion) is taken from every row's changes, whole or block by block, not
+    from the context's sample, which on a long record (one row pair in 14 for a day at
+    100 Hz) catches too few toggles (26 trips in 8 h at rest, a review found); here
+    the sample's pairs are thinned to one in 14 by hand."""
+    rate, n = 100.0, 60_000
+    start = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
+    depth = np.full(n, 300.0)
+    rng = np.random.default_rng(4)
+    for s in rng.integers(0, n - 200, 15):
+        depth[s : s + rng.integers(5, 100)] += 0.01
+    frame = pl.DataFrame(
+        {
+            "time_utc": pl.datetime_range(start, start + dt.timedelta(seconds=(n - 1) / rate),
+                                          dt.timedelta(seconds=1 / rate), eager=True,
+                                          time_zone="UTC"),
+            **{f"p{i}_pa": 4.5e6 + rng.normal(0.0, 2e3, n) for i in range(1, 5)},
+            **{f"x{i}_m": pl.Series([None] * n, dtype=pl.Float64) for i in range(1, 5)},
+            "depth_m": depth,
+            "speed_m_s": pl.Series([None] * n, dtype=pl.Float64),
+            "oil_temp_c": np.full(n, 35.0),
+        }
+    )  # fmt: skip
+    settings = CompensationSettings(rope_springs=False)
+    sample = context_sample(frame, 14).collect()
+    thinned = compensation_context(sample, HOIST, settings, 14)
+    assert thinned.depth_quantum_m == 0.0  # the sample's pairs miss the step
+    every_row = compensation_context(sample, HOIST, settings, 14, depth_turns=depth_turns(frame))
+    assert every_row.depth_quantum_m == pytest.approx(0.01)
+
+    def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
+        return frame.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi))
+
+    end = start + dt.timedelta(seconds=n / rate)
+    blocks = record_context(read, HOIST, start=start, end=end, rows=n, block=BLOCK,
+                            settings=settings)  # fmt: skip
+    assert blocks.depth_quantum_m == pytest.approx(0.01)
+    out = compensate(frame, HOIST, settings=settings)
+    assert out["trip_id"].drop_nulls().n_unique() == 0

@@ -231,3 +231,36 @@ def test_a_single_spike_in_a_logged_x_at_rest_is_no_motion(caplog):
     with caplog.at_level("WARNING", logger="transforms.compensation_record"):
         compensate(spiky, HOIST)
     assert "prior spread" in caplog.text
+
+
+def test_a_logged_x_that_moves_after_the_identifications_span_is_followed():
+    """x still for the identification's first IDENTIFY_SPAN (2 h), then the pistons
+    slide apart: the record's x shows motion, so it is not taken for a record at rest
+    (the share-out follows it; the prior would ignore it)."""
+    from transforms.compensation import identification_means
+
+    rate = 10.0
+    n = int(2.5 * 3600 * rate)
+    t = np.arange(n) / rate
+    start = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
+    late = np.clip(t - 2.2 * 3600, 0.0, None) * 2e-3
+    frame = pl.DataFrame(
+        {
+            "time_utc": pl.datetime_range(start, start + dt.timedelta(seconds=(n - 1) / rate),
+                                          dt.timedelta(seconds=1 / rate), eager=True,
+                                          time_zone="UTC"),
+            **{f"p{i}_pa": np.full(n, 4.5e6) for i in range(1, 5)},
+            **{f"x{i}_m": 0.1 + sign * late
+               for i, sign in zip(range(1, 5), (1, 1, -1, -1), strict=True)},
+            "depth_m": np.zeros(n),
+            "speed_m_s": np.zeros(n),
+            "oil_temp_c": np.full(n, 35.0),
+        }
+    )  # fmt: skip
+    settings = CompensationSettings()
+    stride = context_stride(n)
+    means = identification_means(frame, start, HOIST, settings)
+    context = compensation_context(
+        context_sample(frame, stride).collect(), HOIST, settings, stride, means=means
+    )
+    assert context.rope_springs is None  # the share-out

@@ -458,24 +458,30 @@ def longest_unlogged_s(time_s: np.ndarray, speed: np.ndarray, lo_s: float, hi_s:
     >>> gap = np.r_[np.arange(0.0, 5.0, 0.1), np.arange(6.5, 10.0, 0.1)]  # 1.5 s, no rows
     >>> longest_unlogged_s(gap, np.ones(gap.size), 0.0, 10.0)
     0.0
+    >>> beside = np.where((gap > 4.75) & (gap < 5.0), np.nan, 1.0)  # two rows before it
+    >>> round(longest_unlogged_s(gap, beside, 0.0, 10.0), 1)
+    0.2
     """
     t = np.asarray(time_s, dtype=np.float64)
     # the window by bisection (``time_s`` increasing): a check per trip of a day-long
     # record reads its trip's samples, not the day's
     a, b = np.searchsorted(t, lo_s, side="left"), np.searchsorted(t, hi_s, side="right")
-    window = np.asarray(speed[a:b], dtype=np.float64)
-    at = np.flatnonzero(np.isfinite(window))
-    if at.size == 0:
-        return float(hi_s - lo_s) if b > a else 0.0
-    logged = t[a:b][at]
-    edges = np.concatenate([[lo_s], logged, [hi_s]])
-    gaps = np.diff(edges)
-    # rows without a speed between the edges (the ends: rows before the first logged
-    # sample, after the last)
-    missing = np.diff(np.concatenate([[-1], at, [b - a]])) > 1
-    gaps = gaps[missing]
-    if gaps.size == 0:
+    if b <= a:
         return 0.0
+    rows = t[a:b]
+    # the window's ends stand as logged samples; a stretch runs from the logged sample
+    # before its rows without a speed to the one after, its logger gaps (steps over 3 x
+    # the median, a missing row's two) left out
+    times = np.concatenate([[lo_s], rows, [hi_s]])
+    logged = np.concatenate([[True], np.isfinite(np.asarray(speed[a:b], dtype=np.float64)), [True]])
+    steps = np.diff(times)
+    step = float(np.median(np.diff(rows))) if rows.size > 1 else 0.0
+    counted = np.where(steps > 3.0 * step, 0.0, steps) if step > 0.0 else steps
+    elapsed = np.concatenate([[0.0], np.cumsum(counted)])
+    at = np.flatnonzero(logged)
+    holes = np.flatnonzero(np.diff(at) > 1)  # logged neighbours with rows between them
+    if holes.size == 0:
+        return 0.0
+    longest = float(np.max(elapsed[at[holes + 1]] - elapsed[at[holes]]))
     # a sample's own spacing is no hole: count only beyond the logged neighbours
-    step = float(np.median(np.diff(t[a:b]))) if b - a > 1 else 0.0
-    return float(gaps.max()) if gaps.max() > 1.5 * step else 0.0
+    return longest if longest > 1.5 * step else 0.0

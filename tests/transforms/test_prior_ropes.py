@@ -264,3 +264,20 @@ def test_a_logged_x_that_moves_after_the_identifications_span_is_followed():
         context_sample(frame, stride).collect(), HOIST, settings, stride, means=means
     )
     assert context.rope_springs is None  # the share-out
+
+
+def test_a_large_lone_spike_of_a_logged_x_at_rest_identifies_nothing(caplog):
+    """A 6 mm spike of one transducer for one sample at rest: its 0.2 s mean moves by
+    0.6 mm, beyond the identification's 0.5 mm gate, but a lone value is no motion
+    (the gate reads three consecutive means' median): no ropes identified from it, the
+    prior as without the spike."""
+    logged = _logged_x(_record(), 0.0)
+    x1 = logged["x1_m"].to_numpy().copy()
+    x1[1500] += 6e-3
+    spiky = logged.with_columns(pl.Series("x1_m", x1))
+    with caplog.at_level("WARNING", logger="transforms.compensation_record"):
+        out = compensate(spiky, HOIST)
+    assert "prior spread" in caplog.text
+    np.testing.assert_allclose(
+        out["load_n"], compensate(_record(), HOIST)["load_n"], rtol=0, atol=1e-6
+    )

@@ -140,12 +140,15 @@ POPSIZE, GENERATIONS, RESTARTS = 15, 60, 3
 SEEDS = (1,)
 #: Spacing of the means the global search and the polish take [s] (every k-th mean).
 COARSE_S, POLISH_S = 2.0, 0.4
-#: The same where the hoist declares a worn groove (:func:`_strides`): its pistons slide
-#: through whole trips, which the solution on 2 s strides follows coarsely. Measured on
-#: ropeload's device simulation of a hoist with one groove 0.1 mm wider (30 min, four
-#: trips): the true ropes 1.36 / 0.63 / 0.31 mm off the logged x on 2 / 0.4 / 0.2 s
-#: strides (0.05 mm at every stride without the wear), and the search on 2 / 0.4 s gave
-#: no ropes, on 0.4 / 0.2 s the truth's (0.075 mm) in 2.2 s instead of 1.4 s.
+#: The same where the hoist declares a worn groove (:func:`_strides`): the wear pushes a
+#: piston one way through every trip, and each swing of the ropes' ringing lets it slip
+#: a little further (its seal's hysteresis ratchets), which strides that do not see the
+#: ringing miss. Measured on ropeload's device simulation of a hoist with one groove
+#: 0.1 mm wider (30 min, four trips, ropes ringing at a damping ratio of 0.02): the true
+#: ropes 1.36 / 0.63 / 0.31 mm off the logged x on 2 / 0.4 / 0.2 s strides (0.05 mm at
+#: every stride without the wear; with the ringing damped out, 0.15 / 0.21 / 0.32 mm),
+#: and the search on 2 / 0.4 s gave no ropes, on 0.4 / 0.2 s the truth's (0.075 mm) in
+#: 2.2 s instead of 1.4 s.
 WORN_GROOVE_COARSE_S, WORN_GROOVE_POLISH_S = 0.4, 0.2
 #: The means' step (a polars duration) and how many of them the identification uses.
 MEAN_STEP = "200ms"

@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+from physics.conveyance import reading_turns
 from schemas.hoist import HoistDescription
 from transforms.compensation import (
     CompensationCarry,
@@ -52,7 +53,7 @@ from transforms.compensation import (
     context_sample,
     context_stride,
 )
-from transforms.compensation_record import depth_turns, identification_means
+from transforms.compensation_record import float_column, identification_means
 from transforms.rope_identification import IDENTIFY_SPAN
 
 __all__ = ["DEFAULT_BLOCK", "block_edges", "compensate_blocks", "record_context"]
@@ -153,14 +154,22 @@ def record_context(
     settings = settings or CompensationSettings()
     stride = context_stride(rows)
     parts, early, offset = [], [], 0
-    sizes, counts = [], []  # the depth's reversals, block by block (a turn across an
-    # edge is not counted: the step is found three times over)
+    sizes, counts = [], []  # the depth's reversals, block by block: each block's changes
+    # led by the previous block's last depth and its last non-zero change, so a change
+    # across an edge, and a turn there, count as they do in the whole record
+    last_depth, last_change = np.empty(0), np.empty(0)
     for lo, hi in block_edges(start, end, block):
         frame = read(lo, hi)
-        turns = depth_turns(frame)
-        if turns is not None:
+        if "depth_m" in frame.columns:
+            depth = float_column(frame["depth_m"])
+            changes = np.concatenate([last_change, np.diff(np.concatenate([last_depth, depth]))])
+            turns = reading_turns(changes)
             sizes.append(turns[0])
             counts.append(turns[1])
+            if depth.size:
+                last_depth = depth[-1:]
+            moved = changes[np.isfinite(changes) & (changes != 0.0)]
+            last_change = moved[-1:] if moved.size else last_change
         parts.append(context_sample(frame, stride, offset=offset).collect())
         if settings.rope_springs and lo < start + IDENTIFY_SPAN:  # averaged once below
             early.append(frame.filter(pl.col("time_utc") < start + IDENTIFY_SPAN))

@@ -21,7 +21,12 @@ from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from sims.field_day import generate_field_day
 from transforms.alarms import evaluate_alarms, evaluate_alarms_in_blocks
 from transforms.blocks import block_edges, compensate_blocks, record_context
-from transforms.compensation import compensate, compensation_context, context_sample
+from transforms.compensation import (
+    compensate,
+    compensation_context,
+    context_sample,
+    context_stride,
+)
 from transforms.compensation_block import BlockCompensation
 from transforms.compensation_record import (
     CompensationSettings,
@@ -339,3 +344,39 @@ def test_a_depth_read_to_the_centimetre_is_seen_on_every_row_not_the_sample():
     assert blocks.depth_quantum_m == pytest.approx(0.01)
     out = compensate(frame, HOIST, settings=settings)
     assert out["trip_id"].drop_nulls().n_unique() == 0
+
+
+def test_a_depth_toggle_across_a_blocks_edge_counts_as_in_the_whole_record():
+    """Two one-count excursions of the depth at rest, the first straddling a block's
+    edge: three reversals in the whole record (the step found), and as many block by
+    block (the change across the edge and its turn carried over)."""
+    rate, n = 10.0, 3 * 36_000
+    start = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
+    depth = np.full(n, 300.0)
+    depth[36_000 - 100 : 36_000 + 100] += 0.01
+    depth[90_000:90_050] += 0.01
+    rng = np.random.default_rng(1)
+    frame = pl.DataFrame(
+        {
+            "time_utc": pl.datetime_range(start, start + dt.timedelta(seconds=(n - 1) / rate),
+                                          dt.timedelta(seconds=1 / rate), eager=True,
+                                          time_zone="UTC"),
+            **{f"p{i}_pa": 4.5e6 + rng.normal(0.0, 2e3, n) for i in range(1, 5)},
+            **{f"x{i}_m": pl.Series([None] * n, dtype=pl.Float64) for i in range(1, 5)},
+            "depth_m": depth,
+            "speed_m_s": pl.Series([None] * n, dtype=pl.Float64),
+            "oil_temp_c": np.full(n, 35.0),
+        }
+    )  # fmt: skip
+    settings = CompensationSettings(rope_springs=False)
+    stride = context_stride(n)
+    whole = compensation_context(context_sample(frame, stride).collect(), HOIST, settings,
+                                 stride, depth_turns=depth_turns(frame))  # fmt: skip
+    assert whole.depth_quantum_m == pytest.approx(0.01)
+
+    def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
+        return frame.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi))
+
+    blocks = record_context(read, HOIST, start=start, end=start + dt.timedelta(seconds=n / rate),
+                            rows=n, block=dt.timedelta(hours=1), settings=settings)  # fmt: skip
+    assert blocks.depth_quantum_m == whole.depth_quantum_m

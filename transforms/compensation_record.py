@@ -504,7 +504,12 @@ def compensation_context(
     # motion on the sample's triplets' medians over the whole record (a single-sample
     # spike at rest, which the despiking removes, is no motion), or on the
     # identification's 0.2 s means of its first IDENTIFY_SPAN (what it saw)
-    moved = has_x and pistons_moved(tuple(_triplet_medians(x, triple) for x in logged))
+    # (the gate at least 8 x the transducer's measured noise there: a median of three
+    # keeps most of it, and a day's 66 000 triplets of 0.12 mm noise spanned 0.5 mm)
+    moved = has_x and any(
+        pistons_moved((_triplet_medians(x, triple),), least_m=max(0.5e-3, 8.0 * sigma))
+        for x, sigma in zip(logged, displacement_sigma, strict=True)
+    )
     if has_x and not moved and means is not None:
         moved = pistons_moved(tuple(float_column(means[c]) for c in x_cols if c in means.columns))
     unidentified = springs is None and settings.rope_springs and not moved

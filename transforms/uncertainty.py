@@ -362,22 +362,33 @@ def disagreeing_sensor_shifts(
     rest (contract 1a), so it is the sensor or the oil, and the record cannot say which
     (the ``sensor_disagreement`` alarm names it). The rope's tension keeps its reading;
     its band, and the load's, reach the other answer too (:func:`widen_for_shifts`).
-    0 where the sensor agrees, or no other is known.
+    Where every known sensor is flagged (two apart, two against two), the mean of the
+    other known ones; 0 where the sensor agrees, or no other is known.
 
     >>> p = [np.full(3, 4e6), np.full(3, 4e6), np.array([4e6, 4.4e6, 4e6])]
     >>> off = [np.zeros(3, bool), np.zeros(3, bool), np.array([False, True, False])]
     >>> [float(v) for v in disagreeing_sensor_shifts(p, off, 0.01)[2]]
     [0.0, -4000.0, 0.0]
+    >>> both = [np.array([4e6]), np.array([4.4e6])]  # two known, both flagged
+    >>> [float(v[0]) for v in disagreeing_sensor_shifts(both, [np.ones(1, bool)] * 2, 0.01)]
+    [4000.0, -4000.0]
     """
     p = np.vstack(pressures)
     flagged = np.vstack(off)
-    good = ~flagged & np.isfinite(p)
+    known = np.isfinite(p)
+    good = ~flagged & known
     count = good.sum(axis=0)
     others = np.where(good, p, 0.0).sum(axis=0) / np.maximum(count, 1)
-    return [
-        np.where(flagged[k] & (count > 0) & np.isfinite(p[k]), (others - p[k]) * area_m2, 0.0)
-        for k in range(p.shape[0])
-    ]
+    shifts = []
+    for k in range(p.shape[0]):
+        # every known sensor flagged (two apart, or two against two): the other ones'
+        rest = known & (np.arange(p.shape[0]) != k)[:, None]
+        n_rest = rest.sum(axis=0)
+        rest_mean = np.where(rest, p, 0.0).sum(axis=0) / np.maximum(n_rest, 1)
+        other = np.where(count > 0, others, rest_mean)
+        usable = flagged[k] & known[k] & ((count > 0) | (n_rest > 0))
+        shifts.append(np.where(usable, (other - p[k]) * area_m2, 0.0))
+    return shifts
 
 
 def widen_for_shifts(

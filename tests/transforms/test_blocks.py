@@ -303,6 +303,26 @@ def test_blocks_equal_whole_record_without_speed(record: pl.DataFrame) -> None:
     assert whole["trip_id"].drop_nulls().n_unique() == logged["trip_id"].drop_nulls().n_unique()
 
 
+def _at_rest_without_speed(
+    depth: np.ndarray, rate: float, start: dt.datetime, rng: np.random.Generator
+) -> pl.DataFrame:
+    """A record at rest with this depth, no speed and no x logged, pressures at 4.5 MPa
+    with 2 kPa of noise."""
+    n = depth.size
+    return pl.DataFrame(
+        {
+            "time_utc": pl.datetime_range(start, start + dt.timedelta(seconds=(n - 1) / rate),
+                                          dt.timedelta(seconds=1 / rate), eager=True,
+                                          time_zone="UTC"),
+            **{f"p{i}_pa": 4.5e6 + rng.normal(0.0, 2e3, n) for i in range(1, 5)},
+            **{f"x{i}_m": pl.Series([None] * n, dtype=pl.Float64) for i in range(1, 5)},
+            "depth_m": depth,
+            "speed_m_s": pl.Series([None] * n, dtype=pl.Float64),
+            "oil_temp_c": np.full(n, 35.0),
+        }
+    )  # fmt: skip
+
+
 def test_a_depth_read_to_the_centimetre_is_seen_on_every_row_not_the_sample():
     """At rest, no speed logged, the depth read to the centimetre and toggling by one
     count now and then: the reading's step (CompensationContext.depth_quantum_m, one
@@ -316,18 +336,7 @@ def test_a_depth_read_to_the_centimetre_is_seen_on_every_row_not_the_sample():
     rng = np.random.default_rng(4)
     for s in rng.integers(0, n - 200, 15):
         depth[s : s + rng.integers(5, 100)] += 0.01
-    frame = pl.DataFrame(
-        {
-            "time_utc": pl.datetime_range(start, start + dt.timedelta(seconds=(n - 1) / rate),
-                                          dt.timedelta(seconds=1 / rate), eager=True,
-                                          time_zone="UTC"),
-            **{f"p{i}_pa": 4.5e6 + rng.normal(0.0, 2e3, n) for i in range(1, 5)},
-            **{f"x{i}_m": pl.Series([None] * n, dtype=pl.Float64) for i in range(1, 5)},
-            "depth_m": depth,
-            "speed_m_s": pl.Series([None] * n, dtype=pl.Float64),
-            "oil_temp_c": np.full(n, 35.0),
-        }
-    )  # fmt: skip
+    frame = _at_rest_without_speed(depth, rate, start, rng)
     settings = CompensationSettings(rope_springs=False)
     sample = context_sample(frame, 14).collect()
     thinned = compensation_context(sample, HOIST, settings, 14)
@@ -356,18 +365,7 @@ def test_a_depth_toggle_across_a_blocks_edge_counts_as_in_the_whole_record():
     depth[36_000 - 100 : 36_000 + 100] += 0.01
     depth[90_000:90_050] += 0.01
     rng = np.random.default_rng(1)
-    frame = pl.DataFrame(
-        {
-            "time_utc": pl.datetime_range(start, start + dt.timedelta(seconds=(n - 1) / rate),
-                                          dt.timedelta(seconds=1 / rate), eager=True,
-                                          time_zone="UTC"),
-            **{f"p{i}_pa": 4.5e6 + rng.normal(0.0, 2e3, n) for i in range(1, 5)},
-            **{f"x{i}_m": pl.Series([None] * n, dtype=pl.Float64) for i in range(1, 5)},
-            "depth_m": depth,
-            "speed_m_s": pl.Series([None] * n, dtype=pl.Float64),
-            "oil_temp_c": np.full(n, 35.0),
-        }
-    )  # fmt: skip
+    frame = _at_rest_without_speed(depth, rate, start, rng)
     settings = CompensationSettings(rope_springs=False)
     stride = context_stride(n)
     whole = compensation_context(context_sample(frame, stride).collect(), HOIST, settings,

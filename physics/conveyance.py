@@ -332,7 +332,8 @@ def _deadband(
     is differentiated with (its own where the logger's rate changes), a segment shorter
     than the window at ``numpy.gradient``'s scatter, and at least the filter's response
     to one quantisation step ``q`` of the depth (an encoder read to the centimetre that
-    toggles between two counts at rest: 1.5 q / window, 0.03 m/s at 1 cm over 0.5 s)."""
+    toggles between two counts at rest: 1.5 q / window at its peak, 0.03 m/s at 1 cm
+    over 0.5 s; the band 2 q / window, so a peak at the band is not left to rounding)."""
     band = np.zeros(z.size)
     starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]]))
     bounds = [*starts.tolist(), z.size]
@@ -346,11 +347,13 @@ def _deadband(
             band[a:b] = max(DEADBAND_SIGMAS * np.sqrt(2.0) * sigma_z, q) / step
             continue
         # a least-squares slope over n samples scatters by sigma_z / (dt sqrt(n (n^2 - 1)
-        # / 12)); one quantisation step moves it by up to 1.5 q / (n dt)
+        # / 12)); one quantisation step moves it by up to 1.5 q / (n dt): the band 2 x
+        # q / (n dt), as a peak equal to the band came out a single-row trip or none
+        # by rounding (whole record against block by block, a review)
         n = max(window_s / step, 3.0)
         deadband = max(
             DEADBAND_SIGMAS * sigma_z / (step * np.sqrt(n * (n * n - 1.0) / 12.0)),
-            1.5 * q / (n * step),
+            2.0 * q / (n * step),
         )
         # within half a window of a segment's ends the filter fits one side only: its
         # slope scatters up to ~4 x as much (a noisy record's last 0.1 s was a trip)

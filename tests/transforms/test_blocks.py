@@ -375,6 +375,14 @@ def test_a_depth_toggle_across_a_blocks_edge_counts_as_in_the_whole_record():
     def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
         return frame.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi))
 
-    blocks = record_context(read, HOIST, start=start, end=start + dt.timedelta(seconds=n / rate),
-                            rows=n, block=dt.timedelta(hours=1), settings=settings)  # fmt: skip
+    end = start + dt.timedelta(seconds=n / rate)
+    blocks = record_context(read, HOIST, start=start, end=end, rows=n,
+                            block=dt.timedelta(hours=1), settings=settings)  # fmt: skip
     assert blocks.depth_quantum_m == whole.depth_quantum_m
+    # and no trip, whole or block by block (a one-count step's slope peaks at 1.5 x the
+    # step over the window, which a band at exactly that left to rounding)
+    trips = compensate(frame, HOIST, settings=settings)["trip_id"].drop_nulls().n_unique()
+    parts = compensate_blocks(read, HOIST, start=start, end=end, context=blocks,
+                              settings=settings, block=dt.timedelta(hours=1))  # fmt: skip
+    assert trips == 0
+    assert pl.concat(list(parts))["trip_id"].drop_nulls().n_unique() == 0

@@ -19,6 +19,7 @@ from transforms.alarm_events import (
     column,
     debounced,
     event_rows,
+    flatline_runs,
     merge_events,
     runs,
     threshold_events,
@@ -148,17 +149,11 @@ def sensor_alarms(
     rows: list[dict[str, object]] = []
     pressures = pressures_pa(frame, hoist)
     repeats = [unchanged(p) for p in pressures]
-    moving = [~u & np.isfinite(p) for u, p in zip(repeats, pressures, strict=True)]
     depth = column(frame, "depth_m")
+    flat = flatline_runs(pressures, t_s, alarms.flatline_duration_s)
 
     for k, i in enumerate(ROPES):
-        others_moving = np.cumsum(np.any(np.vstack(moving[:k] + moving[k + 1 :]), axis=0))
-        s, e = runs(repeats[k] & np.isfinite(pressures[k]))
-        s = np.maximum(s - 1, 0)  # the run starts at the sample that is then repeated
-        duration = t_s[e] - t_s[s]
-        others = others_moving[e] - others_moving[s]
-        keep = (duration >= alarms.flatline_duration_s) & (others > 0)
-        s, e = merge_events(t_s, s[keep], e[keep], merge_gap_s)
+        s, e = merge_events(t_s, *flat[k], merge_gap_s)
         rows += event_rows(
             ctx, "sensor_flatline", i, s, e, peak_of=None, peak_max=True,
             peak_values=t_s[e] - t_s[s], threshold=alarms.flatline_duration_s,

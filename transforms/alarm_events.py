@@ -9,6 +9,7 @@ merge. Numpy run lengths over the samples; Python loops only over detected event
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,6 +22,7 @@ __all__ = [
     "column",
     "debounced",
     "event_rows",
+    "flatline_runs",
     "merge_events",
     "runs",
     "threshold_events",
@@ -194,3 +196,34 @@ def unchanged(x: np.ndarray) -> np.ndarray:
     same = np.zeros(x.shape, dtype=bool)
     same[1:] = x[1:] == x[:-1]
     return same
+
+
+def flatline_runs(
+    pressures: Sequence[np.ndarray], t_s: np.ndarray, duration_s: float
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per sensor, the first and last index (inclusive) of each stretch over which it
+    repeats one reading for at least ``duration_s`` while another sensor's reading
+    changes: the ``sensor_flatline`` rule (:mod:`transforms.alarm_rules`). A stretch
+    starts at the sample its repeats copy. A sensor with kilopascals of noise never
+    repeats a reading for seconds while the oil it shares with the others moves: it
+    stopped, and its reading is not a pressure (the compensation takes it as not
+    logged, :meth:`transforms.compensation_setup.BlockSetup.flatlined`). A stretch of
+    the record known in part (a block's window) is a stretch of the whole when the part
+    reaches ``duration_s`` past the sample asked about either side.
+
+    >>> t = np.arange(6.0)
+    >>> stuck, live = np.array([1.0, 2, 2, 2, 2, 3]), np.array([5.0, 6, 5, 6, 5, 6])
+    >>> flatline_runs([stuck, live], t, 3.0)[0]
+    (array([1]), array([4]))
+    """
+    repeats = [unchanged(p) for p in pressures]
+    moving = [~u & np.isfinite(p) for u, p in zip(repeats, pressures, strict=True)]
+    out = []
+    for k, p in enumerate(pressures):
+        others = moving[:k] + moving[k + 1 :]
+        changed = np.cumsum(np.any(np.vstack(others), axis=0)) if others else np.zeros(p.size)
+        starts, ends = runs(repeats[k] & np.isfinite(p))
+        starts = np.maximum(starts - 1, 0)
+        keep = (t_s[ends] - t_s[starts] >= duration_s) & (changed[ends] - changed[starts] > 0)
+        out.append((starts[keep], ends[keep]))
+    return out

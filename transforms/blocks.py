@@ -107,7 +107,7 @@ def compensate_blocks(
     Concatenated, the frames are the whole record's compensation (module docstring).
     """
     settings = settings or CompensationSettings()
-    resume_s, halo_s = compensation_margins_s(settings)
+    resume_s, halo_s = compensation_margins_s(settings, hoist)
     margin = dt.timedelta(seconds=resume_s + halo_s)
     carry: CompensationCarry | None = None
     for lo, hi in block_edges(start, end, block):

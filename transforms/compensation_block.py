@@ -133,8 +133,11 @@ class BlockCompensation(BlockSetup):
 
     # -- steps ----------------------------------------------------------------------------
     def pressure(self, column: str) -> np.ndarray:
-        """Calibrated, despiked and low-passed, all in one new array."""
+        """Calibrated, despiked and low-passed, all in one new array; NaN where the
+        sensor flat-lines (:func:`transforms.compensation_setup.flatlined_samples`)."""
         values = calibrated(self.frame, column, self.hoist)
+        if column in self.flatlined:
+            values[self.flatlined[column]] = np.nan
         rate, cutoff = self.context.sample_rate_hz, self.settings.pressure_cutoff_hz
         work = self.buffer(
             "work_a", lowpass_work_size(self.n, sample_rate_hz=rate, cutoff_hz=cutoff)

@@ -25,6 +25,7 @@ from physics.trip_rule import LABEL_STATE_SIZE, STANDSTILL_SPEED_M_S
 from physics.white_noise import difference_noise_sigma
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPES
+from transforms.alarm_events import flatline_runs
 from transforms.filtering import PLAY_STATE_SIZE, fresh_state
 from transforms.piston_motion import share_state
 from transforms.rope_identification import (
@@ -58,6 +59,7 @@ __all__ = [
     "depth_turns",
     "disagreeing_as_unknown",
     "displacement_noise_sigma",
+    "flatlined_samples",
     "float_column",
     "identification_means",
     "logger_rate_hz",
@@ -396,6 +398,33 @@ def disagreeing_as_unknown(
     return tuple(np.where(o, np.nan, p) for p, o in zip(pressures, off, strict=True))
 
 
+def flatlined_samples(
+    frame: pl.DataFrame, time_s: np.ndarray, hoist: HoistDescription
+) -> dict[str, np.ndarray]:
+    """The samples of each logged pressure (``p{i}_pa``) in a flat-line stretch: one
+    reading repeated for the hoist's ``[alarms] flatline_duration`` while another sensor
+    moves (:func:`transforms.alarm_events.flatline_runs`), for the columns that have
+    any. Not a pressure: the compensation takes them as not logged, as a dropout (the
+    rope's tension and the load are null there; the ``sensor_flatline`` alarm names the
+    sensor), where the stuck reading would otherwise enter the rope's tension and the
+    load with an ordinary band. The other sensors' mean carries the oil meanwhile
+    (:func:`transforms.stick_slip.stick_slip`). Block by block as whole: the blocks'
+    halo reaches past the duration (:func:`compensation_margins_s`)."""
+    columns = [c for c in rope_cols("p{i}_pa") if c in frame.columns]
+    readings = [float_column(frame[c]) for c in columns]
+    duration_s = hoist.alarms.flatline_duration_s
+    out = {}
+    for column, (starts, ends) in zip(
+        columns, flatline_runs(readings, time_s, duration_s), strict=True
+    ):
+        if starts.size:
+            edges = np.zeros(frame.height + 1, dtype=np.int64)
+            np.add.at(edges, starts, 1)
+            np.add.at(edges, ends + 1, -1)
+            out[column] = np.cumsum(edges[:-1]) > 0
+    return out
+
+
 def at_rest(frame: pl.DataFrame) -> np.ndarray:
     """Where the conveyance stands still (|``speed_m_s``| below
     :data:`physics.trip_rule.STANDSTILL_SPEED_M_S`); an unknown speed is not at rest
@@ -416,6 +445,13 @@ def identification_means(
     :func:`transforms.seal_drift.drift_travel`) when the hoist declares seals that drift.
     The same means whether the record is read whole or block by block."""
     span = samples.filter(pl.col("time_utc") < start + IDENTIFY_SPAN)
+    seconds = float_column(span["time_utc"].dt.cast_time_unit("us").to_physical(), scale=1e-6)
+    flat = flatlined_samples(span, seconds, hoist)
+    if flat:  # a stuck sensor's stretch is not logged (as in the compensation)
+        span = span.with_columns(
+            pl.when(pl.Series(mask)).then(None).otherwise(pl.col(c)).alias(c)
+            for c, mask in flat.items()
+        )
     logged = [
         c for c in rope_cols("x{i}_m") if c in span.columns and span[c].fill_nan(None).count()
     ]
@@ -608,7 +644,9 @@ class CompensationCarry:
         )
 
 
-def compensation_margins_s(settings: CompensationSettings) -> tuple[float, float]:
+def compensation_margins_s(
+    settings: CompensationSettings, hoist: HoistDescription | None = None
+) -> tuple[float, float]:
     """(resume, halo) [s] of block processing (:func:`compensate_window`).
 
     ``resume``: the first-stage kernels restart this long before a block, so the piston
@@ -617,7 +655,9 @@ def compensation_margins_s(settings: CompensationSettings) -> tuple[float, float
     zero-phase filters have forgotten the window's edges: 10 periods of the pressure
     low-pass and of the ringing's demodulation (:func:`transforms.seal_drift.
     ringing_travel`), the differential smoother's 4 sigma plus its median-padded edge,
-    twice each Savitzky-Golay window, and at least 30 s.
+    twice each Savitzky-Golay window, at least 30 s, and with ``hoist`` its
+    ``[alarms] flatline_duration`` (a stuck sensor's stretch is told in each block as
+    in the whole, :func:`transforms.compensation_setup.flatlined_samples`).
     """
     resume = max(1.0, 2.0 * settings.velocity_window_s)
     smoother_s = 4.0 * 0.1325 / settings.differential_cutoff_hz
@@ -628,6 +668,7 @@ def compensation_margins_s(settings: CompensationSettings) -> tuple[float, float
         2.0 * settings.acceleration_window_s,
         2.0 * settings.velocity_window_s,
         10.0 / RINGING_BANDWIDTH_HZ,
+        hoist.alarms.flatline_duration_s if hoist is not None else 0.0,
     )
     return resume, halo
 

@@ -29,6 +29,7 @@ from transforms.compensation_record import (
     CompensationContext,
     CompensationSettings,
     compensation_margins_s,
+    flatlined_samples,
     float_column,
 )
 from transforms.filtering import pressure_cutoff_at, segment_ids
@@ -142,6 +143,7 @@ class BlockSetup:
             self.time_s, self.settings.differential_bridge_s
         )
         self.speed = self._conveyance_speed()
+        self.flatlined = flatlined_samples(self.frame, self.time_s, self.hoist)
 
     def _conveyance_speed(self) -> np.ndarray:
         """The conveyance's speed (NaN where unknown): the logged one, where it is missing

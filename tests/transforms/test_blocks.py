@@ -236,6 +236,29 @@ def test_blocks_equal_whole_record_lugre_and_turbulent_branch(record: pl.DataFra
     )
 
 
+def test_blocks_equal_whole_record_with_a_sensor_stuck_across_an_edge(
+    record: pl.DataFrame,
+) -> None:
+    """Sensor 2 repeats one reading for 100 s across a block edge, the hoist's
+    flat-line duration 90 s (longer than the filters' 40 s halo): the blocks, whose
+    margins reach past it, take the stretch as not logged as the whole record does."""
+    hoist = HOIST.model_copy(
+        update={"alarms": HOIST.alarms.model_copy(update={"flatline_duration_s": 90.0})}
+    )
+    t0 = record["time_utc"][0]
+    edge = [hi for _, hi in block_edges(t0, record["time_utc"][-1], BLOCK)][1]
+    lo, hi = edge - dt.timedelta(seconds=30), edge + dt.timedelta(seconds=70)
+    assert record.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi)).height > 9000
+    inside = (record["time_utc"] >= lo) & (record["time_utc"] < hi)
+    first = record.filter(inside)["p2_pa"][0]
+    stuck = record.with_columns(
+        pl.when(inside).then(first).otherwise(pl.col("p2_pa")).alias("p2_pa")
+    )
+    whole = compensate(stuck, hoist)
+    assert whole.filter(inside)["tension2_n"].null_count() == inside.sum()
+    _assert_same(whole, _blocks(stuck, hoist=hoist))
+
+
 def test_block_edges_reject_nonpositive_block() -> None:
     t = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
     with pytest.raises(ValueError, match="block must be positive"):

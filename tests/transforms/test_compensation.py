@@ -290,3 +290,41 @@ def test_a_failing_stage_raises_instead_of_hanging(monkeypatch):
     assert not worker.is_alive()
     assert len(outcome) == 1
     assert str(outcome[0]) == "common mode failed"
+
+
+def test_a_stuck_sensor_is_taken_as_not_logged_not_as_its_reading():
+    """Rope 3's sensor repeats one reading for 40 s (past the example's 30 s
+    ``flatline_duration``) while the conveyance travels and the others follow the load:
+    its tension and the load are null there (as where it is silent), the other ropes'
+    as with the sensor working; its reading repeated for 20 s, and a sensor that updates
+    every fifth sample (each reading repeated), are pressures as they are."""
+    n = 9000
+    t = np.arange(n) / RATE
+    rng = np.random.default_rng(5)
+    load = 4.0e6 + 2.0e5 * np.sin(2 * np.pi * t / 40.0)  # the trip's pressure swing
+    p = load + rng.normal(0.0, 5e3, (4, n))
+    speed = np.where((t > 10.0) & (t < 80.0), 5.0, 0.0)
+    depth = np.cumsum(speed) / RATE
+
+    def tensions(pressures):
+        return compensate(_frame(pressures, None, speed=speed).with_columns(depth_m=depth), HOIST)
+
+    working = tensions(p)
+    stuck = p.copy()
+    stuck[2, 2000:6000] = stuck[2, 2000]  # 40 s
+    out = tensions(stuck)
+    silent = out.slice(2000, 4000)
+    assert silent["tension3_n"].null_count() == silent["load_n"].null_count() == 4000
+    assert out.slice(0, 2000)["tension3_n"].null_count() == 0
+    assert out.slice(6000, n - 6000)["load_n"].null_count() == 0
+    for rope in (1, 2, 4):
+        got, want = out[f"tension{rope}_n"].to_numpy(), working[f"tension{rope}_n"].to_numpy()
+        # the oil's motion from three sensors instead of four: the same within the noise
+        assert np.max(np.abs(got - want)) < 0.01 * np.mean(want)
+
+    short = p.copy()
+    short[2, 2000:4000] = short[2, 2000]  # 20 s: no flat line
+    assert tensions(short).slice(2000, 2000)["tension3_n"].null_count() == 0
+    slow = p.copy()
+    slow[2] = np.repeat(p[2, ::5], 5)  # a sensor updating at 20 Hz
+    assert tensions(slow)["load_n"].null_count() == 0

@@ -20,10 +20,10 @@ from transforms.alarm_events import (
     debounced,
     event_rows,
     flatline_runs,
+    frozen_runs,
     merge_events,
     runs,
     threshold_events,
-    unchanged,
 )
 from transforms.alarm_rules import STANDSTILL_SPEED_M_S, RuleThresholds
 from transforms.compensation_record import departure_from_median
@@ -148,7 +148,6 @@ def sensor_alarms(
     t_s = ctx.t_s
     rows: list[dict[str, object]] = []
     pressures = pressures_pa(frame, hoist)
-    repeats = [unchanged(p) for p in pressures]
     depth = column(frame, "depth_m")
     flat = flatline_runs(pressures, t_s, alarms.flatline_duration_s)
 
@@ -184,17 +183,12 @@ def sensor_alarms(
             message=f"pressure sensor {i} missing",
         )  # fmt: skip
 
-    all_frozen = np.logical_and.reduce(repeats)
-    s, e = runs(all_frozen)
-    s = np.maximum(s - 1, 0)
-    with np.errstate(invalid="ignore"):
-        travelled = np.abs(depth[e] - depth[s])
-    keep = (t_s[e] - t_s[s] >= alarms.flatline_duration_s) & (
-        travelled > hoist.shaft.position_window_m
+    s, e = frozen_runs(
+        pressures, t_s, depth, alarms.flatline_duration_s, hoist.shaft.position_window_m
     )
     rows += event_rows(
-        ctx, "sensor_stuck", None, s[keep], e[keep], peak_of=None, peak_max=True,
-        peak_values=(t_s[e] - t_s[s])[keep], threshold=alarms.flatline_duration_s,
+        ctx, "sensor_stuck", None, s, e, peak_of=None, peak_max=True,
+        peak_values=t_s[e] - t_s[s], threshold=alarms.flatline_duration_s,
         message="all pressure sensors repeat their values while the conveyance travels",
     )  # fmt: skip
 

@@ -23,6 +23,7 @@ __all__ = [
     "debounced",
     "event_rows",
     "flatline_runs",
+    "frozen_runs",
     "merge_events",
     "runs",
     "threshold_events",
@@ -227,3 +228,28 @@ def flatline_runs(
         keep = (t_s[ends] - t_s[starts] >= duration_s) & (changed[ends] - changed[starts] > 0)
         out.append((starts[keep], ends[keep]))
     return out
+
+
+def frozen_runs(
+    pressures: Sequence[np.ndarray],
+    t_s: np.ndarray,
+    depth_m: np.ndarray,
+    duration_s: float,
+    travel_m: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """First and last index (inclusive) of each stretch over which every sensor repeats
+    its reading for at least ``duration_s`` while the conveyance's depth changes by
+    more than ``travel_m``: the ``sensor_stuck`` rule (:mod:`transforms.alarm_rules`), a
+    logger whose pressures froze. A stretch starts at the sample its repeats copy.
+
+    >>> t, depth = np.arange(6.0), np.array([0.0, 1, 2, 3, 4, 5])
+    >>> frozen_runs([np.array([1.0, 2, 2, 2, 2, 3])] * 2, t, depth, 3.0, 2.0)
+    (array([1]), array([4]))
+    """
+    frozen = np.logical_and.reduce([unchanged(p) for p in pressures])
+    starts, ends = runs(frozen)
+    starts = np.maximum(starts - 1, 0)
+    with np.errstate(invalid="ignore"):
+        travelled = np.abs(depth_m[ends] - depth_m[starts])
+    keep = (t_s[ends] - t_s[starts] >= duration_s) & (travelled > travel_m)
+    return starts[keep], ends[keep]

@@ -25,7 +25,7 @@ from physics.trip_rule import LABEL_STATE_SIZE, STANDSTILL_SPEED_M_S
 from physics.white_noise import difference_noise_sigma
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPES
-from transforms.alarm_events import flatline_runs
+from transforms.alarm_events import flatline_runs, frozen_runs
 from transforms.filtering import PLAY_STATE_SIZE, fresh_state
 from transforms.piston_motion import share_state
 from transforms.rope_identification import (
@@ -401,22 +401,31 @@ def disagreeing_as_unknown(
 def flatlined_samples(
     frame: pl.DataFrame, time_s: np.ndarray, hoist: HoistDescription
 ) -> dict[str, np.ndarray]:
-    """The samples of each logged pressure (``p{i}_pa``) in a flat-line stretch: one
-    reading repeated for the hoist's ``[alarms] flatline_duration`` while another sensor
-    moves (:func:`transforms.alarm_events.flatline_runs`), for the columns that have
-    any. Not a pressure: the compensation takes them as not logged, as a dropout (the
-    rope's tension and the load are null there; the ``sensor_flatline`` alarm names the
-    sensor), where the stuck reading would otherwise enter the rope's tension and the
-    load with an ordinary band. The other sensors' mean carries the oil meanwhile
+    """The samples of each logged pressure (``p{i}_pa``) in a stuck stretch, for the
+    columns that have any: one reading repeated for the hoist's ``[alarms]
+    flatline_duration`` while another sensor moves (:func:`transforms.alarm_events.
+    flatline_runs`), or every sensor's while the conveyance travels (a frozen logger,
+    :func:`~transforms.alarm_events.frozen_runs`). Not pressures: the compensation
+    takes them as not logged, as a dropout (the rope's tension and the load are null
+    there; the ``sensor_flatline`` / ``sensor_stuck`` alarm names it), where the stuck
+    reading would otherwise enter the rope's tension and the load with an ordinary
+    band. The other sensors' mean carries the oil meanwhile
     (:func:`transforms.stick_slip.stick_slip`). Block by block as whole: the blocks'
     halo reaches past the duration (:func:`compensation_margins_s`)."""
     columns = [c for c in rope_cols("p{i}_pa") if c in frame.columns]
     readings = [float_column(frame[c]) for c in columns]
     duration_s = hoist.alarms.flatline_duration_s
+    stretches = flatline_runs(readings, time_s, duration_s)
+    if len(columns) == len(ROPES) and "depth_m" in frame.columns:
+        frozen = frozen_runs(
+            readings, time_s, float_column(frame["depth_m"]), duration_s,
+            hoist.shaft.position_window_m,
+        )  # fmt: skip
+        stretches = [
+            (np.concatenate([s, frozen[0]]), np.concatenate([e, frozen[1]])) for s, e in stretches
+        ]
     out = {}
-    for column, (starts, ends) in zip(
-        columns, flatline_runs(readings, time_s, duration_s), strict=True
-    ):
+    for column, (starts, ends) in zip(columns, stretches, strict=True):
         if starts.size:
             edges = np.zeros(frame.height + 1, dtype=np.int64)
             np.add.at(edges, starts, 1)

@@ -328,3 +328,22 @@ def test_a_stuck_sensor_is_taken_as_not_logged_not_as_its_reading():
     slow = p.copy()
     slow[2] = np.repeat(p[2, ::5], 5)  # a sensor updating at 20 Hz
     assert tensions(slow)["load_n"].null_count() == 0
+
+
+def test_a_frozen_logger_while_travelling_is_taken_as_not_logged():
+    """Every sensor repeats its reading for 40 s while the conveyance travels (a logger
+    whose pressures froze, the ``sensor_stuck`` rule): the tensions and the load are null
+    there; the same frozen readings at rest, which that rule does not name, stay."""
+    n = 9000
+    t = np.arange(n) / RATE
+    rng = np.random.default_rng(6)
+    p = 4.0e6 + 2.0e5 * np.sin(2 * np.pi * t / 40.0) + rng.normal(0.0, 5e3, (4, n))
+    p[:, 2000:6000] = p[:, 2000:2001]
+
+    def tensions(speed):
+        depth = np.cumsum(speed) / RATE
+        return compensate(_frame(p, None, speed=speed).with_columns(depth_m=depth), HOIST)
+
+    frozen = tensions(np.where((t > 10.0) & (t < 80.0), 5.0, 0.0)).slice(2000, 4000)
+    assert frozen["load_n"].null_count() == frozen["tension1_n"].null_count() == 4000
+    assert tensions(np.zeros(n)).slice(2000, 4000)["load_n"].null_count() == 0

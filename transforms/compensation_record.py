@@ -664,9 +664,12 @@ def compensation_margins_s(
     zero-phase filters have forgotten the window's edges: 10 periods of the pressure
     low-pass and of the ringing's demodulation (:func:`transforms.seal_drift.
     ringing_travel`), the differential smoother's 4 sigma plus its median-padded edge,
-    twice each Savitzky-Golay window, at least 30 s, and with ``hoist`` its
-    ``[alarms] flatline_duration`` (a stuck sensor's stretch is told in each block as
-    in the whole, :func:`transforms.compensation_setup.flatlined_samples`).
+    twice each Savitzky-Golay window, and at least 30 s; with ``hoist``, its
+    ``[alarms] flatline_duration`` on top: a stuck sensor's stretch is told in a window
+    as in the whole record only where the window reaches the duration past the sample
+    either side (:func:`transforms.alarm_events.flatline_runs`), and the filters read
+    the pressures that far beyond the first stage
+    (:func:`flatlined_samples`).
     """
     resume = max(1.0, 2.0 * settings.velocity_window_s)
     smoother_s = 4.0 * 0.1325 / settings.differential_cutoff_hz
@@ -677,8 +680,9 @@ def compensation_margins_s(
         2.0 * settings.acceleration_window_s,
         2.0 * settings.velocity_window_s,
         10.0 / RINGING_BANDWIDTH_HZ,
-        hoist.alarms.flatline_duration_s if hoist is not None else 0.0,
     )
+    if hoist is not None:
+        halo += hoist.alarms.flatline_duration_s
     return resume, halo
 
 

@@ -24,6 +24,7 @@ from transforms.blocks import block_edges, compensate_blocks, record_context
 from transforms.compensation import (
     compensate,
     compensation_context,
+    compensation_margins_s,
     context_sample,
     context_stride,
 )
@@ -249,6 +250,32 @@ def test_blocks_equal_whole_record_with_a_sensor_stuck_across_an_edge(
     edge = [hi for _, hi in block_edges(t0, record["time_utc"][-1], BLOCK)][1]
     lo, hi = edge - dt.timedelta(seconds=30), edge + dt.timedelta(seconds=70)
     assert record.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi)).height > 9000
+    inside = (record["time_utc"] >= lo) & (record["time_utc"] < hi)
+    first = record.filter(inside)["p2_pa"][0]
+    stuck = record.with_columns(
+        pl.when(inside).then(first).otherwise(pl.col("p2_pa")).alias("p2_pa")
+    )
+    whole = compensate(stuck, hoist)
+    assert whole.filter(inside)["tension2_n"].null_count() == inside.sum()
+    _assert_same(whole, _blocks(stuck, hoist=hoist))
+
+
+def test_blocks_equal_whole_record_with_a_sensor_stuck_just_before_a_block(
+    record: pl.DataFrame,
+) -> None:
+    """Sensor 2 repeats one reading for 100 s ending 0.01 s before a block's resume
+    margin, the hoist's flat-line duration 90 s: the window reaches back past the
+    whole stretch (the filters' halo and the duration: a halo of the duration alone
+    saw 89.99 s of it, took the reading as a pressure, and the low-pass carried it into
+    the block, 1 kN on the load to the record's end)."""
+    hoist = HOIST.model_copy(
+        update={"alarms": HOIST.alarms.model_copy(update={"flatline_duration_s": 90.0})}
+    )
+    t0 = record["time_utc"][0]
+    edge = [hi for _, hi in block_edges(t0, record["time_utc"][-1], BLOCK)][1]
+    resume_s = compensation_margins_s(CompensationSettings(), hoist)[0]
+    hi = edge - dt.timedelta(seconds=resume_s + 0.01)
+    lo = hi - dt.timedelta(seconds=100.0)
     inside = (record["time_utc"] >= lo) & (record["time_utc"] < hi)
     first = record.filter(inside)["p2_pa"][0]
     stuck = record.with_columns(

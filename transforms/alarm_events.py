@@ -208,9 +208,10 @@ def flatline_runs(
     starts at the sample its repeats copy. A sensor with kilopascals of noise never
     repeats a reading for seconds while the oil it shares with the others moves: it
     stopped, and its reading is not a pressure (the compensation takes it as not
-    logged, :meth:`transforms.compensation_setup.BlockSetup.flatlined`). A stretch of
+    logged, :func:`transforms.compensation_record.flatlined_samples`). A stretch of
     the record known in part (a block's window) is a stretch of the whole when the part
-    reaches ``duration_s`` past the sample asked about either side.
+    reaches ``duration_s`` past the sample asked about either side and another sensor
+    changes within it (not when the others, frozen too, changed only before the part).
 
     >>> t = np.arange(6.0)
     >>> stuck, live = np.array([1.0, 2, 2, 2, 2, 3]), np.array([5.0, 6, 5, 6, 5, 6])

@@ -24,8 +24,11 @@ finite support. Running sums in the smoother add rounding at the 1e-13 relative 
 a trip across one against the whole-record result (every column within 1e-9 relative
 or 1e-6 absolute in its unit, labels equal). Not equal: a logged displacement missing
 for longer than the margin inside one 120 s-bridged segment (the whole record
-interpolates across it, a block sees no neighbour) and the oil temperature's leading
-nulls of a block (filled from inside the window, not from before it).
+interpolates across it, a block sees no neighbour), the oil temperature's leading
+nulls of a block (filled from inside the window, not from before it), and a stuck
+sensor's stretch whose other sensors froze too, changing only more than the margin
+before the block (the whole record takes the stretch as not logged, the block as a
+pressure: :func:`transforms.alarm_events.flatline_runs`).
 
 Block edges are whole multiples of ``block`` from midnight UTC (an hour by default), so
 a re-run of part of a day computes the same blocks.

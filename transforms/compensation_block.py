@@ -134,7 +134,7 @@ class BlockCompensation(BlockSetup):
     # -- steps ----------------------------------------------------------------------------
     def pressure(self, column: str) -> np.ndarray:
         """Calibrated, despiked and low-passed, all in one new array; NaN where the
-        sensor flat-lines (:func:`transforms.compensation_setup.flatlined_samples`)."""
+        sensor flat-lines (:func:`transforms.compensation_record.flatlined_samples`)."""
         values = calibrated(self.frame, column, self.hoist)
         if column in self.flatlined:
             values[self.flatlined[column]] = np.nan

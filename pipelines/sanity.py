@@ -18,8 +18,9 @@ of a trip down from the pithead), and issue 14 sets the replay's target at 3 x t
 Where that gap sits (session 40, each trip's common-mode residual regressed on the
 logged acceleration and jerk, the acceleration's coefficient as a share of the trip's
 mean pressure / g): trips down from the pithead 1.4-14 % (median ~5 %) on validation
-days 101 and 104 and on the hidden-effect record ``trial_004`` (nothing hidden), against
--0.5 to +2 % for trips up and for departures from the middle. At such a departure the
+days 101 and 104, against -3 to +2.5 % for trips up and for departures from the middle
+(on the hidden-effect record ``trial_004``, nothing hidden, 2-6 % down from the pithead
+and 2-4 % up: less clear). At such a departure the
 measured pressure falls less than the replay's by 160-320 N a rope: the seals absorb
 part of the tension's fall, as they would from a state 200-300 N a piston above the
 replay's after the payload left at the pithead (the compensation's estimate sits as

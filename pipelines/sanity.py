@@ -21,13 +21,12 @@ mean pressure / g): trips down from the pithead 1.4-14 % (median ~5 %) on valida
 days 101 and 104, against -3 to +2.5 % for trips up and for departures from the middle
 (on the hidden-effect record ``trial_004``, nothing hidden, 2-6 % down from the pithead
 and 2-4 % up: less clear). At such a departure the
-measured pressure falls less than the replay's by 160-320 N a rope: the seals absorb
-part of the tension's fall, as they would from a state 200-300 N a piston above the
-replay's after the payload left at the pithead (the compensation's estimate sits as
-far above the truth at day 104's pithead stops, :mod:`transforms.stick_slip`). A
-recoil of 5-10 um after the unloading slide would do it at the bristles' stiffness;
-neither model resolves it. Ropes replayed rigid (no bounce lag) widened ``trial_004``'s
-gap, 16.1 -> 18.2 kPa: the lag of the critically damped ropes hides part of it.
+measured pressure falls less than the replay's by 160-320 N a rope. Not the seals'
+state before it: every seal's friction shifted by +-300 N at the end of the payload's
+ramp moved those trips' gaps by <= 0.1 x the noise (day 104), as the departure's ~0.2
+mm of oil travel a piston saturates the bristles (F_s / sigma_0 ~ 40 um) whatever their
+start. Ropes replayed rigid (no bounce lag) widened ``trial_004``'s gap, 16.1 -> 18.2
+kPa: the lag of the critically damped ropes hides part of it.
 A limit of 1.5 x failed 85 % of such healthy trips; a check that fails every night is not
 read. What 3 x still catches (tested on ropeload's own data): a model without the
 conveyance's inertia, a sensor 40 kPa off (0.5 % of the load: the payload fit takes the

@@ -108,6 +108,7 @@ def _driving_motion(
             d1,
             at_rest_after=tm["cut"] != "end",
             knot_s=rec.knot_s,
+            depth_m=rec.depth,
         )
     driven = profile
     if knots is not None:

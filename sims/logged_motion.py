@@ -113,6 +113,7 @@ def motion_knots(
     at_rest_before: bool = True,
     at_rest_after: bool = True,
     knot_s: float = KNOT_S,
+    depth_m: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Knots (time [s], speed [m/s, + down], depth [m]) of the logged motion in
     ``[t_lo, t_hi]``; None when fewer than 5 bins hold a logged speed.
@@ -124,6 +125,14 @@ def motion_knots(
     integrated travel equals ``end_depth_m - start_depth_m`` (when that scale is
     within 10 % of one; else the encoder's channels disagree and the speed is kept as
     logged).
+
+    A logger gap longer than :data:`~physics.trip_rule.TRIP_BRIDGE_S` inside the window
+    (the trip rule bridges one the conveyance kept moving through) leaves no knot in
+    it: a straight line between the speeds either side would miss the travel in the
+    gap (a 30 s gap in a 600 m trip: ~100 m short, and every later trip of the replay's
+    history started where its conveyance was not). With ``depth_m`` (the logged depth
+    at ``t_s``) a knot in the gap's middle takes the speed that makes the travel between
+    its neighbours the logged depth's change across the gap.
     """
     inside = (t_s >= t_lo) & (t_s < t_hi) & np.isfinite(speed_m_s)
     if inside.sum() < 5 or t_hi - t_lo < 5 * knot_s:
@@ -144,6 +153,8 @@ def motion_knots(
         v[0] = 0.0
     if at_rest_after:
         v[-1] = 0.0
+    if depth_m is not None:
+        centres, v = _bridge_gaps(t_s[inside], np.asarray(depth_m)[inside], centres, v)
     step = np.diff(centres)
     travel = float(np.sum(0.5 * (v[1:] + v[:-1]) * step))
     wanted = end_depth_m - start_depth_m
@@ -153,6 +164,33 @@ def motion_knots(
             v = v * scale
     depth = start_depth_m + np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * step)])
     return centres, v, depth
+
+
+def _bridge_gaps(
+    t: np.ndarray, depth: np.ndarray, centres: np.ndarray, v: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``centres`` and ``v`` with a knot in the middle of each logger gap of ``t`` (the
+    window's samples) longer than :data:`TRIP_BRIDGE_S` whose two sides have a finite
+    ``depth``: its speed makes the trapezoid travel between the knots either side of
+    the gap equal the logged depth's change across it (plus the travel at those knots'
+    speeds to the gap's edges)."""
+    gaps = np.flatnonzero(np.diff(t) > TRIP_BRIDGE_S)
+    add_t: list[float] = []
+    add_v: list[float] = []
+    for j in gaps:
+        d_a, d_b = float(depth[j]), float(depth[j + 1])
+        a = int(np.searchsorted(centres, t[j], side="right")) - 1  # the knot before
+        b = a + 1
+        if not (np.isfinite(d_a) and np.isfinite(d_b)) or a < 0 or b >= centres.size:
+            continue
+        span = float(centres[b] - centres[a])
+        travel = (d_b - d_a) + v[a] * (t[j] - centres[a]) + v[b] * (centres[b] - t[j + 1])
+        add_t.append(float(centres[a]) + 0.5 * span)
+        add_v.append(2.0 * travel / span - 0.5 * (v[a] + v[b]))
+    if not add_t:
+        return centres, v
+    order = np.argsort(np.concatenate([centres, add_t]), kind="stable")
+    return np.concatenate([centres, add_t])[order], np.concatenate([v, add_v])[order]
 
 
 def profile_from_knots(

@@ -226,3 +226,26 @@ def test_a_coarsely_quantised_speed_gets_knots_wide_enough_for_its_acceleration(
     # one value off the grid does not set the quantisation; the spacing has a ceiling
     assert knot_spacing_s(t, np.r_[logged[:-1], 0.1234]) == spacing
     assert knot_spacing_s(t, np.round(v_true, 1)) == KNOT_MAX_S
+
+
+def test_knots_bridge_a_logger_gap_inside_the_trip_with_the_logged_depth():
+    # a 30 s logger gap from the run into the deceleration (the trip rule bridges it:
+    # the depth advanced at the running speed): a straight line between the speeds
+    # either side misses the travel in it (on a validation trial ~100 m: the profile
+    # ended short of the stop and the next trip's simulation could not start where the
+    # conveyance was; a smaller miss is scaled over the whole trip)
+    t = np.arange(0.0, 90.0, 0.02)
+    t = t[(t < 45.0) | (t >= 75.0)]
+    v, d, t_end = _trapezoid(t)
+    after = t >= 75.0
+    without = motion_knots(t, v, 4.0, t_end + 1.0, 0.0, 600.0)
+    assert without is not None
+    assert without[2][-1] < 550.0  # ~70 m short: more than 10 %, so not scaled
+    knots = motion_knots(t, v, 4.0, t_end + 1.0, 0.0, 600.0, depth_m=d)
+    assert knots is not None
+    tk, vk, dk = knots
+    assert dk[-1] == pytest.approx(600.0, abs=0.5)
+    np.testing.assert_allclose(np.interp(t[after], tk, dk), d[after], atol=0.5)
+    gap = (tk > 45.0) & (tk < 75.0)
+    assert gap.sum() == 1  # one knot in the gap
+    assert 0.0 < vk[gap][0] < 12.0  # at a plausible speed

@@ -76,7 +76,12 @@ from discovery.segmentation import (
 from physics.trip_rule import TRIP_BRIDGE_S
 from schemas.hoist import HoistDescription
 from sims.device import CONTINUATION_DEPTH_TOLERANCE_M
-from sims.logged_motion import motion_knots, profile_from_knots, rope_damping_from_record
+from sims.logged_motion import (
+    motion_knots,
+    profile_from_knots,
+    rope_bounce_unseen,
+    rope_damping_from_record,
+)
 from sims.replay import replay_profile
 from sims.replay_plan import ReplayPlan, ReplayTrip, SkippedTrip
 from sims.trips import TripProfile
@@ -409,6 +414,13 @@ def plan_replay(
     zeta, zeta_how = rope_damping_from_record(
         t, rec.pc_filled, [float(t[b_i]) for _, b_i in motions], rec.quiet
     )
+    if zeta is None and rope_bounce_unseen(t):
+        # logged too slowly to see the bounce (10 Hz and less): the record neither
+        # confirms the description's ratio nor contradicts it, and that ratio is a default;
+        # the replay gap decides among it and 0.1 / 0.3 / 1.0, as where no ringing is seen
+        # (kept, the description's 0.02 rang where a 10 Hz validation trial does not and
+        # failed every trip's sanity check, 27-58 kPa against 7-11 kPa at 50 Hz)
+        zeta = 1.0
     notes: list[str] = []
     chosen = chosen_trips(len(motions), max_trips, blocks)
     if len(motions) > max_trips:

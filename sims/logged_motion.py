@@ -50,6 +50,7 @@ __all__ = [
     "knot_spacing_s",
     "motion_knots",
     "profile_from_knots",
+    "rope_bounce_unseen",
     "rope_damping_from_record",
 ]
 
@@ -235,6 +236,19 @@ def profile_from_knots(
     )
 
 
+def rope_bounce_unseen(t_s: np.ndarray, band_hz: tuple[float, float] = (0.5, 4.0)) -> bool:
+    """Whether samples at times ``t_s`` [s] are logged too slowly to see the rope bounce
+    (``band_hz``): the median rate under 2.5 x the band's top (10 Hz for 0.5-4 Hz), where
+    :func:`rope_damping_from_record` reads nothing.
+
+    >>> slow, fast = np.arange(0.0, 60.0, 0.2), np.arange(0.0, 60.0, 0.05)
+    >>> rope_bounce_unseen(slow), rope_bounce_unseen(fast)
+    (True, False)
+    """
+    steps = np.diff(np.asarray(t_s, dtype=float))
+    return bool(steps.size) and 1.0 / float(np.median(steps)) < 2.5 * band_hz[1]
+
+
 def rope_damping_from_record(
     t_s: np.ndarray,
     common_pa: np.ndarray,
@@ -269,7 +283,7 @@ def rope_damping_from_record(
     if t_s.size < 100 or not stops_s:
         return None, "too short a record to read the rope bounce"
     rate = 1.0 / float(np.median(np.diff(t_s)))
-    if rate < 2.5 * band_hz[1]:
+    if rope_bounce_unseen(t_s, band_hz):
         return None, f"logged at {rate:.0f} Hz: too slow to see the rope bounce"
     sos = signal.butter(2, band_hz, btype="bandpass", fs=rate, output="sos")
     # each stretch between logger gaps on its own: filtered across a gap, the pressure's

@@ -249,3 +249,16 @@ def test_knots_bridge_a_logger_gap_inside_the_trip_with_the_logged_depth():
     gap = (tk > 45.0) & (tk < 75.0)
     assert gap.sum() == 1  # one knot in the gap
     assert 0.0 < vk[gap][0] < 12.0  # at a plausible speed
+
+
+def test_a_record_too_slow_for_the_bounce_lets_the_replay_choose_the_damping(
+    stiff_and_ringing_days,
+):
+    """At 5 Hz the bounce cannot be read; the description's ringing 0.02 was kept and
+    replayed every trip far from a hoist that does not ring. The replay gap decides."""
+    base, days = stiff_and_ringing_days
+    slow = days[1.0].sensors.gather_every(4)  # 20 Hz -> 5 Hz
+    plan = plan_replay(slow, _with_damping(base, 0.02), settle_s=20.0)
+    assert "too slow to see the rope bounce" in plan.rope_bounce, plan.rope_bounce
+    assert plan.hoist.ropes.head_rope_damping_ratio >= 0.3, plan.rope_bounce
+    assert _gap(plan) < 1.5 * plan.noise_sigma_pa

@@ -128,7 +128,7 @@ def test_a_logger_gap_after_a_stop_is_not_read_as_ringing():
     assert "no rope bounce above the noise after 6 of 6 stops" in how
 
 
-def test_a_record_too_slow_for_the_bounce_keeps_the_description():
+def test_a_record_too_slow_for_the_bounce_reads_no_damping():
     t, p, stops, quiet = _record(0.02)
     got, how = rope_damping_from_record(t[::10], p[::10], stops, quiet[::10])  # 5 Hz
     assert got is None

@@ -25,6 +25,7 @@ __all__ = [
     "flatline_runs",
     "frozen_runs",
     "merge_events",
+    "reading_step",
     "runs",
     "threshold_events",
     "unchanged",
@@ -199,34 +200,75 @@ def unchanged(x: np.ndarray) -> np.ndarray:
     return same
 
 
+def reading_step(x: np.ndarray) -> float:
+    """The smallest change between consecutive finite readings of ``x`` (0 where none
+    changes): a logger's reading step where it rounds (its quantum), the file's
+    resolution or less where it does not.
+
+    >>> reading_step(np.array([0.0, 50.0, 50.0, 100.0, np.nan, 0.0])), reading_step(np.ones(3))
+    (50.0, 0.0)
+    """
+    change = np.abs(np.diff(np.asarray(x, dtype=float)))
+    change = change[np.isfinite(change) & (change > 0.0)]
+    return float(change.min()) if change.size else 0.0
+
+
 def flatline_runs(
     pressures: Sequence[np.ndarray], t_s: np.ndarray, duration_s: float
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """Per sensor, the first and last index (inclusive) of each stretch over which it
     repeats one reading for at least ``duration_s`` while another sensor's reading
-    changes: the ``sensor_flatline`` rule (:mod:`transforms.alarm_rules`). A stretch
-    starts at the sample its repeats copy. A sensor with kilopascals of noise never
-    repeats a reading for seconds while the oil it shares with the others moves: it
-    stopped, and its reading is not a pressure (the compensation takes it as not
-    logged, :func:`transforms.compensation_record.flatlined_samples`). A stretch of
-    the record known in part (a block's window) is a stretch of the whole when the part
-    reaches ``duration_s`` past the sample asked about either side and another sensor
-    changes within it (not when the others, frozen too, changed only before the part).
+    moves by more than the first could miss: the ``sensor_flatline`` rule
+    (:mod:`transforms.alarm_rules`). A stretch starts at the sample its repeats copy.
+    A sensor with kilopascals of noise never repeats a reading for seconds while the
+    oil it shares with the others moves: it stopped, and its reading is not a pressure
+    (the compensation takes it as not logged,
+    :func:`transforms.compensation_record.flatlined_samples`).
+
+    What the others must show: a logger that rounds to a step q (:func:`reading_step`)
+    holds one reading while the pressure stays within a step, and the others' readings
+    flip between neighbouring steps meanwhile (a 50 kPa step over 5 kPa of noise at
+    rest: every sensor "repeated" for minutes while another flipped, and the rule once
+    took all four for stuck, their tensions null over 7 % of the record). So another
+    sensor j must span more than 2 q_k + q_j over the stretch: the pressure then moved
+    by more than q_k (j's span less its own step; the second q_k a margin for its
+    noise) and a working sensor k would have changed its reading. Where nothing rounds
+    (q of a pascal or less) that is any change. And at least half the other sensors
+    logged over the stretch must show it (one of one or two, two of three): a faulty
+    sensor's own jump (a stuck one coming back) does not make the others, holding
+    their rounded readings at rest, stuck too. A stretch of the record
+    known in part (a block's window) is a stretch of the whole when the part reaches
+    ``duration_s`` past the sample asked about either side and the others move that far
+    within it (not when they, frozen too or rounded, moved only before the part; the
+    steps are read on the part, which holds the whole's where the sensors change
+    within it).
 
     >>> t = np.arange(6.0)
-    >>> stuck, live = np.array([1.0, 2, 2, 2, 2, 3]), np.array([5.0, 6, 5, 6, 5, 6])
+    >>> stuck, live = np.array([1.0, 2, 2, 2, 2, 3]), np.array([5.0, 7, 9, 11, 13, 15])
     >>> flatline_runs([stuck, live], t, 3.0)[0]
     (array([1]), array([4]))
+    >>> flip = np.array([5.0, 6, 5, 6, 5, 6])  # one step back and forth: not the oil
+    >>> flatline_runs([stuck, flip], t, 3.0)[0]
+    (array([], dtype=int64), array([], dtype=int64))
     """
-    repeats = [unchanged(p) for p in pressures]
-    moving = [~u & np.isfinite(p) for u, p in zip(repeats, pressures, strict=True)]
+    steps = [reading_step(p) for p in pressures]
     out = []
     for k, p in enumerate(pressures):
-        others = moving[:k] + moving[k + 1 :]
-        changed = np.cumsum(np.any(np.vstack(others), axis=0)) if others else np.zeros(p.size)
-        starts, ends = runs(repeats[k] & np.isfinite(p))
+        starts, ends = runs(unchanged(p) & np.isfinite(p))
         starts = np.maximum(starts - 1, 0)
-        keep = (t_s[ends] - t_s[starts] >= duration_s) & (changed[ends] - changed[starts] > 0)
+        long = t_s[ends] - t_s[starts] >= duration_s
+        keep = np.zeros(starts.size, dtype=bool)
+        for r in np.flatnonzero(long):
+            stretch = slice(starts[r], ends[r] + 1)
+            logged = moved = 0
+            for j, other in enumerate(pressures):
+                seen = other[stretch]
+                seen = seen[np.isfinite(seen)]
+                if j == k or not seen.size:
+                    continue
+                logged += 1
+                moved += bool(np.ptp(seen) > 2.0 * steps[k] + steps[j])
+            keep[r] = moved >= max(1, (logged + 1) // 2)
         out.append((starts[keep], ends[keep]))
     return out
 

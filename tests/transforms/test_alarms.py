@@ -10,7 +10,9 @@ import pytest
 
 from schemas.hoist import EXAMPLE_HOIST, G_STANDARD, load_hoist
 from schemas.tables import ALARMS
+from transforms.alarm_events import flatline_runs, runs, unchanged
 from transforms.alarms import ALARM_RULES, alarm_id, evaluate_alarms, rule_thresholds
+from transforms.compensation_record import flatlined_samples
 
 FS_HZ = 100.0
 T0 = dt.datetime(2026, 3, 2, 6, 0, tzinfo=dt.UTC)
@@ -331,6 +333,44 @@ def test_sensor_faults(hoist):
     _assert_events(_events(alarms, "sensor_dropout"), [(None, 300.0, 303.0), (1, 250.0, 252.0)])
     assert alarms.filter(pl.col("rule") == "sensor_out_of_range")["peak_value"][0] == 26e6
     assert _events(alarms, "sensor_stuck") == []
+
+
+def test_a_logger_that_rounds_coarsely_flatlines_only_a_stuck_sensor(hoist):
+    """A logger rounding to 50 kPa (ten times the sensors' noise) holds each reading
+    for minutes at rest while the others flip between neighbouring steps: not a stuck
+    sensor (every sensor was taken for one, and the compensation nulled its tensions).
+    A sensor that stays put while the pressure moves by several steps still is."""
+    rng = np.random.default_rng(7)
+    rate, step = 50.0, 50e3
+    t = np.arange(0.0, 600.0, 1.0 / rate)
+    oil = 3.01e6 + 6e5 * np.clip((t - 300.0) / 20.0, 0.0, 1.0)  # at rest, a rise, at rest
+    noisy = [oil + off + rng.normal(0.0, 5e3, t.size) for off in (0.0, 8e3, -6e3, 12e3)]
+    rounded = [np.round(p / step) * step for p in noisy]
+    held = max(float(np.max(t[e] - t[s])) for s, e in (runs(unchanged(p)) for p in rounded))
+    assert held > 4 * hoist.alarms.flatline_duration_s  # the rounding holds readings
+    duration = hoist.alarms.flatline_duration_s
+    assert all(s.size == 0 for s, _ in flatline_runs(rounded, t, duration))
+    frame = pl.DataFrame({f"p{i}_pa": p for i, p in enumerate(rounded, 1)}).with_columns(
+        depth_m=pl.lit(600.0)
+    )
+    assert flatlined_samples(frame, t, hoist) == {}
+    # sensor 4 holds its reading through the rise: stuck, and only it (its jump back at
+    # 400 s, within the others' rounded readings at rest, does not make them stuck)
+    stuck = rounded[3].copy()
+    through = (t >= 250.0) & (t < 400.0)
+    stuck[through] = stuck[np.argmax(through)]
+    runs_found = flatline_runs([*rounded[:3], stuck], t, duration)
+    assert [s.size for s, _ in runs_found] == [0, 0, 0, 1]
+    start, end = runs_found[3][0][0], runs_found[3][1][0]
+    assert t[start] <= 250.0
+    assert t[end] >= 399.0
+    masks = flatlined_samples(frame.with_columns(p4_pa=pl.Series(stuck)), t, hoist)
+    assert set(masks) == {"p4_pa"}
+    assert masks["p4_pa"][through].all()
+    # without the rounding any change of another sensor is enough, as before
+    live = [p.copy() for p in noisy]
+    live[3][through] = live[3][np.argmax(through)]
+    assert [s.size for s, _ in flatline_runs(live, t, duration)] == [0, 0, 0, 1]
 
 
 def test_tight_rope(hoist):

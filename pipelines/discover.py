@@ -57,6 +57,7 @@ from pipelines.provenance import hoist_run, new_run_id, utc_now
 from pipelines.run_period import check_period
 from schemas.effects import NO_EFFECT
 from schemas.hoist import HoistDescription, load_hoist
+from transforms.compensation_record import without_flatlined
 from warehouse.landing import land_discovery_findings, land_run
 from warehouse.store import DataRoot, open_writer
 
@@ -308,7 +309,8 @@ def discover_period(
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="ropes") as pool:
         ropes = pool.submit(identified_ropes, samples, hoist, data=data)
         result = discover_in_record(
-            samples,
+            # a stuck sensor's stretch is not logged, as in the compensation
+            without_flatlined(samples.sort("time_utc"), hoist),
             hoist,
             max_trips=max_trips,
             max_iterations=max_iterations,

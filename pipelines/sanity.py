@@ -71,6 +71,7 @@ from schemas.hoist import HoistDescription
 from schemas.tables import SANITY_CHECKS, conform
 from sims.replay import replay_fitted
 from sims.replay_plan import ReplayPlan, ReplayResult, ReplayTrip
+from transforms.compensation_record import without_flatlined
 
 __all__ = ["PASS_LIMIT_X_NOISE", "SanityOutcome", "sanity_check", "sanity_step"]
 
@@ -187,6 +188,10 @@ def sanity_check(
     empty = conform(pl.DataFrame(), SANITY_CHECKS).clear()
     if frame.height == 0:
         return empty
+    # a stuck sensor's stretch is not logged, as in the compensation: compared with the
+    # oil's pressure it failed every trip, and from the first trips it misled the
+    # replay's choices for the whole record
+    frame = without_flatlined(frame.sort("time_utc"), hoist)
     try:
         plan = plan_replay(
             frame,

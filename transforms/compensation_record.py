@@ -65,6 +65,7 @@ __all__ = [
     "logger_rate_hz",
     "mean_horizontal",
     "rope_cols",
+    "without_flatlined",
 ]
 
 _LOG = logging.getLogger(__name__)
@@ -434,6 +435,24 @@ def flatlined_samples(
     return out
 
 
+def without_flatlined(frame: pl.DataFrame, hoist: HoistDescription) -> pl.DataFrame:
+    """``frame`` (time-sorted samples) with each logged pressure null over its stuck
+    stretches (:func:`flatlined_samples`): what the compensation takes as not logged,
+    for the stages that read the pressures beside it (the ropes' identification, the
+    sanity check's and discovery's replays, which compared a sensor stuck for an hour
+    with the oil's pressure and failed every trip of its record)."""
+    if frame.height == 0 or "time_utc" not in frame.columns:
+        return frame
+    seconds = float_column(frame["time_utc"].dt.cast_time_unit("us").to_physical(), scale=1e-6)
+    flat = flatlined_samples(frame, seconds, hoist)
+    if not flat:
+        return frame
+    return frame.with_columns(
+        pl.when(pl.Series(mask)).then(None).otherwise(pl.col(c)).alias(c)
+        for c, mask in flat.items()
+    )
+
+
 def at_rest(frame: pl.DataFrame) -> np.ndarray:
     """Where the conveyance stands still (|``speed_m_s``| below
     :data:`physics.trip_rule.STANDSTILL_SPEED_M_S`); an unknown speed is not at rest
@@ -453,14 +472,7 @@ def identification_means(
     travel of the seals' drift (``drift_travel_pa``,
     :func:`transforms.seal_drift.drift_travel`) when the hoist declares seals that drift.
     The same means whether the record is read whole or block by block."""
-    span = samples.filter(pl.col("time_utc") < start + IDENTIFY_SPAN)
-    seconds = float_column(span["time_utc"].dt.cast_time_unit("us").to_physical(), scale=1e-6)
-    flat = flatlined_samples(span, seconds, hoist)
-    if flat:  # a stuck sensor's stretch is not logged (as in the compensation)
-        span = span.with_columns(
-            pl.when(pl.Series(mask)).then(None).otherwise(pl.col(c)).alias(c)
-            for c, mask in flat.items()
-        )
+    span = without_flatlined(samples.filter(pl.col("time_utc") < start + IDENTIFY_SPAN), hoist)
     logged = [
         c for c in rope_cols("x{i}_m") if c in span.columns and span[c].fill_nan(None).count()
     ]

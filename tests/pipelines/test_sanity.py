@@ -274,3 +274,24 @@ def test_a_sensor_40_kpa_off_fails_at_the_default_limit():
     ratio = (bad["rms_gap_pa"] / bad["noise_pa"])[1]
     assert 3.0 < ratio < 5.0, bad["message"].to_list()
     assert "limit 3 x" in bad["message"][1]
+
+
+def test_a_stuck_sensor_is_left_out_not_compared():
+    """Sensor 2 holds its reading through the second trip (the ``sensor_flatline``
+    rule): the check compares the trip on the other three sensors, as the compensation
+    leaves the stuck reading out, and it passes as the healthy record's does. Compared
+    with the oil's pressure, the stuck reading failed it by megapascals."""
+    plan, info = hidden_case(None)
+    sensors = info["day"].sensors
+    second = plan.trips[1]
+    t = (sensors["time_utc"] - plan.t_ref).dt.total_microseconds() / 1e6
+    through = (t >= second.motion_start_s - 5.0) & (t <= second.motion_end_s + 5.0)
+    held = sensors.filter(through)["p2_pa"][0]
+    stuck = sensors.with_columns(
+        pl.when(through).then(pl.lit(held)).otherwise(pl.col("p2_pa")).alias("p2_pa")
+    )
+    assert second.motion_end_s - second.motion_start_s > plan.hoist.alarms.flatline_duration_s
+    good = sanity_check(sensors, plan.hoist, run_id="r1", settle_s=20.0)
+    checks = sanity_check(stuck, plan.hoist, run_id="r2", settle_s=20.0)
+    assert checks["status"].to_list() == ["skipped", "passed"] == good["status"].to_list()
+    assert checks["rms_gap_pa"][1] < 1.5 * good["rms_gap_pa"][1]

@@ -132,6 +132,7 @@ __all__ = [
     "DiscoveryResult",
     "EffectSelector",
     "Finding",
+    "ModelDoesNotSimulate",
     "baseline_gap_pa",
     "discover_effects",
     "fitted_baseline",
@@ -437,19 +438,26 @@ def discover_effects(
     return selector.fit(plan, base).result_
 
 
+class ModelDoesNotSimulate(RuntimeError):
+    """The hoist's model does not simulate the record's trips (:func:`fitted_baseline`):
+    a finding about the record and its description, which ``ropeload discover`` reports
+    in one line (exit 1), not a traceback."""
+
+
 def fitted_baseline(
     plan: ReplayPlan, effects: Iterable[str], parameters: Params, *, passes: int = BASE_PASSES
 ) -> ReplayResult:
     """The plan's replay with ``effects`` and their ``parameters``, payloads and loading
     ramps fitted (``passes``): where the first iteration of :func:`discover_effects`
-    starts. RuntimeError when the model does not simulate the trips."""
+    starts. :class:`ModelDoesNotSimulate` (a RuntimeError) when the model does not
+    simulate the trips."""
     model = list(effects)
     base = replay_fitted(
         plan, effects=model, parameters=term_parameters(plan.hoist, parameters, model),
         passes=passes,
     )  # fmt: skip
     if not base.ok:
-        raise RuntimeError(
+        raise ModelDoesNotSimulate(
             f"the hoist's model does not simulate the measured trips: {base.message}"
         )
     return base

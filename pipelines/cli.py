@@ -42,6 +42,8 @@ def _known_errors() -> tuple[type[BaseException], ...]:
         ("warehouse.lock", "LockTimeoutError"),
         ("pipelines.run_period", "NoSamplesError"),
         ("pipelines.nightly", "NightRunningError"),
+        # the hoist's model cannot replay the record's trips (discover)
+        ("discovery.selection", "ModelDoesNotSimulate"),
         # a lake file polars cannot read (damaged, not Parquet): its words, one line
         ("polars.exceptions", "ComputeError"),
     ):

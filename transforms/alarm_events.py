@@ -201,16 +201,25 @@ def unchanged(x: np.ndarray) -> np.ndarray:
 
 
 def reading_step(x: np.ndarray) -> float:
-    """The smallest change between consecutive finite readings of ``x`` (0 where none
-    changes): a logger's reading step where it rounds (its quantum), the file's
-    resolution or less where it does not.
+    """The smallest change between consecutive finite readings of ``x`` that at least
+    three changes share (to a thousandth of a pascal), else the smallest change (0 where
+    none changes): a logger's reading step where it rounds (its quantum), the file's
+    resolution or less where it does not. One reading off the grid (a garbage line, a
+    restart) makes changes of its own, at most twice each: it does not set the step.
 
     >>> reading_step(np.array([0.0, 50.0, 50.0, 100.0, np.nan, 0.0])), reading_step(np.ones(3))
     (50.0, 0.0)
+    >>> reading_step(np.array([0.0, 50, 0, 50, 0, 50, 51.2, 50, 0]))
+    50.0
     """
     change = np.abs(np.diff(np.asarray(x, dtype=float)))
-    change = change[np.isfinite(change) & (change > 0.0)]
-    return float(change.min()) if change.size else 0.0
+    change = np.round(change[np.isfinite(change) & (change > 0.0)], 3)
+    change = change[change > 0.0]
+    if not change.size:
+        return 0.0
+    values, counts = np.unique(change, return_counts=True)
+    shared = values[counts >= 3]
+    return float(shared[0] if shared.size else values[0])
 
 
 def flatline_runs(
@@ -241,7 +250,7 @@ def flatline_runs(
     ``duration_s`` past the sample asked about either side and the others move that far
     within it (not when they, frozen too or rounded, moved only before the part; the
     steps are read on the part, which holds the whole's where the sensors change
-    within it).
+    within it, and a sensor changing nowhere in it takes the median of the others').
 
     >>> t = np.arange(6.0)
     >>> stuck, live = np.array([1.0, 2, 2, 2, 2, 3]), np.array([5.0, 7, 9, 11, 13, 15])
@@ -252,6 +261,11 @@ def flatline_runs(
     (array([], dtype=int64), array([], dtype=int64))
     """
     steps = [reading_step(p) for p in pressures]
+    # a sensor that changes nowhere in the arrays given (stuck through a block's whole
+    # window) has the others' step, as its logger rounds them alike: read on the whole
+    # record it had its own from before it stuck, and the block must decide as the whole
+    given = [q for q in steps if q > 0.0]
+    steps = [q if q > 0.0 or not given else float(np.median(given)) for q in steps]
     out = []
     for k, p in enumerate(pressures):
         starts, ends = runs(unchanged(p) & np.isfinite(p))

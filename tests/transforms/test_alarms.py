@@ -10,9 +10,13 @@ import pytest
 
 from schemas.hoist import EXAMPLE_HOIST, G_STANDARD, load_hoist
 from schemas.tables import ALARMS
-from transforms.alarm_events import flatline_runs, runs, unchanged
+from transforms.alarm_events import flatline_runs, reading_step, runs, unchanged
 from transforms.alarms import ALARM_RULES, alarm_id, evaluate_alarms, rule_thresholds
-from transforms.compensation_record import flatlined_samples
+from transforms.compensation_record import (
+    CompensationSettings,
+    compensation_margins_s,
+    flatlined_samples,
+)
 
 FS_HZ = 100.0
 T0 = dt.datetime(2026, 3, 2, 6, 0, tzinfo=dt.UTC)
@@ -478,3 +482,51 @@ def test_a_sensor_with_its_declared_gain_agrees_and_so_does_a_hoist_off_its_rope
         pl.col("p1_pa") * 0.0 + 2e4 * 1.2, *(pl.col(f"p{i}_pa") * 0.0 + 2e4 for i in (2, 3, 4))
     )
     assert _events(evaluate_alarms(off_ropes, hoist, run_id="r"), "sensor_disagreement") == []
+
+
+def _rounded_at_rest(seconds: float, rate: float, drift_pa: float, seed: int) -> tuple:
+    """Four sensors of one oil at rest, drifting by ``drift_pa``, 5 kPa of noise, logged
+    rounded to 50 kPa."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, seconds, 1.0 / rate)
+    oil = 3.01e6 + drift_pa * np.sin(np.pi * t / seconds)
+    noisy = [oil + off + rng.normal(0.0, 5e3, t.size) for off in (0.0, 8e3, -6e3, 12e3)]
+    return t, [np.round(p / 50e3) * 50e3 for p in noisy]
+
+
+def test_one_reading_off_a_rounded_grid_does_not_set_the_reading_step(hoist):
+    """A garbage line (every sensor 1.2 kPa off the logger's 50 kPa grid, once) made the
+    smallest change 1.2 kPa: the others' flips between neighbouring steps counted again,
+    and healthy sensors at rest flat-lined over a fifth of the record (whole, not in the
+    blocks without the line)."""
+    t, rounded = _rounded_at_rest(1800.0, 50.0, 60e3, seed=3)
+    for p in rounded:
+        p[1000] += 1234.0
+    assert [reading_step(p) for p in rounded] == [50e3] * 4
+    duration = hoist.alarms.flatline_duration_s
+    assert all(s.size == 0 for s, _ in flatline_runs(rounded, t, duration))
+
+
+def test_a_sensor_stuck_through_a_window_flatlines_there_as_in_the_whole_record(hoist):
+    """Sensor 4 of a rounded logger sticks at rest for 4 h, longer than a block's window
+    (an hour and its margins): the window, where it never changes, read its step as 0
+    and took the others' span over three steps for the oil moving, and the block nulled
+    an hour of its tension; the whole record, with its step of 50 kPa, does not."""
+    t, rounded = _rounded_at_rest(21600.0, 10.0, 60e3, seed=2)
+    through = (t >= 3600.0) & (t < 18000.0)
+    rounded[3][through] = rounded[3][np.argmax(through)]
+    duration = hoist.alarms.flatline_duration_s
+    margin = sum(compensation_margins_s(CompensationSettings(), hoist))
+
+    def flagged(pressures, times):
+        mask = np.zeros(times.size, dtype=bool)
+        for s, e in zip(*flatline_runs(pressures, times, duration)[3], strict=True):
+            mask[s : e + 1] = True
+        return mask
+
+    whole = flagged(rounded, t)
+    for lo in np.arange(3600.0 + margin, 18000.0 - 3600.0 - margin, 3600.0):
+        window = (t >= lo - margin) & (t < lo + 3600.0 + margin)
+        core = (t[window] >= lo) & (t[window] < lo + 3600.0)
+        part = flagged([p[window] for p in rounded], t[window])
+        np.testing.assert_array_equal(part[core], whole[window][core], err_msg=str(lo))

@@ -310,7 +310,7 @@ def discover_period(
         ropes = pool.submit(identified_ropes, samples, hoist, data=data)
         result = discover_in_record(
             # a stuck sensor's stretch is not logged, as in the compensation
-            without_flatlined(samples.sort("time_utc"), hoist),
+            without_flatlined(samples.sort("time_utc", maintain_order=True), hoist),
             hoist,
             max_trips=max_trips,
             max_iterations=max_iterations,

@@ -191,7 +191,7 @@ def sanity_check(
     # a stuck sensor's stretch is not logged, as in the compensation: compared with the
     # oil's pressure it failed every trip, and from the first trips it misled the
     # replay's choices for the whole record
-    frame = without_flatlined(frame.sort("time_utc"), hoist)
+    frame = without_flatlined(frame.sort("time_utc", maintain_order=True), hoist)
     try:
         plan = plan_replay(
             frame,

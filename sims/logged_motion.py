@@ -155,7 +155,7 @@ def motion_knots(
     if at_rest_after:
         v[-1] = 0.0
     if depth_m is not None:
-        centres, v = _bridge_gaps(t_s[inside], np.asarray(depth_m)[inside], centres, v)
+        centres, v = _bridge_gaps(t_s[inside], np.asarray(depth_m)[inside], centres, v, knot_s)
     step = np.diff(centres)
     travel = float(np.sum(0.5 * (v[1:] + v[:-1]) * step))
     wanted = end_depth_m - start_depth_m
@@ -168,26 +168,47 @@ def motion_knots(
 
 
 def _bridge_gaps(
-    t: np.ndarray, depth: np.ndarray, centres: np.ndarray, v: np.ndarray
+    t: np.ndarray, depth: np.ndarray, centres: np.ndarray, v: np.ndarray, knot_s: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``centres`` and ``v`` with a knot in the middle of each logger gap of ``t`` (the
-    window's samples) longer than :data:`TRIP_BRIDGE_S` whose two sides have a finite
-    ``depth``: its speed makes the trapezoid travel between the knots either side of
-    the gap equal the logged depth's change across it (plus the travel at those knots'
-    speeds to the gap's edges)."""
+    """``centres`` and ``v`` with knots in each logger gap of ``t`` (the window's
+    samples) longer than :data:`TRIP_BRIDGE_S`: a plateau of two knots ``knot_s`` inside
+    the gap's edges (one knot in its middle where the gap is too short for two), at the
+    speed that makes the trapezoid travel between the knots either side of the gap the
+    logged depth's change across it (from the last finite depth before the gap to the
+    first after it, plus the travel at those knots' speeds to them). The plateau keeps
+    the speed's sign where a run slows into the creep across the gap (one knot in the
+    middle went to -1.4 m/s there), and a plateau that would still turn back (the
+    ramps' own travel beyond the gap's) is held at rest, the trip's scale then taking the
+    rest. A gap at the window's edge is not bridged (its first or last knot is the
+    standstill's)."""
     gaps = np.flatnonzero(np.diff(t) > TRIP_BRIDGE_S)
+    finite = np.flatnonzero(np.isfinite(depth))
     add_t: list[float] = []
     add_v: list[float] = []
     for j in gaps:
-        d_a, d_b = float(depth[j]), float(depth[j + 1])
+        before = finite[finite <= j]
+        after = finite[finite > j]
         a = int(np.searchsorted(centres, t[j], side="right")) - 1  # the knot before
         b = a + 1
-        if not (np.isfinite(d_a) and np.isfinite(d_b)) or a < 0 or b >= centres.size:
+        if not (before.size and after.size) or a < 0 or b >= centres.size:
             continue
-        span = float(centres[b] - centres[a])
-        travel = (d_b - d_a) + v[a] * (t[j] - centres[a]) + v[b] * (centres[b] - t[j + 1])
-        add_t.append(float(centres[a]) + 0.5 * span)
-        add_v.append(2.0 * travel / span - 0.5 * (v[a] + v[b]))
+        ia, ib = int(before[-1]), int(after[0])
+        t_a, t_b = float(t[ia]), float(t[ib])
+        travel = (depth[ib] - depth[ia]) + v[a] * (t_a - centres[a]) + v[b] * (centres[b] - t_b)
+        lo, hi = float(t[j]) + knot_s, float(t[j + 1]) - knot_s
+        if hi - lo > knot_s:  # the plateau's speed u: its two ramps and its flat part
+            ramp_a, flat, ramp_b = lo - centres[a], hi - lo, centres[b] - hi
+            u = (travel - 0.5 * (v[a] * ramp_a + v[b] * ramp_b)) / (
+                0.5 * ramp_a + flat + 0.5 * ramp_b
+            )
+            u = max(u, 0.0) if travel >= 0.0 else min(u, 0.0)
+            add_t += [lo, hi]
+            add_v += [u, u]
+        else:
+            span = float(centres[b] - centres[a])
+            u = 2.0 * travel / span - 0.5 * (v[a] + v[b])
+            add_t.append(float(centres[a]) + 0.5 * span)
+            add_v.append(max(u, 0.0) if travel >= 0.0 else min(u, 0.0))
     if not add_t:
         return centres, v
     order = np.argsort(np.concatenate([centres, add_t]), kind="stable")
@@ -238,15 +259,18 @@ def profile_from_knots(
 
 def rope_bounce_unseen(t_s: np.ndarray, band_hz: tuple[float, float] = (0.5, 4.0)) -> bool:
     """Whether samples at times ``t_s`` [s] are logged too slowly to see the rope bounce
-    (``band_hz``): the median rate under 2.5 x the band's top (10 Hz for 0.5-4 Hz), where
+    (``band_hz``): the median rate at most 2.5 x the band's top (10 Hz for 0.5-4 Hz, to
+    1 %: a logger's 10 Hz reads 9.99999 or 10.00001 Hz by the clock's rounding), where
     :func:`rope_damping_from_record` reads nothing.
 
     >>> slow, fast = np.arange(0.0, 60.0, 0.2), np.arange(0.0, 60.0, 0.05)
     >>> rope_bounce_unseen(slow), rope_bounce_unseen(fast)
     (True, False)
+    >>> rope_bounce_unseen(1.7e9 + np.arange(0.0, 60.0, 0.1))  # 10 Hz, epoch seconds
+    True
     """
     steps = np.diff(np.asarray(t_s, dtype=float))
-    return bool(steps.size) and 1.0 / float(np.median(steps)) < 2.5 * band_hz[1]
+    return bool(steps.size) and 1.0 / float(np.median(steps)) < 1.01 * 2.5 * band_hz[1]
 
 
 def rope_damping_from_record(

@@ -243,9 +243,12 @@ def flatline_runs(
     by more than q_k (j's span less its own step; the second q_k a margin for its
     noise) and a working sensor k would have changed its reading. Where nothing rounds
     (q of a pascal or less) that is any change. And at least half the other sensors
-    logged over the stretch must show it (one of one or two, two of three): a faulty
-    sensor's own jump (a stuck one coming back) does not make the others, holding
-    their rounded readings at rest, stuck too. A stretch of the record
+    that change over the stretch must show it (one of one or two, two of three): a
+    faulty sensor's own jump (a stuck one coming back) does not make the others,
+    flipping their rounded readings at rest, stuck too; one that holds its reading
+    over the stretch (stuck as well, or rounded at rest) says nothing either way, so
+    three sensors stuck while the fourth follows the oil are all three taken. A
+    stretch of the record
     known in part (a block's window) is a stretch of the whole when the part reaches
     ``duration_s`` past the sample asked about either side and the others move that far
     within it (not when they, frozen too or rounded, moved only before the part; the
@@ -260,6 +263,13 @@ def flatline_runs(
     >>> flatline_runs([stuck, flip], t, 3.0)[0]
     (array([], dtype=int64), array([], dtype=int64))
     """
+    stretches = []
+    for p in pressures:
+        starts, ends = runs(unchanged(p) & np.isfinite(p))
+        starts = np.maximum(starts - 1, 0)
+        stretches.append((starts, ends, t_s[ends] - t_s[starts] >= duration_s))
+    if not any(long.any() for _, _, long in stretches):  # the usual case: no step read
+        return [(s[:0], e[:0]) for s, e, _ in stretches]
     steps = [reading_step(p) for p in pressures]
     # a sensor that changes nowhere in the arrays given (stuck through a block's whole
     # window) has the others' step, as its logger rounds them alike: read on the whole
@@ -267,22 +277,20 @@ def flatline_runs(
     given = [q for q in steps if q > 0.0]
     steps = [q if q > 0.0 or not given else float(np.median(given)) for q in steps]
     out = []
-    for k, p in enumerate(pressures):
-        starts, ends = runs(unchanged(p) & np.isfinite(p))
-        starts = np.maximum(starts - 1, 0)
-        long = t_s[ends] - t_s[starts] >= duration_s
+    for k, (starts, ends, long) in enumerate(stretches):
         keep = np.zeros(starts.size, dtype=bool)
         for r in np.flatnonzero(long):
             stretch = slice(starts[r], ends[r] + 1)
-            logged = moved = 0
+            changing = moved = 0
             for j, other in enumerate(pressures):
                 seen = other[stretch]
                 seen = seen[np.isfinite(seen)]
-                if j == k or not seen.size:
-                    continue
-                logged += 1
-                moved += bool(np.ptp(seen) > 2.0 * steps[k] + steps[j])
-            keep[r] = moved >= max(1, (logged + 1) // 2)
+                spread = np.ptp(seen) if seen.size else 0.0
+                if j == k or spread == 0.0:  # one held too (stuck, or rounded at rest)
+                    continue  # says nothing either way
+                changing += 1
+                moved += bool(spread > 2.0 * steps[k] + steps[j])
+            keep[r] = moved >= max(1, (changing + 1) // 2)
         out.append((starts[keep], ends[keep]))
     return out
 

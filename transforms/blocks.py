@@ -26,9 +26,12 @@ or 1e-6 absolute in its unit, labels equal). Not equal: a logged displacement mi
 for longer than the margin inside one 120 s-bridged segment (the whole record
 interpolates across it, a block sees no neighbour), the oil temperature's leading
 nulls of a block (filled from inside the window, not from before it), and a stuck
-sensor's stretch whose other sensors froze too, changing only more than the margin
-before the block (the whole record takes the stretch as not logged, the block as a
-pressure: :func:`transforms.alarm_events.flatline_runs`).
+sensor's stretch whose other sensors froze too, or on a logger that rounds coarsely
+moved by more than the steps only more than the margin away from the block (the whole
+record takes the stretch as not logged, the block as a pressure:
+:func:`transforms.alarm_events.flatline_runs`; a sensor stuck at rest on a logger
+rounding to 50 kPa, the others moving 150 kPa a few minutes away: 75.7 k samples null
+whole, 24.0 k in 4-minute blocks, session 40's review).
 
 Block edges are whole multiples of ``block`` from midnight UTC (an hour by default), so
 a re-run of part of a day computes the same blocks.

@@ -411,8 +411,10 @@ def flatlined_samples(
     there; the ``sensor_flatline`` / ``sensor_stuck`` alarm names it), where the stuck
     reading would otherwise enter the rope's tension and the load with an ordinary
     band. The other sensors' mean carries the oil meanwhile
-    (:func:`transforms.stick_slip.stick_slip`). Block by block as whole: the blocks'
-    halo reaches past the duration (:func:`compensation_margins_s`)."""
+    (:func:`transforms.stick_slip.stick_slip`). Block by block as whole where the
+    others move within the flat-line duration of each sample (the blocks' halo reaches
+    past it, :func:`compensation_margins_s`); not where they move only farther away
+    (:mod:`transforms.blocks`)."""
     columns = [c for c in rope_cols("p{i}_pa") if c in frame.columns]
     readings = [float_column(frame[c]) for c in columns]
     duration_s = hoist.alarms.flatline_duration_s

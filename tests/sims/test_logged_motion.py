@@ -247,8 +247,31 @@ def test_knots_bridge_a_logger_gap_inside_the_trip_with_the_logged_depth():
     assert dk[-1] == pytest.approx(600.0, abs=0.5)
     np.testing.assert_allclose(np.interp(t[after], tk, dk), d[after], atol=0.5)
     gap = (tk > 45.0) & (tk < 75.0)
-    assert gap.sum() == 1  # one knot in the gap
-    assert 0.0 < vk[gap][0] < 12.0  # at a plausible speed
+    assert gap.sum() == 2  # a plateau in the gap
+    assert (vk[gap] > 0.0).all()
+    assert (vk[gap] < 12.0).all()  # at a plausible speed
+    # the depth unknown at the last sample before the gap: the last known one serves
+    holed = d.copy()
+    holed[np.flatnonzero(t < 45.0)[-3:]] = np.nan
+    knots = motion_knots(t, v, 4.0, t_end + 1.0, 0.0, 600.0, depth_m=holed)
+    assert knots is not None
+    assert knots[2][-1] == pytest.approx(600.0, abs=0.5)
+
+
+def test_a_gap_from_the_run_into_the_creep_is_bridged_without_turning_back():
+    """A 40 s gap from the 9.7 m/s run into a 0.5 m/s creep (the trip rule bridges it:
+    1.8 m/s on average): one knot in the gap's middle went to -1.4 m/s to lose the
+    ramps' travel; the plateau keeps going down and follows the logged depth."""
+    t = np.arange(0.0, 140.0, 0.02)
+    v = np.interp(t, [0, 5, 17, 60, 71.5, 130, 130.6, 140], [0, 0, 9.7, 9.7, 0.5, 0.5, 0, 0])
+    d = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+    keep = (t < 60.0) | (t >= 100.0)
+    t, v, d = t[keep], v[keep], d[keep]
+    knots = motion_knots(t, v, 4.0, 135.0, 0.0, float(d[-1]), depth_m=d)
+    assert knots is not None
+    tk, vk, dk = knots
+    assert (vk >= 0.0).all()
+    np.testing.assert_allclose(np.interp(t, tk, dk), d, atol=1.0)
 
 
 def test_a_record_too_slow_for_the_bounce_lets_the_replay_choose_the_damping(

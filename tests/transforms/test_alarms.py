@@ -375,6 +375,11 @@ def test_a_logger_that_rounds_coarsely_flatlines_only_a_stuck_sensor(hoist):
     live = [p.copy() for p in noisy]
     live[3][through] = live[3][np.argmax(through)]
     assert [s.size for s, _ in flatline_runs(live, t, duration)] == [0, 0, 0, 1]
+    # three stuck while the fourth follows the oil: the held ones say nothing of each
+    # other, the one that moves speaks for all three
+    for k in (1, 2):
+        live[k][through] = live[k][np.argmax(through)]
+    assert [s.size for s, _ in flatline_runs(live, t, duration)] == [0, 1, 1, 1]
 
 
 def test_tight_rope(hoist):

@@ -155,7 +155,7 @@ def motion_knots(
     if at_rest_after:
         v[-1] = 0.0
     if depth_m is not None:
-        centres, v = _bridge_gaps(t_s[inside], np.asarray(depth_m)[inside], centres, v, knot_s)
+        centres, v = _bridge_gaps(t_s[inside], np.asarray(depth_m)[inside], centres, v)
     step = np.diff(centres)
     travel = float(np.sum(0.5 * (v[1:] + v[:-1]) * step))
     wanted = end_depth_m - start_depth_m
@@ -168,19 +168,20 @@ def motion_knots(
 
 
 def _bridge_gaps(
-    t: np.ndarray, depth: np.ndarray, centres: np.ndarray, v: np.ndarray, knot_s: float
+    t: np.ndarray, depth: np.ndarray, centres: np.ndarray, v: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """``centres`` and ``v`` with knots in each logger gap of ``t`` (the window's
-    samples) longer than :data:`TRIP_BRIDGE_S`: a plateau of two knots ``knot_s`` inside
-    the gap's edges (one knot in its middle where the gap is too short for two), at the
-    speed that makes the trapezoid travel between the knots either side of the gap the
-    logged depth's change across it (from the last finite depth before the gap to the
-    first after it, plus the travel at those knots' speeds to them). The plateau keeps
-    the speed's sign where a run slows into the creep across the gap (one knot in the
-    middle went to -1.4 m/s there), and a plateau that would still turn back (the
-    ramps' own travel beyond the gap's) is held at rest, the trip's scale then taking the
-    rest. A gap at the window's edge is not bridged (its first or last knot is the
-    standstill's)."""
+    samples) longer than :data:`TRIP_BRIDGE_S`: a plateau of two knots at a third and two
+    thirds of the way between the knots either side of the gap, at the speed that makes
+    the trapezoid travel between those knots the logged depth's change across the gap
+    (from the last finite depth before it to the first after it, plus the travel at
+    those knots' speeds to them). Thirds keep the speed's changes as gentle as the gap
+    allows (a plateau a knot inside the gap's edges stepped a run's speed within 0.1 s:
+    the replay's conveyance went slack and the chamber cavitated) and the speed's sign
+    where a run slows into the creep across the gap (one knot in the gap's middle went
+    to -1.4 m/s there); a plateau that would still turn back (the ramps' own travel
+    beyond the gap's) is held at rest, the trip's scale then taking the rest. A gap at
+    the window's edge is not bridged (its first or last knot is the standstill's)."""
     gaps = np.flatnonzero(np.diff(t) > TRIP_BRIDGE_S)
     finite = np.flatnonzero(np.isfinite(depth))
     add_t: list[float] = []
@@ -193,22 +194,17 @@ def _bridge_gaps(
         if not (before.size and after.size) or a < 0 or b >= centres.size:
             continue
         ia, ib = int(before[-1]), int(after[0])
-        t_a, t_b = float(t[ia]), float(t[ib])
-        travel = (depth[ib] - depth[ia]) + v[a] * (t_a - centres[a]) + v[b] * (centres[b] - t_b)
-        lo, hi = float(t[j]) + knot_s, float(t[j + 1]) - knot_s
-        if hi - lo > knot_s:  # the plateau's speed u: its two ramps and its flat part
-            ramp_a, flat, ramp_b = lo - centres[a], hi - lo, centres[b] - hi
-            u = (travel - 0.5 * (v[a] * ramp_a + v[b] * ramp_b)) / (
-                0.5 * ramp_a + flat + 0.5 * ramp_b
-            )
-            u = max(u, 0.0) if travel >= 0.0 else min(u, 0.0)
-            add_t += [lo, hi]
-            add_v += [u, u]
-        else:
-            span = float(centres[b] - centres[a])
-            u = 2.0 * travel / span - 0.5 * (v[a] + v[b])
-            add_t.append(float(centres[a]) + 0.5 * span)
-            add_v.append(max(u, 0.0) if travel >= 0.0 else min(u, 0.0))
+        travel = (
+            (depth[ib] - depth[ia])
+            + v[a] * (float(t[ia]) - centres[a])
+            + v[b] * (centres[b] - float(t[ib]))
+        )
+        third = float(centres[b] - centres[a]) / 3.0
+        # (v_a + u) / 2 + u + (u + v_b) / 2, each over a third: the travel
+        u = (travel / third - 0.5 * (v[a] + v[b])) / 2.0
+        u = max(u, 0.0) if travel >= 0.0 else min(u, 0.0)
+        add_t += [float(centres[a]) + third, float(centres[a]) + 2.0 * third]
+        add_v += [u, u]
     if not add_t:
         return centres, v
     order = np.argsort(np.concatenate([centres, add_t]), kind="stable")

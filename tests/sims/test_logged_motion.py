@@ -250,6 +250,10 @@ def test_knots_bridge_a_logger_gap_inside_the_trip_with_the_logged_depth():
     assert gap.sum() == 2  # a plateau in the gap
     assert (vk[gap] > 0.0).all()
     assert (vk[gap] < 12.0).all()  # at a plausible speed
+    # as gently as the winder (0.8 m/s2): a step of the run's speed within 0.1 s of the
+    # gap's edge made the replay's conveyance go slack and its chamber cavitate
+    across = (tk > 44.0) & (tk < 76.0)
+    assert np.abs(np.diff(vk[across]) / np.diff(tk[across])).max() < 1.0
     # the depth unknown at the last sample before the gap: the last known one serves
     holed = d.copy()
     holed[np.flatnonzero(t < 45.0)[-3:]] = np.nan

@@ -13,6 +13,7 @@ import pytest
 
 from discovery.cases import scenario_hoist
 from discovery.planning import plan_replay
+from discovery.rope_damping import with_rope_damping
 from sims.field_day import generate_field_day
 from sims.logged_motion import (
     KNOT_ACCELERATION_SIGMA,
@@ -183,6 +184,23 @@ def test_a_ringing_hoist_keeps_or_finds_its_damping(stiff_and_ringing_days):
     found = plan_replay(days[0.02].sensors, _with_damping(base, 0.3), settle_s=20.0)
     assert found.hoist.ropes.head_rope_damping_ratio == pytest.approx(0.02, rel=0.3)
     assert _gap(found) < 1.5 * found.noise_sigma_pa
+
+
+def test_a_ringing_read_where_none_is_loses_to_the_ropes_critically_damped(
+    stiff_and_ringing_days,
+):
+    """A ringing read off a record whose ropes do not ring (a logger rounding coarsely
+    flips between its steps after the stops, which the band reads as one: 0.008 on a
+    validation trial rounded to 50 kPa, whose every trip then replayed 30-60 kPa off):
+    the ropes critically damped are replayed beside it and the gap decides."""
+    base, days = stiff_and_ringing_days
+    described = _with_damping(base, 0.02)
+    plan = plan_replay(days[1.0].sensors, described, settle_s=20.0)
+    before = dataclasses.replace(plan, hoist=described, rope_bounce="read", notes=())
+    chosen = with_rope_damping(before, 0.008)
+    assert chosen.hoist.ropes.head_rope_damping_ratio == 1.0, chosen.rope_bounce
+    assert "0.008: " in chosen.rope_bounce  # the read one was replayed and lost
+    assert _gap(chosen) < 1.2 * plan.noise_sigma_pa
 
 
 def test_a_read_damping_near_the_described_one_is_used_when_it_replays_closer(

@@ -60,7 +60,7 @@ def with_rope_damping(plan: ReplayPlan, zeta_read: float | None) -> ReplayPlan:
         # the reading can be fooled: a logger rounding to 10 x its noise flips between
         # steps after the stops, which the band reads as a ringing (a validation trial
         # rounded to 50 kPa: 0.008 read, the description's 0.02 kept, every trip replayed
-        # ringing 30-60 kPa off; critically damped 8-16 kPa); the ropes that do not ring
+        # ringing 30-60 kPa off; critically damped 16-29 kPa); the ropes that do not ring
         # are replayed beside it and the gap decides
         if CRITICAL > 1.5 * described:
             candidates.append(CRITICAL)

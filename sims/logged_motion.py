@@ -132,8 +132,8 @@ def motion_knots(
     it: a straight line between the speeds either side would miss the travel in the
     gap (a 30 s gap in a 600 m trip: ~100 m short, and every later trip of the replay's
     history started where its conveyance was not). With ``depth_m`` (the logged depth
-    at ``t_s``) a knot in the gap's middle takes the speed that makes the travel between
-    its neighbours the logged depth's change across the gap.
+    at ``t_s``) a plateau of two knots in the gap takes the speed that makes the travel
+    between its neighbours the logged depth's change across the gap (:func:`_bridge_gaps`).
     """
     inside = (t_s >= t_lo) & (t_s < t_hi) & np.isfinite(speed_m_s)
     if inside.sum() < 5 or t_hi - t_lo < 5 * knot_s:

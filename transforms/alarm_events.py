@@ -247,13 +247,14 @@ def flatline_runs(
     faulty sensor's own jump (a stuck one coming back) does not make the others,
     flipping their rounded readings at rest, stuck too; one that holds its reading
     over the stretch (stuck as well, or rounded at rest) says nothing either way, so
-    three sensors stuck while the fourth follows the oil are all three taken. A
-    stretch of the record
-    known in part (a block's window) is a stretch of the whole when the part reaches
-    ``duration_s`` past the sample asked about either side and the others move that far
-    within it (not when they, frozen too or rounded, moved only before the part; the
-    steps are read on the part, which holds the whole's where the sensors change
-    within it, and a sensor changing nowhere in it takes the median of the others').
+    three sensors stuck while the fourth follows the oil are all three taken.
+
+    A stretch of the record known in part (a block's window) is a stretch of the whole
+    when the part reaches ``duration_s`` past the sample asked about either side and the
+    others move that far within it (not when they, frozen too or rounded, moved only
+    before the part; the steps are read on the part, which holds the whole's where the
+    sensors change within it, and a sensor changing nowhere in it takes the median of
+    the others'). The steps are read only where some stretch lasts ``duration_s``.
 
     >>> t = np.arange(6.0)
     >>> stuck, live = np.array([1.0, 2, 2, 2, 2, 3]), np.array([5.0, 7, 9, 11, 13, 15])

@@ -27,6 +27,7 @@ __all__ = [
     "merge_events",
     "reading_step",
     "runs",
+    "step_of_changes",
     "threshold_events",
     "unchanged",
 ]
@@ -212,7 +213,13 @@ def reading_step(x: np.ndarray) -> float:
     >>> reading_step(np.array([0.0, 50, 0, 50, 0, 50, 51.2, 50, 0]))
     50.0
     """
-    change = np.abs(np.diff(np.asarray(x, dtype=float)))
+    return step_of_changes(np.diff(np.asarray(x, dtype=float)))
+
+
+def step_of_changes(changes: np.ndarray) -> float:
+    """:func:`reading_step` of the changes between consecutive readings (any subset of
+    them, e.g. a record's sampled pairs)."""
+    change = np.abs(np.asarray(changes, dtype=float))
     change = np.round(change[np.isfinite(change) & (change > 0.0)], 3)
     change = change[change > 0.0]
     if not change.size:

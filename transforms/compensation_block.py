@@ -482,6 +482,7 @@ class BlockCompensation(BlockSetup):
             pressures, self.segment, self.hoist, sample_rate_hz=rate,
             pressure_sigma_pa=settings.pressure_sigma_pa,
             pressure_cutoff_hz=settings.pressure_cutoff_hz, work=work,
+            reading_step_pa=self.context.pressure_step_pa,
         )  # fmt: skip
 
     def ringing_drift(self) -> np.ndarray:
@@ -578,10 +579,14 @@ class BlockCompensation(BlockSetup):
         }
 
     def pressure_noise_n(self) -> float:
-        """The sensor's noise after the low-pass, as a force on the piston [N] (the band)."""
+        """The sensor's noise after the low-pass, as a force on the piston [N] (the band),
+        with the logger's rounding (``CompensationContext.pressure_step_pa``, q / 12^0.5,
+        which the low-pass does not average away at rest: a reading held a step off)."""
         settings = self.settings
         share = min(1.0, 2.0 * settings.pressure_cutoff_hz / self.context.sample_rate_hz)
-        return settings.pressure_sigma_pa * np.sqrt(share) * self.hoist.cylinders.bore_area_m2
+        white = settings.pressure_sigma_pa * np.sqrt(share)
+        rounding = self.context.pressure_step_pa / np.sqrt(12.0)
+        return float(np.hypot(white, rounding)) * self.hoist.cylinders.bore_area_m2
 
     def rope_band(self, k: int, out: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """The 95 % band of rope k's tension (:func:`transforms.uncertainty.rope_band`, or

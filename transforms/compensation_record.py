@@ -25,7 +25,7 @@ from physics.trip_rule import LABEL_STATE_SIZE, STANDSTILL_SPEED_M_S
 from physics.white_noise import difference_noise_sigma
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPES
-from transforms.alarm_events import flatline_runs, frozen_runs
+from transforms.alarm_events import flatline_runs, frozen_runs, step_of_changes
 from transforms.filtering import PLAY_STATE_SIZE, fresh_state
 from transforms.piston_motion import share_state
 from transforms.rope_identification import (
@@ -281,6 +281,11 @@ class CompensationContext:
     depth_quantum_m : float
         The depth's reading step [m] (:func:`physics.conveyance.reading_quantum_m` of
         every row's changes; 0: a continuous reading): one step is no motion.
+    pressure_step_pa : float
+        The largest reading step of the calibrated pressures [Pa]
+        (:func:`transforms.alarm_events.step_of_changes` of the sample's pairs): a
+        logger's rounding, which the seals' drift play and the band's sensor part take in
+        (:func:`transforms.seal_drift.drift_play_pa`).
     rope_springs : RopeSprings or None
         The head ropes' constants identified from the record
         (:mod:`transforms.rope_identification`), or where nothing identifies them (no
@@ -301,6 +306,7 @@ class CompensationContext:
     rope_springs: RopeSprings | None = None
     depth_sigma_m: float = 0.0
     depth_quantum_m: float = 0.0
+    pressure_step_pa: float = 0.0
 
 
 def depth_turns(frame: pl.DataFrame) -> tuple[np.ndarray, np.ndarray] | None:
@@ -519,7 +525,7 @@ def compensation_context(
     rate_hz = settings.sample_rate_hz or (float(1.0 / np.median(steps)) if steps.size else 100.0)
     spike_sigma: dict[str, float] = {}
     p_cols, x_cols = rope_cols("p{i}_pa"), rope_cols("x{i}_m")
-    pressures = []
+    pressures, steps = [], []
     for column in (*p_cols, *x_cols):
         values = (
             calibrated(sample, column, hoist)
@@ -529,6 +535,7 @@ def compensation_context(
         spike_sigma[column] = difference_noise_sigma(values[pair + 1] - values[pair], 1)
         if column in p_cols:
             pressures.append(values[first])
+            steps.append(step_of_changes(values[pair + 1] - values[pair]))
     displacement_sigma, logged = [], []
     has_x = True
     for column in x_cols:
@@ -606,6 +613,7 @@ def compensation_context(
         typical_pressure_pa=typical,
         has_x=has_x,
         rope_springs=springs,
+        pressure_step_pa=max(steps, default=0.0),
     )
 
 

@@ -54,6 +54,7 @@ from physics.rope_spring import bounce_frequency_hz
 from physics.tension import tail_rope_mass_kg
 from physics.trip_rule import segment_ids
 from schemas.hoist import G_STANDARD, HoistDescription
+from transforms.alarm_events import reading_step
 from transforms.filtering import despiked_lowpass, play_step, pressure_cutoff_at
 from transforms.lowpass import lowpass
 
@@ -66,6 +67,7 @@ __all__ = [
     "RINGING_PEAK",
     "RINGING_SIGMAS",
     "drift_cutoff_hz",
+    "drift_play_pa",
     "drift_pressure",
     "drift_travel",
     "played_travel",
@@ -155,6 +157,7 @@ def drift_pressure(
     pressure_sigma_pa: float,
     pressure_cutoff_hz: float,
     work: np.ndarray | None = None,
+    reading_step_pa: float = 0.0,
 ) -> tuple[np.ndarray, float]:
     """The mean pressure that drives the seals' drift in
     :func:`transforms.stick_slip.stick_slip`, and the half-width of the play on it [Pa].
@@ -162,7 +165,8 @@ def drift_pressure(
     The mean of the sensors logged at each sample (already low-passed at
     ``pressure_cutoff_hz``), low-passed
     again at :func:`drift_cutoff_hz`; the play's half-width is :data:`DRIFT_SIGMAS` x
-    that mean's noise, ``pressure_sigma_pa`` white per sensor through the two filters.
+    that mean's noise, ``pressure_sigma_pa`` white per sensor through the two filters
+    (:func:`drift_play_pa`, with the loggers' ``reading_step_pa``).
     ``work``: scratch of :func:`transforms.lowpass.lowpass_work_size` samples at that
     cut-off.
     """
@@ -177,7 +181,26 @@ def drift_pressure(
         mean /= count  # none logged: NaN
     lowpass(mean, segment_id, sample_rate_hz=sample_rate_hz, cutoff_hz=cutoff, out=mean, work=work)
     share = min(1.0, 2.0 * cutoff / sample_rate_hz)
-    return mean, DRIFT_SIGMAS * pressure_sigma_pa * float(np.sqrt(share / len(pressures)))
+    return mean, drift_play_pa(pressure_sigma_pa, reading_step_pa, share, len(pressures))
+
+
+def drift_play_pa(sigma_pa: float, step_pa: float, share: float, sensors: int) -> float:
+    """Half-width of the drift's play on the sensors' mean pressure [Pa]:
+    :data:`DRIFT_SIGMAS` x the mean's noise (``sigma_pa`` white per sensor with a
+    logger's rounding to ``step_pa``, q^2 / 12, passed in the filters' ``share`` of the
+    band), and at least half a step. The mean of readings each rounded to q is within
+    q / 2 of the mean pressure, so at rest its flips between steps span up to q: a
+    play of half-width q / 2 never takes them for the oil's motion. A logger rounding to
+    25 kPa (five times the noise) flipped the mean past the white-noise play at rest,
+    drained every seal and left the stop windows 3-5 % off (validation days rounded,
+    session 40); where the readings keep the noise (a step of a kilopascal) the white
+    noise decides, as before.
+
+    >>> round(drift_play_pa(5e3, 0.0, 0.16, 4)), round(drift_play_pa(5e3, 25e3, 0.16, 4))
+    (4000, 12500)
+    """
+    noise = np.sqrt(sigma_pa**2 + step_pa**2 / 12.0) * np.sqrt(share / sensors)
+    return float(max(DRIFT_SIGMAS * noise, 0.5 * step_pa))
 
 
 def ringing_travel(
@@ -324,6 +347,7 @@ def drift_travel(
     mean, half_width = drift_pressure(
         filtered, segment, hoist, sample_rate_hz=rate,
         pressure_sigma_pa=pressure_sigma_pa, pressure_cutoff_hz=cutoff,
+        reading_step_pa=max((reading_step(p) for p in pressures), default=0.0),
     )  # fmt: skip
     ringing = ringing_travel(
         mean, segment, depth_m, at_rest, hoist, sample_rate_hz=rate, pressure_cutoff_hz=cutoff,

@@ -41,6 +41,7 @@ from physics.rope_spring import bounce_frequency_hz
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from sims.accuracy import position_accuracy
 from sims.field_day import generate_field_day
+from transforms.alarm_events import reading_step
 from transforms.compensation import compensate
 from transforms.compensation_block import BlockCompensation
 from transforms.compensation_record import CompensationSettings, identification_means
@@ -461,7 +462,7 @@ def test_the_ringing_counts_only_at_rest_and_where_the_pressure_is_known():
     )
     mean, w = drift_pressure(
         filtered, segment, HOIST, sample_rate_hz=rate, pressure_sigma_pa=5e3,
-        pressure_cutoff_hz=10.0,
+        pressure_cutoff_hz=10.0, reading_step_pa=max(reading_step(p) for p in sensors),
     )  # fmt: skip
     want = played_travels(mean, segment, w) + ringing_travel(
         mean, segment, np.full(n, depth_m), rest, HOIST, sample_rate_hz=rate,
@@ -486,3 +487,40 @@ def test_played_travels_resumed_in_pieces_equal_the_whole() -> None:
         played_travels_into(p[lo:hi], segment[lo:hi], 3e3, state, pieces[lo:hi])
     np.testing.assert_array_equal(pieces, whole)
     assert whole.sum() > 0.0
+
+
+def test_a_logger_rounding_coarsely_does_not_drain_the_seals_at_rest():
+    """The seals loaded by a common rise, then 10 min at rest, the four sensors read
+    with 5 kPa of noise and rounded to 25 kPa (a logger's steps, before the low-pass):
+    each reading flips between two steps at rest, and the mean of four flips past the
+    white-noise play, draining the seals (the validation days rounded so: stop windows
+    3-5 % off). With the rounding in the play (half a step at least) they keep > 95 %."""
+    rate_hz, step = 50.0, 25e3
+    rng = np.random.default_rng(3)
+    n_rise, n_rest = int(20 * rate_hz), int(600 * rate_hz)
+    top = 4.06e6 + 0.4 * step  # the readings sit near a step's edge
+    clean = np.r_[np.linspace(4.0e6, top, n_rise), np.full(n_rest, top)]
+    segment = np.zeros(clean.size, int)
+    rounded = tuple(
+        lowpass(np.round((clean + rng.normal(0.0, 5e3, clean.size)) / step) * step, segment,
+                sample_rate_hz=rate_hz, cutoff_hz=10.0)
+        for _ in range(4)
+    )  # fmt: skip
+    loaded = slice(n_rise + int(5 * rate_hz), n_rise + int(15 * rate_hz))
+    rested = slice(-int(10 * rate_hz), None)
+
+    def kept(step_pa: float) -> float:
+        mean, half_width = drift_pressure(
+            rounded, segment, HOIST, sample_rate_hz=rate_hz, pressure_sigma_pa=5e3,
+            pressure_cutoff_hz=10.0, reading_step_pa=step_pa,
+        )  # fmt: skip
+        n = clean.size
+        _, f = stick_slip(
+            rounded, (np.zeros(n),) * 4, np.full(n, DEPTH), segment, HOIST, EQUAL,
+            dt_s=1.0 / rate_hz, drift_pressure_pa=mean, drift_half_width_pa=half_width,
+        )  # fmt: skip
+        total = np.sum(f, axis=0)
+        return float(total[rested].mean() / total[loaded].mean())
+
+    assert kept(step) > 0.95
+    assert kept(0.0) < 0.9  # the white noise's play alone: 13 % drained in 10 min

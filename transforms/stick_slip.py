@@ -55,7 +55,9 @@ Measured (``benchmarks/eval_compensation.py``, stop windows of the independent
 validation days 101 / 102 / 103 / 104, load error |after| worst / median, worst rope):
 0.80 / 0.18, 1.12 %; 0.67 / 0.13, 1.04 %; 0.79 / 0.16, 1.86 %; 0.96 / 0.22, 1.18 %
 (session 15: the ropes identified with the drift, and the ringing below the drift's
-play counted, :mod:`transforms.seal_drift`). Before: 1.16 / 0.18, 1.89 %; 1.29 / 0.17,
+play counted, :mod:`transforms.seal_drift`; session 40, the loggers' 1 kPa steps in
+the drift's play: rope 1.13 % on day 101, 0.15 / 1.84 % on day 103, 0.97 % worst on
+day 104, the rest as they were). Before: 1.16 / 0.18, 1.89 %; 1.29 / 0.17,
 2.01 %; 0.86 / 0.22, 2.13 %; 1.77 / 0.26, 3.44 % (session 14), and without any drift
 1.29 / 0.37, 2.15 %; 1.04 / 0.32, 1.95 %; 2.25 / 0.52, 2.93 %; 2.60 / 1.21, 4.44 %.
 Windows worse than raw by > 0.2 points: 0 / 1 / 0 / 4, all at the pithead where the

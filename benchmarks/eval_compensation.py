@@ -59,6 +59,7 @@ import json
 import shutil
 import tempfile
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -389,21 +390,29 @@ def window_errors(tensions: pl.DataFrame, windows: list[Window]) -> pl.DataFrame
         def mean(column: str, lo: int = int(lo), hi: int = int(hi)) -> float:
             return float(np.nanmean(cols[column][lo:hi]))
 
-        ropes = [100 * (mean(f"tension{i}_n") / w.true_tension_n[i - 1] - 1) for i in ROPES]
+        with warnings.catch_warnings():  # a withheld column's mean: NaN, said below
+            warnings.simplefilter("ignore", RuntimeWarning)
+            ropes = [100 * (mean(f"tension{i}_n") / w.true_tension_n[i - 1] - 1) for i in ROPES]
+            after = 100 * (mean("load_n") / w.true_load_n - 1)
         row = {
             "kind": w.kind,
             "position": w.position,
             "t0": w.t0,
             "samples": int(hi - lo),
             "before_pct": 100 * (mean("load_raw_n") / w.true_load_n - 1),
-            "after_pct": 100 * (mean("load_n") / w.true_load_n - 1),
+            "after_pct": after,
             **{f"rope{i}_pct": ropes[i - 1] for i in ROPES},
-            "rope_max_pct": max(abs(r) for r in ropes),
+            "rope_max_pct": float(np.nanmax(np.abs(ropes))) if np.isfinite(ropes).any() else np.nan,
+            # the compensation withheld the load over the whole window (a sensor stuck or
+            # not logged): not scored, counted
+            "withheld": not np.isfinite(after),
         }
         if len(w.true_friction_n) == len(ROPES) and all(f"friction{i}_n" in cols for i in ROPES):
             for i in ROPES:  # the seals' part of each rope's error [N]
                 row[f"friction{i}_error_n"] = mean(f"friction{i}_n") - w.true_friction_n[i - 1]
-        if band:
+        if band and row["withheld"]:
+            row["covered"], row["half_width_pct"] = None, None
+        elif band:
             inside = mean("load_lo_n") <= w.true_load_n <= mean("load_hi_n")
             for i in ROPES:
                 lo_i, hi_i = f"tension{i}_lo_n", f"tension{i}_hi_n"
@@ -434,7 +443,12 @@ def _print_windows(title: str, rows: pl.DataFrame) -> None:
 
 
 def report_day(name: str, errors: pl.DataFrame, windows: int, seconds: float) -> dict:
-    """Print the day's figures and targets; return them for the summary table."""
+    """Print the day's figures and targets; return them for the summary table. Windows
+    whose load the compensation withheld (null over the whole window) are counted apart
+    and left out of every figure."""
+    withheld = int(errors["withheld"].sum()) if "withheld" in errors.columns else 0
+    if withheld:
+        errors = errors.filter(~pl.col("withheld"))
     before = errors["before_pct"].abs()
     after = errors["after_pct"].abs()
     flagged = errors.with_columns(after.alias("_abs"), (after > before + WORSE_PP).alias("_worse"))
@@ -455,6 +469,8 @@ def report_day(name: str, errors: pl.DataFrame, windows: int, seconds: float) ->
     print(
         f"\n== {name}: {errors.height} windows evaluated ({windows} in the truth), {seconds:.0f} s"
     )
+    if withheld:
+        print(f"  windows whose load was withheld (a sensor stuck or not logged): {withheld}")
     print(
         f"  load error |before|: worst {fig['worst_before']:.2f} %, median "
         f"{fig['median_before']:.2f} %"

@@ -169,6 +169,18 @@ def _drift_mean(clean: np.ndarray, rate_hz: float, rng: np.random.Generator):
     return segment, noisy, mean, half_width
 
 
+def _seals_total(pressures, segment, rate_hz: float, mean, half_width: float) -> np.ndarray:
+    """The four seals' summed friction of the stick-slip solution on equal ropes at the
+    shaft's depth, the pistons logged still, drifting along ``mean`` through a play of
+    ``half_width``."""
+    n = segment.size
+    _, f = stick_slip(
+        pressures, (np.zeros(n),) * 4, np.full(n, DEPTH), segment, HOIST, EQUAL,
+        dt_s=1.0 / rate_hz, drift_pressure_pa=mean, drift_half_width_pa=half_width,
+    )  # fmt: skip
+    return np.sum(f, axis=0)
+
+
 @pytest.mark.parametrize("rate_hz", [50.0, 100.0])
 def test_the_noise_does_not_drain_the_seals_and_a_ringing_does(rate_hz):
     """A common rise loads the seals, then 10 min at rest with 5 kPa of white noise on
@@ -189,12 +201,7 @@ def test_the_noise_does_not_drain_the_seals_and_a_ringing_does(rate_hz):
     rung = slice(-5 * second, None)
 
     def kept(play: float) -> tuple[float, float]:
-        n = clean.size
-        _, f = stick_slip(
-            noisy, (np.zeros(n),) * 4, np.full(n, DEPTH), segment, HOIST, EQUAL,
-            dt_s=1.0 / rate_hz, drift_pressure_pa=mean, drift_half_width_pa=play,
-        )  # fmt: skip
-        total = np.sum(f, axis=0)
+        total = _seals_total(noisy, segment, rate_hz, mean, play)
         return float(total[rested].mean() / total[loaded].mean()), float(
             total[rung].mean() / total[loaded].mean()
         )
@@ -514,12 +521,7 @@ def test_a_logger_rounding_coarsely_does_not_drain_the_seals_at_rest():
             rounded, segment, HOIST, sample_rate_hz=rate_hz, pressure_sigma_pa=5e3,
             pressure_cutoff_hz=10.0, reading_step_pa=step_pa,
         )  # fmt: skip
-        n = clean.size
-        _, f = stick_slip(
-            rounded, (np.zeros(n),) * 4, np.full(n, DEPTH), segment, HOIST, EQUAL,
-            dt_s=1.0 / rate_hz, drift_pressure_pa=mean, drift_half_width_pa=half_width,
-        )  # fmt: skip
-        total = np.sum(f, axis=0)
+        total = _seals_total(rounded, segment, rate_hz, mean, half_width)
         return float(total[rested].mean() / total[loaded].mean())
 
     assert kept(step) > 0.95

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
+from physics.conveyance import quantum_of_turns
 from transforms.alarm_rules import ALARM_RULES, alarm_id
 
 __all__ = [
@@ -218,15 +219,16 @@ def reading_step(x: np.ndarray) -> float:
 
 def step_of_changes(changes: np.ndarray) -> float:
     """:func:`reading_step` of the changes between consecutive readings (any subset of
-    them, e.g. a record's sampled pairs)."""
+    them, e.g. a record's sampled pairs): the rule the depth's reading step follows
+    (:func:`physics.conveyance.quantum_of_turns`, on its reversals), on the changes."""
     change = np.abs(np.asarray(changes, dtype=float))
     change = np.round(change[np.isfinite(change) & (change > 0.0)], 3)
     change = change[change > 0.0]
     if not change.size:
         return 0.0
     values, counts = np.unique(change, return_counts=True)
-    shared = values[counts >= 3]
-    return float(shared[0] if shared.size else values[0])
+    shared = quantum_of_turns(values, counts)
+    return shared if shared > 0.0 else float(values[0])
 
 
 def flatline_runs(

@@ -13,7 +13,7 @@ import polars as pl
 from schemas.tables import TABLES, polars_schema
 from warehouse.store import DataRoot
 
-__all__ = ["lake_partitions", "scan_lake"]
+__all__ = ["in_time_order", "lake_partitions", "scan_lake"]
 
 
 def as_utc(value: dt.datetime) -> dt.datetime:
@@ -60,6 +60,23 @@ def scan_lake(
     if end is not None:
         frame = frame.filter(pl.col("time_utc") < as_utc(end))
     return frame.sort("time_utc") if sort else frame
+
+
+def in_time_order(frame: pl.LazyFrame) -> pl.DataFrame:
+    """``frame`` collected in time order (``time_utc``), rows of one time in the order read.
+
+    Rows already in order -- a hoist's files as ingest lands them, read in their names'
+    order -- are taken as they are: a sort would gather every column again (a 24 h day of
+    100 Hz read block by block three times in a run: ~3 s of CPU and a third of its page
+    faults). Else a stable sort. :func:`scan_lake`'s ``sort=True`` is the lazy form (it
+    may order rows of one time either way).
+    """
+    rows = frame.collect()
+    if rows["time_utc"].is_sorted():
+        # flagged sorted, as a sort leaves it (a filter on time then slices, not copies),
+        # and one array per column (a read holds one per row group)
+        return rows.rechunk().with_columns(pl.col("time_utc").set_sorted())
+    return rows.sort("time_utc", maintain_order=True)
 
 
 def lake_partitions(data: DataRoot, table: str) -> pl.DataFrame:

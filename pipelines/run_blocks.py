@@ -11,12 +11,13 @@ the staged rows (:func:`block_alarms`). Memory is bounded by the block, not the 
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 
 import polars as pl
 
-from pipelines.lake import scan_lake
+from pipelines.lake import in_time_order, scan_lake
 from schemas.hoist import HoistDescription
 from schemas.tables import ALARMS, ROPES, conform
 from transforms.alarm_checks import LOGGED_PRESSURE
@@ -70,6 +71,18 @@ class FieldSamples:
         return scan_lake(
             self.data, "field_samples", site=self.site, hoist=self.hoist, start=lo, end=hi
         )
+
+    def read(
+        self, lo: dt.datetime, hi: dt.datetime, columns: Sequence[str | pl.Expr]
+    ) -> pl.DataFrame:
+        """``columns`` of ``lo <= time_utc < hi`` in time order (:func:`pipelines.lake.
+        in_time_order`: the landed order, sorted only where it is not)."""
+        return in_time_order(
+            scan_lake(
+                self.data, "field_samples", site=self.site, hoist=self.hoist, start=lo, end=hi,
+                sort=False,
+            ).select(columns)
+        )  # fmt: skip
 
     def source_files(self, lo: dt.datetime | None, hi: dt.datetime | None) -> set[str]:
         """The source files read (``runs.inputs``), without sorting the period's rows."""
@@ -136,7 +149,7 @@ def read_context(
     """The context pass over the whole read (:func:`transforms.blocks.record_context`);
     identified ropes are remembered in ``<data>/cache/rope_springs``."""
     return record_context(
-        lambda lo, hi: samples.scan(lo, hi).select(_CONTEXT_COLUMNS).collect(),
+        lambda lo, hi: samples.read(lo, hi, _CONTEXT_COLUMNS),
         hoist,
         start=extent.first,
         end=extent.stop,
@@ -166,7 +179,7 @@ def compensate_and_stage(
     """
 
     def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
-        return samples.scan(lo, hi).select(_BLOCK_COLUMNS).collect()
+        return samples.read(lo, hi, _BLOCK_COLUMNS)
 
     writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="stage")
     try:
@@ -243,14 +256,10 @@ def block_alarms(
         rows = staged.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi)).collect()
         if logged is None:
             return rows
-        sensors = (
-            logged.scan(lo, hi)
-            .select(
-                "time_utc",
-                *(pl.col(f"p{i}_pa").alias(LOGGED_PRESSURE.format(i=i)) for i in ROPES),
-            )
-            .collect()
-        )
+        sensors = logged.read(
+            lo, hi,
+            ["time_utc", *(pl.col(f"p{i}_pa").alias(LOGGED_PRESSURE.format(i=i)) for i in ROPES)],
+        )  # fmt: skip
         if sensors["time_utc"].equals(rows["time_utc"]):  # the staged rows are the logged
             return rows.hstack(sensors.drop("time_utc"))  # ones, in order: no join needed
         return rows.join(sensors, on="time_utc", how="left", maintain_order="left")

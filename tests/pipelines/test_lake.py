@@ -7,7 +7,7 @@ import datetime as dt
 import polars as pl
 import pytest
 
-from pipelines.lake import lake_partitions, scan_lake
+from pipelines.lake import in_time_order, lake_partitions, scan_lake
 from schemas.tables import FIELD_SAMPLES
 from warehouse.store import DataRoot
 
@@ -65,3 +65,17 @@ def test_partitions_listed(root):
     parts = lake_partitions(root, "field_samples")
     assert parts["date"].to_list() == ["2026-03-01", "2026-03-02"]
     assert parts["files"].to_list() == [1, 1]
+
+
+def test_in_time_order_keeps_ordered_rows_and_sorts_others_stably():
+    t = [dt.datetime(2026, 3, 2, 0, 0, s, tzinfo=dt.UTC) for s in (0, 1, 1, 2)]
+    ordered = pl.LazyFrame({"time_utc": t, "line": [0, 1, 2, 3]})
+    rows = in_time_order(ordered)
+    assert rows["line"].to_list() == [0, 1, 2, 3]
+    # flagged sorted, as a sort leaves it: a filter on time can slice
+    assert rows["time_utc"].flags["SORTED_ASC"]
+    # out of order (two files overlapping): sorted, the rows of one time as read
+    shuffled = pl.LazyFrame({"time_utc": [t[3], t[1], t[0], t[2]], "line": [3, 1, 0, 2]})
+    assert in_time_order(shuffled)["line"].to_list() == [0, 1, 2, 3]
+    tied = pl.LazyFrame({"time_utc": [t[3], t[2], t[1]], "line": [9, 7, 8]})
+    assert in_time_order(tied)["line"].to_list() == [7, 8, 9]

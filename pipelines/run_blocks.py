@@ -242,11 +242,13 @@ def block_alarms(
     end: dt.datetime,
     block: dt.timedelta,
     logged: FieldSamples | None = None,
+    sample_step_s: float | None = None,
 ) -> pl.DataFrame:
     """Alarms of the staged rope tensions, block by block
-    (:func:`transforms.alarms.evaluate_alarms_in_blocks`); the sensor rules read the
-    pressures as ``logged`` (the landed field samples) holds them, where given
-    (:data:`transforms.alarm_checks.LOGGED_PRESSURE`: the staged ones are filtered)."""
+    (:func:`transforms.alarms.evaluate_alarms_in_blocks`, ``sample_step_s`` the record's
+    logger step); the sensor rules read the pressures as ``logged`` (the landed field
+    samples) holds them, where given (:data:`transforms.alarm_checks.LOGGED_PRESSURE`:
+    the staged ones are filtered)."""
     files = stage.files()
     if not files:
         return conform(pl.DataFrame(), ALARMS)
@@ -271,4 +273,5 @@ def block_alarms(
         run_id=run_id,
         trip_payloads=trips,
         payload_kg=payload_kg,
+        sample_step_s=sample_step_s,
     )

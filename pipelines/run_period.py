@@ -198,6 +198,7 @@ def run_period(
         alarms = block_alarms(
             stage, hoist, run_id=run_id, trips=trip_summary, payload_kg=payload_kg,
             start=extent.period_start, end=extent.period_end, block=block, logged=samples,
+            sample_step_s=1.0 / context.sample_rate_hz,
         )  # fmt: skip
         run = hoist_run(
             run_id=run_id, command=command, started_at_utc=started, hoist=hoist,

@@ -132,6 +132,19 @@ def load_alarms(
     )  # fmt: skip
 
 
+def dropout_gap_s(dropout_duration_s: float, sample_step_s: float) -> float:
+    """The spacing of the samples [s] beyond which ``sensor_dropout`` names a gap: the
+    hoist's ``dropout_duration``, and more than one and a half of the logger's steps, so
+    that a slow logger's own step, which jitters past it, is not one (a 1 Hz record's
+    1.001 s steps raised 26 425 alarms in 72 h against a duration of 1 s; its one
+    sample missing, a 2 s spacing, is named).
+
+    >>> dropout_gap_s(1.0, 0.02), dropout_gap_s(1.0, 1.0)
+    (1.0, 1.5)
+    """
+    return max(dropout_duration_s, 1.5 * sample_step_s)
+
+
 def sensor_alarms(
     ctx: EventContext,
     frame: pl.DataFrame,
@@ -150,6 +163,7 @@ def sensor_alarms(
     pressures = pressures_pa(frame, hoist)
     depth = column(frame, "depth_m")
     flat = flatline_runs(pressures, t_s, alarms.flatline_duration_s)
+    gap_s = dropout_gap_s(alarms.dropout_duration_s, dt_s)
 
     for k, i in enumerate(ROPES):
         s, e = merge_events(t_s, *flat[k], merge_gap_s)
@@ -176,10 +190,10 @@ def sensor_alarms(
         s, e = runs(missing)
         start = np.maximum(s - 1, 0)  # last good sample before the gap
         stop = np.minimum(e + 1, t_s.size - 1)  # first good sample after it
-        keep = (t_s[stop] - t_s[start]) > alarms.dropout_duration_s
+        keep = (t_s[stop] - t_s[start]) > gap_s
         rows += event_rows(
             ctx, "sensor_dropout", i, start[keep], stop[keep], peak_of=None, peak_max=True,
-            peak_values=(t_s[stop] - t_s[start])[keep], threshold=alarms.dropout_duration_s,
+            peak_values=(t_s[stop] - t_s[start])[keep], threshold=gap_s,
             message=f"pressure sensor {i} missing",
         )  # fmt: skip
 
@@ -197,10 +211,10 @@ def sensor_alarms(
         merge_gap_s=merge_gap_s, dt_s=dt_s,
     )  # fmt: skip
     gaps = np.diff(t_s)
-    gap_at = np.flatnonzero(gaps > alarms.dropout_duration_s)
+    gap_at = np.flatnonzero(gaps > gap_s)
     rows += event_rows(
         ctx, "sensor_dropout", None, gap_at, gap_at + 1, peak_of=None, peak_max=True,
-        peak_values=gaps[gap_at], threshold=alarms.dropout_duration_s,
+        peak_values=gaps[gap_at], threshold=gap_s,
         message="no samples logged",
     )  # fmt: skip
     return rows

@@ -41,7 +41,8 @@ Reading of the regulations (paraphrased; check the current text before relying o
   while another sensor moves), ``sensor_stuck`` (all four repeat while the conveyance
   travels: a frozen logger), ``sensor_out_of_range`` (below 0 or above the sensor's
   ``full_scale``), ``sensor_dropout`` (a logging gap longer than ``dropout_duration``,
-  or one sensor missing for that long), ``sensor_disagreement`` (at standstill one
+  or one sensor missing for that long; and longer than one and a half of the logger's
+  steps, :func:`transforms.alarm_checks.dropout_gap_s`), ``sensor_disagreement`` (at standstill one
   calibrated sensor departs from the median of the four by more than
   :data:`SENSOR_DISAGREEMENT_FRACTION` for ``flatline_duration``: the pipes equalise the chambers at
   rest, contract 1a, so that is the sensor, not the oil; the stick-slip compensation

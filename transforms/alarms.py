@@ -61,8 +61,14 @@ def evaluate_alarms(
     payload_kg: float | None = None,
     hysteresis_fraction: float = 0.05,
     merge_gap_s: float = 2.0,
+    sample_step_s: float | None = None,
 ) -> pl.DataFrame:
     """Evaluate every rule of :data:`ALARM_RULES` on ROPE_TENSIONS-shaped samples.
+
+    ``sample_step_s``: the logger's step [s] (a record's, e.g. ``1 / CompensationContext.
+    sample_rate_hz``, so that every block of it reads the same); None: the samples'
+    median spacing. A slow logger's own step is not a dropout
+    (:func:`transforms.alarm_checks.dropout_gap_s`).
 
     The reconciliation-residual rule needs the payload: per trip from
     ``trip_payloads`` (``trip_id``, ``payload_kg``; a TRIP_SUMMARY frame will do), else
@@ -77,7 +83,10 @@ def evaluate_alarms(
         return conform(pl.DataFrame(), ALARMS)
     time = frame.get_column("time_utc").dt.replace_time_zone(None).to_numpy()
     t_s = (time - time[0]) / np.timedelta64(1, "s")
-    dt_s = float(np.median(np.diff(t_s))) if t_s.size > 1 else 0.0
+    if sample_step_s is not None:
+        dt_s = sample_step_s
+    else:
+        dt_s = float(np.median(np.diff(t_s))) if t_s.size > 1 else 0.0
     site = site or hoist.hoist.site
     ctx = EventContext(site, hoist_name or hoist.hoist.name, run_id, time, t_s)
     thresholds = rule_thresholds(hoist)
@@ -171,6 +180,7 @@ def evaluate_alarms_in_blocks(
     run_id: str,
     trip_payloads: pl.DataFrame | None = None,
     payload_kg: float | None = None,
+    sample_step_s: float | None = None,
 ) -> pl.DataFrame:
     """:func:`evaluate_alarms` of a long record, one block at a time (issue 16).
 
@@ -179,6 +189,8 @@ def evaluate_alarms_in_blocks(
     windows are merged (:func:`merge_alarm_pieces`). A logger gap longer than two
     margins has no window holding both its sides: its two bounding samples are checked
     on their own, so its "no samples logged" alarm is raised as on the whole record.
+    ``sample_step_s``: the record's logger step (:func:`evaluate_alarms`); None: the
+    first block's median spacing, for every block.
     """
     margin = dt.timedelta(seconds=alarm_margin_s(hoist))
     pieces = []
@@ -187,17 +199,20 @@ def evaluate_alarms_in_blocks(
         window = read(lo - margin, hi + margin)
         if window.height == 0:
             continue
-        pieces.append(
-            evaluate_alarms(
-                window, hoist, run_id=run_id, trip_payloads=trip_payloads, payload_kg=payload_kg
-            )
-        )
+        if sample_step_s is None and window.height > 1:
+            spacing = window["time_utc"].diff().dt.total_microseconds().drop_nulls()
+            sample_step_s = float(spacing.median()) / 1e6
+        found = evaluate_alarms(
+            window, hoist, run_id=run_id, trip_payloads=trip_payloads,
+            payload_kg=payload_kg, sample_step_s=sample_step_s,
+        )  # fmt: skip
+        pieces.append(found)
         if tail is not None and window["time_utc"][0] > tail["time_utc"][0]:
             # only the gap itself: two samples say nothing else (their spacing would
             # pass any single sample as lasting the debounce time)
             pair = pl.concat([tail, window.head(1)], how="vertical_relaxed")
             pieces.append(
-                evaluate_alarms(pair, hoist, run_id=run_id).filter(
+                evaluate_alarms(pair, hoist, run_id=run_id, sample_step_s=sample_step_s).filter(
                     (pl.col("rule") == "sensor_dropout") & pl.col("rope").is_null()
                 )
             )

@@ -535,3 +535,26 @@ def test_a_sensor_stuck_through_a_window_flatlines_there_as_in_the_whole_record(
         core = (t[window] >= lo) & (t[window] < lo + 3600.0)
         part = flagged([p[window] for p in rounded], t[window])
         np.testing.assert_array_equal(part[core], whole[window][core], err_msg=str(lo))
+
+
+def test_a_slow_loggers_own_step_is_not_a_dropout(hoist):
+    """A 1 Hz logger whose steps jitter to 1.001 s raised a "no samples logged" alarm at
+    nearly every step against a dropout duration of 1 s; its one sample missing (a 2 s
+    spacing) is a dropout, also where blocks read the record with its step given."""
+    frame, _ = synthetic_day(hoist, [3000.0, 3000.0], seed=4)
+    frame = finish(frame, hoist).gather_every(int(FS_HZ))  # 1 Hz, its clock jittering
+    frame = frame.filter(pl.int_range(pl.len()) != 200)  # the sample of t = 200 s missing
+    steps = frame["time_utc"].diff().dt.total_microseconds().drop_nulls() / 1e6
+    assert (steps > 1.0).sum() > 100  # each past the hoist's dropout duration of 1 s
+    assert steps.max() == pytest.approx(2.0, abs=0.01)
+    alarms = evaluate_alarms(frame, hoist, run_id="r")
+    _assert_events(_events(alarms, "sensor_dropout"), [(None, 199.0, 201.0)], tol_s=0.01)
+    given = evaluate_alarms(frame, hoist, run_id="r", sample_step_s=1.0)
+    assert _events(given, "sensor_dropout") == _events(alarms, "sensor_dropout")
+    # a 100 Hz record keeps the hoist's duration: a 1.2 s gap is one
+    fast, _ = synthetic_day(hoist, [3000.0, 3000.0], seed=4)
+    fast = finish(fast, hoist)
+    times = (fast["time_utc"] - pl.lit(T0)).dt.total_microseconds() / 1e6
+    fast = fast.filter((times < 300.0) | (times >= 301.2))
+    found = _events(evaluate_alarms(fast, hoist, run_id="r"), "sensor_dropout")
+    _assert_events(found, [(None, 300.0, 301.2)], tol_s=0.02)

@@ -18,12 +18,18 @@ unparsable timestamp, local time in a daylight-saving gap, a logger clock that s
 back (:mod:`.clock`: "the logger clock stepped back 30.0 s at line N: time before the
 latest already read"; such a row without another fault is an exact duplicate where it
 equals a landed sample), unparsable value (per channel), negative absolute pressure,
-pressure above 60 MPa, depth outside the shaft.
+pressure above 60 MPa, depth outside the shaft, a piston beyond a whole stroke from
+mid-stroke, a speed beyond twice the winder's maximum, an oil temperature outside
+:data:`OIL_TEMP_LIMITS_C` (:class:`FieldLimits`: a malformed number that parses, e.g.
+``1e5`` in an x column, is 100 m of a 300 mm stroke).
 
 Depth outside the shaft: with a hoist description the landed range is
 ``[-DEPTH_MARGIN_M, shaft depth + DEPTH_MARGIN_M]`` (overtravel and encoder slack);
 without one only ``depth < -DEPTH_MARGIN_M`` is impossible, since the shaft depth is
-unknown. ``ropeload ingest --hoist FILE`` gives ingest the descriptions
+unknown; the piston's and the speed's limits, likewise, need the description's stroke and
+winder. The stroke is counted whole either way from mid-stroke (the transducer's zero
+may be off mid-stroke, not by a stroke), the speed to twice the winder's ``max_speed``
+(an overspeed trip acts at ~1.1 x). ``ropeload ingest --hoist FILE`` gives ingest the descriptions
 (:func:`hoist_lookup_from_files`); nightly and backfill give each hoist's own.
 """
 
@@ -42,15 +48,17 @@ __all__ = [
     "CHANNELS",
     "DEPTH_MARGIN_M",
     "MAX_PRESSURE_PA",
+    "OIL_TEMP_LIMITS_C",
     "REASON_CONFLICT",
     "REASON_DST_GAP",
     "REASON_FIELD_COUNT",
     "REASON_NON_UTF8",
     "REASON_TIMESTAMP",
     "Channel",
+    "FieldLimits",
     "ForeignHoistError",
     "HoistLookup",
-    "depth_limits_m",
+    "field_limits",
     "hoist_lookup_from_files",
     "physical_reason",
     "to_si",
@@ -153,14 +161,43 @@ def hoist_lookup_from_files(paths: Sequence[str | Path]) -> HoistLookup | None:
     return lookup
 
 
-def depth_limits_m(hoist: HoistDescription | None) -> tuple[float, float]:
-    """Landed depth range [m] for a hoist (see the module docstring)."""
+#: An oil temperature outside this range is not the hoist's oil's [degC] (a mineral
+#: hydraulic oil is solid below its pour point, ~-30 degC for ISO VG46, and flashes
+#: above ~220 degC): a logger's fault or a malformed number.
+OIL_TEMP_LIMITS_C = (-60.0, 200.0)
+
+
+@dataclass(frozen=True)
+class FieldLimits:
+    """The landed range of each checked channel (SI; the module docstring)."""
+
+    depth_m: tuple[float, float]
+    piston_x_m: float = float("inf")  # |x| at most
+    speed_m_s: float = float("inf")  # |speed| at most
+    oil_temp_c: tuple[float, float] = OIL_TEMP_LIMITS_C
+
+
+def field_limits(hoist: HoistDescription | None) -> FieldLimits:
+    """The landed ranges for a hoist's samples, or for a hoist not described (see the
+    module docstring).
+
+    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
+    >>> limits = field_limits(load_hoist(EXAMPLE_HOIST))
+    >>> limits.depth_m[1], limits.piston_x_m, limits.speed_m_s
+    (630.0, 0.4, 20.0)
+    >>> field_limits(None).piston_x_m
+    inf
+    """
     if hoist is None:
-        return -DEPTH_MARGIN_M, float("inf")
-    return -DEPTH_MARGIN_M, hoist.shaft.depth_m + DEPTH_MARGIN_M
+        return FieldLimits(depth_m=(-DEPTH_MARGIN_M, float("inf")))
+    return FieldLimits(
+        depth_m=(-DEPTH_MARGIN_M, hoist.shaft.depth_m + DEPTH_MARGIN_M),
+        piston_x_m=hoist.cylinders.stroke_m,
+        speed_m_s=2.0 * hoist.winder.max_speed_m_s,
+    )
 
 
-def physical_reason(columns: list[str], depth_limits: tuple[float, float]) -> list[pl.Expr]:
+def physical_reason(columns: list[str], limits: FieldLimits) -> list[pl.Expr]:
     """Reason expressions (null when fine) for impossible SI values, in priority order."""
     reasons: list[pl.Expr] = []
     pressures = [c for c in columns if c.startswith("p") and c.endswith("_pa")]
@@ -173,7 +210,21 @@ def physical_reason(columns: list[str], depth_limits: tuple[float, float]) -> li
             pl.when(pl.col(c) > MAX_PRESSURE_PA).then(pl.lit(f"pressure above 60 MPa ({raw})"))
         )
     if "depth_m" in columns:
-        low, high = depth_limits
+        low, high = limits.depth_m
         outside = (pl.col("depth_m") < low) | (pl.col("depth_m") > high)
         reasons.append(pl.when(outside).then(pl.lit("depth outside the shaft")))
+    for c in (c for c in columns if c.startswith("x") and c.endswith("_m")):
+        beyond = pl.col(c).abs() > limits.piston_x_m
+        reasons.append(
+            pl.when(beyond).then(pl.lit(f"piston beyond a stroke from mid-stroke ({c[:-2]})"))
+        )
+    if "speed_m_s" in columns:
+        too_fast = pl.col("speed_m_s").abs() > limits.speed_m_s
+        reasons.append(pl.when(too_fast).then(pl.lit("speed above twice the winder's maximum")))
+    if "oil_temp_c" in columns:
+        low, high = limits.oil_temp_c
+        outside = (pl.col("oil_temp_c") < low) | (pl.col("oil_temp_c") > high)
+        reasons.append(
+            pl.when(outside).then(pl.lit(f"oil temperature outside {low:g}..{high:g} degC"))
+        )
     return reasons

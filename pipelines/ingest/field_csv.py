@@ -46,8 +46,9 @@ from pipelines.ingest.field_checks import (
     CHANNELS,
     REASON_FIELD_COUNT,
     REASON_NON_UTF8,
+    FieldLimits,
     HoistLookup,
-    depth_limits_m,
+    field_limits,
     physical_reason,
     to_si,
 )
@@ -92,7 +93,7 @@ def open_csv(
     zone_note = header.zone_note(hoist.hoist.timezone) if hoist is not None else None
     if zone_note is not None:
         reading.notes.append(zone_note)
-    limits = depth_limits_m(hoist)
+    limits = field_limits(hoist)
     if offset > header.data_offset:  # the prefix's place in a repeated hour carries over
         progress.ambiguity = prefix_ambiguity(path, header, offset, limits, batch_bytes)
     if start_clock is not None:
@@ -125,7 +126,7 @@ def open_csv(
 
 
 def prefix_clock(
-    path: Path, header: CsvHeader, offset: int, line: int, depth_limits: tuple[float, float]
+    path: Path, header: CsvHeader, offset: int, line: int, limits: FieldLimits
 ) -> ClockState:
     """The clock state of the file's first ``offset`` bytes (``line`` the line after
     them) as their last 64 KB give it: for a resume whose earlier reading left none in
@@ -140,7 +141,7 @@ def prefix_clock(
         block = block[block.find(b"\n") + 1 :]
     n_lines = block.count(b"\n")
     if n_lines:
-        parser = _BatchParser(header, depth_limits, AmbiguityState(earlier_rows=True), state)
+        parser = _BatchParser(header, limits, AmbiguityState(earlier_rows=True), state)
         parser.parse(block, line - n_lines, n_lines)
     state.steps.clear()
     return state
@@ -158,7 +159,7 @@ def prefix_ambiguity(
     path: Path,
     header: CsvHeader,
     offset: int,
-    depth_limits: tuple[float, float],
+    limits: FieldLimits,
     batch_bytes: int = DEFAULT_BATCH_BYTES,
 ) -> AmbiguityState:
     """Where the file's first ``offset`` bytes (an earlier ingest's, ending with a line)
@@ -179,7 +180,7 @@ def prefix_ambiguity(
     if header.timezone == "UTC" or header.offsets:
         return state
     probe = _prefix_times(path, header, max(header.data_offset, offset - _PREFIX_PROBE_BYTES),
-                          offset, depth_limits, batch_bytes)  # fmt: skip
+                          offset, limits, batch_bytes)  # fmt: skip
     if probe is None:  # no readable time in the tail: nothing to place
         return state
     first, last = probe
@@ -190,7 +191,7 @@ def prefix_ambiguity(
     wanted = probed * 1.25 * _PREFIX_SPAN.total_seconds() / seconds if seconds > 0 else offset
     trial = AmbiguityState()
     _prefix_times(path, header, max(header.data_offset, offset - int(wanted)), offset,
-                  depth_limits, batch_bytes, trial)  # fmt: skip
+                  limits, batch_bytes, trial)  # fmt: skip
     return AmbiguityState(trial.last_local_us, trial.seen_jump, earlier_rows=True)
 
 
@@ -199,7 +200,7 @@ def _prefix_times(
     header: CsvHeader,
     start: int,
     offset: int,
-    depth_limits: tuple[float, float],
+    limits: FieldLimits,
     batch_bytes: int,
     state: AmbiguityState | None = None,
 ) -> tuple[dt.datetime, dt.datetime] | None:
@@ -210,7 +211,7 @@ def _prefix_times(
     stretch the span), None without any."""
     state = state if state is not None else AmbiguityState()
     state.earlier_rows = start > header.data_offset
-    parser = _BatchParser(header, depth_limits, state)
+    parser = _BatchParser(header, limits, state)
     low: list[dt.datetime] = []
     high: list[dt.datetime] = []
     with path.open("rb") as handle:
@@ -266,14 +267,14 @@ class _BatchParser:
     def __init__(
         self,
         header: CsvHeader,
-        depth_limits: tuple[float, float],
+        limits: FieldLimits,
         ambiguity: AmbiguityState,
         clock: ClockState | None = None,
     ) -> None:
         """``clock``: the file's clock state, carried over its batches; None parses the
         times alone (no clock-step check: a probe of a file's tail, a parser test)."""
         self.header = header
-        self.depth_limits = depth_limits
+        self.limits = limits
         self.ambiguity = ambiguity
         self.clock = clock
         rate = header.sample_rate_hz
@@ -479,7 +480,7 @@ class _BatchParser:
         """The samples, the rejected rows (physically impossible values included) and
         the rows held back by a clock step (``_clock``; see :class:`.batch.Batch`): those
         with no other fault, the others rejected with the step's reason."""
-        physical = physical_reason(present, self.depth_limits)
+        physical = physical_reason(present, self.limits)
         if physical:
             any_bad = parsed.select(
                 pl.any_horizontal(p.is_not_null() for p in physical).any()

@@ -38,8 +38,9 @@ from pipelines.ingest.clock import ClockState, clock_steps, steps_note, toleranc
 from pipelines.ingest.field_checks import (
     CHANNELS,
     REASON_TIMESTAMP,
+    FieldLimits,
     HoistLookup,
-    depth_limits_m,
+    field_limits,
     physical_reason,
     to_si,
     unit_to_si,
@@ -72,7 +73,7 @@ def open_tdms(path: Path, *, hoist_lookup: HoistLookup | None = None) -> Reading
         tdms.close()
         raise
     hoist = hoist_lookup(site, hoist_name) if hoist_lookup is not None else None
-    limits = depth_limits_m(hoist)
+    limits = field_limits(hoist)
     notes = []
     unknown = [
         c.name for c in tdms[_GROUP].channels() if c.name not in CHANNELS and c.name != "timestamp"
@@ -174,7 +175,7 @@ def _batches(
     tdms: TdmsFile,
     units: dict[str, tuple[float, float]],
     timebase,
-    limits: tuple[float, float],
+    limits: FieldLimits,
     reading: Reading,
 ) -> Iterator[Batch]:
     """Batches of the samples every channel has, as the data chunks bring them.
@@ -263,7 +264,7 @@ def _si_frame(
 def _screened_batch(
     si: pl.DataFrame,
     present: list[str],
-    limits: tuple[float, float],
+    limits: FieldLimits,
     clock: ClockState,
     tolerance: int,
 ) -> Batch:

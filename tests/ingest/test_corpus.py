@@ -568,6 +568,38 @@ def test_depth_outside_the_shaft_with_a_hoist_description(corpus, tmp_path, root
     _check(report, root, Expect("landed", 6, 5, 1, reasons={"depth outside the shaft": 1}))
 
 
+def test_impossible_piston_speed_and_oil_temperature(corpus, tmp_path, root):
+    """A malformed number that parses (``1e5``) is no piston's, winder's or oil's: with
+    the description's 400 mm stroke and 10 m/s winder, x beyond a stroke from
+    mid-stroke and a speed beyond twice the maximum are quarantined; the oil's range
+    holds with or without a description."""
+    hoist = load_hoist(EXAMPLE_HOIST)
+    rows = corpus.data_rows(8)
+    rows[1][5] = "1e5"  # x1 = 100 m
+    rows[2][8] = "-450.0"  # x4 beyond -400 mm
+    rows[3][5] = "390.0"  # within a stroke: landed
+    rows[4][10] = "-25.0"  # speed
+    rows[5][11] = "1e5"  # oil temperature
+    path = corpus.csv_file(tmp_path / "odd.csv", rows)
+    report = ingest_paths([path], data=root, hoist_lookup=lambda site, name: hoist)
+    reasons = {
+        "piston beyond a stroke from mid-stroke (x1)": 1,
+        "piston beyond a stroke from mid-stroke (x4)": 1,
+        "speed above twice the winder's maximum": 1,
+        "oil temperature outside -60..200 degC": 1,
+    }
+    _check(report, root, Expect("landed", 8, 4, 4, reasons=reasons))
+
+
+def test_impossible_oil_temperature_without_a_description(corpus, tmp_path, root):
+    rows = corpus.data_rows(4)
+    rows[1][5] = "1e5"  # x1 = 100 m: no stroke known, landed
+    rows[2][11] = "-80.0"
+    path = corpus.csv_file(tmp_path / "cold.csv", rows)
+    reasons = {"oil temperature outside -60..200 degC": 1}
+    _check(ingest_paths([path], data=root), root, Expect("landed", 4, 3, 1, reasons=reasons))
+
+
 @pytest.mark.parametrize(
     ("zone", "offsets", "note"),
     [

@@ -20,7 +20,7 @@ from pipelines.ingest import field_csv, ingest_paths
 from pipelines.ingest.batch import Batch
 from pipelines.ingest.csv_header import read_header
 from pipelines.ingest.csv_scan import NUMBER_BYTES, scan_chunk
-from pipelines.ingest.field_checks import depth_limits_m
+from pipelines.ingest.field_checks import field_limits
 from pipelines.ingest.field_csv import _BatchParser
 from pipelines.ingest.local_time import AmbiguityState, _constant_offset, _localise
 
@@ -75,7 +75,7 @@ def _reference(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def _parse(path: Path) -> Batch:
     header = read_header(path)
-    parser = _BatchParser(header, depth_limits_m(None), AmbiguityState())
+    parser = _BatchParser(header, field_limits(None), AmbiguityState())
     data = path.read_bytes()[header.data_offset :]
     data = data[: data.rfind(b"\n") + 1]
     return parser.parse(data, header.data_line, data.count(b"\n"))

@@ -249,10 +249,19 @@ class BlockCompensation(BlockSetup):
             given, rest, self.disagreement.disagreement_fraction, reach,
             self.disagreement.disagreement_floor_pa,
         )  # fmt: skip
-        if pressures[0] is not given[0]:  # a sensor off the others at rest: the bands
-            # reach the others' reading too (transforms.uncertainty.disagreeing_sensor_shifts)
+        offset = self.offset_sensors()
+        if any(offset):  # off the others at the record's rests: no pressure anywhere
+            # (compensation_record.offset_sensors); the others carry the oil
+            pressures = tuple(
+                np.full(n, np.nan) if o else p for p, o in zip(pressures, offset, strict=True)
+            )
+        if any(p is not g for p, g in zip(pressures, given, strict=True)):
+            # a sensor off the others at rest: the bands reach the others' reading too
+            # (transforms.uncertainty.disagreeing_sensor_shifts); an offset sensor's rope
+            # takes the others' reading instead (:meth:`rope`)
             self.off_sensors = tuple(
-                np.isnan(p) & np.isfinite(g) for p, g in zip(pressures, given, strict=True)
+                np.isnan(p) & np.isfinite(g) & (not o)
+                for p, g, o in zip(pressures, given, offset or (False,) * n, strict=False)
             )
         logged = tuple(job.result() for job in self.x_jobs)
         if not np.isfinite(springs.mismatch_m):  # not identified from this record (the
@@ -540,11 +549,27 @@ class BlockCompensation(BlockSetup):
         )
         return v_flow
 
+    def offset_sensors(self) -> tuple[bool, ...]:
+        """The record's offset sensors (``CompensationContext.offset_sensors``) where the
+        stick-slip solution runs and the others are most of the four; else none."""
+        offset = self.context.offset_sensors
+        if self.mode != 3 or not 0 < sum(offset) <= len(ROPES) // 2:
+            return ()
+        return offset
+
     def rope(self, k: int) -> dict[str, np.ndarray]:
-        """Tensions of rope k and their band; its inputs are futures of earlier jobs."""
+        """Tensions of rope k and their band; its inputs are futures of earlier jobs. An
+        offset sensor's rope (:meth:`offset_sensors`) takes the mean of the others'
+        readings for its chamber's (the pipes equalise the chambers at rest, contract
+        1a: the sensor reads apart, not the oil); its raw tension keeps the reading."""
         n, core, law = self.n, slice(self.core_lo, self.core_hi), self.law
         played = self.played_motion(k)
         p_sensor = np.ascontiguousarray(self.p_jobs[k].result())
+        reading = None
+        offset = self.offset_sensors()
+        if offset and offset[k]:
+            others = [job.result() for job, o in zip(self.p_jobs, offset, strict=True) if not o]
+            reading, p_sensor = p_sensor, mean_horizontal(others)
         nu = np.ascontiguousarray(np.atleast_1d(np.asarray(self.nu_job.result(), dtype=float)))
         out = {name: np.empty(n) for name in ("p_chamber", "tension_raw", "tension")}
         # this rope's despiked displacement is consumed (the differential is done): its
@@ -567,6 +592,9 @@ class BlockCompensation(BlockSetup):
             out["tension"][core], state,
         )  # fmt: skip
         self.nxt.rope[k] = state
+        if reading is not None:  # the raw tension is the sensor's reading (eq 2, F = 0)
+            area = self.hoist.cylinders.bore_area_m2
+            out["tension_raw"][core] = reading[core] * area
         lo, hi = self.rope_band(k, out)
         i = ROPES[k]
         return {

@@ -26,6 +26,7 @@ from physics.white_noise import difference_noise_sigma
 from schemas.hoist import HoistDescription
 from schemas.tables import ROPES
 from transforms.alarm_events import flatline_runs, frozen_runs, step_of_changes
+from transforms.alarm_rules import rule_thresholds
 from transforms.filtering import PLAY_STATE_SIZE, despike_median3, fresh_state
 from transforms.piston_motion import share_state
 from transforms.rope_identification import (
@@ -281,6 +282,11 @@ class CompensationContext:
     depth_quantum_m : float
         The depth's reading step [m] (:func:`physics.conveyance.reading_quantum_m` of
         every row's changes; 0: a continuous reading): one step is no motion.
+    offset_sensors : tuple of bool
+        Each sensor whose reading departs from the others' at the record's rests, in
+        its median there, by more than the ``sensor_disagreement`` limit
+        (:func:`offset_sensors`): a sensor off by a constant (a bad calibration), not a
+        pressure anywhere in the record. Empty: none.
     pressure_step_pa : float
         The largest reading step of the calibrated pressures [Pa]
         (:func:`transforms.alarm_events.step_of_changes` of the sample's pairs): a
@@ -307,6 +313,7 @@ class CompensationContext:
     depth_sigma_m: float = 0.0
     depth_quantum_m: float = 0.0
     pressure_step_pa: float = 0.0
+    offset_sensors: tuple[bool, ...] = ()
 
 
 def depth_turns(frame: pl.DataFrame) -> tuple[np.ndarray, np.ndarray] | None:
@@ -403,6 +410,36 @@ def disagreeing_as_unknown(
         counts = np.cumsum(np.pad(off, ((0, 0), (spread + 1, spread))), axis=1)
         off = counts[:, 2 * spread + 1 :] > counts[:, : -(2 * spread + 1)]
     return tuple(np.where(o, np.nan, p) for p, o in zip(pressures, off, strict=True))
+
+
+#: Rests a sensor's median departure is read over (:func:`offset_sensors`), at least.
+OFFSET_LEAST_SAMPLES = 30
+
+
+def offset_sensors(
+    pressures: Sequence[np.ndarray], rest: np.ndarray, limit: float, floor_pa: float = 0.0
+) -> tuple[bool, ...]:
+    """Each sensor whose departure from the median of the four (:func:`departure_from_
+    median`, at least ``floor_pa``) at ``rest`` exceeds ``limit`` (a fraction) in its
+    median over those samples (at least :data:`OFFSET_LEAST_SAMPLES` of them): the pipes
+    equalise the chambers at rest (contract 1a), so a sensor that reads apart at most of
+    the record's rests is off by a constant, and not a pressure while the oil flows
+    either. :func:`disagreeing_as_unknown` leaves it out at rest only; a sensor 0.3 MPa
+    off for a day (validation day 101, session 41) then moved every seal on every trip:
+    54 of 115 stop windows worse than raw, none within the band.
+
+    >>> p = [np.full(40, 4e6)] * 3 + [np.full(40, 4.3e6)]
+    >>> offset_sensors(p, np.ones(40, bool), 0.05), offset_sensors(p, np.zeros(40, bool), 0.05)
+    ((False, False, False, True), (False, False, False, False))
+    """
+    if np.count_nonzero(rest) < OFFSET_LEAST_SAMPLES:
+        return tuple(False for _ in pressures)
+    departures = departure_from_median([np.asarray(p)[rest] for p in pressures], floor_pa)
+    found = []
+    for departure in departures:
+        known = np.abs(departure[np.isfinite(departure)])
+        found.append(bool(known.size >= OFFSET_LEAST_SAMPLES and np.median(known) > limit))
+    return tuple(found)
 
 
 def flatlined_samples(
@@ -506,6 +543,19 @@ def identification_means(
     The same means whether the record is read whole or block by block."""
     span = without_flatlined(samples.filter(pl.col("time_utc") < start + IDENTIFY_SPAN), hoist)
     span = despiked_span(span, settings)
+    if "speed_m_s" in span.columns and span.height:
+        columns = [c for c in rope_cols("p{i}_pa") if c in span.columns]
+        limits = rule_thresholds(hoist)
+        off = offset_sensors(
+            [calibrated(span, c, hoist) for c in columns], at_rest(span),
+            limits.disagreement_fraction, limits.disagreement_floor_pa,
+        )  # fmt: skip
+        if 0 < sum(off) <= len(ROPES) // 2:  # as the compensation: the others carry
+            span = span.with_columns(
+                pl.lit(None, dtype=span[c].dtype).alias(c)
+                for c, o in zip(columns, off, strict=True)
+                if o
+            )
     logged = [
         c for c in rope_cols("x{i}_m") if c in span.columns and span[c].fill_nan(None).count()
     ]
@@ -577,6 +627,12 @@ def compensation_context(
     depth_d2 = (depth[triple + 2] - depth[triple + 1]) - (depth[triple + 1] - depth[triple])
     mean = mean_horizontal(pressures) if pressures and row.size else np.empty(0)
     typical = float(np.nanmedian(mean)) if np.isfinite(mean).any() else 0.0
+    limits = rule_thresholds(hoist)
+    off: tuple[bool, ...] = ()
+    if "speed_m_s" in sample.columns and row.size:
+        rest = at_rest(sample)[first]
+        fraction, floor_pa = limits.disagreement_fraction, limits.disagreement_floor_pa
+        off = offset_sensors(pressures, rest, fraction, floor_pa)
     identify = settings.rope_springs and has_x and means is not None
     springs = identify_from_means(means, hoist, cache_dir=cache_dir) if identify else None
     # nothing identified the ropes: no logged x, or one that shows no piston motion (a
@@ -638,6 +694,7 @@ def compensation_context(
         typical_pressure_pa=typical,
         has_x=has_x,
         rope_springs=springs,
+        offset_sensors=off if any(off) else (),
         pressure_step_pa=max(steps, default=0.0),
     )
 

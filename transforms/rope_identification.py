@@ -486,10 +486,17 @@ def identify_rope_springs(
     if presliding_elements > 1 and drift_travel_pa is not None:
         raise ValueError("Maxwell-slip seals (presliding_elements > 1) do not drift")
     usable = np.isfinite(depth_m)
-    for p, x in zip(p_sensor, x_logged, strict=True):
-        usable &= np.isfinite(p) & np.isfinite(x)
-    if usable.sum() < 60 or not pistons_moved(x_logged):
+    for x in x_logged:
+        usable &= np.isfinite(x)
+    # a sensor logged nowhere (or taken for none: compensation_record.offset_sensors)
+    # is the others' mean in the model, as in the compensation
+    logged_p = [p for p in p_sensor if np.isfinite(p).any()]
+    for p in logged_p:
+        usable &= np.isfinite(p)
+    if not logged_p or usable.sum() < 60 or not pistons_moved(x_logged):
         return None
+    with np.errstate(invalid="ignore"):
+        p_mean = np.mean(logged_p, axis=0)
     step = float(np.median(np.diff(time_s))) if time_s.size > 1 else 1.0
     segment = np.cumsum(np.r_[0, np.diff(time_s) > 3.0 * step])
     every = max(1, round(coarse_s / step))
@@ -499,7 +506,7 @@ def identify_rope_springs(
     # c_i - (a_i - 1) e), e the ropes' stretch at the pithead, the two are less entangled
     area = hoist.cylinders.bore_area_m2
     top = hoist.shaft.headframe_height_m + max(float(np.nanmin(depth_m)), 0.0)
-    p_typical = float(np.nanmedian(np.mean(p_sensor, axis=0)))
+    p_typical = float(np.nanmedian(p_mean))
     stretch = p_typical * area * top / hoist.ropes.head_rope_axial_stiffness_n
 
     def constants(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -555,7 +562,7 @@ def identify_rope_springs(
     lows = np.array([b[0] for b in bounds]) / scale
     # a generation's members in one compiled call, or (from THREADED_MEANS) in a call
     # per core: the model releases the GIL
-    steps = int(np.isfinite(np.mean(p_sensor, axis=0))[::every].sum())  # the model's work
+    steps = int(np.isfinite(p_mean)[::every].sum())  # the model's work
     if threads is None:
         threads = min(2, os.cpu_count() or 1) if steps >= THREADED_MEANS else 1
 

@@ -41,3 +41,16 @@ def test_a_single_sample_spike_leaves_the_means():
     assert moved.max() < 1e4, moved.max()  # was 4.5 MPa: 45 MPa over 10 samples
     for i in range(2, 5):
         assert spiked[f"p{i}_pa"].equals(clean[f"p{i}_pa"])
+
+
+def test_a_sensor_off_the_others_at_rest_is_left_out_of_the_means():
+    """A sensor 10 % high at every rest is no pressure (:func:`transforms.compensation_
+    record.offset_sensors`): its means are unknown, the model takes the others' for it;
+    a sensor within the disagreement limit stays."""
+    frame = _record()
+    off = frame.with_columns(pl.col("p2_pa") * 1.1, pl.col("p3_pa") * 1.02)
+    means = identification_means(off, T0, HOIST, CompensationSettings())
+    assert means["p2_pa"].null_count() == means.height
+    assert means["p3_pa"].null_count() == 0
+    clean = identification_means(frame, T0, HOIST, CompensationSettings())
+    assert means["p1_pa"].equals(clean["p1_pa"])

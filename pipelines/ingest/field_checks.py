@@ -209,17 +209,21 @@ def physical_reason(columns: list[str], limits: FieldLimits) -> list[pl.Expr]:
         reasons.append(
             pl.when(pl.col(c) > MAX_PRESSURE_PA).then(pl.lit(f"pressure above 60 MPa ({raw})"))
         )
+    # an infinity is beyond every limit, an unknown one (inf) too: a TDMS float can hold
+    # one (a CSV's is quarantined as unparsable before these)
     if "depth_m" in columns:
         low, high = limits.depth_m
-        outside = (pl.col("depth_m") < low) | (pl.col("depth_m") > high)
+        depth = pl.col("depth_m")
+        outside = (depth < low) | (depth > high) | depth.is_infinite()
         reasons.append(pl.when(outside).then(pl.lit("depth outside the shaft")))
     for c in (c for c in columns if c.startswith("x") and c.endswith("_m")):
-        beyond = pl.col(c).abs() > limits.piston_x_m
+        beyond = (pl.col(c).abs() > limits.piston_x_m) | pl.col(c).is_infinite()
         reasons.append(
             pl.when(beyond).then(pl.lit(f"piston beyond a stroke from mid-stroke ({c[:-2]})"))
         )
     if "speed_m_s" in columns:
-        too_fast = pl.col("speed_m_s").abs() > limits.speed_m_s
+        speed = pl.col("speed_m_s")
+        too_fast = (speed.abs() > limits.speed_m_s) | speed.is_infinite()
         reasons.append(pl.when(too_fast).then(pl.lit("speed above twice the winder's maximum")))
     if "oil_temp_c" in columns:
         low, high = limits.oil_temp_c

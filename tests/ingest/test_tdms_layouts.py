@@ -74,3 +74,34 @@ def test_a_panic_in_a_reader_refuses_that_file_and_the_command_goes_on(
     assert first.status == "refused"
     assert "unreadable (PanicException: DateTime + TimeDelta overflowed)" in first.message
     assert (second.status, second.rows_landed) == ("landed", 10)
+
+
+def test_an_infinite_tdms_value_is_quarantined_as_a_csv_one_is(corpus, tmp_path, root):
+    """A TDMS float can hold an infinity (a CSV's is quarantined as unparsable): an
+    infinite x, speed or depth is beyond any limit, also without a hoist description
+    (its unknown stroke, winder and shaft read as unbounded); a large finite x lands."""
+    from nptdms import ChannelObject, GroupObject, RootObject, TdmsWriter
+
+    n = 6
+    wave = {"wf_start_time": np.datetime64("2026-03-02T06:00:00", "us"), "wf_increment": 0.01}
+    x, speed, depth = np.zeros(n), np.zeros(n), np.zeros(n)
+    x[1], x[2], x[5] = np.inf, -np.inf, 1e5  # 100 m: no stroke known, landed
+    speed[3], depth[4] = np.inf, np.inf
+    values = {**{f"p{i}": (np.full(n, 4.8), "MPa") for i in range(1, 5)},
+              "x1": (x, "mm"), "speed": (speed, "m/s"), "depth": (depth, "m")}  # fmt: skip
+    path = tmp_path / "inf.tdms"
+    with TdmsWriter(path) as writer:
+        writer.write_segment([
+            RootObject({"site": "xuzhou-north", "hoist": "tdms-hoist", "timezone": "UTC"}),
+            GroupObject("hoist"),
+            *(ChannelObject("hoist", name, data, properties={"unit_string": unit, **wave})
+              for name, (data, unit) in values.items()),
+        ])  # fmt: skip
+    result = ingest_paths([path], data=root).files[0]
+    assert (result.status, result.rows_landed, result.rows_quarantined) == ("landed", 2, 4)
+    assert result.quarantined_by_reason == {
+        "piston beyond a stroke from mid-stroke (x1)": 2,
+        "speed above twice the winder's maximum": 1,
+        "depth outside the shaft": 1,
+    }
+    assert np.isfinite(_lake(root).select("x1_m", "speed_m_s", "depth_m").to_numpy()).all()

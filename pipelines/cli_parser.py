@@ -299,7 +299,9 @@ def build_parser() -> argparse.ArgumentParser:
         type=Path,
         action="append",
         help="hoist description TOML of the logs' hoist (repeatable, one per hoist): depth "
-        "outside its shaft is quarantined; without one only depth above the pithead is",
+        "outside its shaft, x beyond its stroke from mid-stroke and speed beyond twice its "
+        "winder's max_speed are quarantined; without one only depth above the pithead is "
+        "(oil outside -60..200 degC is either way)",
     )
     _prefect_option(ingest)
     ingest.set_defaults(handler=cmd_ingest)

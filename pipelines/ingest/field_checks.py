@@ -21,7 +21,7 @@ equals a landed sample), unparsable value (per channel), negative absolute press
 pressure above 60 MPa, depth outside the shaft, a piston beyond a whole stroke from
 mid-stroke, a speed beyond twice the winder's maximum, an oil temperature outside
 :data:`OIL_TEMP_LIMITS_C` (:class:`FieldLimits`: a malformed number that parses, e.g.
-``1e5`` in an x column, is 100 m of a 300 mm stroke).
+``1e5`` in an x column, is 100 m of a 400 mm stroke).
 
 Depth outside the shaft: with a hoist description the landed range is
 ``[-DEPTH_MARGIN_M, shaft depth + DEPTH_MARGIN_M]`` (overtravel and encoder slack);

@@ -515,18 +515,22 @@ def despiked_span(span: pl.DataFrame, settings: CompensationSettings) -> pl.Data
     moved that mean by 4.5 MPa, and the ropes of the whole record were not identified
     (validation day 101 with four such samples: worst load error 0.80 -> 2.16 %, band
     coverage 97 -> 72 %). The x are left as logged: their 0.1 mm step gives a noise
-    estimate of 0, which despiked every toggle and moved the identified ropes."""
+    estimate of 0, which despiked every toggle and moved the identified ropes. A
+    pressure's noise is taken as its logger's rounding, q / sqrt 12, at least: one
+    quieter than its step (a 1 kPa logger at rest) reads as no noise too."""
     if span.height < 3:
         return span
     seconds = float_column(span["time_utc"].dt.cast_time_unit("us").to_physical(), scale=1e-6)
     segment = segment_ids(seconds, gap_factor=settings.gap_factor)
     columns = [c for c in rope_cols("p{i}_pa") if c in span.columns and span[c].dtype.is_float()]
+
+    def despiked(values: np.ndarray) -> np.ndarray:
+        changes = np.diff(values)
+        sigma = max(difference_noise_sigma(changes, 1), step_of_changes(changes) / np.sqrt(12.0))
+        return despike_median3(values, segment, n_sigmas=settings.spike_sigmas, sigma=sigma)[0]
+
     return span.with_columns(
-        pl.Series(
-            c,
-            despike_median3(float_column(span[c]), segment, n_sigmas=settings.spike_sigmas)[0],
-            dtype=span[c].dtype,
-        ).fill_nan(None)
+        pl.Series(c, despiked(float_column(span[c])), dtype=span[c].dtype).fill_nan(None)
         for c in columns
     )
 

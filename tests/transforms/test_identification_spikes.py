@@ -11,6 +11,7 @@ import polars as pl
 
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from transforms.compensation_record import CompensationSettings, identification_means
+from transforms.rope_identification import record_means
 
 HOIST = load_hoist(EXAMPLE_HOIST)
 T0 = dt.datetime(2026, 2, 10, 6, 0, tzinfo=dt.UTC)
@@ -54,3 +55,25 @@ def test_a_sensor_off_the_others_at_rest_is_left_out_of_the_means():
     assert means["p3_pa"].null_count() == 0
     clean = identification_means(frame, T0, HOIST, CompensationSettings())
     assert means["p1_pa"].equals(clean["p1_pa"])
+
+
+def test_a_logger_quieter_than_its_step_keeps_its_means():
+    """Pressures logged to 1 kPa over 250 Pa of noise at rest: their differences' MAD is
+    0, and a threshold of 0 took every single-sample flip between steps for a spike
+    (here 133 of 3000 samples, 91 of 300 means moved by up to 200 Pa); the logger's
+    rounding, q / sqrt 12, is the noise at least, and a 50 MPa sample still goes."""
+    settings = CompensationSettings()
+    rng = np.random.default_rng(2)
+    frame = _record(3000)
+    steps = {
+        f"p{i}_pa": np.round((4.9e6 + rng.normal(0.0, 250.0, frame.height)) / 1e3) * 1e3
+        for i in range(1, 5)
+    }
+    spiked = {**steps, "p1_pa": steps["p1_pa"].copy()}
+    spiked["p1_pa"][1505] = 50e6
+    means = identification_means(frame.with_columns(**spiked), T0, HOIST, settings)
+    # as logged, the spike alone replaced by its 3-point median, nothing despiked
+    steps["p1_pa"][1505] = np.median([*steps["p1_pa"][[1504, 1506]], 50e6])
+    logged = record_means(frame.with_columns(**steps), T0)
+    for i in range(1, 5):
+        np.testing.assert_array_equal(means[f"p{i}_pa"], logged[f"p{i}_pa"])

@@ -127,12 +127,16 @@ def diagnose(kept: Path, day: str, days: Path) -> None:
         tail = tail_rope_mass_kg(hoist, stop["depth_m"]) - tail_rope_mass_kg(hoist, trip["depth"])
         predicted = trip["load"] + float(tail) * G_STANDARD
         first = _rows(tensions, windows[0]["t0_utc"], windows[0]["t1_utc"])
+        if first.height == 0:  # the record starts or ends within the stop
+            continue
         estimate = first["load_n"].mean()
         sigma_e = ((first["load_hi_n"] - first["load_lo_n"]) / 2).mean()
         weight = sigma_e**2 / (sigma_e**2 + trip["half_width"] ** 2)
         shift = weight * (predicted - estimate)
         for k, window in enumerate(windows):
             rows = _rows(tensions, window["t0_utc"], window["t1_utc"])
+            if rows.height == 0:
+                continue
             load, true = rows["load_n"].mean(), window["true_load_n"]
             carried = k == 0 or abs(load - estimate) < CARRY_SHARE * estimate
             raw = rows["load_raw_n"].mean() / true - 1.0

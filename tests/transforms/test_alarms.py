@@ -11,7 +11,13 @@ import pytest
 from schemas.hoist import EXAMPLE_HOIST, G_STANDARD, load_hoist
 from schemas.tables import ALARMS
 from transforms.alarm_events import flatline_runs, reading_step, runs, unchanged
-from transforms.alarms import ALARM_RULES, alarm_id, evaluate_alarms, rule_thresholds
+from transforms.alarms import (
+    ALARM_RULES,
+    alarm_id,
+    evaluate_alarms,
+    evaluate_alarms_in_blocks,
+    rule_thresholds,
+)
 from transforms.compensation_record import (
     CompensationSettings,
     compensation_margins_s,
@@ -551,6 +557,16 @@ def test_a_slow_loggers_own_step_is_not_a_dropout(hoist):
     _assert_events(_events(alarms, "sensor_dropout"), [(None, 199.0, 201.0)], tol_s=0.01)
     given = evaluate_alarms(frame, hoist, run_id="r", sample_step_s=1.0)
     assert _events(given, "sensor_dropout") == _events(alarms, "sensor_dropout")
+    # block by block, the record's step given, or the first block's median: the same
+    edges = [T0, T0 + dt.timedelta(seconds=199.5), T0 + dt.timedelta(hours=1)]
+    blocks = [(edges[0], edges[1]), (edges[1], edges[2])]
+
+    def read(lo, hi):
+        return frame.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi))
+
+    for step in (1.0, None):
+        pieces = evaluate_alarms_in_blocks(read, blocks, hoist, run_id="r", sample_step_s=step)
+        assert _events(pieces, "sensor_dropout") == _events(alarms, "sensor_dropout")
     # a 100 Hz record keeps the hoist's duration: a 1.2 s gap is one
     fast, _ = synthetic_day(hoist, [3000.0, 3000.0], seed=4)
     fast = finish(fast, hoist)

@@ -27,7 +27,12 @@ from schemas.hoist import HoistDescription
 from schemas.tables import ROPES
 from transforms.alarm_events import flatline_runs, frozen_runs, step_of_changes
 from transforms.alarm_rules import rule_thresholds
-from transforms.filtering import PLAY_STATE_SIZE, despike_median3, fresh_state
+from transforms.filtering import (
+    PLAY_STATE_SIZE,
+    despike_median3,
+    fresh_state,
+    sampled_differences,
+)
 from transforms.piston_motion import share_state
 from transforms.rope_identification import (
     IDENTIFY_SPAN,
@@ -525,7 +530,7 @@ def despiked_span(span: pl.DataFrame, settings: CompensationSettings) -> pl.Data
     columns = [c for c in rope_cols("p{i}_pa") if c in span.columns and span[c].dtype.is_float()]
 
     def despiked(values: np.ndarray) -> np.ndarray:
-        changes = np.diff(values)
+        changes = sampled_differences(values)
         sigma = max(difference_noise_sigma(changes, 1), step_of_changes(changes) / np.sqrt(12.0))
         return despike_median3(values, segment, n_sigmas=settings.spike_sigmas, sigma=sigma)[0]
 
@@ -550,8 +555,10 @@ def identification_means(
     if "speed_m_s" in span.columns and span.height:
         columns = [c for c in rope_cols("p{i}_pa") if c in span.columns]
         limits = rule_thresholds(hoist)
+        rests = np.flatnonzero(at_rest(span))  # about 200 k of them decide it
+        rests = span[rests[:: max(1, rests.size // 200_000)]]
         off = offset_sensors(
-            [calibrated(span, c, hoist) for c in columns], at_rest(span),
+            [calibrated(rests, c, hoist) for c in columns], np.ones(rests.height, bool),
             limits.disagreement_fraction, limits.disagreement_floor_pa,
         )  # fmt: skip
         if 0 < sum(off) <= len(ROPES) // 2:  # as the compensation: the others carry

@@ -46,6 +46,7 @@ __all__ = [
     "play_operator",
     "play_step",
     "pressure_cutoff_at",
+    "sampled_differences",
     "seconds_expr",
     "segment_ids",
     "with_segment_id",
@@ -266,6 +267,19 @@ def _median3_kernel(x, seg, threshold, out):  # pragma: no cover - numba
         a = b
 
 
+def sampled_differences(values: np.ndarray, most: int = 200_000) -> np.ndarray:
+    """Every k-th first difference of ``values``, about ``most`` of them at most (the
+    median of 200 k is plenty for a noise sigma or a reading step), without differencing
+    the whole record.
+
+    >>> sampled_differences(np.arange(10.0) ** 2, most=3).tolist()
+    [1.0, 7.0, 13.0]
+    """
+    step = max(1, (values.size - 1) // most)
+    at = np.arange(0, max(values.size - 1, 0), step)
+    return values[at + 1] - values[at]
+
+
 def despike_median3(
     x: np.ndarray,
     segment_id: np.ndarray | None = None,
@@ -295,11 +309,7 @@ def despike_median3(
     """
     values = np.ascontiguousarray(x, dtype=np.float64)
     if sigma is None:
-        # every step-th first difference (the median of 200 k of them is plenty), without
-        # differencing the whole record
-        step = max(1, (values.size - 1) // 200_000)
-        at = np.arange(0, max(values.size - 1, 0), step)
-        sigma = difference_noise_sigma(values[at + 1] - values[at], 1)
+        sigma = difference_noise_sigma(sampled_differences(values), 1)
     seg = (
         np.zeros(values.shape[0], dtype=np.int64)
         if segment_id is None

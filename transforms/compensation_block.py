@@ -261,7 +261,7 @@ class BlockCompensation(BlockSetup):
             # takes the others' reading instead (:meth:`rope`)
             self.off_sensors = tuple(
                 np.isnan(p) & np.isfinite(g) & (not o)
-                for p, g, o in zip(pressures, given, offset or (False,) * n, strict=False)
+                for p, g, o in zip(pressures, given, offset or (False,) * len(ROPES), strict=True)
             )
         logged = tuple(job.result() for job in self.x_jobs)
         if not np.isfinite(springs.mismatch_m):  # not identified from this record (the

@@ -292,6 +292,22 @@ def test_a_failing_stage_raises_instead_of_hanging(monkeypatch):
     assert str(outcome[0]) == "common mode failed"
 
 
+def _a_trip(seed: int, n: int = 9000):
+    """Four sensors' pressures (4, n) of 90 s at RATE: 10 s at rest, a 70 s trip whose
+    pressure swings 0.2 MPa, 10 s at rest, 5 kPa of noise; and the compensation of such
+    pressures on that motion, no x logged (the ropes' prior)."""
+    t = np.arange(n) / RATE
+    rng = np.random.default_rng(seed)
+    load = 4.0e6 + 2.0e5 * np.sin(2 * np.pi * t / 40.0)  # the trip's pressure swing
+    speed = np.where((t > 10.0) & (t < 80.0), 5.0, 0.0)
+    depth = np.cumsum(speed) / RATE
+
+    def tensions(pressures: np.ndarray) -> pl.DataFrame:
+        return compensate(_frame(pressures, None, speed=speed).with_columns(depth_m=depth), HOIST)
+
+    return load + rng.normal(0.0, 5e3, (4, n)), tensions
+
+
 def test_a_stuck_sensor_is_taken_as_not_logged_not_as_its_reading():
     """Rope 3's sensor repeats one reading for 40 s (past the example's 30 s
     ``flatline_duration``) while the conveyance travels and the others follow the load:
@@ -299,16 +315,7 @@ def test_a_stuck_sensor_is_taken_as_not_logged_not_as_its_reading():
     as with the sensor working; its reading repeated for 20 s, and a sensor that updates
     every fifth sample (each reading repeated), are pressures as they are."""
     n = 9000
-    t = np.arange(n) / RATE
-    rng = np.random.default_rng(5)
-    load = 4.0e6 + 2.0e5 * np.sin(2 * np.pi * t / 40.0)  # the trip's pressure swing
-    p = load + rng.normal(0.0, 5e3, (4, n))
-    speed = np.where((t > 10.0) & (t < 80.0), 5.0, 0.0)
-    depth = np.cumsum(speed) / RATE
-
-    def tensions(pressures):
-        return compensate(_frame(pressures, None, speed=speed).with_columns(depth_m=depth), HOIST)
-
+    p, tensions = _a_trip(seed=5)
     working = tensions(p)
     stuck = p.copy()
     stuck[2, 2000:6000] = stuck[2, 2000]  # 40 s
@@ -337,17 +344,7 @@ def test_a_sensor_off_the_others_at_every_rest_takes_their_reading():
     solution runs on the others and rope 3 takes their reading. Its tension, the
     others' and the load are those of the sensor working, within the noise; its raw
     tension keeps the reading. Left in while the oil flows, it moved every seal."""
-    n = 9000
-    t = np.arange(n) / RATE
-    rng = np.random.default_rng(7)
-    load = 4.0e6 + 2.0e5 * np.sin(2 * np.pi * t / 40.0)
-    p = load + rng.normal(0.0, 5e3, (4, n))
-    speed = np.where((t > 10.0) & (t < 80.0), 5.0, 0.0)
-    depth = np.cumsum(speed) / RATE
-
-    def tensions(pressures):
-        return compensate(_frame(pressures, None, speed=speed).with_columns(depth_m=depth), HOIST)
-
+    p, tensions = _a_trip(seed=7)
     working = tensions(p)
     off = p.copy()
     off[2] += 0.24e6

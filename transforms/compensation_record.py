@@ -549,6 +549,9 @@ def identification_means(
     :data:`~transforms.rope_identification.IDENTIFY_SPAN`), with each mean's played
     travel of the seals' drift (``drift_travel_pa``,
     :func:`transforms.seal_drift.drift_travel`) when the hoist declares seals that drift.
+    The pressures despiked (:func:`despiked_span`), a stuck stretch left out
+    (:func:`without_flatlined`), and a sensor off the others at the span's rests
+    (:func:`offset_sensors`) left out whole: the model takes the others' mean for it.
     The same means whether the record is read whole or block by block."""
     span = without_flatlined(samples.filter(pl.col("time_utc") < start + IDENTIFY_SPAN), hoist)
     span = despiked_span(span, settings)

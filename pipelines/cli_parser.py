@@ -27,10 +27,21 @@ from pipelines.log import add_log_level_option
 __all__ = ["PAPER_SECTIONS", "build_parser"]
 
 
+def _data_dir(text: str) -> str:
+    """A data root: a usage error when empty (``--data "$UNSET"``), which would otherwise
+    make the working directory the data root and land the lake and warehouse there."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            "empty; name a folder (or leave --data out for $ROPELOAD_DATA, else ./ropeload-data)"
+        )
+    return text
+
+
 def _data_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--data",
         metavar="DIR",
+        type=_data_dir,
         default=None,
         help="data root with the Parquet lake and warehouse.duckdb "
         "(default: $ROPELOAD_DATA, else ./ropeload-data)",

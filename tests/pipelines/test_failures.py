@@ -90,6 +90,18 @@ def test_data_root_that_is_a_file(args, tmp_path, capsys, small_csv):
     assert afile.read_text() == "not a folder\n"
 
 
+@pytest.mark.parametrize("command", ["ingest", "query"])
+def test_empty_data_root_is_a_usage_error(command, tmp_path, capsys, monkeypatch, small_csv):
+    """``--data "$UNSET"`` is a usage error, not the working directory as the data root."""
+    monkeypatch.chdir(tmp_path)
+    args = [str(small_csv(tmp_path / "in.csv"))] if command == "ingest" else ["select 1"]
+    with pytest.raises(SystemExit) as exc:
+        main([command, "--data", "", *args])
+    assert exc.value.code == 2
+    assert "argument --data: empty" in capsys.readouterr().err
+    assert {p.name for p in tmp_path.iterdir()} <= {"in.csv"}  # nothing landed here
+
+
 @pytest.mark.parametrize("command", ["ingest", "demo"])
 def test_data_root_under_a_file_cannot_be_created(
     command, tmp_path, capsys, monkeypatch, small_csv

@@ -151,7 +151,18 @@ def _ingest(
     recordings: Sequence[Path], data: DataRoot
 ) -> tuple[list[str], list[RigInfo], list[str]]:
     from pipelines.ingest import ingest_paths
+    from pipelines.ingest.sources import detect_format, expand_paths
 
+    # before anything lands: a field log given (or found in a folder) here would be
+    # ingested into the lake by a command that then fails on its missing /rig/info
+    others = [
+        f"{path}: not an MCAP rig recording ({kind}); calibrate takes rig recordings, "
+        "field logs are landed by 'ropeload ingest'"
+        for path in expand_paths(recordings)
+        if path.is_file() and (kind := detect_format(path)) != "mcap"
+    ]
+    if others:
+        raise CalibrationError("; ".join(others))
     report = ingest_paths(list(recordings), data=data)
     refused = [f for f in report.files if f.status == "refused"]
     if refused:

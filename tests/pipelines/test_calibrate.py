@@ -202,6 +202,18 @@ def test_refused_recording_is_an_error(tmp_path, capsys):
     assert capsys.readouterr().err.count("\n") == 1
 
 
+def test_field_log_given_to_calibrate_is_refused_before_it_lands(tmp_path, capsys, small_csv):
+    """A field log passed to calibrate is refused by name, and nothing of it is landed."""
+    log = small_csv(tmp_path / "field.csv")
+    data = tmp_path / "d"
+    assert main(["calibrate", "--data", str(data), str(log)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert f"{log}: not an MCAP rig recording (csv)" in err
+    assert not (data / "lake").exists()
+    assert not (data / "warehouse.duckdb").exists()
+
+
 def test_cli_prints_table_lines_and_snippet(rig, capsys):
     _, mcap, data, result = rig
     assert main(["calibrate", "--data", str(data.path), str(mcap)]) == 0

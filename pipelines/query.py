@@ -177,8 +177,11 @@ def _to_polars(relation: duckdb.DuckDBPyRelation) -> pl.DataFrame:
         }
         if wide:
             return _as_text(relation, lambda i, kind: i in wide).pl()
-        if not _beyond_python_dates(frame):
+        beyond = {i for i in range(frame.width) if _series_beyond(frame.to_series(i))}
+        if not beyond:
             return frame
+        # only those columns as text: the others (a list, a timestamp) keep their types
+        return _as_text(relation, lambda i, kind: i in beyond).pl()
     except pl.exceptions.PolarsError:
         pass
     except BaseException as exc:  # pyo3's PanicException
@@ -217,14 +220,10 @@ _SECONDS = (-62_135_596_800, 253_402_300_799)
 _PER_SECOND = {"ns": 10**9, "us": 10**6, "ms": 10**3}
 
 
-def _beyond_python_dates(frame: pl.DataFrame) -> bool:
-    """Whether a date or time value, in a column or inside a list, array, struct or map,
+def _series_beyond(series: pl.Series) -> bool:
+    """Whether a date or time value, in the column or inside a list, array, struct or map,
     lies where no Python date can (DuckDB's ``infinity``): polars holds it, and panics
     when asked to show it."""
-    return any(_series_beyond(frame[name]) for name in frame.columns)
-
-
-def _series_beyond(series: pl.Series) -> bool:
     kind = series.dtype
     if isinstance(kind, pl.Map):  # as its entries: a list of key-value structs
         entries = pl.List(pl.Struct({"key": kind.key, "value": kind.value}))

@@ -435,6 +435,19 @@ def test_results_polars_cannot_hold_are_shown_as_duckdb_text(data, capsys, sql, 
         assert text in out, (output, out)
 
 
+def test_a_date_at_infinity_leaves_the_other_columns_as_they_are(data, capsys):
+    """``coalesce(t, 'infinity')`` beside a list and a timestamp: only that column is
+    DuckDB's text; the list stays a JSON list and the timestamp keeps its format (all
+    three were DuckDB's text, the list as ``"[a, b]"``, when any column held infinity)."""
+    plain = "select ['a', 'b'] as l, timestamptz '2026-03-02 06:00:00+00' as t"
+    assert main(["query", "--data", str(data.path), "--format", "json", plain]) == 0
+    expected = json.loads(capsys.readouterr().out)[0]
+    sql = plain + ", coalesce(null, 'infinity'::timestamptz) as e"
+    assert main(["query", "--data", str(data.path), "--format", "json", sql]) == 0
+    assert json.loads(capsys.readouterr().out) == [{**expected, "e": "infinity"}]
+    assert expected["l"] == ["a", "b"]
+
+
 def test_a_result_repeating_a_column_name_keeps_each_column_s_values(data, capsys):
     """A join's two ``n`` (the second a HUGEINT sum), a BIT beside an int of the same
     name: each column keeps its own values (the text casts went by name: a traceback,

@@ -15,7 +15,9 @@ Daylight-saving days make local time ambiguous or impossible:
   quarantined with ``REASON_DST_GAP``.
 
 Parsing is vectorised (polars ``str.to_datetime``); the formats are tried in order,
-each later one only on the rows the earlier ones could not read. The CSV reader hands
+each later one only on the rows the earlier ones could not read, and last the same
+formats with a comma before the seconds' fraction read as a point (ISO 8601 allows
+either). The CSV reader hands
 in the times its compiled scan already read (:mod:`.csv_scan`, the plain
 ``YYYY-MM-DD HH:MM:SS.fff`` shape); the formats then only see the rest. Batches in
 which the zone's offset cannot change (checked every 6 hours) are shifted by that one
@@ -101,9 +103,19 @@ def parse_timestamps(
     todo = formats if remaining is None or remaining.size else ()
     if todo and raw is None:
         raise ValueError("prefilled times have nulls but no raw strings were given")
-    for fmt in todo:
+    # ISO 8601's other decimal sign: a fraction after a comma ("05:59:59,999", as a
+    # decimal-comma export may write it), read as the formats' point, on the rows the
+    # formats did not read (no cost where they read every row)
+    passes = [(fmt, False) for fmt in todo]
+    if todo:
+        passes += [(fmt, True) for fmt in todo]
+    for fmt, comma in passes:
         assert raw is not None
+        if comma and remaining is None:
+            continue
         sub = raw if remaining is None else raw.gather(remaining)
+        if comma:
+            sub = sub.str.replace(r"(:\d\d),(\d)", "$1.$2")
         parsed = sub.str.to_datetime(fmt, strict=False, time_unit="us", cache=False)
         has_offset = fmt.endswith("%#z")
         if has_offset:

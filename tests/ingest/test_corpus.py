@@ -473,6 +473,17 @@ def test_units_convert_to_si(corpus, tmp_path, root):
     assert _only(root2)["p3_pa"][0] == pytest.approx(4836e3)
 
 
+def test_a_decimal_comma_in_the_timestamps_fraction_is_read(corpus, tmp_path, root):
+    """ISO 8601 allows a comma before a fraction of a second ("06:00:00,021"): a
+    decimal-comma export writing one was quarantined whole as unparsable timestamps."""
+    rows = [[v.replace(".", ",") for v in r] for r in corpus.data_rows(8)]
+    assert "," in rows[0][0]
+    path = corpus.csv_file(tmp_path / "comma_times.csv", rows, sep=";")
+    _check(ingest_paths([path], data=root), root, Expect("landed", 8, 8))
+    ingest_paths([case_tab_delimiter(corpus, tmp_path)[0]], data=DataRoot.resolve(tmp_path / "d2"))
+    assert _only(root)["time_utc"].equals(_only(DataRoot.resolve(tmp_path / "d2"))["time_utc"])
+
+
 def test_decimal_comma_and_tab_give_the_same_values(corpus, tmp_path, root):
     ingest_paths([case_semicolon_decimal_comma(corpus, tmp_path)[0]], data=root)
     comma = _only(root)

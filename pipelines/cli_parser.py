@@ -24,10 +24,10 @@ from pipelines.cli_commands import (
 )
 from pipelines.log import add_log_level_option
 
-__all__ = ["PAPER_SECTIONS", "build_parser"]
+__all__ = ["PAPER_SECTIONS", "build_parser", "data_dir"]
 
 
-def _data_dir(text: str) -> str:
+def data_dir(text: str) -> str:
     """A data root: a usage error when empty (``--data "$UNSET"``), which would otherwise
     make the working directory the data root and land the lake and warehouse there."""
     if not text.strip():
@@ -41,7 +41,7 @@ def _data_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--data",
         metavar="DIR",
-        type=_data_dir,
+        type=data_dir,
         default=None,
         help="data root with the Parquet lake and warehouse.duckdb "
         "(default: $ROPELOAD_DATA, else ./ropeload-data)",

@@ -208,6 +208,7 @@ def write_example_mine(
 def build_parser() -> argparse.ArgumentParser:
     """``python -m pipelines.deploy serve|pool|example``: serve and pool take the switches
     of ``ropeload nightly`` (:func:`pipelines.night_options.add_night_options`)."""
+    from pipelines.cli_parser import data_dir
     from pipelines.night_options import add_night_options
 
     parser = argparse.ArgumentParser(
@@ -217,7 +218,9 @@ def build_parser() -> argparse.ArgumentParser:
     for name in ("serve", "pool"):
         sub = commands.add_parser(name, help=f"{name} the nightly deployment")
         sub.add_argument("--hoists", required=True, type=Path, help="folder of hoist descriptions")
-        sub.add_argument("--data", required=True, type=Path, help="data root")
+        sub.add_argument(
+            "--data", required=True, type=lambda text: Path(data_dir(text)), help="data root"
+        )
         sub.add_argument("--incoming", type=Path, default=None, help="default <data>/incoming")
         sub.add_argument("--cron", default=DEFAULT_CRON, help=f"default '{DEFAULT_CRON}'")
         sub.add_argument("--timezone", default=None, help="default: the hoists' time zone")

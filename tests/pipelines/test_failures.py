@@ -686,3 +686,15 @@ def test_a_model_that_cannot_replay_the_record_is_a_user_error():
 
     assert issubclass(ModelDoesNotSimulate, RuntimeError)
     assert ModelDoesNotSimulate in cli._known_errors()
+
+
+def test_the_deployments_empty_data_root_is_a_usage_error(tmp_path, capsys):
+    """``python -m pipelines.deploy serve --data ""``, as ``ropeload``'s ``--data``."""
+    from pipelines.deploy import build_parser
+
+    with pytest.raises(SystemExit) as exc:
+        build_parser().parse_args(["serve", "--hoists", str(tmp_path), "--data", ""])
+    assert exc.value.code == 2
+    assert "argument --data: empty" in capsys.readouterr().err
+    args = build_parser().parse_args(["serve", "--hoists", str(tmp_path), "--data", "d"])
+    assert args.data.name == "d"

@@ -78,7 +78,12 @@ motion out equally: the seals no longer all hold the same friction (friction1_n'
 (session 41) after the ropes' identification reads the pressures despiked as the
 compensation reads them (:func:`transforms.compensation_record.despiked_span`): the
 identified ropes move a little, the inferred payloads by 2.5e-5 of their sums, the
-ropes' imbalance by up to 5e-3 of its sum.
+ropes' imbalance by up to 5e-3 of its sum. The ``compensate_*`` entries again (session 41)
+after a sensor apart from the others at every rest widens its rope's band and the
+load's to the bands it would have reading as they do
+(:func:`transforms.compensation_record.sensor_departures`): the record written here
+gives its ropes 1 % less and more than the mean at rest, so the ropes' bounds move by
+up to 2e-3 of their sums, the load's and every value not at all.
 
 The compensation's input is written here with numpy (two trips, a payload step at a
 stop, a ringing rope, a logger gap, a warming oil), not by the simulation, so a change

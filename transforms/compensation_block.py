@@ -711,10 +711,17 @@ class BlockCompensation(BlockSetup):
         if self.mode == 3:  # the load's band: the members' frictions summed member by member
             members = [sum(f[k][core] for k in range(len(ROPES))) for f in self.member_friction]
         off = None if self.off_sensors is None else [o[core] for o in self.off_sensors]
+        # a sensor apart from the others at every rest: each band reaches its rope's
+        # tension were it reading the others (compensation_record.sensor_departures)
+        departures, apart = self.context.sensor_departures, None
+        if departures:
+            area = self.hoist.cylinders.bore_area_m2
+            apart = [-p * d / (1.0 + d) * area for p, d in zip(pressures, departures, strict=True)]
         frame = block_frame(rows, np.negative(accel[core]), labels, pressures, columns,
                             p_mean[core], sigma_n, load_members=members,
                             member_sources=self.member_sources if members else None,
-                            off_sensors=off, area_m2=self.hoist.cylinders.bore_area_m2)  # fmt: skip
+                            off_sensors=off, area_m2=self.hoist.cylinders.bore_area_m2,
+                            reading_shifts=apart)  # fmt: skip
         return frame, self.nxt
 
 

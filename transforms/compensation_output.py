@@ -34,6 +34,15 @@ def _nullable(name: str, values: np.ndarray, dtype: type = pl.Float64) -> pl.Ser
     return series.fill_nan(None) if np.isnan(values).any() else series
 
 
+def _shifted_band(
+    lo: np.ndarray, hi: np.ndarray, shift: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``[lo, hi]`` reaching ``[lo + shift, hi + shift]`` too (NaN shift: as it is)."""
+    shift = np.nan_to_num(shift)
+    lo, hi = widen_for_shifts(lo, lo, hi, shift)
+    return widen_for_shifts(hi, lo, hi, shift)
+
+
 def block_frame(
     rows: pl.DataFrame,
     accel_up: np.ndarray,
@@ -47,6 +56,7 @@ def block_frame(
     member_sources: tuple[int, ...] | None = None,
     off_sensors: list[np.ndarray] | None = None,
     area_m2: float = 0.0,
+    reading_shifts: list[np.ndarray] | None = None,
 ) -> pl.DataFrame:
     """The block's ``ROPE_TENSIONS`` rows.
 
@@ -60,7 +70,10 @@ def block_frame(
     sensor departs from the others at rest (:func:`transforms.compensation_record.
     disagreeing_as_unknown`), whose rope's band and the load's then reach the others'
     reading too (:func:`transforms.uncertainty.disagreeing_sensor_shifts`, ``area_m2``
-    the piston's).
+    the piston's); ``reading_shifts`` each rope's tension shift were its sensor reading
+    as the others do at the record's rests (a sensor apart there by less than the
+    disagreement limit, :func:`transforms.compensation_record.sensor_departures`), which
+    its band and the load's reach too.
     """
     load = np.empty(rows.height)
     load_kernel(
@@ -99,6 +112,11 @@ def block_frame(
                 columns[f"tension{i}_n"], columns[lo], columns[hi], shift
             )
         load_lo, load_hi = widen_for_shifts(load, load_lo, load_hi, sum(shifts))
+    if reading_shifts is not None:  # the band reaches the other reading's band whole
+        for i, shift in zip(rope_cols("{i}"), reading_shifts, strict=True):
+            lo, hi = f"tension{i}_lo_n", f"tension{i}_hi_n"
+            columns[lo], columns[hi] = _shifted_band(columns[lo], columns[hi], shift)
+        load_lo, load_hi = _shifted_band(load_lo, load_hi, sum(reading_shifts))
     p_cols = rope_cols("p{i}_pa")
     out: dict[str, pl.Series] = {
         "time_utc": rows["time_utc"],

@@ -287,6 +287,10 @@ class CompensationContext:
     depth_quantum_m : float
         The depth's reading step [m] (:func:`physics.conveyance.reading_quantum_m` of
         every row's changes; 0: a continuous reading): one step is no motion.
+    sensor_departures : tuple of float
+        Each sensor's signed median departure from the others at the record's rests
+        (:func:`sensor_departures`; 0 where the rests show none beyond their noise, and
+        for an offset sensor). Empty: none.
     offset_sensors : tuple of bool
         Each sensor whose reading departs from the others' at the record's rests, in
         its median there, by more than the ``sensor_disagreement`` limit
@@ -319,6 +323,7 @@ class CompensationContext:
     depth_quantum_m: float = 0.0
     pressure_step_pa: float = 0.0
     offset_sensors: tuple[bool, ...] = ()
+    sensor_departures: tuple[float, ...] = ()
 
 
 def depth_turns(frame: pl.DataFrame) -> tuple[np.ndarray, np.ndarray] | None:
@@ -444,6 +449,37 @@ def offset_sensors(
     for departure in departures:
         known = np.abs(departure[np.isfinite(departure)])
         found.append(bool(known.size >= OFFSET_LEAST_SAMPLES and np.median(known) > limit))
+    return tuple(found)
+
+
+def sensor_departures(
+    pressures: Sequence[np.ndarray], rest: np.ndarray, floor_pa: float = 0.0
+) -> tuple[float, ...]:
+    """Each sensor's signed median departure from the median of the four at ``rest``
+    (:func:`departure_from_median`, a fraction), where it stands beyond four standard
+    errors of that median (1.2533 x 1.4826 MAD / n^0.5); else 0. The pipes equalise the
+    chambers at rest (contract 1a): a sensor that reads apart at the rests, by less than
+    the disagreement alarm's limit, has a gain or offset of its own, which its rope's
+    tension carries everywhere (validation day 101 with sensor 3 reading 2 % low: the
+    load 0.5 % low at most windows, 5 % of them within a band that did not know).
+
+    >>> rng = np.random.default_rng(1)
+    >>> p = [4e6 + rng.normal(0.0, 5e3, 400) for _ in range(4)]
+    >>> p[2] = p[2] * 0.98
+    >>> [round(d, 2) for d in sensor_departures(p, np.ones(400, bool))]
+    [0.0, 0.0, -0.02, 0.0]
+    """
+    found = []
+    departures = departure_from_median([np.asarray(p)[rest] for p in pressures], floor_pa)
+    for departure in departures:
+        known = departure[np.isfinite(departure)]
+        if known.size < OFFSET_LEAST_SAMPLES:
+            found.append(0.0)
+            continue
+        median = float(np.median(known))
+        spread = 1.4826 * float(np.median(np.abs(known - median)))
+        standard_error = 1.2533 * spread / np.sqrt(known.size)
+        found.append(median if abs(median) > 4.0 * standard_error else 0.0)
     return tuple(found)
 
 
@@ -643,10 +679,14 @@ def compensation_context(
     typical = float(np.nanmedian(mean)) if np.isfinite(mean).any() else 0.0
     limits = rule_thresholds(hoist)
     off: tuple[bool, ...] = ()
+    apart: tuple[float, ...] = ()
     if "speed_m_s" in sample.columns and row.size:
         rest = at_rest(sample)[first]
         fraction, floor_pa = limits.disagreement_fraction, limits.disagreement_floor_pa
         off = offset_sensors(pressures, rest, fraction, floor_pa)
+        apart = sensor_departures(pressures, rest, floor_pa)
+        if 0 < sum(off) <= len(ROPES) // 2:  # an offset sensor's rope takes the others'
+            apart = tuple(0.0 if o else d for d, o in zip(apart, off, strict=True))
     identify = settings.rope_springs and has_x and means is not None
     springs = identify_from_means(means, hoist, cache_dir=cache_dir) if identify else None
     # nothing identified the ropes: no logged x, or one that shows no piston motion (a
@@ -709,6 +749,7 @@ def compensation_context(
         has_x=has_x,
         rope_springs=springs,
         offset_sensors=off if any(off) else (),
+        sensor_departures=apart if any(apart) else (),
         pressure_step_pa=max(steps, default=0.0),
     )
 

@@ -360,6 +360,51 @@ def test_a_sensor_off_the_others_at_every_rest_takes_their_reading():
     assert (out["p3_pa"].to_numpy() - working["p3_pa"].to_numpy()).min() > 0.2e6
 
 
+def test_a_sensor_apart_from_the_others_at_every_rest_widens_its_band():
+    """Rope 3's sensor reads 2 % low all record (a gain error under the disagreement
+    alarm's 5 %): the record's context finds it apart at the rests
+    (``CompensationContext.sensor_departures``), and the bands of its rope and of the
+    load reach the bands they would have with it reading as the others: their upper
+    edges rise by 0.02 / 0.98 of its pressure force, the estimates stay; the working
+    record's sensors read alike at rest, and its context holds no departure."""
+    import dataclasses
+
+    from transforms.compensation import compensate_window, compensation_context
+    from transforms.compensation_record import context_sample, context_stride
+
+    p, _ = _a_trip(seed=8)
+    t = np.arange(p.shape[1]) / RATE
+    speed = np.where((t > 10.0) & (t < 80.0), 5.0, 0.0)
+    frame = _frame(p, None, speed=speed).with_columns(depth_m=np.cumsum(speed) / RATE)
+    low = frame.with_columns(pl.col("p3_pa") * 0.98)
+
+    def context(record):
+        stride = context_stride(record.height)
+        sample = context_sample(record, stride).collect()
+        return compensation_context(sample, HOIST, CompensationSettings(), stride)
+
+    assert context(frame).sensor_departures == ()
+    found = context(low)
+    assert found.sensor_departures[2] == pytest.approx(-0.0196, abs=1e-3)
+    # the others by what one low sensor does to the median of four, a noise's fraction
+    assert max(abs(d) for k, d in enumerate(found.sensor_departures) if k != 2) < 1e-3
+    widened, _ = compensate_window(low, HOIST, context=found)
+    plain, _ = compensate_window(
+        low, HOIST, context=dataclasses.replace(found, sensor_departures=())
+    )
+    assert widened["tension3_n"].equals(plain["tension3_n"])
+    area = HOIST.cylinders.bore_area_m2
+    force = [  # each rope's tension were its sensor reading as the others
+        -widened[f"p{k + 1}_pa"].to_numpy() * d / (1.0 + d) * area
+        for k, d in enumerate(found.sensor_departures)
+    ]
+    for column, shift in (("tension3", force[2]), ("load", sum(force))):
+        assert np.min(shift) > 500.0  # 2 % of ~3.1e6 Pa x 7.85e-3 m2, ~+620 N
+        rise = widened[f"{column}_hi_n"].to_numpy() - plain[f"{column}_hi_n"].to_numpy()
+        np.testing.assert_allclose(rise, shift, rtol=1e-4, atol=0.5)  # float32 bands
+        assert widened[f"{column}_lo_n"].equals(plain[f"{column}_lo_n"])
+
+
 def test_a_frozen_logger_while_travelling_is_taken_as_not_logged():
     """Every sensor repeats its reading for 40 s while the conveyance travels (a logger
     whose pressures froze, the ``sensor_stuck`` rule): the tensions and the load are null

@@ -37,10 +37,14 @@ def _nullable(name: str, values: np.ndarray, dtype: type = pl.Float64) -> pl.Ser
 def _shifted_band(
     lo: np.ndarray, hi: np.ndarray, shift: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``[lo, hi]`` reaching ``[lo + shift, hi + shift]`` too (NaN shift: as it is)."""
+    """``[lo, hi]`` reaching ``[lo + shift, hi + shift]`` too (NaN shift: as it is).
+
+    >>> [v.tolist() for v in _shifted_band(np.zeros(2), np.ones(2), np.array([3.0, -0.5]))]
+    [[0.0, -0.5], [4.0, 1.0]]
+    """
     shift = np.nan_to_num(shift)
-    lo, hi = widen_for_shifts(lo, lo, hi, shift)
-    return widen_for_shifts(hi, lo, hi, shift)
+    low, high = widen_for_shifts(lo, lo, hi, shift)
+    return widen_for_shifts(hi, low, high, shift)
 
 
 def block_frame(

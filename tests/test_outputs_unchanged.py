@@ -83,7 +83,8 @@ after a sensor apart from the others at every rest widens its rope's band and th
 load's to the bands it would have reading as they do
 (:func:`transforms.compensation_record.sensor_departures`): the record written here
 gives its ropes 1 % less and more than the mean at rest, so the ropes' bounds move by
-up to 2e-3 of their sums, the load's and every value not at all.
+up to 1.1e-2 of their sums (each band reaching its rope's share of the mean), the load's
+upper bound by 1e-4, every value not at all.
 
 The compensation's input is written here with numpy (two trips, a payload step at a
 stop, a ringing rope, a logger gap, a warming oil), not by the simulation, so a change

@@ -551,11 +551,8 @@ class BlockCompensation(BlockSetup):
 
     def offset_sensors(self) -> tuple[bool, ...]:
         """The record's offset sensors (``CompensationContext.offset_sensors``) where the
-        stick-slip solution runs and the others are most of the four; else none."""
-        offset = self.context.offset_sensors
-        if self.mode != 3 or not 0 < sum(offset) <= len(ROPES) // 2:
-            return ()
-        return offset
+        stick-slip solution runs; else none."""
+        return self.context.offset_sensors if self.mode == 3 else ()
 
     def rope(self, k: int) -> dict[str, np.ndarray]:
         """Tensions of rope k and their band; its inputs are futures of earlier jobs. An

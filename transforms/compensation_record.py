@@ -436,7 +436,8 @@ def offset_sensors(
     the record's rests is off by a constant, and not a pressure while the oil flows
     either. :func:`disagreeing_as_unknown` leaves it out at rest only; a sensor 0.3 MPa
     off for a day (validation day 101, session 41) then moved every seal on every trip:
-    54 of 115 stop windows worse than raw, none within the band.
+    54 of 115 stop windows worse than raw, none within the band. None where more than
+    half the sensors would be: the others could not carry them.
 
     >>> p = [np.full(40, 4e6)] * 3 + [np.full(40, 4.3e6)]
     >>> offset_sensors(p, np.ones(40, bool), 0.05), offset_sensors(p, np.zeros(40, bool), 0.05)
@@ -449,6 +450,8 @@ def offset_sensors(
     for departure in departures:
         known = np.abs(departure[np.isfinite(departure)])
         found.append(bool(known.size >= OFFSET_LEAST_SAMPLES and np.median(known) > limit))
+    if sum(found) > len(found) // 2:
+        return tuple(False for _ in found)
     return tuple(found)
 
 
@@ -600,7 +603,7 @@ def identification_means(
             [calibrated(rests, c, hoist) for c in columns], np.ones(rests.height, bool),
             limits.disagreement_fraction, limits.disagreement_floor_pa,
         )  # fmt: skip
-        if 0 < sum(off) <= len(ROPES) // 2:  # as the compensation: the others carry
+        if any(off):  # as the compensation: the others carry
             span = span.with_columns(
                 pl.lit(None, dtype=span[c].dtype).alias(c)
                 for c, o in zip(columns, off, strict=True)
@@ -685,7 +688,7 @@ def compensation_context(
         fraction, floor_pa = limits.disagreement_fraction, limits.disagreement_floor_pa
         off = offset_sensors(pressures, rest, fraction, floor_pa)
         apart = sensor_departures(pressures, rest, floor_pa)
-        if 0 < sum(off) <= len(ROPES) // 2:  # an offset sensor's rope takes the others'
+        if any(off):  # an offset sensor's rope takes the others' reading
             apart = tuple(0.0 if o else d for d, o in zip(apart, off, strict=True))
     identify = settings.rope_springs and has_x and means is not None
     springs = identify_from_means(means, hoist, cache_dir=cache_dir) if identify else None

@@ -106,13 +106,8 @@ def parse_timestamps(
     # ISO 8601's other decimal sign: a fraction after a comma ("05:59:59,999", as a
     # decimal-comma export may write it), read as the formats' point, on the rows the
     # formats did not read (no cost where they read every row)
-    passes = [(fmt, False) for fmt in todo]
-    if todo:
-        passes += [(fmt, True) for fmt in todo]
-    for fmt, comma in passes:
+    for fmt, comma in [(fmt, False) for fmt in todo] + [(fmt, True) for fmt in todo]:
         assert raw is not None
-        if comma and remaining is None:
-            continue
         sub = raw if remaining is None else raw.gather(remaining)
         if comma:
             sub = sub.str.replace(r"(:\d\d),(\d)", "$1.$2")

@@ -28,9 +28,11 @@ friction summed than the truth (+370 / +186 / +192 / +668 N mean at the pithead,
 within 0.18 % of the true load (friction summed -138 to +218 N). The update of (3)
 took the median window error 0.180 / 0.133 / 0.158 / 0.221 % to 0.103 / 0.095 /
 0.134 / 0.196 %, day 104's windows worse than raw 4 -> 2 (worst unchanged: the
-bottom's after-payload windows), with weights 0.11-0.38 from today's bands. A
-design for the estimator (the shift into the stick-slip state, carried across
-blocks), not built.
+bottom's after-payload windows), with weights 0.11-0.38 from today's bands; with the
+gain 1 (the run's load taken whole) none worse than raw on any day. Built in session
+42 as :mod:`transforms.stop_continuity` (each band member continuing its own run, in
+the compensation's blocks); run on a kept run of today's code, section 3 shows what
+is left after it.
 
     uv run python benchmarks/eval_compensation.py --sims 0 --keep /tmp/kept
     uv run python benchmarks/diagnose_stop_continuity.py /tmp/kept

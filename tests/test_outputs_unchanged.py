@@ -84,7 +84,11 @@ load's to the bands it would have reading as they do
 (:func:`transforms.compensation_record.sensor_departures`): the record written here
 gives its ropes 1 % less and more than the mean at rest, so the ropes' bounds move by
 up to 1.1e-2 of their sums (each band reaching its rope's share of the mean), the load's
-upper bound by 1e-4, every value not at all.
+upper bound by 1e-4, every value not at all. The ``demo_position_summary`` entry again
+(session 42) after the stick-slip solution's seals are set at each arrival by the load's
+continuity from the trip's steady run (:mod:`transforms.stop_continuity`): the demo's
+stop loads by -2.2e-4 of their sum (load_after_n -300 N of 1.35 MN), its inferred
+payloads by -2.5e-3, the load band's bounds by +3e-4 / -6e-4.
 
 The compensation's input is written here with numpy (two trips, a payload step at a
 stop, a ringing rope, a logger gap, a warming oil), not by the simulation, so a change

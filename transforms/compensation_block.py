@@ -24,7 +24,7 @@ import numpy as np
 import polars as pl
 
 from physics.closed_volume import common_mode_displacement, common_mode_per_pa
-from physics.trip_rule import trip_label_columns
+from physics.trip_rule import trip_label_codes, trip_label_columns
 from schemas.tables import ROPES
 from transforms.band_members import (
     STEADY_SIGMAS,
@@ -63,6 +63,12 @@ from transforms.seal_drift import (
 )
 from transforms.stick_slip import stick_slip
 from transforms.stick_slip_band import BAND_SOURCES, BandSolution, band_groups, band_solutions
+from transforms.stop_continuity import (
+    SETTLE_S,
+    SPAN_S,
+    ContinuityInputs,
+    apply_stop_continuity,
+)
 from transforms.uncertainty import ensemble_band, rope_band
 
 __all__ = ["BlockCompensation", "prior_mean"]
@@ -291,6 +297,14 @@ class BlockCompensation(BlockSetup):
         def run(lo: int, hi: int, state: np.ndarray) -> None:
             self.solve_springs(inputs, members[0], lo, hi, state, (x, friction), self.dt_nominal)
 
+        # the stop continuity's rest window looks this far past the stage
+        self.spring_hi = self.stage_hi
+        continuity = self.settings.stop_continuity and np.isfinite(springs.mismatch_m)
+        if continuity and self.stage_hi > self.stage_lo:
+            reach = self.time_s[self.stage_hi - 1] + SETTLE_S + SPAN_S
+            self.spring_hi = int(np.searchsorted(self.time_s, reach, side="right"))
+        spring_bounds = (self.stage_lo, self.handover, self.spring_hi)
+
         step_s = self.settings.band_member_step_s
         self.nxt.springs = self.carry.springs.copy()
         spread = None
@@ -304,7 +318,9 @@ class BlockCompensation(BlockSetup):
         points = [m for m in others if members[m].source == "stiffness"]
         # the kernel releases the GIL: the members run beside the estimate
         with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
-            estimate = pool.submit(self.staged, run, self.segment, self.carry.estimate)
+            estimate = pool.submit(
+                self.staged, run, self.segment, self.carry.estimate, spring_bounds
+            )
             if on_means:
                 spread = self.member_spreads(inputs, members, step_s, pool, at_rate=points)
             else:
@@ -328,7 +344,39 @@ class BlockCompensation(BlockSetup):
             self.member_friction.append(prior_mean(friction, self.member_friction, members[1:]))
             self.member_sources += (BAND_SOURCES.index("stiffness"),)
         self.spring_friction = friction
+        if self.settings.stop_continuity and np.isfinite(springs.mismatch_m):
+            # ropes identified from this record's x: its runs hold the load to ~0.2 %
+            self.stop_continuity(x, [friction, *self.member_friction], depth, pressures)
         return x, tuple(np.zeros(n) for _ in ROPES)
+
+    def stop_continuity(
+        self,
+        x: tuple[np.ndarray, ...],
+        frictions: list[tuple[np.ndarray, ...]],
+        depth: np.ndarray,
+        pressures: tuple[np.ndarray, ...],
+    ) -> None:
+        """The seals' friction of every solution at each arrival set by the load's
+        continuity from the trip's steady run (:mod:`transforms.stop_continuity`), in
+        place, over the first stage; its state carried at the hand-over."""
+        accel, _ = self.kinematics_job.result()
+        speed = np.where(np.isnan(self.speed), 0.0, self.speed)
+        phase, _, _ = trip_label_codes(self.time_s, speed, accel, self.segment, depth, self.hoist)
+        area = self.hoist.cylinders.bore_area_m2
+        springs = self.context.rope_springs
+        factors = np.asarray(springs.stiffness_factors, dtype=float)
+        unique: dict[int, tuple[np.ndarray, ...]] = {}
+        for solution in frictions:  # an array shared by two solutions is shifted once
+            unique.setdefault(id(solution[0]), solution)
+        inputs = ContinuityInputs(
+            self.time_s, phase, depth, mean_horizontal(list(pressures)) * area * len(ROPES),
+            x, factors / factors.sum(), self.presliding_range_m, self.dt_nominal,
+        )  # fmt: skip
+
+        def run(lo: int, hi: int, state: np.ndarray) -> None:
+            apply_stop_continuity(inputs, list(unique.values()), lo, hi, state, self.hoist)
+
+        self.nxt.continuity = self.staged(run, self.segment, self.carry.continuity)
 
     def is_estimate(self, inputs: _SpringInputs, m: int, members: list[BandSolution]) -> bool:
         """Member m solves as the estimate over this block's stage: it differs from it
@@ -338,7 +386,7 @@ class BlockCompensation(BlockSetup):
         if member._replace(ringing_scale=1.0, source="") != estimate._replace(source=""):
             return False
         ringing = inputs.ringing
-        if ringing is not None and ringing[self.stage_lo : self.stage_hi].any():
+        if ringing is not None and ringing[self.stage_lo : self.spring_hi].any():
             return False
         return np.array_equal(self.carry.springs[m], self.carry.estimate, equal_nan=True)
 
@@ -399,7 +447,8 @@ class BlockCompensation(BlockSetup):
                     drift_p[lo:hi], segment[lo:hi], drift_w, state, per_sample[lo:hi]
                 )
 
-            self.nxt.drift_play = self.staged(play, segment, self.carry.drift_play)
+            bounds = (self.stage_lo, self.handover, self.spring_hi)
+            self.nxt.drift_play = self.staged(play, segment, self.carry.drift_play, bounds)
             ringing = None if inputs.ringing is None else np.nan_to_num(inputs.ringing)
 
             def travel(factor: float) -> np.ndarray:
@@ -427,7 +476,8 @@ class BlockCompensation(BlockSetup):
         run = functools.partial(
             self.solve_springs, inputs, member, out=(x, f), dt_s=self.dt_nominal
         )
-        self.nxt.springs[m] = self.staged(run, self.segment, self.carry.springs[m])
+        bounds = (self.stage_lo, self.handover, self.spring_hi)
+        self.nxt.springs[m] = self.staged(run, self.segment, self.carry.springs[m], bounds)
         return f
 
     def member_spreads(
@@ -448,7 +498,7 @@ class BlockCompensation(BlockSetup):
         starts, means, travel = self.member_means(inputs, step_s)
         steps = mean_steps(starts, n, self.dt_nominal)
         bounds = tuple(
-            int(np.searchsorted(starts, i)) for i in (self.stage_lo, self.handover, self.stage_hi)
+            int(np.searchsorted(starts, i)) for i in (self.stage_lo, self.handover, self.spring_hi)
         )
 
         def solve(m: int) -> tuple[np.ndarray, ...]:
@@ -678,7 +728,7 @@ class BlockCompensation(BlockSetup):
         self.off_sensors: tuple[np.ndarray, ...] | None = None
         workers = min(len(ROPES), os.cpu_count() or 1)
         with ThreadPoolExecutor(max_workers=workers) as pool:
-            kinematics_job = pool.submit(self.kinematics)
+            self.kinematics_job = kinematics_job = pool.submit(self.kinematics)
             self.p_jobs = [pool.submit(self.pressure, c) for c in rope_cols("p{i}_pa")]
             self.x_jobs = [pool.submit(self.displacement, c) for c in rope_cols("x{i}_m")]
             self.nu_job = pool.submit(viscosity, self.t_oil, self.hoist)

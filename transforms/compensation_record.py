@@ -48,6 +48,7 @@ from transforms.seal_drift import (
 )
 from transforms.stick_slip import stick_slip_state
 from transforms.stick_slip_band import MAX_SOLUTIONS, RopeSprings, prior_rope_springs
+from transforms.stop_continuity import continuity_state
 
 __all__ = [
     "CONTEXT_ROWS",
@@ -143,6 +144,10 @@ class CompensationSettings:
         A whole fraction of the blocks' resume margin (:func:`compensation_margins_s`,
         1 s by default: 0.1, 0.2, 0.25, 0.5 or 1 s), so that the windows start where a
         block's first stage does.
+    stop_continuity : bool
+        True (the default): at each arrival the stick-slip solution's seals are set so
+        that the load at rest continues the trip's steady run, the tail ropes' change
+        added (:mod:`transforms.stop_continuity`); False: the solution as it is.
     """
 
     sample_rate_hz: float | None = None
@@ -159,6 +164,7 @@ class CompensationSettings:
     rope_springs: bool = True
     rope_stiffness_sigma: float = 0.05
     band_member_step_s: float = 0.0
+    stop_continuity: bool = True
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.rope_stiffness_sigma < 0.5:
@@ -786,7 +792,9 @@ class CompensationCarry:
     sensors' rate (row 0 unused), or with ``band_member_step_s`` every solution on the
     means of :mod:`transforms.band_members` (rows past the record's solutions unused);
     ``drift_play`` the play whose travel drives the means' drift
-    (:func:`transforms.seal_drift.played_travels_into`).
+    (:func:`transforms.seal_drift.played_travels_into`); ``continuity`` the load's
+    continuity from a trip to its stop (:func:`transforms.stop_continuity.
+    continuity_state`: the trip's run so far, the shift at its last arrival).
     """
 
     common: np.ndarray
@@ -798,6 +806,7 @@ class CompensationCarry:
     springs: np.ndarray
     estimate: np.ndarray
     drift_play: np.ndarray
+    continuity: np.ndarray
 
     @classmethod
     def fresh(cls, elements: int) -> CompensationCarry:
@@ -812,6 +821,7 @@ class CompensationCarry:
             springs=np.stack([stick_slip_state(len(ROPES), elements)] * MAX_SOLUTIONS),
             estimate=stick_slip_state(len(ROPES), elements),
             drift_play=np.zeros(PLAYED_TRAVEL_STATE_SIZE),
+            continuity=continuity_state(MAX_SOLUTIONS + 1),
         )
 
 

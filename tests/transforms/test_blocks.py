@@ -116,6 +116,24 @@ def test_blocks_equal_whole_record(record: pl.DataFrame) -> None:
     _assert_same(compensate(record, HOIST), _blocks(record))
 
 
+def test_the_stop_continuity_from_blocks_equals_the_whole_records(record: pl.DataFrame) -> None:
+    """Blocks of 75 s put edges inside the trips' steady runs, whose sums the load's
+    continuity carries to the stop (transforms/stop_continuity.py): the arrivals it
+    updates must come out as in the record read whole."""
+    block = dt.timedelta(seconds=75)
+    whole = compensate(record, HOIST)
+    plain = compensate(record, HOIST, settings=CompensationSettings(stop_continuity=False))
+    moved = (whole["load_n"] - plain["load_n"]).abs() > 1.0
+    updated = whole.filter(moved & (whole["phase"] == "standstill"))
+    assert updated.height > 1000  # the update acts on the record's stops
+    edges = pl.Series(
+        [lo for lo, _ in block_edges(record["time_utc"][0], record["time_utc"][-1], block)][1:]
+    )
+    at_edges = whole[whole["time_utc"].search_sorted(edges, side="left").clip(0, whole.height - 1)]
+    assert (at_edges["phase"] == "run").sum() >= 2  # edges inside the runs it sums
+    _assert_same(whole, _blocks(record, block=block))
+
+
 def test_blocks_equal_whole_record_with_drifting_seals(tmp_path) -> None:
     """LuGre seals: the drift's play, the ringing's demodulation at rest and the ropes'
     identification with the drift's travel, across block edges in trips and stops."""

@@ -54,7 +54,24 @@ capacity, all seals sliding one way, is wider than the stops' was); ropeload's o
 worst 0.55 / 0.54 -> 0.42 / 0.51 %, median 0.30 / 0.33 -> 0.21 / 0.20 %. Tried and not
 kept: the shift carried past payload changes at rest, fading only with each piston's
 travel: the windows after a payload change at the bottom of days 101 and 102 went worse
-than raw (one each) and day 104's worst to 1.09 %; so a payload change ends it.
+than raw (one each) and day 104's worst to 1.09 %; so a payload change ends it. A gain
+below 1 from the members: the innovation d_0 (the run's prediction less the load at
+rest) taken as far as it exceeds what the members' own innovations span, s^2 (per
+source the largest |d_m - d_0| / 1.96, in quadrature): per arrival, the positive-part
+James-Stein share max(0, 1 - s^2 / d_0^2), left windows worse than raw 0 / 1 / 0 / 2
+(median 0.16 / 0.11 / 0.15 / 0.15 %) and the own sims as they were; pooled over the
+record's arrivals (the model error's variance by the method of moments), nothing moved:
+the law's capacity members span the innovations (a capacity 20 % off moves a run, every
+seal sliding one way, more than a stop), while on the validation days the runs are
+right and the stops are not.
+
+What it costs where the stop was right and the run is not: on ropeload's own
+simulation with LuGre seals (``--sims-lugre 2``: seals shaken loose at rest, so the
+estimate's stops are exact) the median went 0.01 -> 0.15 % and the band's median
+half-width 0.63 -> 1.05 % (the runs' spread); on validation day 101 with x logged to
+0.5 mm (the ropes identified less well: its down runs 0.25 % high) or decimated to
+10 Hz, the median 0.13 -> 0.23 % and 0.16 -> 0.26 %, the worst windows unchanged, none
+worse than raw.
 
 What it leaves out: the branch loss beyond the sensor while oil flows in the run phase
 (the run's pistons creep at millimetres a minute: negligible at the contract's valves);

@@ -244,8 +244,9 @@ class BlockCompensation(BlockSetup):
         the ropes alike) over the first stage, and the frictions of the
         band's members (:func:`~transforms.stick_slip_band.band_solutions`; at the sensors'
         rate, or on means with ``band_member_step_s``: :meth:`member_spreads`); the
-        frictions are kept for the ropes' jobs. NaN outside the stage. Blind motion:
-        none."""
+        frictions are kept for the ropes' jobs. NaN outside the stage and, with the stop
+        continuity, the look-ahead past it that its rest windows read (``spring_hi``).
+        Blind motion: none."""
         n, springs = self.n, self.context.rope_springs
         rest = at_rest(self.frame)
         # a filtered step reaches 3 / cut-off seconds either side

@@ -82,8 +82,11 @@ at the bottom, are unchanged).
 
 The pass is sequential and resumable (:func:`continuity_state`): a block carries the trip's
 run sums, the active shift and how far each piston has moved since its arrival, so a
-record compensated block by block gives the same update as read whole (the rest window's
-look-ahead, :data:`SETTLE_S` + :data:`SPAN_S`, stays within the blocks' resume margin).
+record compensated block by block gives the same update as read whole. The rest window
+looks :data:`SETTLE_S` + :data:`SPAN_S` past an arrival, beyond the blocks' resume margin
+(1 s, :func:`transforms.compensation_record.compensation_margins_s`): a block solves the
+stick-slip estimate and its members that much past its first stage
+(``BlockCompensation.spring_hi``), inside the halo it reads (30 s or more).
 """
 
 from __future__ import annotations

@@ -17,8 +17,11 @@ import pytest
 from physics.tension import tail_rope_mass_kg
 from physics.trip_rule import PHASES
 from schemas.hoist import EXAMPLE_HOIST, G_STANDARD, load_hoist
+from transforms.compensation_record import CompensationSettings, compensation_margins_s
 from transforms.stop_continuity import (
     PAYLOAD_SHARE,
+    SETTLE_S,
+    SPAN_S,
     ContinuityInputs,
     apply_stop_continuity,
     continuity_state,
@@ -181,3 +184,11 @@ def test_the_rest_window_ends_before_a_payload_change_and_at_a_departure() -> No
     window = rest_window(t, departing, load, 0)
     assert t[window.stop - 1] < 6.0
     assert PAYLOAD_SHARE * 1e5 < 2e4  # the ramp's first second exceeds it
+
+
+def test_the_rest_windows_look_ahead_fits_in_the_blocks_halo() -> None:
+    """The look-ahead is past the resume margin (module docstring): a block solves the
+    stick-slip solution that far past its first stage, inside the halo it reads."""
+    resume_s, halo_s = compensation_margins_s(CompensationSettings())
+    assert SETTLE_S + SPAN_S > resume_s
+    assert resume_s + SETTLE_S + SPAN_S < halo_s

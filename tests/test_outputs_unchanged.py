@@ -88,7 +88,10 @@ upper bound by 1e-4, every value not at all. The ``demo_position_summary`` entry
 (session 42) after the stick-slip solution's seals are set at each arrival by the load's
 continuity from the trip's steady run (:mod:`transforms.stop_continuity`): the demo's
 stop loads by -2.2e-4 of their sum (load_after_n -300 N of 1.35 MN), its inferred
-payloads by -2.5e-3, the load band's bounds by +3e-4 / -6e-4.
+payloads by -2.5e-3, the load band's bounds by +3e-4 / -6e-4; and again after the
+next trip's run sets the stop's last steady stretch too
+(:func:`transforms.stop_continuity.backward_shift`): the stop loads by a further
+-4.6e-5 of their sum, the load band's bounds by +5.0e-3 / -4.5e-3 (narrower).
 
 The compensation's input is written here with numpy (two trips, a payload step at a
 stop, a ringing rope, a logger gap, a warming oil), not by the simulation, so a change

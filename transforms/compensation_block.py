@@ -64,8 +64,7 @@ from transforms.seal_drift import (
 from transforms.stick_slip import stick_slip
 from transforms.stick_slip_band import BAND_SOURCES, BandSolution, band_groups, band_solutions
 from transforms.stop_continuity import (
-    SETTLE_S,
-    SPAN_S,
+    LOOK_AHEAD_S,
     ContinuityInputs,
     apply_stop_continuity,
 )
@@ -302,7 +301,7 @@ class BlockCompensation(BlockSetup):
         self.spring_hi = self.stage_hi
         continuity = self.settings.stop_continuity and np.isfinite(springs.mismatch_m)
         if continuity and self.stage_hi > self.stage_lo:
-            reach = self.time_s[self.stage_hi - 1] + SETTLE_S + SPAN_S
+            reach = self.time_s[self.stage_hi - 1] + LOOK_AHEAD_S
             self.spring_hi = int(np.searchsorted(self.time_s, reach, side="right"))
         spring_bounds = (self.stage_lo, self.handover, self.spring_hi)
 

@@ -48,7 +48,7 @@ from transforms.seal_drift import (
 )
 from transforms.stick_slip import stick_slip_state
 from transforms.stick_slip_band import MAX_SOLUTIONS, RopeSprings, prior_rope_springs
-from transforms.stop_continuity import continuity_state
+from transforms.stop_continuity import LOOK_AHEAD_S, continuity_state
 
 __all__ = [
     "CONTEXT_ROWS",
@@ -841,7 +841,10 @@ def compensation_margins_s(
     as in the whole record only where the window reaches the duration past the sample
     either side (:func:`transforms.alarm_events.flatline_runs`), and the filters read
     the pressures that far beyond the first stage
-    (:func:`flatlined_samples`).
+    (:func:`flatlined_samples`); with ``settings.stop_continuity``,
+    :data:`transforms.stop_continuity.LOOK_AHEAD_S` on top: the stick-slip solutions are
+    solved that far past the first stage, where the next trip's run predicts a stop's
+    load (:func:`transforms.stop_continuity.backward_shift`).
     """
     resume = max(1.0, 2.0 * settings.velocity_window_s)
     smoother_s = 4.0 * 0.1325 / settings.differential_cutoff_hz
@@ -853,6 +856,8 @@ def compensation_margins_s(
         2.0 * settings.velocity_window_s,
         10.0 / RINGING_BANDWIDTH_HZ,
     )
+    if settings.stop_continuity:  # the stick-slip solutions solved this far past
+        halo += LOOK_AHEAD_S
     if hoist is not None:
         halo += hoist.alarms.flatline_duration_s
     return resume, halo

@@ -1,92 +1,100 @@
-"""The load's continuity from a trip to its stop: the seals' friction at arrival, updated.
+"""The load's continuity from a trip to its stop and from the stop to the next trip.
 
 The payload does not change while the conveyance travels. Over a trip's steady run
 (phase ``run`` of :mod:`physics.trip_rule`: full speed, no acceleration) every piston
 slides one way and its seal holds the friction law's capacity, which the stick-slip
-solution (:mod:`transforms.stick_slip`) knows; at the arrival the deceleration and the
-stop turn the pistons back into their presliding, where what each seal keeps depends on
-the path in micrometres, on the ringing that shakes it and on a law the record does not
-pin down. On the independent simulator's validation days the estimate over the run
-phases is within 0.18 % of the true load, at the pithead's arrivals after up trips it
-holds 190-670 N more friction than the truth's (``benchmarks/diagnose_stop_continuity.py``;
-the windows worse than raw on day 104 are those).
+solution (:mod:`transforms.stick_slip`) knows; at a stop the pistons turn back into
+their presliding, where what each seal keeps depends on the path in micrometres, on the
+ringing that shakes it and on a law the record does not pin down. On the independent
+simulator's validation days the estimate over the run phases is within 0.18 % of the
+true load; at the pithead's arrivals after up trips it held 190-670 N more friction
+than the truth's, after payload changes at the bottom 0.3-0.4 % of the load
+(``benchmarks/diagnose_stop_continuity.py``).
 
-The run phase so predicts the load at rest (paper eq 3-4, :func:`physics.tension.
-expected_load_n` at a = 0):
+A run so predicts the load at rest on either side of it (paper eq 3-4,
+:func:`physics.tension.expected_load_n` at a = 0):
 
 .. math:: \\hat L_{stop} = \\bar L_{run} + g\\,(m_t(z_{stop}) - m_t(\\bar z_{run}))
 
 with :math:`m_t(z)` the tail ropes below the conveyance (:func:`physics.tension.
-tail_rope_mass_kg`), and :func:`apply_stop_continuity` sets each solution's seals at the
-arrival so that its load over the first seconds at rest (:data:`SETTLE_S` after the
-stop, for :data:`SPAN_S`, ending where the raw load moves by :data:`PAYLOAD_SHARE`: a
-payload change begins) equals its own run phase's prediction. The run's mean is an
-independent, better observation of the same state (the constraint is exact but for the
-run phase's own error), so the update takes it whole: a Kalman gain of 1 on the common
-mode, applied to each band member alike, so the band at the stop becomes the spread of
-the members' run phases (an ensemble's update; the members stand for the law, the
-bristles and the ropes, whose errors the run phase carries too).
+tail_rope_mass_kg`). :func:`apply_stop_continuity` sets each solution's seals
+
+- at an arrival, so that its load over the first seconds at rest (:data:`SETTLE_S`
+  after the stop, for :data:`SPAN_S`, ending where the raw load moves by
+  :data:`PAYLOAD_SHARE`: a payload change begins) equals what the trip's whole steady
+  run predicts; held while the seals stick (below), ended by a payload change;
+- before a departure (:func:`backward_shift`), so that its load over the stop's last
+  steady stretch (after its last payload change, at most :data:`BACK_S`) equals what
+  the next trip's steady run predicts (its first :data:`NEXT_RUN_S`, within
+  :data:`REACH_S` of the departure);
+- where both reach (a stop without a payload change), to the mean of the two.
+
+The runs' means are independent, better observations of the same state (the
+constraint is exact but for the run's own error), so the update takes them whole: a
+Kalman gain of 1 on the common mode, applied to each band member alike with its own
+runs, so the band at the stop becomes the spread of the members' runs (an ensemble's
+update; the members stand for the law, the bristles and the ropes, whose errors the
+runs carry too).
 
 Where the update goes: the sum of the seals' friction. A common stretch of the ropes
 moves each sticking seal by its rope's stiffness (:math:`\\Delta F_i = a_i k \\Delta s`),
 so rope i takes :math:`a_i / \\sum a` of the shift (the stiffness factors of
-:class:`transforms.stick_slip_band.RopeSprings`). It holds while the seals stick: whole
-up to the rest window's end, then each piston's share fades as the estimate's piston
-moves beyond the reach of its ringing in the window, linearly to nothing over one
-presliding range F_s / sigma_0 (a seal that has slid holds the law's capacity, which the
-estimate knows); a payload change (the raw load's 2 s mean leaving its value at rest by
-:data:`PAYLOAD_SHARE`) ends it, as does the next steady run. A new arrival replaces it.
+:class:`transforms.stick_slip_band.RopeSprings`). The arrival's holds whole up to the
+rest window's end, then each piston's share fades as the estimate's piston moves beyond
+the reach of its ringing in the window, linearly to nothing over one presliding range
+F_s / sigma_0 (a seal that has slid holds the law's capacity, which the estimate knows);
+a payload change (the raw load's 2 s mean leaving its value at rest by
+:data:`PAYLOAD_SHARE`: its transient takes every seal through its presliding range)
+ends it, as does the next steady run. The departure's holds over the stretch it was
+set on.
 
 Where it applies: ropes identified from the record's logged x
 (:mod:`transforms.rope_identification`). With the ropes' prior instead (no x) the runs
 themselves are 0.25-0.53 % off the truth on the validation days (the ropes' unknown
-differences decide which seals slide in a run), so the run predicts no better than the
-stop: measured with the update, the median stop error went 0.36 / 0.27 / 0.25 / 0.09 ->
+differences decide which seals slide in a run), so a run predicts no better than the
+stop: with the arrival's update the median stop error went 0.36 / 0.27 / 0.25 / 0.09 ->
 0.64 / 0.56 / 0.54 / 0.25 % (days 101-104); it is not applied there.
 
-Measured (``benchmarks/eval_compensation.py --sims 0``, days 101-104, session 42):
-worst stop window 0.80 / 0.67 / 0.79 / 0.97 -> 0.80 / 0.67 / 0.40 / 0.97 %, median
-0.18 / 0.13 / 0.15 / 0.22 -> 0.17 / 0.12 / 0.08 / 0.19 %, worst rope 1.13 / 1.04 / 1.84 /
-1.18 -> 1.13 / 1.04 / 0.99 / 1.18 %, windows worse than raw by 0.2 points 0 / 1 / 0 / 4 ->
-none, band coverage 97 / 98 / 95 / 90 -> 98 / 100 / 97 / 97 % at a median half-width of
-0.92 / 0.89 / 0.84 / 0.55 -> 0.98 / 0.90 / 0.89 / 0.76 % (the runs' spread of the law's
-capacity, all seals sliding one way, is wider than the stops' was); ropeload's own sims
-worst 0.55 / 0.54 -> 0.42 / 0.51 %, median 0.30 / 0.33 -> 0.21 / 0.20 %. Tried and not
-kept: the shift carried past payload changes at rest, fading only with each piston's
-travel: the windows after a payload change at the bottom of days 101 and 102 went worse
-than raw (one each) and day 104's worst to 1.09 %; so a payload change ends it. A gain
-below 1 from the members: the innovation d_0 (the run's prediction less the load at
-rest) taken as far as it exceeds what the members' own innovations span, s^2 (per
-source the largest |d_m - d_0| / 1.96, in quadrature): per arrival, the positive-part
-James-Stein share max(0, 1 - s^2 / d_0^2), left windows worse than raw 0 / 1 / 0 / 2
-(median 0.16 / 0.11 / 0.15 / 0.15 %) and the own sims as they were; pooled over the
-record's arrivals (the model error's variance by the method of moments), nothing moved:
-the law's capacity members span the innovations (a capacity 20 % off moves a run, every
-seal sliding one way, more than a stop), while on the validation days the runs are
-right and the stops are not.
+Measured (``benchmarks/eval_compensation.py``, session 42), days 101-104 before ->
+arrivals only -> both: worst stop window 0.80 / 0.67 / 0.79 / 0.97 -> 0.80 / 0.67 /
+0.40 / 0.97 -> 0.42 / 0.33 / 0.25 / 0.31 %, median 0.18 / 0.13 / 0.15 / 0.22 -> 0.17 /
+0.12 / 0.08 / 0.19 -> 0.14 / 0.08 / 0.06 / 0.06 %, worst rope 1.13 / 1.04 / 1.84 / 1.18
+-> 0.87 / 0.80 / 0.99 / 0.68 %, windows worse than raw by 0.2 points 0 / 1 / 0 / 4 ->
+none -> none, band coverage 97 / 98 / 95 / 90 -> 100 / 100 / 97 / 100 % at a median
+half-width of 0.92 / 0.89 / 0.84 / 0.55 -> 0.84 / 0.85 / 0.81 / 0.75 %. Own sims
+(Maxwell-slip seals) worst 0.55 / 0.54 -> 0.42 / 0.47 %, median 0.30 / 0.33 -> 0.21 /
+0.19 %, half-width 1.61 / 1.73 -> 1.22 / 1.30 %. The cost where the stop was right and
+the runs are not: own sims with LuGre seals (shaken loose at rest: the estimate's
+stops exact) median 0.01 -> 0.15 %, worst 0.52 / 0.60 -> 0.27 / 0.48 %, half-width 0.63
+-> 0.84 %. The departure's run taken over its first 10 s only: day 104's windows after
+a payload change at the bottom, where the ringing had shaken the seals loose (raw within
+0.1 %), went 0.2-0.3 % high (4 worse than raw: the acceleration's ringing in the mean);
+over the whole run as the arrival's is (up to 120 s), none.
 
-What it costs where the stop was right and the run is not: on ropeload's own
-simulation with LuGre seals (``--sims-lugre 2``: seals shaken loose at rest, so the
-estimate's stops are exact) the median went 0.01 -> 0.15 % and the band's median
-half-width 0.63 -> 1.05 % (the runs' spread); on validation day 101 with x logged to
-0.5 mm (the ropes identified less well: its down runs 0.25 % high) or decimated to
-10 Hz, the median 0.13 -> 0.23 % and 0.16 -> 0.26 %, the worst windows unchanged, none
-worse than raw.
+Tried and not kept: the arrival's shift carried past payload changes at rest, fading
+only with each piston's travel (days 101 and 102: a window after a payload change worse
+than raw each, day 104's worst 1.09 %). A gain below 1 from the members, the innovation
+d_0 (the run's prediction less the load at rest) taken as far as it exceeds what the
+members' own innovations span, s^2 (per source the largest |d_m - d_0| / 1.96, in
+quadrature): per arrival the positive-part James-Stein share max(0, 1 - s^2 / d_0^2)
+left windows worse than raw 0 / 1 / 0 / 2; pooled over the record's arrivals (the
+model error's variance by the method of moments) nothing moved: the law's capacity
+members span the innovations (a capacity 20 % off moves a run, every seal sliding one
+way, more than a stop), while on the validation days the runs are right and the stops
+are not.
 
-What it leaves out: the branch loss beyond the sensor while oil flows in the run phase
-(the run's pistons creep at millimetres a minute: negligible at the contract's valves);
-a trip with less than :data:`MIN_RUN_S` of steady run predicts nothing (the stop keeps
-the estimate as solved: a record that starts in a deceleration); the update acts at
-arrivals only, not at payload changes at rest (the worst windows, after payload changes
-at the bottom, are unchanged).
+What it leaves out: the branch loss beyond the sensor while oil flows in a run (the
+run's pistons creep at millimetres a minute: negligible at the contract's valves); a
+trip with less than :data:`MIN_RUN_S` of steady run predicts nothing; a stop's stretch
+between two payload changes keeps the solution as solved.
 
-The pass is sequential and resumable (:func:`continuity_state`): a block carries the trip's
-run sums, the active shift and how far each piston has moved since its arrival, so a
-record compensated block by block gives the same update as read whole. The rest window
-looks :data:`SETTLE_S` + :data:`SPAN_S` past an arrival, beyond the blocks' resume margin
-(1 s, :func:`transforms.compensation_record.compensation_margins_s`): a block solves the
-stick-slip estimate and its members that much past its first stage
-(``BlockCompensation.spring_hi``), inside the halo it reads (30 s or more).
+The pass is sequential and resumable (:func:`continuity_state`): a block carries the
+trip's run sums, the arrival's shift with how far each piston has moved since, and the
+departure's shift once found, so a record compensated block by block gives the same
+update as read whole. It reads up to :data:`LOOK_AHEAD_S` past a block's first stage:
+a block solves the stick-slip estimate and its members that far
+(``BlockCompensation.spring_hi``), inside the halo it reads
+(:func:`transforms.compensation_record.compensation_margins_s` adds it).
 """
 
 from __future__ import annotations
@@ -101,12 +109,18 @@ from physics.trip_rule import PHASES, TRIP_BRIDGE_S
 from schemas.hoist import G_STANDARD, HoistDescription
 
 __all__ = [
+    "BACK_S",
+    "LOOK_AHEAD_S",
     "MIN_RUN_S",
+    "MIN_WINDOW_S",
+    "NEXT_RUN_S",
     "PAYLOAD_SHARE",
+    "REACH_S",
     "SETTLE_S",
     "SPAN_S",
     "ContinuityInputs",
     "apply_stop_continuity",
+    "backward_shift",
     "continuity_state",
     "rest_window",
 ]
@@ -120,23 +134,39 @@ SPAN_S = 10.0
 #: ... ending where the raw load's 2 s centred mean moves by this share of its value at
 #: the window's start: a payload change begins (a ringing's 2 s means stay within it).
 PAYLOAD_SHARE = 0.005
-#: A trip predicts its stop's load from at least this much steady run [s].
+#: A trip predicts its stop's load from at least this much steady run [s] ...
 MIN_RUN_S = 2.0
+#: ... over a rest window at least this long [s]: longer than two periods of the
+#: slowest bounce, or the ringing does not average out of its mean.
+MIN_WINDOW_S = 3.0
+#: The next trip's steady run predicts the load at rest up to this long before its
+#: departure [s] (:func:`backward_shift`) ...
+BACK_S = 90.0
+#: ... from its first seconds of steady run, at most this many [s] ...
+NEXT_RUN_S = 120.0
+#: ... which start within this long of the departure [s] (the acceleration).
+REACH_S = 30.0
+#: How far past a block the continuity reads [s]: the stick-slip solutions are solved
+#: this far past the block's first stage, inside the halo it reads
+#: (:func:`transforms.compensation_record.compensation_margins_s` adds it).
+LOOK_AHEAD_S = BACK_S + REACH_S + NEXT_RUN_S
 _RUN = PHASES.index("run")
 _STANDSTILL = PHASES.index("standstill")
 # state: [ran, continues, was moving, run samples, run sum of P, run sum of depth,
-# active, last time, fade from (time), the raw load at rest], each piston's x at rest,
-# its ringing's reach and its travel beyond, then the run sums of F per solution and the
-# shifts
-_HEAD = 10
+# active, last time, fade from (time), the raw load at rest, backward held, its
+# departure's time, its first sample's time], each piston's x at rest, its ringing's
+# reach and its travel beyond, then per solution the run sum of F, the arrival's shifts
+# and the departure's
+_HEAD = 13
 _PISTONS = 4
 _PER_PISTON = 3
+_PER_SOLUTION = 1 + 2 * _PISTONS
 
 
 def continuity_state(solutions: int) -> np.ndarray:
     """A fresh state of :func:`apply_stop_continuity` for ``solutions`` solutions (the
     estimate and its band's members) of four pistons."""
-    return np.zeros(_HEAD + _PER_PISTON * _PISTONS + solutions * (1 + _PISTONS))
+    return np.zeros(_HEAD + _PER_PISTON * _PISTONS + solutions * _PER_SOLUTION)
 
 
 @dataclass(frozen=True)
@@ -165,7 +195,7 @@ def rest_window(time_s: np.ndarray, phase: np.ndarray, load_n: np.ndarray, at: i
     :data:`SETTLE_S` after it for :data:`SPAN_S`, while the conveyance stands still, no
     logger gap exceeds :data:`~physics.trip_rule.TRIP_BRIDGE_S`, and the 2 s centred
     mean of ``load_n`` (the raw load) stays within :data:`PAYLOAD_SHARE` of its value at
-    the window's start. Empty where less than 1 s remains.
+    the window's start. Empty where less than :data:`MIN_WINDOW_S` remains.
 
     >>> t = np.arange(0.0, 20.0, 0.5)
     >>> load = np.where(t < 9.0, 1e5, 0.9e5)   # a payload change at 9 s
@@ -197,7 +227,7 @@ def rest_window(time_s: np.ndarray, phase: np.ndarray, load_n: np.ndarray, at: i
     moved = ~(np.abs(centred - reference) <= PAYLOAD_SHARE * abs(reference))
     if moved.any():
         cut = lo + int(np.argmax(moved))
-    if cut <= lo or time_s[cut - 1] - time_s[lo] < 1.0:
+    if cut <= lo or time_s[cut - 1] - time_s[lo] < MIN_WINDOW_S:
         return slice(lo, lo)
     return slice(lo, cut)
 
@@ -245,11 +275,12 @@ def apply_stop_continuity(
     t, phase = inputs.time_s, inputs.phase
     solutions = len(frictions)
     base = _HEAD + _PER_PISTON * _PISTONS
-    room = (state.size - base) // (1 + _PISTONS)
+    room = (state.size - base) // _PER_SOLUTION
     if solutions > room:
         raise ValueError(f"{solutions} solutions: the state holds {room}")
     run_f = state[base : base + solutions]
-    shift = state[base + room :].reshape(room, _PISTONS)[:solutions]
+    shifts = state[base + room : base + room * _PER_SOLUTION].reshape(2, room, _PISTONS)
+    shift, back = shifts[0, :solutions], shifts[1, :solutions]
     pistons = state[_HEAD:base].reshape(_PER_PISTON, _PISTONS)  # x at rest, reach, travel
     if hi <= lo:
         return
@@ -300,8 +331,15 @@ def apply_stop_continuity(
                         pistons[2, i] = 0.0
                 state[3:6] = 0.0
                 run_f[:] = 0.0
-            if state[6] != 0.0:
-                _apply(inputs, frictions, shift, pistons, state, a, b)
+            held = backward_shift(inputs, frictions, state, back, a, hoist)
+            overlap = (a, a) if held is None else (max(a, held[0]), min(b, held[1]))
+            forward_end = a
+            if state[6] != 0.0:  # where both predict the stop, each takes half
+                scale = np.ones(b - a)
+                scale[overlap[0] - a : overlap[1] - a] = 0.5
+                forward_end = _apply(inputs, frictions, shift, pistons, state, a, b, scale)
+            if overlap[1] > overlap[0]:
+                _add_backward(frictions, back, overlap, forward_end)
         was_moving = now_moving
     state[0] = 1.0
     state[2] = 1.0 if was_moving else 0.0
@@ -344,6 +382,123 @@ def _update(
     return window
 
 
+def backward_shift(
+    inputs: ContinuityInputs,
+    frictions: list[tuple[np.ndarray, ...]],
+    state: np.ndarray,
+    back: np.ndarray,
+    at: int,
+    hoist: HoistDescription,
+) -> tuple[int, int] | None:
+    """The departure's shifts for the stop holding sample ``at`` (into ``back``, per
+    solution and piston) and the samples [first, departure) they hold on; None where no
+    steady run follows within the look-ahead.
+
+    The stop's last steady stretch (after its last payload change, at most
+    :data:`BACK_S` before the departure) carries the load the next trip lifts: the first
+    :data:`NEXT_RUN_S` of that trip's steady run, less the tail ropes' change, predict it
+    as the previous run predicts the arrival's (:func:`apply_stop_continuity`). Its rest
+    window: the :data:`SPAN_S` before the last second at rest, within the stretch (whose
+    start is where the raw load's 2 s centred mean last left its value there by
+    :data:`PAYLOAD_SHARE`). Held in ``state`` once found (the departure's and the
+    stretch's first sample's times), so a stop that a block edge cuts takes the shifts
+    the record read whole gives it."""
+    t, phase = inputs.time_s, inputs.phase
+    ahead = np.flatnonzero(phase[at:] != _STANDSTILL)
+    if ahead.size == 0:
+        return None
+    departure = at + int(ahead[0])
+    if state[10] != 0.0 and state[11] == t[departure]:
+        return int(np.searchsorted(t, state[12], side="left")), departure
+    state[10] = 0.0
+    if departure == 0 or t[departure] - t[departure - 1] > TRIP_BRIDGE_S:
+        return None
+    # the next steady run: within REACH_S, no stop or logger gap on the way
+    reach = int(np.searchsorted(t, t[departure] + REACH_S, side="right"))
+    runs = np.flatnonzero(phase[departure:reach] == _RUN)
+    if runs.size == 0:
+        return None
+    first_run = departure + int(runs[0])
+    end = int(np.searchsorted(t, t[first_run] + NEXT_RUN_S, side="left"))
+    way = phase[departure:end]
+    if (way == _STANDSTILL).any():
+        end = departure + int(np.argmax(way == _STANDSTILL))
+    if (np.diff(t[departure:end]) > TRIP_BRIDGE_S).any():
+        return None
+    run = np.flatnonzero(phase[first_run:end] == _RUN) + first_run
+    run_means = _means(inputs, frictions, run)
+    if run_means is None or run_means[2] * inputs.dt_s < MIN_RUN_S:
+        return None
+    # the stop's last steady stretch, back from its last second
+    last = int(np.searchsorted(t, t[departure] - 1.0, side="left"))
+    earliest = int(np.searchsorted(t, t[departure] - BACK_S, side="left"))
+    still = phase[earliest:last] == _STANDSTILL
+    gaps = np.diff(t[earliest : last + 1]) > TRIP_BRIDGE_S
+    start = earliest
+    breaks = ~still
+    breaks[1:] |= gaps[:-1] if gaps.size else False
+    if breaks.any():
+        start = earliest + int(np.flatnonzero(breaks)[-1]) + 1
+    if last - start < 2:
+        return None
+    centred = centred_mean(t, inputs.pressure_load_n, start, last)
+    reference = centred[-1]
+    if not np.isfinite(reference):
+        return None
+    moved = ~(np.abs(centred - reference) <= PAYLOAD_SHARE * abs(reference))
+    if moved.any():
+        start += int(np.flatnonzero(moved)[-1]) + 1
+    window_lo = max(start, int(np.searchsorted(t, t[departure] - 1.0 - SPAN_S, side="left")))
+    if last - window_lo < 2 or t[last - 1] - t[window_lo] < MIN_WINDOW_S:
+        return None
+    rest_means = _means(inputs, frictions, np.arange(window_lo, last))
+    if rest_means is None:
+        return None
+    (run_load, run_depth, _), (rest_load, rest_depth, _) = run_means, rest_means
+    tail = tail_rope_mass_kg(hoist, rest_depth) - tail_rope_mass_kg(hoist, run_depth)
+    predicted = run_load + G_STANDARD * float(tail)
+    for s_ in range(len(frictions)):
+        back[s_] = (predicted[s_] - rest_load[s_]) * inputs.fractions
+    state[10], state[11], state[12] = 1.0, t[departure], t[start]
+    return start, departure
+
+
+def _means(
+    inputs: ContinuityInputs, frictions: list[tuple[np.ndarray, ...]], samples: np.ndarray
+) -> tuple[np.ndarray, float, int] | None:
+    """Each solution's mean load (the sensors' plus its seals') and the mean depth over
+    the samples all of them know; None where fewer than two are known."""
+    p = inputs.pressure_load_n[samples]
+    depth = inputs.depth_m[samples]
+    f_sums = [sum(f[samples] for f in solution) for solution in frictions]
+    known = np.isfinite(p) & np.isfinite(depth)
+    for f_sum in f_sums:
+        known &= np.isfinite(f_sum)
+    count = int(known.sum())
+    if count < 2:
+        return None
+    p_mean = float(p[known].mean())
+    loads = np.array([p_mean + float(f_sum[known].mean()) for f_sum in f_sums])
+    return loads, float(depth[known].mean()), count
+
+
+def _add_backward(
+    frictions: list[tuple[np.ndarray, ...]],
+    back: np.ndarray,
+    span: tuple[int, int],
+    forward_end: int,
+) -> None:
+    """Add the departure's shifts over ``span``, half of them where the arrival's holds
+    too (before ``forward_end``: the two predictions of the same load averaged)."""
+    lo, hi = span
+    weight = np.ones(hi - lo)
+    weight[: max(0, min(forward_end, hi) - lo)] = 0.5
+    for i in range(_PISTONS):
+        for s, solution in enumerate(frictions):
+            if back[s, i] != 0.0:
+                solution[i][lo:hi] += back[s, i] * weight
+
+
 def _apply(
     inputs: ContinuityInputs,
     frictions: list[tuple[np.ndarray, ...]],
@@ -352,15 +507,18 @@ def _apply(
     state: np.ndarray,
     a: int,
     b: int,
-) -> None:
-    """Add the active shift over [a, b): whole up to the rest window's end, then each
-    piston's fading with its travel beyond its ringing at rest (``pistons``: x at rest,
-    the ringing's reach and the travel so far, carried); ended (``state[6]`` = 0) where
+    scale: np.ndarray | None = None,
+) -> int:
+    """Add the active shift over [a, b) (times ``scale`` there, if given) and return
+    where it stopped (b, or a payload change's sample): whole up to the rest window's
+    end, then each piston's fading with its travel beyond its ringing at rest
+    (``pistons``: x at rest, the ringing's reach and the travel so far, carried); ended
+    (``state[6]`` = 0) where
     the raw load's 2 s centred mean leaves its value at rest by :data:`PAYLOAD_SHARE`
     (a payload change: its transient takes every seal through its presliding range,
     which wipes what the seals held out, the Maxwell-slip model's wiping-out)."""
     if b <= a:
-        return
+        return b
     fading = inputs.time_s[a:b] > state[8]
     if fading.any():
         first = a + int(np.argmax(fading))
@@ -377,6 +535,9 @@ def _apply(
         travel = np.maximum.accumulate(np.concatenate(([pistons[2, i]], beyond)))[1:]
         pistons[2, i] = travel[-1] if travel.size else pistons[2, i]
         weight = np.clip(1.0 - travel / reach, 0.0, 1.0) if reach > 0 else np.ones(b - a)
+        if scale is not None:
+            weight = weight * scale[: b - a]
         for s, solution in enumerate(frictions):
             if shift[s, i] != 0.0:
                 solution[i][a:b] += shift[s, i] * weight
+    return b

@@ -55,6 +55,7 @@ from transforms.compensation import (
     CompensationSettings,
     compensate_window,
     compensation_context,
+    compensation_look_ahead_s,
     compensation_margins_s,
     context_sample,
     context_stride,
@@ -115,9 +116,10 @@ def compensate_blocks(
     settings = settings or CompensationSettings()
     resume_s, halo_s = compensation_margins_s(settings, hoist)
     margin = dt.timedelta(seconds=resume_s + halo_s)
+    ahead = margin + dt.timedelta(seconds=compensation_look_ahead_s(settings))
     carry: CompensationCarry | None = None
     for lo, hi in block_edges(start, end, block):
-        window = read(max(start, lo - margin), min(end, hi + margin))
+        window = read(max(start, lo - margin), min(end, hi + ahead))
         if window.height == 0:
             continue
         rows, carry = compensate_window(

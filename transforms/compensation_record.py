@@ -841,10 +841,8 @@ def compensation_margins_s(
     as in the whole record only where the window reaches the duration past the sample
     either side (:func:`transforms.alarm_events.flatline_runs`), and the filters read
     the pressures that far beyond the first stage
-    (:func:`flatlined_samples`); with ``settings.stop_continuity``,
-    :data:`transforms.stop_continuity.LOOK_AHEAD_S` on top: the stick-slip solutions are
-    solved that far past the first stage, where the next trip's run predicts a stop's
-    load (:func:`transforms.stop_continuity.backward_shift`).
+    (:func:`flatlined_samples`). After the block, :func:`compensation_look_ahead_s`
+    more.
     """
     resume = max(1.0, 2.0 * settings.velocity_window_s)
     smoother_s = 4.0 * 0.1325 / settings.differential_cutoff_hz
@@ -856,11 +854,22 @@ def compensation_margins_s(
         2.0 * settings.velocity_window_s,
         10.0 / RINGING_BANDWIDTH_HZ,
     )
-    if settings.stop_continuity:  # the stick-slip solutions solved this far past
-        halo += LOOK_AHEAD_S
     if hoist is not None:
         halo += hoist.alarms.flatline_duration_s
     return resume, halo
+
+
+def compensation_look_ahead_s(settings: CompensationSettings) -> float:
+    """How much more than the halo (:func:`compensation_margins_s`) a block reads after
+    its end [s]: with ``settings.stop_continuity`` the stick-slip solutions are solved
+    :data:`transforms.stop_continuity.LOOK_AHEAD_S` past the first stage, where the next
+    trip's run predicts a stop's load (:func:`transforms.stop_continuity.backward_shift`),
+    and the filters still have their halo beyond; else 0.
+
+    >>> compensation_look_ahead_s(CompensationSettings(stop_continuity=False))
+    0.0
+    """
+    return LOOK_AHEAD_S if settings.stop_continuity else 0.0
 
 
 def mean_horizontal(arrays: list[np.ndarray]) -> np.ndarray:

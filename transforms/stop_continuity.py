@@ -93,8 +93,9 @@ trip's run sums, the arrival's shift with how far each piston has moved since, a
 departure's shift once found, so a record compensated block by block gives the same
 update as read whole. It reads up to :data:`LOOK_AHEAD_S` past a block's first stage:
 a block solves the stick-slip estimate and its members that far
-(``BlockCompensation.spring_hi``), inside the halo it reads
-(:func:`transforms.compensation_record.compensation_margins_s` adds it).
+(``BlockCompensation.spring_hi``) and reads that much more after its end
+(:func:`transforms.compensation_record.compensation_look_ahead_s`), its filters' halo
+beyond.
 """
 
 from __future__ import annotations
@@ -147,8 +148,8 @@ NEXT_RUN_S = 120.0
 #: ... which start within this long of the departure [s] (the acceleration).
 REACH_S = 30.0
 #: How far past a block the continuity reads [s]: the stick-slip solutions are solved
-#: this far past the block's first stage, inside the halo it reads
-#: (:func:`transforms.compensation_record.compensation_margins_s` adds it).
+#: this far past the block's first stage, and the block reads that much more after its
+#: end (:func:`transforms.compensation_record.compensation_look_ahead_s`).
 LOOK_AHEAD_S = BACK_S + REACH_S + NEXT_RUN_S
 _RUN = PHASES.index("run")
 _STANDSTILL = PHASES.index("standstill")

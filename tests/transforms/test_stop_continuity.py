@@ -17,7 +17,11 @@ import pytest
 from physics.tension import tail_rope_mass_kg
 from physics.trip_rule import PHASES
 from schemas.hoist import EXAMPLE_HOIST, G_STANDARD, load_hoist
-from transforms.compensation_record import CompensationSettings, compensation_margins_s
+from transforms.compensation_record import (
+    CompensationSettings,
+    compensation_look_ahead_s,
+    compensation_margins_s,
+)
 from transforms.stop_continuity import (
     BACK_S,
     LOOK_AHEAD_S,
@@ -200,12 +204,12 @@ def test_the_look_ahead_fits_in_the_blocks_halo() -> None:
     """The look-ahead is past the resume margin (module docstring): a block solves the
     stick-slip solution that far past its first stage, inside the halo it reads, which
     still leaves the filters theirs beyond."""
-    resume_s, halo_s = compensation_margins_s(CompensationSettings())
-    plain = compensation_margins_s(CompensationSettings(stop_continuity=False))[1]
+    settings = CompensationSettings()
+    resume_s = compensation_margins_s(settings)[0]
     assert SETTLE_S + SPAN_S < LOOK_AHEAD_S
     assert BACK_S + REACH_S + NEXT_RUN_S <= LOOK_AHEAD_S
     assert LOOK_AHEAD_S > resume_s
-    assert halo_s == plain + LOOK_AHEAD_S
+    assert compensation_look_ahead_s(settings) == LOOK_AHEAD_S  # read after the halo
 
 
 def _round_trip(change: bool = True, rest_s: float = 40.0) -> dict:

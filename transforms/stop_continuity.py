@@ -332,7 +332,7 @@ def apply_stop_continuity(
                         pistons[2, i] = 0.0
                 state[3:6] = 0.0
                 run_f[:] = 0.0
-            held = backward_shift(inputs, frictions, state, back, a, hoist)
+            held = backward_shift(inputs, frictions, state, back, a, hoist, until=b)
             overlap = (a, a) if held is None else (max(a, held[0]), min(b, held[1]))
             forward_end = a
             if state[6] != 0.0:  # where both predict the stop, each takes half
@@ -390,10 +390,15 @@ def backward_shift(
     back: np.ndarray,
     at: int,
     hoist: HoistDescription,
+    until: int | None = None,
 ) -> tuple[int, int] | None:
     """The departure's shifts for the stop holding sample ``at`` (into ``back``, per
     solution and piston) and the samples [first, departure) they hold on; None where no
-    steady run follows within the look-ahead.
+    steady run follows within the look-ahead, or where the departure is more than
+    :data:`BACK_S` after the sample before ``until`` (the end of the samples the caller
+    shifts): its stretch cannot reach them, and its run may lie beyond the
+    :data:`LOOK_AHEAD_S` past them that a block solves, so it is left to the call that
+    reaches it rather than found from part of its run and held.
 
     The stop's last steady stretch (after its last payload change, at most
     :data:`BACK_S` before the departure) carries the load the next trip lifts: the first
@@ -412,6 +417,8 @@ def backward_shift(
     if state[10] != 0.0 and state[11] == t[departure]:
         return int(np.searchsorted(t, state[12], side="left")), departure
     state[10] = 0.0
+    if until is not None and (until <= at or t[until - 1] < t[departure] - BACK_S):
+        return None  # the stretch starts after the samples shifted now
     if departure == 0 or t[departure] - t[departure - 1] > TRIP_BRIDGE_S:
         return None
     # the next steady run: within REACH_S, no stop or logger gap on the way

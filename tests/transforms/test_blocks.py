@@ -437,3 +437,15 @@ def test_a_depth_toggle_across_a_blocks_edge_counts_as_in_the_whole_record():
                               settings=settings, block=dt.timedelta(hours=1))  # fmt: skip
     assert trips == 0
     assert pl.concat(list(parts))["trip_id"].drop_nulls().n_unique() == 0
+
+
+def test_a_stop_longer_than_the_blocks_reach_takes_the_whole_records_departure() -> None:
+    """Blocks of 120 s in the day's 6-minute stops: a block whose edge is a stop's
+    departure more than BACK_S away solves only the start of the next trip's run; the
+    departure's shift (transforms/stop_continuity.py) must be found by the block that
+    reaches it, from the whole run, as in the record read whole."""
+    record = generate_field_day(HOIST, date="2026-03-02", seed=5, trips=4, hours=0.5).sensors
+    whole = compensate(record, HOIST)
+    stops = whole["phase"] == "standstill"
+    assert (stops & (whole["trip_id"].is_null())).sum() > 0.5 * whole.height  # long stops
+    _assert_same(whole, _blocks(record, block=dt.timedelta(seconds=120)))

@@ -308,3 +308,27 @@ def test_a_long_stop_takes_the_departures_shift_only_its_last_back_s() -> None:
     # the arrival's alone (-900 N) early, averaged with the departure's (-600 N) late
     np.testing.assert_allclose(shift[early], -900.0, atol=1e-6)
     np.testing.assert_allclose(shift[late], -750.0, atol=1e-6)
+
+
+def test_a_departure_beyond_a_blocks_reach_is_left_to_the_block_that_reaches_it() -> None:
+    """A block knows the solutions up to LOOK_AHEAD_S past its stage, which covers the
+    next run of a departure within BACK_S of it; a departure farther on (a long stop cut
+    by the block's edge) must not be found there from the part of its run the block
+    knows and held for the next block: the record read whole takes the whole run."""
+    case = _round_trip(change=False, rest_s=300.0)
+    t, departure = case["t"], case["departure"]
+    down = slice(departure, None)
+    for f in case["f"]:  # the run down's seals solved 0 -> 300 N high summed
+        f[down] += np.linspace(0.0, 75.0, t.size - departure)
+    whole = [tuple(f.copy() for f in case["f"])]
+    _run(case, whole)
+    split = int(np.searchsorted(t, t[departure] - 230.0))
+    known = t <= t[split - 1] + LOOK_AHEAD_S  # the first block's solutions end there
+    first = [tuple(np.where(known, f, np.nan) for f in case["f"])]
+    state = continuity_state(1)
+    apply_stop_continuity(_inputs(case), first, 0, split, state, HOIST)
+    second = [tuple(f.copy() for f in case["f"])]  # the next block solves its own
+    apply_stop_continuity(_inputs(case), second, split, t.size, state, HOIST)
+    for fw, f1, f2 in zip(whole[0], first[0], second[0], strict=True):
+        np.testing.assert_allclose(f1[:split], fw[:split], rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(f2[split:], fw[split:], rtol=1e-12, atol=1e-9)

@@ -419,7 +419,10 @@ def backward_shift(
     state[10] = 0.0
     if until is not None and (until <= at or t[until - 1] < t[departure] - BACK_S):
         return None  # the stretch starts after the samples shifted now
-    if departure == 0 or t[departure] - t[departure - 1] > TRIP_BRIDGE_S:
+    # the stop's last steady stretch ends a second before the departure: a logger gap
+    # there (before that second's first sample or in it) leaves nothing known across it
+    last = int(np.searchsorted(t, t[departure] - 1.0, side="left"))
+    if last == 0 or (np.diff(t[last - 1 : departure + 1]) > TRIP_BRIDGE_S).any():
         return None
     # the next steady run: within REACH_S, no stop or logger gap on the way
     reach = int(np.searchsorted(t, t[departure] + REACH_S, side="right"))
@@ -438,7 +441,6 @@ def backward_shift(
     if run_means is None or run_means[2] * inputs.dt_s < MIN_RUN_S:
         return None
     # the stop's last steady stretch, back from its last second
-    last = int(np.searchsorted(t, t[departure] - 1.0, side="left"))
     earliest = int(np.searchsorted(t, t[departure] - BACK_S, side="left"))
     still = phase[earliest:last] == _STANDSTILL
     gaps = np.diff(t[earliest : last + 1]) > TRIP_BRIDGE_S

@@ -332,3 +332,36 @@ def test_a_departure_beyond_a_blocks_reach_is_left_to_the_block_that_reaches_it(
     for fw, f1, f2 in zip(whole[0], first[0], second[0], strict=True):
         np.testing.assert_allclose(f1[:split], fw[:split], rtol=1e-12, atol=1e-9)
         np.testing.assert_allclose(f2[split:], fw[split:], rtol=1e-12, atol=1e-9)
+
+
+def _without(case: dict, lo_s: float, hi_s: float) -> dict:
+    """``case`` with its samples in [lo_s, hi_s) before the departure dropped (a logger
+    gap)."""
+    t = case["t"]
+    keep = ~((t >= t[case["departure"]] - hi_s) & (t < t[case["departure"]] - lo_s))
+    out = {k: v[keep] if isinstance(v, np.ndarray) else v for k, v in case.items()}
+    out["f"] = [f[keep] for f in case["f"]]
+    out["x"] = tuple(x[keep] for x in case["x"])
+    for k in ("arrival", "departure"):
+        out[k] = int(np.count_nonzero(keep[: case[k]]))
+    return out
+
+
+@pytest.mark.parametrize("ends_s", [0.0, 0.5, 1.5, 3.0])
+def test_a_logger_gap_in_the_stops_last_seconds_ends_the_departures_stretch(
+    ends_s: float,
+) -> None:
+    """Nothing is known across a logger gap: the departure's stretch starts after the
+    last one, whether it ends seconds or a fraction of the last second before the
+    departure, or at it; a stretch after it shorter than the rest window's
+    MIN_WINDOW_S takes no departure's shift (the arrival's alone, 900 N)."""
+    case = _round_trip(change=False)
+    for f in case["f"]:
+        f[case["departure"] :] += 75.0  # the run down's seals solved 300 N high summed
+    case = _without(case, ends_s, ends_s + 3.0)
+    estimate = tuple(f.copy() for f in case["f"])
+    _run(case, [estimate])
+    t = case["t"]
+    shift = sum(estimate) - sum(case["f"])
+    settled = (t >= t[case["arrival"]] + 20.0) & (t < t[case["departure"]])
+    np.testing.assert_allclose(shift[settled], -900.0, atol=1e-6)

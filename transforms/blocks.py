@@ -10,7 +10,10 @@ record is read and compensated block by block:
    uses the record's values, not its own;
 2. each block ``[t_k, t_k+1)`` is read with a margin either side
    (:func:`transforms.compensation.compensation_margins_s`: 30 s or more, so the
-   zero-phase filters have forgotten the window's edges) and compensated by
+   zero-phase filters have forgotten the window's edges) and the stop continuity's
+   look-ahead more after its end
+   (:func:`transforms.compensation.compensation_look_ahead_s`: the next trip's run that
+   predicts a stop's load), and compensated by
    :func:`transforms.compensation.compensate_window`, which resumes every sequential
    kernel (oil common mode, pistons' share-out, play operators, seal friction, trip
    labels) from the state the previous block left (:class:`CompensationCarry`).

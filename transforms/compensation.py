@@ -177,12 +177,13 @@ def compensate_window(
     """Compensate the block ``block_start_utc <= t < block_end_utc`` of a longer record.
 
     ``samples`` hold the block and the margins of :func:`compensation_margins_s` either
-    side (less at the record's ends); ``context`` the record's statistics; ``carry`` the
-    state the previous block returned (None for the record's first block, which must
-    then start at the samples' start). Returns the block's ``ROPE_TENSIONS`` rows and the
-    state for the next block, which starts at ``block_end_utc``. Called on the whole
-    record at once (no carry, no bounds) it is :func:`compensate`; block by block it
-    gives the same rows (tests/transforms/test_blocks.py states the tolerance).
+    side, and :func:`compensation_look_ahead_s` more after it (less at the record's
+    ends); ``context`` the record's statistics; ``carry`` the state the previous block
+    returned (None for the record's first block, which must then start at the samples'
+    start). Returns the block's ``ROPE_TENSIONS`` rows and the state for the next block,
+    which starts at ``block_end_utc``. Called on the whole record at once (no carry, no
+    bounds) it is :func:`compensate`; block by block it gives the same rows
+    (tests/transforms/test_blocks.py states the tolerance).
     """
     frame = _input_frame(samples)
     effects = set(hoist.model.effects)

@@ -244,7 +244,8 @@ class BlockCompensation(BlockSetup):
         band's members (:func:`~transforms.stick_slip_band.band_solutions`; at the sensors'
         rate, or on means with ``band_member_step_s``: :meth:`member_spreads`); the
         frictions are kept for the ropes' jobs. NaN outside the stage and, with the stop
-        continuity, the look-ahead past it that its rest windows read (``spring_hi``).
+        continuity, the look-ahead past it that its rest windows and the next trips' runs
+        read (``spring_hi``).
         Blind motion: none."""
         n, springs = self.n, self.context.rope_springs
         rest = at_rest(self.frame)
@@ -297,7 +298,8 @@ class BlockCompensation(BlockSetup):
         def run(lo: int, hi: int, state: np.ndarray) -> None:
             self.solve_springs(inputs, members[0], lo, hi, state, (x, friction), self.dt_nominal)
 
-        # the stop continuity's rest window looks this far past the stage
+        # the stop continuity looks this far past the stage: a departure within BACK_S
+        # of it, the next trip's steady run after it (transforms.stop_continuity)
         self.spring_hi = self.stage_hi
         continuity = self.settings.stop_continuity and np.isfinite(springs.mismatch_m)
         if continuity and self.stage_hi > self.stage_lo:
@@ -357,8 +359,9 @@ class BlockCompensation(BlockSetup):
         pressures: tuple[np.ndarray, ...],
     ) -> None:
         """The seals' friction of every solution at each arrival set by the load's
-        continuity from the trip's steady run (:mod:`transforms.stop_continuity`), in
-        place, over the first stage; its state carried at the hand-over."""
+        continuity from the trip's steady run, and before each departure by that to the
+        next trip's (:mod:`transforms.stop_continuity`), in place, over the first stage;
+        its state carried at the hand-over."""
         accel, _ = self.kinematics_job.result()
         speed = np.where(np.isnan(self.speed), 0.0, self.speed)
         phase, _, _ = trip_label_codes(self.time_s, speed, accel, self.segment, depth, self.hoist)

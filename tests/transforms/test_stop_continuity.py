@@ -202,8 +202,8 @@ def test_the_rest_window_ends_before_a_payload_change_and_at_a_departure() -> No
 
 def test_the_look_ahead_fits_in_the_blocks_halo() -> None:
     """The look-ahead is past the resume margin (module docstring): a block solves the
-    stick-slip solution that far past its first stage, inside the halo it reads, which
-    still leaves the filters theirs beyond."""
+    stick-slip solution that far past its first stage and reads that much more after
+    its end than its margins, which still leaves the filters their halo beyond."""
     settings = CompensationSettings()
     resume_s = compensation_margins_s(settings)[0]
     assert SETTLE_S + SPAN_S < LOOK_AHEAD_S

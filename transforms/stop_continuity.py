@@ -86,7 +86,10 @@ are not.
 What it leaves out: the branch loss beyond the sensor while oil flows in a run (the
 run's pistons creep at millimetres a minute: negligible at the contract's valves); a
 trip with less than :data:`MIN_RUN_S` of steady run predicts nothing; a stop's stretch
-between two payload changes keeps the solution as solved.
+between two payload changes keeps the solution as solved. A period that ends at rest
+(``ropeload run --to`` inside a stop, or a record whose export ends there) gives its
+last stop the arrival's update only; run again over the following data, that stop
+takes the departure's too (the rows change: more data, a better estimate).
 
 The pass is sequential and resumable (:func:`continuity_state`): a block carries the
 trip's run sums, the arrival's shift with how far each piston has moved since, and the

@@ -368,21 +368,14 @@ def _update(
     window = rest_window(t, inputs.phase, inputs.pressure_load_n, at)
     if window.stop <= window.start:
         return None
-    p = inputs.pressure_load_n[window]
-    depth = inputs.depth_m[window]
-    f_sums = [sum(f[window] for f in solution) for solution in frictions]
-    known = np.isfinite(p) & np.isfinite(depth)
-    for f_sum in f_sums:
-        known &= np.isfinite(f_sum)
-    if known.sum() < 2:
+    rest = _means(inputs, frictions, np.arange(window.start, window.stop))
+    if rest is None:
         return None
-    tail = tail_rope_mass_kg(hoist, float(depth[known].mean())) - tail_rope_mass_kg(
-        hoist, state[5] / count
-    )
-    p_rest = p[known].mean()
-    for s, f_sum in enumerate(f_sums):
+    loads, depth, _ = rest
+    tail = tail_rope_mass_kg(hoist, depth) - tail_rope_mass_kg(hoist, state[5] / count)
+    for s in range(len(frictions)):
         predicted = (state[4] + run_f[s]) / count + G_STANDARD * float(tail)
-        shift[s] = (predicted - p_rest - f_sum[known].mean()) * inputs.fractions
+        shift[s] = (predicted - loads[s]) * inputs.fractions
     return window
 
 

@@ -173,13 +173,19 @@ def test_two_parts_give_what_one_gives(split_s: float) -> None:
     """Split in the run, at the arrival, inside the rest window and after it."""
     case = _trip()
     case["x"] = tuple(1e-6 * np.sin(case["t"] * (i + 1)) for i in range(4))
+    _assert_parts_as_whole(case, split_s)
+
+
+def _assert_parts_as_whole(case: dict, split_s: float) -> None:
+    """The estimate and a member 40 N a seal above it, shifted in one pass and in two
+    split at ``split_s``, come out alike (the run's sums in two parts: to the rounding
+    of a sum's order)."""
     whole = [tuple(f.copy() for f in case["f"]), tuple(f + 40.0 for f in case["f"])]
     parts = [tuple(f.copy() for f in case["f"]), tuple(f + 40.0 for f in case["f"])]
     _run(case, whole)
     _run(case, parts, (int(split_s * RATE),))
     for w, p in zip(whole, parts, strict=True):
         for fw, fp in zip(w, p, strict=True):
-            # the run's sums in two parts: equal to the rounding of a sum's order
             np.testing.assert_allclose(fw, fp, rtol=1e-12, atol=1e-9)
 
 
@@ -285,14 +291,7 @@ def test_both_runs_predict_a_stop_without_a_payload_change_and_share_it() -> Non
 def test_the_departures_shift_in_two_parts_gives_what_one_gives(split_s: float) -> None:
     """Split before the payload change, after it, in the last seconds at rest, in the
     acceleration and in the run down."""
-    case = _round_trip()
-    whole = [tuple(f.copy() for f in case["f"]), tuple(f + 40.0 for f in case["f"])]
-    parts = [tuple(f.copy() for f in case["f"]), tuple(f + 40.0 for f in case["f"])]
-    _run(case, whole)
-    _run(case, parts, (int(split_s * RATE),))
-    for w, p in zip(whole, parts, strict=True):
-        for fw, fp in zip(w, p, strict=True):
-            np.testing.assert_allclose(fw, fp, rtol=1e-12, atol=1e-9)
+    _assert_parts_as_whole(_round_trip(), split_s)
 
 
 def test_a_long_stop_takes_the_departures_shift_only_its_last_back_s() -> None:

@@ -301,6 +301,8 @@ class BlockCompensation(BlockSetup):
         # the stop continuity looks this far past the stage: a departure within BACK_S
         # of it, the next trip's steady run after it (transforms.stop_continuity)
         self.spring_hi = self.stage_hi
+        # only on ropes identified from the record's x: with their prior the runs are
+        # as far off as the stops (transforms.stop_continuity)
         continuity = self.settings.stop_continuity and np.isfinite(springs.mismatch_m)
         if continuity and self.stage_hi > self.stage_lo:
             reach = self.time_s[self.stage_hi - 1] + LOOK_AHEAD_S
@@ -346,8 +348,7 @@ class BlockCompensation(BlockSetup):
             self.member_friction.append(prior_mean(friction, self.member_friction, members[1:]))
             self.member_sources += (BAND_SOURCES.index("stiffness"),)
         self.spring_friction = friction
-        if self.settings.stop_continuity and np.isfinite(springs.mismatch_m):
-            # ropes identified from this record's x: its runs hold the load to ~0.2 %
+        if continuity:  # ropes identified from the record's x: its runs hold the load
             self.stop_continuity(x, [friction, *self.member_friction], depth, pressures)
         return x, tuple(np.zeros(n) for _ in ROPES)
 

@@ -96,7 +96,7 @@ def _fleet_options(parser: argparse.ArgumentParser) -> None:
         type=_positive_gb,
         default=None,
         metavar="G",
-        help="use fewer --workers if their estimated memory (about 0.9 GB + 0.4 GB a "
+        help="use fewer --workers if their estimated memory (about 0.9 GB + 0.47 GB a "
         "worker at 100 Hz) exceeds G GB",
     )
     parser.add_argument(

@@ -161,10 +161,11 @@ def is_transient(exc: BaseException) -> bool:
 
 
 #: Memory of a backfill or night (``benchmarks/bench_day.py --backfill 4``, 100 Hz
-#: hoist-days, hour blocks): one worker's process peaks at ~1.3 GB, each further worker
-#: adds ~0.4 GB (four: 2.46 GB). A worker's share grows with its block's samples.
+#: hoist-days, hour blocks): four workers 2.78 GB (session 42, each block reading the stop
+#: continuity's look-ahead; 2.46-2.73 GB before), so 0.9 GB and 0.47 GB a worker. A
+#: worker's share grows with its block's samples.
 PROCESS_BASE_BYTES = 0.9e9
-WORKER_BYTES_PER_BLOCK_SAMPLE = 0.4e9 / 360_000
+WORKER_BYTES_PER_BLOCK_SAMPLE = 0.47e9 / 360_000
 
 
 def workers_within_budget(
@@ -179,9 +180,9 @@ def workers_within_budget(
     Estimate: :data:`PROCESS_BASE_BYTES` + workers x :data:`WORKER_BYTES_PER_BLOCK_SAMPLE`
     x the samples of a block (``sample_rate_hz`` x ``block``).
 
-    >>> [workers_within_budget(8, gb * 1e9) for gb in (8.0, 2.5, 2.4, 1.0)]
+    >>> [workers_within_budget(8, gb * 1e9) for gb in (8.0, 2.78, 2.7, 1.0)]
     [8, 4, 3, 1]
     """
     per_worker = WORKER_BYTES_PER_BLOCK_SAMPLE * sample_rate_hz * block.total_seconds()
-    fit = int((budget_bytes - PROCESS_BASE_BYTES) / per_worker + 1e-9)  # 1.6 / 0.4 is 4
+    fit = int((budget_bytes - PROCESS_BASE_BYTES) / per_worker + 1e-9)  # 1.88 / 0.47 is 4
     return max(1, min(workers, fit))

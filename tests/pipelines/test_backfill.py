@@ -218,7 +218,7 @@ def test_backfill_killed_repeatedly_then_restarted_lands_exactly_the_reference_r
 
 
 def test_memory_budget_lowers_the_workers_and_says_so(mine, reference, tmp_path, capsys):
-    """--memory-budget-gb 1.8 fits 2 of 4 workers (0.9 GB + 0.4 GB each); same rows."""
+    """--memory-budget-gb 1.9 fits 2 of 4 workers (0.9 GB + 0.47 GB each); same rows."""
     from pipelines.cli import main
 
     hoists, incoming = mine
@@ -226,11 +226,11 @@ def test_memory_budget_lowers_the_workers_and_says_so(mine, reference, tmp_path,
     status = main(
         ["backfill", "--data", str(data), "--hoists", str(hoists), "--incoming", str(incoming),
          "--from", FIRST.isoformat(), "--to", LAST.isoformat(), "--workers", "4",
-         "--memory-budget-gb", "1.8", "--no-progress"]
+         "--memory-budget-gb", "1.9", "--no-progress"]
     )  # fmt: skip
     assert status == 0
     err = capsys.readouterr().err
-    assert "ropeload backfill: --workers 4 -> 2, to stay within --memory-budget-gb 1.8" in err
+    assert "ropeload backfill: --workers 4 -> 2, to stay within --memory-budget-gb 1.9" in err
     assert fingerprint(DataRoot.resolve(data)) == reference
 
 

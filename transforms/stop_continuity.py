@@ -53,7 +53,10 @@ Where it applies: ropes identified from the record's logged x
 themselves are 0.25-0.53 % off the truth on the validation days (the ropes' unknown
 differences decide which seals slide in a run), so a run predicts no better than the
 stop: with the arrival's update the median stop error went 0.36 / 0.27 / 0.25 / 0.09 ->
-0.64 / 0.56 / 0.54 / 0.25 % (days 101-104); it is not applied there.
+0.64 / 0.56 / 0.54 / 0.25 % (days 101-104); with both updates the worst windows went
+3.50 / 2.37 / 1.50 / 0.82 -> 1.28 / 1.90 / 1.04 / 0.69 % but the medians to 0.38 / 0.37 /
+0.36 / 0.28 % and the windows worse than raw 1 / 2 / 0 / 2 -> 1 / 4 / 2 / 10; it is not
+applied there.
 
 Measured (``benchmarks/eval_compensation.py``, session 42), days 101-104 before ->
 arrivals only -> both: worst stop window 0.80 / 0.67 / 0.79 / 0.97 -> 0.80 / 0.67 /

@@ -369,16 +369,13 @@ class BlockCompensation(BlockSetup):
         area = self.hoist.cylinders.bore_area_m2
         springs = self.context.rope_springs
         factors = np.asarray(springs.stiffness_factors, dtype=float)
-        unique: dict[int, tuple[np.ndarray, ...]] = {}
-        for solution in frictions:  # an array shared by two solutions is shifted once
-            unique.setdefault(id(solution[0]), solution)
         inputs = ContinuityInputs(
             self.time_s, phase, depth, mean_horizontal(list(pressures)) * area * len(ROPES),
             x, factors / factors.sum(), self.presliding_range_m, self.dt_nominal,
         )  # fmt: skip
 
         def run(lo: int, hi: int, state: np.ndarray) -> None:
-            apply_stop_continuity(inputs, list(unique.values()), lo, hi, state, self.hoist)
+            apply_stop_continuity(inputs, frictions, lo, hi, state, self.hoist)
 
         self.nxt.continuity = self.staged(run, self.segment, self.carry.continuity)
 

@@ -274,7 +274,8 @@ def apply_stop_continuity(
     """Shift each solution's seal frictions over [lo, hi) in place (module docstring).
 
     ``frictions``: per solution (the estimate first, then its band's members) the four
-    pistons' friction over the block and its look-ahead [N] (NaN where unsolved);
+    pistons' friction over the block and its look-ahead [N] (NaN where unsolved; an
+    array two solutions share is shifted once, by the first's shift);
     ``state``: :func:`continuity_state`, carried from the previous part (its ``[1]``
     unused: a logger gap longer than :data:`~physics.trip_rule.TRIP_BRIDGE_S` ends a trip
     whatever the segments).
@@ -503,9 +504,21 @@ def _add_backward(
     weight = np.ones(hi - lo)
     weight[: max(0, min(forward_end, hi) - lo)] = 0.5
     for i in range(_PISTONS):
-        for s, solution in enumerate(frictions):
+        for s in _owners(frictions, i):
             if back[s, i] != 0.0:
-                solution[i][lo:hi] += back[s, i] * weight
+                frictions[s][i][lo:hi] += back[s, i] * weight
+
+
+def _owners(frictions: list[tuple[np.ndarray, ...]], piston: int) -> list[int]:
+    """The solutions whose array of ``piston`` no solution before them holds too: an
+    array two solutions share is shifted once (by the first's shift)."""
+    seen: set[int] = set()
+    owners = []
+    for s, solution in enumerate(frictions):
+        if id(solution[piston]) not in seen:
+            seen.add(id(solution[piston]))
+            owners.append(s)
+    return owners
 
 
 def _apply(
@@ -546,7 +559,7 @@ def _apply(
         weight = np.clip(1.0 - travel / reach, 0.0, 1.0) if reach > 0 else np.ones(b - a)
         if scale is not None:
             weight = weight * scale[: b - a]
-        for s, solution in enumerate(frictions):
+        for s in _owners(frictions, i):
             if shift[s, i] != 0.0:
-                solution[i][a:b] += shift[s, i] * weight
+                frictions[s][i][a:b] += shift[s, i] * weight
     return b

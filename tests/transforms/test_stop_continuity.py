@@ -364,3 +364,14 @@ def test_a_logger_gap_in_the_stops_last_seconds_ends_the_departures_stretch(
     shift = sum(estimate) - sum(case["f"])
     settled = (t >= t[case["arrival"]] + 20.0) & (t < t[case["departure"]])
     np.testing.assert_allclose(shift[settled], -900.0, atol=1e-6)
+
+
+def test_an_array_two_solutions_share_is_shifted_once_and_the_others_keep_their_own() -> None:
+    case = _round_trip()
+    alone = [tuple(f.copy() for f in case["f"]), tuple(f + 40.0 for f in case["f"])]
+    _run(case, alone)
+    estimate = tuple(f.copy() for f in case["f"])
+    shared = [estimate, estimate, tuple(f + 40.0 for f in case["f"])]  # a copied member
+    _run(case, shared)
+    for got, want in zip(shared[0] + shared[2], alone[0] + alone[1], strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)

@@ -410,7 +410,10 @@ def backward_shift(
     stretch's first sample's times), so a stop that a block edge cuts takes the shifts
     the record read whole gives it."""
     t, phase = inputs.time_s, inputs.phase
-    ahead = np.flatnonzero(phase[at:] != _STANDSTILL)
+    # a departure more than BACK_S past the samples shifted now is not theirs: the scan
+    # stops there, not at the end of the block's look-ahead
+    end = t.size if until is None else int(np.searchsorted(t, t[until - 1] + BACK_S, "right"))
+    ahead = np.flatnonzero(phase[at:end] != _STANDSTILL)
     if ahead.size == 0:
         return None
     departure = at + int(ahead[0])

@@ -15,7 +15,16 @@ trips pass.
 Per day it prints the trips checked, passed / failed / skipped, the pass rate, the RMS
 gap over the noise (median, 90th percentile, largest), and whether each checked trip's
 ``trip_id`` names the ``trip_summary`` row of the same motion (the direction the check
-states in its message against the run's). ``--motion logged`` drives the replays by the
+states in its message against the run's), and the failed trips by the position they
+depart from. Session 43, day 104 (the ringing hoist): failed 5 of 26 from the pithead,
+3 of 27 from the bottom, 0 of 12 from the middle; each failed pithead departure's
+common-mode gap grows through the acceleration (trip 6: from ~10 to 75 kPa over 10 s,
+the measured pressure falling 160 kPa where the replay's fell 225 kPa, against the tail
+rope's 278 kPa) and falls back where the run starts: the record's seals take up more
+of the load's fall while they preslide than the replay's. The truth's seals before those
+departures (its last window at the pithead) hold two pistons near their capacity and
+two far from it (e.g. +405, -1325, -1200, -353 N): which pistons start where decides
+how much friction the departure builds. ``--motion logged`` drives the replays by the
 encoder's logged speed instead of the winder profile.
 
     uv run python benchmarks/eval_sanity.py [--days DIR] [--only NAMES] [--motion M]
@@ -35,7 +44,8 @@ import polars as pl
 from pipelines.hoist_day import check_sanity
 from pipelines.ingest import ingest_paths
 from pipelines.run_period import run_period
-from schemas.hoist import load_hoist
+from schemas.hoist import HoistDescription, load_hoist
+from transforms.kinematics import position_expr
 from warehouse.store import DataRoot, open_reader
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -69,7 +79,7 @@ def check_day(gz: Path, work: Path, max_trips: int, motion: str) -> dict:
     with open_reader(data) as con:
         joined = con.sql(
             "SELECT c.trip_id, c.status, c.rms_gap_pa / c.noise_pa AS ratio, c.message, "
-            "t.direction FROM sanity_checks c LEFT JOIN trip_summary t "
+            "t.direction, t.depth_start_m FROM sanity_checks c LEFT JOIN trip_summary t "
             "ON t.run_id = c.run_id AND t.trip_id = c.trip_id WHERE c.run_id = ? "
             "ORDER BY c.trip_id",
             params=[run.run_id],
@@ -79,6 +89,7 @@ def check_day(gz: Path, work: Path, max_trips: int, motion: str) -> dict:
         "step": outcome.step.line(),
         "trips_run": run.trip_summary.height,
         "checks": joined,
+        "hoist": hoist,
         "seconds": seconds,
     }
 
@@ -105,6 +116,20 @@ def _line(day: dict) -> str:
         f"gap/noise {figures}  "
         f"ids name the run's trip {named}/{compared.height}  {day['seconds']:5.1f} s"
     )
+
+
+def _by_departure(compared: pl.DataFrame, hoist: HoistDescription) -> str:
+    """Failed of compared trips per position the trip departs from (its start depth's
+    named position, :func:`transforms.kinematics.position_expr`; ``shaft`` between
+    them): where the replay misses the record."""
+    rows = compared.with_columns(
+        position_expr(pl.col("depth_start_m"), hoist).fill_null("shaft").alias("from")
+    )
+    parts = [
+        f"{name} {int((group['status'] == 'failed').sum())}/{group.height}"
+        for (name,), group in rows.group_by("from", maintain_order=True)
+    ]
+    return "failed by departure: " + (", ".join(parts) if parts else "no trip compared")
 
 
 def main() -> None:
@@ -136,6 +161,7 @@ def main() -> None:
             ):
                 print(f"    skipped {count:3d} x: {reason}")
             compared = day["checks"].filter(pl.col("status") != "skipped")
+            print("    " + _by_departure(compared, day["hoist"]))
             total += compared.height
             passed += int((compared["status"] == "passed").sum())
     if total:

@@ -146,3 +146,26 @@ def test_without_x_takes_the_displacements_out_and_keeps_the_rest(
     assert csv.read_text().count("x1") == 1  # the day's own file as it was
     with pytest.raises(RuntimeError, match="no x1/x2/x3/x4 columns"):
         evaluation.without_x(out)
+
+
+def test_report_day_prints_the_margin_to_the_worse_than_raw_limit(evaluation, capsys) -> None:
+    """Three windows: |after| - |before| = -1.5, +0.15 and +0.05 pp. None is worse than
+    raw by more than 0.2 pp, but the largest excess, +0.15 pp, is printed with the one
+    window above half the limit (0.1 pp): a day one window away from failing says so."""
+    t0 = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
+    errors = pl.DataFrame(
+        {
+            "kind": ["arrival"] * 3,
+            "position": ["pithead", "middle", "bottom"],
+            "t0": [t0] * 3,
+            "before_pct": [2.0, -0.05, 0.30],
+            "after_pct": [0.5, 0.20, -0.35],
+            "rope_max_pct": [0.6, 0.3, 0.4],
+        }
+    )
+    figures = evaluation.report_day("hand-made", errors, 3, 0.0)
+    out = capsys.readouterr().out
+    assert figures["worse"] == 0
+    assert figures["excess"] == pytest.approx(0.15)
+    assert "the largest |after| - |before| +0.150 pp (limit 0.2); windows above half" in out
+    assert "half the limit: 1" in out

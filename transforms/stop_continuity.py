@@ -445,11 +445,11 @@ def backward_shift(
         return None
     # the stop's last steady stretch, back from its last second
     earliest = int(np.searchsorted(t, t[departure] - BACK_S, side="left"))
-    still = phase[earliest:last] == _STANDSTILL
-    gaps = np.diff(t[earliest : last + 1]) > TRIP_BRIDGE_S
+    # it starts after its last moving sample, or at the first sample after its last
+    # logger gap (marked on the sample before the gap: the one after it is at rest)
+    breaks = phase[earliest:last] != _STANDSTILL
+    breaks[:-1] |= np.diff(t[earliest:last]) > TRIP_BRIDGE_S
     start = earliest
-    breaks = ~still
-    breaks[1:] |= gaps[:-1] if gaps.size else False
     if breaks.any():
         start = earliest + int(np.flatnonzero(breaks)[-1]) + 1
     if last - start < 2:

@@ -375,3 +375,16 @@ def test_an_array_two_solutions_share_is_shifted_once_and_the_others_keep_their_
     _run(case, shared)
     for got, want in zip(shared[0] + shared[2], alone[0] + alone[1], strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
+
+
+def test_the_departures_stretch_starts_at_the_first_sample_after_a_logger_gap() -> None:
+    """A logger gap 8-11 s before the departure, after the stop's payload change: the
+    departure's stretch starts at the gap's first sample after it (nothing moved there),
+    which takes the run down's shift as the samples after it do."""
+    case = _without(_round_trip(), 8.0, 11.0)
+    estimate = tuple(f.copy() for f in case["f"])
+    _run(case, [estimate])
+    t, departure = case["t"], case["departure"]
+    after_gap = int(np.flatnonzero(np.diff(t) > 1.0)[0]) + 1
+    error = _load(case, estimate) - case["load"]
+    np.testing.assert_allclose(error[after_gap:departure], 0.0, atol=1e-6)

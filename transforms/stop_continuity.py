@@ -217,11 +217,13 @@ def rest_window(time_s: np.ndarray, phase: np.ndarray, load_n: np.ndarray, at: i
     hi = min(hi, n)
     if lo >= hi:
         return slice(lo, lo)
-    still = phase[lo:hi] == _STANDSTILL
+    # standing still from the arrival on: a move before the window (a stop shorter than
+    # SETTLE_S) leaves it in another stop
+    still = phase[at:hi] == _STANDSTILL
     gaps = np.diff(time_s[at:hi]) > TRIP_BRIDGE_S
     cut = hi
     if not still.all():
-        cut = lo + int(np.argmin(still))
+        cut = at + int(np.argmin(still))
     if gaps.any():
         cut = min(cut, at + 1 + int(np.argmax(gaps)))
     if cut <= lo:

@@ -388,3 +388,26 @@ def test_the_departures_stretch_starts_at_the_first_sample_after_a_logger_gap() 
     after_gap = int(np.flatnonzero(np.diff(t) > 1.0)[0]) + 1
     error = _load(case, estimate) - case["load"]
     np.testing.assert_allclose(error[after_gap:departure], 0.0, atol=1e-6)
+
+
+def test_a_stop_shorter_than_the_settling_takes_no_shift_from_the_stop_after_it() -> None:
+    """An arrival whose stop lasts 0.6 s, then a creep of 0.8 s (a move to another stop
+    before SETTLE_S has passed): its rest window would lie in the next stop, whose
+    seals the creep has moved; neither the short stop nor the creep takes a shift set
+    there (the solution kept as solved)."""
+    creep = PHASES.index("creep")
+    parts = [(STILL, 5.0), (ACCEL, 2.0), (RUN, 20.0), (DECEL, 2.0), (STILL, 0.6),
+             (creep, 0.8), (STILL, 40.0)]  # fmt: skip
+    phase = np.concatenate([np.full(int(s * RATE), p, dtype=np.int8) for p, s in parts])
+    n = phase.size
+    arrival = int(sum(s for _, s in parts[:4]) * RATE)
+    friction = [np.full(n, 125.0) for _ in range(4)]
+    for f in friction:
+        f[arrival:] += 225.0  # solved 900 N high summed from the arrival on
+    x = tuple(np.zeros(n) for _ in range(4))
+    case = {"t": np.arange(n) / RATE, "phase": phase, "depth": np.zeros(n),
+            "p": np.full(n, 150e3), "f": friction, "x": x}  # fmt: skip
+    estimate = tuple(f.copy() for f in friction)
+    _run(case, [estimate])
+    for got, before in zip(estimate, friction, strict=True):
+        np.testing.assert_array_equal(got, before)

@@ -372,6 +372,7 @@ class BlockCompensation(BlockSetup):
         inputs = ContinuityInputs(
             self.time_s, phase, depth, mean_horizontal(list(pressures)) * area * len(ROPES),
             x, factors / factors.sum(), self.presliding_range_m, self.dt_nominal,
+            self.presliding_range_m * float(self.law.bristle_stiffness_n_m) or np.inf,
         )  # fmt: skip
 
         def run(lo: int, hi: int, state: np.ndarray) -> None:

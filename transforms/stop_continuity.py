@@ -185,7 +185,8 @@ class ContinuityInputs:
     the piston area summed over the four (unknown ones as the others' mean);
     ``x_m`` the estimate's piston displacements; ``fractions`` each rope's share of a
     common shift (:math:`a_i / \\sum a`); ``presliding_m`` one seal's presliding range
-    F_s / sigma_0 [m]; ``dt_s`` the logger's nominal step [s]."""
+    F_s / sigma_0 [m]; ``dt_s`` the logger's nominal step [s]; ``capacity_n`` one
+    seal's static friction F_s [N] (:func:`_update`: inf, no bound)."""
 
     time_s: np.ndarray
     phase: np.ndarray
@@ -195,6 +196,7 @@ class ContinuityInputs:
     fractions: np.ndarray
     presliding_m: float
     dt_s: float
+    capacity_n: float = np.inf
 
 
 def rest_window(time_s: np.ndarray, phase: np.ndarray, load_n: np.ndarray, at: int) -> slice:
@@ -366,7 +368,11 @@ def _update(
     hoist: HoistDescription,
 ) -> slice | None:
     """Each solution's shift at an arrival at sample ``at``, and the rest window it was
-    set on (None: nothing predicts the stop's load)."""
+    set on (None: nothing predicts the stop's load). None too where the estimate's
+    load at rest is further from the run's prediction than its four seals can hold
+    between their extremes (2 x 4 x ``capacity_n``): the payload changed before the
+    window (one done within SETTLE_S of the arrival, or while the conveyance crept in),
+    which the window's own payload check, from its start on, cannot see."""
     t = inputs.time_s
     count = state[3]
     if count < 2 or count * inputs.dt_s < MIN_RUN_S:
@@ -379,9 +385,11 @@ def _update(
         return None
     loads, depth, _ = rest
     tail = tail_rope_mass_kg(hoist, depth) - tail_rope_mass_kg(hoist, state[5] / count)
+    predicted = (state[4] + run_f[: len(frictions)]) / count + G_STANDARD * float(tail)
+    if abs(predicted[0] - loads[0]) > 2.0 * _PISTONS * inputs.capacity_n:
+        return None
     for s in range(len(frictions)):
-        predicted = (state[4] + run_f[s]) / count + G_STANDARD * float(tail)
-        shift[s] = (predicted - loads[s]) * inputs.fractions
+        shift[s] = (predicted[s] - loads[s]) * inputs.fractions
     return window
 
 

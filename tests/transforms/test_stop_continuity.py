@@ -411,3 +411,25 @@ def test_a_stop_shorter_than_the_settling_takes_no_shift_from_the_stop_after_it(
     _run(case, [estimate])
     for got, before in zip(estimate, friction, strict=True):
         np.testing.assert_array_equal(got, before)
+
+
+@pytest.mark.parametrize("unloaded_s", [None, 0.1, 0.5, 0.9])
+def test_a_payload_change_done_before_the_rest_window_is_no_seals_shift(
+    unloaded_s: float | None,
+) -> None:
+    """The conveyance unloaded by 30 kN ``unloaded_s`` after the arrival, within a
+    second (before the rest window's payload check starts): the load at rest is not
+    the run's, and a shift of the payload's size is more than the four seals can hold
+    (2 x 4 x F_s, here 1.2 kN each); without the change the 900 N go as before."""
+    case = _trip()
+    t, arrival = case["t"], case["arrival"]
+    if unloaded_s is not None:
+        case["p"] = np.where(t >= t[arrival] + unloaded_s, case["p"] - 30e3, case["p"])
+    estimate = tuple(f.copy() for f in case["f"])
+    inputs = ContinuityInputs(
+        case["t"], case["phase"], case["depth"], case["p"], case["x"], FRACTIONS,
+        50e-6, 1.0 / RATE, capacity_n=1.2e3,
+    )  # fmt: skip
+    apply_stop_continuity(inputs, [estimate], 0, t.size, continuity_state(1), HOIST)
+    shift = sum(estimate) - sum(case["f"])
+    np.testing.assert_allclose(shift[arrival:], 0.0 if unloaded_s is not None else -900.0)

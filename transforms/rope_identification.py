@@ -83,7 +83,17 @@ steps fits x 0.13-0.26 mm and its step matters, through the drift's shares and t
 branch loss together, yet its friction is nearer the truth's there than on means).
 With the truth's constants in place of the identified, worst load / worst rope on
 days 101-104 went 0.80 / 1.12 -> 0.74 / 0.88 %, 0.67 / 1.04 -> 0.69 / 0.95 %,
-0.79 / 1.86 -> 0.62 / 1.00 %, 0.96 / 1.18 -> 1.08 / 1.29 %.
+0.79 / 1.86 -> 0.62 / 1.00 %, 0.96 / 1.18 -> 1.08 / 1.29 %. Again with the stop
+continuity (:mod:`transforms.stop_continuity`, session 43; the identified ropes'
+alternatives kept for the band): worst load 0.42 / 0.33 / 0.25 / 0.31 -> 0.34 / 0.37 /
+0.36 / 0.35 %, median 0.14 / 0.08 / 0.06 / 0.06 -> 0.09 / 0.09 / 0.08 / 0.06 %, worst
+rope 0.87 / 0.80 / 0.99 / 0.68 -> 0.56 / 0.64 / 0.81 / 0.54 %, coverage 100 / 100 / 97 /
+100 -> 100 / 99 / 94 / 100 %, and day 104 one window worse than raw by 0.23 points
+(none with the identified): the runs' friction, which the continuity carries into the
+stops, stays off with the true constants (days 101-102, run phases against the truth's
+per-piston friction: piston 1 -141 to -143 N on the runs up, pistons 2-4 +60 to +73 N
+on the runs down; with the identified -127 to -184 N and +41 to +132 N): the model's
+error, not the constants'.
 """
 
 from __future__ import annotations

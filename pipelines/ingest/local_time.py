@@ -42,6 +42,19 @@ _AWARE = ("%Y-%m-%dT%H:%M:%S%.f%#z", "%Y-%m-%d %H:%M:%S%.f%#z")
 _UTC = pl.Datetime("us", "UTC")
 _EPISODE_US = 2 * 3600 * 1_000_000  # ambiguous samples further apart belong to another day
 _PROBE = dt.timedelta(hours=6)
+_EPOCH = dt.datetime(1970, 1, 1)
+#: The times a sample may have, µs since the epoch: those of Python's datetime (years
+#: 1-9999, as the TDMS reader's) in UTC, and a local time a day inside them, so that no
+#: zone's offset takes it out. polars reads more ("-2026-03-02", "+12026-03-02",
+#: "0000-01-01"); such a time is no time: the row is quarantined, not the file refused.
+_UTC_RANGE_US = (
+    (dt.datetime(1, 1, 1) - _EPOCH) // dt.timedelta(microseconds=1),
+    (dt.datetime(9999, 12, 31, 23, 59, 59, 999999) - _EPOCH) // dt.timedelta(microseconds=1),
+)
+_LOCAL_RANGE_US = (
+    (dt.datetime(1, 1, 2) - _EPOCH) // dt.timedelta(microseconds=1),
+    (dt.datetime(9999, 12, 30, 23, 59, 59, 999999) - _EPOCH) // dt.timedelta(microseconds=1),
+)
 
 
 @dataclass
@@ -133,6 +146,8 @@ def parse_timestamps(
             remaining = remaining[~ok]
         if remaining.size == 0:
             break
+    naive = _within(naive, _LOCAL_RANGE_US)
+    aware = _within(aware, _UTC_RANGE_US)
     local = _localise(naive, zone, state)
     if aware.null_count() == n:
         time_utc = local.alias("time_utc")
@@ -150,6 +165,16 @@ def parse_timestamps(
         .alias("time_reason")
     )
     return time_utc, reason
+
+
+def _within(times: pl.Series, bounds: tuple[int, int]) -> pl.Series:
+    """``times`` with those outside ``bounds`` (µs since the epoch, inclusive) null."""
+    us = times.dt.epoch("us")
+    low, high = us.min(), us.max()
+    if low is None or high is None or (low >= bounds[0] and high <= bounds[1]):
+        return times
+    keep = us.is_between(bounds[0], bounds[1]).fill_null(False)
+    return pl.select(pl.when(keep).then(times)).to_series().alias(times.name)
 
 
 def _localise(naive: pl.Series, zone: str, state: AmbiguityState) -> pl.Series:

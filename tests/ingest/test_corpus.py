@@ -107,6 +107,25 @@ def case_unparsable_timestamp(corpus, tmp):
     return path, Expect("landed", 10, 9, 1, reasons={"unparsable timestamp": 1})
 
 
+def case_timestamps_no_calendar_holds(corpus, tmp):
+    # years polars reads but no datetime holds (signed, five digits, 0, or out of
+    # 1-9999 once the zone's offset is applied): those rows, not the file or the command
+    rows = corpus.data_rows(10)
+    stamps = [
+        "-2026-03-02 06:00:00.020",
+        "+12026-03-02 06:00:00.030",
+        "0000-01-01 00:00:00.000",
+        "0001-01-01 00:00:00.000",  # Asia/Shanghai: year 0 in UTC
+        "0001-01-01T00:00:00+14:00",
+        "9999-12-31T23:59:59-14:00",
+    ]
+    for i, stamp in enumerate(stamps, start=2):
+        rows[i][0] = stamp
+    header = {**corpus.HEADER, "timezone": "Asia/Shanghai"}
+    path = corpus.csv_file(tmp / "calendar.csv", rows, header=header)
+    return path, Expect("landed", 10, 4, 6, reasons={"unparsable timestamp": 6})
+
+
 def case_bar_units(corpus, tmp):
     rows = [[r[0], "48.12", "47.90", "48.36", "48.01", *r[5:]] for r in corpus.data_rows(5)]
     header = {**corpus.HEADER, "units": "p=bar, x=m"}

@@ -245,7 +245,9 @@ class _Started:
 
     reading: Reading | None = None
     first: Batch | None = None
-    refusal: RefusedFile | None = None
+    #: what opening it raised, raised again inside the file's guard (:func:`_ingest_file`):
+    #: a refusal, or a reader's error that refuses this file alone, as it would unstarted
+    refusal: BaseException | None = None
 
     def reading_or_raise(self) -> Reading:
         if self.refusal is not None:
@@ -266,7 +268,7 @@ def _start_csv(path: Path, hoist_lookup: HoistLookup | None, batch_bytes: int) -
     try:
         reading = open_csv(path, hoist_lookup=hoist_lookup, batch_bytes=batch_bytes)
         return _Started(reading, next(reading.batches, None))
-    except RefusedFile as exc:
+    except (Exception, PanicException) as exc:  # judged inside the file's guard
         return _Started(refusal=exc)
 
 

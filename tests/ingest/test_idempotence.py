@@ -282,3 +282,28 @@ def test_a_re_export_under_a_new_name_is_known_after_its_first_skip(corpus, tmp_
     assert not is_new(copy, known_files(root))
     assert _counts(root) == (1, 0)  # still one manifest row
     assert ingest_paths([copy], data=root).files[0].status == "skipped"  # and again: alike
+
+
+def test_a_lookup_failing_on_a_new_files_first_batch_refuses_that_file_alone(
+    corpus, tmp_path, root
+):
+    """A new CSV's header and first batch are read while the file is hashed: an error
+    there (here the caller's hoist lookup failing for its hoist) refuses that file,
+    naming it, as it would when read after the hash; the command goes on and the next
+    file lands."""
+
+    def lookup(site: str, hoist: str):
+        if site == "xuzhou-north":
+            raise ValueError("the hoist register is unavailable")
+        return None
+
+    bad = corpus.csv_file(tmp_path / "day.csv", corpus.data_rows(20))
+    text = bad.read_text(encoding="utf-8")
+    assert "xuzhou-north" in text
+    good = tmp_path / "other.csv"
+    good.write_text(text.replace("xuzhou-north", "other-mine"), encoding="utf-8")
+    report = ingest_paths([bad, good], data=root, hoist_lookup=lookup)
+    assert [f.status for f in report.files] == ["refused", "landed"]
+    assert str(bad) in report.files[0].message
+    assert "the hoist register is unavailable" in report.files[0].message
+    assert report.files[1].rows_landed == 20

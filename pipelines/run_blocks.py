@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import polars as pl
 
+from pipelines.ingest.field_checks import FieldLimits, unknown_beyond_limits
 from pipelines.lake import in_time_order, scan_lake
 from schemas.hoist import HoistDescription
 from schemas.tables import ALARMS, ROPES, conform
@@ -60,11 +61,15 @@ _ALARM_COLUMNS = [
 
 @dataclass(frozen=True)
 class FieldSamples:
-    """The landed field samples of one hoist in the lake."""
+    """The landed field samples of one hoist in the lake; ``limits``: its description's,
+    beyond which :meth:`read` reads a depth, piston or speed as not logged (samples
+    landed without the description, :func:`pipelines.ingest.field_checks.
+    unknown_beyond_limits`)."""
 
     data: DataRoot
     site: str
     hoist: str
+    limits: FieldLimits | None = None
 
     def scan(self, lo: dt.datetime | None, hi: dt.datetime | None) -> pl.LazyFrame:
         """``lo <= time_utc < hi``, sorted by time."""
@@ -77,12 +82,15 @@ class FieldSamples:
     ) -> pl.DataFrame:
         """``columns`` of ``lo <= time_utc < hi`` in time order (:func:`pipelines.lake.
         in_time_order`: the landed order, sorted only where it is not)."""
-        return in_time_order(
-            scan_lake(
-                self.data, "field_samples", site=self.site, hoist=self.hoist, start=lo, end=hi,
-                sort=False,
-            ).select(columns)
+        rows = scan_lake(
+            self.data, "field_samples", site=self.site, hoist=self.hoist, start=lo, end=hi,
+            sort=False,
         )  # fmt: skip
+        if self.limits is not None:
+            rows = rows.with_columns(
+                unknown_beyond_limits(rows.collect_schema().names(), self.limits)
+            )
+        return in_time_order(rows.select(columns))
 
     def source_files(self, lo: dt.datetime | None, hi: dt.datetime | None) -> set[str]:
         """The source files read (``runs.inputs``), without sorting the period's rows."""

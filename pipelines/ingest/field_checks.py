@@ -30,7 +30,9 @@ unknown; the piston's and the speed's limits, likewise, need the description's s
 winder. The stroke is counted whole either way from mid-stroke (the transducer's zero
 may be off mid-stroke, not by a stroke), the speed to twice the winder's ``max_speed``
 (an overspeed trip acts at ~1.1 x). ``ropeload ingest --hoist FILE`` gives ingest the descriptions
-(:func:`hoist_lookup_from_files`); nightly and backfill give each hoist's own.
+(:func:`hoist_lookup_from_files`); nightly and backfill give each hoist's own. Samples
+landed without one keep every value; a run and its sanity check, which have the
+description, read a value beyond its limits as not logged (:func:`unknown_beyond_limits`).
 """
 
 from __future__ import annotations
@@ -63,6 +65,7 @@ __all__ = [
     "physical_reason",
     "to_si",
     "unit_to_si",
+    "unknown_beyond_limits",
 ]
 
 #: Pressure above which a sensor reading is impossible (contract 1a) [Pa].
@@ -197,6 +200,41 @@ def field_limits(hoist: HoistDescription | None) -> FieldLimits:
     )
 
 
+def _beyond_limits(columns: Sequence[str], limits: FieldLimits) -> dict[str, pl.Expr]:
+    """Per checked channel of ``columns`` (depth, pistons, speed): true where its value
+    is beyond ``limits`` (an infinity always: a TDMS float can hold one)."""
+    beyond: dict[str, pl.Expr] = {}
+    if "depth_m" in columns:
+        low, high = limits.depth_m
+        depth = pl.col("depth_m")
+        beyond["depth_m"] = (depth < low) | (depth > high) | depth.is_infinite()
+    for c in (c for c in columns if c.startswith("x") and c.endswith("_m")):
+        beyond[c] = (pl.col(c).abs() > limits.piston_x_m) | pl.col(c).is_infinite()
+    if "speed_m_s" in columns:
+        speed = pl.col("speed_m_s")
+        beyond["speed_m_s"] = (speed.abs() > limits.speed_m_s) | speed.is_infinite()
+    return beyond
+
+
+def unknown_beyond_limits(columns: Sequence[str], limits: FieldLimits) -> list[pl.Expr]:
+    """Each checked channel of ``columns`` with its values beyond ``limits`` read as not
+    logged (null): what a run reads of samples landed without the hoist's description
+    (``ropeload ingest`` without ``--hoist`` checks the depth against the pithead only
+    and the pistons and the speed not at all), whose impossible values the description
+    now shows (a piston 100 m out of its cylinder).
+
+    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
+    >>> frame = pl.DataFrame({"x1_m": [0.01, 100.0], "speed_m_s": [1e300, 2.0]})
+    >>> limits = field_limits(load_hoist(EXAMPLE_HOIST))
+    >>> frame.with_columns(unknown_beyond_limits(frame.columns, limits)).rows()
+    [(0.01, None), (None, 2.0)]
+    """
+    return [
+        pl.when(outside).then(None).otherwise(pl.col(c)).alias(c)
+        for c, outside in _beyond_limits(columns, limits).items()
+    ]
+
+
 def physical_reason(columns: list[str], limits: FieldLimits) -> list[pl.Expr]:
     """Reason expressions (null when fine) for impossible SI values, in priority order."""
     reasons: list[pl.Expr] = []
@@ -211,20 +249,17 @@ def physical_reason(columns: list[str], limits: FieldLimits) -> list[pl.Expr]:
         )
     # an infinity is beyond every limit, an unknown one (inf) too: a TDMS float can hold
     # one (a CSV's is quarantined as unparsable before these)
-    if "depth_m" in columns:
-        low, high = limits.depth_m
-        depth = pl.col("depth_m")
-        outside = (depth < low) | (depth > high) | depth.is_infinite()
-        reasons.append(pl.when(outside).then(pl.lit("depth outside the shaft")))
-    for c in (c for c in columns if c.startswith("x") and c.endswith("_m")):
-        beyond = (pl.col(c).abs() > limits.piston_x_m) | pl.col(c).is_infinite()
+    beyond = _beyond_limits(columns, limits)
+    if "depth_m" in beyond:
+        reasons.append(pl.when(beyond["depth_m"]).then(pl.lit("depth outside the shaft")))
+    for c in (c for c in beyond if c.startswith("x")):
         reasons.append(
-            pl.when(beyond).then(pl.lit(f"piston beyond a stroke from mid-stroke ({c[:-2]})"))
+            pl.when(beyond[c]).then(pl.lit(f"piston beyond a stroke from mid-stroke ({c[:-2]})"))
         )
-    if "speed_m_s" in columns:
-        speed = pl.col("speed_m_s")
-        too_fast = (speed.abs() > limits.speed_m_s) | speed.is_infinite()
-        reasons.append(pl.when(too_fast).then(pl.lit("speed above twice the winder's maximum")))
+    if "speed_m_s" in beyond:
+        reasons.append(
+            pl.when(beyond["speed_m_s"]).then(pl.lit("speed above twice the winder's maximum"))
+        )
     if "oil_temp_c" in columns:
         low, high = limits.oil_temp_c
         outside = (pl.col("oil_temp_c") < low) | (pl.col("oil_temp_c") > high)

@@ -52,6 +52,7 @@ import polars as pl
 
 from discovery import DiscoveryResult, Finding, discover_in_record
 from pipelines.identified_ropes import identified_ropes
+from pipelines.ingest.field_checks import within_limits
 from pipelines.lake import scan_lake
 from pipelines.provenance import hoist_run, new_run_id, utc_now
 from pipelines.run_period import check_period
@@ -280,9 +281,9 @@ def discover_period(
     started = utc_now()
     hoist = load_hoist(hoist_path)
     site, name = hoist.hoist.site, hoist.hoist.name
-    samples = scan_lake(
-        data, "field_samples", site=site, hoist=name, start=start, end=end
-    ).collect()
+    samples = within_limits(
+        scan_lake(data, "field_samples", site=site, hoist=name, start=start, end=end), hoist
+    ).collect()  # values beyond the description's limits as not logged, as a run reads them
     if samples.height == 0:
         raise LookupError(
             f"no landed samples for site {site!r}, hoist {name!r} in the period "

@@ -28,7 +28,7 @@ import polars as pl
 from pipelines.hoists import hoist_lookup
 from pipelines.identified_ropes import identified_ropes
 from pipelines.ingest import ingest_paths
-from pipelines.ingest.field_checks import field_limits, unknown_beyond_limits
+from pipelines.ingest.field_checks import within_limits
 from pipelines.lake import as_utc, scan_lake
 from pipelines.ledger import partition_states
 from pipelines.partitions import Partition, PartitionOutcome, failed_outcome, new_outcome
@@ -263,10 +263,7 @@ def check_sanity(
             end=end + SANITY_LEAD_OUT,
         )
         # values beyond the description's limits, landed without it, as the run reads them
-        names = samples.collect_schema().names()
-        samples = samples.with_columns(
-            unknown_beyond_limits(names, field_limits(description))
-        ).collect()
+        samples = within_limits(samples, description).collect()
         # the ropes as the run's compensation identified them: from where its record
         # starts, its means and the cached identification's (pipelines.identified_ropes)
         run_record = samples.filter(

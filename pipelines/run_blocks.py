@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import polars as pl
 
-from pipelines.ingest.field_checks import FieldLimits, unknown_beyond_limits
+from pipelines.ingest.field_checks import within_limits
 from pipelines.lake import in_time_order, scan_lake
 from schemas.hoist import HoistDescription
 from schemas.tables import ALARMS, ROPES, conform
@@ -61,15 +61,14 @@ _ALARM_COLUMNS = [
 
 @dataclass(frozen=True)
 class FieldSamples:
-    """The landed field samples of one hoist in the lake; ``limits``: its description's,
-    beyond which :meth:`read` reads a depth, piston or speed as not logged (samples
-    landed without the description, :func:`pipelines.ingest.field_checks.
-    unknown_beyond_limits`)."""
+    """The landed field samples of one hoist in the lake; ``description``: the hoist's,
+    beyond whose limits :meth:`read` reads a depth, piston or speed as not logged
+    (samples landed without it, :func:`pipelines.ingest.field_checks.within_limits`)."""
 
     data: DataRoot
     site: str
     hoist: str
-    limits: FieldLimits | None = None
+    description: HoistDescription | None = None
 
     def scan(self, lo: dt.datetime | None, hi: dt.datetime | None) -> pl.LazyFrame:
         """``lo <= time_utc < hi``, sorted by time."""
@@ -86,10 +85,8 @@ class FieldSamples:
             self.data, "field_samples", site=self.site, hoist=self.hoist, start=lo, end=hi,
             sort=False,
         )  # fmt: skip
-        if self.limits is not None:
-            rows = rows.with_columns(
-                unknown_beyond_limits(rows.collect_schema().names(), self.limits)
-            )
+        if self.description is not None:
+            rows = within_limits(rows, self.description)
         return in_time_order(rows.select(columns))
 
     def source_files(self, lo: dt.datetime | None, hi: dt.datetime | None) -> set[str]:

@@ -19,7 +19,6 @@ from pathlib import Path
 
 import polars as pl
 
-from pipelines.ingest.field_checks import field_limits
 from pipelines.lake import as_utc, scan_lake
 from pipelines.provenance import hoist_run, new_run_id, utc_now
 from pipelines.run_blocks import (
@@ -173,7 +172,7 @@ def run_period(
     started = utc_now()
     hoist = hoist or load_hoist(hoist_path)
     settings = settings or CompensationSettings()
-    samples = FieldSamples(data, hoist.hoist.site, hoist.hoist.name, field_limits(hoist))
+    samples = FieldSamples(data, hoist.hoist.site, hoist.hoist.name, hoist)
     start, end = (None if t is None else as_utc(t) for t in (start, end))
     check_period(start, end)
     scan_start = None if start is None else record_start(start, lead_in)

@@ -31,8 +31,8 @@ winder. The stroke is counted whole either way from mid-stroke (the transducer's
 may be off mid-stroke, not by a stroke), the speed to twice the winder's ``max_speed``
 (an overspeed trip acts at ~1.1 x). ``ropeload ingest --hoist FILE`` gives ingest the descriptions
 (:func:`hoist_lookup_from_files`); nightly and backfill give each hoist's own. Samples
-landed without one keep every value; a run and its sanity check, which have the
-description, read a value beyond its limits as not logged (:func:`unknown_beyond_limits`).
+landed without one keep every value; a run, its sanity check and discovery, which have the
+description, read a value beyond its limits as not logged (:func:`within_limits`).
 """
 
 from __future__ import annotations
@@ -66,6 +66,7 @@ __all__ = [
     "to_si",
     "unit_to_si",
     "unknown_beyond_limits",
+    "within_limits",
 ]
 
 #: Pressure above which a sensor reading is impossible (contract 1a) [Pa].
@@ -233,6 +234,13 @@ def unknown_beyond_limits(columns: Sequence[str], limits: FieldLimits) -> list[p
         pl.when(outside).then(None).otherwise(pl.col(c)).alias(c)
         for c, outside in _beyond_limits(columns, limits).items()
     ]
+
+
+def within_limits(samples: pl.LazyFrame, hoist: HoistDescription) -> pl.LazyFrame:
+    """Landed field samples as a run reads them: each value beyond the ``hoist``'s
+    description's limits not logged (:func:`unknown_beyond_limits`)."""
+    names = samples.collect_schema().names()
+    return samples.with_columns(unknown_beyond_limits(names, field_limits(hoist)))
 
 
 def physical_reason(columns: list[str], limits: FieldLimits) -> list[pl.Expr]:

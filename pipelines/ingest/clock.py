@@ -18,6 +18,12 @@ disambiguation of :mod:`.local_time`, so a repeated local hour is no step):
   (:func:`clock_step_reason`: its size and the line or sample where it began). The
   first row past that time lands, and the file goes on as before.
 
+A lone time ahead of both its neighbours, which go on one timeline, is no step at all
+but a corrupted time (a year 2027 in a 2026 file): that row alone is quarantined
+(:func:`time_ahead_reason`) and moves no clock; taken as the latest time read, it had
+quarantined every later row of the file as a step back (:func:`lone_times_ahead`). Its
+neighbours are judged within a batch: such a row last in its batch is taken as read.
+
 The state (:class:`ClockState`) carries over batches of a file, and over a resume of a
 growing CSV (the manifest keeps it: ``clock_latest_utc``, ``clock_step_line``,
 ``clock_step_s``).
@@ -37,7 +43,9 @@ __all__ = [
     "ClockState",
     "clock_step_reason",
     "clock_steps",
+    "lone_times_ahead",
     "steps_note",
+    "time_ahead_reason",
     "tolerance_us",
 ]
 
@@ -103,6 +111,39 @@ def clock_step_reason(where: str, line: int, seconds: float) -> str:
     )
 
 
+def time_ahead_reason(seconds: float) -> str:
+    """The quarantine reason of a lone time ahead of its neighbours (:func:`lone_times_ahead`).
+
+    >>> time_ahead_reason(31536000.0)
+    'time 31536000.0 s ahead of the rows around it, which go on one timeline'
+    """
+    return f"time {_size(seconds)} s ahead of the rows around it, which go on one timeline"
+
+
+def lone_times_ahead(t: np.ndarray, valid: np.ndarray, tolerance: int) -> np.ndarray:
+    """Rows whose time is more than ``tolerance`` ahead of both known neighbours while
+    the row after it is not more than ``tolerance`` before the row before it (the two
+    go on one timeline) [bool per row; ``t`` in µs, ``valid`` where known]. The first
+    and the last row have one neighbour in the batch: never.
+
+    >>> t = np.array([0, 20, 40, 9_000_000, 60, 80, 100]) * 1000
+    >>> lone_times_ahead(t, np.ones(7, bool), 200_000).nonzero()[0].tolist()
+    [3]
+    >>> gap = np.array([0, 20, 40, 9_000_000, 9_000_020]) * 1000  # a logger's gap
+    >>> bool(lone_times_ahead(gap, np.ones(5, bool), 200_000).any())
+    False
+    """
+    ahead = np.zeros(t.size, np.bool_)
+    if t.size < 3:
+        return ahead
+    prev, mid, nxt = t[:-2], t[1:-1], t[2:]
+    known = valid[:-2] & valid[1:-1] & valid[2:]
+    ahead[1:-1] = (
+        known & (mid > prev + tolerance) & (mid > nxt + tolerance) & (nxt >= prev - tolerance)
+    )
+    return ahead
+
+
 def _size(seconds: float) -> str:
     return f"{seconds:.1f}" if seconds >= 1 else f"{seconds:.3f}"
 
@@ -125,7 +166,8 @@ def clock_steps(
     tolerance: int,
     where: str = "line",
 ) -> pl.Series | None:
-    """The clock-step reason of each row (null where none), None when no row has one.
+    """The clock-step reason of each row, or a lone corrupted time's
+    (:func:`lone_times_ahead`; null where none), None when no row has one.
 
     ``time_utc``: the rows' times in file order (null where unknown: such a row does
     not move the clock); ``rows``: their line (CSV) or sample index (TDMS), named in
@@ -137,6 +179,11 @@ def clock_steps(
     valid = time_utc.is_not_null().to_numpy()
     t = time_utc.dt.epoch("us").fill_null(_LOW).to_numpy().astype(np.int64, copy=False)
     t = np.where(valid, t, _LOW)
+    ahead = lone_times_ahead(t, valid, tolerance)
+    if ahead.any():  # corrupted times: quarantined alone, they move no clock
+        lone = [time_ahead_reason((int(t[k]) - int(t[k - 1])) / 1e6) for k in np.flatnonzero(ahead)]
+        valid = valid & ~ahead
+        t = np.where(ahead, _LOW, t)
     seed = _LOW if state.latest_us is None else state.latest_us
     running = np.maximum.accumulate(np.concatenate(([seed], t)))
     before = running[:-1]  # the latest time read before each row
@@ -150,7 +197,11 @@ def clock_steps(
     carried = state.step_line is not None
     if not carried and not onset_candidate.any():  # the common case: nothing stepped back
         state.latest_us = latest_end
-        return None
+        if not ahead.any():
+            return None
+        reasons = np.full(n, None, dtype=object)
+        reasons[ahead] = np.array(lone, dtype=object)
+        return pl.Series("clock_reason", reasons.tolist(), dtype=pl.String)
     # A plateau: rows with the same latest time before them. A step lasts from its
     # onset to the end of its plateau (the first row past that time starts the next).
     index = np.arange(n)
@@ -189,6 +240,8 @@ def clock_steps(
     else:
         state.step_line = state.step_s = None
     state.latest_us = latest_end
-    if not stepped.any():
+    if ahead.any():
+        reasons[ahead] = np.array(lone, dtype=object)
+    if not (stepped.any() or ahead.any()):
         return None
     return pl.Series("clock_reason", reasons.tolist(), dtype=pl.String)

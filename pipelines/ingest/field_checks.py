@@ -17,7 +17,8 @@ A sample is quarantined with the first reason that applies, in this order:
 unparsable timestamp, local time in a daylight-saving gap, a logger clock that stepped
 back (:mod:`.clock`: "the logger clock stepped back 30.0 s at line N: time before the
 latest already read"; such a row without another fault is an exact duplicate where it
-equals a landed sample), unparsable value (per channel), negative absolute pressure,
+equals a landed sample; a lone time ahead of both neighbours is that row's own fault),
+unparsable value (per channel), negative absolute pressure,
 pressure above 60 MPa, depth outside the shaft, a piston beyond a whole stroke from
 mid-stroke, a speed beyond twice the winder's maximum, an oil temperature outside
 :data:`OIL_TEMP_LIMITS_C` (:class:`FieldLimits`: a malformed number that parses, e.g.

@@ -224,3 +224,20 @@ def test_a_tdms_timestamp_channel_stepping_back(corpus, tmp_path, root):
     assert (result.rows_read, result.rows_landed, result.rows_quarantined) == (1000, 799, 201)
     assert "stepped back 2.0 s at sample 600" in reason
     assert _lake(root)["source_line"].is_sorted()
+
+
+@pytest.mark.parametrize("ahead", [dt.timedelta(days=365), dt.timedelta(seconds=30)])
+def test_one_corrupted_time_ahead_is_quarantined_alone(corpus, tmp_path, root, ahead):
+    """One row's time a year (or 30 s) ahead of its neighbours, which go on one
+    timeline: that row alone is quarantined, the rest of the file lands (taken as the
+    latest time read, it had quarantined every later row as a clock step back)."""
+    times = _times(10, 99, 0)
+    times[200] = times[200] + ahead
+    path = corpus.csv_file(tmp_path / "ahead.csv", _rows(corpus, times), header=_header(corpus))
+    result = ingest_paths([path], data=root).files[0]
+    assert result.balanced
+    assert (result.rows_landed, result.rows_quarantined) == (499, 1)
+    ((line, reason),) = _quarantine(root)
+    assert line == FIRST_LINE + 200
+    assert reason.startswith(f"time {ahead.total_seconds():.1f} s ahead of the rows around it")
+    assert FIRST_LINE + 200 not in _lake(root)["source_line"].to_list()

@@ -116,7 +116,9 @@ def read_header(path: Path) -> CsvHeader:
             f"{path}: line {col_no}: cannot find the delimiter (comma, semicolon or tab) "
             f"in the column line {col_text[:80]!r}"
         )
-    columns = tuple(c.strip() for c in col_text.split(separator))
+    # channel names as the contract writes them (a LabVIEW export may capitalise them:
+    # "P1", "Depth")
+    columns = tuple(c.strip().lower() for c in col_text.split(separator))
     _check_columns(path, col_no, columns, notes)
     zone = meta.get("timezone", (0, "UTC"))
     try:

@@ -307,3 +307,26 @@ def test_a_lookup_failing_on_a_new_files_first_batch_refuses_that_file_alone(
     assert str(bad) in report.files[0].message
     assert "the hoist register is unavailable" in report.files[0].message
     assert report.files[1].rows_landed == 20
+
+
+def test_capitalised_channel_names_land_as_the_contracts(corpus, tmp_path, root):
+    """A column line written ``Timestamp,P1,...,Depth,Speed,Oil_Temp`` (an export's
+    capitalisation) lands every channel as the contract's lower-case names do: the same
+    samples, none ignored."""
+    rows = corpus.data_rows(30)
+    lower = corpus.csv_file(tmp_path / "lower.csv", rows)
+    upper = corpus.csv_file(
+        tmp_path / "upper.csv", rows, columns=[c.title() for c in corpus.COLUMNS]
+    )
+    other = DataRoot.resolve(tmp_path / "other")
+    first = ingest_paths([lower], data=root).files[0]
+    second = ingest_paths([upper], data=other).files[0]
+    assert (first.rows_landed, second.rows_landed) == (30, 30)
+    assert "ignored" not in second.message
+
+    def landed(data: DataRoot) -> pl.DataFrame:
+        files = sorted(data.table_dir("field_samples").rglob("*.parquet"))
+        frame = pl.read_parquet(files, hive_partitioning=False).sort("time_utc")
+        return frame.drop("source_sha256")
+
+    assert landed(root).equals(landed(other))

@@ -242,7 +242,7 @@ def rest_window(time_s: np.ndarray, phase: np.ndarray, load_n: np.ndarray, at: i
     if cut <= lo:
         return slice(lo, lo)
     # the raw load's 2 s centred mean against its value at the window's start
-    centred = centred_mean(time_s, load_n, lo, cut)
+    centred = centred_mean(time_s, load_n, lo, cut, phase)
     reference = centred[0]
     if not np.isfinite(reference):
         return slice(lo, lo)
@@ -254,13 +254,24 @@ def rest_window(time_s: np.ndarray, phase: np.ndarray, load_n: np.ndarray, at: i
     return slice(lo, cut)
 
 
-def centred_mean(time_s: np.ndarray, values: np.ndarray, lo: int, hi: int) -> np.ndarray:
-    """The 2 s centred mean of ``values`` (its known ones) at the samples [lo, hi), from
-    the samples either side as far as they go; NaN where none is known.
+def centred_mean(
+    time_s: np.ndarray,
+    values: np.ndarray,
+    lo: int,
+    hi: int,
+    phase: np.ndarray | None = None,
+) -> np.ndarray:
+    """The 2 s centred mean of ``values`` (its known ones; with ``phase``, those at rest
+    only) at the samples [lo, hi), from the samples either side as far as they go; NaN
+    where none is known. At rest only: the load's watch for a payload change at rest
+    does not read the swing of a departure a second away as one.
 
     >>> t = np.arange(6.0)
     >>> centred_mean(t, np.array([0.0, 3.0, np.nan, 6.0, 9.0, 12.0]), 1, 4).tolist()
     [1.5, 4.5, 7.5]
+    >>> moving = np.array([_STANDSTILL] * 4 + [_RUN] * 2)
+    >>> centred_mean(t, np.array([0.0, 3.0, np.nan, 6.0, 9.0, 12.0]), 1, 4, moving).tolist()
+    [1.5, 4.5, 6.0]
     """
     n = time_s.size
     w_lo = int(np.searchsorted(time_s, time_s[lo] - 1.0, side="left")) if hi > lo else lo
@@ -269,6 +280,8 @@ def centred_mean(time_s: np.ndarray, values: np.ndarray, lo: int, hi: int) -> np
     )
     part = values[w_lo:w_hi]
     known = np.isfinite(part)
+    if phase is not None:
+        known &= phase[w_lo:w_hi] == _STANDSTILL
     sums = np.concatenate(([0.0], np.cumsum(np.where(known, part, 0.0))))
     counts = np.concatenate(([0], np.cumsum(known)))
     times = time_s[w_lo:w_hi]
@@ -475,7 +488,7 @@ def backward_shift(
         start = earliest + int(np.flatnonzero(breaks)[-1]) + 1
     if last - start < 2:
         return None
-    centred = centred_mean(t, inputs.pressure_load_n, start, last)
+    centred = centred_mean(t, inputs.pressure_load_n, start, last, phase)
     reference = centred[-1]
     if not np.isfinite(reference):
         return None
@@ -568,7 +581,7 @@ def _apply(
     fading = inputs.time_s[a:b] > state[8]
     if fading.any():
         first = a + int(np.argmax(fading))
-        centred = centred_mean(inputs.time_s, inputs.pressure_load_n, first, b)
+        centred = centred_mean(inputs.time_s, inputs.pressure_load_n, first, b, inputs.phase)
         changed = np.abs(centred - state[9]) > PAYLOAD_SHARE * abs(state[9])
         if changed.any():
             b = first + int(np.argmax(changed))

@@ -433,3 +433,22 @@ def test_a_payload_change_done_before_the_rest_window_is_no_seals_shift(
     apply_stop_continuity(inputs, [estimate], 0, t.size, continuity_state(1), HOIST)
     shift = sum(estimate) - sum(case["f"])
     np.testing.assert_allclose(shift[arrival:], 0.0 if unloaded_s is not None else -900.0)
+
+
+def test_the_departures_swing_does_not_end_the_arrivals_update_early() -> None:
+    """The stop of the test above, its raw load falling 8 kN as the conveyance
+    accelerates away (its acceleration's swing; the seals' share of it solved): the 2 s
+    centred mean that watches for a payload change at rest reads the load at rest only,
+    so the arrival's update holds to the departure, both updates sharing the stop to its
+    last sample (it ended a second early: a step of half their difference there)."""
+    case = _round_trip(change=False)
+    departure = case["departure"]
+    for f in case["f"]:
+        f[departure:] += 75.0
+    accelerating = case["phase"] == ACCEL
+    case["p"] = np.where(accelerating, case["p"] - 8e3, case["p"])
+    case["load"] = np.where(accelerating, case["load"] - 8e3, case["load"])
+    estimate = tuple(f.copy() for f in case["f"])
+    _run(case, [estimate])
+    at_rest = slice(case["arrival"], departure)
+    np.testing.assert_allclose(_load(case, estimate)[at_rest], case["load"][at_rest] + 150.0)

@@ -95,19 +95,27 @@ def mean_starts(
     return starts
 
 
-def mean_steps(starts: np.ndarray, n: int, dt_s: float) -> np.ndarray:
+def mean_steps(
+    starts: np.ndarray, n: int, dt_s: float, segment: np.ndarray | None = None
+) -> np.ndarray:
     """Step from each mean's centre to the next's [s] on a grid of ``dt_s`` (the means of
     ``n`` samples starting at ``starts``): the pistons' speed between two means; the
-    first's is ``dt_s``. A mean of one sample after another steps by ``dt_s``, as the
-    samples do.
+    first's is ``dt_s``, and with ``segment`` (each mean's gap-free segment) so is the
+    first of each segment's, as at the sensors' rate (no speed is known across a logger
+    gap, and a block read from the gap's end has no mean before it). A mean of one
+    sample after another steps by ``dt_s``, as the samples do.
 
     >>> mean_steps(np.array([0, 1, 2, 6]), 8, 0.01).round(3).tolist()
     [0.01, 0.01, 0.025, 0.03]
+    >>> mean_steps(np.array([0, 1, 2, 6]), 8, 0.01, np.array([0, 0, 0, 1])).round(3).tolist()
+    [0.01, 0.01, 0.025, 0.01]
     """
     centre = (starts + np.append(starts[1:], n) - 1) / 2.0
     steps = np.empty(starts.size)
     steps[:1] = dt_s
     steps[1:] = np.diff(centre) * dt_s
+    if segment is not None:
+        steps[1:][segment[1:] != segment[:-1]] = dt_s
     return steps
 
 

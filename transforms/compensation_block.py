@@ -498,7 +498,7 @@ class BlockCompensation(BlockSetup):
         sensors' rate instead (:meth:`member_at_rate`), their own friction in the list."""
         n = self.n
         starts, means, travel = self.member_means(inputs, step_s)
-        steps = mean_steps(starts, n, self.dt_nominal)
+        steps = mean_steps(starts, n, self.dt_nominal, means.segment)
         bounds = tuple(
             int(np.searchsorted(starts, i)) for i in (self.stage_lo, self.handover, self.spring_hi)
         )

@@ -182,3 +182,32 @@ def test_stick_slip_steps_per_sample_equal_one_step() -> None:
         stick_slip(*args, dt_s=np.full(n - 1, 0.02))
     with pytest.raises(ValueError, match="dt_s"):
         stick_slip(*args, dt_s=np.zeros(n))
+
+
+def test_means_after_a_long_logger_gap_block_by_block_equal_the_whole_record(lugre) -> None:
+    """A logger gap of 5 min: a block read from the gap's end has no mean before its
+    first, whose step (the pistons' speed, the branch loss's damping) is then the
+    sample step; the whole record's must be too, not the index distance to the last mean
+    before the gap (the load's band moved by up to 0.22 kN after the gap)."""
+    hoist, record = lugre
+    t0 = record["time_utc"][0]
+    lo, hi = t0 + dt.timedelta(seconds=300.0), t0 + dt.timedelta(seconds=600.0)
+    record = record.filter((pl.col("time_utc") < lo) | (pl.col("time_utc") >= hi))
+    block = dt.timedelta(minutes=2)
+
+    def read(lo: dt.datetime, hi: dt.datetime) -> pl.DataFrame:
+        return record.filter((pl.col("time_utc") >= lo) & (pl.col("time_utc") < hi))
+
+    end = record["time_utc"][-1] + dt.timedelta(microseconds=1)
+    context = record_context(read, hoist, start=t0, end=end, rows=record.height, block=block)
+    parts = compensate_blocks(read, hoist, start=t0, end=end, context=context,
+                              settings=ON_MEANS, block=block)  # fmt: skip
+    blocks = pl.concat(list(parts))
+    whole = compensate(record, hoist, settings=ON_MEANS)
+    assert blocks["time_utc"].equals(whole["time_utc"])
+    after = (whole["time_utc"] >= hi).to_numpy()
+    assert _band(whole, "load_hi_n")[after][-1] > _band(whole, "load_lo_n")[after][-1]
+    for column in [*BAND, "load_n"]:
+        np.testing.assert_allclose(
+            _band(blocks, column), _band(whole, column), rtol=1e-6, atol=1e-3, err_msg=column
+        )

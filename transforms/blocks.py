@@ -34,7 +34,13 @@ moved by more than the steps only more than the margin away from the block (the 
 record takes the stretch as not logged, the block as a pressure:
 :func:`transforms.alarm_events.flatline_runs`; a sensor stuck at rest on a logger
 rounding to 50 kPa, the others moving 150 kPa a few minutes away: 75.7 k samples null
-whole, 24.0 k in 4-minute blocks, session 40's review).
+whole, 24.0 k in 4-minute blocks, session 40's review), and a pressure missing for
+longer than the margin inside one segment (a dead sensor, or one stuck long enough for
+the flatline rule): the low-pass bridges the run linearly to its far end, which a
+block does not see, so the filtered samples at the run's edge differ by up to ~15 Pa
+and the stick-slip solutions then by ~0.05 N a rope for the rest of the record (the
+load by up to 1.1 N with all four missing for 400 s; session 43's review; the run's own
+samples are returned not logged either way).
 
 Block edges are whole multiples of ``block`` from midnight UTC (an hour by default), so
 a re-run of part of a day computes the same blocks.

@@ -77,6 +77,8 @@ class BackfillPlan:
     done: tuple[Partition, ...]
     empty: tuple[Partition, ...]
     undated_ingested: int = 0
+    #: Undated files ingest refused while planning, ``<file>: <reason>`` each.
+    refused: tuple[str, ...] = ()
 
     @property
     def total(self) -> int:
@@ -118,6 +120,7 @@ def plan_backfill(
     days = _days(start, end)
     known = known_files(data)
     undated = 0
+    refused: list[str] = []
     candidates: list[Partition] = []
     for source in sources:
         per_day: dict[dt.date, list[Path]] = {day: [] for day in days}
@@ -134,7 +137,8 @@ def plan_backfill(
                 if day in per_day:
                     per_day[day].append(path)
         if loose:
-            ingest_paths(loose, data=data, hoist_lookup=hoist_lookup(source))
+            ingested = ingest_paths(loose, data=data, hoist_lookup=hoist_lookup(source))
+            refused += ingested.refusal_lines()
             undated += len(loose)
         candidates += [Partition(source, day, tuple(sorted(per_day[day]))) for day in days]
     done = set() if force else completed_partitions(data, candidates, sanity=sanity)
@@ -157,7 +161,7 @@ def plan_backfill(
         len(empty),
         undated,
     )
-    return BackfillPlan(tuple(todo), tuple(finished), tuple(empty), undated)
+    return BackfillPlan(tuple(todo), tuple(finished), tuple(empty), undated, tuple(refused))
 
 
 def has_samples_or_error(partition: Partition, data: DataRoot) -> bool:
@@ -196,7 +200,8 @@ def backfill(
     ``report.report_path``; published as ``backfill-report`` by a Prefect executor).
 
     Resumable and idempotent (module docstring). Never raises for a failed partition:
-    failures are in ``report.failed`` with their reasons and in ``runs``.
+    failures are in ``report.failed`` with their reasons and in ``runs``; nor for a
+    refused file: ``report.refused`` names it (and ``report.ok`` is False).
     ``on_plan(plan)`` is called once before the partitions start (e.g. to size a bar).
     """
     if executor is None:
@@ -207,7 +212,7 @@ def backfill(
     )
     if on_plan is not None:
         on_plan(plan)
-    report = BackfillReport(outcomes=plan.settled())
+    report = BackfillReport(outcomes=plan.settled(), refused_files=list(plan.refused))
     for outcome in report.outcomes:
         if progress is not None:
             progress(outcome)

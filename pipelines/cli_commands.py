@@ -179,13 +179,21 @@ def _fleet(args: argparse.Namespace, run_plain, run_flow) -> int:
         report = run_plain(sources, data, None if args.no_progress else StderrProgress(0))
     sys.stdout.write(str(report))
     if not report.ok:
-        failed = getattr(report, "runs", report).failed
-        raise RopeloadError(
-            f"{len(failed)} partition(s) failed (reasons above; also in the runs table)"
-            if failed
-            else "some files were refused (see above)"
-        )
+        raise RopeloadError(failure_line(report))
     return 0
+
+
+def failure_line(report) -> str:
+    """Why a backfill's or night's ``report`` is not ok, in one line: its failed
+    partitions, else its refused files, the first one named with its reason."""
+    failed = getattr(report, "runs", report).failed
+    if failed:
+        return f"{len(failed)} partition(s) failed (reasons above; also in the runs table)"
+    refused = list(getattr(report, "refused", []))
+    if not refused:
+        return "some files were refused (see above)"
+    more = f" (and {len(refused) - 1} more, above)" if len(refused) > 1 else ""
+    return f"some files were refused: {refused[0]}{more}"
 
 
 def cmd_backfill(args: argparse.Namespace) -> int:

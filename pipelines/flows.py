@@ -75,14 +75,20 @@ __all__ = [
 
 
 class PartitionsFailed(RuntimeError):
-    """Some partitions of a backfill or night failed; ``report`` has every outcome."""
+    """Some partitions of a backfill or night failed, or files were refused; ``report``
+    has every outcome."""
 
     def __init__(self, report: BackfillReport | NightlyReport) -> None:
         runs = report.runs if isinstance(report, NightlyReport) else report
         failed = runs.failed
         reasons = "; ".join(f"{o.key}: {o.message}" for o in failed[:3])
         more = f" (and {len(failed) - 3} more)" if len(failed) > 3 else ""
-        super().__init__(f"{len(failed)} partition(s) failed: {reasons}{more}")
+        line = f"{len(failed)} partition(s) failed: {reasons}{more}" if failed else ""
+        refused = list(getattr(report, "refused", []))
+        if refused:  # the files ingest refused, one line each
+            line = "; ".join(filter(None, [line, f"{len(refused)} file(s) refused"]))
+            line += ":\n" + "\n".join(refused)
+        super().__init__(line or "some files were refused")
         self.report = report
 
 

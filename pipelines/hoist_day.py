@@ -84,7 +84,7 @@ def run_partition(
     without samples is an ``empty`` outcome, not an error.
     """
     t0 = time.perf_counter()
-    ingested, notes = _ingest(partition, data)
+    ingested, notes, refused = _ingest(partition, data)
     t1 = time.perf_counter()
     if not partition.has_samples(data):
         return new_outcome(
@@ -92,6 +92,7 @@ def run_partition(
             "empty",
             message="; ".join(["no landed samples", *notes]),
             files_ingested=ingested,
+            refused=refused,
             ingest_s=t1 - t0,
         )
     state, row = "todo", None
@@ -103,6 +104,7 @@ def run_partition(
             "skipped",
             message="; ".join(["done: same inputs and hoist description", *notes]),
             files_ingested=ingested,
+            refused=refused,
             ingest_s=t1 - t0,
         )
     if state == "sanity":
@@ -122,7 +124,14 @@ def run_partition(
                 settings=CompensationSettings(band_member_step_s=band_member_step_s),
             )
         except NoSamplesError as exc:
-            return new_outcome(partition, "empty", message=str(exc), ingest_s=t1 - t0)
+            return new_outcome(
+                partition,
+                "empty",
+                message="; ".join([str(exc), *notes]),
+                files_ingested=ingested,
+                refused=refused,
+                ingest_s=t1 - t0,
+            )
         run_id, trips, samples = result.run_id, result.trip_summary.height, result.samples
         head = f"{trips} trips, {result.alarms.height} alarms"
     checks: dict[str, Any] = {}
@@ -136,19 +145,22 @@ def run_partition(
         run_id=run_id,
         samples=samples,
         files_ingested=ingested,
+        refused=refused,
         ingest_s=t1 - t0,
         run_s=t2 - t1,
         **checks,
     )
 
 
-def _ingest(partition: Partition, data: DataRoot) -> tuple[int, list[str]]:
-    """The partition's new files into the lake: how many landed, a note per refused one."""
+def _ingest(partition: Partition, data: DataRoot) -> tuple[int, list[str], tuple[str, ...]]:
+    """The partition's new files into the lake: how many landed, a note per refused one,
+    and the refused files' ``<file>: <reason>`` lines (they fail the command)."""
     if not partition.files:
-        return 0, []
+        return 0, [], ()
     report = ingest_paths(partition.files, data=data, hoist_lookup=hoist_lookup(partition.source))
     ingested = sum(f.status in ("landed", "partial") for f in report)
-    return ingested, [f"refused {f.path.name}: {f.message}" for f in report.refused]
+    notes = [f"refused {f.path.name}: {f.message}" for f in report.refused]
+    return ingested, notes, tuple(report.refusal_lines())
 
 
 def _checked(

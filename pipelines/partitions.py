@@ -98,6 +98,9 @@ class PartitionOutcome:
     #: The optional steps' outcomes that did not go as planned, in words (e.g. "sanity
     #: check: failed: ValueError: ..."): findings of a day that still counts as done.
     findings: tuple[str, ...] = ()
+    #: The new files ingest refused for this day, one ``<file>: <reason>`` line each:
+    #: whatever the day's status, they fail the backfill (or night) that ingested them.
+    refused: tuple[str, ...] = ()
     ingest_s: float = 0.0
     run_s: float = 0.0
 
@@ -158,6 +161,9 @@ class BackfillReport:
     #: Things to say that are not a partition's outcome, one line each (e.g. an incoming
     #: folder no hoist claims); they do not fail it.
     notes: list[str] = field(default_factory=list)
+    #: Files refused that belong to no partition (undated files ingested while
+    #: planning), one ``<file>: <reason>`` line each; they fail it.
+    refused_files: list[str] = field(default_factory=list)
 
     def count(self, status: Status) -> int:
         return sum(o.status == status for o in self.outcomes)
@@ -167,8 +173,15 @@ class BackfillReport:
         return sorted((o for o in self.outcomes if o.status == "failed"), key=lambda o: o.key)
 
     @property
+    def refused(self) -> list[str]:
+        """Every refused file once (a file covering two days is read by both), as
+        ``<file>: <reason>``."""
+        lines = [*self.refused_files, *(r for o in self.outcomes for r in o.refused)]
+        return sorted(dict.fromkeys(lines))
+
+    @property
     def ok(self) -> bool:
-        return not self.failed
+        return not self.failed and not self.refused
 
     @property
     def samples(self) -> int:
@@ -209,6 +222,9 @@ class BackfillReport:
         if self.failed:
             lines.append("failed partitions:")
             lines += [f"  {o.key}: {o.message}" for o in self.failed]
+        if self.refused:
+            lines.append("refused files (put a corrected file in the incoming folder):")
+            lines += [f"  {line}" for line in self.refused]
         if self.report_path is not None:
             lines.append(f"report: {self.report_path}")
         return "\n".join(lines) + "\n"

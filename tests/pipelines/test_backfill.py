@@ -256,3 +256,31 @@ def test_backfill_with_band_members_on_means_records_it(mine, tmp_path, capsys):
     assert all(m.endswith("; band members on 0.5 s means") for m in messages)
     assert main(command) == 0  # done: same inputs and hoist description, not redone
     assert "0 run, 2 already done" in capsys.readouterr().out
+
+
+def test_a_refused_file_fails_the_backfill_and_is_named(mine, tmp_path, capsys):
+    """A log the backfill ingests and refuses (here not a log at all): the backfill
+    names it and exits 1 (was: status 0, "0 failed", the file nowhere on stdout or
+    stderr; its day counted as "without data")."""
+    from pipelines.cli import main
+
+    hoists, incoming = mine
+    local = tmp_path / "incoming"
+    shutil.copytree(incoming, local)
+    bad = local / "paper-field-test" / "shaft-1" / "paper-field-test_shaft-1_20260306.csv"
+    bad.write_text("garbage\nnot,a,log\n")
+    data = tmp_path / "data"
+    argv = ["backfill", "--hoists", str(hoists), "--incoming", str(local), "--data", str(data),
+            "--from", "2026-03-05", "--to", "2026-03-06", "--no-progress"]  # fmt: skip
+    assert main(argv) == 1
+    out, err = capsys.readouterr()
+    assert str(bad) in out
+    assert err.count("\n") == 1, err
+    assert err.startswith("ropeload backfill: "), err
+    assert str(bad) in err
+    con = open_reader(DataRoot.resolve(data))
+    try:
+        failed = con.execute("SELECT count(*) FROM runs WHERE status = 'failed'").fetchone()
+    finally:
+        con.close()
+    assert failed == (0,)  # a refused file is no failed day: its days had no other data

@@ -237,9 +237,14 @@ class NightlyReport:
     notes: list[str] = field(default_factory=list)
 
     @property
+    def refused(self) -> list[str]:
+        """The files the night's ingest refused, one ``<file>: <reason>`` each."""
+        lines = [r for n in self.hoists if n.ingest is not None for r in n.ingest.refusal_lines()]
+        return [*lines, *self.runs.refused]
+
+    @property
     def ok(self) -> bool:
-        refused = any(n.ingest is not None and not n.ingest.ok for n in self.hoists)
-        return self.runs.ok and not refused and not any(n.error for n in self.hoists)
+        return self.runs.ok and not self.refused and not any(n.error for n in self.hoists)
 
     @property
     def work_s(self) -> float:
@@ -259,6 +264,8 @@ class NightlyReport:
                 f" -> {row['watermark_after'] or '-'}"
                 + (f"; ingest failed: {night.error}" if night.error else "")
             )
+            if night.ingest is not None:
+                lines += [f"  refused {line}" for line in night.ingest.refusal_lines()]
         lines += self.notes
         checks = sum(o.checks for o in self.runs.outcomes)
         failed = sum(o.checks_failed for o in self.runs.outcomes)

@@ -495,3 +495,26 @@ def test_a_pending_file_with_entries_that_are_no_hoist_days_is_read_without_them
     assert work.discoveries == {"s/h/2026-03-03": "run-1"}
     (data.path / "state" / "nightly-pending.json").write_text('{"runs": "abc"}')
     assert load_pending(data).runs == set()
+
+
+def test_a_file_a_night_refuses_is_named_with_its_reason(tmp_path, capsys, small_csv):
+    """A file the night's ingest refuses is named, with the reason, in the night's
+    summary and in the one line on stderr (was: "1 refused" and "some files were refused
+    (see above)": which file and why were nowhere but the manifest)."""
+    hoists, incoming = tmp_path / "hoists", tmp_path / "incoming"
+    hoists.mkdir()
+    (hoists / "main-shaft.toml").write_text(EXAMPLE_HOIST.read_text(encoding="utf-8"))
+    folder = incoming / "paper-field-test" / "main-shaft"
+    folder.mkdir(parents=True)
+    small_csv(folder / "good.csv", rows=50)
+    bad = folder / "paper-field-test_main-shaft_20260302.csv"
+    bad.write_text("garbage\nnot,a,log\n")
+    data = tmp_path / "data"
+    argv = ["nightly", "--hoists", str(hoists), "--incoming", str(incoming),
+            "--data", str(data), "--no-progress", "--no-sanity"]  # fmt: skip
+    assert main(argv) == 1
+    out, err = capsys.readouterr()
+    assert f"refused {bad}: " in out
+    last = err.splitlines()[-1]  # (warnings of the good file's run before it)
+    assert last.startswith(f"ropeload nightly: some files were refused: {bad}: "), err
+    assert "header lacks" in last

@@ -175,8 +175,16 @@ def _fleet(args: argparse.Namespace, run_plain, run_flow) -> int:
         except PartitionsFailed as exc:
             report = exc.report
     else:
-        sources = load_hoists(args.hoists, data=data, incoming=args.incoming)
-        report = run_plain(sources, data, None if args.no_progress else StderrProgress(0))
+        bar = None if args.no_progress else StderrProgress(0)
+        if args.command == "nightly":  # a broken description holds up no other hoist
+            unreadable: list[str] = []
+            sources = load_hoists(
+                args.hoists, data=data, incoming=args.incoming, unreadable=unreadable
+            )
+            report = run_plain(sources, data, bar, unreadable)
+        else:
+            sources = load_hoists(args.hoists, data=data, incoming=args.incoming)
+            report = run_plain(sources, data, bar)
     sys.stdout.write(str(report))
     if not report.ok:
         raise RopeloadError(failure_line(report))
@@ -189,6 +197,10 @@ def failure_line(report) -> str:
     failed = getattr(report, "runs", report).failed
     if failed:
         return f"{len(failed)} partition(s) failed (reasons above; also in the runs table)"
+    errors = list(getattr(report, "hoist_errors", []))
+    if errors:
+        more = f" (and {len(errors) - 1} more, above)" if len(errors) > 1 else ""
+        return f"{len(errors)} hoist(s) not run: {errors[0]}{more}"
     refused = list(getattr(report, "refused", []))
     if not refused:
         return "some files were refused (see above)"
@@ -237,11 +249,12 @@ def cmd_nightly(args: argparse.Namespace) -> int:
     if len(args.hoists) != 1 and (args.prefect or args.dask):
         raise RopeloadError("--prefect / --dask take a single --hoists folder")
 
-    def run_plain(sources, data, bar):
+    def run_plain(sources, data, bar, unreadable):
         from pipelines.nightly import nightly
 
         return nightly(
             sources,
+            unreadable=unreadable,
             data=data,
             max_workers=args.workers,
             lookback_days=args.lookback_days,

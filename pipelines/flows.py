@@ -84,6 +84,9 @@ class PartitionsFailed(RuntimeError):
         reasons = "; ".join(f"{o.key}: {o.message}" for o in failed[:3])
         more = f" (and {len(failed) - 3} more)" if len(failed) > 3 else ""
         line = f"{len(failed)} partition(s) failed: {reasons}{more}" if failed else ""
+        errors = list(getattr(report, "hoist_errors", []))
+        if errors:
+            line = "; ".join(filter(None, [line, f"{len(errors)} hoist(s) not run: {errors[0]}"]))
         refused = list(getattr(report, "refused", []))
         if refused:  # the files ingest refused, one line each
             line = "; ".join(filter(None, [line, f"{len(refused)} file(s) refused"]))
@@ -244,8 +247,10 @@ def nightly_flow(
         if progress is not None:
             progress.resize(len(partitions))
 
+    unreadable: list[str] = []  # a broken description holds up no other hoist
     report = nightly(
-        load_hoists(hoists, data=root, incoming=incoming),
+        load_hoists(hoists, data=root, incoming=incoming, unreadable=unreadable),
+        unreadable=unreadable,
         data=root,
         lookback_days=lookback_days,
         sanity=sanity,

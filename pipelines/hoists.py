@@ -96,12 +96,19 @@ def _source(path: Path, incoming_root: Path) -> HoistSource:
 
 
 def load_hoists(
-    hoists: str | Path | Sequence[str | Path], *, data: DataRoot, incoming: str | Path | None = None
+    hoists: str | Path | Sequence[str | Path],
+    *,
+    data: DataRoot,
+    incoming: str | Path | None = None,
+    unreadable: list[str] | None = None,
 ) -> list[HoistSource]:
     """Hoists from a folder of hoist descriptions (``*.toml``) or a list of files.
 
     ``incoming`` (default ``<data>/incoming``) holds ``<site>/<hoist>/`` per hoist.
-    Raises ValueError for an empty folder or two files describing the same hoist.
+    Raises ValueError for an empty folder or two files describing the same hoist, and
+    whatever loading a description raises -- unless ``unreadable`` is a list: then a
+    description that cannot be loaded is left out and said there, one ``<file>:
+    <reason>`` line each (a night runs the other hoists).
     """
     root = Path(incoming) if incoming is not None else data.path / "incoming"
     if isinstance(hoists, str | Path):
@@ -117,7 +124,15 @@ def load_hoists(
             files.append(entry)
         else:
             raise FileNotFoundError(f"{entry}: no such hoist description or folder")
-    sources = [_source(path, root) for path in files]
+    sources = []
+    for path in files:
+        try:
+            sources.append(_source(path, root))
+        except (ValueError, OSError) as exc:  # HoistDescriptionError is a ValueError
+            if unreadable is None:
+                raise
+            reason = " ".join(str(exc).split()).removeprefix(f"{path}: ")
+            unreadable.append(f"{path}: {reason or type(exc).__name__}")
     seen: dict[str, Path] = {}
     for source in sources:
         if source.key in seen:

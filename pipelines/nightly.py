@@ -235,6 +235,9 @@ class NightlyReport:
     #: files (:func:`pipelines.hoists.incoming_notes`), an optional step's failure.
     #: Said, landed where there is a day to land it with, never a failed night.
     notes: list[str] = field(default_factory=list)
+    #: Hoist descriptions that could not be read, ``<file>: <reason>`` each: their hoists
+    #: were not run (the others were); they fail the night.
+    unreadable: list[str] = field(default_factory=list)
 
     @property
     def refused(self) -> list[str]:
@@ -243,8 +246,14 @@ class NightlyReport:
         return [*lines, *self.runs.refused]
 
     @property
+    def hoist_errors(self) -> list[str]:
+        """Hoists the night could not take up: unreadable descriptions, failed ingests."""
+        failed = [f"{n.source.key}: ingest failed: {n.error}" for n in self.hoists if n.error]
+        return [*self.unreadable, *failed]
+
+    @property
     def ok(self) -> bool:
-        return self.runs.ok and not self.refused and not any(n.error for n in self.hoists)
+        return self.runs.ok and not self.refused and not self.hoist_errors
 
     @property
     def work_s(self) -> float:
@@ -314,8 +323,13 @@ def nightly(
     on_plan: Callable[[list[Partition]], None] | None = None,
     write_report: bool = True,
     executor: Executor | None = None,
+    unreadable: Sequence[str] = (),
 ) -> NightlyReport:
     """One night for ``sources``: ingest new files per hoist, run the affected days.
+
+    ``unreadable``: hoist descriptions left out of ``sources`` because they could not be
+    read (:func:`pipelines.hoists.load_hoists`), ``<file>: <reason>`` each: said in the
+    night's report and failing it, not holding up the other hoists.
 
     ``executor`` runs the steps (:mod:`pipelines.executors`); by default a
     :class:`~pipelines.executors.PlainExecutor` of ``max_workers`` threads and
@@ -332,7 +346,7 @@ def nightly(
         return _night(
             sources, data=data, executor=executor or PlainExecutor(max_workers, retries),
             lookback_days=lookback_days, sanity=sanity, progress=progress, on_plan=on_plan,
-            write_report=write_report,
+            write_report=write_report, unreadable=unreadable,
         )  # fmt: skip
 
 
@@ -401,10 +415,12 @@ def _night(
     progress: Callable[[PartitionOutcome], None] | None,
     on_plan: Callable[[list[Partition]], None] | None,
     write_report: bool,
+    unreadable: Sequence[str],
 ) -> NightlyReport:
     """:func:`nightly`'s night, under its lock."""
     t0 = time.perf_counter()
-    notes = incoming_notes(sources)
+    notes = [f"hoist description {line}; its hoist was not run" for line in unreadable]
+    notes += incoming_notes(sources)
     nights = _ingest(executor, sources, data=data)
     pending = load_pending(data)
     configured = {(source.site, source.hoist) for source in sources}
@@ -434,8 +450,9 @@ def _night(
     discoveries = {key: discovery_words(step) for key, step in found.items()}
     runs = BackfillReport(outcomes=outcomes, wall_s=time.perf_counter() - t0)
     night = NightlyReport(
-        hoists=nights, runs=runs, discoveries=discoveries, discover_s=discover_s, notes=notes
-    )
+        hoists=nights, runs=runs, discoveries=discoveries, discover_s=discover_s, notes=notes,
+        unreadable=list(unreadable),
+    )  # fmt: skip
     if write_report:
         night.report_path = fleet_report(
             executor, data, key="nightly-report", notes=night.notes, kind="nightly",

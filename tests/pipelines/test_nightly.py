@@ -518,3 +518,24 @@ def test_a_file_a_night_refuses_is_named_with_its_reason(tmp_path, capsys, small
     last = err.splitlines()[-1]  # (warnings of the good file's run before it)
     assert last.startswith(f"ropeload nightly: some files were refused: {bad}: "), err
     assert "header lacks" in last
+
+
+def test_a_hoist_description_broken_before_the_night_holds_up_no_other_hoist(site, capsys):
+    """shaft-2's description saved with a typo between two nights: the night runs
+    shaft-1, names shaft-2's file and reason, and exits 1 (was: the one line about
+    shaft-2 and nothing run for any hoist, night after night until it was mended)."""
+    hoists, incoming, data = site
+    path = hoists / "shaft-2.toml"
+    path.write_text(path.read_text().replace('mass = "8.2 t"', 'mass = "8.2 m"'))
+    for later in (incoming / "paper-field-test" / "shaft-1").glob("*_20260303.csv"):
+        later.unlink()  # one day of shaft-1 is enough
+    argv = ["nightly", "--hoists", str(hoists), "--incoming", str(incoming),
+            "--data", str(data.path), "--no-progress", "--no-sanity"]  # fmt: skip
+    assert main(argv) == 1
+    out, err = capsys.readouterr()
+    last = err.splitlines()[-1]
+    assert last.startswith(f"ropeload nightly: 1 hoist(s) not run: {path}: "), err
+    assert "conveyance.mass" in last
+    assert f"hoist description {path}: " in out
+    ledger = partition_ledger(data).select("hoist", "day", "status").rows()
+    assert ledger == [("shaft-1", dt.date(2026, 3, 2), "succeeded")]

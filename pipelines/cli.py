@@ -182,6 +182,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         except ValueError as exc:
             sys.stderr.write(f"ropeload {command}: {exc}\n")
             return 2
+    if command == "backfill" and end < start:  # days, --to included: a bad value, status 2
+        sys.stderr.write(
+            f"ropeload {command}: the range is empty: --to {end} is before --from {start}\n"
+        )
+        return 2
     problem = _data_root_problem(args)
     if problem is not None:
         sys.stderr.write(f"ropeload {command}: {problem}\n")

@@ -698,3 +698,16 @@ def test_the_deployments_empty_data_root_is_a_usage_error(tmp_path, capsys):
     assert "argument --data: empty" in capsys.readouterr().err
     args = build_parser().parse_args(["serve", "--hoists", str(tmp_path), "--data", "d"])
     assert args.data.name == "d"
+
+
+def test_a_reversed_backfill_range_is_a_usage_error(tmp_path, capsys):
+    """backfill --to before --from: status 2, a bad option's value, as run's and
+    discover's reversed period (was 1, a run's failure)."""
+    hoists = tmp_path / "hoists"
+    hoists.mkdir()
+    (hoists / "main-shaft.toml").write_text(HOIST.read_text(encoding="utf-8"))
+    argv = ["backfill", "--hoists", str(hoists), "--data", str(tmp_path / "data"),
+            "--from", "2026-03-05", "--to", "2026-03-01", "--no-progress"]  # fmt: skip
+    assert main(argv) == 2
+    err = _one_line(capsys.readouterr().err, "backfill")
+    assert "--to 2026-03-01 is before --from 2026-03-05" in err

@@ -330,8 +330,10 @@ def land_sanity_checks(
     run_ids = sorted(set(frame["run_id"].to_list()) | ({run_id} if run_id else set()))
     with open_writer(data) as con:
         con.execute("DELETE FROM sanity_checks WHERE list_contains(?, run_id)", [run_ids])
-        drop_orphan_sanity_checks(con, site=site, hoist=hoist)
         landed = insert_frame(con, "sanity_checks", frame)
+        # after the insert: a run that took this one's trips over while it was being
+        # checked (a night and a backfill of the same day) leaves these checks no one's
+        drop_orphan_sanity_checks(con, site=site, hoist=hoist)
         if step is not None and run_id is not None:
             land_steps(con, run_id=run_id, site=site, hoist=hoist, outcomes=[step])
         return landed

@@ -284,3 +284,40 @@ def test_a_refused_file_fails_the_backfill_and_is_named(mine, tmp_path, capsys):
     finally:
         con.close()
     assert failed == (0,)  # a refused file is no failed day: its days had no other data
+
+
+def test_a_check_of_a_run_replaced_while_it_ran_lands_no_verdict(mine, tmp_path):
+    """A backfill with --sanity and a night on the same day, interleaved: the backfill's
+    run lands, the night's run of the day replaces its trips, then the backfill's check
+    lands. Its verdicts name trips no run holds: they go (they stayed, counted in the
+    audit beside the night's own)."""
+    from pipelines.hoist_day import check_sanity
+    from pipelines.ingest import ingest_paths
+    from pipelines.run_period import run_period
+
+    hoists, incoming = mine
+    data = DataRoot.resolve(tmp_path / "data")
+    hoist = hoists / "shaft-1.toml"
+    assert ingest_paths(
+        sorted((incoming / "paper-field-test" / "shaft-1").glob("*.csv")), data=data
+    ).ok
+    start = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
+    period = {
+        "hoist_path": hoist,
+        "data": data,
+        "start": start,
+        "end": start + dt.timedelta(days=1),
+    }
+    first = run_period(**period, command="backfill")
+    run_period(**period, command="nightly")
+    checked = check_sanity(**period, run_id=first.run_id)
+    assert checked.checks.height >= 1
+    con = open_reader(data)
+    try:
+        orphans = con.sql(
+            "SELECT c.run_id, c.trip_id FROM sanity_checks c ANTI JOIN trip_summary t "
+            "USING (run_id, trip_id)"
+        ).fetchall()
+    finally:
+        con.close()
+    assert orphans == []

@@ -518,7 +518,7 @@ def test_the_report_draws_every_figure_in_headless_chromium_without_network(demo
     shot = _screenshot_module()
     if shot.find_chromium() is None:
         pytest.skip(
-            "no chromium on PATH (Debian: apt-get install chromium); CI machines may lack it"
+            "no chromium on PATH (Debian: apt-get install chromium; make test installs it as root)"
         )
     _, path, html, _ = demo
     rendering = shot.render(path, width=1400, settle_s=0.5)

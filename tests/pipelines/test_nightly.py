@@ -387,16 +387,23 @@ def test_deploy_serve_and_pool_take_the_switches_of_nightly(tmp_path):
         )
 
 
-def test_a_file_naming_another_hoist_in_a_hoists_folder_is_refused(tmp_path, capsys, small_csv):
-    """A log whose header names another hoist, dropped in main-shaft's incoming folder:
-    refused, named, nothing of it landed (was: landed silently in the other hoist's lake,
-    counted as main-shaft's rows)."""
+def _one_hoist_mine(tmp_path, small_csv):
+    """A mine of one hoist (the example's, main-shaft) with 50 rows in its incoming
+    folder: (hoists folder, incoming folder, the hoist's incoming folder)."""
     hoists, incoming = tmp_path / "hoists", tmp_path / "incoming"
     hoists.mkdir()
     (hoists / "main-shaft.toml").write_text(EXAMPLE_HOIST.read_text(encoding="utf-8"))
     folder = incoming / "paper-field-test" / "main-shaft"
     folder.mkdir(parents=True)
     small_csv(folder / "good.csv", rows=50)
+    return hoists, incoming, folder
+
+
+def test_a_file_naming_another_hoist_in_a_hoists_folder_is_refused(tmp_path, capsys, small_csv):
+    """A log whose header names another hoist, dropped in main-shaft's incoming folder:
+    refused, named, nothing of it landed (was: landed silently in the other hoist's lake,
+    counted as main-shaft's rows)."""
+    hoists, incoming, folder = _one_hoist_mine(tmp_path, small_csv)
     foreign = small_csv(folder / "foreign.csv", rows=30, start="2026-03-02 07:00:00")
     foreign.write_text(foreign.read_text().replace("# hoist: main-shaft", "# hoist: other-shaft"))
     data = tmp_path / "data"
@@ -501,12 +508,7 @@ def test_a_file_a_night_refuses_is_named_with_its_reason(tmp_path, capsys, small
     """A file the night's ingest refuses is named, with the reason, in the night's
     summary and in the one line on stderr (was: "1 refused" and "some files were refused
     (see above)": which file and why were nowhere but the manifest)."""
-    hoists, incoming = tmp_path / "hoists", tmp_path / "incoming"
-    hoists.mkdir()
-    (hoists / "main-shaft.toml").write_text(EXAMPLE_HOIST.read_text(encoding="utf-8"))
-    folder = incoming / "paper-field-test" / "main-shaft"
-    folder.mkdir(parents=True)
-    small_csv(folder / "good.csv", rows=50)
+    hoists, incoming, folder = _one_hoist_mine(tmp_path, small_csv)
     bad = folder / "paper-field-test_main-shaft_20260302.csv"
     bad.write_text("garbage\nnot,a,log\n")
     data = tmp_path / "data"

@@ -94,6 +94,7 @@ def run_report(
     tables = run_tables(data, [result.run_id])
     start, end = result.period_start_utc, result.period_end_utc
     label = _period_label(zone, start, end)
+    shown = zone.for_period(start, end)  # the sections' times: UTC if the clocks go back
     compute = Step(
         "compensation, reconciliation and alarms",
         "done",
@@ -117,8 +118,9 @@ def run_report(
         title=f"ropeload {command}: {result.site}/{result.hoist}, {label}",
         file_name=f"{result.run_id}_{result.site}_{result.hoist}.html",
         about=[
-            f"hoist {result.site}/{result.hoist}; times in its local time, "
-            f"{zone.label(start, end)}",
+            f"hoist {result.site}/{result.hoist}; times in "
+            + ("" if shown.instead_of else "its local time, ")
+            + shown.label(start, end),
             f"run {result.run_id}, code {code_version()}, data root {data.path}",
         ],
     )

@@ -17,6 +17,7 @@ and also accepted under the earlier ones.
 from __future__ import annotations
 
 import datetime as dt
+import itertools
 import zoneinfo
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -34,6 +35,8 @@ __all__ = [
     "discovery_rows",
     "run_tables",
 ]
+
+_ZERO = dt.timedelta(0)
 
 #: Pixel buckets of a time-series plot (about the width of a wide screen).
 BUCKETS = 2000
@@ -56,18 +59,43 @@ _TRIP_OPTIONAL = {
 
 @dataclass(frozen=True)
 class Zone:
-    """A hoist's time zone: UTC -> local wall time, and its name for axis titles."""
+    """A hoist's time zone: UTC -> local wall time, and its name for axis titles.
+
+    ``instead_of``: set on the UTC zone that :meth:`for_period` puts in place of a
+    hoist's zone whose clocks go back within a period (its name).
+    """
 
     name: str
+    instead_of: str = ""
 
     @property
     def info(self) -> zoneinfo.ZoneInfo:
         return zoneinfo.ZoneInfo(self.name)
 
+    def for_period(self, start: dt.datetime, end: dt.datetime) -> Zone:
+        """This zone, or UTC in its place when its clocks go back between ``start`` and
+        ``end``: local wall time repeats an hour there, so a time axis in it would run
+        backwards (a period inside the repeated hour: from 02:30 to 02:29) and a table's
+        times would be ambiguous."""
+        if self.instead_of or not self._goes_back(start, end):
+            return self
+        return Zone("UTC", instead_of=self.name)
+
+    def _goes_back(self, start: dt.datetime, end: dt.datetime) -> bool:
+        """Whether the zone's UTC offset decreases somewhere in ``[start, end]`` (sampled
+        every 30 minutes: zones change their offset at most a few times a year)."""
+        step = dt.timedelta(minutes=30)
+        moments = [start + k * step for k in range(max(int((end - start) / step), 0) + 1)]
+        offsets = [m.astimezone(self.info).utcoffset() or _ZERO for m in [*moments, end]]
+        return any(b < a for a, b in itertools.pairwise(offsets))
+
     def label(self, start: dt.datetime, end: dt.datetime | None = None) -> str:
         """``Asia/Shanghai, UTC+08:00``: the offsets at ``start`` and ``end`` (both when
         daylight saving changes between them; a period holding two changes, spring and
-        autumn, names the one its ends share)."""
+        autumn, names the one its ends share). UTC in place of a zone (:meth:`for_period`)
+        says why."""
+        if self.instead_of:
+            return f"UTC, as the clocks of {self.instead_of} go back in this period"
         offsets = []
         for moment in (start, end or start):
             offset = moment.astimezone(self.info).strftime("%z")
@@ -77,7 +105,7 @@ class Zone:
         return f"{self.name}, {' / '.join(offsets)}"
 
     def axis_title(self, start: dt.datetime, end: dt.datetime | None = None) -> str:
-        return f"local time ({self.label(start, end)})"
+        return f"{'time' if self.instead_of else 'local time'} ({self.label(start, end)})"
 
     def local(self, moment: dt.datetime) -> dt.datetime:
         return moment.astimezone(self.info)

@@ -80,7 +80,9 @@ class HoistPeriod:
 
     @property
     def zone(self) -> Zone:
-        return Zone(self.description.hoist.timezone)
+        """The hoist's zone, or UTC where its clocks go back in the period
+        (:meth:`Zone.for_period`)."""
+        return Zone(self.description.hoist.timezone).for_period(self.start_utc, self.end_utc)
 
 
 def count_text(n: int, noun: str) -> str:

@@ -104,13 +104,18 @@ def hoist_sections(data: DataRoot, period: HoistPeriod, tables: RunTables) -> li
 
 def _head(period: HoistPeriod, tables: RunTables, zone: Zone) -> Section:
     head = Section(f"{period.site}/{period.hoist}: {period.label}", anchor=period.anchor)
-    head.say(
-        f"Period {zone.text(period.start_utc, '%Y-%m-%d %H:%M')} .. "
-        f"{zone.text(period.end_utc, '%Y-%m-%d %H:%M')} local time "
-        f"({zone.label(period.start_utc, period.end_utc)}), "
-        f"{period.start_utc:%Y-%m-%d %H:%M} .. {period.end_utc:%Y-%m-%d %H:%M} UTC; run "
-        f"{period.run_id}."
-    )
+    utc = f"{period.start_utc:%Y-%m-%d %H:%M} .. {period.end_utc:%Y-%m-%d %H:%M} UTC"
+    if zone.instead_of:
+        head.say(
+            f"Period {utc}; run {period.run_id}. Times here are UTC: the clocks of "
+            f"{zone.instead_of} go back within this period, so its local times repeat."
+        )
+    else:
+        head.say(
+            f"Period {zone.text(period.start_utc, '%Y-%m-%d %H:%M')} .. "
+            f"{zone.text(period.end_utc, '%Y-%m-%d %H:%M')} local time "
+            f"({zone.label(period.start_utc, period.end_utc)}), {utc}; run {period.run_id}."
+        )
     for step in period.steps:
         head.say(step.sentence(), "fail" if step.status == "failed" else "info")
     trips, alarms = tables.trip_summary, tables.alarms

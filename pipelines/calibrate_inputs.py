@@ -85,8 +85,8 @@ def read_rig_info(path: str | Path) -> RigInfo:
     except Exception:  # truncated: no summary; the info message comes first anyway
         with path.open("rb") as handle:
             reader = NonSeekingReader(handle, decoder_factories=[JsonDecoderFactory()])
-            try:
-                for _schema, channel, message in reader.iter_messages():
+            try:  # in file order: an ordered read sorts all (up to the cut) first
+                for _schema, channel, message in reader.iter_messages(log_time_order=False):
                     if channel.topic == "/rig/info":
                         body = json.loads(message.data)
                         break

@@ -305,3 +305,19 @@ def test_a_level_the_recording_does_not_pin_down_is_said():
     notes = _undetermined(levels)
     assert len(notes) == 1
     assert notes[0].startswith("level 7.00 MPa: Fc, vs not determined")
+
+
+def test_a_truncated_recording_is_calibrated_from_what_it_holds(rig, tmp_path):
+    """The rig stopped mid-write (contract 3): ingest lands the messages before the cut,
+    and calibrate reads /rig/info from the file sequentially (it was refused as having
+    "no readable /rig/info message": the ordered sequential read sorts the whole file
+    before yielding anything, so it hit the cut before the first message)."""
+    from pipelines.calibrate_inputs import read_rig_info
+
+    recording, *_ = rig
+    cut = write_rig_mcap(tmp_path / "cut.mcap", recording, seed=3, truncate_fraction=0.97)
+    assert read_rig_info(cut).bore_m == pytest.approx(0.1)
+    result = calibrate_rig(data=DataRoot(tmp_path / "data"), recordings=[cut])
+    assert any("cut.mcap: partial" in note for note in result.notes)
+    assert result.per_pressure.height == 3
+    assert all(math.isfinite(getattr(result.law, name)[0]) for name in LINE_NAMES)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -95,16 +96,29 @@ def read_rig_info(path: str | Path) -> RigInfo:
     if not isinstance(body, dict):
         raise CalibrationError(f"{path}: no readable /rig/info message")
     try:
-        return RigInfo(
+        bore_mm, rod_mm = float(body["bore_mm"]), float(body["rod_mm"])
+        mass_kg = float(body["moving_mass_kg"])
+        info = RigInfo(
             rig_id=str(body["rig_id"]),
-            bore_m=float(body["bore_mm"]) * 1e-3,
-            rod_m=float(body["rod_mm"]) * 1e-3,
+            bore_m=bore_mm * 1e-3,
+            rod_m=rod_mm * 1e-3,
             stroke_m=float(body["stroke_mm"]) * 1e-3,
-            moving_mass_kg=float(body["moving_mass_kg"]),
+            moving_mass_kg=mass_kg,
             oil=str(body.get("oil", "")),
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise CalibrationError(f"{path}: /rig/info is missing or has a bad field ({exc})") from None
+    # the force balance divides by the bore area and needs a positive annulus
+    problem = None
+    if not (math.isfinite(bore_mm) and bore_mm > 0):
+        problem = f"bore_mm {bore_mm!r}: not a positive finite number"
+    elif not (math.isfinite(rod_mm) and 0 <= rod_mm < bore_mm):
+        problem = f"rod_mm {rod_mm!r}: not at least 0 and below bore_mm {bore_mm!r}"
+    elif not (math.isfinite(mass_kg) and mass_kg >= 0):
+        problem = f"moving_mass_kg {mass_kg!r}: not a non-negative finite number"
+    if problem is not None:
+        raise CalibrationError(f"{path}: topic /rig/info: {problem}")
+    return info
 
 
 def check_names(rig_id: str | None, parameter_set: str | None) -> None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import json
 import math
 import shutil
 import tomllib
@@ -321,3 +322,48 @@ def test_a_truncated_recording_is_calibrated_from_what_it_holds(rig, tmp_path):
     assert any("cut.mcap: partial" in note for note in result.notes)
     assert result.per_pressure.height == 3
     assert all(math.isfinite(getattr(result.law, name)[0]) for name in LINE_NAMES)
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "why"),
+    [
+        ("bore_mm", 0.0, "bore_mm 0.0: not a positive finite number"),
+        ("bore_mm", math.nan, "bore_mm nan: not a positive finite number"),
+        ("rod_mm", 160.0, "rod_mm 160.0: not at least 0 and below bore_mm 100.0"),
+        ("moving_mass_kg", -25.0, "moving_mass_kg -25.0: not a non-negative finite number"),
+    ],
+)
+def test_impossible_rig_geometry_is_refused_naming_the_key(tmp_path, capsys, field, value, why):
+    """A /rig/info whose geometry cannot be (a zero bore, a rod wider than the bore, a
+    negative mass) is refused in one line naming file, topic and key: it ended in a
+    ZeroDivisionError traceback (bore 0), 'fit_stribeck: need at least 5 points' (NaN)
+    or a landed parameter set of +- inf fits with exit status 0 (rod > bore)."""
+    from mcap.writer import Writer
+
+    from pipelines.calibrate_inputs import read_rig_info
+
+    info = {"rig_id": "rig-g", "bore_mm": 100.0, "rod_mm": 60.0, "stroke_mm": 400.0,
+            "moving_mass_kg": 25.0, "oil": "ISO VG 46", field: value}  # fmt: skip
+    path = tmp_path / "geometry.mcap"
+    with path.open("wb") as handle:
+        writer = Writer(handle)
+        writer.start(profile="", library="ropeload-tests")
+        schema = writer.register_schema(name="info", encoding="jsonschema", data=b"{}")
+        channel = writer.register_channel("/rig/info", message_encoding="json", schema_id=schema)
+        writer.add_message(channel, log_time=1, publish_time=1, data=json.dumps(info).encode())
+        writer.finish()
+    with pytest.raises(CalibrationError) as refused:
+        read_rig_info(path)
+    assert str(refused.value) == f"{path}: topic /rig/info: {why}"
+
+
+def test_calibrate_refuses_a_recording_with_a_zero_bore(rig, tmp_path, capsys):
+    recording, *_ = rig
+    zero = dataclasses.replace(recording, design=dataclasses.replace(recording.design, bore_m=0))
+    mcap = write_rig_mcap(tmp_path / "zero-bore.mcap", zero, seed=3)
+    data = tmp_path / "data"
+    assert main(["calibrate", "--data", str(data), str(mcap)]) == 1
+    err = capsys.readouterr().err
+    why = "topic /rig/info: bore_mm 0.0: not a positive finite number"
+    assert err == f"ropeload calibrate: {mcap}: {why}\n"
+    assert _table(DataRoot(data), "SELECT * FROM friction_parameter_sets").height == 0

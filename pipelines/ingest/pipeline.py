@@ -352,8 +352,9 @@ def _land_all(
 
     def account(batch: Batch, landing: Future[tuple[Landed, pl.DataFrame | None]]) -> None:
         landed, held = landing.result()
-        result.rows_read += batch.rows_read
         rejected = batch.rejected
+        auxiliary = _auxiliary(rejected)  # quarantined, but not rows: neither read nor held
+        result.rows_read += batch.rows_read - auxiliary
         if held is not None and held.height:
             rows = held["_row"].to_list()
             stepped = pl.DataFrame(
@@ -378,7 +379,7 @@ def _land_all(
         reasons.update(dict(rejected.group_by("reason").len().iter_rows()))
         result.rows_landed += landed.landed
         result.rows_duplicate += landed.duplicate
-        result.rows_quarantined += rejected.height - _auxiliary(rejected)
+        result.rows_quarantined += rejected.height - auxiliary
         if batch.samples.height:
             low, high = batch.samples["time_utc"].min(), batch.samples["time_utc"].max()
             assert isinstance(low, dt.datetime)

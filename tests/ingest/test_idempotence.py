@@ -267,6 +267,23 @@ def test_invalid_pressure_messages_are_quarantined_with_topic(corpus, tmp_path, 
     assert topics == [("/rig/pressure", None)]
 
 
+def test_invalid_messages_of_other_topics_keep_the_rows_balanced(corpus, tmp_path, root):
+    """Bad messages of the other topics are quarantined but are not rows (contract 3 counts
+    /rig/pressure messages): they were counted as read and not as quarantined, so read
+    was 2003 for 2000 landed, 0 quarantined, 0 duplicates."""
+    path = corpus.mcap_file(tmp_path / "badx.mcap", bad_displacements=3)
+    (file,) = ingest_paths([path], data=root).files
+    counts = (file.rows_read, file.rows_landed, file.rows_quarantined, file.rows_duplicate)
+    assert counts == (2000, 2000, 0, 0)
+    assert file.balanced
+    assert "3 invalid message(s) of other topics quarantined (not rows)" in file.message
+    with open_reader(root) as con:
+        manifest = con.sql("SELECT rows_read, rows_landed FROM manifest").fetchall()
+        topics = con.sql("SELECT topic, count(*) FROM quarantine GROUP BY topic").fetchall()
+    assert manifest == [(2000, 2000)]
+    assert topics == [("/rig/displacement", 3)]
+
+
 def test_a_re_export_under_a_new_name_is_known_after_its_first_skip(corpus, tmp_path, root):
     """The same content under a new name is skipped (nothing landed twice) and its path
     recorded: the nightly's new-file test knows it from then on (it read and hashed it

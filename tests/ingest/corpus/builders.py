@@ -181,6 +181,7 @@ def mcap_file(
     bad_encoding_topic: str | None = None,
     bad_messages: int = 0,
     nan_messages: int = 0,
+    bad_displacements: int = 0,
     truncate_fraction: float | None = None,
     chunk_size: int = 16 * 1024,
 ) -> Path:
@@ -236,7 +237,8 @@ def mcap_file(
             if i % 1000 == 0:
                 put("/rig/temperature", t, {"oil_temp_c": 35.0 + i / 1000})
             if i % 2 == 0:
-                put("/rig/displacement", t, {"x_mm": 0.005 * i})
+                x_mm = "far" if i < 2 * bad_displacements else 0.005 * i
+                put("/rig/displacement", t, {"x_mm": x_mm})
             if unknown_topic and i % 100 == 0:
                 put("/rig/camera", t, {"frame": i})
             payload = {"p_rodless_mpa": 2.0 + i // 500 + 0.001 * (i % 7), "p_rod_mpa": 0.5}

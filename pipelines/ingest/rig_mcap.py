@@ -4,7 +4,8 @@ Reading: ``mcap.reader.make_reader`` with :class:`JsonDecoderFactory`;
 ``iter_messages(log_time_order=False)`` (twice as fast as ordered), then each topic
 sorted by log time. The high-rate topics are decoded in bulk (the JSON payloads joined
 as NDJSON and read by polars against the topic's schema); a message that does not fit
-its schema is decoded alone and quarantined with its topic and reason.
+its schema is decoded alone and quarantined with its topic and reason, and so is a
+NaN or infinite number of the displacement, temperature and step topics.
 
 Alignment: one landed row per ``/rig/pressure`` message (``rig_samples``, partition
 ``site=rig/hoist=<rig_id>/date=<UTC date>``). Other topics are joined as-of, backward
@@ -179,7 +180,7 @@ def _decode(
         )
     frame = pl.concat([base, fields], how="horizontal")
     missing = pl.concat_str(
-        [pl.when(pl.col(k).is_null()).then(pl.lit(k)) for k in schema],
+        [pl.when(_invalid(topic, k, dtype)).then(pl.lit(k)) for k, dtype in schema.items()],
         separator=", ",
         ignore_nulls=True,
     )
@@ -206,6 +207,20 @@ def _decode(
         .alias("time_utc")
     ).sort("_ns", "_row")
     return good, rejected
+
+
+#: Topics whose numbers are screened after decoding (pressures: NaN, negative, above
+#: 60 MPa, each with its reason) or not used as numbers by ingest (``/rig/info``, whose
+#: geometry calibrate checks): a non-finite value there is not a schema mismatch.
+_SCREENED_LATER = ("/rig/pressure", "/rig/info")
+
+
+def _invalid(topic: str, key: str, dtype: pl.DataType) -> pl.Expr:
+    """Whether ``key`` is missing or invalid: null, or (the other topics' numbers) NaN
+    or infinite, which JSON has no words for and a sample cannot be."""
+    if dtype != pl.Float64 or topic in _SCREENED_LATER:
+        return pl.col(key).is_null()
+    return pl.col(key).is_null() | ~pl.col(key).is_finite()
 
 
 _EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.UTC)

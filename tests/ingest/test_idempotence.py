@@ -258,6 +258,26 @@ def test_a_pressure_message_of_nan_is_quarantined_as_not_a_number(corpus, tmp_pa
     ]
 
 
+def test_a_displacement_of_nan_is_quarantined_not_landed(corpus, tmp_path, root):
+    """A non-finite value of another topic is a bad message of that topic, as a pressure
+    of NaN is: quarantined with its topic (not a row), not landed as x_m = NaN, which
+    made the Savitzky-Golay derivatives of its whole block NaN and left calibrate with
+    "0 steady steps" and no word why."""
+    path = corpus.mcap_file(tmp_path / "nanx.mcap", nan_displacements=2)
+    (file,) = ingest_paths([path], data=root).files
+    assert (file.rows_read, file.rows_landed, file.rows_quarantined) == (2000, 2000, 0)
+    assert "2 invalid message(s) of other topics quarantined" in file.message
+    with open_reader(root) as con:
+        rows = con.sql("SELECT topic, reason FROM quarantine").fetchall()
+    assert rows == [("/rig/displacement", "message does not match the /rig/displacement "
+                     "schema: missing or invalid x_mm")] * 2  # fmt: skip
+    files = sorted(root.table_dir("rig_samples").glob("site=rig/hoist=rig-a/date=*/*.parquet"))
+    x = pl.read_parquet(files, hive_partitioning=False).sort("time_utc")["x_m"]
+    assert x.is_nan().sum() == 0
+    assert x.null_count() == 4  # before the first valid displacement (logged at 4 ms)
+    assert x[4] == 0.005 * 4 * 1e-3
+
+
 def test_invalid_pressure_messages_are_quarantined_with_topic(corpus, tmp_path, root):
     path = corpus.mcap_file(tmp_path / "bad.mcap", bad_messages=3)
     (file,) = ingest_paths([path], data=root).files

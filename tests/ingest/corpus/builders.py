@@ -182,6 +182,7 @@ def mcap_file(
     bad_messages: int = 0,
     nan_messages: int = 0,
     bad_displacements: int = 0,
+    nan_displacements: int = 0,
     truncate_fraction: float | None = None,
     chunk_size: int = 16 * 1024,
 ) -> Path:
@@ -238,6 +239,8 @@ def mcap_file(
                 put("/rig/temperature", t, {"oil_temp_c": 35.0 + i / 1000})
             if i % 2 == 0:
                 x_mm = "far" if i < 2 * bad_displacements else 0.005 * i
+                if i < 2 * nan_displacements:  # json.dumps writes NaN
+                    x_mm = float("nan")
                 put("/rig/displacement", t, {"x_mm": x_mm})
             if unknown_topic and i % 100 == 0:
                 put("/rig/camera", t, {"frame": i})

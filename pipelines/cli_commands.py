@@ -91,7 +91,11 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             return 2
         import polars as pl
 
-        sys.stdout.write(table1_report(pl.read_csv(args.table1)))
+        try:
+            report = table1_report(pl.read_csv(args.table1))
+        except (ValueError, pl.exceptions.PolarsError) as exc:  # not Table 1: name the file
+            raise ValueError(f"{args.table1}: {exc}") from None
+        sys.stdout.write(report)
         return 0
     result = calibrate_rig(
         data=DataRoot.resolve(args.data),

@@ -367,3 +367,22 @@ def test_calibrate_refuses_a_recording_with_a_zero_bore(rig, tmp_path, capsys):
     why = "topic /rig/info: bore_mm 0.0: not a positive finite number"
     assert err == f"ropeload calibrate: {mcap}: {why}\n"
     assert _table(DataRoot(data), "SELECT * FROM friction_parameter_sets").height == 0
+
+
+@pytest.mark.parametrize(
+    ("content", "why"),
+    [
+        (b"a,b\n1,2\n", "fit_table1: missing columns"),
+        (b"\x89MCAP0\r\n\xff\xfe\x00\x01", "invalid utf-8"),
+    ],
+)
+def test_cli_table1_names_the_file_it_cannot_use(tmp_path, capsys, content, why):
+    """--table1 FILE that is not Table 1 (other columns, a binary file) is refused in one
+    line naming the file ('ropeload calibrate: invalid utf-8 sequence' named nothing)."""
+    path = tmp_path / "not-table1.csv"
+    path.write_bytes(content)
+    assert main(["calibrate", "--table1", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"ropeload calibrate: {path}: ")
+    assert why in err
+    assert err.count("\n") == 1

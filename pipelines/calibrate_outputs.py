@@ -21,7 +21,13 @@ from schemas.hoist import FrictionLaw
 from transforms.friction_fit import LinearFit, StribeckFit
 from warehouse.store import DataRoot
 
-__all__ = ["LINE_NAMES", "CalibrationResult", "friction_toml", "land_calibration"]
+__all__ = [
+    "LINE_NAMES",
+    "CalibrationResult",
+    "friction_toml",
+    "land_calibration",
+    "line_standard_errors",
+]
 
 
 #: Keys of the eq-17 lines (SI), in the order Fc, Fs, vs, Kv.
@@ -96,6 +102,26 @@ def friction_toml(
     return "\n".join(lines) + "\n"
 
 
+def line_standard_errors(lines: dict[str, LinearFit]) -> dict[str, float]:
+    """Each eq 17 line's 1-sigma standard errors and intercept-slope covariance, keyed
+    as ``friction_parameter_sets`` columns (SI): ``<name>``, ``<name>_per_pa``,
+    ``<name>_covariance``.
+
+    >>> from transforms.friction_lines import fit_line
+    >>> fit = fit_line(np.array([1e6, 2e6, 3e6]), np.array([10.0, 12.1, 13.9]))
+    >>> sorted(line_standard_errors({"static_n": fit}))
+    ['static_n', 'static_n_covariance', 'static_n_per_pa']
+    """
+    out: dict[str, float] = {}
+    for name in LINE_NAMES:
+        if name in lines:
+            fit = lines[name]
+            out[name] = float(fit.se_intercept)
+            out[f"{name}_per_pa"] = float(fit.se_slope)
+            out[f"{name}_covariance"] = float(fit.cov_intercept_slope)
+    return out
+
+
 def land_calibration(
     data: DataRoot, result: CalibrationResult, samples: pl.DataFrame, *, source: str,
     started: dt.datetime,
@@ -120,6 +146,9 @@ def land_calibration(
                 **{f"{name}_per_pa": getattr(law, name)[1] for name in LINE_NAMES},
                 "residual_rms": [{"key": k, "value": v} for k, v in residual_rms.items()],
                 "inputs": list(inputs),
+                "standard_error": [
+                    {"key": k, "value": v} for k, v in line_standard_errors(lines).items()
+                ],
             }
         ]
     )

@@ -288,8 +288,13 @@ FRICTION_PARAMETER_SETS = _schema(
         pa.field("viscous_n_s_m_per_pa", pa.float64()),
         pa.field("residual_rms", pa.map_(pa.string(), pa.float64())),
         pa.field("inputs", pa.list_(pa.string())),
+        # migration 0008: each line's standard errors (1 sigma) and the covariance of its
+        # intercept and slope, keyed by column (``static_n``, ``static_n_per_pa``,
+        # ``static_n_covariance``, ...)
+        pa.field("standard_error", pa.map_(pa.string(), pa.float64())),
     ],
-    "one row per friction parameter set; value(p) = intercept + slope * p[Pa]",
+    "one row per friction parameter set; value(p) = intercept + slope * p[Pa]; "
+    "standard_error: each line's 1-sigma standard errors and intercept-slope covariance",
 )
 
 #: One row per trip checked against the simulation.

@@ -161,6 +161,15 @@ def test_lands_parameter_set_and_run_and_rerun_replaces(rig):
     assert row["bore_m"] == pytest.approx(0.1)
     assert row["coulomb_n_per_pa"] == pytest.approx(result.law.coulomb_n[1])
     assert row["viscous_n_s_m"] == pytest.approx(result.law.viscous_n_s_m[0])
+    # every calibrated value with its uncertainty: the lines' standard errors (1 sigma)
+    # and intercept-slope covariances, as the fit gave them
+    errors = dict(row["standard_error"])
+    assert len(errors) == 3 * len(result.lines) == 12
+    for name, line in result.lines.items():
+        assert errors[name] == pytest.approx(line.se_intercept)
+        assert errors[f"{name}_per_pa"] == pytest.approx(line.se_slope)
+        assert min(errors[name], errors[f"{name}_per_pa"]) > 0
+        assert errors[f"{name}_covariance"] == pytest.approx(line.cov_intercept_slope)
     runs = _table(data, "SELECT * FROM runs WHERE command = 'calibrate'")
     assert runs.height == 1
     assert runs["parameter_set"][0] == result.parameter_set

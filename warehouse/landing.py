@@ -173,8 +173,8 @@ def land_results(
                 params.append(ids)
             con.execute(f"DELETE FROM {table} WHERE {clause}", params)
             inserted[table] = insert_frame(con, table, frame)
-            if table == "alarms" and frame.height and run.period_start_utc is not None:
-                inserted[table] -= _drop_covered_alarms(con, run)
+            if frame.height and run.period_start_utc is not None:
+                inserted[table] -= _drop_covered(con, run, table)
         if trip_summary is not None and run.site is not None and run.hoist is not None:
             drop_orphan_sanity_checks(con, site=run.site, hoist=run.hoist)
         con.execute("COMMIT")
@@ -184,16 +184,29 @@ def land_results(
     return inserted
 
 
-def _drop_covered_alarms(con: duckdb.DuckDBPyConnection, run: RunRecord) -> int:
-    """Drop the run's alarms that an earlier run's alarm of the same rule and rope holds
-    whole, begun before this run's period: an event across the period's start, seen by
-    this run from the start on (a re-run of part of a day counted it twice). Returns
-    how many went."""
+#: Per mart: its (start, end) columns and the columns whose values must agree for an
+#: earlier row to be the same event, trip or visit as a later run's (:func:`_drop_covered`).
+_COVERED_KEYS: dict[str, tuple[str, str, tuple[str, ...]]] = {
+    "alarms": ("start_utc", "end_utc", ("rule", "rope")),
+    "trip_summary": ("time_start_utc", "time_end_utc", ()),
+    "position_summary": ("time_start_utc", "time_end_utc", ("position",)),
+}
+
+
+def _drop_covered(con: duckdb.DuckDBPyConnection, run: RunRecord, table: str) -> int:
+    """Drop the run's rows of ``table`` (an alarm, a trip, a position visit) that an earlier
+    run's row of the same hoist (and rule and rope, or position) holds whole, begun before
+    this run's period: an event, trip or stop across the period's start, seen by this
+    run from the start on (a re-run of part of a day counted it twice: 8 trip rows for 7
+    trips after a re-run from inside the third). An earlier row that ends before this
+    run's does not hold it: a run of the next period, whose part of a stop across the
+    periods' edge stays beside the earlier period's part. Returns how many went."""
+    start, end, same = _COVERED_KEYS[table]
+    agree = "".join(f" AND o.{c} IS NOT DISTINCT FROM n.{c}" for c in same)
     covered = (
-        "FROM alarms n WHERE n.run_id = ? AND EXISTS (SELECT 1 FROM alarms o "
-        "WHERE o.run_id <> n.run_id AND o.site = n.site AND o.hoist = n.hoist "
-        "AND o.rule = n.rule AND o.rope IS NOT DISTINCT FROM n.rope AND o.start_utc < ? "
-        "AND o.start_utc <= n.start_utc AND o.end_utc >= n.end_utc)"
+        f"FROM {table} n WHERE n.run_id = ? AND EXISTS (SELECT 1 FROM {table} o "
+        f"WHERE o.run_id <> n.run_id AND o.site = n.site AND o.hoist = n.hoist{agree} "
+        f"AND o.{start} < ? AND o.{start} <= n.{start} AND o.{end} >= n.{end})"
     )
     params = [run.run_id, run.period_start_utc]
     (count,) = con.execute(f"SELECT count(*) {covered}", params).fetchone()

@@ -380,3 +380,69 @@ def test_a_damaged_lake_file_is_left_out_of_the_views_not_every_writer(tmp_path,
                     start=dt.datetime(2026, 3, 2, tzinfo=dt.UTC),
                     end=dt.datetime(2026, 3, 3, tzinfo=dt.UTC)).collect()  # fmt: skip
     assert day.height == 5
+
+
+def test_a_trip_and_a_visit_across_a_rerun_start_are_not_landed_twice(tmp_path):
+    """An hour's run holds trip 3 (00:30:00 .. 00:31:40), the stop at the bottom after it
+    (.. 00:40:00) and a stop at the pithead from 00:55 to its period's end. A re-run of
+    00:31:00 .. 01:06:40 sees trip 3 from its own start to the trip's end: the earlier
+    row holds that piece whole, so it is not landed beside it (one trip counted twice
+    in the audit); its later trip is landed. A re-run of 00:33:20 .. sees the bottom stop
+    from its start: the same. The next hour's run sees the pithead stop from 01:00 on:
+    the earlier row ends at its own period's end, it does not hold that piece, which
+    stays (the two periods' parts of one stop)."""
+    root = DataRoot(tmp_path)
+
+    def at(seconds: float) -> dt.datetime:
+        return DAY + dt.timedelta(seconds=seconds)
+
+    def run(run_id: str, start_s: float, end_s: float) -> RunRecord:
+        return RunRecord(
+            run_id=run_id, command="run", code_version="test", started_at_utc=DAY, site="s",
+            hoist="h", period_start_utc=at(start_s), period_end_utc=at(end_s),
+            parameter_set="p",
+        )  # fmt: skip
+
+    def trips(run_id: str, spans: list[tuple[float, float]]) -> pl.DataFrame:
+        rows = [{"run_id": run_id, "site": "s", "hoist": "h", "trip_id": k,
+                 "time_start_utc": at(t0), "time_end_utc": at(t1)}
+                for k, (t0, t1) in enumerate(spans)]  # fmt: skip
+        return _conform(pl.DataFrame(rows, schema_overrides={"trip_id": pl.Int64}), TRIP_SUMMARY)
+
+    def visits(run_id: str, spans: list[tuple[str, float, float]]) -> pl.DataFrame:
+        rows = [{"run_id": run_id, "site": "s", "hoist": "h", "trip_id": 0, "position": p,
+                 "time_start_utc": at(t0), "time_end_utc": at(t1)}
+                for p, t0, t1 in spans]  # fmt: skip
+        return _conform(pl.DataFrame(rows), POSITION_SUMMARY)
+
+    def landed(table: str) -> list[tuple[str, float, float]]:
+        with open_reader(root) as con:
+            rows = con.sql(
+                f"SELECT run_id, time_start_utc, time_end_utc FROM {table} ORDER BY 2, 1"
+            ).fetchall()
+        return [(r, (a - DAY).total_seconds(), (b - DAY).total_seconds()) for r, a, b in rows]
+
+    with open_writer(root) as con:
+        land_results(
+            con, run("hour", 0, 3600),
+            trip_summary=trips("hour", [(600, 700), (1800, 1900)]),
+            position_summary=visits("hour", [("bottom", 1900, 2400), ("pithead", 3300, 3600)]),
+        )  # fmt: skip
+    with open_writer(root) as con:
+        inserted = land_results(
+            con, run("trip", 1860, 4000), trip_summary=trips("trip", [(1860, 1900), (3000, 3100)])
+        )
+    assert inserted["trip_summary"] == 1
+    assert landed("trip_summary") == [("hour", 600, 700), ("hour", 1800, 1900),
+                                      ("trip", 3000, 3100)]  # fmt: skip
+    with open_writer(root) as con:
+        inserted = land_results(
+            con, run("stop", 2000, 3000), position_summary=visits("stop", [("bottom", 2000, 2400)])
+        )
+    assert inserted["position_summary"] == 0
+    with open_writer(root) as con:
+        land_results(
+            con, run("next", 3600, 7200), position_summary=visits("next", [("pithead", 3600, 3900)])
+        )
+    assert landed("position_summary") == [("hour", 1900, 2400), ("hour", 3300, 3600),
+                                          ("next", 3600, 3900)]  # fmt: skip

@@ -7,7 +7,10 @@ Two independent fences, each enough against the escapes a keyword filter misses
 1. :func:`check_read_only`: DuckDB's own parser (``duckdb.extract_statements``) must
    find exactly one statement, of type ``SELECT`` (which covers ``WITH ... SELECT``,
    ``FROM t``, ``VALUES``, ``DESCRIBE``, ``SHOW``, ``SUMMARIZE``) or ``EXPLAIN`` of one
-   such statement. Anything else is refused before a connection is opened.
+   such statement, and its parse tree (``json_serialize_sql``) must hold queries only:
+   DuckDB also calls ``WITH x AS (COPY ... TO ...) SELECT 1`` a ``SELECT`` (or an
+   ``INSERT``, ``UPDATE``, ``DELETE ... RETURNING`` in the ``WITH``). Anything else is
+   refused before a connection to the warehouse is opened.
 2. The statement runs on :func:`warehouse.store.open_reader` with ``sandbox=True``: the
    warehouse attached read-only, no file outside ``<data>/lake`` reachable, extensions
    off, configuration locked. A file function pointed outside the lake fails there and
@@ -20,7 +23,7 @@ import io
 import json
 import math
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Literal
 
 import duckdb
@@ -114,7 +117,54 @@ def check_read_only(sql: str) -> duckdb.Statement:
         raise QueryRefused(
             f"refused: {_label(statement)} statements are not allowed ({_WHAT_IS_ALLOWED})"
         )
+    else:
+        _check_query_nodes(statement.query)
     return statement
+
+
+#: Query nodes of a read-only statement. DuckDB parses ``WITH x AS (COPY ... TO ...)
+#: SELECT 1`` (also an INSERT, UPDATE or DELETE ... RETURNING there) as a ``SELECT``
+#: statement, and runs it: the COPY writes its file, in the lake too (the sandbox's
+#: allowed directory).
+_READ_ONLY_NODES = frozenset(
+    ("SELECT_NODE", "SET_OPERATION_NODE", "RECURSIVE_CTE_NODE", "CTE_NODE")
+)
+
+
+def _query_nodes(tree: object) -> Iterator[str]:
+    """The types of the query nodes (``SELECT_NODE``, ``COPY_QUERY_NODE``) in a parse tree."""
+    if isinstance(tree, dict):
+        kind = tree.get("type")
+        if isinstance(kind, str) and kind.endswith("_NODE"):
+            yield kind
+        for value in tree.values():
+            yield from _query_nodes(value)
+    elif isinstance(tree, list):
+        for value in tree:
+            yield from _query_nodes(value)
+
+
+def _check_query_nodes(sql: str) -> None:
+    """Refuse a ``SELECT`` statement any of whose query nodes is not a query (a COPY,
+    INSERT, UPDATE or DELETE in its WITH clause): DuckDB's own parse tree, as JSON."""
+    con = duckdb.connect(":memory:")
+    try:
+        (tree,) = con.execute("SELECT json_serialize_sql(?)", [sql]).fetchone()
+    finally:
+        con.close()
+    parsed = json.loads(tree)
+    if parsed.get("error"):
+        raise QueryRefused(
+            f"refused: a statement DuckDB cannot show as a parse tree "
+            f"({parsed.get('error_message', '')}; {_WHAT_IS_ALLOWED})"
+        )
+    for node in _query_nodes(parsed):
+        if node not in _READ_ONLY_NODES:
+            what = node.removesuffix("_NODE").removesuffix("_QUERY").replace("_", " ")
+            raise QueryRefused(
+                f"refused: {what} inside WITH (a SELECT that writes); not allowed "
+                f"({_WHAT_IS_ALLOWED})"
+            )
 
 
 def run_query(sql: str, *, data: DataRoot) -> pl.DataFrame:

@@ -206,8 +206,10 @@ _PLAIN_TYPES = frozenset(
 #: DuckDB types polars takes wrongly or only by panicking (a UHUGEINT as a negative
 #: decimal, a BIT as its internal bytes, an INTERVAL inside a list or struct, panicking
 #: on the way), or that its CSV writer refuses (a BLOB): a column whose type holds one is
-#: DuckDB's text from the start (a BLOB as DuckDB's escaped bytes, ``a\x00b``).
-_TEXT_TYPES = re.compile(r"\b(UHUGEINT|BIT|INTERVAL|UNION|BLOB)\b")
+#: DuckDB's text from the start (a BLOB as DuckDB's escaped bytes, ``a\x00b``). DuckDB
+#: 2.0's VARIANT, BIGNUM and GEOMETRY reach polars as Arrow extension types holding their
+#: internal bytes (the CSV writer refuses them; ``duckdb_settings().typed_value`` is one).
+_TEXT_TYPES = re.compile(r"\b(UHUGEINT|BIT|INTERVAL|UNION|BLOB|VARIANT|BIGNUM|GEOMETRY)\b")
 #: A HUGEINT polars holds as a 38-digit decimal: beyond it, Python's copy is rounded.
 _DECIMAL_DIGITS = 38
 

@@ -445,6 +445,18 @@ def test_query_sql_error_is_one_line(data, capsys):
         ("select '10101'::bit as b", "10101"),
         # polars' CSV writer refused a BLOB (and JSON had Python's repr)
         ("select 'abc'::blob as b", "abc"),
+        # DuckDB 2.0's extension types reach polars as Arrow extensions: CSV refused
+        # them, JSON and the table showed their internal bytes (``select * from
+        # duckdb_settings()`` holds one, typed_value)
+        ("select typed_value from duckdb_settings() where name = 'lock_configuration'", "true"),
+        ("select 4242::variant as v", "4242"),
+        ("select {'rope': 3}::variant as v", "'rope': 3"),
+        ("select [4242::variant] as v", "4242"),
+        (
+            "select 12345678901234567890123456789012345678901234567890::bignum as n",
+            "12345678901234567890123456789012345678901234567890",
+        ),
+        ("select 'POINT(1 2)'::geometry as g", "POINT (1 2)"),
     ],
 )
 def test_results_polars_cannot_hold_are_shown_as_duckdb_text(data, capsys, sql, text):

@@ -227,13 +227,11 @@ def _to_polars(relation: duckdb.DuckDBPyRelation) -> pl.DataFrame:
             for i, kind in enumerate(kinds)
             if kind == "HUGEINT" and _beyond_digits(frame.to_series(i).to_physical())
         }
-        if wide:
-            return _as_text(relation, lambda i, kind: i in wide).pl()
         beyond = {i for i in range(frame.width) if _series_beyond(frame.to_series(i))}
-        if not beyond:
+        if not wide | beyond:
             return frame
         # only those columns as text: the others (a list, a timestamp) keep their types
-        return _as_text(relation, lambda i, kind: i in beyond).pl()
+        return _as_text(relation, lambda i, kind: i in wide | beyond).pl()
     except pl.exceptions.PolarsError:
         pass
     except BaseException as exc:  # pyo3's PanicException

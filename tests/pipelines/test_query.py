@@ -482,6 +482,17 @@ def test_a_date_at_infinity_leaves_the_other_columns_as_they_are(data, capsys):
     assert expected["l"] == ["a", "b"]
 
 
+def test_a_hugeint_beyond_38_digits_beside_a_date_at_infinity(data, capsys):
+    """Both columns DuckDB's text: the HUGEINT's re-read as text returned before the date
+    at infinity was looked for, and printing it panicked in polars (a traceback)."""
+    sql = "select 170141183460469231731687303715884105727::hugeint as h, 'infinity'::date as d"
+    for output in ("table", "csv", "json"):
+        assert main(["query", "--data", str(data.path), "--format", output, sql]) == 0
+        out = capsys.readouterr().out
+        assert "170141183460469231731687303715884105727" in out, (output, out)
+        assert "infinity" in out, (output, out)
+
+
 def test_a_result_repeating_a_column_name_keeps_each_column_s_values(data, capsys):
     """A join's two ``n`` (the second a HUGEINT sum), a BIT beside an int of the same
     name: each column keeps its own values (the text casts went by name: a traceback,

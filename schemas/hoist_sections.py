@@ -8,6 +8,7 @@ carry their SI unit; dimensioned values are parsed from ``"value unit"`` strings
 
 from __future__ import annotations
 
+import functools
 import math
 import zoneinfo
 from dataclasses import dataclass
@@ -131,7 +132,21 @@ class HoistInfo(Section):
             zoneinfo.ZoneInfo(value)
         except (zoneinfo.ZoneInfoNotFoundError, ValueError):
             raise ValueError(f"unknown IANA time zone {value!r}") from None
+        if value not in _iana_zone_names():
+            raise ValueError(
+                f"unknown IANA time zone {value!r}: a zone file of this machine, not a zone "
+                "name (polars and DuckDB know names only, e.g. 'Asia/Shanghai')"
+            )
         return value
+
+
+@functools.cache
+def _iana_zone_names() -> frozenset[str]:
+    """The IANA zone names (links included: ``PRC``, ``US/Pacific``). ``zoneinfo``
+    also opens ``localtime``, ``posixrules``, ``Factory`` and ``posix/...`` /
+    ``right/...``, files of the machine's zone folders but not zone names: polars and
+    DuckDB refuse them (``timezone('localtime', t)`` fails every query of a view)."""
+    return frozenset(zoneinfo.available_timezones() - {"localtime", "Factory", "posixrules"})
 
 
 class Conveyance(Section):

@@ -175,6 +175,24 @@ def test_unknown_time_zone_is_refused():
     assert "hoist.timezone: unknown IANA time zone 'Mars/Olympus'" in message
 
 
+@pytest.mark.parametrize(
+    "zone", ["localtime", "posixrules", "Factory", "posix/Asia/Shanghai", "right/Asia/Shanghai"]
+)
+def test_a_zone_file_that_is_no_iana_zone_name_is_refused(zone):
+    """Python's zoneinfo opens any TZif file under the zone folders, but polars (the
+    reports' local times) and DuckDB (``timezone(h.timezone, ...)`` in the views) know
+    IANA names only: a run landed with ``localtime`` made every query of
+    ``rope_trip_extremes`` fail, every hoist's ("Unknown TimeZone 'localtime'")."""
+    message = _error(_edit(r'^timezone = "Asia/Shanghai"', f'timezone = "{zone}"'))
+    assert f"hoist.timezone: unknown IANA time zone {zone!r}" in message
+
+
+def test_iana_links_are_time_zones():
+    for zone in ("UTC", "PRC", "US/Pacific", "Etc/GMT-8", "EST5EDT", "Asia/Calcutta"):
+        edited = _edit(r'^timezone = "Asia/Shanghai"', f'timezone = "{zone}"')
+        assert parse_hoist(edited).hoist.timezone == zone
+
+
 def test_rod_larger_than_bore_is_refused():
     message = _error(_edit(r'^rod = "60 mm"', 'rod = "120 mm"'))
     assert "cylinders:" in message

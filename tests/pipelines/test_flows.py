@@ -11,11 +11,13 @@ import datetime as dt
 from pathlib import Path
 
 import pytest
+from polars.testing import assert_frame_equal
 
 from pipelines.backfill import backfill
 from pipelines.deploy import write_example_mine
 from pipelines.hoists import load_hoists
 from pipelines.ledger import fingerprint
+from pipelines.run_period import run_period
 from warehouse.store import DataRoot
 
 FIRST, LAST = dt.date(2026, 3, 1), dt.date(2026, 3, 4)
@@ -130,6 +132,18 @@ def test_ingest_and_run_flows_share_the_plain_implementation(mine, tmp_path):
     )
     assert result.samples > 50_000
     assert result.trip_summary.height >= 2
+    # the plain implementation (no flow, no task) on the same lake and period computes
+    # the same summaries and alarms, run ids aside: the flow passes its arguments through
+    # (to polars' summation order: two plain runs differ by 1e-15 relative)
+    plain = run_period(hoist_path=hoists / "shaft-1.toml", data=DataRoot.resolve(data),
+                       start=start, end=start + dt.timedelta(days=1))  # fmt: skip
+    assert plain.run_id != result.run_id
+    assert (plain.samples, plain.period_start_utc, plain.period_end_utc) == (
+        result.samples, result.period_start_utc, result.period_end_utc,
+    )  # fmt: skip
+    for table in ("position_summary", "trip_summary", "alarms"):
+        flowed, direct = getattr(result, table), getattr(plain, table)
+        assert_frame_equal(flowed.drop("run_id"), direct.drop("run_id"), rel_tol=1e-9, abs_tol=1e-6)
 
 
 def test_only_transient_failures_are_retried():

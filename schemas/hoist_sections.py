@@ -8,9 +8,7 @@ carry their SI unit; dimensioned values are parsed from ``"value unit"`` strings
 
 from __future__ import annotations
 
-import functools
 import math
-import zoneinfo
 from dataclasses import dataclass
 from typing import Annotated, Literal
 
@@ -28,6 +26,7 @@ from pydantic import (
 from schemas.effects import EffectName
 from schemas.names import name_problem
 from schemas.quantities import QuantityError, parse_quantity
+from schemas.time_zones import zone_problem
 
 __all__ = [
     "G_STANDARD",
@@ -128,25 +127,10 @@ class HoistInfo(Section):
     @field_validator("timezone")
     @classmethod
     def _known_zone(cls, value: str) -> str:
-        try:
-            zoneinfo.ZoneInfo(value)
-        except (zoneinfo.ZoneInfoNotFoundError, ValueError):
-            raise ValueError(f"unknown IANA time zone {value!r}") from None
-        if value not in _iana_zone_names():
-            raise ValueError(
-                f"unknown IANA time zone {value!r}: a zone file of this machine, not a zone "
-                "name (polars and DuckDB know names only, e.g. 'Asia/Shanghai')"
-            )
+        problem = zone_problem(value)
+        if problem:
+            raise ValueError(problem)
         return value
-
-
-@functools.cache
-def _iana_zone_names() -> frozenset[str]:
-    """The IANA zone names (links included: ``PRC``, ``US/Pacific``). ``zoneinfo``
-    also opens ``localtime``, ``posixrules``, ``Factory`` and ``posix/...`` /
-    ``right/...``, files of the machine's zone folders but not zone names: polars and
-    DuckDB refuse them (``timezone('localtime', t)`` fails every query of a view)."""
-    return frozenset(zoneinfo.available_timezones() - {"localtime", "Factory", "posixrules"})
 
 
 class Conveyance(Section):

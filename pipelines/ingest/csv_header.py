@@ -21,6 +21,7 @@ from pipelines.ingest.field_checks import CHANNELS, unit_to_si
 from pipelines.ingest.local_time import formats_for, has_utc_offset
 from schemas.names import UnsafeNameError, safe_name
 from schemas.quantities import QuantityError
+from schemas.time_zones import zone_problem
 
 __all__ = ["CsvHeader", "read_header"]
 
@@ -121,10 +122,9 @@ def read_header(path: Path) -> CsvHeader:
     columns = tuple(c.strip().lower() for c in col_text.split(separator))
     _check_columns(path, col_no, columns, notes)
     zone = meta.get("timezone", (0, "UTC"))
-    try:
-        zoneinfo.ZoneInfo(zone[1])
-    except (zoneinfo.ZoneInfoNotFoundError, ValueError):
-        raise RefusedFile(f"{path}: line {zone[0]}: unknown time zone {zone[1]!r}") from None
+    problem = zone_problem(zone[1])
+    if problem:
+        raise RefusedFile(f"{path}: line {zone[0]}: {problem}")
     rate: float | None = None
     if "sample_rate_hz" in meta:
         try:

@@ -200,6 +200,23 @@ def test_latin1_header_comment_lands_every_row(corpus, tmp_path, capfd):
     assert "not UTF-8 text, read as cp1252" in out
 
 
+@pytest.mark.parametrize("zone", ["localtime", "posixrules", "Mars/Olympus"])
+def test_a_header_zone_that_is_no_iana_name_is_refused_naming_its_line(
+    corpus, tmp_path, capfd, zone
+):
+    """``# timezone: localtime`` names a zone file of the machine that runs ingest (its
+    own clock, not the mine's), which polars and DuckDB do not know either: refused with
+    the file and the header's line, as an unknown name is."""
+    path = corpus.csv_file(tmp_path / "day.csv", corpus.data_rows(10),
+                           header={**corpus.HEADER, "timezone": zone})  # fmt: skip
+    code, _, err = _ingest(capfd, tmp_path / "data", path)
+    assert code == 1
+    assert err == [f"{PREFIX}{path}: line 3: unknown IANA time zone {zone!r}" + (
+        "" if "/" in zone else ": a zone file of this machine, not a zone name (polars and "
+        "DuckDB know names only, e.g. 'Asia/Shanghai')"
+    )]  # fmt: skip
+
+
 def test_header_only_file_lands_zero_rows_with_exit_0(corpus, tmp_path, capfd):
     path = corpus.csv_file(tmp_path / "quiet-hour.csv", [])
     code, out, err = _ingest(capfd, tmp_path / "data", path)

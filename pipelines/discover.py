@@ -210,9 +210,17 @@ def write_plot(result: DiscoveryResult, path: str | Path) -> Path:
 
 
 def _worst_trip(before: tuple[np.ndarray, ...]) -> tuple[int, int]:
-    """The trip with the largest mean squared residual, and its worst sensor (0-based)."""
+    """The trip with the largest mean squared residual, and its worst sensor (0-based;
+    a sensor with no residual there, one blanked as stuck, is none: no "Mean of empty
+    slice" warning on stderr)."""
     worst = int(np.argmax([np.nanmean(r**2) if np.isfinite(r).any() else -1 for r in before]))
-    return worst, int(np.nanargmax(np.nanmean(before[worst] ** 2, axis=0)))
+    squares = before[worst] ** 2
+    known = np.isfinite(squares)
+    counts = known.sum(axis=0)
+    means = np.where(
+        counts > 0, np.where(known, squares, 0.0).sum(axis=0) / np.maximum(counts, 1), -1.0
+    )
+    return worst, int(np.argmax(means))
 
 
 def residual_trace(result: DiscoveryResult, *, buckets: int = 1500) -> dict[str, Any]:

@@ -144,3 +144,22 @@ def test_an_ambiguous_answer_names_its_pair_at_the_top_level():
     assert report["effect"] == "ambiguous"
     assert report["ambiguous_between"] == ["local_loss", "pipe_laminar_loss"]
     assert report["excitation"] == "trips at different speeds"
+
+
+def test_the_plotted_sensor_of_a_trip_with_a_blanked_sensor_warns_nothing():
+    """The plot's worst trip and sensor where one sensor was blanked as stuck (all NaN in
+    that trip): the worst of the others, and no "Mean of empty slice" on stderr (a
+    discover run with a stuck sensor printed one)."""
+    import warnings
+
+    import numpy as np
+
+    from pipelines.discover import _worst_trip
+
+    quiet = np.full((50, 4), 1e3)
+    loud = np.full((50, 4), 1e3)
+    loud[:, 1] = np.nan  # blanked
+    loud[:, 2] = 5e3
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert _worst_trip((quiet, loud)) == (1, 2)

@@ -73,6 +73,7 @@ from pipelines.identified_ropes import identified_ropes
 from pipelines.ingest import ingest_paths
 from pipelines.lake import scan_lake
 from pipelines.run_period import run_period
+from pipelines.steps import one_line
 from schemas.hoist import EXAMPLE_HOIST, HoistDescription, load_hoist
 from schemas.tables import ROPES
 from sims.field_day import generate_field_day, write_field_day
@@ -545,11 +546,18 @@ def evaluate(days: Path, sims: int, work: Path, *, sims_lugre: int = 0, no_x: bo
     cases = [(lambda gz=gz: validation_case(gz, work / "inputs")) for gz in gz_files]
     cases += [(lambda k=k: sims_case(k, work / "inputs")) for k in range(sims)]
     cases += [(lambda k=k: sims_case(k, work / "inputs", lugre=True)) for k in range(sims_lugre)]
-    for make in cases:
+    failed = []
+    for number, make in enumerate(cases):
         started = time.perf_counter()
-        case = without_x(make()) if no_x else make()
-        root = work / "data" / case.csv.stem
-        tensions = compensate_day(case, root)
+        try:
+            case = without_x(make()) if no_x else make()
+            root = work / "data" / case.csv.stem
+            tensions = compensate_day(case, root)
+        except Exception as error:  # one day's failure is a finding, not the end
+            name = gz_files[number].name if number < len(gz_files) else f"sims case {number}"
+            failed.append(name)
+            print(f"\n== {name}: FAILED, not evaluated: {one_line(error)}", flush=True)
+            continue
         errors = window_errors(tensions, case.windows)
         figures.append(
             report_day(case.name, errors, len(case.windows), time.perf_counter() - started)
@@ -563,6 +571,8 @@ def evaluate(days: Path, sims: int, work: Path, *, sims_lugre: int = 0, no_x: bo
             )
             report_ropes(identified_ropes(samples.collect(), hoist, data=data), implied, hoist)
     _summary(figures)
+    if failed:
+        print(f"  days that failed (target: none): {', '.join(failed)}")
 
 
 def main() -> None:

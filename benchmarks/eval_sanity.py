@@ -44,6 +44,7 @@ import polars as pl
 from pipelines.hoist_day import check_sanity
 from pipelines.ingest import ingest_paths
 from pipelines.run_period import run_period
+from pipelines.steps import one_line
 from schemas.hoist import HoistDescription, load_hoist
 from transforms.kinematics import position_expr
 from warehouse.store import DataRoot, open_reader
@@ -148,8 +149,14 @@ def main() -> None:
     print(f"sanity check on {len(days)} validation days, replays driven by '{args.motion}'")
     total = passed = 0
     with tempfile.TemporaryDirectory(prefix="eval_sanity_") as tmp:
+        failed_days = []
         for gz in days:
-            day = check_day(gz, Path(tmp), args.max_trips, args.motion)
+            try:
+                day = check_day(gz, Path(tmp), args.max_trips, args.motion)
+            except Exception as error:  # one day's failure is a finding, not the end
+                failed_days.append(gz.name)
+                print(f"{gz.name}: FAILED, no trip checked: {one_line(error)}", flush=True)
+                continue
             print(_line(day), flush=True)
             skipped = day["checks"].filter(pl.col("status") == "skipped")
             for reason, count in (
@@ -169,6 +176,8 @@ def main() -> None:
             f"all days: {passed}/{total} trips pass = {100 * passed / total:.1f} % "
             f"(target >= {100 * TARGET_PASS:.0f} %)"
         )
+    if failed_days:
+        print(f"days that failed before any check (target: none): {', '.join(failed_days)}")
 
 
 if __name__ == "__main__":

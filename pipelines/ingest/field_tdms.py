@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 from nptdms import TdmsFile
+from nptdms import log as nptdms_log
 
 from pipelines.ingest.batch import REJECTED_SCHEMA, Batch, Reading, RefusedFile, rejected_frame
 from pipelines.ingest.clock import ClockState, clock_steps, steps_note, tolerance_us
@@ -57,8 +58,11 @@ _EARLIEST = np.datetime64("0001-01-01T00:00:00", "us")
 _LATEST = np.datetime64("9999-12-31T23:59:59.999999", "us")
 
 # a damaged file's complaints are the file's outcome (refused, partial), said once by
-# the ingest report: npTDMS's own warnings would be further stderr lines
-logging.getLogger("nptdms").setLevel(logging.ERROR)
+# the ingest report: npTDMS's own warnings would be further stderr lines. Its module
+# loggers ("nptdms.reader", ...) each set their own level and write through their own
+# stderr handler, so the package logger's level does not reach them: its log manager's
+# does (and holds for loggers of modules it imports later)
+nptdms_log.log_manager.set_level(logging.ERROR)
 
 
 def open_tdms(path: Path, *, hoist_lookup: HoistLookup | None = None) -> Reading:

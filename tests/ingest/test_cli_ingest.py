@@ -290,6 +290,24 @@ def test_console_script_exit_status_and_streams(corpus, tmp_path):
     assert "1 refused" in done.stdout
 
 
+def test_console_script_truncated_tdms_is_partial_with_nothing_on_stderr(corpus, tmp_path):
+    """The real process: a TDMS the logger stopped writing mid-segment lands the samples
+    every channel has (partial, said in the report); npTDMS's own warnings about the
+    short last segment are not further stderr lines of a command that succeeded."""
+    path = corpus.tdms_file(tmp_path / "cut.tdms")
+    path.write_bytes(path.read_bytes()[: -40 * 8])
+    done = subprocess.run(
+        [sys.executable, "-m", "pipelines.cli", "ingest", "--data", str(tmp_path / "d"), path],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert (done.returncode, done.stderr) == (0, "")
+    assert "partial" in done.stdout
+    assert _lake_rows(tmp_path / "d") == 59
+
+
 @pytest.mark.usefixtures("prefect_harness")
 def test_prefect_flow_fails_and_cli_says_the_same_lines(corpus, tmp_path, capfd):
     from pipelines.flows import ingest_flow

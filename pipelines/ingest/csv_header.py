@@ -23,7 +23,13 @@ from schemas.names import UnsafeNameError, safe_name
 from schemas.quantities import QuantityError
 from schemas.time_zones import zone_problem
 
-__all__ = ["CsvHeader", "read_header"]
+__all__ = [
+    "CsvHeader",
+    "header_differences",
+    "parse_header",
+    "parse_repeated_header",
+    "read_header",
+]
 
 
 _HEADER_LIMIT = 1 << 16
@@ -77,6 +83,49 @@ class CsvHeader:
         )
 
 
+def parse_repeated_header(path: Path, file_header: bytes, block: bytes) -> CsvHeader:
+    """The header that ``block`` (``#`` lines and a column line repeated mid-file, and
+    data lines after them) states, each key it does not state (``site``, ``hoist``,
+    ``units``, ...) as ``file_header`` (the file's own header lines) states it: a logger
+    that writes a comment and the column line again after a restart keeps the file's."""
+    file_meta = _header_lines(path, file_header)[0]
+    stated = set()
+    for raw in block.split(b"\n"):
+        text = raw.removeprefix(_BOM)
+        if not text.startswith(b"#"):
+            break
+        stated.add(text[1:].decode("utf-8", "replace").partition(":")[0].strip().lower())
+    kept = [
+        f"# {key}: {value}".encode()
+        for key, (_, value) in file_meta.items()
+        if key in _READ_KEYS and key not in stated
+    ]
+    return parse_header(path, b"".join(line + b"\n" for line in kept) + block)
+
+
+def header_differences(header: CsvHeader, other: CsvHeader) -> list[str]:
+    r"""What ``other`` (a header repeated in the file) says unlike ``header`` (the file's):
+    the names of the keys (``site``, ``hoist``, ``timezone``, ``units``) and ``columns``
+    (the column line: names, order or delimiter) that would read its rows otherwise.
+    The nominal ``sample_rate_hz`` and free keys do not count.
+
+    >>> import dataclasses
+    >>> head = b"# site: s\n# hoist: h\n# units: p=MPa\ntimestamp,p1,p2,p3,p4\n"
+    >>> a = parse_header(Path("f"), head)
+    >>> header_differences(a, dataclasses.replace(a, units={**a.units, "p1": (1e5, 0.0)}))
+    ['units (p1)']
+    """
+    found = [key for key in ("site", "hoist") if getattr(header, key) != getattr(other, key)]
+    if not (header.offsets and other.offsets) and not _same_clock(header.timezone, other.timezone):
+        found.append("timezone")
+    if (header.columns, header.separator) != (other.columns, other.separator):
+        found.append("columns")
+    units = [c for c in other.units if header.units.get(c, other.units[c]) != other.units[c]]
+    if units:
+        found.append(f"units ({', '.join(units)})")
+    return found
+
+
 def _same_clock(zone: str, other: str) -> bool:
     """Whether two IANA zones keep the same clock: the same name, or an alias
     (``Etc/UTC`` and ``UTC``, ``PRC`` and ``Asia/Shanghai``) with the same UTC offsets
@@ -97,6 +146,12 @@ def read_header(path: Path) -> CsvHeader:
         head = handle.read(_HEADER_LIMIT)
     if not head:
         raise RefusedFile(f"{path}: empty file (0 bytes)")
+    return parse_header(path, head)
+
+
+def parse_header(path: Path, head: bytes) -> CsvHeader:
+    """The header that the bytes ``head`` (a file's first bytes, or a header repeated
+    in it) begin with; ``path`` names the file in a refusal (lines counted in ``head``)."""
     meta, notes, (col_no, col_text), pos = _header_lines(path, head)
     missing = [k for k in _REQUIRED_KEYS if k not in meta]
     if missing:

@@ -18,7 +18,9 @@ memory stays bounded however large the file is. Each batch goes through:
    comma and sentinels to SI floats, one quarantine reason per row
    (:mod:`.field_checks`; a clock stepping back: :mod:`.clock`).
 
-The header (``#`` lines, column line, units) is read by :mod:`.csv_header`.
+The header (``#`` lines, column line, units) is read by :mod:`.csv_header`. A header
+repeated mid-file (two exports in one file) that differs from it quarantines the rows
+after it, which the file's header would misread (:class:`RepeatedHeaders`).
 
 A last line without a newline is held back: the file may still be growing
 (``Reading.partial``, ``bytes_consumed`` stops before it). ``start_offset`` /
@@ -37,10 +39,15 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
-from pipelines.ingest.batch import REJECTED_SCHEMA, Batch, Reading, rejected_frame
+from pipelines.ingest.batch import REJECTED_SCHEMA, Batch, Reading, RefusedFile, rejected_frame
 from pipelines.ingest.clock import ClockState, clock_steps, steps_note, tolerance_us
 from pipelines.ingest.csv_chunks import ChunkProgress, iter_chunks
-from pipelines.ingest.csv_header import CsvHeader, read_header
+from pipelines.ingest.csv_header import (
+    CsvHeader,
+    header_differences,
+    parse_repeated_header,
+    read_header,
+)
 from pipelines.ingest.csv_scan import NUMBER_BYTES, scan_chunk
 from pipelines.ingest.field_checks import (
     CHANNELS,
@@ -103,7 +110,10 @@ def open_csv(
     else:
         clock = ClockState()
     reading.clock = clock
-    parser = _BatchParser(header, limits, progress.ambiguity, clock)
+    repeated = RepeatedHeaders(path, header)
+    if offset > header.data_offset:  # a header repeated in the prefix still holds
+        repeated.read_prefix(offset)
+    parser = _BatchParser(header, limits, progress.ambiguity, clock, repeated)
 
     def batches() -> Iterator[Batch]:
         for chunk, first_line, n_lines in iter_chunks(path, offset, line, batch_bytes, progress):
@@ -270,10 +280,14 @@ class _BatchParser:
         limits: FieldLimits,
         ambiguity: AmbiguityState,
         clock: ClockState | None = None,
+        repeated: RepeatedHeaders | None = None,
     ) -> None:
         """``clock``: the file's clock state, carried over its batches; None parses the
-        times alone (no clock-step check: a probe of a file's tail, a parser test)."""
+        times alone (no clock-step check: a probe of a file's tail, a parser test).
+        ``repeated``: the headers repeated in the file, carried over its batches; None
+        reads every row with ``header`` (a probe)."""
         self.header = header
+        self.repeated = repeated
         self.limits = limits
         self.ambiguity = ambiguity
         self.clock = clock
@@ -307,12 +321,18 @@ class _BatchParser:
                     except UnicodeDecodeError:
                         non_utf8[index] = True
         bad = non_utf8 | wrong_count
+        foreign = None
+        if self.repeated is not None:
+            foreign = self.repeated.reasons(buffer, starts, ends, first_line)
+        if foreign is not None:
+            bad = bad | (~blank & foreign.astype(bool))
         keep = ~blank & ~bad
         rejected_rows = [
             (
                 first_line + int(i),
                 None,
-                REASON_NON_UTF8 if non_utf8[i] else REASON_FIELD_COUNT,
+                (foreign[i] if foreign is not None else None)
+                or (REASON_NON_UTF8 if non_utf8[i] else REASON_FIELD_COUNT),
                 lines.text(int(i)),
             )
             for i in np.flatnonzero(bad)
@@ -508,6 +528,143 @@ class _BatchParser:
             schema=REJECTED_SCHEMA,
         )
         return samples.select(*columns, "_row"), rejected, held
+
+
+#: First bytes of a line that may belong to a header repeated mid-file: ``#`` (a header
+#: line), ``t``/``T`` (the column line), a BOM (the second export of ``cat a.csv b.csv``).
+_HEADER_FIRST_BYTES = np.zeros(256, np.bool_)
+_HEADER_FIRST_BYTES[[ord("#"), ord("t"), ord("T"), 0xEF]] = True
+_BOM = b"\xef\xbb\xbf"
+#: Data lines after a repeated column line read with it (whether times carry offsets).
+_FOLLOWING_LINES = 5
+
+
+class RepeatedHeaders:
+    """Headers repeated mid-file (two exports in one file, ``cat a.csv b.csv``; a logger
+    that writes its header again after a restart) and the rows they make unreadable.
+
+    The rows after a repeated header are read with the file's header (the first). Where
+    the repeated one (its ``#`` lines and column line, or a column line alone) reads
+    alike (:func:`.csv_header.header_differences`), nothing changes; where it differs
+    (other units, another hoist, another column order), the file's header would land
+    wrong numbers (49.6 bar as 49.6 MPa), another hoist's samples or swapped ropes: every
+    row after it is quarantined with one reason naming its line and what differs, until
+    a header like the file's own comes again. The header lines themselves are rows of
+    the wrong shape as before. The state carries over batches and a resumed file
+    (:meth:`read_prefix`).
+    """
+
+    def __init__(self, path: Path, header: CsvHeader) -> None:
+        self.path, self.header = path, header
+        #: the ``#`` lines (line number, bytes) read since the last data row
+        self.pending: list[tuple[int, bytes]] = []
+        #: the reason of the rows after a differing header, None where they read alike
+        self.reason: str | None = None
+        #: the file's own header lines, read when a repeated one is to be judged
+        self.file_header: bytes | None = None
+
+    def reasons(
+        self, buffer: np.ndarray, starts: np.ndarray, ends: np.ndarray, first_line: int
+    ) -> np.ndarray | None:
+        """The reason quarantining each line of a batch (None where none), None when no
+        line has one; the state is read and advanced. Lines ``[starts, ends)`` of
+        ``buffer``, the first being line ``first_line``."""
+        n = starts.size
+        nonblank = ends > starts
+        firsts = np.zeros(n, np.bool_)
+        firsts[nonblank] = _HEADER_FIRST_BYTES[buffer[starts[nonblank]]]
+        candidates = np.flatnonzero(firsts)
+        if not candidates.size:
+            if nonblank.any():
+                self.pending.clear()  # data rows: no header goes on after them
+            return _reasons_of(n, [(0, n, self.reason)])
+        spans: list[tuple[int, int, str | None]] = []
+        begin, previous = 0, -1
+        for i in candidates.tolist():
+            if nonblank[previous + 1 : i].any():
+                self.pending.clear()
+            previous = i
+            raw = buffer[starts[i] : ends[i]].tobytes().removeprefix(_BOM)
+            if raw.startswith(b"#"):
+                self.pending.append((first_line + i, raw))
+                continue
+            separator = max((",", ";", "\t"), key=raw.decode("utf-8", "replace").count)
+            if raw.split(separator.encode())[0].strip().lower() != b"timestamp":
+                self.pending.clear()  # a row of garbage, not a column line
+                continue
+            following = [
+                buffer[starts[k] : ends[k]].tobytes()
+                for k in range(i + 1, min(i + 1 + _FOLLOWING_LINES, n))
+            ]
+            spans.append((begin, i, self.reason))
+            self.reason = self._judge(first_line + i, raw, following)
+            self.pending.clear()
+            begin = i + 1
+        spans.append((begin, n, self.reason))
+        return _reasons_of(n, spans)
+
+    def _judge(self, line: int, column_line: bytes, following: list[bytes]) -> str | None:
+        """The reason of the rows after the header ending with ``column_line`` (line
+        ``line``) and the ``#`` lines pending before it, None where it reads alike."""
+        start = self.pending[0][0] if self.pending else line
+        where = f"after the header repeated at line {start}"
+        if self.file_header is None:
+            with self.path.open("rb") as handle:
+                self.file_header = handle.read(self.header.data_offset)
+        block = [raw for _, raw in self.pending] + [column_line, *following]
+        try:
+            other = parse_repeated_header(self.path, self.file_header, b"\n".join(block) + b"\n")
+        except RefusedFile as exc:
+            what = str(exc).removeprefix(f"{self.path}: ")
+            return f"{where}, which cannot be read ({what}): not read with the file's header"
+        found = header_differences(self.header, other)
+        if not found:
+            return None
+        return (
+            f"{where}, which differs from the file's ({', '.join(found)}): "
+            "not read with the file's header (two exports in one file?)"
+        )
+
+    def read_prefix(self, offset: int) -> None:
+        """Advance the state over the file's first ``offset`` bytes (an earlier ingest's,
+        ending with a line): a resumed read goes on under the header they left in
+        effect. Only blocks holding a line that begins like a header line are parsed."""
+        position, line = self.header.data_offset, self.header.data_line
+        firsts = (b"#", b"t", b"T", _BOM)  # a line's first bytes, as _HEADER_FIRST_BYTES
+        marks = tuple(b"\n" + first for first in firsts)
+        with self.path.open("rb") as handle:
+            handle.seek(position)
+            while position < offset:
+                block = handle.read(min(_PREFIX_BLOCK, offset - position))
+                if position + len(block) < offset:
+                    block += handle.readline()  # whole lines only
+                if not block:
+                    break
+                n_lines = block.count(b"\n")
+                if block.startswith(firsts) or any(mark in block for mark in marks):
+                    buffer = np.frombuffer(block, np.uint8)
+                    newlines = np.flatnonzero(buffer == 10)
+                    starts = np.concatenate(([0], newlines[:-1] + 1))
+                    ends = newlines - (buffer[np.maximum(newlines - 1, 0)] == 13)
+                    self.reasons(buffer, starts, np.maximum(ends, starts), line)
+                elif block.strip():
+                    self.pending.clear()
+                position += len(block)
+                line += n_lines
+
+
+_PREFIX_BLOCK = 8 << 20
+
+
+def _reasons_of(n: int, spans: list[tuple[int, int, str | None]]) -> np.ndarray | None:
+    """Per line of ``n``, the reason of the span ``[begin, end)`` it is in; None if none."""
+    if all(reason is None for _, _, reason in spans):
+        return None
+    out = np.full(n, None, dtype=object)
+    for begin, end, reason in spans:
+        if reason is not None:
+            out[begin:end] = reason
+    return out
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,7 @@
 """Field logs as TDMS (contract 1b), streamed with ``TdmsFile.open`` + ``data_chunks``.
 
-Group ``hoist``; channels named as the CSV columns (``p1..p4`` required); per-channel
+Group ``hoist``; channels named as the CSV columns, whatever their case (``p1..p4``
+required; ``P1`` is ``p1``, as in a CSV's column line); per-channel
 ``unit_string`` (the same units as the CSV ``units`` line); waveform properties
 ``wf_start_time``, ``wf_increment`` (+ ``wf_start_offset``, default 0) on every value
 channel; file properties ``site``, ``hoist`` (required) and ``timezone``.
@@ -31,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 import polars as pl
-from nptdms import TdmsFile
+from nptdms import TdmsChannel, TdmsFile
 from nptdms import log as nptdms_log
 
 from pipelines.ingest.batch import REJECTED_SCHEMA, Batch, Reading, RefusedFile, rejected_frame
@@ -80,7 +81,7 @@ def open_tdms(path: Path, *, hoist_lookup: HoistLookup | None = None) -> Reading
     limits = field_limits(hoist)
     notes = []
     unknown = [
-        c.name for c in tdms[_GROUP].channels() if c.name not in CHANNELS and c.name != "timestamp"
+        c.name for c in tdms[_GROUP].channels() if _key(c.name) not in (*CHANNELS, "timestamp")
     ]
     if unknown:
         notes.append(f"unknown channel(s) {', '.join(unknown)} ignored")
@@ -89,6 +90,16 @@ def open_tdms(path: Path, *, hoist_lookup: HoistLookup | None = None) -> Reading
     )
     reading.batches = _batches(tdms, units, timebase, limits, reading)
     return reading
+
+
+def _key(name: str) -> str:
+    """A channel's name as the CSV's column: whatever its case and surrounding blanks
+    (a LabVIEW user may name it ``P1`` or ``Depth``, as a CSV export may write them).
+
+    >>> _key("P1"), _key(" Depth "), _key("oil_temp")
+    ('p1', 'depth', 'oil_temp')
+    """
+    return name.strip().lower()
 
 
 def _metadata(path: Path, tdms: TdmsFile):
@@ -103,7 +114,15 @@ def _metadata(path: Path, tdms: TdmsFile):
     groups = {g.name: g for g in tdms.groups()}
     if _GROUP not in groups:
         raise RefusedFile(f"{path}: no group {_GROUP!r} (groups: {', '.join(groups) or 'none'})")
-    channels = {c.name: c for c in groups[_GROUP].channels()}
+    channels: dict[str, TdmsChannel] = {}  # channel name as the CSV's column -> channel
+    for channel in groups[_GROUP].channels():
+        key = _key(channel.name)
+        if key in channels and key in (*CHANNELS, "timestamp"):
+            raise RefusedFile(
+                f"{path}: channel hoist/{channel.name}: the same channel as "
+                f"hoist/{channels[key].name} ({key}) but for case: which one holds?"
+            )
+        channels.setdefault(key, channel)
     lacking = [c for c in ("p1", "p2", "p3", "p4") if c not in channels]
     if lacking:
         raise RefusedFile(f"{path}: group 'hoist' lacks required channel(s) {', '.join(lacking)}")
@@ -112,7 +131,7 @@ def _metadata(path: Path, tdms: TdmsFile):
         np.dtype(getattr(stamps, "dtype", np.float64)), np.datetime64
     ):
         raise RefusedFile(
-            f"{path}: channel hoist/timestamp: values of type {stamps.dtype} are not times"
+            f"{path}: channel hoist/{stamps.name}: values of type {stamps.dtype} are not times"
         )
     units: dict[str, tuple[float, float]] = {}
     timebase = None
@@ -123,27 +142,29 @@ def _metadata(path: Path, tdms: TdmsFile):
         for key in ("wf_increment", "wf_start_time"):
             if key not in channel.properties:
                 raise RefusedFile(
-                    f"{path}: channel hoist/{name}: waveform property {key!r} is missing "
+                    f"{path}: channel hoist/{channel.name}: waveform property {key!r} is missing "
                     "(no time base)"
                 )
-        base = _timebase(path, name, channel.properties)
+        base = _timebase(path, channel.name, channel.properties)
         if not np.issubdtype(np.dtype(getattr(channel, "dtype", np.float64)), np.number):
             raise RefusedFile(
-                f"{path}: channel hoist/{name}: values of type {channel.dtype} are not numbers"
+                f"{path}: channel hoist/{channel.name}: values of type {channel.dtype} "
+                "are not numbers"
             )
         if timebase is None:
             timebase = base
         elif base != timebase:
             raise RefusedFile(
-                f"{path}: channel hoist/{name}: waveform time base differs from the other channels"
+                f"{path}: channel hoist/{channel.name}: waveform time base differs from "
+                "the other channels"
             )
         unit = str(channel.properties.get("unit_string", "")).strip() or spec.default_unit
         if unit is None:
-            raise RefusedFile(f"{path}: channel hoist/{name}: no unit_string property")
+            raise RefusedFile(f"{path}: channel hoist/{channel.name}: no unit_string property")
         try:
             units[name] = unit_to_si(unit, spec)
         except QuantityError as exc:
-            raise RefusedFile(f"{path}: channel hoist/{name}: unit_string: {exc}") from None
+            raise RefusedFile(f"{path}: channel hoist/{channel.name}: unit_string: {exc}") from None
     return str(props["site"]).strip(), str(props["hoist"]).strip(), units, timebase
 
 
@@ -192,7 +213,11 @@ def _batches(
     samples every channel has land and the reading is ``partial`` (a channel filled with
     nulls instead would land wrong rows that the complete file's rows then conflict
     with)."""
-    names = [c.name for c in tdms[_GROUP].channels() if c.name in units or c.name == "timestamp"]
+    names = [
+        _key(c.name)
+        for c in tdms[_GROUP].channels()
+        if _key(c.name) in units or _key(c.name) == "timestamp"
+    ]
     held: dict[str, list[np.ndarray]] = {name: [] for name in names}
     ends = dict.fromkeys(names, 0)  # each channel's values read so far
     landed = 0  # the samples every channel had, batched already
@@ -201,9 +226,10 @@ def _batches(
     try:
         for chunk in tdms.data_chunks():
             for channel in chunk[_GROUP].channels():
-                if channel.name in held and len(channel):
-                    held[channel.name].append(channel[:])
-                    ends[channel.name] = channel.offset + len(channel)
+                name = _key(channel.name)
+                if name in held and len(channel):
+                    held[name].append(channel[:])
+                    ends[name] = channel.offset + len(channel)
             n = min(ends.values()) - landed
             if n <= 0:
                 continue

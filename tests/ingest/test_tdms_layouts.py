@@ -105,3 +105,59 @@ def test_an_infinite_tdms_value_is_quarantined_as_a_csv_one_is(corpus, tmp_path,
         "depth outside the shaft": 1,
     }
     assert np.isfinite(_lake(root).select("x1_m", "speed_m_s", "depth_m").to_numpy()).all()
+
+
+def _named_tdms(path, rename) -> None:
+    """A contract-1b TDMS of 50 samples whose channels are named ``rename(name)``; its
+    timestamp channel jitters off the waveform's time base (2 ms every other sample)."""
+    from nptdms import ChannelObject, RootObject, TdmsWriter
+
+    n = 50
+    t0 = np.datetime64("2026-03-02T06:00:00", "us")
+    stamps = t0 + (np.arange(n) * 10_000 + (np.arange(n) % 2) * 2_000).astype("timedelta64[us]")
+    wave = {"wf_start_time": t0, "wf_increment": 0.01, "wf_start_offset": 0.0}
+    values = {
+        **{f"p{i}": (np.full(n, 4.8 + 0.001 * i), "MPa") for i in range(1, 5)},
+        "depth": (np.linspace(0, 60, n), "m"),
+        "speed": (np.full(n, 1.0), "m/s"),
+    }
+    channels = [
+        ChannelObject("hoist", rename(name), data, properties={"unit_string": unit, **wave})
+        for name, (data, unit) in values.items()
+    ]
+    channels.append(ChannelObject("hoist", rename("timestamp"), stamps))
+    root = RootObject({"site": "xuzhou-north", "hoist": "tdms-hoist", "timezone": "UTC"})
+    with TdmsWriter(path) as writer:
+        writer.write_segment([root, *channels])
+
+
+def test_tdms_channel_names_whatever_their_case_land_as_the_csvs_do(tmp_path):
+    """A LabVIEW user names the channels ``P1`` or ``Depth``, as a CSV's columns may be
+    (contract 1b: channels named as the CSV columns, same meaning): the file lands as the
+    lower-case one, its timestamp channel giving the sample times."""
+    from warehouse.store import DataRoot
+
+    lakes = {}
+    for label, rename in (("lower", str), ("upper", str.upper), ("title", str.capitalize)):
+        root = DataRoot(tmp_path / label)
+        _named_tdms(tmp_path / f"{label}.tdms", rename)
+        result = ingest_paths([tmp_path / f"{label}.tdms"], data=root).files[0]
+        assert result.status == "landed", result.message
+        assert (result.rows_read, result.rows_landed) == (50, 50)
+        assert "unknown channel" not in result.message
+        lakes[label] = _lake(root).drop("source_sha256")
+    assert lakes["lower"]["time_utc"].dt.microsecond()[1] == 12_000  # the jittered stamp
+    assert lakes["upper"].equals(lakes["lower"])
+    assert lakes["title"].equals(lakes["lower"])
+
+
+def test_two_tdms_channels_one_name_but_for_case_refuse_the_file(tmp_path, root):
+    _named_tdms(tmp_path / "a.tdms", str)
+    from nptdms import ChannelObject, TdmsWriter
+
+    with TdmsWriter(tmp_path / "a.tdms", mode="a") as writer:
+        writer.write_segment([ChannelObject("hoist", "P1", np.full(50, 9.0))])
+    result = ingest_paths([tmp_path / "a.tdms"], data=root).files[0]
+    assert result.status == "refused"
+    assert "hoist/P1" in result.message
+    assert "p1" in result.message

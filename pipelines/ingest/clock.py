@@ -23,6 +23,9 @@ but a corrupted time (a year 2027 in a 2026 file): that row alone is quarantined
 (:func:`time_ahead_reason`) and moves no clock; taken as the latest time read, it had
 quarantined every later row of the file as a step back (:func:`lone_times_ahead`). Its
 neighbours are judged within a batch: such a row last in its batch is taken as read.
+So is a short stretch of such rows (:func:`stretches_ahead`: a wrong year on a few rows,
+a time server's wrong hour for seconds), which lasted less than its lead: taken as the
+latest times read, two rows a year ahead had quarantined the rest of their file.
 
 The state (:class:`ClockState`) carries over batches of a file, and over a resume of a
 growing CSV (the manifest keeps it: ``clock_latest_utc``, ``clock_step_line``,
@@ -45,6 +48,7 @@ __all__ = [
     "clock_steps",
     "lone_times_ahead",
     "steps_note",
+    "stretches_ahead",
     "time_ahead_reason",
     "tolerance_us",
 ]
@@ -144,6 +148,50 @@ def lone_times_ahead(t: np.ndarray, valid: np.ndarray, tolerance: int) -> np.nda
     return ahead
 
 
+#: Rows stepping back that :func:`stretches_ahead` looks behind, per batch (each costs a
+#: pass over the rows before it; a file whose rows are in no order has thousands).
+_MAX_STRETCH_ENDS = 64
+
+
+def stretches_ahead(t: np.ndarray, valid: np.ndarray, tolerance: int) -> np.ndarray:
+    """Rows of a short stretch whose times run ahead of the rows before and after it,
+    which go on one timeline: the lead of each such row's stretch [µs], 0 elsewhere.
+
+    A stretch begins with a jump ahead of more than ``tolerance`` and ends with the
+    first row back on the timeline before it (not more than ``tolerance`` before the
+    row before the jump, and more than ``tolerance`` before the stretch's first time);
+    it is short when it lasted (its last time less its first) less than its lead (a
+    logger that wrote a wrong year on a few rows, a time server's wrong hour for
+    seconds). A clock ahead for longer than its lead, then set back, is a step back
+    (:func:`clock_steps`). One row is :func:`lone_times_ahead`'s; a stretch not ended
+    within the batch is taken as read. ``t`` in µs, ``valid`` where known.
+
+    >>> t = np.array([0, 20, 40, 9_000_000, 9_000_020, 60, 80]) * 1000
+    >>> (stretches_ahead(t, np.ones(7, bool), 200_000) > 0).nonzero()[0].tolist()
+    [3, 4]
+    >>> late = np.array([0, 20, 40, 500, 3_000, 5_000, 60, 80]) * 1000  # ahead too long
+    >>> bool(stretches_ahead(late, np.ones(8, bool), 200_000).any())
+    False
+    """
+    lead = np.zeros(t.size, np.int64)
+    known = np.flatnonzero(valid)
+    times = t[known]
+    backs = np.flatnonzero(times[1:] < times[:-1] - tolerance) + 1  # rows stepping back
+    for r in backs[:_MAX_STRETCH_ENDS].tolist():  # a few per batch (rows in no order: many)
+        before = np.flatnonzero(times[:r] <= times[r] + tolerance)
+        if not before.size:  # the batch begins ahead: no timeline before to go on
+            continue
+        k = int(before[-1])  # the last row before the stretch: k + 1 .. r - 1 run ahead
+        first, last = times[k + 1], times[r - 1]
+        jump = int(first - times[k])
+        if times[r] < times[k] - tolerance or jump <= tolerance or last - first >= jump:
+            continue
+        rows = known[k + 1 : r]
+        if not lead[rows].any():
+            lead[rows] = jump
+    return lead
+
+
 def _size(seconds: float) -> str:
     return f"{seconds:.1f}" if seconds >= 1 else f"{seconds:.3f}"
 
@@ -180,10 +228,19 @@ def clock_steps(
     t = time_utc.dt.epoch("us").fill_null(_LOW).to_numpy().astype(np.int64, copy=False)
     t = np.where(valid, t, _LOW)
     ahead = lone_times_ahead(t, valid, tolerance)
+    lead = np.zeros(n, np.int64)
     if ahead.any():  # corrupted times: quarantined alone, they move no clock
-        lone = [time_ahead_reason((int(t[k]) - int(t[k - 1])) / 1e6) for k in np.flatnonzero(ahead)]
+        lead[ahead] = t[ahead] - t[np.flatnonzero(ahead) - 1]
         valid = valid & ~ahead
         t = np.where(ahead, _LOW, t)
+    stretch = stretches_ahead(t, valid, tolerance)
+    if stretch.any():  # a short stretch of them: likewise
+        lead = np.where(stretch > 0, stretch, lead)
+        ahead = ahead | (stretch > 0)
+        valid = valid & ~ahead
+        t = np.where(ahead, _LOW, t)
+    if ahead.any():
+        lone = [time_ahead_reason(int(lead[k]) / 1e6) for k in np.flatnonzero(ahead)]
     seed = _LOW if state.latest_us is None else state.latest_us
     running = np.maximum.accumulate(np.concatenate(([seed], t)))
     before = running[:-1]  # the latest time read before each row

@@ -241,3 +241,41 @@ def test_one_corrupted_time_ahead_is_quarantined_alone(corpus, tmp_path, root, a
     assert line == FIRST_LINE + 200
     assert reason.startswith(f"time {ahead.total_seconds():.1f} s ahead of the rows around it")
     assert FIRST_LINE + 200 not in _lake(root)["source_line"].to_list()
+
+
+@pytest.mark.parametrize(
+    ("ahead", "rows"),
+    [(dt.timedelta(days=365), 2), (dt.timedelta(days=365), 5), (dt.timedelta(hours=1), 100)],
+)
+def test_a_short_stretch_of_times_ahead_is_quarantined_alone(corpus, tmp_path, root, ahead, rows):
+    """A few rows (two, five, or two seconds of a time server's wrong hour) ahead of the
+    rows before and after them, which go on one timeline: those rows alone are
+    quarantined, the rest of the file lands. Taken as the latest times read, they had
+    quarantined every later row as a clock step back (a whole day's file from there)."""
+    times = _times(10, 99, 0)
+    for k in range(200, 200 + rows):
+        times[k] = times[k] + ahead
+    path = corpus.csv_file(tmp_path / "ahead.csv", _rows(corpus, times), header=_header(corpus))
+    result = ingest_paths([path], data=root).files[0]
+    assert result.balanced
+    assert (result.rows_landed, result.rows_quarantined) == (500 - rows, rows)
+    quarantined = _quarantine(root)
+    assert [line for line, _ in quarantined] == list(
+        range(FIRST_LINE + 200, FIRST_LINE + 200 + rows)
+    )
+    assert all(r.startswith(f"time {ahead.total_seconds():.1f} s ahead") for _, r in quarantined)
+    assert "stepped back" not in result.message
+
+
+def test_a_clock_ahead_longer_than_its_lead_then_set_back_is_still_a_step(corpus, tmp_path, root):
+    """A clock 0.5 s ahead for 4 s, then set back: the rows after the set-back repeat
+    times already read (a step back, as before); the stretch ahead lasted longer than
+    its lead, so it is no corrupted stretch."""
+    times = _times(10, 99, 0)
+    for k in range(200, 400):
+        times[k] = times[k] + dt.timedelta(seconds=0.5)
+    path = corpus.csv_file(tmp_path / "ahead.csv", _rows(corpus, times), header=_header(corpus))
+    result = ingest_paths([path], data=root).files[0]
+    assert result.balanced
+    assert "stepped back 1 time(s)" in result.message
+    assert all(r.startswith("the logger clock stepped back") for _, r in _quarantine(root))

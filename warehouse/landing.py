@@ -158,11 +158,9 @@ def land_results(
                 [run.run_id, *params],
             )
             inserted["sanity_checks"] = insert_frame(con, "sanity_checks", sanity_checks)
-        # this run's trips an earlier run's row holds whole (dropped), and those rows
-        held: list[tuple[int, str, int]] = []
         for table, frame, time_column in (
-            ("trip_summary", trip_summary, "time_start_utc"),
             ("position_summary", position_summary, "time_start_utc"),
+            ("trip_summary", trip_summary, "time_start_utc"),
             ("alarms", alarms, "start_utc"),
         ):
             if frame is None:
@@ -173,21 +171,10 @@ def land_results(
                 ids = frame["alarm_id"].to_list()
                 clause += " OR list_contains(?, alarm_id)"
                 params.append(ids)
-            if table == "position_summary" and held:
-                # the stops and passes of a trip an earlier run's row holds stay that
-                # run's, and this run's of it are not landed: every visit names a trip
-                # its run holds
-                clause = f"({clause}) AND NOT list_contains(?, concat(run_id, '/', trip_id))"
-                params.append([f"{r}/{t}" for _, r, t in held])
-                dropped = [n for n, _, _ in held]
-                frame = frame.filter(~pl.col("trip_id").is_in(dropped).fill_null(False))
             con.execute(f"DELETE FROM {table} WHERE {clause}", params)
             inserted[table] = insert_frame(con, table, frame)
             if frame.height and run.period_start_utc is not None:
-                covered = _drop_covered(con, run, table)
-                inserted[table] -= len(covered)
-                if table == "trip_summary":
-                    held = covered
+                inserted[table] -= _drop_covered(con, run, table)
         if trip_summary is not None and run.site is not None and run.hoist is not None:
             drop_orphan_sanity_checks(con, site=run.site, hoist=run.hoist)
         con.execute("COMMIT")
@@ -206,35 +193,26 @@ _COVERED_KEYS: dict[str, tuple[str, str, tuple[str, ...]]] = {
 }
 
 
-def _drop_covered(
-    con: duckdb.DuckDBPyConnection, run: RunRecord, table: str
-) -> list[tuple[object, ...]]:
+def _drop_covered(con: duckdb.DuckDBPyConnection, run: RunRecord, table: str) -> int:
     """Drop the run's rows of ``table`` (an alarm, a trip, a position visit) that an earlier
     run's row of the same hoist (and rule and rope, or position) holds whole, begun before
     this run's period: an event, trip or stop across the period's start, seen by this
     run from the start on (a re-run of part of a day counted it twice: 8 trip rows for 7
     trips after a re-run from inside the third). An earlier row that ends before this
     run's does not hold it: a run of the next period, whose part of a stop across the
-    periods' edge stays beside the earlier period's part. Returns one row per row that
-    went: for trips (this run's ``trip_id``, the holding row's ``run_id`` and
-    ``trip_id``), else empty tuples."""
+    periods' edge stays beside the earlier period's part. Returns how many went."""
     start, end, same = _COVERED_KEYS[table]
     agree = "".join(f" AND o.{c} IS NOT DISTINCT FROM n.{c}" for c in same)
-    covering = (
-        f"FROM {table} n JOIN {table} o ON o.run_id <> n.run_id AND o.site = n.site "
-        f"AND o.hoist = n.hoist{agree} AND o.{start} < ? AND o.{start} <= n.{start} "
-        f"AND o.{end} >= n.{end} WHERE n.run_id = ?"
+    covered = (
+        f"FROM {table} n WHERE n.run_id = ? AND EXISTS (SELECT 1 FROM {table} o "
+        f"WHERE o.run_id <> n.run_id AND o.site = n.site AND o.hoist = n.hoist{agree} "
+        f"AND o.{start} < ? AND o.{start} <= n.{start} AND o.{end} >= n.{end})"
     )
-    params = [run.period_start_utc, run.run_id]
-    keys = "n.trip_id, o.run_id, o.trip_id" if table == "trip_summary" else "n.rowid"
-    found = con.execute(f"SELECT DISTINCT ON (n.rowid) n.rowid, {keys} {covering}", params)
-    rows = found.fetchall()
-    if rows:
-        con.execute(
-            f"DELETE FROM {table} WHERE run_id = ? AND list_contains(?, rowid)",
-            [run.run_id, [row[0] for row in rows]],
-        )
-    return [tuple(row[1:]) if table == "trip_summary" else () for row in rows]
+    params = [run.run_id, run.period_start_utc]
+    (count,) = con.execute(f"SELECT count(*) {covered}", params).fetchone()
+    if count:
+        con.execute(f"DELETE {covered}", params)
+    return int(count)
 
 
 def drop_orphan_sanity_checks(con: duckdb.DuckDBPyConnection, *, site: str, hoist: str) -> None:

@@ -383,17 +383,15 @@ def test_a_damaged_lake_file_is_left_out_of_the_views_not_every_writer(tmp_path,
 
 
 def test_a_trip_and_a_visit_across_a_rerun_start_are_not_landed_twice(tmp_path):
-    """An hour's run holds trip 3 (00:30:00 .. 00:31:40, passing the middle at 00:31:10),
-    the stop at the bottom after it (.. 00:40:00) and a stop at the pithead from 00:55 to
-    its period's end. A re-run of 00:31:00 .. 01:06:40 sees trip 3 from its own start to
-    the trip's end: the earlier row holds that piece whole, so it is not landed beside it
-    (one trip counted twice in the audit), nor its pass of the middle (the earlier run's
-    stays: every visit names a trip its run holds); its later trip is landed. In another
-    data root, a re-run of 00:33:20 .. sees the bottom stop from its start: the same. The
-    next hour's run sees the pithead stop from 01:00 on: the earlier row ends at its own
-    period's end, it does not hold that piece, which stays (the two periods' parts of one
-    stop)."""
-    root = DataRoot(tmp_path / "trips")
+    """An hour's run holds trip 3 (00:30:00 .. 00:31:40), the stop at the bottom after it
+    (.. 00:40:00) and a stop at the pithead from 00:55 to its period's end. A re-run of
+    00:31:00 .. 01:06:40 sees trip 3 from its own start to the trip's end: the earlier
+    row holds that piece whole, so it is not landed beside it (one trip counted twice
+    in the audit); its later trip is landed. A re-run of 00:33:20 .. sees the bottom stop
+    from its start: the same. The next hour's run sees the pithead stop from 01:00 on:
+    the earlier row ends at its own period's end, it does not hold that piece, which
+    stays (the two periods' parts of one stop)."""
+    root = DataRoot(tmp_path)
 
     def at(seconds: float) -> dt.datetime:
         return DAY + dt.timedelta(seconds=seconds)
@@ -411,12 +409,11 @@ def test_a_trip_and_a_visit_across_a_rerun_start_are_not_landed_twice(tmp_path):
                 for k, (t0, t1) in enumerate(spans)]  # fmt: skip
         return _conform(pl.DataFrame(rows, schema_overrides={"trip_id": pl.Int64}), TRIP_SUMMARY)
 
-    def visits(run_id: str, spans: list[tuple], trip: int | None = None) -> pl.DataFrame:
-        rows = [{"run_id": run_id, "site": "s", "hoist": "h", "trip_id": trip, "position": p,
+    def visits(run_id: str, spans: list[tuple[str, float, float]]) -> pl.DataFrame:
+        rows = [{"run_id": run_id, "site": "s", "hoist": "h", "trip_id": 0, "position": p,
                  "time_start_utc": at(t0), "time_end_utc": at(t1)}
                 for p, t0, t1 in spans]  # fmt: skip
-        return _conform(pl.DataFrame(rows, schema_overrides={"trip_id": pl.Int64}),
-                        POSITION_SUMMARY)  # fmt: skip
+        return _conform(pl.DataFrame(rows), POSITION_SUMMARY)
 
     def landed(table: str) -> list[tuple[str, float, float]]:
         with open_reader(root) as con:
@@ -429,32 +426,15 @@ def test_a_trip_and_a_visit_across_a_rerun_start_are_not_landed_twice(tmp_path):
         land_results(
             con, run("hour", 0, 3600),
             trip_summary=trips("hour", [(600, 700), (1800, 1900)]),
-            position_summary=pl.concat([
-                visits("hour", [("bottom", 1900, 2400), ("pithead", 3300, 3600)]),
-                visits("hour", [("middle", 1870, 1880)], trip=1),  # trip 3 passes the middle
-            ]),
+            position_summary=visits("hour", [("bottom", 1900, 2400), ("pithead", 3300, 3600)]),
         )  # fmt: skip
     with open_writer(root) as con:
         inserted = land_results(
-            con, run("trip", 1860, 4000), trip_summary=trips("trip", [(1860, 1900), (3000, 3100)]),
-            position_summary=pl.concat([
-                visits("trip", [("middle", 1870, 1880)], trip=0),
-                visits("trip", [("bottom", 1900, 2400), ("pithead", 3300, 3900)]),
-            ]),
-        )  # fmt: skip
+            con, run("trip", 1860, 4000), trip_summary=trips("trip", [(1860, 1900), (3000, 3100)])
+        )
     assert inserted["trip_summary"] == 1
     assert landed("trip_summary") == [("hour", 600, 700), ("hour", 1800, 1900),
                                       ("trip", 3000, 3100)]  # fmt: skip
-    # the pass of the trip the earlier row holds stays the earlier run's (every visit
-    # names a trip its run holds)
-    assert inserted["position_summary"] == 2
-    assert landed("position_summary") == [("hour", 1870, 1880), ("trip", 1900, 2400),
-                                          ("trip", 3300, 3900)]  # fmt: skip
-    root = DataRoot(tmp_path / "stays")
-    with open_writer(root) as con:
-        land_results(con, run("hour", 0, 3600),
-                     position_summary=visits("hour", [("bottom", 1900, 2400),
-                                                      ("pithead", 3300, 3600)]))  # fmt: skip
     with open_writer(root) as con:
         inserted = land_results(
             con, run("stop", 2000, 3000), position_summary=visits("stop", [("bottom", 2000, 2400)])

@@ -158,9 +158,11 @@ def land_results(
                 [run.run_id, *params],
             )
             inserted["sanity_checks"] = insert_frame(con, "sanity_checks", sanity_checks)
+        # trips first: a trip an earlier run's row holds keeps that run's visits
+        held_trips: list[tuple[int, str, int]] = []
         for table, frame, time_column in (
-            ("position_summary", position_summary, "time_start_utc"),
             ("trip_summary", trip_summary, "time_start_utc"),
+            ("position_summary", position_summary, "time_start_utc"),
             ("alarms", alarms, "start_utc"),
         ):
             if frame is None:
@@ -171,9 +173,19 @@ def land_results(
                 ids = frame["alarm_id"].to_list()
                 clause += " OR list_contains(?, alarm_id)"
                 params.append(ids)
+            if table == "position_summary" and held_trips:  # the holders' visits stay
+                clause = (
+                    f"({clause}) AND NOT coalesce((run_id, trip_id) IN "
+                    "(SELECT unnest(?::VARCHAR[]), unnest(?::BIGINT[])), false)"
+                )
+                params += [[r for _, r, _ in held_trips], [t for _, _, t in held_trips]]
             con.execute(f"DELETE FROM {table} WHERE {clause}", params)
             inserted[table] = insert_frame(con, table, frame)
             if frame.height and run.period_start_utc is not None:
+                if table == "trip_summary":
+                    held_trips = _held_trips(con, run)
+                if table == "position_summary" and held_trips:
+                    inserted[table] -= _drop_visits_of(con, run, [n for n, _, _ in held_trips])
                 inserted[table] -= _drop_covered(con, run, table)
         if trip_summary is not None and run.site is not None and run.hoist is not None:
             drop_orphan_sanity_checks(con, site=run.site, hoist=run.hoist)
@@ -212,6 +224,31 @@ def _drop_covered(con: duckdb.DuckDBPyConnection, run: RunRecord, table: str) ->
     (count,) = con.execute(f"SELECT count(*) {covered}", params).fetchone()
     if count:
         con.execute(f"DELETE {covered}", params)
+    return int(count)
+
+
+def _held_trips(con: duckdb.DuckDBPyConnection, run: RunRecord) -> list[tuple[int, str, int]]:
+    """The run's trips an earlier run's row holds whole (:func:`_drop_covered` drops them):
+    per trip its ``trip_id`` and the holding row's ``run_id`` and ``trip_id``. The trip's
+    visits are then the holder's too: the holder's stay, the run's go (a re-run from
+    inside a trip had landed the visits after its start under a trip it did not land)."""
+    rows = con.execute(
+        "SELECT DISTINCT n.trip_id, o.run_id, o.trip_id FROM trip_summary n JOIN trip_summary o "
+        "ON o.run_id <> n.run_id AND o.site = n.site AND o.hoist = n.hoist "
+        "AND o.time_start_utc < ? AND o.time_start_utc <= n.time_start_utc "
+        "AND o.time_end_utc >= n.time_end_utc WHERE n.run_id = ?",
+        [run.period_start_utc, run.run_id],
+    ).fetchall()
+    return [(int(n), str(r), int(t)) for n, r, t in rows]
+
+
+def _drop_visits_of(con: duckdb.DuckDBPyConnection, run: RunRecord, trip_ids: list[int]) -> int:
+    """Drop the run's position visits of ``trip_ids`` (trips it does not land); returns
+    how many went."""
+    where = "FROM position_summary WHERE run_id = ? AND list_contains(?, trip_id)"
+    (count,) = con.execute(f"SELECT count(*) {where}", [run.run_id, trip_ids]).fetchone()
+    if count:
+        con.execute(f"DELETE {where}", [run.run_id, trip_ids])
     return int(count)
 
 

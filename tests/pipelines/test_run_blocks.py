@@ -162,8 +162,14 @@ def test_a_rerun_from_inside_a_trip_lands_each_trip_and_visit_once(
         visits = con.sql(
             "SELECT run_id, time_start_utc, time_end_utc FROM position_summary ORDER BY 2"
         ).fetchall()
+        strays = con.sql(  # a trip's visits are its row's run's: none names a trip not landed
+            "SELECT run_id, trip_id, time_start_utc FROM position_summary p WHERE trip_id IS "
+            "NOT NULL AND NOT EXISTS (SELECT 1 FROM trip_summary t WHERE (t.run_id, t.trip_id) "
+            "= (p.run_id, p.trip_id))"
+        ).fetchall()
     finally:
         con.close()
+    assert strays == []
     assert len(trips) == len(first) == 6
     assert " 3 trips" in said  # what the re-run landed
     assert [(a, b) for _, a, b in trips[:3]] == first[:3]

@@ -446,3 +446,67 @@ def test_a_trip_and_a_visit_across_a_rerun_start_are_not_landed_twice(tmp_path):
         )
     assert landed("position_summary") == [("hour", 1900, 2400), ("hour", 3300, 3600),
                                           ("next", 3600, 3900)]  # fmt: skip
+
+
+def test_the_visits_of_a_trip_an_earlier_row_holds_stay_that_runs(tmp_path):
+    """An hour's run holds trip 3 (00:30:00 .. 00:31:40) with its visits at the bottom,
+    the middle and the pithead (00:31:30 ..). A re-run from 00:31:00 sees the trip from
+    its start: the earlier trip row stays, and so do its visits, the pithead one too
+    (it begins in the re-run's period); the re-run's visit of that trip is not landed (it
+    named a trip the re-run did not land: the trip's visits were two runs', one of them
+    without its trip row). The re-run's later trip lands with its visits."""
+    root = DataRoot(tmp_path)
+
+    def at(seconds: float) -> dt.datetime:
+        return DAY + dt.timedelta(seconds=seconds)
+
+    def run(run_id: str, start_s: float, end_s: float) -> RunRecord:
+        return RunRecord(
+            run_id=run_id, command="run", code_version="test", started_at_utc=DAY, site="s",
+            hoist="h", period_start_utc=at(start_s), period_end_utc=at(end_s),
+            parameter_set="p",
+        )  # fmt: skip
+
+    def trips(run_id: str, spans: dict[int, tuple[float, float]]) -> pl.DataFrame:
+        rows = [{"run_id": run_id, "site": "s", "hoist": "h", "trip_id": k,
+                 "time_start_utc": at(t0), "time_end_utc": at(t1)}
+                for k, (t0, t1) in spans.items()]  # fmt: skip
+        return _conform(pl.DataFrame(rows, schema_overrides={"trip_id": pl.Int64}), TRIP_SUMMARY)
+
+    def visits(run_id: str, spans: list[tuple[int | None, str, float, float]]) -> pl.DataFrame:
+        rows = [{"run_id": run_id, "site": "s", "hoist": "h", "trip_id": k, "position": p,
+                 "time_start_utc": at(t0), "time_end_utc": at(t1)}
+                for k, p, t0, t1 in spans]  # fmt: skip
+        return _conform(pl.DataFrame(rows, schema_overrides={"trip_id": pl.Int64}),
+                        POSITION_SUMMARY)  # fmt: skip
+
+    with open_writer(root) as con:
+        land_results(
+            con, run("hour", 0, 3600), trip_summary=trips("hour", {3: (1800, 1900)}),
+            position_summary=visits("hour", [(3, "bottom", 1800, 1810), (3, "middle", 1850, 1851),
+                                             (3, "pithead", 1890, 1900),
+                                             (None, "pithead", 1900, 3600)]),
+        )  # fmt: skip
+    with open_writer(root) as con:
+        inserted = land_results(
+            con, run("part", 1860, 3600),
+            trip_summary=trips("part", {0: (1860, 1900), 1: (3000, 3100)}),
+            position_summary=visits("part", [(0, "pithead", 1890, 1900),
+                                             (None, "pithead", 1900, 3000),
+                                             (1, "pithead", 3000, 3010)]),
+        )  # fmt: skip
+    assert inserted == {"trip_summary": 1, "position_summary": 2}
+    with open_reader(root) as con:
+        rows = con.sql(
+            "SELECT run_id, trip_id, position, time_start_utc FROM position_summary ORDER BY 4"
+        ).fetchall()
+        strays = con.sql(
+            "SELECT run_id, trip_id FROM position_summary p WHERE trip_id IS NOT NULL AND NOT "
+            "EXISTS (SELECT 1 FROM trip_summary t WHERE (t.run_id, t.trip_id) = "
+            "(p.run_id, p.trip_id))"
+        ).fetchall()
+    assert [(r, k, p, (t - DAY).total_seconds()) for r, k, p, t in rows] == [
+        ("hour", 3, "bottom", 1800), ("hour", 3, "middle", 1850), ("hour", 3, "pithead", 1890),
+        ("part", None, "pithead", 1900), ("part", 1, "pithead", 3000),
+    ]  # fmt: skip
+    assert strays == []

@@ -20,7 +20,10 @@ rows, never duplicates them. For each mart passed to :func:`land_results` the ro
 deleted before the insert are those of the same ``run_id`` and those of the same site and
 hoist whose time falls in the run's period (``period_start_utc <= t < period_end_utc``;
 t is ``time_start_utc``, alarms' ``start_utc``); alarms also by ``alarm_id``, and
-sanity checks by the (run, trip) of the trip rows replaced. A mart passed as an empty
+sanity checks by the (run, trip) of the trip rows replaced. What crosses the period's
+edges is seen in part: the run's row an earlier row holds whole, begun before the period
+or running past its end, is not landed and the earlier row stays (:func:`_covered`).
+A mart passed as an empty
 frame clears the period (a re-run that finds no alarms removes the old ones); a mart
 left out (``None``) is not touched.
 
@@ -149,15 +152,6 @@ def land_results(
     con.execute("BEGIN TRANSACTION")
     try:
         land_run(con, run)
-        if sanity_checks is not None:
-            _own(sanity_checks, run, "sanity_checks")
-            clause, params = _period_clause(run, "time_start_utc")
-            con.execute(
-                "DELETE FROM sanity_checks WHERE run_id = ? OR (run_id, trip_id) IN "
-                f"(SELECT run_id, trip_id FROM trip_summary WHERE {clause})",
-                [run.run_id, *params],
-            )
-            inserted["sanity_checks"] = insert_frame(con, "sanity_checks", sanity_checks)
         # trips first: a trip an earlier run's row holds keeps that run's visits
         held_trips: list[tuple[int, str, int]] = []
         for table, frame, time_column in (
@@ -173,20 +167,34 @@ def land_results(
                 ids = frame["alarm_id"].to_list()
                 clause += " OR list_contains(?, alarm_id)"
                 params.append(ids)
+            held, holders, kept = _covered(con, run, table, frame)
+            clause = f"({clause}) AND NOT list_contains(?, o.rowid)"
+            params.append(kept)
+            if table == "trip_summary":
+                held_trips = holders
             if table == "position_summary" and held_trips:  # the holders' visits stay
-                clause = (
-                    f"({clause}) AND NOT coalesce((run_id, trip_id) IN "
+                clause += (
+                    " AND NOT coalesce((o.run_id, o.trip_id) IN "
                     "(SELECT unnest(?::VARCHAR[]), unnest(?::BIGINT[])), false)"
                 )
                 params += [[r for _, r, _ in held_trips], [t for _, _, t in held_trips]]
-            con.execute(f"DELETE FROM {table} WHERE {clause}", params)
-            inserted[table] = insert_frame(con, table, frame)
-            if frame.height and run.period_start_utc is not None:
-                if table == "trip_summary":
-                    held_trips = _held_trips(con, run)
-                if table == "position_summary" and held_trips:
-                    inserted[table] -= _drop_visits_of(con, run, [n for n, _, _ in held_trips])
-                inserted[table] -= _drop_covered(con, run, table)
+                trip_ids = [n for n, _, _ in held_trips]
+                held = held | frame["trip_id"].is_in(trip_ids).fill_null(False)
+            con.execute(f"DELETE FROM {table} o WHERE {clause}", params)
+            inserted[table] = insert_frame(con, table, frame.filter(~held))
+        if sanity_checks is not None:
+            # the checks of the trips this landing replaced went with them (below)
+            _own(sanity_checks, run, "sanity_checks")
+            delete, params = "run_id = ?", [run.run_id]
+            if trip_summary is None:  # the checks of the period's trips are replaced
+                clause, period = _period_clause(run, "time_start_utc")
+                delete += (
+                    " OR (run_id, trip_id) IN "
+                    f"(SELECT run_id, trip_id FROM trip_summary WHERE {clause})"
+                )
+                params += period
+            con.execute(f"DELETE FROM sanity_checks WHERE {delete}", params)
+            inserted["sanity_checks"] = insert_frame(con, "sanity_checks", sanity_checks)
         if trip_summary is not None and run.site is not None and run.hoist is not None:
             drop_orphan_sanity_checks(con, site=run.site, hoist=run.hoist)
         con.execute("COMMIT")
@@ -197,7 +205,7 @@ def land_results(
 
 
 #: Per mart: its (start, end) columns and the columns whose values must agree for an
-#: earlier row to be the same event, trip or visit as a later run's (:func:`_drop_covered`).
+#: earlier row to be the same event, trip or visit as a later run's (:func:`_covered`).
 _COVERED_KEYS: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "alarms": ("start_utc", "end_utc", ("rule", "rope")),
     "trip_summary": ("time_start_utc", "time_end_utc", ()),
@@ -205,51 +213,70 @@ _COVERED_KEYS: dict[str, tuple[str, str, tuple[str, ...]]] = {
 }
 
 
-def _drop_covered(con: duckdb.DuckDBPyConnection, run: RunRecord, table: str) -> int:
-    """Drop the run's rows of ``table`` (an alarm, a trip, a position visit) that an earlier
-    run's row of the same hoist (and rule and rope, or position) holds whole, begun before
-    this run's period: an event, trip or stop across the period's start, seen by this
-    run from the start on (a re-run of part of a day counted it twice: 8 trip rows for 7
-    trips after a re-run from inside the third). An earlier row that ends before this
-    run's does not hold it: a run of the next period, whose part of a stop across the
-    periods' edge stays beside the earlier period's part. Returns how many went."""
+def _covered(
+    con: duckdb.DuckDBPyConnection, run: RunRecord, table: str, frame: pl.DataFrame
+) -> tuple[pl.Series, list[tuple[int, str, int]], list[int]]:
+    """The run's rows of ``table`` (an alarm, a trip, a position visit) an earlier run's
+    row of the same hoist (and rule and rope, or position) holds whole (starts no later,
+    ends no earlier), where that row saw more of it than this run can:
+
+    - begun before this run's period: an event, trip or stop across the period's start,
+      seen by this run from the start on (a re-run of part of a day counted it twice: 8
+      trip rows for 7 trips after a re-run from inside the third). An earlier row that
+      ends before this run's does not hold it: a run of the next period, whose part of a
+      stop across the periods' edge stays beside the earlier period's part;
+    - begun in the period and running to its end or past it: one across the period's
+      end, seen by this run only up to the end. That earlier row is kept, not replaced
+      (a re-run ending inside a trip had replaced the whole trip by its first part, and
+      the rest of it was lost), unless a row of this run's that it does not hold
+      overlaps it; it is kept too where this run found no row of it (an alarm whose
+      first part is shorter than its rule's least duration).
+
+    Returns the mask of ``frame``'s rows so held (not landed); for trips, per held trip
+    its ``trip_id`` and the holder's ``run_id`` and ``trip_id`` (the trip's visits are
+    the holder's too: the holder's stay, the run's go); and the ``rowid`` of the earlier
+    rows begun in the period that are kept. Read before the period's rows are deleted.
+    """
+    held = pl.Series("held", [False] * frame.height, dtype=pl.Boolean)
+    if run.period_start_utc is None or run.period_end_utc is None:
+        return held, [], []
     start, end, same = _COVERED_KEYS[table]
-    agree = "".join(f" AND o.{c} IS NOT DISTINCT FROM n.{c}" for c in same)
-    covered = (
-        f"FROM {table} n WHERE n.run_id = ? AND EXISTS (SELECT 1 FROM {table} o "
-        f"WHERE o.run_id <> n.run_id AND o.site = n.site AND o.hoist = n.hoist{agree} "
-        f"AND o.{start} < ? AND o.{start} <= n.{start} AND o.{end} >= n.{end})"
-    )
-    params = [run.run_id, run.period_start_utc]
-    (count,) = con.execute(f"SELECT count(*) {covered}", params).fetchone()
-    if count:
-        con.execute(f"DELETE {covered}", params)
-    return int(count)
+    trip = table == "trip_summary"
+    columns = [start, end, "site", "hoist", *same, *(["trip_id"] if trip else [])]
+    name = f"_covered_{uuid.uuid4().hex}"
+    con.register(name, frame.select(columns).with_row_index("_row").to_arrow())
+    try:
 
+        def agree(a: str, b: str) -> str:
+            return "".join(f" AND {a}.{c} IS NOT DISTINCT FROM {b}.{c}" for c in same)
 
-def _held_trips(con: duckdb.DuckDBPyConnection, run: RunRecord) -> list[tuple[int, str, int]]:
-    """The run's trips an earlier run's row holds whole (:func:`_drop_covered` drops them):
-    per trip its ``trip_id`` and the holding row's ``run_id`` and ``trip_id``. The trip's
-    visits are then the holder's too: the holder's stay, the run's go (a re-run from
-    inside a trip had landed the visits after its start under a trip it did not land)."""
-    rows = con.execute(
-        "SELECT DISTINCT n.trip_id, o.run_id, o.trip_id FROM trip_summary n JOIN trip_summary o "
-        "ON o.run_id <> n.run_id AND o.site = n.site AND o.hoist = n.hoist "
-        "AND o.time_start_utc < ? AND o.time_start_utc <= n.time_start_utc "
-        "AND o.time_end_utc >= n.time_end_utc WHERE n.run_id = ?",
-        [run.period_start_utc, run.run_id],
-    ).fetchall()
-    return [(int(n), str(r), int(t)) for n, r, t in rows]
-
-
-def _drop_visits_of(con: duckdb.DuckDBPyConnection, run: RunRecord, trip_ids: list[int]) -> int:
-    """Drop the run's position visits of ``trip_ids`` (trips it does not land); returns
-    how many went."""
-    where = "FROM position_summary WHERE run_id = ? AND list_contains(?, trip_id)"
-    (count,) = con.execute(f"SELECT count(*) {where}", [run.run_id, trip_ids]).fetchone()
-    if count:
-        con.execute(f"DELETE {where}", [run.run_id, trip_ids])
-    return int(count)
+        # an earlier row across the period's end, no row of this run's beside it
+        kept = (
+            f"o.run_id <> ? AND o.site = ? AND o.hoist = ? AND o.{start} >= ? "
+            f"AND o.{start} < ? AND o.{end} >= ? AND NOT EXISTS (SELECT 1 FROM {name} m "
+            f"WHERE m.{start} < o.{end} AND o.{start} < m.{end}{agree('m', 'o')} "
+            f"AND NOT (o.{start} <= m.{start} AND o.{end} >= m.{end}))"
+        )
+        period = [run.period_start_utc, run.period_end_utc, run.period_end_utc]
+        found = con.execute(
+            f"SELECT o.rowid FROM {table} o WHERE {kept}",
+            [run.run_id, run.site, run.hoist, *period],
+        ).fetchall()
+        rowids = [int(r) for (r,) in found]
+        holder = ", n.trip_id, o.run_id, o.trip_id" if trip else ""
+        rows = con.execute(
+            f"SELECT DISTINCT n._row{holder} FROM {name} n JOIN {table} o ON o.run_id <> ? "
+            f"AND o.site = n.site AND o.hoist = n.hoist{agree('o', 'n')} "
+            f"AND o.{start} <= n.{start} AND o.{end} >= n.{end} "
+            f"AND (o.{start} < ? OR list_contains(?, o.rowid))",
+            [run.run_id, run.period_start_utc, rowids],
+        ).fetchall()
+    finally:
+        con.unregister(name)
+    if rows:
+        held = held.scatter(sorted({int(r[0]) for r in rows}), True)
+    holders = sorted({(int(n), str(r), int(t)) for _, n, r, t in rows}) if trip else []
+    return held, holders, rowids
 
 
 def drop_orphan_sanity_checks(con: duckdb.DuckDBPyConnection, *, site: str, hoist: str) -> None:

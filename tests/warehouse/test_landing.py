@@ -485,7 +485,7 @@ def test_the_visits_of_a_trip_an_earlier_row_holds_stay_that_runs(tmp_path):
             con, run("hour", 0, 3600), trip_summary=trips("hour", {3: (1800, 1900)}),
             position_summary=visits("hour", [(3, "bottom", 1800, 1810), (3, "middle", 1850, 1851),
                                              (3, "pithead", 1890, 1900),
-                                             (None, "pithead", 1900, 3600)]),
+                                             (None, "pithead", 1900, 3599.98)]),
         )  # fmt: skip
     with open_writer(root) as con:
         inserted = land_results(
@@ -510,3 +510,89 @@ def test_the_visits_of_a_trip_an_earlier_row_holds_stay_that_runs(tmp_path):
         ("part", None, "pithead", 1900), ("part", 1, "pithead", 3000),
     ]  # fmt: skip
     assert strays == []
+
+
+def test_a_trip_a_stop_and_an_alarm_across_a_rerun_end_are_not_cut_short(tmp_path):
+    """A day's run holds trip 3 (00:30:00 .. 00:31:40) with its visits, the stop at the
+    pithead after it (.. 00:50:00) and two sensor dropouts (00:41:40 .. 00:41:50,
+    00:41:43 .. 00:42:00 on another rope). A re-run of 00:16:40 .. 00:31:00 sees trip 3
+    up to its end only: the day's whole row stays, and its visits (the re-run's
+    fragment had replaced it, the rest of the trip lost). A re-run of 00:31:35 ..
+    00:41:45 sees the stop and the first dropout only up to its end, and not the second
+    (3 s: too short for its rule): the day's rows stay, nothing of the re-run's beside."""
+    root = DataRoot(tmp_path)
+
+    def at(seconds: float) -> dt.datetime:
+        return DAY + dt.timedelta(seconds=seconds)
+
+    def run(run_id: str, start_s: float, end_s: float) -> RunRecord:
+        return RunRecord(
+            run_id=run_id, command="run", code_version="test", started_at_utc=DAY, site="s",
+            hoist="h", period_start_utc=at(start_s), period_end_utc=at(end_s),
+            parameter_set="p",
+        )  # fmt: skip
+
+    def trips(run_id: str, spans: dict[int, tuple[float, float]]) -> pl.DataFrame:
+        rows = [{"run_id": run_id, "site": "s", "hoist": "h", "trip_id": k,
+                 "time_start_utc": at(t0), "time_end_utc": at(t1)}
+                for k, (t0, t1) in spans.items()]  # fmt: skip
+        return _conform(pl.DataFrame(rows, schema_overrides={"trip_id": pl.Int64}), TRIP_SUMMARY)
+
+    def visits(run_id: str, spans: list[tuple[int | None, str, float, float]]) -> pl.DataFrame:
+        rows = [{"run_id": run_id, "site": "s", "hoist": "h", "trip_id": k, "position": p,
+                 "time_start_utc": at(t0), "time_end_utc": at(t1)}
+                for k, p, t0, t1 in spans]  # fmt: skip
+        return _conform(pl.DataFrame(rows, schema_overrides={"trip_id": pl.Int64}),
+                        POSITION_SUMMARY)  # fmt: skip
+
+    def alarms(run_id: str, spans: list[tuple[int, float, float]]) -> pl.DataFrame:
+        rows = [{"alarm_id": f"{rope}@{t0}", "run_id": run_id, "site": "s", "hoist": "h",
+                 "rule": "sensor_dropout", "rope": rope, "start_utc": at(t0), "end_utc": at(t1)}
+                for rope, t0, t1 in spans]  # fmt: skip
+        return _conform(pl.DataFrame(rows), ALARMS)
+
+    def landed() -> dict[str, list[tuple]]:
+        with open_reader(root) as con:
+            return {
+                table: [
+                    (r, k, (a - DAY).total_seconds(), (b - DAY).total_seconds())
+                    for r, k, a, b in con.sql(
+                        f"SELECT run_id, {key}, {start}, {end} FROM {table} ORDER BY 3, 2"
+                    ).fetchall()
+                ]
+                for table, key, start, end in (
+                    ("trip_summary", "trip_id", "time_start_utc", "time_end_utc"),
+                    ("position_summary", "position", "time_start_utc", "time_end_utc"),
+                    ("alarms", "rope", "start_utc", "end_utc"),
+                )
+            }
+
+    with open_writer(root) as con:
+        land_results(
+            con, run("day", 0, 7200), trip_summary=trips("day", {3: (1800, 1900)}),
+            position_summary=visits("day", [(3, "bottom", 1800, 1810), (3, "middle", 1850, 1851),
+                                            (3, "pithead", 1890, 1900),
+                                            (None, "pithead", 1900, 3000)]),
+            alarms=alarms("day", [(1, 2500, 2510), (2, 2503, 2520)]),
+        )  # fmt: skip
+    day = landed()
+    with open_writer(root) as con:
+        inserted = land_results(
+            con, run("part", 1000, 1860), trip_summary=trips("part", {0: (1800, 1859.98)}),
+            position_summary=visits("part", [(0, "bottom", 1800, 1810), (0, "middle", 1850, 1851)]),
+            alarms=alarms("part", []),
+        )  # fmt: skip
+    assert inserted == {"trip_summary": 0, "position_summary": 0, "alarms": 0}
+    assert landed() == day
+    with open_writer(root) as con:
+        inserted = land_results(
+            con, run("late", 1895, 2505), trip_summary=trips("late", {0: (1895, 1900)}),
+            position_summary=visits("late", [(0, "pithead", 1895, 1900),
+                                             (None, "pithead", 1900, 2504.98)]),
+            alarms=alarms("late", [(1, 2500, 2504.98)]),
+        )  # fmt: skip
+    assert inserted == {"trip_summary": 0, "position_summary": 0, "alarms": 0}
+    assert landed() == day
+    with open_writer(root) as con:  # a re-run that finds no alarm: the dropouts stay
+        land_results(con, run("none", 2400, 2505), alarms=alarms("none", []))
+    assert landed()["alarms"] == day["alarms"]

@@ -382,6 +382,34 @@ def test_a_damaged_lake_file_is_left_out_of_the_views_not_every_writer(tmp_path,
     assert day.height == 5
 
 
+def _at(seconds: float) -> dt.datetime:
+    return DAY + dt.timedelta(seconds=seconds)
+
+
+def _part_run(run_id: str, start_s: float, end_s: float) -> RunRecord:
+    """A run of hoist s/h over [start_s, end_s) seconds of DAY."""
+    return RunRecord(
+        run_id=run_id, command="run", code_version="test", started_at_utc=DAY, site="s",
+        hoist="h", period_start_utc=_at(start_s), period_end_utc=_at(end_s), parameter_set="p",
+    )  # fmt: skip
+
+
+def _trip_rows(run_id: str, spans: dict[int, tuple[float, float]]) -> pl.DataFrame:
+    """Trip rows: trip_id -> (start, end) seconds of DAY."""
+    rows = [{"run_id": run_id, "site": "s", "hoist": "h", "trip_id": k,
+             "time_start_utc": _at(t0), "time_end_utc": _at(t1)}
+            for k, (t0, t1) in spans.items()]  # fmt: skip
+    return _conform(pl.DataFrame(rows, schema_overrides={"trip_id": pl.Int64}), TRIP_SUMMARY)
+
+
+def _visit_rows(run_id: str, spans: list[tuple[int | None, str, float, float]]) -> pl.DataFrame:
+    """Position visits: (trip_id, position, start, end seconds of DAY)."""
+    rows = [{"run_id": run_id, "site": "s", "hoist": "h", "trip_id": k, "position": p,
+             "time_start_utc": _at(t0), "time_end_utc": _at(t1)}
+            for k, p, t0, t1 in spans]  # fmt: skip
+    return _conform(pl.DataFrame(rows, schema_overrides={"trip_id": pl.Int64}), POSITION_SUMMARY)
+
+
 def test_a_trip_and_a_visit_across_a_rerun_start_are_not_landed_twice(tmp_path):
     """An hour's run holds trip 3 (00:30:00 .. 00:31:40), the stop at the bottom after it
     (.. 00:40:00) and a stop at the pithead from 00:55 to its period's end. A re-run of
@@ -393,27 +421,7 @@ def test_a_trip_and_a_visit_across_a_rerun_start_are_not_landed_twice(tmp_path):
     stays (the two periods' parts of one stop)."""
     root = DataRoot(tmp_path)
 
-    def at(seconds: float) -> dt.datetime:
-        return DAY + dt.timedelta(seconds=seconds)
-
-    def run(run_id: str, start_s: float, end_s: float) -> RunRecord:
-        return RunRecord(
-            run_id=run_id, command="run", code_version="test", started_at_utc=DAY, site="s",
-            hoist="h", period_start_utc=at(start_s), period_end_utc=at(end_s),
-            parameter_set="p",
-        )  # fmt: skip
-
-    def trips(run_id: str, spans: list[tuple[float, float]]) -> pl.DataFrame:
-        rows = [{"run_id": run_id, "site": "s", "hoist": "h", "trip_id": k,
-                 "time_start_utc": at(t0), "time_end_utc": at(t1)}
-                for k, (t0, t1) in enumerate(spans)]  # fmt: skip
-        return _conform(pl.DataFrame(rows, schema_overrides={"trip_id": pl.Int64}), TRIP_SUMMARY)
-
-    def visits(run_id: str, spans: list[tuple[str, float, float]]) -> pl.DataFrame:
-        rows = [{"run_id": run_id, "site": "s", "hoist": "h", "trip_id": 0, "position": p,
-                 "time_start_utc": at(t0), "time_end_utc": at(t1)}
-                for p, t0, t1 in spans]  # fmt: skip
-        return _conform(pl.DataFrame(rows), POSITION_SUMMARY)
+    run, trips, visits = _part_run, _trip_rows, _visit_rows
 
     def landed(table: str) -> list[tuple[str, float, float]]:
         with open_reader(root) as con:
@@ -425,24 +433,32 @@ def test_a_trip_and_a_visit_across_a_rerun_start_are_not_landed_twice(tmp_path):
     with open_writer(root) as con:
         land_results(
             con, run("hour", 0, 3600),
-            trip_summary=trips("hour", [(600, 700), (1800, 1900)]),
-            position_summary=visits("hour", [("bottom", 1900, 2400), ("pithead", 3300, 3600)]),
+            trip_summary=trips("hour", {0: (600, 700), 1: (1800, 1900)}),
+            position_summary=visits(
+                "hour", [(0, "bottom", 1900, 2400), (0, "pithead", 3300, 3600)]
+            ),
         )  # fmt: skip
     with open_writer(root) as con:
         inserted = land_results(
-            con, run("trip", 1860, 4000), trip_summary=trips("trip", [(1860, 1900), (3000, 3100)])
+            con,
+            run("trip", 1860, 4000),
+            trip_summary=trips("trip", {0: (1860, 1900), 1: (3000, 3100)}),
         )
     assert inserted["trip_summary"] == 1
     assert landed("trip_summary") == [("hour", 600, 700), ("hour", 1800, 1900),
                                       ("trip", 3000, 3100)]  # fmt: skip
     with open_writer(root) as con:
         inserted = land_results(
-            con, run("stop", 2000, 3000), position_summary=visits("stop", [("bottom", 2000, 2400)])
+            con,
+            run("stop", 2000, 3000),
+            position_summary=visits("stop", [(0, "bottom", 2000, 2400)]),
         )
     assert inserted["position_summary"] == 0
     with open_writer(root) as con:
         land_results(
-            con, run("next", 3600, 7200), position_summary=visits("next", [("pithead", 3600, 3900)])
+            con,
+            run("next", 3600, 7200),
+            position_summary=visits("next", [(0, "pithead", 3600, 3900)]),
         )
     assert landed("position_summary") == [("hour", 1900, 2400), ("hour", 3300, 3600),
                                           ("next", 3600, 3900)]  # fmt: skip
@@ -457,28 +473,7 @@ def test_the_visits_of_a_trip_an_earlier_row_holds_stay_that_runs(tmp_path):
     without its trip row). The re-run's later trip lands with its visits."""
     root = DataRoot(tmp_path)
 
-    def at(seconds: float) -> dt.datetime:
-        return DAY + dt.timedelta(seconds=seconds)
-
-    def run(run_id: str, start_s: float, end_s: float) -> RunRecord:
-        return RunRecord(
-            run_id=run_id, command="run", code_version="test", started_at_utc=DAY, site="s",
-            hoist="h", period_start_utc=at(start_s), period_end_utc=at(end_s),
-            parameter_set="p",
-        )  # fmt: skip
-
-    def trips(run_id: str, spans: dict[int, tuple[float, float]]) -> pl.DataFrame:
-        rows = [{"run_id": run_id, "site": "s", "hoist": "h", "trip_id": k,
-                 "time_start_utc": at(t0), "time_end_utc": at(t1)}
-                for k, (t0, t1) in spans.items()]  # fmt: skip
-        return _conform(pl.DataFrame(rows, schema_overrides={"trip_id": pl.Int64}), TRIP_SUMMARY)
-
-    def visits(run_id: str, spans: list[tuple[int | None, str, float, float]]) -> pl.DataFrame:
-        rows = [{"run_id": run_id, "site": "s", "hoist": "h", "trip_id": k, "position": p,
-                 "time_start_utc": at(t0), "time_end_utc": at(t1)}
-                for k, p, t0, t1 in spans]  # fmt: skip
-        return _conform(pl.DataFrame(rows, schema_overrides={"trip_id": pl.Int64}),
-                        POSITION_SUMMARY)  # fmt: skip
+    run, trips, visits = _part_run, _trip_rows, _visit_rows
 
     with open_writer(root) as con:
         land_results(
@@ -522,28 +517,7 @@ def test_a_trip_a_stop_and_an_alarm_across_a_rerun_end_are_not_cut_short(tmp_pat
     (3 s: too short for its rule): the day's rows stay, nothing of the re-run's beside."""
     root = DataRoot(tmp_path)
 
-    def at(seconds: float) -> dt.datetime:
-        return DAY + dt.timedelta(seconds=seconds)
-
-    def run(run_id: str, start_s: float, end_s: float) -> RunRecord:
-        return RunRecord(
-            run_id=run_id, command="run", code_version="test", started_at_utc=DAY, site="s",
-            hoist="h", period_start_utc=at(start_s), period_end_utc=at(end_s),
-            parameter_set="p",
-        )  # fmt: skip
-
-    def trips(run_id: str, spans: dict[int, tuple[float, float]]) -> pl.DataFrame:
-        rows = [{"run_id": run_id, "site": "s", "hoist": "h", "trip_id": k,
-                 "time_start_utc": at(t0), "time_end_utc": at(t1)}
-                for k, (t0, t1) in spans.items()]  # fmt: skip
-        return _conform(pl.DataFrame(rows, schema_overrides={"trip_id": pl.Int64}), TRIP_SUMMARY)
-
-    def visits(run_id: str, spans: list[tuple[int | None, str, float, float]]) -> pl.DataFrame:
-        rows = [{"run_id": run_id, "site": "s", "hoist": "h", "trip_id": k, "position": p,
-                 "time_start_utc": at(t0), "time_end_utc": at(t1)}
-                for k, p, t0, t1 in spans]  # fmt: skip
-        return _conform(pl.DataFrame(rows, schema_overrides={"trip_id": pl.Int64}),
-                        POSITION_SUMMARY)  # fmt: skip
+    at, run, trips, visits = _at, _part_run, _trip_rows, _visit_rows
 
     def alarms(run_id: str, spans: list[tuple[int, float, float]]) -> pl.DataFrame:
         rows = [{"alarm_id": f"{rope}@{t0}", "run_id": run_id, "site": "s", "hoist": "h",

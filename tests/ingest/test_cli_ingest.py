@@ -269,19 +269,24 @@ def test_ingest_hoist_invalid_description_is_one_line_exit_1(tmp_path, capfd):
     assert not (tmp_path / "data" / "warehouse.duckdb").exists()
 
 
+def _console_ingest(data: Path, *paths: Path) -> subprocess.CompletedProcess[str]:
+    """``ropeload ingest`` as its own process (stdout and stderr as an operator sees them)."""
+    return subprocess.run(
+        [sys.executable, "-m", "pipelines.cli", "ingest", "--data", str(data), *map(str, paths)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+
+
 def test_console_script_exit_status_and_streams(corpus, tmp_path):
     """The real process: stdout has the report, stderr only the refusal lines."""
     folder = tmp_path / "in"
     folder.mkdir()
     corpus.csv_file(folder / "ok.csv", corpus.data_rows(5))
     (folder / "empty.mcap").write_bytes(b"")
-    done = subprocess.run(
-        [sys.executable, "-m", "pipelines.cli", "ingest", "--data", str(tmp_path / "d"), folder],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
+    done = _console_ingest(tmp_path / "d", folder)
     assert done.returncode == 1
     assert done.stderr.splitlines() == [
         f"{PREFIX}{folder / 'empty.mcap'}: empty file (0 bytes): no header, no data"
@@ -296,13 +301,7 @@ def test_console_script_truncated_tdms_is_partial_with_nothing_on_stderr(corpus,
     short last segment are not further stderr lines of a command that succeeded."""
     path = corpus.tdms_file(tmp_path / "cut.tdms")
     path.write_bytes(path.read_bytes()[: -40 * 8])
-    done = subprocess.run(
-        [sys.executable, "-m", "pipelines.cli", "ingest", "--data", str(tmp_path / "d"), path],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
+    done = _console_ingest(tmp_path / "d", path)
     assert (done.returncode, done.stderr) == (0, "")
     assert "partial" in done.stdout
     assert _lake_rows(tmp_path / "d") == 59

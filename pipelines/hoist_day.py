@@ -37,7 +37,7 @@ from pipelines.steps import StepOutcome, land_steps, one_line
 from schemas.hoist import HoistDescription, load_hoist
 from transforms.compensation_record import CompensationSettings
 from warehouse.landing import drop_orphan_sanity_checks, insert_frame
-from warehouse.store import DataRoot, open_writer
+from warehouse.store import DataRoot, open_reader, open_writer
 
 if TYPE_CHECKING:
     from pipelines.executors import Executor
@@ -293,6 +293,7 @@ def check_sanity(
             motion=motion,
             identified_ropes=identified_ropes(run_record, description, data=data),
         )
+        frame = _of_landed_trips(data, frame, run_id)
         step = sanity_step(frame)
     except Exception as exc:
         logger.warning(
@@ -306,6 +307,24 @@ def check_sanity(
     land_sanity_checks(data, frame, site=site, hoist=name, run_id=run_id, step=step)
     logger.info("sanity check of %s: %s", run_id, step.line())
     return SanityOutcome(frame, step)
+
+
+def _of_landed_trips(data: DataRoot, checks: pl.DataFrame, run_id: str) -> pl.DataFrame:
+    """The checks of trips the run landed: a trip that starts moving in the period but an
+    earlier run's row holds whole (:func:`warehouse.landing.land_results`: one across
+    the end of a re-run's period) is that run's, and a verdict on it would be dropped at
+    landing yet counted in the step's words (a re-run said 3 of 3 trips passed and kept
+    2). Trips of a run that has none landed any more are none of its checks."""
+    if not checks.height:
+        return checks
+    con = open_reader(data)
+    try:
+        landed = con.execute(
+            "SELECT trip_id FROM trip_summary WHERE run_id = ?", [run_id]
+        ).fetchall()
+    finally:
+        con.close()
+    return checks.filter(pl.col("trip_id").is_in([t for (t,) in landed]))
 
 
 def _empty_checks() -> pl.DataFrame:

@@ -291,7 +291,7 @@ def test_a_check_of_a_run_replaced_while_it_ran_lands_no_verdict(mine, tmp_path)
     run lands, the night's run of the day replaces its trips, then the backfill's check
     lands. Its verdicts name trips no run holds: they go (they stayed, counted in the
     audit beside the night's own)."""
-    from pipelines.hoist_day import check_sanity
+    from pipelines.hoist_day import check_sanity, land_sanity_checks
     from pipelines.ingest import ingest_paths
     from pipelines.run_period import run_period
 
@@ -309,9 +309,17 @@ def test_a_check_of_a_run_replaced_while_it_ran_lands_no_verdict(mine, tmp_path)
         "end": start + dt.timedelta(days=1),
     }
     first = run_period(**period, command="backfill")
-    run_period(**period, command="nightly")
-    checked = check_sanity(**period, run_id=first.run_id)
-    assert checked.checks.height >= 1
+    checked = check_sanity(**period, run_id=first.run_id)  # the backfill's verdicts ...
+    assert checked.compared >= 1
+    run_period(**period, command="nightly")  # ... its trips the night's now ...
+    land_sanity_checks(  # ... and the verdicts landed after that
+        data, checked.checks, site="paper-field-test", hoist="shaft-1",
+        run_id=first.run_id, step=checked.step,
+    )  # fmt: skip
+    # a check of the replaced run, run afresh, has no trip of it to count
+    again = check_sanity(**period, run_id=first.run_id)
+    assert again.compared == 0
+    assert again.words() == "sanity check: no trip of the period to compare"
     con = open_reader(data)
     try:
         orphans = con.sql(

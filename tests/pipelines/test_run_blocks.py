@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import re
 from itertools import pairwise
 from pathlib import Path
 
@@ -111,13 +112,21 @@ def test_a_rerun_of_part_of_a_period_leaves_no_check_of_a_replaced_trip(
     assert main(["ingest", "--data", str(data), "--hoist", str(HOIST_PATH), str(record)]) == 0
     base = ["run", "--data", str(data), "--hoist", str(HOIST_PATH)]
     assert main(base) == 0
+    capsys.readouterr()
     assert (
         main([*base, "--from", "2026-03-02T00:00:00+00:00", "--to", "2026-03-02T00:30:00+00:00"])
         == 0
     )
-    capsys.readouterr()
+    said = capsys.readouterr().out
+    rerun = re.search(r"run (run-\S+):", said).group(1)
+    printed = re.search(r"(\d+) of (\d+) trips passed", said)
     con = open_reader(DataRoot.resolve(data))
     try:
+        kept = con.execute(
+            "SELECT count(*) FILTER (status = 'passed'), count(*) FILTER (status <> 'skipped') "
+            "FROM sanity_checks WHERE run_id = ?",
+            [rerun],
+        ).fetchall()[0]
         runs = con.sql("SELECT count(DISTINCT run_id) FROM sanity_checks").fetchall()[0][0]
         orphans = con.sql(
             "SELECT c.run_id, c.trip_id FROM sanity_checks c ANTI JOIN trip_summary t "
@@ -132,6 +141,10 @@ def test_a_rerun_of_part_of_a_period_leaves_no_check_of_a_replaced_trip(
     assert runs == 2
     assert len(moved) == 1  # the period's trips are the second run's only
     assert orphans == []
+    # the printed line counts the verdicts kept: not one on the trip across the period's
+    # end, which stays the first run's (it had said 3 of 3 and kept 2)
+    assert (int(printed.group(1)), int(printed.group(2))) == kept
+    assert kept[1] >= 1
 
 
 def test_a_rerun_from_inside_a_trip_lands_each_trip_and_visit_once(

@@ -18,6 +18,10 @@ Days evaluated:
   ring after each arrival), with windows built from the simulation's truth frame the
   same way: at rest at a named position with a steady payload, from 3 s after the
   arrival or the end of the payload change to 1 s before the next change or departure.
+- ``--parts N``: each validation day cut into N consecutive records (:func:`in_parts`),
+  each compensated cold as a day of its own: shorter records that start and end
+  wherever the cut falls, more days of the same kind (the targets are judged on days
+  not here; a target met on a whole day and missed on one of its halves is fragile).
 - ``--sims-lugre N`` more synthetic days whose seals are LuGre's single bristle (the
   example hoist without ``presliding_hysteresis``, in the data and in its TOML): a
   second world where ringing shakes the seals loose (LuGre's drift, exactly integrated
@@ -64,6 +68,7 @@ import time
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+from zoneinfo import ZoneInfo
 
 import numpy as np
 import polars as pl
@@ -360,6 +365,37 @@ def without_x(case: DayCase) -> DayCase:
     return DayCase(f"{case.name} without x", csv, case.hoist_path, case.windows)
 
 
+def _logged_utc(text: str, zone: ZoneInfo) -> dt.datetime:
+    """A CSV timestamp (the header's time zone unless it carries an offset) in UTC."""
+    stamp = dt.datetime.fromisoformat(text.strip())
+    return (stamp if stamp.tzinfo else stamp.replace(tzinfo=zone)).astimezone(dt.UTC)
+
+
+def in_parts(case: DayCase, parts: int) -> list[DayCase]:
+    """The day cut into ``parts`` consecutive records of equal row counts, each a day of
+    its own with the truth's windows that lie whole inside it: shorter records that
+    start and end wherever the cut falls (mid-trip, mid-stop), as exports do. Each is
+    compensated cold (its own data root, its own identification of the ropes), so the
+    parts are more days of the same kind, not more windows of the same day."""
+    if parts <= 1:
+        return [case]
+    lines = case.csv.read_text().splitlines(keepends=True)
+    header = next(i for i, line in enumerate(lines) if not line.startswith("#")) + 1
+    rows = lines[header:]
+    delimiter = ";" if lines[header - 1].count(";") > lines[header - 1].count(",") else ","
+    keys = dict(line.lstrip("#").split(":", 1) for line in lines[: header - 1] if ":" in line)
+    zone = ZoneInfo({k.strip(): v.strip() for k, v in keys.items()}.get("timezone", "UTC"))
+    cases = []
+    for k in range(parts):
+        chunk = rows[k * len(rows) // parts : (k + 1) * len(rows) // parts]
+        first, last = (_logged_utc(r.split(delimiter, 1)[0], zone) for r in (chunk[0], chunk[-1]))
+        csv = case.csv.with_name(f"{case.csv.stem}-part{k + 1}.csv")
+        csv.write_text("".join(lines[:header] + chunk))
+        windows = [w for w in case.windows if first <= w.t0 and w.t1 <= last]
+        cases.append(DayCase(f"{case.name} part {k + 1}/{parts}", csv, case.hoist_path, windows))
+    return cases
+
+
 def compensate_day(case: DayCase, root: Path) -> pl.DataFrame:
     """Ingest the day into a fresh data root, run the whole record, read the landed rows."""
     data = DataRoot.resolve(root)
@@ -535,44 +571,63 @@ def _summary(figures: list[dict]) -> None:
         )
 
 
-def evaluate(days: Path, sims: int, work: Path, *, sims_lugre: int = 0, no_x: bool = False) -> None:
-    """Evaluate every validation day in ``days``, ``sims`` synthetic days and
-    ``sims_lugre`` synthetic days with LuGre seals under ``work`` (``no_x``: each without
-    its pistons' displacements, :func:`without_x`)."""
+def evaluate(
+    days: Path, sims: int, work: Path, *, sims_lugre: int = 0, no_x: bool = False, parts: int = 1
+) -> None:
+    """Evaluate every validation day in ``days`` (each cut in ``parts``,
+    :func:`in_parts`), ``sims`` synthetic days and ``sims_lugre`` synthetic days with
+    LuGre seals under ``work`` (``no_x``: each without its pistons' displacements,
+    :func:`without_x`)."""
     figures = []
     gz_files = sorted(days.glob("*.csv.gz"))
     if not gz_files:
         print(f"no *.csv.gz in {days}")
-    cases = [(lambda gz=gz: validation_case(gz, work / "inputs")) for gz in gz_files]
-    cases += [(lambda k=k: sims_case(k, work / "inputs")) for k in range(sims)]
-    cases += [(lambda k=k: sims_case(k, work / "inputs", lugre=True)) for k in range(sims_lugre)]
+    cases = [
+        (gz.name, lambda gz=gz: in_parts(validation_case(gz, work / "inputs"), parts))
+        for gz in gz_files
+    ]
+    cases += [(f"sims case {k}", lambda k=k: [sims_case(k, work / "inputs")]) for k in range(sims)]
+    cases += [
+        (f"LuGre sims case {k}", lambda k=k: [sims_case(k, work / "inputs", lugre=True)])
+        for k in range(sims_lugre)
+    ]
     failed = []
-    for number, make in enumerate(cases):
-        started = time.perf_counter()
+    for name, make in cases:
         try:
-            case = without_x(make()) if no_x else make()
-            root = work / "data" / case.csv.stem
-            tensions = compensate_day(case, root)
+            days_of = make()
         except Exception as error:  # one day's failure is a finding, not the end
-            name = gz_files[number].name if number < len(gz_files) else f"sims case {number}"
             failed.append(name)
             print(f"\n== {name}: FAILED, not evaluated: {one_line(error)}", flush=True)
             continue
-        errors = window_errors(tensions, case.windows)
-        figures.append(
-            report_day(case.name, errors, len(case.windows), time.perf_counter() - started)
-        )
-        report_friction(errors)
-        implied = truth_ropes(case.windows, hoist := load_hoist(case.hoist_path))
-        if implied is not None:  # the identification's share of the errors
-            data = DataRoot.resolve(root)
-            samples = scan_lake(
-                data, "field_samples", site=hoist.hoist.site, hoist=hoist.hoist.name
-            )
-            report_ropes(identified_ropes(samples.collect(), hoist, data=data), implied, hoist)
+        for day in days_of:
+            _evaluate_case(day, work, no_x, figures, failed)
     _summary(figures)
     if failed:
         print(f"  days that failed (target: none): {', '.join(failed)}")
+
+
+def _evaluate_case(
+    case: DayCase, work: Path, no_x: bool, figures: list[dict], failed: list[str]
+) -> None:
+    """Compensate one day, print its figures and append them to ``figures`` (its name to
+    ``failed`` when it cannot be compensated)."""
+    started = time.perf_counter()
+    try:
+        case = without_x(case) if no_x else case
+        root = work / "data" / case.csv.stem
+        tensions = compensate_day(case, root)
+    except Exception as error:  # one day's failure is a finding, not the end
+        failed.append(case.name)
+        print(f"\n== {case.name}: FAILED, not evaluated: {one_line(error)}", flush=True)
+        return
+    errors = window_errors(tensions, case.windows)
+    figures.append(report_day(case.name, errors, len(case.windows), time.perf_counter() - started))
+    report_friction(errors)
+    implied = truth_ropes(case.windows, hoist := load_hoist(case.hoist_path))
+    if implied is not None:  # the identification's share of the errors
+        data = DataRoot.resolve(root)
+        samples = scan_lake(data, "field_samples", site=hoist.hoist.site, hoist=hoist.hoist.name)
+        report_ropes(identified_ropes(samples.collect(), hoist, data=data), implied, hoist)
 
 
 def main() -> None:
@@ -591,9 +646,14 @@ def main() -> None:
         "--without-x", action="store_true",
         help="take the pistons' displacements (x1..x4) out of every day's CSV first",
     )  # fmt: skip
+    ap.add_argument(
+        "--parts", type=int, default=1,
+        help="cut each validation day into N consecutive records, each evaluated cold as "
+        "a day of its own (default 1: whole)",
+    )  # fmt: skip
     args = ap.parse_args()
     started = time.perf_counter()
-    options = {"sims_lugre": args.sims_lugre, "no_x": args.without_x}
+    options = {"sims_lugre": args.sims_lugre, "no_x": args.without_x, "parts": args.parts}
     if args.keep is not None:
         args.keep.mkdir(parents=True, exist_ok=True)
         evaluate(args.days, args.sims, args.keep.absolute(), **options)

@@ -169,3 +169,31 @@ def test_report_day_prints_the_margin_to_the_worse_than_raw_limit(evaluation, ca
     assert figures["excess"] == pytest.approx(0.15)
     assert "the largest |after| - |before| +0.150 pp (limit 0.2); windows above half" in out
     assert "half the limit: 1" in out
+
+
+def test_a_day_in_parts_keeps_every_row_once_and_the_windows_inside_each(
+    evaluation, tmp_path
+) -> None:
+    """Ten rows a second apart, logged in Asia/Shanghai (UTC+8) with `;` between fields,
+    cut in two: five rows each, the header on both, and each part keeps the windows
+    whole inside its UTC span (the window across the cut is in neither)."""
+    header = ["# site: s\n", "# timezone: Asia/Shanghai\n", "timestamp;p1\n"]
+    rows = [f"2026-02-12 06:00:0{i}.000;49,5\n" for i in range(10)]
+    csv = tmp_path / "day.csv"
+    csv.write_text("".join(header + rows))
+    utc = dt.datetime(2026, 2, 11, 22, 0, 0, tzinfo=dt.UTC)  # 06:00 local
+
+    def window(a: float, b: float):
+        return evaluation.Window(
+            "arrival", "p", utc + dt.timedelta(seconds=a), utc + dt.timedelta(seconds=b),
+            1.0, (0.25,) * 4,
+        )  # fmt: skip
+
+    inside_first, across, inside_second = window(0.5, 3.5), window(3.5, 6.5), window(6, 9)
+    case = evaluation.DayCase("d", csv, tmp_path / "h.toml", [inside_first, across, inside_second])
+    first, second = evaluation.in_parts(case, 2)
+    assert first.windows == [inside_first] and second.windows == [inside_second]
+    texts = [part.csv.read_text().splitlines(keepends=True) for part in (first, second)]
+    assert [t[:3] for t in texts] == [header, header]
+    assert texts[0][3:] + texts[1][3:] == rows
+    assert evaluation.in_parts(case, 1) == [case]

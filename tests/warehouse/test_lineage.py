@@ -262,3 +262,52 @@ def test_rope_trip_extremes_name_the_file_of_each_ropes_worst_sample(tmp_path):
     assert peak1[2] == pytest.approx(1 / 3, abs=0.02)
     assert peak1[5] == pytest.approx(1.5 * expected_load_n(hoist, 0.0) / 4, rel=0.02)
     assert trip == [(3, peak3[2])]
+
+
+def test_rope_trip_extremes_name_the_file_that_landed_the_sample_where_files_overlap(tmp_path):
+    """Two raw files cover the worst sample's time; the one that landed it is named.
+
+    ``main-shaft-0.csv`` was exported over the whole 10 minutes, but ``main-shaft-1.csv``
+    (the second half) had been ingested first, so the second half's samples in the lake
+    came from file 1 (file 0's lines there were skipped as duplicates). Rope 3's worst
+    sample (07:02:00) is file 1's: the first path of the covering files in sort order,
+    file 0, is not the file it came from.
+    """
+    hoist = load_hoist(EXAMPLE_HOIST)
+    root = DataRoot(tmp_path / "data")
+    samples = _samples(hoist).with_columns(trip_id=pl.lit(0, dtype=pl.Int64))
+    manifest, shas = _ingest_by_hand(root, tmp_path, samples, hoist)
+    manifest = manifest.with_columns(  # file 0 covers the whole record
+        pl.when(pl.col("source_sha256") == shas[0])
+        .then(pl.lit(samples["time_utc"].max()))
+        .otherwise(pl.col("time_end_utc"))
+        .alias("time_end_utc")
+    )
+    run = RunRecord(
+        run_id="overlap-run", command="run", code_version="t", started_at_utc=T0,
+        hoist_sha256=hoist_sha256(EXAMPLE_HOIST), site=hoist.hoist.site, hoist=hoist.hoist.name,
+        period_start_utc=T0, period_end_utc=T0 + dt.timedelta(minutes=10), inputs=shas,
+        timezone=hoist.hoist.timezone,
+    )  # fmt: skip
+    _, trips = reconcile(samples, hoist, run_id=run.run_id, payload_kg=0.0)
+    with open_writer(root) as con:
+        insert_frame(con, "manifest", manifest)
+        land_results(con, run, trip_summary=trips)
+    con = open_reader(root)
+    try:
+        rope3 = con.sql(
+            "select max_imbalance_after_time_utc, source_path, source_sha256, source_paths "
+            "from rope_trip_extremes where rope = 3"
+        ).fetchall()
+        (landed_sha,) = con.sql(
+            "select s.source_sha256 from rope_trip_extremes r join stg_lake__field_samples s "
+            "on s.time_utc = r.max_imbalance_after_time_utc where r.rope = 3"
+        ).fetchall()[0]
+    finally:
+        con.close()
+    files = [str(tmp_path / "logs" / f"main-shaft-{k}.csv") for k in (0, 1)]
+    ((peak, path, sha, paths),) = rope3
+    assert T0 + dt.timedelta(seconds=420) <= peak < T0 + dt.timedelta(seconds=425)
+    assert landed_sha == shas[1]
+    assert (path, sha) == (files[1], shas[1])
+    assert paths == files  # both files cover the sample's time

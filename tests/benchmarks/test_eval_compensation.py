@@ -192,7 +192,8 @@ def test_a_day_in_parts_keeps_every_row_once_and_the_windows_inside_each(
     inside_first, across, inside_second = window(0.5, 3.5), window(3.5, 6.5), window(6, 9)
     case = evaluation.DayCase("d", csv, tmp_path / "h.toml", [inside_first, across, inside_second])
     first, second = evaluation.in_parts(case, 2)
-    assert first.windows == [inside_first] and second.windows == [inside_second]
+    assert first.windows == [inside_first]
+    assert second.windows == [inside_second]
     texts = [part.csv.read_text().splitlines(keepends=True) for part in (first, second)]
     assert [t[:3] for t in texts] == [header, header]
     assert texts[0][3:] + texts[1][3:] == rows

@@ -118,6 +118,9 @@ ESCAPES = [
     ("explain-analyze-copy",
      "EXPLAIN ANALYZE COPY (SELECT 1 AS a) TO '{part}/part-explain.parquet'",
      "under EXPLAIN, COPY statements"),
+    ("explain-analyze-options-copy",
+     "EXPLAIN ANALYZE (FORMAT JSON) COPY (SELECT 1 AS a) TO '{part}/part-explain.parquet'",
+     "under EXPLAIN, COPY statements"),
     ("read-csv-passwd", "SELECT * FROM read_csv('/etc/passwd', sep = ':')",
      'cannot access file "/etc/passwd"'),
     ("read-csv-outside", "SELECT * FROM read_csv('{outside}/secret.csv')",
@@ -391,6 +394,25 @@ def test_table_format_keeps_every_column_whole():
     assert all(f"column_{i:02d}" in table for i in range(30))
     assert long in table
     assert "…" not in table
+
+
+@pytest.mark.parametrize(
+    "sql",
+    [
+        "EXPLAIN SELECT run_id FROM runs",
+        "EXPLAIN (FORMAT JSON) SELECT run_id FROM runs",
+        "EXPLAIN (SELECT run_id FROM runs)",  # a bracketed query, not options
+        "EXPLAIN (SELECT run_id FROM runs) UNION (SELECT 'x')",
+        "EXPLAIN ANALYZE (SELECT run_id FROM runs)",
+    ],
+)
+def test_explain_of_a_query_in_brackets_is_planned(data, capsys, sql):
+    """A bracket after EXPLAIN is DuckDB's options or the query's own first bracket: both
+    readings are checked (the second was refused as "no SQL statement given")."""
+    assert main(["query", "--data", str(data.path), "--format", "csv", sql]) == 0, (
+        capsys.readouterr().err
+    )
+    assert capsys.readouterr().out.startswith("explain_key,explain_value")
 
 
 def test_query_is_read_only(data, capsys):

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import re
+import shutil
 from itertools import pairwise
 from pathlib import Path
 
@@ -40,6 +41,20 @@ def record(tmp_path_factory) -> Path:
     return write_field_day(day, folder, formats=("csv",))[0]
 
 
+@pytest.fixture(scope="module")
+def whole(record: Path, tmp_path_factory) -> Path:
+    """The record ingested and run whole (60-minute blocks, no sanity check): read it, or
+    copy it (:func:`_copy`) to run again on it."""
+    data = tmp_path_factory.mktemp("whole") / "data"
+    _run(record, data)
+    return data
+
+
+def _copy(whole: Path, tmp_path: Path) -> Path:
+    """A data root of the whole run's own, its files' times kept."""
+    return Path(shutil.copytree(whole, tmp_path / "data"))
+
+
 def _run(record: Path, data: Path, *extra: str) -> None:
     if not (data / "lake").exists():
         assert main(["ingest", "--data", str(data), "--hoist", str(HOIST_PATH), str(record)]) == 0
@@ -58,10 +73,11 @@ def _marts(data: Path) -> dict[str, pl.DataFrame]:
         con.close()
 
 
-def test_block_size_changes_nothing_landed(record: Path, tmp_path: Path, capsys) -> None:
-    small, large = tmp_path / "small", tmp_path / "large"
+def test_block_size_changes_nothing_landed(
+    record: Path, whole: Path, tmp_path: Path, capsys
+) -> None:
+    small, large = tmp_path / "small", whole
     _run(record, small, "--block-minutes", "10")
-    _run(record, large)
     capsys.readouterr()
     a = scan_lake(DataRoot.resolve(small), "rope_tensions", site=SITE, hoist=NAME).collect()
     b = scan_lake(DataRoot.resolve(large), "rope_tensions", site=SITE, hoist=NAME).collect()
@@ -88,9 +104,10 @@ def test_block_size_changes_nothing_landed(record: Path, tmp_path: Path, capsys)
                            rel_tol=1e-9, abs_tol=1e-6)  # fmt: skip
 
 
-def test_rerun_of_twenty_minutes_rewrites_only_its_hour(record: Path, tmp_path: Path, capsys):
-    data = tmp_path / "data"
-    _run(record, data)
+def test_rerun_of_twenty_minutes_rewrites_only_its_hour(
+    record: Path, whole: Path, tmp_path: Path, capsys
+):
+    data = _copy(whole, tmp_path)
     table = data / "lake" / "rope_tensions"
     before = {p.name: p.stat().st_mtime_ns for p in table.rglob("*.parquet")}
     _run(record, data, "--from", "2026-03-02T00:10:00+00:00", "--to", "2026-03-02T00:30:00+00:00")
@@ -148,14 +165,13 @@ def test_a_rerun_of_part_of_a_period_leaves_no_check_of_a_replaced_trip(
 
 
 def test_a_rerun_from_inside_a_trip_lands_each_trip_and_visit_once(
-    record: Path, tmp_path: Path, capsys
+    record: Path, whole: Path, tmp_path: Path, capsys
 ) -> None:
     """The whole record run, then again from the middle of its third trip: the trip and
     the stops the second run sees from its start on are the first run's rows still (it
     held them whole), the later ones the second run's; no two rows of a mart overlap
     (a review measured 8 trip rows for 7 trips)."""
-    data = tmp_path / "inside"
-    _run(record, data)
+    data = _copy(whole, tmp_path)
     con = open_reader(DataRoot.resolve(data))
     try:
         first = con.sql(

@@ -84,12 +84,15 @@ def _data_root_problem(args: argparse.Namespace) -> str | None:
         return None
     if args.command == "paper" and args.out is not None:  # the data root is not used
         return None
-    from warehouse.store import DATA_ENV, DataRoot
+    from warehouse.store import DATA_ENV, DataRoot, data_root_problem
 
     path = DataRoot.resolve(args.data).path
     origin = "--data" if args.data is not None else f"${DATA_ENV}"
     if args.data is None and not os.environ.get(DATA_ENV):
         origin = "the default"
+    unreadable = data_root_problem(path)
+    if unreadable is not None:
+        return f"data root {path} ({origin}): {unreadable}"
     writes = args.command != "query"
     existing = path
     while not os.path.lexists(existing) and existing != existing.parent:

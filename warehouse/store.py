@@ -48,6 +48,7 @@ __all__ = [
     "DEFAULT_DATA",
     "STORAGE_VERSION",
     "DataRoot",
+    "data_root_problem",
     "open_reader",
     "open_writer",
     "storage_version",
@@ -80,6 +81,45 @@ def write_text_atomic(path: Path, text: str) -> Path:
         Path(name).unlink(missing_ok=True)
         raise
     return path
+
+
+#: Characters DuckDB does not take literally in a file path: the lake's views read
+#: ``<data>/lake/<table>/site=*/...`` as a file pattern (``* ? [ ]``; ``data[X]`` matches
+#: ``dataX``, another data root), and it takes a backslash for a folder separator on
+#: every system (the warehouse of a data root ``d<backslash>x`` was written as
+#: ``d/x/warehouse.duckdb.next``). A data root whose path has one is refused
+#: (:func:`data_root_problem`).
+_PATTERN_CHARACTERS = {
+    "*": "a file pattern",
+    "?": "a file pattern",
+    "[": "a file pattern",
+    "]": "a file pattern",
+    "\\": "a folder separator",
+}
+
+
+def data_root_problem(path: str | os.PathLike[str]) -> str | None:
+    """Why DuckDB would not read ``path`` (a data root) as the folder it names, or None.
+
+    >>> data_root_problem("/srv/ropeload") is None
+    True
+    >>> data_root_problem("/srv/rope[1]")
+    "its path has '[', which DuckDB reads as a file pattern: use a path without * ? [ ] \\\\"
+    """
+    text = str(path)
+    for character, reading in _PATTERN_CHARACTERS.items():
+        if character in text:
+            return (
+                f"its path has {character!r}, which DuckDB reads as {reading}: "
+                "use a path without * ? [ ] \\"
+            )
+    return None
+
+
+def _check_data_root(root: DataRoot) -> None:
+    problem = data_root_problem(root.path)
+    if problem is not None:
+        raise ValueError(f"data root {root.path}: {problem}")
 
 
 class OutputPathError(ValueError):
@@ -207,6 +247,7 @@ def open_writer(
     from warehouse.parquet_files import remove_stale_temporaries
     from warehouse.views import refresh_views
 
+    _check_data_root(root)
     root.path.mkdir(parents=True, exist_ok=True)
     with WarehouseLock(root.lock_file, timeout_s=lock_timeout_s) as lock:
         staging = root.warehouse.with_name(root.warehouse.name + ".next")
@@ -298,8 +339,10 @@ def open_reader(root: DataRoot, *, sandbox: bool = False) -> duckdb.DuckDBPyConn
     cannot write any file or read one outside ``<data>/lake``, whatever SQL it is given
     (:func:`_open_sandboxed`). Plain readers (``sandbox=False``) run the pipeline's own SQL.
 
-    Raises FileNotFoundError with the path when nothing has been landed yet.
+    Raises FileNotFoundError with the path when nothing has been landed yet, ValueError
+    for a data root DuckDB would not read as named (:func:`data_root_problem`).
     """
+    _check_data_root(root)
     if not root.warehouse.exists():
         raise FileNotFoundError(
             f"no warehouse at {root.warehouse}: run 'ropeload ingest' or 'ropeload demo' first"

@@ -115,6 +115,41 @@ def test_data_root_under_a_file_cannot_be_created(
     assert f"data root {afile / 'data'} ($ROPELOAD_DATA) cannot be created: {afile} is a" in err
 
 
+@pytest.mark.parametrize(
+    ("name", "character"),
+    [("data[X]", "["), ("data*", "*"), ("data?", "?"), ("d\\x", "\\")],
+    ids=["bracket", "star", "question-mark", "backslash"],
+)
+@pytest.mark.parametrize("command", ["ingest", "query"])
+def test_a_data_root_whose_path_duckdb_reads_otherwise_is_refused(
+    name, character, command, tmp_path, capsys, small_csv
+):
+    """DuckDB reads the lake through a file pattern built on the data root's path, and
+    takes a backslash for a folder separator: ``data[X]`` read the lake of ``dataX``
+    (another data root) and never its own, ``d\\x`` wrote ``d/x/warehouse.duckdb.next``.
+    Such a data root is refused, one line naming it and the character, before anything
+    is written."""
+    other = tmp_path / "dataX"  # what data[X], data* and data? match
+    assert main(["ingest", "--data", str(other), str(small_csv(tmp_path / "o.csv"))]) == 0
+    capsys.readouterr()
+    data = tmp_path / name
+    args = [str(small_csv(tmp_path / "in.csv"))] if command == "ingest" else ["select 1"]
+    before = sorted(str(p) for p in tmp_path.rglob("*"))
+    assert main([command, "--data", str(data), *args]) == 1
+    err = _one_line(capsys.readouterr().err, command)
+    assert f"data root {data} (--data)" in err
+    assert f"{character!r}" in err
+    assert sorted(str(p) for p in tmp_path.rglob("*")) == before  # nothing written
+    from warehouse.store import DataRoot, open_reader, open_writer
+
+    with pytest.raises(ValueError, match="data root"):
+        with open_writer(DataRoot.resolve(data)):
+            pass
+    with pytest.raises(ValueError, match="data root"):
+        open_reader(DataRoot.resolve(data), sandbox=True)
+    assert sorted(str(p) for p in tmp_path.rglob("*")) == before
+
+
 @pytest.mark.skipif(
     os.geteuid() == 0, reason="as root, permission bits do not stop writes (nothing to refuse)"
 )

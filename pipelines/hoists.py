@@ -44,6 +44,7 @@ from pipelines.ingest.field_checks import ForeignHoistError
 from pipelines.ingest.sources import expand_paths
 from pipelines.lake import scan_lake
 from schemas.hoist import HoistDescription, load_hoist
+from schemas.names import printable
 from warehouse.store import DataRoot, open_reader
 
 __all__ = [
@@ -132,7 +133,7 @@ def load_hoists(
             if unreadable is None:
                 raise
             reason = " ".join(str(exc).split()).removeprefix(f"{path}: ")
-            unreadable.append(f"{path}: {reason or type(exc).__name__}")
+            unreadable.append(f"{printable(path)}: {reason or type(exc).__name__}")
     seen: dict[str, Path] = {}
     for source in sources:
         if source.key in seen:
@@ -226,8 +227,8 @@ def incoming_notes(sources: Sequence[HoistSource]) -> list[str]:
                 continue
             if site_dir.name not in sites:
                 notes.append(
-                    f"incoming folder {site_dir}: no hoist description has "
-                    f"[hoist] site = '{site_dir.name}'; its logs are not read"
+                    f"incoming folder {printable(site_dir)}: no hoist description has "
+                    f"[hoist] site = {site_dir.name!r}; its logs are not read"
                 )
                 continue
             stray += [
@@ -238,15 +239,16 @@ def incoming_notes(sources: Sequence[HoistSource]) -> list[str]:
                     (site_dir.name, hoist_dir.name) not in claimed
                 ):
                     notes.append(
-                        f"incoming folder {hoist_dir}: no hoist description claims it "
-                        f"([hoist] site = '{site_dir.name}', name = '{hoist_dir.name}'); "
+                        f"incoming folder {printable(hoist_dir)}: no hoist description "
+                        f"claims it ([hoist] site = {site_dir.name!r}, "
+                        f"name = {hoist_dir.name!r}); "
                         "its logs are not read"
                     )
         for folder in sorted({p.parent for p in stray}):
             count = sum(p.parent == folder for p in stray)
             notes.append(
-                f"incoming folder {folder}: {count} raw file(s) outside any <site>/<hoist> "
-                "folder; not read"
+                f"incoming folder {printable(folder)}: {count} raw file(s) outside any "
+                "<site>/<hoist> folder; not read"
             )
     return notes
 

@@ -41,6 +41,7 @@ __all__ = [
     "is_safe_name",
     "join_inside",
     "name_problem",
+    "printable",
     "safe_name",
 ]
 
@@ -137,3 +138,23 @@ def join_inside(base: str | os.PathLike[str], *parts: str, source: str = "path")
     if not _inside(real_base, real):
         raise PathEscapeError(f"{source}: {path} resolves to {real}, outside {real_base}")
     return path
+
+
+def printable(value: object) -> str:
+    """``value`` (a path, a name) as text fit for one line of a message or a table.
+
+    A file name may hold any byte but ``/`` and NUL: a line break would split a one-line
+    error in two and an escape sequence would reach the terminal. Characters that are
+    not printable are shown as Python escapes, and bytes that are not UTF-8 (which
+    Python keeps as lone surrogates) as ``\\xNN``; everything else is left as it is.
+
+    >>> printable("/in/bad\\nname.csv")
+    '/in/bad\\\\nname.csv'
+    >>> printable("/in/k\\udcff.csv")
+    '/in/k\\\\xff.csv'
+    """
+    text = str(value)
+    if text.isprintable():
+        return text
+    text = text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in text)

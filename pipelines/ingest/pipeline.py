@@ -110,7 +110,7 @@ def _log_file(result: FileResult) -> None:
         level,
         "%s %s: %d rows read, %d landed, %d quarantined, %d duplicates%s",
         result.status,
-        result.path,
+        result.shown_path,
         result.rows_read,
         result.rows_landed,
         result.rows_quarantined,

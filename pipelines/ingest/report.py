@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from pipelines.ingest.clock import ClockState
+from schemas.names import printable
 
 __all__ = ["STATUSES", "FileResult", "FilesRefused", "IngestReport"]
 
@@ -62,10 +63,16 @@ class FileResult:
     clock: ClockState | None = None
 
     @property
+    def shown_path(self) -> str:
+        """The path for a message: a line break or a control character in the file's
+        name escaped (:func:`schemas.names.printable`)."""
+        return printable(self.path)
+
+    @property
     def reason(self) -> str:
         """The message on one line, without the leading ``<path>: `` it usually has."""
-        text = " ".join(self.message.split())
-        return text.removeprefix(f"{self.path}: ") or self.status
+        text = self.message.removeprefix(f"{self.path}: ").removeprefix(f"{self.shown_path}: ")
+        return printable(" ".join(text.split())) or self.status
 
     @property
     def balanced(self) -> bool:
@@ -96,7 +103,7 @@ class IngestReport:
 
     def refusal_lines(self) -> list[str]:
         """One ``<file>: <reason>`` line per refused file, in input order (for stderr)."""
-        return [f"{f.path}: {f.reason}" for f in self.refused]
+        return [f"{f.shown_path}: {f.reason}" for f in self.refused]
 
     def totals(self) -> dict[str, int]:
         keys = ("rows_read", "rows_landed", "rows_quarantined", "rows_duplicate")
@@ -106,14 +113,14 @@ class IngestReport:
         head = ("file", "format", "status", "read", "landed", "quar", "dup", "message")
         rows = [
             (
-                f.path.name,
+                printable(f.path.name),
                 f.format,
                 f.status,
                 str(f.rows_read),
                 str(f.rows_landed),
                 str(f.rows_quarantined),
                 str(f.rows_duplicate),
-                _short(f.message.removeprefix(f"{f.path}: "), 70),
+                _short(f.reason if f.message else "", 70),
             )
             for f in self.files
         ]

@@ -102,6 +102,35 @@ def test_each_kind_of_refusal_exits_1_with_one_line(corpus, tmp_path, capfd):
         assert "refused" in out  # the report is on stdout
 
 
+def test_a_file_name_with_a_line_break_or_a_control_character_is_one_line(corpus, tmp_path, capfd):
+    """A file name may hold any byte but ``/`` and NUL: a line break in a refused file's
+    name split its stderr line in two (and the path was said twice), an escape sequence
+    reached the terminal. Such characters are shown escaped, ``\\n``, ``\\x1b``."""
+    folder = tmp_path / "incoming"
+    folder.mkdir()
+    bad = {**corpus.HEADER, "site": "../x"}
+    corpus.csv_file(folder / "bad\nname.csv", corpus.data_rows(3), header=bad)
+    corpus.csv_file(folder / "esc\x1b[2J.csv", corpus.data_rows(3), header=bad)
+    (folder / "cr\r.csv").write_text("garbage\n")
+    corpus.csv_file(folder / "good\n.csv", corpus.data_rows(3))
+    code, out, err = _ingest(capfd, tmp_path / "data", folder)
+    assert code == 1
+    assert sorted(err) == [
+        f"{PREFIX}{folder}/bad\\nname.csv: line 1: site: unsafe name '../x': contains '..'; "
+        "a name is 1-64 characters of A-Z a-z 0-9 . _ -, starts with a letter or digit and "
+        "has no '..'",
+        f"{PREFIX}{folder}/cr\\r.csv: line 1: header lacks required key(s) 'site', 'hoist', "
+        "'units' (found: none)",
+        f"{PREFIX}{folder}/esc\\x1b[2J.csv: line 1: site: unsafe name '../x': contains '..'; "
+        "a name is 1-64 characters of A-Z a-z 0-9 . _ -, starts with a letter or digit and "
+        "has no '..'",
+    ]
+    assert not {"\r", "\x1b"} & set(out)
+    assert len(out.splitlines()) == 2 + 4 + 2  # head, rule, a line per file, rule, total
+    assert "good\\n.csv" in out
+    assert _lake_rows(tmp_path / "data") == 3
+
+
 def test_clean_and_quarantined_files_exit_0_with_nothing_on_stderr(corpus, tmp_path, capfd):
     _good_files(corpus, tmp_path / "good")
     code, out, err = _ingest(capfd, tmp_path / "data", tmp_path / "good")

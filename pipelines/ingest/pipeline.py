@@ -146,6 +146,14 @@ def _ingest_file(
     """The outcome of one file, and the manifest row of its content if there was one."""
     if not path.is_file():
         return FileResult(path, "", "unknown", "refused", message=f"{path}: no such file"), None
+    undecodable = _undecodable_name(path)
+    if undecodable is not None:
+        # not recorded (no sha256): the manifest holds paths as UTF-8 text
+        result = FileResult(
+            path, "", detect_format(path), "refused", size_bytes=path.stat().st_size
+        )
+        result.message = f"{result.shown_path}: {undecodable}"
+        return result, None
     size = path.stat().st_size
     fmt = detect_format(path)
     if size == 0:
@@ -217,6 +225,18 @@ def _ingest_file(
         notes.insert(0, "no data rows (header and column line only): 0 rows landed")
     result.message = "; ".join(notes)
     return result, earlier
+
+
+def _undecodable_name(path: Path) -> str | None:
+    """Why ``path`` cannot be stored as text (a file name's bytes that are not UTF-8,
+    which Python keeps as lone surrogates: ``b'k\\xff.csv'``), or None."""
+    try:
+        str(path).encode("utf-8")
+    except UnicodeEncodeError as exc:
+        byte = ord(str(path)[exc.start]) - 0xDC00
+        what = f"byte 0x{byte:02x}" if 0x80 <= byte <= 0xFF else "a lone surrogate"
+        return f"the file name is not UTF-8 text ({what}); rename the file to ingest it"
+    return None
 
 
 def _noting_misses(lookup: HoistLookup, notes: list[str], path: Path) -> HoistLookup:

@@ -9,6 +9,8 @@ silent "already ingested".
 
 from __future__ import annotations
 
+import datetime as dt
+import os
 import shutil
 import subprocess
 import sys
@@ -129,6 +131,31 @@ def test_a_file_name_with_a_line_break_or_a_control_character_is_one_line(corpus
     assert len(out.splitlines()) == 2 + 4 + 2  # head, rule, a line per file, rule, total
     assert "good\\n.csv" in out
     assert _lake_rows(tmp_path / "data") == 3
+
+
+def test_a_file_name_that_is_not_utf8_is_refused_and_the_others_land(corpus, tmp_path, capfd):
+    """Linux file names are bytes: a logger's Latin-1 ``k\\xff.csv`` could not be stored
+    in the manifest, and the DuckDB error ended the whole ingest (no file named, the files
+    of its batch not recorded). It is refused, named on one line; the others land."""
+    folder = tmp_path / "incoming"
+    folder.mkdir()
+    corpus.csv_file(folder / "a.csv", corpus.data_rows(3))
+    odd = folder / os.fsdecode(b"k\xff.csv")
+    corpus.csv_file(odd, corpus.data_rows(4, start=dt.datetime(2026, 3, 2, 7)))
+    corpus.csv_file(folder / "z.csv", corpus.data_rows(5, start=dt.datetime(2026, 3, 2, 8)))
+    data = tmp_path / "data"
+    for _ in range(2):  # and again: refused again, nothing landed twice
+        code, out, err = _ingest(capfd, data, folder)
+        assert code == 1
+        assert err == [
+            f"{PREFIX}{folder}/k\\xff.csv: the file name is not UTF-8 text (byte 0xff); "
+            "rename the file to ingest it"
+        ]
+        assert "k\\xff.csv" in out
+        assert _lake_rows(data) == 3 + 5
+    with open_reader(DataRoot.resolve(data)) as con:
+        rows = con.sql("SELECT source_path, status FROM manifest ORDER BY 1").fetchall()
+    assert rows == [(str(folder / "a.csv"), "landed"), (str(folder / "z.csv"), "landed")]
 
 
 def test_clean_and_quarantined_files_exit_0_with_nothing_on_stderr(corpus, tmp_path, capfd):

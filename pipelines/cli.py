@@ -84,6 +84,7 @@ def _data_root_problem(args: argparse.Namespace) -> str | None:
         return None
     if args.command == "paper" and args.out is not None:  # the data root is not used
         return None
+    from schemas.names import printable
     from warehouse.store import DATA_ENV, DataRoot, data_root_problem
 
     path = DataRoot.resolve(args.data).path
@@ -92,7 +93,7 @@ def _data_root_problem(args: argparse.Namespace) -> str | None:
         origin = "the default"
     unreadable = data_root_problem(path)
     if unreadable is not None:
-        return f"data root {path} ({origin}): {unreadable}"
+        return f"data root {printable(path)} ({origin}): {unreadable}"
     writes = args.command != "query"
     existing = path
     while not os.path.lexists(existing) and existing != existing.parent:

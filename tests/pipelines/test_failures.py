@@ -150,6 +150,19 @@ def test_a_data_root_whose_path_duckdb_reads_otherwise_is_refused(
     assert sorted(str(p) for p in tmp_path.rglob("*")) == before
 
 
+@pytest.mark.parametrize("command", ["ingest", "query"])
+def test_a_data_root_whose_path_is_not_utf8_is_one_line(command, tmp_path, capsys, small_csv):
+    """``--data $'data\\xff'``: DuckDB cannot open a path that is not UTF-8 text; it
+    ended in a traceback (``RuntimeError: std::bad_cast``) after the lock file was made."""
+    data = tmp_path / os.fsdecode(b"data\xff")
+    args = [str(small_csv(tmp_path / "in.csv"))] if command == "ingest" else ["select 1"]
+    before = sorted(tmp_path.rglob("*"))
+    assert main([command, "--data", str(data), *args]) == 1
+    err = _one_line(capsys.readouterr().err, command)
+    assert f"data root {tmp_path}/data\\xff (--data): its path is not UTF-8 text" in err
+    assert sorted(tmp_path.rglob("*")) == before
+
+
 @pytest.mark.skipif(
     os.geteuid() == 0, reason="as root, permission bits do not stop writes (nothing to refuse)"
 )

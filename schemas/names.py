@@ -38,6 +38,7 @@ __all__ = [
     "NAME_RULE",
     "PathEscapeError",
     "UnsafeNameError",
+    "escaping_links",
     "is_safe_name",
     "join_inside",
     "name_problem",
@@ -158,3 +159,26 @@ def printable(value: object) -> str:
         return text
     text = text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
     return "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in text)
+
+
+def escaping_links(base: str | os.PathLike[str]) -> list[tuple[Path, Path]]:
+    """(link, where it resolves) of every symlink below ``base`` (the folder's tree,
+    links not followed) that resolves outside ``base``; ``base`` itself may be a link.
+
+    The readers' side of :func:`join_inside`: a lake table's readers glob its partitions
+    and would follow a link planted there to files elsewhere.
+    """
+    base = Path(base)
+    real_base = base.resolve()
+    found: list[tuple[Path, Path]] = []
+    folders = [base]
+    while folders:  # directory entries only (no stat per file): a lake has many files
+        with os.scandir(folders.pop()) as entries:
+            for entry in entries:
+                if entry.is_symlink():
+                    real = Path(entry.path).resolve()
+                    if not _inside(real_base, real):
+                        found.append((Path(entry.path), real))
+                elif entry.is_dir(follow_symlinks=False):
+                    folders.append(Path(entry.path))
+    return sorted(found)

@@ -38,6 +38,7 @@ import duckdb
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from schemas.names import PathEscapeError, escaping_links
 from schemas.tables import LAKE_PARTITIONS, TABLES, duckdb_columns
 
 logger = logging.getLogger(__name__)
@@ -138,6 +139,13 @@ def refresh_views(
             con.execute(f"DROP VIEW IF EXISTS {view}")
     created = []
     for view, table in LAKE_VIEWS.items():
+        escaped = escaping_links(root.table_dir(table)) if root.table_dir(table).is_dir() else []
+        if escaped:  # the view's pattern would follow it (the writers refuse to)
+            link, real = escaped[0]
+            raise PathEscapeError(
+                f"lake table {table!r}: {link} resolves to {real}, outside it"
+                + (f" (and {len(escaped) - 1} more link(s))" if len(escaped) > 1 else "")
+            )
         try:
             con.execute(f"CREATE OR REPLACE {kind} {view} AS {raw_view_sql(root, table)}")
         except duckdb.Error:

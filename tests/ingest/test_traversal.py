@@ -19,8 +19,9 @@ import pytest
 from pipelines.cli import main
 from pipelines.ingest import ingest_paths
 from pipelines.ingest.landing import LakeTable
+from pipelines.lake import scan_lake
 from schemas.hoist import EXAMPLE_HOIST
-from schemas.names import UnsafeNameError
+from schemas.names import PathEscapeError, UnsafeNameError
 from warehouse.landing import land_rope_tensions
 from warehouse.store import DataRoot, open_reader
 
@@ -206,6 +207,32 @@ def test_lake_writer_refuses_a_planted_symlink_out_of_the_lake(tmp_path, root):
     with pytest.raises(ValueError, match="outside"):
         LakeTable(root, "field_samples").land(_samples(), site="s", hoist="h", source_sha256="x")
     assert not list(outside.iterdir())
+
+
+@pytest.mark.parametrize("planted", ["date-folder", "file"])
+def test_lake_readers_refuse_a_planted_symlink_out_of_the_lake(planted, corpus, tmp_path, root):
+    """The writers refuse a partition that leaves the lake; the readers followed it: a
+    run read the samples of ``date=...`` linked to a folder elsewhere, and so did every
+    view of the warehouse (``ropeload query`` refused the whole view)."""
+    path = corpus.csv_file(tmp_path / "in.csv", corpus.data_rows(10))
+    assert ingest_paths([path], data=root).ok
+    hoist = root.partition_dir("field_samples", site="xuzhou-north", hoist="main-shaft-1")
+    (landed,) = hoist.glob("date=*/*.parquet")
+    outside = tmp_path / "elsewhere"
+    outside.mkdir()
+    copy = outside / "part-00001-000000000000.parquet"
+    copy.write_bytes(landed.read_bytes())
+    if planted == "date-folder":
+        (hoist / "date=2026-03-03").symlink_to(outside)
+    else:
+        landed.with_name(copy.name).symlink_to(copy)
+    with pytest.raises(PathEscapeError, match="outside"):
+        scan_lake(root, "field_samples", site="xuzhou-north", hoist="main-shaft-1").collect()
+    later = corpus.csv_file(
+        tmp_path / "later.csv", corpus.data_rows(5, start=dt.datetime(2026, 3, 2, 7))
+    )
+    with pytest.raises(PathEscapeError, match="outside"):  # a writer refreshes the views
+        ingest_paths([later], data=root)
 
 
 @pytest.mark.parametrize(("option", "value"), [("rig_id", ESCAPE), ("parameter_set", "a/b")])

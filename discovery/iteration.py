@@ -279,8 +279,20 @@ def _verdict(
     if split and not close:
         others = {c: v for c, v in share.items() if c != top}
         other = max(others, key=others.get) if others else NO_EFFECT
+    if other == NO_EFFECT:
+        # the resamples split between the winner and no effect at all: it is not stable,
+        # which is `none` (contract 5: `ambiguous` names two candidates, none is not one)
+        return _no_addition(
+            fit,
+            bl,
+            NO_EFFECT,
+            1.0 - share.get(top, 0.0),
+            ranking,
+            f"{top} scored best but won only {share.get(top, 0.0):.0%} of the trip "
+            f"resamples (stable from {fit.opts.stability:.0%}), no effect "
+            f"{share.get(NO_EFFECT, 0.0):.0%}: not named",
+        )
     pair = (top, other)
-    lib = fit.lib
     return _no_addition(
         fit,
         bl,
@@ -289,7 +301,7 @@ def _verdict(
         ranking,
         f"{top} and {other} cannot be told apart on these trips",
         ambiguous_between=pair,
-        excitation=separating_excitation(lib, *pair) if other in lib else lib[top].excitation,
+        excitation=separating_excitation(fit.lib, *pair),
     )
 
 

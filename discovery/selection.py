@@ -65,7 +65,9 @@ Method (one iteration)
    ``ambiguity`` of the best's explained variance and their BIC scores differ by less
    than :data:`discovery.iteration.DECISIVE_DBIC` (10, "very strong" evidence: Kass and
    Raftery 1995), or the resamples split between the two, the answer is ``ambiguous``
-   with both names and the excitations that would separate them. (Two candidates can
+   with both names and the excitations that would separate them; resamples that split
+   between the best and no effect at all make it ``none`` (contract 5: ``ambiguous``
+   names two candidates). (Two candidates can
    explain nearly the same variance of a long record and still be told apart by the
    information criterion: tail-rope weight and groove wear, 5 % apart in RSS, are
    ~4400 apart in BIC on the plain two-trip case.)

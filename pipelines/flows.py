@@ -6,6 +6,8 @@ Flows (name -> plain function it wraps)::
     calibrate  pipelines.calibrate.calibrate_rig
     run        pipelines.run_period.run_period + pipelines.hoist_day.check_sanity
     discover   pipelines.discover.discover_period
+    demo       pipelines.demo.run_demo
+    query      pipelines.query.run_query
     backfill   pipelines.backfill.backfill: plan_backfill, run_partition (one task per
                hoist-day), record_failures; report + artifacts from pipelines.reports
     nightly    pipelines.nightly.nightly: ingest_new_files (one task per hoist),
@@ -65,9 +67,11 @@ __all__ = [
     "PartitionsFailed",
     "backfill_flow",
     "calibrate_flow",
+    "demo_flow",
     "discover_flow",
     "ingest_flow",
     "nightly_flow",
+    "query_flow",
     "run_backfill_flow",
     "run_flow",
     "run_nightly_flow",
@@ -177,6 +181,25 @@ def discover_flow(
     return discover(
         hoist_path=hoist, data=DataRoot.resolve(data), start=start, end=end, json_path=json_path
     )
+
+
+@flow(name="demo", persist_result=False)
+def demo_flow(data: str | None = None, seed: int = 7, hours: float = 1.0) -> str:
+    """``ropeload demo``: the whole job on built-in synthetic data; its printed summary."""
+    from pipelines.demo import run_demo
+
+    demo = task(name="demo", **TASK_OPTIONS)(run_demo)
+    return demo(data=DataRoot.resolve(data), seed=seed, hours=hours)
+
+
+@flow(name="query", persist_result=False)
+def query_flow(sql: str, data: str | None = None) -> Any:
+    """``ropeload query``: one read-only SELECT on the warehouse and lake (a polars frame;
+    a statement that is not one is refused, :class:`pipelines.query.QueryRefused`)."""
+    from pipelines.query import run_query
+
+    query = task(name="query", **TASK_OPTIONS)(run_query)
+    return query(sql, data=DataRoot.resolve(data))
 
 
 def _progress(show: bool) -> StderrProgress | None:

@@ -154,3 +154,33 @@ def test_only_transient_failures_are_retried():
     assert _retry_transient(None, None, Failed(data=OSError(5, "I/O error")))
     assert not _retry_transient(None, None, Failed(data=ValueError("bad data")))
     assert not _retry_transient(None, None, Failed(data=FileNotFoundError("gone")))
+
+
+def test_every_command_of_contract_6_is_a_flow():
+    """Contract 6: demo, ingest, calibrate, run, backfill, discover and query are each
+    also a Prefect flow (demo and query were CLI-only)."""
+    from prefect import Flow
+
+    import pipelines.flows as flows
+
+    names = {f.name for f in vars(flows).values() if isinstance(f, Flow)}
+    assert {"demo", "ingest", "calibrate", "run", "backfill", "discover", "query"} <= names
+
+
+def test_query_flow_returns_what_the_plain_query_returns(tmp_path):
+    from pipelines.flows import query_flow
+    from pipelines.query import QueryRefused, run_query
+    from warehouse.store import open_writer
+
+    root = DataRoot.resolve(tmp_path / "data")
+    with open_writer(root) as con:
+        con.execute(
+            "INSERT INTO runs (run_id, command, code_version, started_at_utc, status) VALUES "
+            "('r1', 'demo', 'test', TIMESTAMPTZ '2026-03-02 06:00:00+00', 'succeeded')"
+        )
+    sql = "select run_id, command, status from runs"
+    flowed = query_flow(sql=sql, data=str(root.path))
+    assert_frame_equal(flowed, run_query(sql, data=root))
+    assert flowed.rows() == [("r1", "demo", "succeeded")]
+    with pytest.raises(QueryRefused):  # read-only in a flow too
+        query_flow(sql="delete from runs", data=str(root.path))

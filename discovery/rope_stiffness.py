@@ -48,12 +48,22 @@ refused only when they replay the first trips more than 10 % further off than th
 spread's choice (e.g. a rope re-terminated since the identification's record).
 The caller brings them (``plan_replay(identified_ropes=...)``): discovery imports no
 transforms. Brought with their length offsets (:class:`IdentifiedRopes`), the plan
-keeps those too once the factors are kept (they are compared with the spread's choice
-started alike, from equal tensions), and each replay block starts with its pistons where
-the record logged them (:func:`sims.replay.block_pistons`): on an independent record
+keeps those too once the factors are kept, and each replay block starts with its pistons
+where the record logged them (:func:`sims.replay.block_pistons`): on an independent record
 with nothing hidden (validation trial_010, 12 trips in 4 blocks) the replay gap fell
 from 25.9 to 11.6 kPa, the blocks started at the middle level no longer sliding their
-pistons 7-10 mm apart on the way up where the record's moved 1-3 mm.
+pistons 7-10 mm apart on the way up where the record's moved 1-3 mm. The factors are
+weighed against the spread's choice in both starts, from equal tensions (as the spread's
+replays start) and at the offsets (as they are replayed once kept), the better gap
+counting: each start alone misjudged an independent simulator's records. From equal
+tensions alone, validation day 102 cut at its second hour (the record starting where
+the seals held the pistons millimetres from equal tensions) replayed its first trips
+38.3 kPa off with them against the spread's 27.3 kPa; the factors were refused and the
+damping chosen with the spread, and all 34 trips of the hour failed the sanity check
+(3.3-8.0 x the noise); at the offsets they replay 14.6 kPa off, are kept, and the
+damping chosen with them takes the gap to 11.6 kPa. At the offsets alone, day 101,
+whose record starts where the world's seals start at zero friction and the offsets put
+~300 N in them, replayed 14.3 against 13.0 kPa and lost its factors (session 25).
 """
 
 from __future__ import annotations
@@ -203,7 +213,7 @@ def with_rope_stiffness(
     grid = None if alike else _spread_grid(plan)
     if callable(identified):
         identified = identified()
-    beside = None
+    beside: list[ReplayPlan] = []
     if identified is not None:
         raw = _factors_of(identified)
         _check_count(raw, n)
@@ -214,29 +224,39 @@ def with_rope_stiffness(
         if offsets is not None:
             _check_count(offsets, n, "length offsets")
             offsets = tuple(float(c) for c in offsets)
-        # compared with the spread like with like: both started with equal tensions (the
-        # offsets place the pistons where the record had them once the factors are kept)
-        beside = dataclasses.replace(
-            plan, hoist=with_stiffness_factors(hoist, factors), rope_offsets_m=None
-        )
+        # compared with the spread like with like, started with equal tensions, and as
+        # they are replayed once kept, their offsets placing the pistons where the record
+        # had them: the better start weighs (either alone misjudged an independent
+        # simulator's records, by where its seals and pistons happen to start)
+        identified_hoist = with_stiffness_factors(hoist, factors)
+        beside = [dataclasses.replace(plan, hoist=identified_hoist, rope_offsets_m=None)]
+        if offsets is not None:
+            beside.append(dataclasses.replace(beside[0], rope_offsets_m=offsets))
     # the identified ropes replay beside the spread's last replay (its refinement, or
-    # equal ropes when the pistons slid alike): one core each
+    # equal ropes when the pistons slid alike), side by side on the cores
     if alike:
         searched = dataclasses.replace(plan, notes=(*plan.notes, alike))
-        if beside is None:
+        if not beside:
             return searched
-        searched_gap, gap = first_trips_gaps([(plan, None), (beside, None)], _TRIPS)
+        searched_gap, *gaps = first_trips_gaps([(plan, None), *[(b, None) for b in beside]], _TRIPS)
     else:
-        searched, searched_gap, gap = _spread_chosen(plan, *grid, beside)
-        if beside is None:
+        searched, searched_gap, gaps = _spread_chosen(plan, *grid, beside)
+        if not beside:
             return searched
+    gap = min(gaps)
+    starts = (
+        f" (started from equal tensions {gaps[0] / 1e3:.1f} kPa, at the offsets' "
+        f"{gaps[1] / 1e3:.1f} kPa)"
+        if len(gaps) > 1
+        else ""
+    )
     said = (
         f"{', '.join(f'{f:.3f}' for f in factors)} (replay gap on the first {_TRIPS} trips "
-        f"{gap / 1e3:.1f} kPa, the spread's choice {searched_gap / 1e3:.1f} kPa)"
+        f"{gap / 1e3:.1f} kPa{starts}, the spread's choice {searched_gap / 1e3:.1f} kPa)"
     )
     if gap <= _REFUSED_ABOVE * searched_gap:
         note = f"rope stiffness: as identified from the logged piston positions, {said}"
-        return dataclasses.replace(beside, rope_offsets_m=offsets, notes=(*plan.notes, note))
+        return dataclasses.replace(beside[0], rope_offsets_m=offsets, notes=(*plan.notes, note))
     note = f"rope stiffness: the identified factors refused, {said}"
     return dataclasses.replace(searched, notes=(*searched.notes, note))
 
@@ -278,21 +298,22 @@ def _spread_chosen(
     plan: ReplayPlan,
     spreads: list[float],
     gaps: list[float],
-    beside: ReplayPlan | None,
-) -> tuple[ReplayPlan, float, float | None]:
+    beside: Sequence[ReplayPlan],
+) -> tuple[ReplayPlan, float, list[float]]:
     """The plan with the spread :func:`with_rope_stiffness` chooses from the grid's
     ``spreads`` and their ``gaps`` (refined by a parabola through the best one and its
-    neighbours), the first trips' replay gap with it, and that of the plan ``beside``
-    (the identified ropes), replayed beside the refinement (None without ``beside``)."""
+    neighbours), the first trips' replay gap with it, and those of the plans ``beside``
+    (the identified ropes), replayed beside the refinement."""
     hoist = plan.hoist
     best = int(np.argmin(gaps))
     refined = None
     if 0 < best < len(spreads) - 1 and np.all(np.isfinite(gaps[best - 1 : best + 2])):
         refined = _parabola_minimum(spreads[best - 1 : best + 2], gaps[best - 1 : best + 2])
     replays = [] if refined is None else [(plan, _with_spread(hoist, refined))]
-    replays += [] if beside is None else [(beside, None)]
+    replays += [(b, None) for b in beside]
     ran = first_trips_gaps(replays, _TRIPS) if replays else []
-    beside_gap = ran.pop() if beside is not None else None
+    beside_gap = ran[len(ran) - len(beside) :]
+    ran = ran[: len(ran) - len(beside)]
     if refined is not None:
         spreads, gaps = [*spreads, refined], [*gaps, ran[0]]
         best = int(np.argmin(gaps))

@@ -27,7 +27,11 @@ two far from it (e.g. +405, -1325, -1200, -353 N): which pistons start where dec
 how much friction the departure builds. ``--motion logged`` drives the replays by the
 encoder's logged speed instead of the winder profile.
 
-    uv run python benchmarks/eval_sanity.py [--days DIR] [--only NAMES] [--motion M]
+``--parts N`` cuts each day into N consecutive records (``eval_compensation.in_parts``),
+each ingested, run and checked as a day of its own: records that start wherever an export
+cut them, more days of the same kind.
+
+    uv run python benchmarks/eval_sanity.py [--days DIR] [--only NAMES] [--motion M] [--parts N]
 """
 
 from __future__ import annotations
@@ -50,16 +54,15 @@ from transforms.kinematics import position_expr
 from warehouse.store import DataRoot, open_reader
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from eval_compensation import DEFAULT_DAYS, validation_case
+from eval_compensation import DEFAULT_DAYS, DayCase, in_parts, validation_case
 
 #: Issue 14 target: share of a complete model's trips that pass.
 TARGET_PASS = 0.95
 
 
-def check_day(gz: Path, work: Path, max_trips: int, motion: str) -> dict:
+def check_day(case: DayCase, work: Path, max_trips: int, motion: str) -> dict:
     """Ingest, run and sanity-check one validation day; the per-trip checks and figures."""
-    case = validation_case(gz, work)
-    data = DataRoot.resolve(work / f"{case.name}_data")
+    data = DataRoot.resolve(work / f"{case.csv.stem}_data")
     hoist = load_hoist(case.hoist_path)
     report = ingest_paths([case.csv], data=data, hoist_lookup=lambda site, name: hoist)
     if not report.ok:
@@ -95,6 +98,22 @@ def check_day(gz: Path, work: Path, max_trips: int, motion: str) -> dict:
     }
 
 
+def _checked_days(cases: list, work: Path, max_trips: int, motion: str):
+    """(name, case, figures) of each day of ``cases`` ((name, make) pairs, ``make`` giving
+    a day's parts), or (name, the error, None) for a day or part that failed."""
+    for name, make in cases:
+        try:
+            parts = make()
+        except Exception as error:
+            yield name, error, None
+            continue
+        for case in parts:
+            try:
+                yield case.name, case, check_day(case, work, max_trips, motion)
+            except Exception as error:
+                yield case.name, error, None
+
+
 def _line(day: dict) -> str:
     checks: pl.DataFrame = day["checks"]
     compared = checks.filter(pl.col("status") != "skipped")
@@ -109,7 +128,7 @@ def _line(day: dict) -> str:
         else "no trip compared"
     )
     return (
-        f"{day['name']:14s} trips {day['trips_run']:3d} checked {checks.height:3d}: "
+        f"{day['name']:22s} trips {day['trips_run']:3d} checked {checks.height:3d}: "
         f"passed {passed:3d} failed {compared.height - passed:3d} "
         f"skipped {checks.height - compared.height:2d}  pass {100 * rate:5.1f} % "
         f"{'met' if rate >= TARGET_PASS else 'NOT met'} (within 1.5 x: "
@@ -139,6 +158,11 @@ def main() -> None:
     ap.add_argument("--only", default=None, metavar="NAMES", help="e.g. mine_day101,mine_day104")
     ap.add_argument("--max-trips", type=int, default=200)
     ap.add_argument("--motion", choices=("auto", "winder", "logged"), default="auto")
+    ap.add_argument(
+        "--parts", type=int, default=1,
+        help="cut each day into N consecutive records, each checked as a day of its own "
+        "(eval_compensation.in_parts; default 1: whole)",
+    )  # fmt: skip
     args = ap.parse_args()
     only = {n.strip() for n in args.only.split(",")} if args.only else None
     days = [
@@ -150,12 +174,14 @@ def main() -> None:
     total = passed = 0
     with tempfile.TemporaryDirectory(prefix="eval_sanity_") as tmp:
         failed_days = []
-        for gz in days:
-            try:
-                day = check_day(gz, Path(tmp), args.max_trips, args.motion)
-            except Exception as error:  # one day's failure is a finding, not the end
-                failed_days.append(gz.name)
-                print(f"{gz.name}: FAILED, no trip checked: {one_line(error)}", flush=True)
+        cases = [
+            (gz.name, lambda gz=gz: in_parts(validation_case(gz, Path(tmp)), args.parts))
+            for gz in days
+        ]
+        for name, what, day in _checked_days(cases, Path(tmp), args.max_trips, args.motion):
+            if day is None:  # one day's failure is a finding, not the end
+                failed_days.append(name)
+                print(f"{name}: FAILED, no trip checked: {one_line(what)}", flush=True)
                 continue
             print(_line(day), flush=True)
             skipped = day["checks"].filter(pl.col("status") == "skipped")

@@ -222,16 +222,7 @@ def test_rope_trip_extremes_name_the_file_of_each_ropes_worst_sample(tmp_path):
         load_n=pl.sum_horizontal(f"tension{i}_n" for i in range(1, 5)),
     )
     manifest, shas = _ingest_by_hand(root, tmp_path, samples, hoist)
-    run = RunRecord(
-        run_id="trip-run", command="run", code_version="t", started_at_utc=T0,
-        hoist_sha256=hoist_sha256(EXAMPLE_HOIST), site=hoist.hoist.site, hoist=hoist.hoist.name,
-        period_start_utc=T0, period_end_utc=T0 + dt.timedelta(minutes=10), inputs=shas,
-        timezone=hoist.hoist.timezone,
-    )  # fmt: skip
-    _, trips = reconcile(samples, hoist, run_id=run.run_id, payload_kg=0.0)
-    with open_writer(root) as con:
-        insert_frame(con, "manifest", manifest)
-        land_results(con, run, trip_summary=trips)
+    _land_a_trip(root, "trip-run", samples, manifest, shas, hoist)
     con = open_reader(root)
     try:
         rows = con.sql(
@@ -283,16 +274,7 @@ def test_rope_trip_extremes_name_the_file_that_landed_the_sample_where_files_ove
         .otherwise(pl.col("time_end_utc"))
         .alias("time_end_utc")
     )
-    run = RunRecord(
-        run_id="overlap-run", command="run", code_version="t", started_at_utc=T0,
-        hoist_sha256=hoist_sha256(EXAMPLE_HOIST), site=hoist.hoist.site, hoist=hoist.hoist.name,
-        period_start_utc=T0, period_end_utc=T0 + dt.timedelta(minutes=10), inputs=shas,
-        timezone=hoist.hoist.timezone,
-    )  # fmt: skip
-    _, trips = reconcile(samples, hoist, run_id=run.run_id, payload_kg=0.0)
-    with open_writer(root) as con:
-        insert_frame(con, "manifest", manifest)
-        land_results(con, run, trip_summary=trips)
+    _land_a_trip(root, "overlap-run", samples, manifest, shas, hoist)
     con = open_reader(root)
     try:
         rope3 = con.sql(
@@ -311,3 +293,18 @@ def test_rope_trip_extremes_name_the_file_that_landed_the_sample_where_files_ove
     assert landed_sha == shas[1]
     assert (path, sha) == (files[1], shas[1])
     assert paths == files  # both files cover the sample's time
+
+
+def _land_a_trip(root, run_id, samples, manifest, shas, hoist) -> None:
+    """The samples' trip landed by a run of the 10 minutes from T0 over the files
+    ``shas`` (their manifest rows landed with it)."""
+    run = RunRecord(
+        run_id=run_id, command="run", code_version="t", started_at_utc=T0,
+        hoist_sha256=hoist_sha256(EXAMPLE_HOIST), site=hoist.hoist.site, hoist=hoist.hoist.name,
+        period_start_utc=T0, period_end_utc=T0 + dt.timedelta(minutes=10), inputs=shas,
+        timezone=hoist.hoist.timezone,
+    )  # fmt: skip
+    _, trips = reconcile(samples, hoist, run_id=run.run_id, payload_kg=0.0)
+    with open_writer(root) as con:
+        insert_frame(con, "manifest", manifest)
+        land_results(con, run, trip_summary=trips)

@@ -44,12 +44,17 @@ class QueryRefused(Exception):
 
 def _tokens(sql: str) -> list[tuple[int, str]]:
     """(offset, text) of the tokens of ``sql``, comments left out (DuckDB's tokenizer)."""
+    return [(start, text) for start, text, _ in _typed_tokens(sql)]
+
+
+def _typed_tokens(sql: str) -> list[tuple[int, str, duckdb.token_type]]:
+    """(offset, text, type) of the tokens of ``sql``, comments left out."""
     spans = duckdb.tokenize(sql)
     tokens = []
     for k, (start, kind) in enumerate(spans):
         end = spans[k + 1][0] if k + 1 < len(spans) else len(sql)
         if kind != duckdb.token_type.comment:
-            tokens.append((start, sql[start:end].strip()))
+            tokens.append((start, sql[start:end].strip(), kind))
     return tokens
 
 
@@ -58,7 +63,7 @@ def _explained(sql: str) -> list[str]:
     in both readings of a leading bracket: DuckDB's options (``(FORMAT JSON) SELECT 1``)
     or the statement's own first query (``(SELECT 1) UNION (SELECT 2)``). Each reading
     that parses must be read-only (:func:`check_read_only`)."""
-    tokens = _tokens(sql)[1:]
+    tokens = _typed_tokens(sql)[1:]
     if tokens and tokens[0][1].upper() in ("ANALYZE", "ANALYSE"):
         tokens = tokens[1:]
     if not tokens:
@@ -67,8 +72,10 @@ def _explained(sql: str) -> list[str]:
     if tokens[0][1].startswith("("):
         depth = 0
         while tokens:
-            _, text = tokens.pop(0)
-            if not text.startswith("'"):  # operators carry the brackets; strings do not count
+            _, text, kind = tokens.pop(0)
+            # only operators carry brackets: one in a string ('(', $$($$, E'(') or a
+            # quoted name ("(") is text, and counting it moved the options' end
+            if kind == duckdb.token_type.operator:
                 depth += text.count("(") - text.count(")")
             if depth <= 0:
                 break

@@ -121,6 +121,18 @@ ESCAPES = [
     ("explain-analyze-options-copy",
      "EXPLAIN ANALYZE (FORMAT JSON) COPY (SELECT 1 AS a) TO '{part}/part-explain.parquet'",
      "under EXPLAIN, COPY statements"),
+    # a bracket inside a quoted name or a string of the options is no bracket: counted,
+    # it moved the end of the options onto the write's own tail (``FROM runs``), which
+    # alone was checked, and EXPLAIN ANALYZE ran the CREATE (exit 0)
+    ("explain-options-bracket-in-a-quoted-name",
+     'EXPLAIN (ANALYZE "(") CREATE TEMP TABLE x AS SELECT 1 AS ")" FROM runs',
+     "under EXPLAIN, CREATE statements"),
+    ("explain-options-bracket-in-a-dollar-string",
+     "EXPLAIN (ANALYZE $$($$) INSERT INTO runs (run_id) SELECT 'x' AS \")\" FROM runs",
+     "under EXPLAIN, INSERT statements"),
+    ("explain-options-bracket-in-an-escape-string",
+     "EXPLAIN (ANALYZE E'(') CREATE TEMP TABLE x AS SELECT 1 AS \")\" FROM runs",
+     "under EXPLAIN, CREATE statements"),
     ("read-csv-passwd", "SELECT * FROM read_csv('/etc/passwd', sep = ':')",
      'cannot access file "/etc/passwd"'),
     ("read-csv-outside", "SELECT * FROM read_csv('{outside}/secret.csv')",

@@ -82,8 +82,10 @@ def with_rope_damping(plan: ReplayPlan, zeta_read: float | None) -> ReplayPlan:
     # 10 % a default needs to be replaced: validation day 104's second hour read 0.027
     # from 16 decays, 9.2 against 9.8 kPa, and kept the described 0.02; its later trips
     # replayed further off, 9 of 32 failing the sanity check)
-    measured = consistent and candidates[best] == zeta_read and gaps[best] <= gaps[0] and best != 0
-    if not measured and (best == 0 or not gaps[best] < CLOSER_SHARE * gaps[0]):
+    if best == 0 or not gaps[best] < CLOSER_SHARE * gaps[0]:  # no candidate 10 % closer
+        read = candidates.index(zeta_read) if zeta_read in candidates[1:] else 0
+        best = read if consistent and read and gaps[read] <= gaps[0] else 0
+    if best == 0:
         kept = f"the description's {described:g} kept"
         if consistent:
             kept = f"consistent with the description's {described:g}"

@@ -381,7 +381,9 @@ def in_parts(case: DayCase, parts: int) -> list[DayCase]:
         return [case]
     lines = case.csv.read_text().splitlines(keepends=True)
     header = next(i for i, line in enumerate(lines) if not line.startswith("#")) + 1
-    rows = lines[header:]
+    rows = [line for line in lines[header:] if line.strip()]
+    if len(rows) < parts:
+        raise ValueError(f"{case.csv.name}: {len(rows)} rows cannot be cut into {parts} parts")
     delimiter = ";" if lines[header - 1].count(";") > lines[header - 1].count(",") else ","
     keys = dict(line.lstrip("#").split(":", 1) for line in lines[: header - 1] if ":" in line)
     zone = ZoneInfo({k.strip(): v.strip() for k, v in keys.items()}.get("timezone", "UTC"))

@@ -10,7 +10,7 @@ import datetime as dt
 
 import polars as pl
 
-from schemas.names import PathEscapeError
+from schemas.names import escape_error, escaping_paths
 from schemas.tables import TABLES, polars_schema
 from warehouse.store import DataRoot
 
@@ -55,11 +55,9 @@ def scan_lake(
         files = [f for f in files if first <= f.parent.name.removeprefix("date=") <= last]
     if not files:
         return pl.LazyFrame(schema=polars_schema(schema))
-    real_table = data.table_dir(table).resolve()
-    for path in files:  # a link planted in the lake (the writers refuse to follow one)
-        real = path.resolve()
-        if not real.is_relative_to(real_table):
-            raise PathEscapeError(f"lake table {table!r}: {path} resolves to {real}, outside it")
+    escaped = escaping_paths(data.table_dir(table), files)
+    if escaped:  # a link planted in the lake (the writers refuse to follow one)
+        raise escape_error(f"lake table {table!r}", escaped)
     frame = pl.scan_parquet(files, hive_partitioning=False)
     if start is not None:
         frame = frame.filter(pl.col("time_utc") >= as_utc(start))

@@ -38,12 +38,15 @@ __all__ = [
     "NAME_RULE",
     "PathEscapeError",
     "UnsafeNameError",
+    "escape_error",
     "escaping_links",
+    "escaping_paths",
     "is_safe_name",
     "join_inside",
     "name_problem",
     "printable",
     "safe_name",
+    "undecodable",
 ]
 
 MAX_NAME_LENGTH = 64
@@ -182,3 +185,36 @@ def escaping_links(base: str | os.PathLike[str]) -> list[tuple[Path, Path]]:
                 elif entry.is_dir(follow_symlinks=False):
                     folders.append(Path(entry.path))
     return sorted(found)
+
+
+def escaping_paths(base: str | os.PathLike[str], paths: list[Path]) -> list[tuple[Path, Path]]:
+    """(path, where it resolves) of those of ``paths`` that resolve outside ``base``
+    (the files a reader selected; :func:`escaping_links` walks a whole tree instead)."""
+    real_base = Path(base).resolve()
+    resolved = ((path, path.resolve()) for path in paths)
+    return [(path, real) for path, real in resolved if not _inside(real_base, real)]
+
+
+def escape_error(what: str, escaped: list[tuple[Path, Path]]) -> PathEscapeError:
+    """The one-line refusal of ``what`` (e.g. ``lake table 'field_samples'``) holding the
+    links or files ``escaped`` (:func:`escaping_links`, :func:`escaping_paths`)."""
+    link, real = escaped[0]
+    more = f" (and {len(escaped) - 1} more link(s))" if len(escaped) > 1 else ""
+    return PathEscapeError(f"{what}: {link} resolves to {real}, outside it{more}")
+
+
+def undecodable(text: str) -> str | None:
+    """What in ``text`` is not UTF-8 (a name's bytes that are not, which Python keeps as
+    lone surrogates: ``'byte 0xff'``), or None when it all is.
+
+    >>> undecodable("k\\udcff.csv")
+    'byte 0xff'
+    >>> undecodable("k.csv") is None
+    True
+    """
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError as exc:
+        byte = ord(text[exc.start]) - 0xDC00
+        return f"byte 0x{byte:02x}" if 0x80 <= byte <= 0xFF else "a lone surrogate"
+    return None

@@ -41,7 +41,7 @@ from pathlib import Path
 
 import duckdb
 
-from schemas.names import PathEscapeError, join_inside, printable, safe_name
+from schemas.names import PathEscapeError, join_inside, printable, safe_name, undecodable
 
 __all__ = [
     "DATA_ENV",
@@ -107,9 +107,7 @@ def data_root_problem(path: str | os.PathLike[str]) -> str | None:
     "its path has '[', which DuckDB reads as a file pattern: use a path without * ? [ ] \\\\"
     """
     text = str(path)
-    try:
-        text.encode("utf-8")
-    except UnicodeEncodeError:  # bytes of the name that are not UTF-8: lone surrogates
+    if undecodable(text) is not None:  # bytes of the name that are not UTF-8
         return "its path is not UTF-8 text, which DuckDB cannot open: rename it"
     for character, reading in _PATTERN_CHARACTERS.items():
         if character in text:

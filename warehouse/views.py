@@ -38,7 +38,7 @@ import duckdb
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from schemas.names import PathEscapeError, escaping_links
+from schemas.names import escape_error, escaping_links
 from schemas.tables import LAKE_PARTITIONS, TABLES, duckdb_columns
 
 logger = logging.getLogger(__name__)
@@ -141,11 +141,7 @@ def refresh_views(
     for view, table in LAKE_VIEWS.items():
         escaped = escaping_links(root.table_dir(table)) if root.table_dir(table).is_dir() else []
         if escaped:  # the view's pattern would follow it (the writers refuse to)
-            link, real = escaped[0]
-            raise PathEscapeError(
-                f"lake table {table!r}: {link} resolves to {real}, outside it"
-                + (f" (and {len(escaped) - 1} more link(s))" if len(escaped) > 1 else "")
-            )
+            raise escape_error(f"lake table {table!r}", escaped)
         try:
             con.execute(f"CREATE OR REPLACE {kind} {view} AS {raw_view_sql(root, table)}")
         except duckdb.Error:

@@ -62,6 +62,7 @@ from pipelines.ingest.manifest import (
 from pipelines.ingest.quarantine import insert_quarantine
 from pipelines.ingest.report import FileResult, IngestReport
 from pipelines.ingest.sources import detect_format, expand_paths
+from schemas.names import undecodable
 from warehouse.store import DataRoot, open_writer
 
 __all__ = ["ingest_paths"]
@@ -230,13 +231,10 @@ def _ingest_file(
 def _undecodable_name(path: Path) -> str | None:
     """Why ``path`` cannot be stored as text (a file name's bytes that are not UTF-8,
     which Python keeps as lone surrogates: ``b'k\\xff.csv'``), or None."""
-    try:
-        str(path).encode("utf-8")
-    except UnicodeEncodeError as exc:
-        byte = ord(str(path)[exc.start]) - 0xDC00
-        what = f"byte 0x{byte:02x}" if 0x80 <= byte <= 0xFF else "a lone surrogate"
-        return f"the file name is not UTF-8 text ({what}); rename the file to ingest it"
-    return None
+    what = undecodable(str(path))
+    if what is None:
+        return None
+    return f"the file name is not UTF-8 text ({what}); rename the file to ingest it"
 
 
 def _noting_misses(lookup: HoistLookup, notes: list[str], path: Path) -> HoistLookup:

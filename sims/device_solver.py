@@ -35,7 +35,7 @@ from sims.device_model import constant_until, friction_step, oil_volume, rhs
 from sims.device_params import BETA, CYL0, PER, XMAX, Setup, T
 from sims.device_results import SimulationResult, device_state, result_frame
 from sims.effects import ResolvedEffects
-from sims.hydraulics import ros2_matrix, ros2_step_refreshing
+from sims.hydraulics import lu_storage, ros2_matrix, ros2_step_refreshing
 from sims.trips import TripProfile
 
 #: A device at rest is not stepped: where the forcing (the winder's motion, the payload,
@@ -103,7 +103,7 @@ def _record(y, args, rec, scratch, kr, n):  # pragma: no cover
     span the zero-increment friction of the loop's last :func:`rhs` call)."""
     par, aux = args[0], args[13]
     rec_y, rec_aux, rec_vol = rec[0], rec[1], rec[2]
-    work, committed = scratch[1], scratch[5]
+    work, committed = scratch[1], scratch[4]
     for i in range(n):
         committed[i] = aux[i, 0]
     rhs(y, args, work[3])
@@ -142,8 +142,9 @@ def _loop(
 ):  # pragma: no cover
     """The ROS2 steps of :func:`_run`, in the arrays it allocated: ``y`` advanced in
     place, ``args`` the model's (its friction memory committed in place), ``rec`` =
-    (rec_y, rec_aux, rec_vol, err_at, stop_hits) filled, ``scratch`` = (f0, work, w,
-    piv, y_before, committed). Returns (largest error ratio, status code, failing step).
+    (rec_y, rec_aux, rec_vol, err_at, stop_hits) filled, ``scratch`` = (f0, work, the
+    iteration matrix's factors (:func:`sims.hydraulics.lu_storage`), y_before,
+    committed). Returns (largest error ratio, status code, failing step).
 
     Compiled without numba's reference-counted runtime (``_nrt=False``, as the model's
     kernels, :mod:`sims.device_model`): it allocates nothing, copies are loops, and
@@ -158,7 +159,7 @@ def _loop(
     """
     par, groove, _, _, _, _, ms_k, ms_w, z, deltas, x_start, dt, cap, aux = args
     err_at, stop_hits = rec[3], rec[4]
-    f0, work, w, piv, y_before = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4]
+    f0, work, lu, y_before = scratch[0], scratch[1], scratch[2], scratch[3]
     n = groove.shape[0]
     err_max = 0.0
     code = 0  # 0 ok, 1 singular, 2 non-finite, 3 cavitation
@@ -184,12 +185,12 @@ def _loop(
         # a run held from its start has no iteration matrix yet; after a hold, the one
         # before it is at the same state and forcing
         fresh = step % jacobian_every == 0 or not factored
-        if fresh and not ros2_matrix(rhs, args, y, f0, dt, atol, w, piv, work):
+        if fresh and not ros2_matrix(rhs, args, y, f0, dt, atol, lu, work):
             code = 1
             break
         factored = True
         err, worst, retaken = ros2_step_refreshing(
-            rhs, args, y, f0, dt, atol, rtol, w, piv, work, y_before, fresh,
+            rhs, args, y, f0, dt, atol, rtol, lu, work, y_before, fresh,
             _REFRESH_GROWTH * max(err_fresh, 1.0),
         )  # fmt: skip
         if retaken < 0:
@@ -274,9 +275,7 @@ def _run(
     stop_hits = np.zeros(n, dtype=np.int64)
     rec = (rec_y, rec_aux, rec_vol, err_at, stop_hits)
     work = np.empty((4, n_state))
-    w = np.empty((n_state, n_state))
-    piv = np.empty(n_state, dtype=np.int64)
-    scratch = (f0, work, w, piv, np.empty(n_state), np.empty(n))
+    scratch = (f0, work, lu_storage(n_state), np.empty(n_state), np.empty(n))
     err_max, code, fail_step = _loop(
         y, args, rec, scratch, n_steps, record_every, jacobian_every, atol, rtol, quiet_fraction
     )

@@ -18,7 +18,7 @@ from numba import njit
 
 from physics.friction_law import law_array
 from schemas.hoist import FrictionLaw
-from sims.hydraulics import ros2_matrix, ros2_step
+from sims.hydraulics import lu_storage, ros2_matrix, ros2_step
 from sims.rig_design import RigDesign, RigProgram, RigRecording
 from sims.rig_model import N_STATE, P_FLOOR, PORT_PRESSURE, rhs
 
@@ -103,8 +103,7 @@ def _integrate(y0, c, law, prog, ctrl, dt, n_steps, every, atol, out):  # pragma
     args = (c, law, prog, ctrl, seg, aux)
     f0 = np.empty(_NY)
     work = np.empty((4, _NY))
-    w = np.empty((_NY, _NY))
-    piv = np.empty(_NY, dtype=np.int64)
+    lu = lu_storage(_NY)
     err_max = 0.0
     row = 0
     for n in range(n_steps):
@@ -122,9 +121,9 @@ def _integrate(y0, c, law, prog, ctrl, dt, n_steps, every, atol, out):  # pragma
             t_next = prog[k + 1, 0] if k + 1 < prog.shape[0] else t_end
             split = t_next < t_end - 1e-6 * dt
             h = (t_next if split else t_end) - y[0]
-            if not ros2_matrix(_step_rhs, args, y, f0, h, atol, w, piv, work):
+            if not ros2_matrix(_step_rhs, args, y, f0, h, atol, lu, work):
                 raise ZeroDivisionError("rig step: singular iteration matrix")
-            err, _ = ros2_step(_step_rhs, args, y, f0, h, atol, _RTOL, w, piv, work)
+            err, _ = ros2_step(_step_rhs, args, y, f0, h, atol, _RTOL, lu, work)
             err_max = max(err_max, err)
             _floors(y, prog, k)
             if not split:

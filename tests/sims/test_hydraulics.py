@@ -15,7 +15,7 @@ import math
 import numpy as np
 from numba import njit
 
-from sims.hydraulics import ros2_matrix, ros2_step_refreshing
+from sims.hydraulics import lu_factor, lu_solve, lu_storage, ros2_matrix, ros2_step_refreshing
 
 A = 1e4  # [1/m]: dy/dt = F - A y|y|
 F1 = 100.0  # [m/s2] after the step: y1 = 0.1, Jacobian -2 sqrt(A F1) = -2000 1/s
@@ -36,17 +36,16 @@ def _integrate(n_steps, jacobian_every, refresh_above):  # pragma: no cover - co
     atol = np.array([1e-6, 1e-6])
     f0 = np.empty(2)
     work = np.empty((4, 2))
-    w = np.empty((2, 2))
-    piv = np.empty(2, dtype=np.int64)
+    lu = lu_storage(2)
     y_before = np.empty(2)
     retakes = 0
     for step in range(n_steps):
         _rhs(y, args, f0)
         fresh = step % jacobian_every == 0
         if fresh:
-            ros2_matrix(_rhs, args, y, f0, DT, atol, w, piv, work)
+            ros2_matrix(_rhs, args, y, f0, DT, atol, lu, work)
         _, _, retaken = ros2_step_refreshing(
-            _rhs, args, y, f0, DT, atol, 1e-4, w, piv, work, y_before, fresh, refresh_above
+            _rhs, args, y, f0, DT, atol, 1e-4, lu, work, y_before, fresh, refresh_above
         )
         retakes += retaken
     return y[1], retakes
@@ -72,3 +71,43 @@ def test_an_old_matrix_is_rebuilt_when_its_step_fails():
     y, retakes = _integrate(500, 1000, 10.0)
     assert math.isclose(y, math.sqrt(F1 / A), rel_tol=1e-9)
     assert 0 < retakes <= 5  # rebuilt where the stiffness grew, not every step (2)
+
+
+@njit(cache=True)
+def _factor_and_solve(a, b):  # pragma: no cover - compiled
+    lu = lu_storage(a.shape[0])
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            lu[0][i, j] = a[i, j]
+    x = b.copy()
+    if not lu_factor(lu):
+        return False, x, 0
+    lu_solve(lu, x)
+    return True, x, lu[4][2 * a.shape[0] + 1]
+
+
+def test_the_solve_over_the_factors_nonzeros_is_numpys_solution():
+    """A matrix with the device's kind of structure (blocks coupled through a few
+    shared states, zeros elsewhere) and rows that need pivoting: the solution is
+    LAPACK's (numpy.linalg.solve), and only nonzeros are listed."""
+    rng = np.random.default_rng(7)
+    n = 12
+    a = np.zeros((n, n))
+    for k in range(3):  # three 3x3 blocks after three shared states
+        s = slice(3 + 3 * k, 6 + 3 * k)
+        a[s, s] = rng.normal(size=(3, 3))
+        a[s, 0] = rng.normal(size=3)
+        a[0, s] = rng.normal(size=3)
+    a[:3, :3] = rng.normal(size=(3, 3))
+    a[9:, 1:3] = rng.normal(size=(3, 2))
+    b = rng.normal(size=n)
+    ok, x, listed = _factor_and_solve(a, b)
+    assert ok
+    np.testing.assert_allclose(x, np.linalg.solve(a, b), rtol=1e-10, atol=1e-12)
+    assert 0 < listed < n * (n - 1)  # zeros stay out of the list
+
+
+def test_a_singular_matrix_is_refused():
+    a = np.array([[1.0, 2.0], [2.0, 4.0]])
+    ok, _, _ = _factor_and_solve(a, np.ones(2))
+    assert not ok

@@ -159,6 +159,11 @@ __all__ = [
 #: Samples between the bound's checks of :func:`stick_slip_mismatch`.
 COMPARE_EVERY = 256
 
+#: :func:`_kernel`'s sums of a mismatch when it computes none (:func:`stick_slip`): empty
+#: arrays, so that the solution and the mismatch's loop call one compiled kernel (with
+#: ``None`` there numba compiled the kernel twice, ~12 s more on a cold cache).
+_NOT_COMPARED = np.zeros(0)
+
 
 def stick_slip_state(pistons: int, elements: int = 1) -> np.ndarray:
     """Fresh state of :func:`stick_slip` (``[ran, continues, s, p, the ropes' hanging
@@ -337,6 +342,10 @@ def stick_slip(
             x_out,
             f_out,
             stick_slip_state(m, presliding_elements) if state is None else state,
+            np.inf,
+            _NOT_COMPARED,
+            _NOT_COMPARED,
+            _NOT_COMPARED,
         )
     return x_out, f_out
 
@@ -595,7 +604,7 @@ def _beyond(bound, squares, logged):  # pragma: no cover - numba
 def _kernel(
     p_sensor, x_logged, depth, segment, steps, nu, with_loss, branch, const, law, groove, a, c,
     scale, start, drift_mode, drift_p, drift_w, rings, ringing, element_k, element_w, x_out,
-    f_out, state, bound=np.inf, logged=None, squares=None, counts=None,
+    f_out, state, bound, logged, squares, counts,
 ):  # pragma: no cover - numba  # fmt: skip
     """Per sample: the seals' drift, the oil's Newton solve for s, each piston's seal step
     (module docstring).
@@ -606,9 +615,10 @@ def _kernel(
     :func:`physics.maxwell_slip.maxwell_slip_step`) and :func:`physics.lugre.lugre_drift`,
     the play in :func:`transforms.seal_drift.played_travel`.
 
-    With ``squares`` (:func:`_mismatch_kernel`) it sums each piston's squared x less the
-    logged x and returns False where, every :data:`COMPARE_EVERY` samples, they already
-    exceed ``bound`` (:func:`_beyond`): stopped, the state not kept. Else True.
+    With ``squares`` not empty (:func:`_mismatch_kernel`; :func:`stick_slip` passes
+    empty ones, :data:`_NOT_COMPARED`) it sums each piston's squared x less the logged
+    x and returns False where, every :data:`COMPARE_EVERY` samples, they already exceed
+    ``bound`` (:func:`_beyond`): stopped, the state not kept. Else True.
     """
     m = len(p_sensor)
     n = depth.shape[0]
@@ -663,7 +673,7 @@ def _kernel(
     hanging = state[4] if ran else headframe  # the last known depth's, carried
     per_sample = nu.shape[0] > 1
     per_step = steps.shape[0] > 1
-    compare = squares is not None  # the mismatch's sums (_mismatch_kernel), and its bound
+    compare = squares.shape[0] > 0  # the mismatch's sums (_mismatch_kernel), and its bound
     for t in range(n):
         if compare and t > 0:
             _compare(x_out, x_logged, t - 1, squares, counts)

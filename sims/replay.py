@@ -36,7 +36,10 @@ finite-difference steps, its candidates switched on); :func:`side_by_side` runs 
 choice's candidate fits side by side; the Jacobian is refreshed every
 :data:`REPLAY_JACOBIAN_EVERY` steps. On the independent simulator's trials records
 (2 h, 12 trips in 4 blocks, 2 cores; ``benchmarks/eval_discovery.py --trials``)
-``ropeload discover`` took a median 28.1 s, at most 43.5 s, a record (session 29, the
+``ropeload discover`` took a median 33.6 s, at most 48.2 s, a record on a machine ~2x slower
+than session 43's (session 46: the device's ROS2 solve over the LU factors' nonzeros,
+:func:`sims.hydraulics.lu_solve`; 64.8 s alone for trial_002 before, 47.7 s after); a
+median 28.1 s, at most 43.5 s, at session 29 (the
 device held where it is still at rest, :data:`sims.device_solver.QUIET_FRACTION`, and
 the profile's segment found by bisection: one replay of validation trial_002's plan on
 one thread 1.87 -> 1.02 s; 45.4 and 74.3 s at

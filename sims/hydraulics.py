@@ -108,7 +108,7 @@ def lu_factor(lu: tuple) -> bool:
     coupled through the manifold and the conveyance) keeps 133 of its 380 off-diagonal
     entries nonzero through its LU (measured on the example hoist's full-shaft trip: 58
     in L, 75 in U), so a solve that skips the zeros does about a third of a dense one's
-    multiplications; the device simulation's step took ~13 % less time (a 89 s trip at
+    multiplications; the device simulation's step took ~13 % less time (an 89 s trip at
     2 ms, 15 runs each, best 78-80 against 90-92 ms). The zeros are exact, so the
     solution is the dense one bit for bit (the same products in the same order) where
     the right-hand side is finite.

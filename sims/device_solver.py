@@ -19,7 +19,9 @@ arrays a step passes around. Measured (``benchmarks/bench_sims.py``, 2-core mach
 back to back, 3-4 runs each): the old loop with ROS2 written inline (396f33d) ~316x
 real time, the shared-ROS2 loop unpacking the model's arguments from a tuple at each
 right-hand-side call ~275x, this ~396x; on the way, ``rhs`` unpacking them itself ~295x
-and its kernels without reference counts ~375x.
+and its kernels without reference counts ~375x. The two solves of a step were then ~45 %
+of it; over the LU factors' nonzeros (:func:`sims.hydraulics.lu_solve`, session 46) the
+benchmark ran 401-430x against 303-313x, back to back on a slower machine.
 """
 
 from __future__ import annotations

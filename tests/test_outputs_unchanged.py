@@ -91,7 +91,12 @@ stop loads by -2.2e-4 of their sum (load_after_n -300 N of 1.35 MN), its inferre
 payloads by -2.5e-3, the load band's bounds by +3e-4 / -6e-4; and again after the
 next trip's run sets the stop's last steady stretch too
 (:func:`transforms.stop_continuity.backward_shift`): the stop loads by a further
--4.6e-5 of their sum, the load band's bounds by +5.0e-3 / -4.5e-3 (narrower).
+-4.6e-5 of their sum, the load band's bounds by +5.0e-3 / -4.5e-3 (narrower). The
+``compensate_pressure_only`` entry again (session 47) after a record's start takes the
+seals' friction summing to 0 also where a rope's clips at its seal's capacity
+(:func:`transforms.stick_slip._centred_stretch`; the prior's sigma points start a rope
+beyond it): the frictions' sums by up to 2.4e-2 (friction4_n -16 kN of -0.67 MN), the
+tensions' by up to 2.4e-5, the load's by 2.8e-6.
 
 The compensation's input is written here with numpy (two trips, a payload step at a
 stop, a ringing rope, a logger gap, a warming oil), not by the simulation, so a change

@@ -292,7 +292,8 @@ def test_the_start_members_take_the_seals_as_far_as_the_ropes_let():
     seal carries 0.9 F_s less than the mean, the others 0.3 F_s more, as above): taking
     the common stretch as far up as the ropes let puts seals 2-4 at +F_s and seal 1 at
     -0.2 F_s; as far down, seal 1 at -F_s and 2-4 at +0.2 F_s. Nothing moves while the
-    pressure stands."""
+    pressure stands. Where a rope's offset asks more than its seal holds, the estimate
+    still starts with the seals' friction summing to 0."""
     p0 = 4.0e6
     offset = 0.9 * _static_n(p0) / (0.75 * K_ROPE)
     springs = RopeSprings((1.0,) * 4, (offset, 0.0, 0.0, 0.0), 0.0, 0)
@@ -306,11 +307,14 @@ def test_the_start_members_take_the_seals_as_far_as_the_ropes_let():
     with pytest.raises(ValueError, match="start_at_capacity"):
         _from_start(p, springs, 0.5)
     # ropes that already leave seal 1 beyond its capacity down (1.5 F_s below the mean):
-    # the down member starts where the estimate does
+    # the estimate's seals still sum to 0 where it starts (seal 1 at -F_s, the others
+    # F_s / 3 each: the load the sensors show), and the down member starts there too
     far = RopeSprings((1.0,) * 4, (2.0 * _static_n(p0) / K_ROPE, 0.0, 0.0, 0.0), 0.0, 0)
     _, down = _from_start(p, far, -1.0)
     _, estimate = _from_start(p, far, 0.0)
-    assert estimate[0][0] == pytest.approx(-_static_n(p0), rel=1e-12)
+    assert [f[0] for f in estimate] == pytest.approx(
+        [-_static_n(p0)] + [_static_n(p0) / 3] * 3, rel=1e-12
+    )
     for i in range(4):
         assert down[i] == pytest.approx(estimate[i], rel=1e-12, abs=1e-9)
 

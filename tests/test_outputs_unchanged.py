@@ -96,7 +96,10 @@ next trip's run sets the stop's last steady stretch too
 seals' friction summing to 0 also where a rope's clips at its seal's capacity
 (:func:`transforms.stick_slip._centred_stretch`; the prior's sigma points start a rope
 beyond it): the frictions' sums by up to 2.4e-2 (friction4_n -16 kN of -0.67 MN), the
-tensions' by up to 2.4e-5, the load's by 2.8e-6.
+tensions' by up to 2.4e-5, the load's by 2.8e-6; and again after pistons whose x is not
+logged start where their ropes hold their chambers, every seal at 0 (was: at x = 0):
+the seals' friction shares out anew (friction1_n's sum 0.24 -> 2.2 MN), the tensions'
+sums by up to 6e-3, the load's by -3.2e-4, the load band's bounds by -5e-3 / +3e-3.
 
 The compensation's input is written here with numpy (two trips, a payload step at a
 stop, a ringing rope, a logger gap, a warming oil), not by the simulation, so a change

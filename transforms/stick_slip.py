@@ -106,7 +106,12 @@ the seals can hold together. Validation days 101-104 with the x columns taken ou
 (session 37): worst 3.50 / 2.37 / 1.50 / 0.82 %, median 0.36 / 0.27 / 0.25 / 0.09 %,
 1 / 2 / 0 / 2 windows worse than raw, the band 98 / 99 / 98 / 100 % at 1.77 / 1.76 /
 1.49 / 0.62 % (the equal share of :mod:`transforms.piston_motion` before: median 1.40 /
-1.45 / 1.40 / 0.48 %, 23-24 windows worse than raw, band 5.5-6 %).
+1.45 / 1.40 / 0.48 %, 23-24 windows worse than raw, band 5.5-6 %). The pistons start
+where their ropes hold their chambers, every seal at 0 (session 47; before, every piston
+at x = 0, so that a sigma point's stiffer ropes started their seals up to 1.7 kN apart
+and the first payload change slid two of them): worst 2.10 / 2.37 / 1.31 / 0.71 %,
+median 0.32 / 0.29 / 0.20 / 0.09 %, worst rope 4.42 / 4.42 / 4.49 / 3.47 % (4.94 /
+4.87 / 5.55 / 3.47 before), the same windows worse than raw, the band 100 % on every day.
 
 Tried and not kept: LuGre's presliding inside the step (bristle stiffness
 sigma_0 (1 - sgn(dx) F / g)), driven by each sensor's pressure through a 4-sigma play
@@ -240,7 +245,8 @@ def stick_slip(
         state is held).
     x_logged : tuple of ndarray
         Each piston's logged displacement [m]: read only at the record's first sample
-        with a known mean pressure (NaN there: 0).
+        with a known mean pressure (NaN there: where its rope holds its chamber, its
+        seal at 0; with none logged, their mean at 0).
     depth_m : ndarray
         Conveyance depth [m] (the ropes' hanging length; NaN: the last known).
     segment_id : ndarray of int
@@ -764,15 +770,24 @@ def _kernel(
             if elements:
                 for j in range(element_k.shape[0]):
                     limits[i, j] = per_capacity[j] * cap[i]
-        if not ran:  # the record's start: positions logged, friction unknown (mean 0, or
+        if not ran:  # the record's start: positions logged, friction unknown (sum 0, or
             # for the band's start members as far as the ropes let every seal go)
             num = 0.0
             den = 0.0
             for i in range(m):
-                x[i] = x_logged[i][t] if np.isfinite(x_logged[i][t]) else 0.0
-                num += p_now[i] * area + ka[i] * (x[i] + off[i])
-                den += ka[i]
-            s = num / den
+                if np.isfinite(x_logged[i][t]):
+                    x[i] = x_logged[i][t]
+                    num += p_now[i] * area + ka[i] * (x[i] + off[i])
+                    den += ka[i]
+            if den == 0.0:  # no piston logged: their mean x at 0
+                for i in range(m):
+                    num += p_now[i] * area / ka[i] + off[i]
+                s = num / m
+            else:
+                s = num / den
+            for i in range(m):  # a piston not logged where its rope holds its chamber
+                if not np.isfinite(x_logged[i][t]):
+                    x[i] = s - off[i] - p_now[i] * area / ka[i]
             # the seals' friction summing to 0, also where a rope's clips
             s = _centred_stretch(s, ka, x, off, p_now, area, scale * fs)
             if start != 0.0:  # the common stretch that takes the seals farthest that way

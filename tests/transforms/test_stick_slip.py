@@ -319,6 +319,43 @@ def test_the_start_members_take_the_seals_as_far_as_the_ropes_let():
         assert down[i] == pytest.approx(estimate[i], rel=1e-12, abs=1e-9)
 
 
+def test_pistons_not_logged_start_where_their_ropes_hold_them():
+    """No logged x: each piston starts where its rope holds its chamber, every seal at 0,
+    their mean x at 0. Ropes 5 % stiffer and softer (a prior's sigma point): at x = 0 the
+    stiffer ropes' seals would start 5 % of p A = 1.6 kN up, the softer ones' as far
+    down. Equal ropes whose lengths differ by +-0.8 F_s / k: at x = 0 their seals would
+    start at -+0.8 F_s; from 0, a rise of 0.4 MPa (each piston out by V dp / (4 beta A)
+    = 0.08 mm, more than one capacity of bristle travel, 0.05 mm, less than the 1.8
+    capacities from -0.8 F_s) slides every seal out to +F_s(p), the most the seals hold
+    together."""
+    p0, dp = 4.0e6, 0.4e6
+    rest = np.full(20, p0)
+    p = np.r_[rest, np.linspace(p0, p0 + dp, 400)[1:], np.full(20, p0 + dp)]
+    travel = abs(_oil_volume(p)) / 4
+    assert _static_n(p[-1]) / SIGMA0 < travel < 1.8 * _static_n(p0) / SIGMA0
+
+    def solve(pressure, springs):
+        n = pressure.size
+        return stick_slip(
+            (pressure,) * 4, (np.full(n, np.nan),) * 4, np.full(n, DEPTH), np.zeros(n, int),
+            HOIST, springs, dt_s=0.05,
+        )  # fmt: skip
+
+    apart = RopeSprings((1.05, 0.95, 1.05, 0.95), (0.0,) * 4, 0.0, 0)
+    x, f = solve(rest, apart)
+    assert [fi[0] for fi in f] == pytest.approx([0.0] * 4, abs=1e-6)
+    factors = apart.stiffness_factors
+    stretch = [xi[0] + p0 * AREA / (a * K_ROPE) for xi, a in zip(x, factors, strict=True)]
+    assert stretch == pytest.approx([stretch[0]] * 4, rel=1e-12)  # one common stretch
+    assert np.mean([xi[0] for xi in x]) == pytest.approx(0.0, abs=1e-12)
+    c = 0.8 * _static_n(p0) / K_ROPE
+    longer = RopeSprings((1.0,) * 4, (c, -c, c, -c), 0.0, 0)
+    x, f = solve(p, longer)
+    assert [fi[0] for fi in f] == pytest.approx([0.0] * 4, abs=1e-6)
+    assert [xi[0] for xi in x] == pytest.approx([-c, c, -c, c], rel=1e-9)
+    assert [fi[-1] for fi in f] == pytest.approx([_static_n(p[-1])] * 4, rel=1e-3)
+
+
 def test_a_slide_forgets_the_start():
     """Equal ropes: the start members put every seal at -F_s or +F_s, the estimate at 0.
     A fall of 1 MPa moves each piston by V dp / (4 beta A) = 0.2 mm, more than two

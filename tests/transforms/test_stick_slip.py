@@ -460,6 +460,90 @@ def test_blocks_give_the_whole_record(drift, start, elements):
         assert np.array_equal(np.concatenate([part[0][i] for part in parts]), whole_x[i])
 
 
+def test_a_record_without_a_first_depth_starts_at_its_first_known_one():
+    """The ropes' stiffness k = EA / (headframe + depth) needs the depth: where the
+    record's first samples have none, the start takes the first known one (it took the
+    headframe alone, ropes ~7 x too stiff at 300 m, and a sigma point's seals started
+    ~1 kN apart: a payload change then slid two of them). Blocks keep the last known
+    depth also from a block whose pressures were all unknown."""
+    n = 300
+    p = np.full(n, 4.0e6)
+    p[100:150] = np.linspace(4.0e6, 4.4e6, 50)
+    p[150:] = 4.4e6
+    apart = RopeSprings((1.0433, 0.9567, 1.0433, 0.9567), (0.0,) * 4, 0.0, 0)
+
+    def solve(pressure, depth, lo=0, hi=n, state=None):
+        return stick_slip(
+            (pressure[lo:hi],) * 4, (np.full(hi - lo, np.nan),) * 4, depth[lo:hi],
+            np.zeros(hi - lo, int), HOIST, apart, dt_s=0.01, state=state,
+        )  # fmt: skip
+
+    known = np.full(n, DEPTH)
+    late = known.copy()
+    late[:5] = np.nan
+    for want, got in zip(solve(p, known), solve(p, late), strict=True):
+        for i in range(4):
+            assert np.array_equal(want[i], got[i])
+    # pressures unknown over a first block whose depth is known, the next block's
+    # first depths unknown: the blocks give the whole record
+    first = p.copy()
+    first[:40] = np.nan
+    depth = known.copy()
+    depth[40:60] = np.nan
+    whole = solve(first, depth)
+    state = stick_slip_state(4)
+    parts = [solve(first, depth, lo, hi, state) for lo, hi in ((0, 30), (30, n))]
+    for k in range(2):
+        for i in range(4):
+            assert np.array_equal(np.concatenate([part[k][i] for part in parts]), whole[k][i])
+
+
+def test_a_held_stretch_of_unknown_pressure_is_one_step_over_its_whole_time():
+    """Pressures unknown for 2 s while the load rises and the ropes shorten: the first
+    sample after it solves the stretch's motion over its 2 s (a speed of dx / 2 s, not
+    dx / 0.01 s, which dropped the Stribeck capacity toward F_c and clipped the sliding
+    seals by ~600 N for 2 s), and from the next sample on the solution is the one of
+    the record solved sample by sample."""
+    n = 600
+    p = np.linspace(4.0e6, 4.6e6, n)
+    depth = np.linspace(300.0, 50.0, n)
+    springs = RopeSprings((1.0, 1.03, 0.98, 1.01), (0.0,) * 4, 0.0, 0)
+
+    def solve(pressure):
+        _, f = stick_slip(
+            (pressure,) * 4, (np.zeros(n),) * 4, depth, np.zeros(n, int), HOIST, springs,
+            dt_s=0.01,
+        )  # fmt: skip
+        return np.array(f)
+
+    whole = solve(p)
+    held = p.copy()
+    held[200:400] = np.nan
+    gapped = solve(held)
+    assert gapped[:, 401:] == pytest.approx(whole[:, 401:], rel=1e-3, abs=1.0)
+
+
+def test_a_rope_beyond_its_seal_at_the_start_is_balanced_there():
+    """At the pithead, equal ropes, piston 4 logged 2.5 mm out: its rope asks 2.75 kN
+    less than the others', beyond its seal's capacity. The start puts seal 4 at -F_s,
+    the others at F_s / 3 (their sum 0) and piston 4 where its rope holds it at that
+    (2.2 mm: moved 0.3 mm, within the logger's and the offsets' uncertainty); nothing
+    moves while the pressure stands. Left at its logged x it slid in the next sample,
+    pushed the other seals up and left their sum at 1.45 kN."""
+    n, p0 = 50, 4.0e6
+    p = np.full(n, p0)
+    logged = tuple(np.full(n, v) for v in (0.0, 0.0, 0.0, 2.5e-3))
+    springs = RopeSprings((1.0,) * 4, (0.0,) * 4, 0.0, 0)
+    x, f = stick_slip((p,) * 4, logged, np.zeros(n), np.zeros(n, int), HOIST, springs, dt_s=0.01)
+    fs = _static_n(p0)
+    for i, share in enumerate((1 / 3, 1 / 3, 1 / 3, -1.0)):
+        assert f[i] == pytest.approx(np.full(n, share * fs), rel=1e-9)
+    k_top = HOIST.ropes.head_rope_axial_stiffness_n / HOIST.shaft.headframe_height_m
+    assert x[3] == pytest.approx(np.full(n, 4 / 3 * fs / k_top), rel=1e-9)
+    for i in range(3):
+        assert x[i] == pytest.approx(np.zeros(n), abs=1e-12)
+
+
 def test_a_given_travel_is_carried_over_unknown_pressures():
     """The drift's travel given at samples of unknown pressure acts at the next known
     one: the same as giving it there. A negative or NaN travel is refused."""

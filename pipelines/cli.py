@@ -212,6 +212,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         message = " ".join(str(exc).split()) or type(exc).__name__
         if exits.memory_exhausted(exc, limit):  # DuckDB's own out-of-memory error
             message = exits.out_of_memory(command, limit)
+    except BrokenPipeError:
+        # stdout's reader left (`ropeload ingest ... | head -1`): what was asked is done
+        # (landed, written), only the rest of the report has no reader. Quiet, with the
+        # shell's status for a writer a closed pipe stopped (128 + SIGPIPE), and stdout
+        # sent nowhere so that its flush at exit raises nothing more
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+        return 128 + signal.SIGPIPE
     except KeyboardInterrupt as exc:
         signum = getattr(exc, "signum", signal.SIGINT)
         sys.stderr.write(f"ropeload {command}: interrupted ({signal.Signals(signum).name})\n")

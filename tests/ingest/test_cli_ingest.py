@@ -351,6 +351,28 @@ def test_console_script_exit_status_and_streams(corpus, tmp_path):
     assert "1 refused" in done.stdout
 
 
+def test_a_reader_that_leaves_stdout_early_ends_the_report_quietly(corpus, tmp_path):
+    """``ropeload ingest ... | head -0``: the reader has gone before the report is
+    written. The files land all the same, stderr stays empty (it held a traceback),
+    and the status is the shell's for a writer a closed pipe stopped, 128 + SIGPIPE."""
+    folder = tmp_path / "in"
+    folder.mkdir()
+    corpus.csv_file(folder / "ok.csv", corpus.data_rows(5))
+    read, write = os.pipe()
+    os.close(read)
+    try:
+        done = subprocess.run(
+            [sys.executable, "-m", "pipelines.cli", "ingest", "--data", str(tmp_path / "d"),
+             str(folder)],
+            stdout=write, stderr=subprocess.PIPE, text=True, timeout=120, check=False,
+        )  # fmt: skip
+    finally:
+        os.close(write)
+    assert done.returncode == 141
+    assert done.stderr == ""
+    assert _lake_rows(tmp_path / "d") == 5
+
+
 def test_console_script_truncated_tdms_is_partial_with_nothing_on_stderr(corpus, tmp_path):
     """The real process: a TDMS the logger stopped writing mid-segment lands the samples
     every channel has (partial, said in the report); npTDMS's own warnings about the

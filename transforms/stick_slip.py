@@ -630,8 +630,7 @@ def _centred_stretch(s, ka, x, off, p_now, area, capacity, skip):  # pragma: no 
     clipped rope's piston where its rope holds it at its seal's capacity. Before
     (session 47), a rope asking more than its seal holds left the frictions' sum at the
     clip's excess, and its piston slid at standing pressure. On the validation days
-    that moved no estimate, only the band's start members
-    (``benchmarks/eval_compensation.py``: day 103's coverage 97 -> 98 %).
+    that moved nothing (``benchmarks/eval_compensation.py``).
     """
     m = ka.shape[0]
     clipped = False

@@ -616,7 +616,7 @@ def _beyond(bound, squares, logged):  # pragma: no cover - numba
     return _so_far(squares, logged) > bound * (1.0 + 1e-9)
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _centred_stretch(s, ka, x, off, p_now, area, capacity, skip):  # pragma: no cover - numba
     """The common stretch at a record's start where the seals' friction sums to 0 (the
     pistons not ``skip``-ped: those with a logged x).
@@ -774,7 +774,7 @@ def _kernel(
                 p_prev[i] = np.nan
             held += dt
             continue
-        if not ran or not np.isfinite(hanging):
+        if not ran:
             held = 0.0
             if not np.isfinite(hanging):  # no depth known yet: the record's first known
                 hanging = headframe
@@ -784,8 +784,10 @@ def _kernel(
                         break
         # the step's time: since the last sample solved (a stretch of unknown pressures
         # held the pistons; its motion is solved here, over that whole time)
-        elapsed = dt + held
-        held = 0.0
+        elapsed = dt
+        if held > 0.0:
+            elapsed += held
+            held = 0.0
         k = head_rope_stiffness_n_m(ea, hanging)
         p_law = max(p_mean, 1e5)
         fc, fs, vs, kv = friction_law_at(p_law, law)

@@ -28,6 +28,20 @@ from pipelines.log import configure_logging
 __all__ = ["main"]
 
 
+def _stdout_open() -> bool:
+    """Whether stdout still has a reader: a pipe whose reader left polls as an error
+    (POLLERR) on its writing end; a file, a terminal or a pipe still read do not."""
+    import select
+
+    try:
+        poll = select.poll()
+        poll.register(sys.stdout.fileno(), select.POLLOUT)
+        events = poll.poll(0)
+    except (OSError, ValueError):  # no stdout to poll
+        return False
+    return not any(flags & (select.POLLERR | select.POLLHUP) for _, flags in events)
+
+
 def _known_errors() -> tuple[type[BaseException], ...]:
     """Errors the user can cause: their message is the one line (no traceback).
 
@@ -213,6 +227,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if exits.memory_exhausted(exc, limit):  # DuckDB's own out-of-memory error
             message = exits.out_of_memory(command, limit)
     except BrokenPipeError:
+        if _stdout_open():  # another pipe broke (a worker's): not the reader's leaving
+            raise
         # stdout's reader left (`ropeload ingest ... | head -1`): what was asked is done
         # (landed, written), only the rest of the report has no reader. Quiet, with the
         # shell's status for a writer a closed pipe stopped (128 + SIGPIPE), and stdout

@@ -334,7 +334,7 @@ def plan_replay(
     samples: pl.DataFrame,
     hoist: HoistDescription,
     *,
-    max_trips: int = 12,
+    max_trips: int | None = 12,
     blocks: int = 4,
     score_rate_hz: float = 20.0,
     settle_s: float = 30.0,
@@ -357,7 +357,8 @@ def plan_replay(
     hoist : HoistDescription
         The hoist (winder limits, shaft, cylinders).
     max_trips, blocks : int
-        Analyse at most ``max_trips`` trips in ``blocks`` runs of consecutive trips.
+        Analyse at most ``max_trips`` trips in ``blocks`` runs of consecutive trips
+        (``max_trips`` None: every trip, one chain).
     score_rate_hz : float
         Rate of the scored samples and of the simulation output [Hz].
     settle_s : float
@@ -422,6 +423,8 @@ def plan_replay(
         # failed every trip's sanity check, 27-58 kPa against 7-11 kPa at 50 Hz)
         zeta = 1.0
     notes: list[str] = []
+    if max_trips is None:
+        max_trips = len(motions)
     chosen = chosen_trips(len(motions), max_trips, blocks)
     if len(motions) > max_trips:
         notes.append(

@@ -25,7 +25,7 @@ from scipy import ndimage, optimize
 
 from physics.conveyance import conveyance_speed
 from physics.trip_rule import segment_ids, trip_label_codes
-from physics.white_noise import difference_noise_sigma, mad
+from physics.white_noise import difference_noise_sigma
 from schemas.hoist import HoistDescription, Winder
 from sims.trips import TripProfile, fit_cut_trip
 
@@ -70,9 +70,10 @@ def estimate_noise_sigma(pressures: np.ndarray, moving: np.ndarray) -> float:
     d2 = np.concatenate(parts) if parts else np.empty(0)
     if d2.size == 0:
         return float("nan")
-    if mad(d2) == 0.0:  # a quantisation coarse against the noise: most differences 0
+    sigma = difference_noise_sigma(d2, 2)  # 0 where their MAD is 0 (d2 all finite)
+    if sigma == 0.0:  # a quantisation coarse against the noise: most differences 0
         return float(np.sqrt(np.mean(d2**2) / 6.0))
-    return difference_noise_sigma(d2, 2)
+    return sigma
 
 
 def _held_second_differences(p: np.ndarray, still: np.ndarray) -> np.ndarray:

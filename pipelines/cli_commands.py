@@ -124,6 +124,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             sanity=not args.no_sanity,
             block_minutes=args.block_minutes,
             band_member_step_s=args.band_member_step,
+            sanity_trips=args.sanity_trips,
         )
         report = run_report_path(DataRoot.resolve(args.data), result)
     else:
@@ -139,6 +140,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             sanity=not args.no_sanity,
             block=dt.timedelta(minutes=args.block_minutes),
             settings=CompensationSettings(band_member_step_s=args.band_member_step),
+            sanity_trips=args.sanity_trips,
         )
         result, report, error = checked.result, checked.report, checked.sanity_error
         checks = "; " + checked.sanity_words

@@ -203,6 +203,16 @@ def _positive_minutes(text: str) -> float:
     return value
 
 
+def _positive_trips(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a whole number of trips >= 1, got {text}")
+    return value
+
+
 def _add_flow_commands(commands) -> None:
     """``run``, ``backfill`` and ``nightly`` (issue 7); ``--prefect`` runs their flows."""
     from pipelines.night_options import add_night_options
@@ -218,6 +228,14 @@ def _add_flow_commands(commands) -> None:
         "--payload-kg", type=_payload_kg, default=None, help="known payload at standstill"
     )
     run.add_argument("--no-sanity", action="store_true", help="skip the simulation sanity check")
+    run.add_argument(
+        "--sanity-trips",
+        type=_positive_trips,
+        default=None,
+        metavar="N",
+        help="check N trips sampled in four blocks instead of every trip (faster, and a "
+        "block's first trips replay less closely)",
+    )
     run.add_argument(
         "--block-minutes",
         type=_positive_minutes,

@@ -129,6 +129,7 @@ def run_flow(
     sanity: bool = True,
     block_minutes: float = 60.0,
     band_member_step_s: float = 0.0,
+    sanity_trips: int | None = None,
 ) -> RunResult:
     """``ropeload run``: compensate, reconcile, alarm and sanity-check a period of one hoist."""
     from pipelines.reports import Step, sanity_step
@@ -140,8 +141,9 @@ def run_flow(
     if sanity and result.trip_summary.height:
         # an optional step: its failure is landed as a finding, not a failed run
         found = sanity_task(
-            hoist, root, result.run_id, result.period_start_utc, result.period_end_utc
-        )
+            hoist, root, result.run_id, result.period_start_utc, result.period_end_utc,
+            sanity_trips,
+        )  # fmt: skip
         steps = [Step("sanity check", found.step.status, found.step.message)]
     publish_task(run_report_task(root, result, hoist, steps), "run-report")
     return result

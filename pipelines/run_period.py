@@ -306,8 +306,10 @@ def run_checked(
     command: str = "run",
     block: dt.timedelta = DEFAULT_BLOCK,
     settings: CompensationSettings | None = None,
+    sanity_trips: int | None = None,
 ) -> CheckedRun:
-    """:func:`run_period`, then the simulation sanity check of its trips, then its report.
+    """:func:`run_period`, then the simulation sanity check of its trips (every trip, or
+    ``sanity_trips`` sampled: :data:`pipelines.hoist_day.SANITY_TRIPS`), then its report.
 
     The report (:func:`pipelines.reports.write_run_report`, under ``<data>/reports/``)
     is written whatever the sanity check does. The check is an optional step: its
@@ -343,6 +345,7 @@ def run_checked(
             start=result.period_start_utc,
             end=result.period_end_utc,
             hoist=hoist,
+            max_trips=sanity_trips,
         )
         checks = found.checks
     reason = "no trip in the period" if sanity else "not asked for (--no-sanity)"

@@ -123,7 +123,7 @@ def sanity_check(
     *,
     run_id: str,
     threshold: float = PASS_LIMIT_X_NOISE,
-    max_trips: int = 200,
+    max_trips: int | None = None,
     dt_s: float = 2e-3,
     settle_s: float = 45.0,
     report_from: dt.datetime | None = None,
@@ -153,8 +153,10 @@ def sanity_check(
         Written to every row.
     threshold : float
         Pass when the RMS gap is at most ``threshold`` x the estimated noise.
-    max_trips : int
-        Trips checked at most (spread over the record in blocks).
+    max_trips : int, optional
+        Trips checked at most (spread over the record in blocks, each after a warm-up
+        trip); default every trip, one chain of replays (:data:`pipelines.hoist_day.
+        SANITY_TRIPS`).
     dt_s, settle_s : float
         Replay integrator step [s] and standstill simulated after each stop [s].
     report_from, report_to : datetime, optional

@@ -157,11 +157,18 @@ def run_period_task(
 
 @task(name="sanity-check", **TRANSIENT_OPTIONS)
 def sanity_task(
-    hoist_path: str, data: DataRoot, run_id: str, start: dt.datetime, end: dt.datetime
+    hoist_path: str,
+    data: DataRoot,
+    run_id: str,
+    start: dt.datetime,
+    end: dt.datetime,
+    max_trips: int | None = None,
 ) -> Any:
     """The sanity check of a run (:func:`pipelines.hoist_day.check_sanity`): its failure is
     landed as a finding and returned, only transient errors raise (and are retried)."""
-    return check_sanity(hoist_path=hoist_path, data=data, run_id=run_id, start=start, end=end)
+    return check_sanity(
+        hoist_path=hoist_path, data=data, run_id=run_id, start=start, end=end, max_trips=max_trips
+    )
 
 
 @task(name="plan-backfill", **TRANSIENT_OPTIONS)

@@ -367,6 +367,21 @@ def test_a_later_block_follows_an_unscored_warm_up_trip(null_case):
     assert any("each later one after a warm-up trip" in note for note in plan.notes)
 
 
+def test_no_limit_plans_every_trip_in_one_chain(null_case):
+    """``max_trips=None`` (the sanity check's default): every trip of the record, one
+    block, the first trip starting the history and every trip compared; a limit of
+    the record's own trip count gives the same plan."""
+    _, info = null_case
+    every = plan_replay(info["day"].sensors, info["day"].hoist, max_trips=None)
+    assert [tr.trip_id for tr in every.trips] == [0, 1, 2]
+    assert [tr.block for tr in every.trips] == [0, 0, 0]
+    assert [tr.first_in_block for tr in every.trips] == [True, False, False]
+    assert all(tr.valid.any() for tr in every.trips)
+    assert not any("warm-up" in note for note in every.notes)
+    three = plan_replay(info["day"].sensors, info["day"].hoist, max_trips=3)
+    assert [tr.window_end_s for tr in three.trips] == [tr.window_end_s for tr in every.trips]
+
+
 def test_motion_choice_without_logged_motion_keeps_the_ropes_notes(null_case):
     """A record whose trips have no logged motion (all cut at their start) is driven by
     the winder profile, and what the ropes' reading found stays in the notes."""

@@ -215,6 +215,16 @@ def test_a_block_of_no_minutes_is_refused(tmp_path: Path, capsys) -> None:
     assert "--block-minutes: must be a positive number of minutes, got 0" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("trips", ["0", "two", "1.5"])
+def test_a_sanity_sample_of_no_whole_trips_is_refused(tmp_path: Path, capsys, trips) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        main(["run", "--data", str(tmp_path), "--hoist", str(HOIST_PATH), "--sanity-trips", trips])
+    assert exit_info.value.code == 2
+    assert f"--sanity-trips: must be a whole number of trips >= 1, got {trips}" in (
+        capsys.readouterr().err
+    )
+
+
 def test_band_members_on_means_are_asked_for_and_recorded(record: Path, tmp_path: Path, capsys):
     """``--band-member-step``: the run says in ``runs.message`` that its band's members ran
     on means (transforms.band_members), and the band still holds the estimate."""

@@ -176,6 +176,20 @@ def test_a_trip_that_cannot_be_simulated_is_skipped_with_the_reason(ten_hz):
     assert "stroke" in checks["message"][1]
 
 
+def test_every_trip_is_checked_in_one_chain_unless_a_sample_is_asked_for(ten_hz):
+    """By default every trip of the record is replayed in one chain and compared after
+    the first (which starts the history); a sample of two trips checks them in two
+    blocks, the second after a warm-up trip that is replayed but not compared."""
+    hoist, day = ten_hz
+    every = sanity_check(day.sensors, hoist, run_id="r", settle_s=20.0)
+    assert every["trip_id"].to_list() == [0, 1, 2]
+    assert every["status"].to_list() == ["skipped", "passed", "passed"]
+    assert WARM_UP_WORDS in every["message"][0]
+    sampled = sanity_check(day.sensors, hoist, run_id="r", settle_s=20.0, max_trips=2)
+    assert sampled["status"].to_list() == ["skipped", "skipped", "passed"]
+    assert WARM_UP_WORDS in sampled["message"][1]  # the second block's warm-up
+
+
 def test_only_trips_starting_in_the_reported_period_are_reported(ten_hz):
     hoist, day = ten_hz
     checks = sanity_check(

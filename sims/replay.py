@@ -33,8 +33,11 @@ Speed: the blocks are independent histories and replay on :data:`REPLAY_THREADS`
 threads (the integrator releases the GIL); :func:`replay_many` replays several runs of
 one plan with all their blocks on one pool, the longest first (a discovery term's
 finite-difference steps, its candidates switched on); :func:`side_by_side` runs a
-choice's candidate fits side by side; the Jacobian is refreshed every
-:data:`REPLAY_JACOBIAN_EVERY` steps. On the independent simulator's trials records
+choice's candidate fits side by side; :func:`replay_fitted`'s passes run as a
+pipeline, each trip's next pass as soon as its own pass is done (a whole day's chain of
+66 trips on validation day 104, three passes: 22.7 -> 12.8 s, the result the same to the
+last bit; session 48); the Jacobian is refreshed every :data:`REPLAY_JACOBIAN_EVERY`
+steps. On the independent simulator's trials records
 (2 h, 12 trips in 4 blocks, 2 cores; ``benchmarks/eval_discovery.py --trials``)
 ``ropeload discover`` took a median 33.6 s, at most 48.2 s, a record on a machine ~2x slower
 than session 43's (session 46: the device's ROS2 solve over the LU factors' nonzeros,
@@ -310,12 +313,16 @@ def _block_runs(
     pay: np.ndarray,
     pay_before: np.ndarray,
     ramps: np.ndarray,
+    before: Callable[[int], None] | None = None,
+    after: Callable[[int, tuple[np.ndarray, np.ndarray, str]], None] | None = None,
 ) -> list[Callable[[], _BlockRun]]:
     """One task per block of the plan (``blocks``, :func:`_blocks`), in trip order: each
     simulates its block's trips as one chained history and returns, per trip, (scored
     pressures, ramp common-mode pressure, why it was not simulated or "") and the
     block's failures. ``pay_before`` is updated in place: a block's later trips start
-    with the previous trip's payload.
+    with the previous trip's payload. ``before(k)`` is called before trip k reads its
+    inputs (``pay[k]``, ``ramps[k]``: they may be filled in then), ``after(k, row)``
+    with each trip's row (:func:`replay_fitted`'s passes).
 
     The blocks are independent histories, so the tasks may run on threads in any order
     (the integrator releases the GIL, :func:`sims.device_solver._run`); each block's
@@ -332,10 +339,14 @@ def _block_runs(
         prev_end = -np.inf
         for k in block:
             tr = plan.trips[k]
+            if before is not None:
+                before(k)
             if k != block.start:
                 pay_before[k] = pay[k - 1]
             if broken:
                 rows.append((*_not_simulated(tr, n), f"not simulated: {broken}"))
+                if after is not None:
+                    after(k, rows[-1])
                 continue
             start = float(max(ramps[k, 0], prev_end))
             ramp_end = float(max(ramps[k, 1], start + 1e-3))
@@ -346,6 +357,8 @@ def _block_runs(
                 failures.append(f"trip {tr.trip_id}: {exc}")
                 broken = f"trip {tr.trip_id} before it could not be simulated ({exc})"
                 rows.append((*_not_simulated(tr, n), f"simulation failed: {exc}"))
+                if after is not None:
+                    after(k, rows[-1])
                 continue
             reason = ""
             if not res.ok:
@@ -355,6 +368,8 @@ def _block_runs(
             state = res.final_state
             scored, ramp_sim, prev_end = _at_scored_samples(tr, res, start, n, prev_end)
             rows.append((scored, ramp_sim, reason))
+            if after is not None:
+                after(k, rows[-1])
         return rows, failures
 
     return [functools.partial(run, block) for block in blocks]
@@ -450,40 +465,117 @@ def replay_fitted(
     payload (least squares for a common offset on every sensor), moves the ramp ends by a
     Gauss-Newton step on the common-mode residual over the ramp (the seal friction and
     the rope bounce delay the pressure behind the load, so the ramp seen in the pressure
-    is not the load's) and re-simulates.
+    is not the load's) and re-simulates. When a pass simulates nothing, it is the result.
+
+    A trip's inputs in a pass are its own answer in the pass before (and the state its
+    block's previous trip left in this pass), so the passes run as a pipeline
+    (:func:`_pipelined_passes`): a block's second pass follows its first a trip behind,
+    on the cores a single long block (the sanity check's chain of a whole day) left
+    idle. The result is the same as pass after pass, to the last bit.
     """
     hoist = plan.hoist
     names = frozenset(hoist.model.effects if effects is None else effects)
     parameters = _parameters(plan, names, parameters)
     gain, _ = sensor_gain_offset(hoist, names, parameters)
     scale = hoist.ropes_n * hoist.cylinders.bore_area_m2 / G_STANDARD / float(gain.mean())
-    result = replay(
-        plan, effects=names, parameters=parameters, payload_kg=payload_kg, ramps_s=ramps_s
+    pay, pay_before, ramps = replay_inputs(plan, names, parameters, payload_kg, None, ramps_s)
+    results = _pipelined_passes(
+        plan, names, parameters, (pay, pay_before, ramps), max(passes, 1), scale
     )
-    for _ in range(passes - 1):
+    for result in results[:-1]:
         if not any(np.isfinite(sim).any() for sim in result.simulated):
-            break  # nothing simulated: nothing to fit (a failed trip leaves the others)
-        dp = np.array(
-            [float(np.nanmean(r)) if np.isfinite(r).any() else 0.0 for r in result.residuals(plan)]
+            return result  # nothing simulated: nothing to fit (a failed trip leaves the others)
+    return results[-1]
+
+
+def _pipelined_passes(
+    plan: ReplayPlan,
+    names: frozenset[str],
+    prm: dict[str, dict[str, Any]],
+    first: tuple[np.ndarray, np.ndarray, np.ndarray],
+    passes: int,
+    scale: float,
+) -> list[ReplayResult]:
+    """Every pass of :func:`replay_fitted` (``first``: pass 1's payloads after and before
+    loading and ramps; ``scale``: kg per Pa of common-mode residual), each block of each
+    pass a task. Pass j's trip k waits for pass j-1's trip k, whose residual sets its
+    payload and ramp; the tasks are queued pass by pass, so a task's inputs come from
+    tasks queued before it, and one thread (:data:`_ONE_THREAD`, or one core) runs them in
+    that order.
+    """
+    blocks = _blocks(plan)
+    count = len(plan.trips)
+    pay, pay_before, ramps = first
+    inputs = [(pay, pay_before.copy(), ramps)] + [
+        (np.full(count, np.nan), pay_before.copy(), np.full((count, 2), np.nan))
+        for _ in range(passes - 1)
+    ]
+    rows: list[list[tuple[np.ndarray, np.ndarray, str] | None]] = [
+        [None] * count for _ in range(passes)
+    ]
+    done = [[threading.Event() for _ in range(count)] for _ in range(passes)]
+
+    def answered(j: int) -> Callable[[int, tuple[np.ndarray, np.ndarray, str]], None]:
+        def after(k: int, row: tuple[np.ndarray, np.ndarray, str]) -> None:
+            rows[j][k] = row
+            done[j][k].set()
+
+        return after
+
+    def fitted(j: int) -> Callable[[int], None]:
+        def before(k: int) -> None:
+            """Pass j's payload and ramp of trip k from pass j-1's answer for it."""
+            done[j - 1][k].wait()
+            row = rows[j - 1][k]
+            if row is None:  # the task of the pass before failed: its error is raised
+                raise RuntimeError(f"replay pass {j} of trip {k} failed")
+            tr = plan.trips[k]
+            r = np.where(tr.valid, tr.measured_pa - row[0], np.nan)
+            dp = float(np.nanmean(r)) if np.isfinite(r).any() else 0.0
+            inputs[j][0][k] = np.maximum(inputs[j - 1][0][k] + dp * scale, 0.0)
+            inputs[j][2][k] = _refine_ramp(tr, row[1], inputs[j - 1][2][k], dp)
+
+        return before
+
+    def released(j: int, task: Callable[[], _BlockRun], block: range) -> _BlockRun:
+        try:
+            return task()
+        finally:  # a task that raised: the next pass's waits end (and raise)
+            for k in block:
+                done[j][k].set()
+
+    tasks = []
+    for j, (p, pb, rp) in enumerate(inputs):
+        hooks = (fitted(j) if j else None, answered(j))
+        runs = _block_runs(plan, blocks, names, prm, p, pb, rp, *hooks)
+        tasks += [
+            functools.partial(released, j, run, b) for run, b in zip(runs, blocks, strict=True)
+        ]
+    if _ONE_THREAD.get() or REPLAY_THREADS <= 1 or len(tasks) == 1:
+        ran = [task() for task in tasks]
+    else:  # every task its thread: those waiting take no core, the others share them
+        with ThreadPoolExecutor(max_workers=len(tasks)) as pool:
+            ran = [future.result() for future in [pool.submit(task) for task in tasks]]
+    results = []
+    for j, (p, pb, rp) in enumerate(inputs):
+        of_pass = ran[j * len(blocks) : (j + 1) * len(blocks)]
+        block_rows = [row for found, _ in of_pass for row in found]
+        failures = [f for _, found in of_pass for f in found]
+        results.append(
+            ReplayResult(
+                simulated=tuple(r[0] for r in block_rows),
+                payload_kg=p,
+                payload_before_kg=pb,
+                effects=names,
+                parameters=prm,
+                status="failed" if failures else "success",
+                message="; ".join(failures),
+                ramp_simulated=tuple(r[1] for r in block_rows),
+                ramps_s=rp,
+                trip_messages=tuple(r[2] for r in block_rows),
+            )
         )
-        pay = np.maximum(result.payload_kg + dp * scale, 0.0)
-        ramps = np.array(
-            [
-                _refine_ramp(tr, sr, rp, d)
-                for tr, sr, rp, d in zip(
-                    plan.trips, result.ramp_simulated, result.ramps_s, dp, strict=True
-                )
-            ]
-        )
-        result = replay(
-            plan,
-            effects=names,
-            parameters=parameters,
-            payload_kg=pay,
-            payload_before_kg=result.payload_before_kg,
-            ramps_s=ramps,
-        )
-    return result
+    return results
 
 
 #: A choice the replay reads off the record (the ropes' damping and stiffness spread, the

@@ -92,6 +92,60 @@ def test_many_replays_sharing_the_threads_are_each_replay_alone(two_blocks, monk
     assert together[1].effects != together[0].effects
 
 
+def _pass_after_pass(plan, payloads, passes):
+    """:func:`sims.replay.replay_fitted`'s documented fit, one whole pass after the other
+    with :func:`sims.replay.replay`: each trip's payload moved by its mean residual x
+    n A / g, its ramp by the Gauss-Newton step, the trips re-simulated."""
+    hoist = plan.hoist
+    scale = hoist.ropes_n * hoist.cylinders.bore_area_m2 / replay_module.G_STANDARD
+    result = replay_module.replay(plan, payload_kg=payloads)
+    for _ in range(passes - 1):
+        dp = np.array([
+            np.nanmean(r) if np.isfinite(r).any() else 0.0 for r in result.residuals(plan)
+        ])  # fmt: skip
+        fitted = zip(plan.trips, result.ramp_simulated, result.ramps_s, dp, strict=True)
+        ramps = np.array([replay_module._refine_ramp(*trip) for trip in fitted])
+        result = replay_module.replay(
+            plan,
+            payload_kg=np.maximum(result.payload_kg + dp * scale, 0.0),
+            payload_before_kg=result.payload_before_kg,
+            ramps_s=ramps,
+        )
+    return result
+
+
+@pytest.mark.parametrize("blocks", [1, 2])
+def test_fitted_passes_run_as_a_pipeline_give_pass_after_pass(two_blocks, blocks, monkeypatch):
+    """The passes of ``replay_fitted`` run as a pipeline (a trip's next pass starts once
+    its own pass is done), each block and pass on a thread: the result is exactly the
+    passes one after the other, as on one thread, for one chain and for two blocks."""
+    plan = two_blocks
+    if blocks == 1:  # every trip in one chain: the first starts the history
+        plan = dataclasses.replace(
+            plan,
+            trips=tuple(dataclasses.replace(tr, block=0, first_in_block=k == 0)
+                        for k, tr in enumerate(plan.trips)),
+        )  # fmt: skip
+    payloads = np.array([9000.0, 8000.0, 10000.0, 7000.0, 8500.0])
+    monkeypatch.setattr(replay_module, "REPLAY_THREADS", 1)
+    want = _pass_after_pass(plan, payloads, 3)
+    monkeypatch.setattr(replay_module, "REPLAY_THREADS", 2)
+    piped = replay_module.replay_fitted(plan, passes=3, payload_kg=payloads)
+    one = replay_module.side_by_side(
+        [lambda: replay_module.replay_fitted(plan, passes=3, payload_kg=payloads)]
+    )[0]
+    assert want.status == "success"
+    assert not np.array_equal(want.payload_kg, payloads)  # the passes moved them
+    for got in (piped, one):
+        assert (got.status, got.trip_messages) == (want.status, want.trip_messages)
+        for name in ("payload_kg", "payload_before_kg", "ramps_s"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
+        for a, b in zip(
+            got.simulated + got.ramp_simulated, want.simulated + want.ramp_simulated, strict=True
+        ):
+            np.testing.assert_array_equal(a, b)
+
+
 def test_a_planned_trip_holds_what_it_was_planned_with(two_blocks):
     """A replay's answer is remembered by the very trips (``first_trips_gap``): their
     arrays cannot be written."""

@@ -356,7 +356,7 @@ def plan_replay(
         ``oil_temp_c``; SI), one hoist, any order.
     hoist : HoistDescription
         The hoist (winder limits, shaft, cylinders).
-    max_trips, blocks : int
+    max_trips, blocks : int (``max_trips`` also None)
         Analyse at most ``max_trips`` trips in ``blocks`` runs of consecutive trips
         (``max_trips`` None: every trip, one chain).
     score_rate_hz : float

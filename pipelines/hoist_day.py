@@ -79,8 +79,8 @@ def run_partition(
 ) -> PartitionOutcome:
     """Ingest the partition's new files, then run its UTC day unless already done.
 
-    With ``sanity`` the simulation sanity check (:func:`check_sanity`, at most
-    ``sanity_trips`` trips) runs on the day's samples and is landed under the run's id.
+    With ``sanity`` the simulation sanity check (:func:`check_sanity`: every trip, or
+    ``sanity_trips`` sampled) runs on the day's samples and is landed under the run's id.
     It is an optional step: whatever it finds, and also when it fails, its outcome is
     landed and the day succeeds (the failure is in ``findings``). A day whose
     compensation is done but whose check is missing (a crash between the two, or a day

@@ -317,8 +317,11 @@ def rope_damping_from_record(
         if part.size > 3 * rate:  # too short to filter: unread
             band[part] = signal.sosfiltfilt(sos, common_pa[part])
             # zero-padded to a length the FFT factors fast (a day of 8.6 M samples has
-            # a prime factor of 32707: 6.8 s unpadded, 1.2 s padded; a length that
-            # factors fast is left as it is, its envelope unchanged)
+            # a prime factor of 32707: 6.8 s unpadded, 1.2 s padded). A length that
+            # factors fast is left as it is, its envelope unchanged; another's changes by
+            # ~1e-5 inside and, as the circular transform's did, within seconds of the
+            # stretch's ends: a stop's window reaching the end can read another decay
+            # (a review's test record: 0.0352 -> 0.0344; session 48)
             fast = sp_fft.next_fast_len(part.size)
             envelope[part] = np.abs(signal.hilbert(band[part], fast)[: part.size])
     usable = quiet & np.isfinite(band)

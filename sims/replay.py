@@ -67,12 +67,15 @@ default ``dt_s = 2 ms`` is the field-day generator's.
 from __future__ import annotations
 
 import collections
+import concurrent.futures
+import contextlib
 import contextvars
 import dataclasses
 import functools
 import threading
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import AbstractContextManager
 from itertools import pairwise
 from typing import Any, TypeVar
 
@@ -315,6 +318,7 @@ def _block_runs(
     ramps: np.ndarray,
     before: Callable[[int], None] | None = None,
     after: Callable[[int, tuple[np.ndarray, np.ndarray, str]], None] | None = None,
+    gate: AbstractContextManager[Any] | None = None,
 ) -> list[Callable[[], _BlockRun]]:
     """One task per block of the plan (``blocks``, :func:`_blocks`), in trip order: each
     simulates its block's trips as one chained history and returns, per trip, (scored
@@ -322,13 +326,15 @@ def _block_runs(
     block's failures. ``pay_before`` is updated in place: a block's later trips start
     with the previous trip's payload. ``before(k)`` is called before trip k reads its
     inputs (``pay[k]``, ``ramps[k]``: they may be filled in then), ``after(k, row)``
-    with each trip's row (:func:`replay_fitted`'s passes).
+    with each trip's row, and each trip is simulated inside ``gate`` (a semaphore that
+    bounds the simulations running at once; :func:`replay_fitted`'s passes).
 
     The blocks are independent histories, so the tasks may run on threads in any order
     (the integrator releases the GIL, :func:`sims.device_solver._run`); each block's
     result is what it is alone, so a replay is the same on any number of threads.
     """
     n = plan.hoist.ropes_n
+    gate = contextlib.nullcontext() if gate is None else gate
 
     def run(block: range) -> _BlockRun:
         """One block's trips (indices ``block``), in order."""
@@ -344,32 +350,32 @@ def _block_runs(
             if k != block.start:
                 pay_before[k] = pay[k - 1]
             if broken:
-                rows.append((*_not_simulated(tr, n), f"not simulated: {broken}"))
-                if after is not None:
-                    after(k, rows[-1])
-                continue
-            start = float(max(ramps[k, 0], prev_end))
-            ramp_end = float(max(ramps[k, 1], start + 1e-3))
-            try:
-                payloads = (float(pay_before[k]), float(pay[k]))
-                res = _simulate_trip(plan, tr, names, prm, start, ramp_end, payloads, state)
-            except ValueError as exc:
-                failures.append(f"trip {tr.trip_id}: {exc}")
-                broken = f"trip {tr.trip_id} before it could not be simulated ({exc})"
-                rows.append((*_not_simulated(tr, n), f"simulation failed: {exc}"))
-                if after is not None:
-                    after(k, rows[-1])
-                continue
-            reason = ""
-            if not res.ok:
-                failures.append(f"trip {tr.trip_id}: {res.message}")
-                reason = f"simulation failed: {res.message}"
-                broken = f"trip {tr.trip_id} before it could not be simulated ({res.message})"
-            state = res.final_state
-            scored, ramp_sim, prev_end = _at_scored_samples(tr, res, start, n, prev_end)
-            rows.append((scored, ramp_sim, reason))
+                row = (*_not_simulated(tr, n), f"not simulated: {broken}")
+            else:
+                start = float(max(ramps[k, 0], prev_end))
+                ramp_end = float(max(ramps[k, 1], start + 1e-3))
+                try:
+                    payloads = (float(pay_before[k]), float(pay[k]))
+                    with gate:
+                        res = _simulate_trip(plan, tr, names, prm, start, ramp_end, payloads, state)
+                except ValueError as exc:
+                    failures.append(f"trip {tr.trip_id}: {exc}")
+                    broken = f"trip {tr.trip_id} before it could not be simulated ({exc})"
+                    row = (*_not_simulated(tr, n), f"simulation failed: {exc}")
+                else:
+                    reason = ""
+                    if not res.ok:
+                        failures.append(f"trip {tr.trip_id}: {res.message}")
+                        reason = f"simulation failed: {res.message}"
+                        broken = (
+                            f"trip {tr.trip_id} before it could not be simulated ({res.message})"
+                        )
+                    state = res.final_state
+                    scored, ramp_sim, prev_end = _at_scored_samples(tr, res, start, n, prev_end)
+                    row = (scored, ramp_sim, reason)
+            rows.append(row)
             if after is not None:
-                after(k, rows[-1])
+                after(k, row)
         return rows, failures
 
     return [functools.partial(run, block) for block in blocks]
@@ -415,7 +421,8 @@ def _run_tasks(tasks: Sequence[Callable[[], T]], costs: Sequence[float]) -> list
 #: every 20th (one run each, back to back).
 REPLAY_JACOBIAN_EVERY = 40
 
-#: Threads a replay runs its blocks on: the cores this process may use
+#: Threads a replay runs its blocks on, and the simulations a fitted replay's pipelined
+#: passes run at once (:class:`_FittedPasses`): the cores this process may use
 #: (:func:`usable_cores`).
 REPLAY_THREADS = usable_cores()
 
@@ -469,7 +476,7 @@ def replay_fitted(
 
     A trip's inputs in a pass are its own answer in the pass before (and the state its
     block's previous trip left in this pass), so the passes run as a pipeline
-    (:func:`_pipelined_passes`): a block's second pass follows its first a trip behind,
+    (:class:`_FittedPasses`): a block's second pass follows its first a trip behind,
     on the cores a single long block (the sanity check's chain of a whole day) left
     idle. The result is the same as pass after pass, to the last bit.
     """
@@ -478,104 +485,137 @@ def replay_fitted(
     parameters = _parameters(plan, names, parameters)
     gain, _ = sensor_gain_offset(hoist, names, parameters)
     scale = hoist.ropes_n * hoist.cylinders.bore_area_m2 / G_STANDARD / float(gain.mean())
-    pay, pay_before, ramps = replay_inputs(plan, names, parameters, payload_kg, None, ramps_s)
-    results = _pipelined_passes(
-        plan, names, parameters, (pay, pay_before, ramps), max(passes, 1), scale
-    )
-    for result in results[:-1]:
-        if not any(np.isfinite(sim).any() for sim in result.simulated):
-            return result  # nothing simulated: nothing to fit (a failed trip leaves the others)
-    return results[-1]
+    first = replay_inputs(plan, names, parameters, payload_kg, None, ramps_s)
+    return _FittedPasses(plan, names, parameters, first, max(passes, 1), scale).run()
 
 
-def _pipelined_passes(
-    plan: ReplayPlan,
-    names: frozenset[str],
-    prm: dict[str, dict[str, Any]],
-    first: tuple[np.ndarray, np.ndarray, np.ndarray],
-    passes: int,
-    scale: float,
-) -> list[ReplayResult]:
+_Row = tuple[np.ndarray, np.ndarray, str]
+
+
+class _Abandoned(RuntimeError):
+    """A pass given up because another task of the same fit raised."""
+
+
+class _FittedPasses:
     """Every pass of :func:`replay_fitted` (``first``: pass 1's payloads after and before
     loading and ramps; ``scale``: kg per Pa of common-mode residual), each block of each
     pass a task. Pass j's trip k waits for pass j-1's trip k, whose residual sets its
-    payload and ramp; the tasks are queued pass by pass, so a task's inputs come from
-    tasks queued before it, and one thread (:data:`_ONE_THREAD`, or one core) runs them in
-    that order.
-    """
-    blocks = _blocks(plan)
-    count = len(plan.trips)
-    pay, pay_before, ramps = first
-    inputs = [(pay, pay_before.copy(), ramps)] + [
-        (np.full(count, np.nan), pay_before.copy(), np.full((count, 2), np.nan))
-        for _ in range(passes - 1)
-    ]
-    rows: list[list[tuple[np.ndarray, np.ndarray, str] | None]] = [
-        [None] * count for _ in range(passes)
-    ]
-    done = [[threading.Event() for _ in range(count)] for _ in range(passes)]
+    payload and ramp. The tasks are queued pass by pass, so a task's inputs come from
+    tasks queued before it: one thread (:data:`_ONE_THREAD`, or one core) runs them in
+    that order, else each task has a thread and a semaphore lets at most
+    :data:`REPLAY_THREADS` of them simulate at once (a task waiting for the pass before
+    holds none). A pass's rows are let go once the next pass has read them and the pass
+    has simulated something (else it may be the result); a task that raises stops the
+    others at their next trip, and its error is the one raised."""
 
-    def answered(j: int) -> Callable[[int, tuple[np.ndarray, np.ndarray, str]], None]:
-        def after(k: int, row: tuple[np.ndarray, np.ndarray, str]) -> None:
-            rows[j][k] = row
-            done[j][k].set()
-
-        return after
-
-    def fitted(j: int) -> Callable[[int], None]:
-        def before(k: int) -> None:
-            """Pass j's payload and ramp of trip k from pass j-1's answer for it."""
-            done[j - 1][k].wait()
-            row = rows[j - 1][k]
-            if row is None:  # the task of the pass before failed: its error is raised
-                raise RuntimeError(f"replay pass {j} of trip {k} failed")
-            tr = plan.trips[k]
-            r = np.where(tr.valid, tr.measured_pa - row[0], np.nan)
-            dp = float(np.nanmean(r)) if np.isfinite(r).any() else 0.0
-            inputs[j][0][k] = np.maximum(inputs[j - 1][0][k] + dp * scale, 0.0)
-            inputs[j][2][k] = _refine_ramp(tr, row[1], inputs[j - 1][2][k], dp)
-
-        return before
-
-    def released(j: int, task: Callable[[], _BlockRun], block: range) -> _BlockRun:
-        try:
-            return task()
-        finally:  # a task that raised: the next pass's waits end (and raise)
-            for k in block:
-                done[j][k].set()
-
-    tasks = []
-    for j, (p, pb, rp) in enumerate(inputs):
-        hooks = (fitted(j) if j else None, answered(j))
-        runs = _block_runs(plan, blocks, names, prm, p, pb, rp, *hooks)
-        tasks += [
-            functools.partial(released, j, run, b) for run, b in zip(runs, blocks, strict=True)
+    def __init__(
+        self,
+        plan: ReplayPlan,
+        names: frozenset[str],
+        prm: dict[str, dict[str, Any]],
+        first: tuple[np.ndarray, np.ndarray, np.ndarray],
+        passes: int,
+        scale: float,
+    ) -> None:
+        self.plan, self.names, self.prm, self.scale = plan, names, prm, scale
+        count = len(plan.trips)
+        pay, pay_before, ramps = first
+        self.inputs = [(pay, pay_before.copy(), ramps)] + [
+            (np.full(count, np.nan), pay_before.copy(), np.full((count, 2), np.nan))
+            for _ in range(passes - 1)
         ]
-    if _ONE_THREAD.get() or REPLAY_THREADS <= 1 or len(tasks) == 1:
-        ran = [task() for task in tasks]
-    else:  # every task its thread: those waiting take no core, the others share them
-        with ThreadPoolExecutor(max_workers=len(tasks)) as pool:
-            ran = [future.result() for future in [pool.submit(task) for task in tasks]]
-    results = []
-    for j, (p, pb, rp) in enumerate(inputs):
-        of_pass = ran[j * len(blocks) : (j + 1) * len(blocks)]
-        block_rows = [row for found, _ in of_pass for row in found]
-        failures = [f for _, found in of_pass for f in found]
-        results.append(
-            ReplayResult(
-                simulated=tuple(r[0] for r in block_rows),
-                payload_kg=p,
-                payload_before_kg=pb,
-                effects=names,
-                parameters=prm,
-                status="failed" if failures else "success",
-                message="; ".join(failures),
-                ramp_simulated=tuple(r[1] for r in block_rows),
-                ramps_s=rp,
-                trip_messages=tuple(r[2] for r in block_rows),
-            )
+        self.rows: list[list[_Row | None]] = [[None] * count for _ in range(passes)]
+        self.done = [[threading.Event() for _ in range(count)] for _ in range(passes)]
+        self.finite = [False] * passes  # the pass simulated something (read by the next)
+        self.stop = threading.Event()
+        self.errors: list[BaseException] = []
+
+    def before(self, j: int, k: int) -> None:
+        """Pass j's payload and ramp of trip k from pass j-1's answer for it."""
+        if j:
+            self.done[j - 1][k].wait()
+        if self.stop.is_set():
+            raise _Abandoned(f"replay pass {j + 1} of trip {k} given up")
+        if not j:
+            return
+        row = self.rows[j - 1][k]
+        assert row is not None  # set before its event, freed only after this read
+        tr = self.plan.trips[k]
+        r = np.where(tr.valid, tr.measured_pa - row[0], np.nan)
+        dp = float(np.nanmean(r)) if np.isfinite(r).any() else 0.0
+        pay, _, ramps = self.inputs[j]
+        pay[k] = np.maximum(self.inputs[j - 1][0][k] + dp * self.scale, 0.0)
+        ramps[k] = _refine_ramp(tr, row[1], self.inputs[j - 1][2][k], dp)
+        if np.isfinite(row[0]).any():
+            self.finite[j - 1] = True
+        if self.finite[j - 1]:  # not this pass's result: let its rows go
+            self.rows[j - 1][k] = None
+
+    def after(self, j: int, k: int, row: _Row) -> None:
+        self.rows[j][k] = row
+        self.done[j][k].set()
+
+    def task(self, j: int, run: Callable[[], _BlockRun], block: range) -> list[str]:
+        """Block ``block`` of pass j; its failures (its rows are kept by :meth:`after`)."""
+        try:
+            return run()[1]
+        except _Abandoned:
+            raise
+        except BaseException as error:
+            self.errors.append(error)
+            self.stop.set()
+            raise
+        finally:  # a task that raised: the next pass's waits end (and give up)
+            for k in block:
+                self.done[j][k].set()
+
+    def run(self) -> ReplayResult:
+        blocks = _blocks(self.plan)
+        gate = threading.BoundedSemaphore(max(REPLAY_THREADS, 1))
+        tasks = []
+        for j, (pay, pay_before, ramps) in enumerate(self.inputs):
+            hooks = (functools.partial(self.before, j), functools.partial(self.after, j), gate)
+            runs = _block_runs(self.plan, blocks, self.names, self.prm, pay, pay_before, ramps,
+                               *hooks)  # fmt: skip
+            tasks += [
+                functools.partial(self.task, j, *job) for job in zip(runs, blocks, strict=True)
+            ]
+        if _ONE_THREAD.get() or REPLAY_THREADS <= 1 or len(tasks) <= 1:
+            failures = [task() for task in tasks]
+        else:  # every task its thread: those waiting take no core, the gate bounds the rest
+            with ThreadPoolExecutor(max_workers=len(tasks)) as pool:
+                futures = [pool.submit(task) for task in tasks]
+                try:
+                    concurrent.futures.wait(futures)
+                except BaseException:  # interrupted: the tasks give up at their next trip
+                    self.stop.set()
+                    raise
+            if self.errors:
+                raise self.errors[0]
+            failures = [future.result() for future in futures]
+        last = len(self.inputs) - 1
+        # the first pass that simulated nothing is the result: nothing to fit
+        j = next((j for j in range(last) if not self.finite[j]), last)
+        of_pass = failures[j * len(blocks) : (j + 1) * len(blocks)]
+        return self.result(j, [failure for block in of_pass for failure in block])
+
+    def result(self, j: int, failures: list[str]) -> ReplayResult:
+        """Pass j's result (every row of it still held: its last, or it simulated nothing)."""
+        rows = [row for row in self.rows[j] if row is not None]
+        assert len(rows) == len(self.plan.trips)
+        pay, pay_before, ramps = self.inputs[j]
+        return ReplayResult(
+            simulated=tuple(row[0] for row in rows),
+            payload_kg=pay,
+            payload_before_kg=pay_before,
+            effects=self.names,
+            parameters=self.prm,
+            status="failed" if failures else "success",
+            message="; ".join(failures),
+            ramp_simulated=tuple(row[1] for row in rows),
+            ramps_s=ramps,
+            trip_messages=tuple(row[2] for row in rows),
         )
-    return results
 
 
 #: A choice the replay reads off the record (the ropes' damping and stiffness spread, the

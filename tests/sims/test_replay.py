@@ -92,58 +92,115 @@ def test_many_replays_sharing_the_threads_are_each_replay_alone(two_blocks, monk
     assert together[1].effects != together[0].effects
 
 
-def _pass_after_pass(plan, payloads, passes):
-    """:func:`sims.replay.replay_fitted`'s documented fit, one whole pass after the other
-    with :func:`sims.replay.replay`: each trip's payload moved by its mean residual x
-    n A / g, its ramp by the Gauss-Newton step, the trips re-simulated."""
+def _pass_after_pass(plan, passes, payload_kg=None):
+    """``replay_fitted`` as it was before its passes ran as a pipeline (session 47), one
+    whole pass after the other with :func:`sims.replay.replay`: the reference."""
+    R = replay_module
     hoist = plan.hoist
-    scale = hoist.ropes_n * hoist.cylinders.bore_area_m2 / replay_module.G_STANDARD
-    result = replay_module.replay(plan, payload_kg=payloads)
+    names = frozenset(hoist.model.effects)
+    parameters = R._parameters(plan, names, None)
+    gain, _ = R.sensor_gain_offset(hoist, names, parameters)
+    scale = hoist.ropes_n * hoist.cylinders.bore_area_m2 / R.G_STANDARD / float(gain.mean())
+    result = R.replay(plan, effects=names, parameters=parameters, payload_kg=payload_kg)
     for _ in range(passes - 1):
-        dp = np.array([
-            np.nanmean(r) if np.isfinite(r).any() else 0.0 for r in result.residuals(plan)
-        ])  # fmt: skip
-        fitted = zip(plan.trips, result.ramp_simulated, result.ramps_s, dp, strict=True)
-        ramps = np.array([replay_module._refine_ramp(*trip) for trip in fitted])
-        result = replay_module.replay(
-            plan,
-            payload_kg=np.maximum(result.payload_kg + dp * scale, 0.0),
-            payload_before_kg=result.payload_before_kg,
-            ramps_s=ramps,
+        if not any(np.isfinite(sim).any() for sim in result.simulated):
+            break  # nothing simulated: nothing to fit (a failed trip leaves the others)
+        dp = np.array(
+            [float(np.nanmean(r)) if np.isfinite(r).any() else 0.0 for r in result.residuals(plan)]
         )
+        pay = np.maximum(result.payload_kg + dp * scale, 0.0)
+        ramps = np.array([
+            R._refine_ramp(tr, sr, rp, d)
+            for tr, sr, rp, d in zip(
+                plan.trips, result.ramp_simulated, result.ramps_s, dp, strict=True
+            )
+        ])  # fmt: skip
+        result = R.replay(plan, effects=names, parameters=parameters, payload_kg=pay,
+                          payload_before_kg=result.payload_before_kg, ramps_s=ramps)  # fmt: skip
     return result
 
 
-@pytest.mark.parametrize("blocks", [1, 2])
-def test_fitted_passes_run_as_a_pipeline_give_pass_after_pass(two_blocks, blocks, monkeypatch):
+def _one_chain(plan):
+    """The plan's trips as one block (the sanity check's chain of a whole record)."""
+    trips = tuple(
+        dataclasses.replace(tr, block=0, first_in_block=k == 0) for k, tr in enumerate(plan.trips)
+    )
+    return dataclasses.replace(plan, trips=trips)
+
+
+PAYLOADS = np.array([9000.0, 8000.0, 10000.0, 7000.0, 8500.0])
+
+
+@pytest.mark.parametrize(
+    ("case", "passes"),
+    [("two blocks", 3), ("one chain", 3), ("static payloads", 2), ("a trip fails", 3),
+     ("nothing simulates", 3), ("no trip", 3), ("one pass", 1)],
+)  # fmt: skip
+def test_fitted_passes_run_as_a_pipeline_give_pass_after_pass(
+    two_blocks, case, passes, monkeypatch
+):
     """The passes of ``replay_fitted`` run as a pipeline (a trip's next pass starts once
     its own pass is done), each block and pass on a thread: the result is exactly the
-    passes one after the other, as on one thread, for one chain and for two blocks."""
-    plan = two_blocks
-    if blocks == 1:  # every trip in one chain: the first starts the history
-        plan = dataclasses.replace(
-            plan,
-            trips=tuple(dataclasses.replace(tr, block=0, first_in_block=k == 0)
-                        for k, tr in enumerate(plan.trips)),
-        )  # fmt: skip
-    payloads = np.array([9000.0, 8000.0, 10000.0, 7000.0, 8500.0])
+    parent's passes one after the other, as on one thread -- for one chain, two blocks,
+    payloads from the static pressure, a trip that fails (its block's later trips not
+    simulated), a fit where nothing simulates (the first pass is the result) and a plan
+    without trips."""
+    plan = _one_chain(two_blocks) if case == "one chain" else two_blocks
+    payloads = None if case == "static payloads" else PAYLOADS
+    if case == "a trip fails":  # block 2 fails at trip 3
+        payloads = np.where(np.arange(5) == 3, np.nan, PAYLOADS)
+    if case == "nothing simulates":
+        payloads = np.full(5, np.nan)
+    if case == "no trip":
+        plan = dataclasses.replace(plan, trips=())
+        payloads = np.zeros(0)
     monkeypatch.setattr(replay_module, "REPLAY_THREADS", 1)
-    want = _pass_after_pass(plan, payloads, 3)
+    want = _pass_after_pass(plan, passes, payloads)
     monkeypatch.setattr(replay_module, "REPLAY_THREADS", 2)
-    piped = replay_module.replay_fitted(plan, passes=3, payload_kg=payloads)
+    piped = replay_module.replay_fitted(plan, passes=passes, payload_kg=payloads)
     one = replay_module.side_by_side(
-        [lambda: replay_module.replay_fitted(plan, passes=3, payload_kg=payloads)]
+        [lambda: replay_module.replay_fitted(plan, passes=passes, payload_kg=payloads)]
     )[0]
-    assert want.status == "success"
-    assert not np.array_equal(want.payload_kg, payloads)  # the passes moved them
+    expected_status = {"a trip fails": "failed", "nothing simulates": "failed"}
+    assert want.status == expected_status.get(case, "success")
+    if case in ("two blocks", "one chain", "static payloads"):  # the passes moved them
+        initial = replay_module.replay(plan).payload_kg if payloads is None else payloads
+        assert not np.array_equal(want.payload_kg, initial)
     for got in (piped, one):
-        assert (got.status, got.trip_messages) == (want.status, want.trip_messages)
+        assert (got.status, got.message, got.trip_messages) == (
+            want.status,
+            want.message,
+            want.trip_messages,
+        )
         for name in ("payload_kg", "payload_before_kg", "ramps_s"):
             np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
         for a, b in zip(
             got.simulated + got.ramp_simulated, want.simulated + want.ramp_simulated, strict=True
         ):
             np.testing.assert_array_equal(a, b)
+
+
+def test_an_error_in_a_later_pass_is_raised_and_the_others_stop(two_blocks, monkeypatch):
+    """A simulation that raises in the second pass: that error is raised (not the other
+    tasks' giving up), no task hangs, and the passes after it stop at their next trip."""
+
+    class Broken(Exception):
+        pass
+
+    calls = []
+    real = replay_module._simulate_trip
+
+    def simulate(plan, tr, *args):
+        calls.append(tr.trip_id)
+        if tr.trip_id == 3 and calls.count(3) == 2:  # trip 3's second pass
+            raise Broken("the device broke")
+        return real(plan, tr, *args)
+
+    monkeypatch.setattr(replay_module, "_simulate_trip", simulate)
+    monkeypatch.setattr(replay_module, "REPLAY_THREADS", 2)
+    with pytest.raises(Broken, match="the device broke"):
+        replay_module.replay_fitted(two_blocks, passes=3, payload_kg=PAYLOADS)
+    assert len(calls) < 3 * len(two_blocks.trips)  # the third pass did not run whole
 
 
 def test_a_planned_trip_holds_what_it_was_planned_with(two_blocks):

@@ -35,7 +35,7 @@ one plan with all their blocks on one pool, the longest first (a discovery term'
 finite-difference steps, its candidates switched on); :func:`side_by_side` runs a
 choice's candidate fits side by side; :func:`replay_fitted`'s passes run as a
 pipeline, each trip's next pass as soon as its own pass is done (a whole day's chain of
-66 trips on validation day 104, three passes: 22.7 -> 12.8 s, the result the same to the
+66 trips on validation day 104, three passes: 22.4 -> 11.9 s, the result the same to the
 last bit; session 48); the Jacobian is refreshed every :data:`REPLAY_JACOBIAN_EVERY`
 steps. On the independent simulator's trials records
 (2 h, 12 trips in 4 blocks, 2 cores; ``benchmarks/eval_discovery.py --trials``)
@@ -421,8 +421,8 @@ def _run_tasks(tasks: Sequence[Callable[[], T]], costs: Sequence[float]) -> list
 #: every 20th (one run each, back to back).
 REPLAY_JACOBIAN_EVERY = 40
 
-#: Threads a replay runs its blocks on, and the simulations a fitted replay's pipelined
-#: passes run at once (:class:`_FittedPasses`): the cores this process may use
+#: Threads a replay runs its blocks on (a fitted replay's pipelined passes simulate one
+#: more at once, :class:`_FittedPasses`): the cores this process may use
 #: (:func:`usable_cores`).
 REPLAY_THREADS = usable_cores()
 
@@ -503,10 +503,13 @@ class _FittedPasses:
     payload and ramp. The tasks are queued pass by pass, so a task's inputs come from
     tasks queued before it: one thread (:data:`_ONE_THREAD`, or one core) runs them in
     that order, else each task has a thread and a semaphore lets at most
-    :data:`REPLAY_THREADS` of them simulate at once (a task waiting for the pass before
-    holds none). A pass's rows are let go once the next pass has read them and the pass
-    has simulated something (else it may be the result); a task that raises stops the
-    others at their next trip, and its error is the one raised."""
+    :data:`REPLAY_THREADS` + 1 of them simulate at once (a task waiting for the pass
+    before holds none; one more than the cores, as a trip's simulation holds the GIL
+    while it prepares and reads out: validation day 104's chain of 66 trips, three passes,
+    15.4 s with two, 11.9 s with three, 22.4 s pass after pass). A pass's rows are let
+    go once the next pass has read them and the pass has simulated something (else it
+    may be the result); a task that raises stops the others at their next trip, and its
+    error is the one raised."""
 
     def __init__(
         self,
@@ -571,7 +574,7 @@ class _FittedPasses:
 
     def run(self) -> ReplayResult:
         blocks = _blocks(self.plan)
-        gate = threading.BoundedSemaphore(max(REPLAY_THREADS, 1))
+        gate = threading.BoundedSemaphore(REPLAY_THREADS + 1)
         tasks = []
         for j, (pay, pay_before, ramps) in enumerate(self.inputs):
             hooks = (functools.partial(self.before, j), functools.partial(self.after, j), gate)

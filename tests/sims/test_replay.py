@@ -56,6 +56,22 @@ def test_blocks_on_threads_replay_as_each_block_alone(two_blocks, monkeypatch):
     assert threaded.payload_before_kg[3] == payloads[2]
 
 
+def _assert_same_replay(got, want):
+    """The two replays' results are equal to the last bit."""
+    assert (got.status, got.message, got.trip_messages, got.effects) == (
+        want.status,
+        want.message,
+        want.trip_messages,
+        want.effects,
+    )
+    for name in ("payload_kg", "payload_before_kg", "ramps_s"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
+    for a, b in zip(
+        got.simulated + got.ramp_simulated, want.simulated + want.ramp_simulated, strict=True
+    ):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_many_replays_sharing_the_threads_are_each_replay_alone(two_blocks, monkeypatch):
     """``replay_many`` runs the blocks of all its runs on one pool, longest first: each
     result must be exactly the replay of its run alone, on one thread."""
@@ -75,18 +91,7 @@ def test_many_replays_sharing_the_threads_are_each_replay_alone(two_blocks, monk
     assert [r.status for r in together] == ["success"] * 3 + ["failed"]
     assert "not simulated" in together[3].trip_messages[4]
     for got, want in zip(together, alone, strict=True):
-        assert (got.status, got.message, got.trip_messages, got.effects) == (
-            want.status,
-            want.message,
-            want.trip_messages,
-            want.effects,
-        )
-        for name in ("payload_kg", "payload_before_kg", "ramps_s"):
-            np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
-        for a, b in zip(
-            got.simulated + got.ramp_simulated, want.simulated + want.ramp_simulated, strict=True
-        ):
-            np.testing.assert_array_equal(a, b)
+        _assert_same_replay(got, want)
     # the runs differ: the payloads and the effects reach the simulation
     assert not np.array_equal(together[0].simulated[0], together[2].simulated[0])
     assert together[1].effects != together[0].effects
@@ -167,17 +172,7 @@ def test_fitted_passes_run_as_a_pipeline_give_pass_after_pass(
         initial = replay_module.replay(plan).payload_kg if payloads is None else payloads
         assert not np.array_equal(want.payload_kg, initial)
     for got in (piped, one):
-        assert (got.status, got.message, got.trip_messages) == (
-            want.status,
-            want.message,
-            want.trip_messages,
-        )
-        for name in ("payload_kg", "payload_before_kg", "ramps_s"):
-            np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
-        for a, b in zip(
-            got.simulated + got.ramp_simulated, want.simulated + want.ramp_simulated, strict=True
-        ):
-            np.testing.assert_array_equal(a, b)
+        _assert_same_replay(got, want)
 
 
 def test_an_error_in_a_later_pass_is_raised_and_the_others_stop(two_blocks, monkeypatch):

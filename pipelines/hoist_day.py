@@ -62,8 +62,9 @@ logger = logging.getLogger("pipelines.backfill")
 #: block's first trips replay worse than the same trips in the day's chain: on the four
 #: validation days (``benchmarks/eval_sanity.py``) every trip in the chain passed 251 of
 #: 263 (95.4 %), 20 sampled 68 of 76 (89.5 %), half of the failures a block's first
-#: trip. The cost, a simulated 24 h, 100 Hz day of 120 trips: 69 s for every trip, 41-47
-#: s for 20 (the record's reading, ~35 s, is paid either way); ``--sanity-trips`` samples.
+#: trip. The cost, a simulated 24 h, 100 Hz day of 120 trips (``benchmarks/bench_sanity.py``):
+#: 74 s for every trip, 39 s for 20 (the record's reading, ~35 s, is paid either way);
+#: ``--sanity-trips`` samples.
 SANITY_TRIPS: int | None = None
 
 

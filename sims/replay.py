@@ -272,21 +272,32 @@ def replay_many(plan: ReplayPlan, runs: Sequence[Mapping[str, Any]]) -> list[Rep
         ran = [next(done) for _ in blocks]
         rows = [row for block_rows, _ in ran for row in block_rows]
         failures = [f for _, block_failures in ran for f in block_failures]
-        results.append(
-            ReplayResult(
-                simulated=tuple(r[0] for r in rows),
-                payload_kg=pay,
-                payload_before_kg=pay_before,
-                effects=names,
-                parameters=prm,
-                status="failed" if failures else "success",
-                message="; ".join(failures),
-                ramp_simulated=tuple(r[1] for r in rows),
-                ramps_s=ramps,
-                trip_messages=tuple(r[2] for r in rows),
-            )
-        )
+        results.append(_result(rows, failures, names, prm, (pay, pay_before, ramps)))
     return results
+
+
+def _result(
+    rows: Sequence[tuple[np.ndarray, np.ndarray, str]],
+    failures: Sequence[str],
+    names: frozenset[str],
+    prm: dict[str, dict[str, Any]],
+    inputs: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> ReplayResult:
+    """A replay's result from its trips' rows (:func:`_block_runs`), in trip order, its
+    blocks' failures and its inputs (payloads after and before loading, ramps)."""
+    pay, pay_before, ramps = inputs
+    return ReplayResult(
+        simulated=tuple(r[0] for r in rows),
+        payload_kg=pay,
+        payload_before_kg=pay_before,
+        effects=names,
+        parameters=prm,
+        status="failed" if failures else "success",
+        message="; ".join(failures),
+        ramp_simulated=tuple(r[1] for r in rows),
+        ramps_s=ramps,
+        trip_messages=tuple(r[2] for r in rows),
+    )
 
 
 def _parameters(
@@ -606,19 +617,7 @@ class _FittedPasses:
         """Pass j's result (every row of it still held: its last, or it simulated nothing)."""
         rows = [row for row in self.rows[j] if row is not None]
         assert len(rows) == len(self.plan.trips)
-        pay, pay_before, ramps = self.inputs[j]
-        return ReplayResult(
-            simulated=tuple(row[0] for row in rows),
-            payload_kg=pay,
-            payload_before_kg=pay_before,
-            effects=self.names,
-            parameters=self.prm,
-            status="failed" if failures else "success",
-            message="; ".join(failures),
-            ramp_simulated=tuple(row[1] for row in rows),
-            ramps_s=ramps,
-            trip_messages=tuple(row[2] for row in rows),
-        )
+        return _result(rows, failures, self.names, self.prm, self.inputs[j])
 
 
 #: A choice the replay reads off the record (the ropes' damping and stiffness spread, the

@@ -72,6 +72,7 @@ from zoneinfo import ZoneInfo
 
 import numpy as np
 import polars as pl
+from record_parts import split_record  # the sibling script
 
 from physics.rope_spring import head_rope_stiffness_n_m
 from pipelines.identified_ropes import identified_ropes
@@ -379,22 +380,13 @@ def in_parts(case: DayCase, parts: int) -> list[DayCase]:
     parts are more days of the same kind, not more windows of the same day."""
     if parts <= 1:
         return [case]
-    lines = case.csv.read_text().splitlines(keepends=True)
-    header = next(i for i, line in enumerate(lines) if not line.startswith("#")) + 1
-    rows = [line for line in lines[header:] if line.strip()]
-    if len(rows) < parts:
-        raise ValueError(f"{case.csv.name}: {len(rows)} rows cannot be cut into {parts} parts")
-    delimiter = ";" if lines[header - 1].count(";") > lines[header - 1].count(",") else ","
-    keys = dict(line.lstrip("#").split(":", 1) for line in lines[: header - 1] if ":" in line)
-    zone = ZoneInfo({k.strip(): v.strip() for k, v in keys.items()}.get("timezone", "UTC"))
     cases = []
-    for k in range(parts):
-        chunk = rows[k * len(rows) // parts : (k + 1) * len(rows) // parts]
-        first, last = (_logged_utc(r.split(delimiter, 1)[0], zone) for r in (chunk[0], chunk[-1]))
-        csv = case.csv.with_name(f"{case.csv.stem}-part{k + 1}.csv")
-        csv.write_text("".join(lines[:header] + chunk))
+    for k, part in enumerate(split_record(case.csv, parts)):
+        zone = ZoneInfo(part.header.get("timezone", "UTC"))
+        first, last = (_logged_utc(s, zone) for s in (part.first_stamp, part.last_stamp))
         windows = [w for w in case.windows if first <= w.t0 and w.t1 <= last]
-        cases.append(DayCase(f"{case.name} part {k + 1}/{parts}", csv, case.hoist_path, windows))
+        label = f"{case.name} part {k + 1}/{parts}"
+        cases.append(DayCase(label, part.path, case.hoist_path, windows))
     return cases
 
 

@@ -32,7 +32,15 @@ Prints one line per trial, the confusion matrix (hidden x answered effect, with
 of the hidden effect's variance removed by the added effect, the replay gap on ``none``
 records against the noise, seconds per record, and the issue-14 targets.
 
+``--parts N`` cuts each record into N consecutive records of equal row counts
+(``record_parts.split_record``), each ingested into its own data root and analysed
+alone: exports that start and end wherever the cut falls, mid-trip or mid-stop, more
+records of the kind the targets are judged on (shorter, so an effect shows on fewer
+trips; the key's ``effect_rms_pa``, by which the variance removed is measured, is the
+whole record's).
+
     uv run python benchmarks/eval_discovery.py --trials [DIR] [--only trial_003,...] [--keep DIR]
+                                               [--parts N]
 """
 
 from __future__ import annotations
@@ -147,10 +155,19 @@ def main() -> None:
     ap.add_argument(
         "--keep", type=Path, default=None, metavar="DIR", help="with --trials: work in DIR, keep it"
     )
+    ap.add_argument(
+        "--parts",
+        type=int,
+        default=1,
+        metavar="N",
+        help="with --trials: cut each record into N consecutive records, each analysed alone",
+    )
     args = ap.parse_args()
     if args.trials is not None:
         only = [n.strip() for n in args.only.split(",") if n.strip()] if args.only else None
-        run_trials(args.trials, only, args.keep)
+        if args.parts < 1:
+            ap.error(f"--parts {args.parts}: a whole number >= 1")
+        run_trials(args.trials, only, args.keep, args.parts)
         return
     seeded(args)
 

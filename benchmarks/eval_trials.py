@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from record_parts import split_record  # the sibling script
 
 #: The effects, in the order the seeded trials hide them and the summaries list them.
 EFFECTS = [
@@ -107,32 +108,54 @@ def _record_hours(report: dict[str, Any]) -> float:
     return (b - a).total_seconds() / 3600.0
 
 
-def run_trial(folder: Path, key: dict[str, Any], work: Path) -> TrialOutcome:
+def run_trial(folder: Path, key: dict[str, Any], work: Path, parts: int = 1) -> list[TrialOutcome]:
     """Ingest one trial into its own data root, run ``ropeload discover``'s function
-    over the whole record, read the report JSON back; a crash is caught and named."""
+    over the whole record, read the report JSON back; a crash is caught and named. With
+    ``parts`` > 1 the record is cut into that many consecutive records
+    (:func:`record_parts.split_record`: each starts and ends wherever the cut falls, as
+    an export's), each ingested and analysed on its own: one outcome each, named
+    ``trial_NNN k/parts``; the key's ``effect_rms_pa`` is the whole record's."""
+    name = folder.name
+    inputs = work / "inputs" / name
+    inputs.mkdir(parents=True, exist_ok=True)
+    csv = inputs / f"{name}.csv"
+    hoist_path = inputs / "hoist.toml"
+    with gzip.open(folder / f"{name}.csv.gz", "rb") as src, csv.open("wb") as dst:
+        shutil.copyfileobj(src, dst)
+    shutil.copyfile(folder / "hoist.toml", hoist_path)
+    records = [p.path for p in split_record(csv, parts)] if parts > 1 else [csv]
+    outcomes = []
+    try:
+        for k, record in enumerate(records, start=1):
+            label = name if parts <= 1 else f"{name} {k}/{parts}"
+            stem = name if parts <= 1 else f"{name}-part{k}"
+            outcomes.append(_discover_record(record, hoist_path, label, stem, key, work))
+    finally:
+        for record in {csv, *records}:
+            record.unlink(missing_ok=True)  # 2 h at 50 Hz: ~40 MB each
+    return outcomes
+
+
+def _discover_record(
+    csv: Path, hoist_path: Path, label: str, stem: str, key: dict[str, Any], work: Path
+) -> TrialOutcome:
+    """One record ingested into ``work/data/<stem>`` and discovered, its report in
+    ``work/reports/<stem>.json``."""
     from pipelines.discover import discover_period
     from pipelines.ingest import ingest_paths
     from pipelines.ingest.field_checks import hoist_lookup_from_files
     from warehouse.store import DataRoot
 
-    name = folder.name
     out = TrialOutcome(
-        name=name,
+        name=label,
         hidden=key["hidden_effect"],
         rms_over_noise=float(key["rms_over_noise"]),
         effect_rms_pa=float(key["effect_rms_pa"]),
     )
-    inputs = work / "inputs" / name
-    inputs.mkdir(parents=True, exist_ok=True)
-    csv = inputs / f"{name}.csv"
-    hoist_path = inputs / "hoist.toml"
-    json_path = work / "reports" / f"{name}.json"
+    json_path = work / "reports" / f"{stem}.json"
     started = time.perf_counter()
     try:
-        with gzip.open(folder / f"{name}.csv.gz", "rb") as src, csv.open("wb") as dst:
-            shutil.copyfileobj(src, dst)
-        shutil.copyfile(folder / "hoist.toml", hoist_path)
-        data = DataRoot.resolve(work / "data" / name)
+        data = DataRoot.resolve(work / "data" / stem)
         ingested = ingest_paths(
             [csv], data=data, hoist_lookup=hoist_lookup_from_files([str(hoist_path)])
         )
@@ -151,8 +174,6 @@ def run_trial(folder: Path, key: dict[str, Any], work: Path) -> TrialOutcome:
     except Exception as exc:  # a crash is a finding of the evaluation, not its end
         out.answer = "crash"
         out.reason = _one_line(exc)
-    finally:
-        csv.unlink(missing_ok=True)  # 2 h at 50 Hz: ~40 MB each
     return out
 
 
@@ -187,7 +208,7 @@ def _trial_line(o: TrialOutcome) -> str:
         extra.append(o.reason)
     mark = "ok " if o.answer == o.hidden else "   "
     return (
-        f"{o.name:10s} {o.hidden:22s} {o.rms_over_noise:7.2f} {mark}{answer:26s}"
+        f"{o.name:14s} {o.hidden:22s} {o.rms_over_noise:7.2f} {mark}{answer:26s}"
         f"{_fmt_kpa(r, 'gap_before_pa')}{_fmt_kpa(r, 'gap_after_pa')}{_fmt_kpa(r, 'noise_pa')}"
         f" {_record_hours(r):4.2f} {o.ingest_s:6.1f} {o.discover_s:6.1f} {o.discover_cpu_s:6.1f}  "
         + "; ".join(extra)
@@ -330,8 +351,9 @@ def _print_seconds(outcomes: list[TrialOutcome]) -> list[float]:
     return seconds
 
 
-def evaluate_trials(trials: Path, only: list[str] | None, work: Path) -> None:
-    """Run every trial of ``trials`` (or those named in ``only``) under ``work``."""
+def evaluate_trials(trials: Path, only: list[str] | None, work: Path, parts: int = 1) -> None:
+    """Run every trial of ``trials`` (or those named in ``only``) under ``work``, each
+    record whole or cut into ``parts`` (:func:`run_trial`)."""
     key = json.loads((trials / "answers.json").read_text())
     by_name = {t["trial"]: t for t in key["trials"]}
     folders = sorted(p for p in trials.glob("trial_*") if p.is_dir())
@@ -341,30 +363,31 @@ def evaluate_trials(trials: Path, only: list[str] | None, work: Path) -> None:
             raise SystemExit(f"eval_discovery: no such trial in {trials}: {', '.join(unknown)}")
         folders = [p for p in folders if p.name in only]
     print(
-        f"{'trial':10s} {'hidden effect':22s} {'rms/nse':>7s}    {'answer':26s}"
+        f"{'trial':14s} {'hidden effect':22s} {'rms/nse':>7s}    {'answer':26s}"
         f"{'gap0':>8s}{'gap1':>8s}{'noise':>8s} {'h':>4s} {'ingest':>6s} {'disc':>6s} {'cpu':>6s}"
     )
     outcomes = []
     print(
-        f"{'':10s} {'':22s} {'':7s}    {'':26s}{'kPa':>8s}{'kPa':>8s}{'kPa':>8s} {'':4s}"
+        f"{'':14s} {'':22s} {'':7s}    {'':26s}{'kPa':>8s}{'kPa':>8s}{'kPa':>8s} {'':4s}"
         f" {'s':>6s} {'s':>6s} {'s':>6s}   (gap0/gap1: gap_before/after_pa, h: record hours)"
     )
     for folder in folders:
         if folder.name not in by_name:
             print(f"{folder.name}: not in answers.json, skipped")
             continue
-        outcomes.append(run_trial(folder, by_name[folder.name], work))
-        print(_trial_line(outcomes[-1]), flush=True)
+        for outcome in run_trial(folder, by_name[folder.name], work, parts):
+            outcomes.append(outcome)
+            print(_trial_line(outcome), flush=True)
     if outcomes:
         trials_summary(outcomes, float(key.get("sensor_noise_pa", 5e3)))
 
 
-def run_trials(trials: Path, only: list[str] | None, keep: Path | None) -> None:
+def run_trials(trials: Path, only: list[str] | None, keep: Path | None, parts: int = 1) -> None:
     started = time.perf_counter()
     if keep is not None:
         keep.mkdir(parents=True, exist_ok=True)
-        evaluate_trials(trials, only, keep.absolute())
+        evaluate_trials(trials, only, keep.absolute(), parts)
     else:
         with tempfile.TemporaryDirectory(prefix="ropeload-trials-") as tmp:
-            evaluate_trials(trials, only, Path(tmp))
+            evaluate_trials(trials, only, Path(tmp), parts)
     print(f"\nwall time {time.perf_counter() - started:.0f} s")

@@ -120,11 +120,19 @@ def run_trial(folder: Path, key: dict[str, Any], work: Path, parts: int = 1) -> 
     inputs.mkdir(parents=True, exist_ok=True)
     csv = inputs / f"{name}.csv"
     hoist_path = inputs / "hoist.toml"
-    with gzip.open(folder / f"{name}.csv.gz", "rb") as src, csv.open("wb") as dst:
-        shutil.copyfileobj(src, dst)
-    shutil.copyfile(folder / "hoist.toml", hoist_path)
-    records = [p.path for p in split_record(csv, parts)] if parts > 1 else [csv]
+    records = [csv]
     outcomes = []
+    try:
+        with gzip.open(folder / f"{name}.csv.gz", "rb") as src, csv.open("wb") as dst:
+            shutil.copyfileobj(src, dst)
+        shutil.copyfile(folder / "hoist.toml", hoist_path)
+        if parts > 1:
+            records = [p.path for p in split_record(csv, parts)]
+    except Exception as exc:  # a record that cannot be read is a crash of its trial
+        crashed = _outcome(name, key)
+        crashed.reason = _one_line(exc)
+        csv.unlink(missing_ok=True)
+        return [crashed]
     try:
         for k, record in enumerate(records, start=1):
             label = name if parts <= 1 else f"{name} {k}/{parts}"
@@ -134,6 +142,16 @@ def run_trial(folder: Path, key: dict[str, Any], work: Path, parts: int = 1) -> 
         for record in {csv, *records}:
             record.unlink(missing_ok=True)  # 2 h at 50 Hz: ~40 MB each
     return outcomes
+
+
+def _outcome(label: str, key: dict[str, Any]) -> TrialOutcome:
+    """A trial's outcome before it is analysed (a crash until an answer is read)."""
+    return TrialOutcome(
+        name=label,
+        hidden=key["hidden_effect"],
+        rms_over_noise=float(key["rms_over_noise"]),
+        effect_rms_pa=float(key["effect_rms_pa"]),
+    )
 
 
 def _discover_record(
@@ -146,12 +164,7 @@ def _discover_record(
     from pipelines.ingest.field_checks import hoist_lookup_from_files
     from warehouse.store import DataRoot
 
-    out = TrialOutcome(
-        name=label,
-        hidden=key["hidden_effect"],
-        rms_over_noise=float(key["rms_over_noise"]),
-        effect_rms_pa=float(key["effect_rms_pa"]),
-    )
+    out = _outcome(label, key)
     json_path = work / "reports" / f"{stem}.json"
     started = time.perf_counter()
     try:

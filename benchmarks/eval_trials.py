@@ -122,6 +122,7 @@ def run_trial(folder: Path, key: dict[str, Any], work: Path, parts: int = 1) -> 
     hoist_path = inputs / "hoist.toml"
     records = [csv]
     outcomes = []
+    started = time.perf_counter()
     try:
         with gzip.open(folder / f"{name}.csv.gz", "rb") as src, csv.open("wb") as dst:
             shutil.copyfileobj(src, dst)
@@ -131,8 +132,10 @@ def run_trial(folder: Path, key: dict[str, Any], work: Path, parts: int = 1) -> 
     except Exception as exc:  # a record that cannot be read is a crash of its trial
         crashed = _outcome(name, key)
         crashed.reason = _one_line(exc)
-        csv.unlink(missing_ok=True)
+        for written in [csv, *inputs.glob(f"{csv.stem}-part*.csv")]:
+            written.unlink(missing_ok=True)
         return [crashed]
+    unpacked_s = time.perf_counter() - started  # counted in the first record's ingest
     try:
         for k, record in enumerate(records, start=1):
             label = name if parts <= 1 else f"{name} {k}/{parts}"
@@ -141,6 +144,7 @@ def run_trial(folder: Path, key: dict[str, Any], work: Path, parts: int = 1) -> 
     finally:
         for record in {csv, *records}:
             record.unlink(missing_ok=True)  # 2 h at 50 Hz: ~40 MB each
+    outcomes[0].ingest_s += unpacked_s
     return outcomes
 
 
@@ -195,7 +199,7 @@ def _fmt_kpa(report: dict[str, Any], key: str) -> str:
     return f"{float(value) / 1e3:8.1f}" if value is not None else f"{'-':>8s}"
 
 
-def _trial_line(o: TrialOutcome) -> str:
+def _trial_line(o: TrialOutcome, width: int = 10) -> str:
     r = o.report
     answer = o.answer
     if o.answer == "ambiguous" and r.get("ambiguous_between"):
@@ -221,7 +225,7 @@ def _trial_line(o: TrialOutcome) -> str:
         extra.append(o.reason)
     mark = "ok " if o.answer == o.hidden else "   "
     return (
-        f"{o.name:14s} {o.hidden:22s} {o.rms_over_noise:7.2f} {mark}{answer:26s}"
+        f"{o.name:{width}s} {o.hidden:22s} {o.rms_over_noise:7.2f} {mark}{answer:26s}"
         f"{_fmt_kpa(r, 'gap_before_pa')}{_fmt_kpa(r, 'gap_after_pa')}{_fmt_kpa(r, 'noise_pa')}"
         f" {_record_hours(r):4.2f} {o.ingest_s:6.1f} {o.discover_s:6.1f} {o.discover_cpu_s:6.1f}  "
         + "; ".join(extra)
@@ -375,13 +379,14 @@ def evaluate_trials(trials: Path, only: list[str] | None, work: Path, parts: int
         if unknown:
             raise SystemExit(f"eval_discovery: no such trial in {trials}: {', '.join(unknown)}")
         folders = [p for p in folders if p.name in only]
+    width = 10 if parts <= 1 else len(f"trial_000 {parts}/{parts}")  # the names' column
     print(
-        f"{'trial':14s} {'hidden effect':22s} {'rms/nse':>7s}    {'answer':26s}"
+        f"{'trial':{width}s} {'hidden effect':22s} {'rms/nse':>7s}    {'answer':26s}"
         f"{'gap0':>8s}{'gap1':>8s}{'noise':>8s} {'h':>4s} {'ingest':>6s} {'disc':>6s} {'cpu':>6s}"
     )
     outcomes = []
     print(
-        f"{'':14s} {'':22s} {'':7s}    {'':26s}{'kPa':>8s}{'kPa':>8s}{'kPa':>8s} {'':4s}"
+        f"{'':{width}s} {'':22s} {'':7s}    {'':26s}{'kPa':>8s}{'kPa':>8s}{'kPa':>8s} {'':4s}"
         f" {'s':>6s} {'s':>6s} {'s':>6s}   (gap0/gap1: gap_before/after_pa, h: record hours)"
     )
     for folder in folders:
@@ -390,7 +395,7 @@ def evaluate_trials(trials: Path, only: list[str] | None, work: Path, parts: int
             continue
         for outcome in run_trial(folder, by_name[folder.name], work, parts):
             outcomes.append(outcome)
-            print(_trial_line(outcome), flush=True)
+            print(_trial_line(outcome, width), flush=True)
     if outcomes:
         trials_summary(outcomes, float(key.get("sensor_noise_pa", 5e3)))
 

@@ -21,11 +21,15 @@ def evaluation():
     spec = importlib.util.spec_from_file_location("eval_compensation", SCRIPT)
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # its dataclasses look their module up
+    # its sibling (record_parts), found as when the script runs: its folder on the path
+    sys.path.insert(0, str(SCRIPT.parent))
     try:
         spec.loader.exec_module(module)
         yield module
     finally:
         sys.modules.pop(spec.name, None)
+        sys.modules.pop("record_parts", None)
+        sys.path.remove(str(SCRIPT.parent))
 
 
 def test_truth_ropes_recovers_the_constants_the_windows_obey(evaluation) -> None:
@@ -198,3 +202,33 @@ def test_a_day_in_parts_keeps_every_row_once_and_the_windows_inside_each(
     assert [t[:3] for t in texts] == [header, header]
     assert texts[0][3:] + texts[1][3:] == rows
     assert evaluation.in_parts(case, 1) == [case]
+
+
+def test_a_day_in_parts_is_consecutive_exports_with_the_windows_inside_each(
+    evaluation, tmp_path: Path
+) -> None:
+    """Seven rows of a ';' file in local time (UTC+8) cut in three: 2, 2 and 3 rows in
+    order, each part with the file's header lines, and each truth window in the part
+    that holds it whole (one across a cut is in none)."""
+    header = "# site: s\n# timezone: Asia/Shanghai\ntimestamp;p1;depth\n"
+    rows = [f"2026-03-02 08:00:0{k}.000;49,5{k};0,00\n" for k in range(7)]
+    csv = tmp_path / "day.csv"
+    csv.write_text(header + "".join(rows))
+
+    def window(a: int, b: int):
+        t = dt.datetime(2026, 3, 2, 0, 0, tzinfo=dt.UTC)
+        s = dt.timedelta(seconds=1)
+        return evaluation.Window("arrival", "pithead", t + a * s, t + b * s, 1.0, (1.0,))
+
+    inside_first, across, inside_last = window(0, 1), window(1, 3), window(4, 6)
+    case = evaluation.DayCase("d", csv, tmp_path / "h.toml", [inside_first, across, inside_last])
+    parts = evaluation.in_parts(case, 3)
+    assert [p.name for p in parts] == ["d part 1/3", "d part 2/3", "d part 3/3"]
+    texts = [p.csv.read_text() for p in parts]
+    assert all(t.startswith(header) for t in texts)
+    assert "".join(t[len(header) :] for t in texts) == "".join(rows)
+    assert [t.count("\n") - 3 for t in texts] == [2, 2, 3]
+    assert [p.windows for p in parts] == [[inside_first], [], [inside_last]]
+    assert evaluation.in_parts(case, 1) == [case]
+    with pytest.raises(ValueError, match="7 rows cannot be cut into 8 parts"):
+        evaluation.in_parts(case, 8)

@@ -52,8 +52,15 @@ positions fitted to the spring law), with what each length offset's difference a
 makes of a rope's tension at the pithead at a fixed stretch (-a k dc; the stiffness's
 difference adds about (da / a) T there, which the print leaves out).
 
+``--variant NAME`` writes each record as another logger would have
+(:data:`record_variants.VARIANTS`: no x, no oil temperature, 10 Hz, pressures on a
+10 kPa step, a frozen sensor, an outage, repeated rows...) before it is ingested; the
+truth is the record's own (only what was logged changed). ``--without-x`` is
+``--variant no-x``.
+
     uv run python benchmarks/eval_compensation.py [--days DIR] [--sims N] [--sims-lugre N]
-                                                  [--keep DIR] [--without-x]
+                                                  [--keep DIR] [--without-x] [--parts N]
+                                                  [--variant NAME]
 """
 
 from __future__ import annotations
@@ -72,7 +79,8 @@ from zoneinfo import ZoneInfo
 
 import numpy as np
 import polars as pl
-from record_parts import split_record  # the sibling script
+from record_parts import split_record  # the sibling scripts
+from record_variants import VARIANTS, make_variant
 
 from physics.rope_spring import head_rope_stiffness_n_m
 from pipelines.identified_ropes import identified_ropes
@@ -342,28 +350,15 @@ def sims_case(k: int, work: Path, *, lugre: bool = False) -> DayCase:
     return DayCase(f"{name} (seed {1000 + k})", csv, hoist_path, truth_windows(day.truth, hoist))
 
 
-#: The contract-1a columns of the pistons' displacements (optional in a mine's log).
-X_COLUMNS = ("x1", "x2", "x3", "x4")
-
-
-def without_x(case: DayCase) -> DayCase:
-    """The same day with the pistons' displacement columns taken out of its CSV (a
-    logger without displacement transducers, contract 1a: optional): the compensation
-    then runs on the pressures alone, the ropes unidentified."""
-    lines = case.csv.read_text().splitlines(keepends=True)
-    header = next(i for i, line in enumerate(lines) if not line.startswith("#"))
-    delimiter = ";" if lines[header].count(";") > lines[header].count(",") else ","
-    names = lines[header].rstrip("\r\n").split(delimiter)
-    keep = [i for i, name in enumerate(names) if name.strip() not in X_COLUMNS]
-    if len(keep) == len(names):
-        raise RuntimeError(f"{case.csv}: no {'/'.join(X_COLUMNS)} columns to take out")
-    out = lines[:header]
-    for line in lines[header:]:
-        fields = line.rstrip("\r\n").split(delimiter)
-        out.append(delimiter.join(fields[i] for i in keep) + "\n")
-    csv = case.csv.with_name(f"{case.csv.stem}-without-x.csv")
-    csv.write_text("".join(out))
-    return DayCase(f"{case.name} without x", csv, case.hoist_path, case.windows)
+def as_variant(case: DayCase, variant: str) -> DayCase:
+    """The same day as a logger of ``variant`` would have written it
+    (:func:`record_variants.make_variant`; ``no-x``: the pistons' displacement columns
+    taken out, contract 1a: optional, so the compensation runs on the pressures alone,
+    the ropes unidentified). The truth's windows are the day's."""
+    if not variant:
+        return case
+    csv = make_variant(case.csv, variant)
+    return DayCase(f"{case.name} [{variant}]", csv, case.hoist_path, case.windows)
 
 
 def _logged_utc(text: str, zone: ZoneInfo) -> dt.datetime:
@@ -566,12 +561,12 @@ def _summary(figures: list[dict]) -> None:
 
 
 def evaluate(
-    days: Path, sims: int, work: Path, *, sims_lugre: int = 0, no_x: bool = False, parts: int = 1
+    days: Path, sims: int, work: Path, *, sims_lugre: int = 0, variant: str = "", parts: int = 1
 ) -> None:
     """Evaluate every validation day in ``days`` (each cut in ``parts``,
     :func:`in_parts`), ``sims`` synthetic days and ``sims_lugre`` synthetic days with
-    LuGre seals under ``work`` (``no_x``: each without its pistons' displacements,
-    :func:`without_x`)."""
+    LuGre seals under ``work`` (``variant``: each as another logger would have written
+    it, :func:`as_variant`)."""
     figures = []
     gz_files = sorted(days.glob("*.csv.gz"))
     if not gz_files:
@@ -594,20 +589,20 @@ def evaluate(
             print(f"\n== {name}: FAILED, not evaluated: {one_line(error)}", flush=True)
             continue
         for day in days_of:
-            _evaluate_case(day, work, no_x, figures, failed)
+            _evaluate_case(day, work, variant, figures, failed)
     _summary(figures)
     if failed:
         print(f"  days that failed (target: none): {', '.join(failed)}")
 
 
 def _evaluate_case(
-    case: DayCase, work: Path, no_x: bool, figures: list[dict], failed: list[str]
+    case: DayCase, work: Path, variant: str, figures: list[dict], failed: list[str]
 ) -> None:
     """Compensate one day, print its figures and append them to ``figures`` (its name to
     ``failed`` when it cannot be compensated)."""
     started = time.perf_counter()
     try:
-        case = without_x(case) if no_x else case
+        case = as_variant(case, variant)
         root = work / "data" / case.csv.stem
         tensions = compensate_day(case, root)
     except Exception as error:  # one day's failure is a finding, not the end
@@ -638,7 +633,13 @@ def main() -> None:
     )
     ap.add_argument(
         "--without-x", action="store_true",
-        help="take the pistons' displacements (x1..x4) out of every day's CSV first",
+        help="take the pistons' displacements (x1..x4) out of every day's CSV first "
+        "(--variant no-x)",
+    )  # fmt: skip
+    ap.add_argument(
+        "--variant", choices=sorted(VARIANTS), default="",
+        help="write every day as another logger would have: "
+        + "; ".join(f"{k}: {v[0]}" for k, v in VARIANTS.items()),
     )  # fmt: skip
     ap.add_argument(
         "--parts", type=int, default=1,
@@ -647,7 +648,10 @@ def main() -> None:
     )  # fmt: skip
     args = ap.parse_args()
     started = time.perf_counter()
-    options = {"sims_lugre": args.sims_lugre, "no_x": args.without_x, "parts": args.parts}
+    if args.without_x and args.variant not in ("", "no-x"):
+        ap.error("--without-x is --variant no-x: give one variant")
+    variant = "no-x" if args.without_x else args.variant
+    options = {"sims_lugre": args.sims_lugre, "variant": variant, "parts": args.parts}
     if args.keep is not None:
         args.keep.mkdir(parents=True, exist_ok=True)
         evaluate(args.days, args.sims, args.keep.absolute(), **options)

@@ -39,8 +39,13 @@ records of the kind the targets are judged on (shorter, so an effect shows on fe
 trips; the key's ``effect_rms_pa``, by which the variance removed is measured, is the
 whole record's).
 
+``--variant NAME`` writes each record as another logger would have
+(``record_variants.VARIANTS``: no x, no oil temperature, 10 Hz, pressures on a 10 kPa
+step, a frozen sensor, an outage, repeated rows...) before it is ingested; the key is the
+record's own (only what was logged changed).
+
     uv run python benchmarks/eval_discovery.py --trials [DIR] [--only trial_003,...] [--keep DIR]
-                                               [--parts N]
+                                               [--parts N] [--variant NAME]
 """
 
 from __future__ import annotations
@@ -51,7 +56,8 @@ from collections import Counter, defaultdict
 from pathlib import Path
 
 import numpy as np
-from eval_trials import DEFAULT_TRIALS, EFFECTS, run_trials  # the sibling script
+from eval_trials import DEFAULT_TRIALS, EFFECTS, run_trials  # the sibling scripts
+from record_variants import VARIANTS
 
 from discovery import discover_effects
 from discovery.cases import EXTRA, hidden_case
@@ -162,12 +168,18 @@ def main() -> None:
         metavar="N",
         help="with --trials: cut each record into N consecutive records, each analysed alone",
     )
+    ap.add_argument(
+        "--variant",
+        choices=sorted(VARIANTS),
+        default="",
+        help="with --trials: write each record as another logger would have first",
+    )
     args = ap.parse_args()
     if args.trials is not None:
         only = [n.strip() for n in args.only.split(",") if n.strip()] if args.only else None
         if args.parts < 1:
             ap.error(f"--parts {args.parts}: a whole number >= 1")
-        run_trials(args.trials, only, args.keep, args.parts)
+        run_trials(args.trials, only, args.keep, args.parts, args.variant)
         return
     seeded(args)
 

@@ -29,9 +29,11 @@ encoder's logged speed instead of the winder profile.
 
 ``--parts N`` cuts each day into N consecutive records (``eval_compensation.in_parts``),
 each ingested, run and checked as a day of its own: records that start wherever an export
-cut them, more days of the same kind.
+cut them, more days of the same kind. ``--variant NAME`` writes each record as another
+logger would have first (``eval_compensation.as_variant``, ``record_variants.VARIANTS``).
 
     uv run python benchmarks/eval_sanity.py [--days DIR] [--only NAMES] [--motion M] [--parts N]
+                                            [--variant NAME]
 """
 
 from __future__ import annotations
@@ -54,7 +56,8 @@ from transforms.kinematics import position_expr
 from warehouse.store import DataRoot, open_reader
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from eval_compensation import DEFAULT_DAYS, DayCase, in_parts, validation_case
+from eval_compensation import DEFAULT_DAYS, DayCase, as_variant, in_parts, validation_case
+from record_variants import VARIANTS
 
 #: Issue 14 target: share of a complete model's trips that pass.
 TARGET_PASS = 0.95
@@ -163,6 +166,10 @@ def main() -> None:
         help="cut each day into N consecutive records, each checked as a day of its own "
         "(eval_compensation.in_parts; default 1: whole)",
     )  # fmt: skip
+    ap.add_argument(
+        "--variant", choices=sorted(VARIANTS), default="",
+        help="write each day as another logger would have first (eval_compensation.as_variant)",
+    )  # fmt: skip
     args = ap.parse_args()
     only = {n.strip() for n in args.only.split(",")} if args.only else None
     days = [
@@ -171,11 +178,19 @@ def main() -> None:
         if only is None or gz.name.removesuffix(".csv.gz") in only
     ]
     print(f"sanity check on {len(days)} validation days, replays driven by '{args.motion}'")
+    if args.variant:
+        print(f"every day as logger variant {args.variant!r} would have written it")
     total = passed = 0
     with tempfile.TemporaryDirectory(prefix="eval_sanity_") as tmp:
         failed_days = []
         cases = [
-            (gz.name, lambda gz=gz: in_parts(validation_case(gz, Path(tmp)), args.parts))
+            (
+                gz.name,
+                lambda gz=gz: [
+                    as_variant(case, args.variant)
+                    for case in in_parts(validation_case(gz, Path(tmp)), args.parts)
+                ],
+            )
             for gz in days
         ]
         for name, what, day in _checked_days(cases, Path(tmp), args.max_trips, args.motion):

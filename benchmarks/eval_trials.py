@@ -19,7 +19,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from record_parts import split_record  # the sibling script
+from record_parts import split_record  # the sibling scripts
+from record_variants import make_variant
 
 #: The effects, in the order the seeded trials hide them and the summaries list them.
 EFFECTS = [
@@ -108,13 +109,17 @@ def _record_hours(report: dict[str, Any]) -> float:
     return (b - a).total_seconds() / 3600.0
 
 
-def run_trial(folder: Path, key: dict[str, Any], work: Path, parts: int = 1) -> list[TrialOutcome]:
+def run_trial(
+    folder: Path, key: dict[str, Any], work: Path, parts: int = 1, variant: str = ""
+) -> list[TrialOutcome]:
     """Ingest one trial into its own data root, run ``ropeload discover``'s function
     over the whole record, read the report JSON back; a crash is caught and named. With
     ``parts`` > 1 the record is cut into that many consecutive records
     (:func:`record_parts.split_record`: each starts and ends wherever the cut falls, as
     an export's), each ingested and analysed on its own: one outcome each, named
-    ``trial_NNN k/parts``; the key's ``effect_rms_pa`` is the whole record's."""
+    ``trial_NNN k/parts``; the key's ``effect_rms_pa`` is the whole record's. ``variant``:
+    the record as another logger would have written it first
+    (:func:`record_variants.make_variant`; the key is the record's own)."""
     name = folder.name
     inputs = work / "inputs" / name
     inputs.mkdir(parents=True, exist_ok=True)
@@ -127,12 +132,13 @@ def run_trial(folder: Path, key: dict[str, Any], work: Path, parts: int = 1) -> 
         with gzip.open(folder / f"{name}.csv.gz", "rb") as src, csv.open("wb") as dst:
             shutil.copyfileobj(src, dst)
         shutil.copyfile(folder / "hoist.toml", hoist_path)
+        records = [make_variant(csv, variant)]
         if parts > 1:
-            records = [p.path for p in split_record(csv, parts)]
+            records = [p.path for p in split_record(records[0], parts)]
     except Exception as exc:  # a record that cannot be read is a crash of its trial
         crashed = _outcome(name, key)
         crashed.reason = _one_line(exc)
-        for written in [csv, *inputs.glob(f"{csv.stem}-part*.csv")]:
+        for written in [csv, *inputs.glob(f"{csv.stem}-*.csv")]:
             written.unlink(missing_ok=True)
         return [crashed]
     unpacked_s = time.perf_counter() - started  # counted in the first record's ingest
@@ -142,7 +148,7 @@ def run_trial(folder: Path, key: dict[str, Any], work: Path, parts: int = 1) -> 
             stem = name if parts <= 1 else f"{name}-part{k}"
             outcomes.append(_discover_record(record, hoist_path, label, stem, key, work))
     finally:
-        for record in {csv, *records}:
+        for record in {csv, *records, *inputs.glob(f"{csv.stem}-*.csv")}:
             record.unlink(missing_ok=True)  # 2 h at 50 Hz: ~40 MB each
     outcomes[0].ingest_s += unpacked_s
     return outcomes
@@ -368,9 +374,12 @@ def _print_seconds(outcomes: list[TrialOutcome]) -> list[float]:
     return seconds
 
 
-def evaluate_trials(trials: Path, only: list[str] | None, work: Path, parts: int = 1) -> None:
+def evaluate_trials(
+    trials: Path, only: list[str] | None, work: Path, parts: int = 1, variant: str = ""
+) -> None:
     """Run every trial of ``trials`` (or those named in ``only``) under ``work``, each
-    record whole or cut into ``parts`` (:func:`run_trial`)."""
+    record whole or cut into ``parts``, as logged or as logger ``variant`` would have
+    logged it (:func:`run_trial`)."""
     key = json.loads((trials / "answers.json").read_text())
     by_name = {t["trial"]: t for t in key["trials"]}
     folders = sorted(p for p in trials.glob("trial_*") if p.is_dir())
@@ -385,6 +394,8 @@ def evaluate_trials(trials: Path, only: list[str] | None, work: Path, parts: int
         f"{'gap0':>8s}{'gap1':>8s}{'noise':>8s} {'h':>4s} {'ingest':>6s} {'disc':>6s} {'cpu':>6s}"
     )
     outcomes = []
+    if variant:
+        print(f"every record as logger variant {variant!r} would have written it")
     print(
         f"{'':{width}s} {'':22s} {'':7s}    {'':26s}{'kPa':>8s}{'kPa':>8s}{'kPa':>8s} {'':4s}"
         f" {'s':>6s} {'s':>6s} {'s':>6s}   (gap0/gap1: gap_before/after_pa, h: record hours)"
@@ -393,19 +404,21 @@ def evaluate_trials(trials: Path, only: list[str] | None, work: Path, parts: int
         if folder.name not in by_name:
             print(f"{folder.name}: not in answers.json, skipped")
             continue
-        for outcome in run_trial(folder, by_name[folder.name], work, parts):
+        for outcome in run_trial(folder, by_name[folder.name], work, parts, variant):
             outcomes.append(outcome)
             print(_trial_line(outcome, width), flush=True)
     if outcomes:
         trials_summary(outcomes, float(key.get("sensor_noise_pa", 5e3)))
 
 
-def run_trials(trials: Path, only: list[str] | None, keep: Path | None, parts: int = 1) -> None:
+def run_trials(
+    trials: Path, only: list[str] | None, keep: Path | None, parts: int = 1, variant: str = ""
+) -> None:
     started = time.perf_counter()
     if keep is not None:
         keep.mkdir(parents=True, exist_ok=True)
-        evaluate_trials(trials, only, keep.absolute(), parts)
+        evaluate_trials(trials, only, keep.absolute(), parts, variant)
     else:
         with tempfile.TemporaryDirectory(prefix="ropeload-trials-") as tmp:
-            evaluate_trials(trials, only, Path(tmp), parts)
+            evaluate_trials(trials, only, Path(tmp), parts, variant)
     print(f"\nwall time {time.perf_counter() - started:.0f} s")

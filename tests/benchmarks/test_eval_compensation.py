@@ -21,7 +21,8 @@ def evaluation():
     spec = importlib.util.spec_from_file_location("eval_compensation", SCRIPT)
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # its dataclasses look their module up
-    # its sibling (record_parts), found as when the script runs: its folder on the path
+    # its siblings (record_parts, record_variants), found as when the script runs:
+    # its folder on the path
     sys.path.insert(0, str(SCRIPT.parent))
     try:
         spec.loader.exec_module(module)
@@ -29,6 +30,7 @@ def evaluation():
     finally:
         sys.modules.pop(spec.name, None)
         sys.modules.pop("record_parts", None)
+        sys.modules.pop("record_variants", None)
         sys.path.remove(str(SCRIPT.parent))
 
 
@@ -125,31 +127,27 @@ def test_report_ropes_prints_the_offsets_part_at_the_pithead(evaluation, capsys)
     assert f"({-0.1:+.3f} mm: {1.05 * k * 1e-4:+.0f} N at the pithead from dc)" in rope2
 
 
-@pytest.mark.parametrize("delimiter", [",", ";"])
-def test_without_x_takes_the_displacements_out_and_keeps_the_rest(
-    evaluation, tmp_path, delimiter
-) -> None:
-    """A contract-1a CSV (either delimiter, decimal commas with ';') loses x1..x4 and
-    keeps its comment lines and every other column in order."""
-    point = "," if delimiter == ";" else "."
-    values = [f"4{point}{k}" for k in (9, 8, 7, 6)]
+def test_a_variant_of_a_day_keeps_its_truth_and_its_own_file(evaluation, tmp_path) -> None:
+    """``as_variant(case, "no-x")`` is the day without x1..x4 beside the day's own CSV,
+    named for its variant, with the day's windows; no variant is the day itself."""
     rows = [
         ["timestamp", "p1", "p2", "p3", "p4", "x1", "x2", "x3", "x4", "depth", "speed"],
-        ["2026-02-10 06:00:00.000", *values, f"1{point}2", "-3", "0", "7", "0", "0"],
+        ["2026-02-10 06:00:00.000", "4.9", "4.8", "4.7", "4.6", "1.2", "-3", "0", "7", "0", "0"],
     ]
     csv = tmp_path / "day.csv"
-    csv.write_text("# site: s\n# hoist: h\n" + "\n".join(delimiter.join(r) for r in rows) + "\n")
-    case = evaluation.DayCase("day", csv, tmp_path / "h.toml", [])
-    out = evaluation.without_x(case)
-    lines = out.csv.read_text().splitlines()
-    assert lines[:2] == ["# site: s", "# hoist: h"]
-    assert lines[2].split(delimiter) == ["timestamp", "p1", "p2", "p3", "p4", "depth", "speed"]
-    assert lines[3].split(delimiter) == ["2026-02-10 06:00:00.000", *values, "0", "0"]
-    assert out.name == "day without x"
+    csv.write_text("# site: s\n" + "\n".join(",".join(r) for r in rows) + "\n")
+    t0 = dt.datetime(2026, 2, 10, tzinfo=dt.UTC)
+    windows = [evaluation.Window("arrival", "p", t0, t0, 1.0, (0.25,) * 4)]
+    case = evaluation.DayCase("day", csv, tmp_path / "h.toml", windows)
+    out = evaluation.as_variant(case, "no-x")
+    assert out.name == "day [no-x]"
+    assert out.windows == windows
     assert out.csv != csv
+    assert out.csv.read_text().splitlines()[1].split(",") == [
+        "timestamp", "p1", "p2", "p3", "p4", "depth", "speed",
+    ]  # fmt: skip
     assert csv.read_text().count("x1") == 1  # the day's own file as it was
-    with pytest.raises(RuntimeError, match="no x1/x2/x3/x4 columns"):
-        evaluation.without_x(out)
+    assert evaluation.as_variant(case, "") is case
 
 
 def test_report_day_prints_the_margin_to_the_worse_than_raw_limit(evaluation, capsys) -> None:

@@ -1,0 +1,155 @@
+"""The evaluations' logger variants of a record (benchmarks/record_variants.py), on small
+hand-made contract-1a CSVs."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "record_variants.py"
+
+NAMES = ["timestamp", "p1", "p2", "p3", "p4", "x1", "x2", "x3", "x4", "depth", "speed", "oil_temp"]
+
+
+@pytest.fixture(scope="module")
+def variants():
+    spec = importlib.util.spec_from_file_location("record_variants", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclasses look their module up
+    try:
+        spec.loader.exec_module(module)
+        yield module
+    finally:
+        sys.modules.pop(spec.name, None)
+
+
+def _record(
+    path: Path, rows: int, *, delimiter: str = ",", unit: str = "MPa", rate: int = 50
+) -> Path:
+    """``rows`` rows at ``rate`` Hz: pressures 4.951 + k/1000 (MPa) or 49.51 + k/100 (bar,
+    with ';' and decimal commas), x, depth, speed and oil temperature."""
+    point = "," if delimiter == ";" else "."
+    lines = [
+        "# site: s",
+        "# hoist: h",
+        "# timezone: UTC",
+        f"# sample_rate_hz: {rate}",
+        f"# units: p={unit}, x=mm, depth=m, speed=m/s, oil_temp=degC",
+        delimiter.join(NAMES),
+    ]
+    for k in range(rows):
+        p = f"{4.951 + k / 1000:.3f}" if unit == "MPa" else f"{49.51 + k / 100:.2f}"
+        p = p.replace(".", point)
+        stamp = f"2026-02-10 06:{k // (60 * rate):02d}:{(k / rate) % 60:06.3f}"
+        values = ["2.8", "-3.5", "-6.7", "7.4", f"{k / 100:.2f}", "1.000", "21.7"]
+        values = [v.replace(".", point) for v in values]
+        lines.append(delimiter.join([stamp, p, p, p, p, *values]))
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _rows(csv: Path, delimiter: str = ",") -> tuple[list[str], list[list[str]]]:
+    lines = csv.read_text().splitlines()
+    first = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    return lines[: first + 1], [line.split(delimiter) for line in lines[first + 1 :]]
+
+
+def test_no_x_and_no_oil_temp_take_their_columns_out(variants, tmp_path) -> None:
+    csv = _record(tmp_path / "r.csv", 10)
+    head, rows = _rows(variants.make_variant(csv, "no-x"))
+    assert head[-1].split(",") == [n for n in NAMES if not n.startswith("x")]
+    assert all(len(row) == len(NAMES) - 4 for row in rows)
+    head, rows = _rows(variants.make_variant(csv, "no-oil-temp"))
+    assert head[-1].split(",") == NAMES[:-1]
+    assert rows[3][-1] == "1.000"  # speed last now
+    # the record's own file is as it was
+    assert _rows(csv)[0][-1].split(",") == NAMES
+
+
+def test_no_speed_empties_every_speed_field(variants, tmp_path) -> None:
+    csv = _record(tmp_path / "r.csv", 10)
+    head, rows = _rows(variants.make_variant(csv, "no-speed"))
+    assert head[-1].split(",") == NAMES
+    assert {row[NAMES.index("speed")] for row in rows} == {""}
+    assert {row[NAMES.index("oil_temp")] for row in rows} == {"21.7"}
+
+
+def test_ten_hertz_keeps_every_fifth_row_and_says_so(variants, tmp_path) -> None:
+    csv = _record(tmp_path / "r.csv", 23)
+    head, rows = _rows(variants.make_variant(csv, "10hz"))
+    assert "# sample_rate_hz: 10" in head
+    _, whole = _rows(csv)
+    assert rows == whole[::5]  # rows 0, 5, 10, 15, 20
+
+
+@pytest.mark.parametrize(("delimiter", "unit"), [(",", "MPa"), (";", "bar")])
+def test_pressures_on_a_ten_kilopascal_step_in_the_files_unit(
+    variants, tmp_path, delimiter, unit
+) -> None:
+    """4.951 ... MPa to 0.01 MPa steps (3 decimals kept); 49,51 ... bar to 0,1 bar steps
+    (decimal commas kept)."""
+    csv = _record(tmp_path / "r.csv", 12, delimiter=delimiter, unit=unit)
+    _, rows = _rows(variants.make_variant(csv, "p-step-10kpa"), delimiter)
+    _, whole = _rows(csv, delimiter)
+    step = 0.01 if unit == "MPa" else 0.1
+    for row, before in zip(rows, whole, strict=True):
+        for k in range(1, 5):
+            value, was = (float(f.replace(",", ".")) for f in (row[k], before[k]))
+            assert round(value / step, 6) == round(was / step)
+            assert len(row[k].replace(",", ".").split(".")[1]) == (3 if unit == "MPa" else 2)
+            assert ("," in row[k]) == (delimiter == ";")
+        assert row[5:] == before[5:]
+    assert rows[0][1] == ("4.950" if unit == "MPa" else "49,50")
+
+
+def test_a_stuck_sensor_holds_one_value_over_the_middle(variants, tmp_path) -> None:
+    """At 1 Hz, 20 min is 1200 rows; of 3000 rows the middle 1000 (a third at most)."""
+    csv = _record(tmp_path / "r.csv", 3000, rate=1)
+    _, rows = _rows(variants.make_variant(csv, "stuck-p2"))
+    _, whole = _rows(csv)
+    held = [n for n, (row, was) in enumerate(zip(rows, whole, strict=True)) if row != was]
+    assert held == list(range(1001, 2000))  # row 1000 holds its own value
+    assert {rows[n][2] for n in range(1000, 2000)} == {whole[1000][2]}
+    assert all(rows[n][1] == whole[n][1] for n in range(3000))
+
+
+def test_an_outage_takes_five_minutes_of_rows_out_of_the_middle(variants, tmp_path) -> None:
+    csv = _record(tmp_path / "r.csv", 1200, rate=1)
+    _, rows = _rows(variants.make_variant(csv, "outage-5min"))
+    _, whole = _rows(csv)
+    assert rows == whole[:450] + whole[750:]
+
+
+def test_repeated_rows_are_exact_duplicates_and_a_block_out_of_order(variants, tmp_path) -> None:
+    """Every row is there; the extra ones are exact copies (ingest counts them as
+    duplicates); the order differs only inside one block of 100."""
+    csv = _record(tmp_path / "r.csv", 2000)
+    _, rows = _rows(variants.make_variant(csv, "repeated-rows"))
+    _, whole = _rows(csv)
+    counts = Counter(map(tuple, rows))
+    assert set(counts) == set(map(tuple, whole))
+    assert 10 < sum(c - 1 for c in counts.values()) < 80  # ~2 % of 2000
+    assert max(counts.values()) == 2
+    stamps = [row[0] for row in rows]
+    out_of_order = [n for n in range(1, len(stamps)) if stamps[n] < stamps[n - 1]]
+    assert out_of_order
+    assert max(out_of_order) - min(out_of_order) < 100
+    # the same each time (a seeded logger)
+    assert (
+        variants.make_variant(csv, "repeated-rows").read_text()
+        == (tmp_path / "r-repeated-rows.csv").read_text()
+    )
+
+
+def test_an_unknown_variant_or_column_is_named(variants, tmp_path) -> None:
+    csv = _record(tmp_path / "r.csv", 5)
+    assert variants.make_variant(csv, "") == csv
+    with pytest.raises(KeyError, match=r"no variant 'fast'.*no-x"):
+        variants.make_variant(csv, "fast")
+    without = variants.make_variant(csv, "no-x")
+    with pytest.raises(KeyError, match="no column 'x1'"):
+        variants.make_variant(without, "no-x")

@@ -175,6 +175,8 @@ def main() -> None:
         help="with --trials: write each record as another logger would have first",
     )
     args = ap.parse_args()
+    if args.trials is None and (args.variant or args.parts != 1 or args.only or args.keep):
+        ap.error("--only, --keep, --parts and --variant go with --trials")
     if args.trials is not None:
         only = [n.strip() for n in args.only.split(",") if n.strip()] if args.only else None
         if args.parts < 1:

@@ -118,8 +118,10 @@ def run_trial(
     (:func:`record_parts.split_record`: each starts and ends wherever the cut falls, as
     an export's), each ingested and analysed on its own: one outcome each, named
     ``trial_NNN k/parts``; the key's ``effect_rms_pa`` is the whole record's. ``variant``:
-    the record as another logger would have written it first
-    (:func:`record_variants.make_variant`; the key is the record's own)."""
+    each record (each part) as another logger would have written it
+    (:func:`record_variants.make_variant`; the key is the record's own); a variant that
+    cannot be made of it stops the evaluation with the reason (a choice of the
+    evaluation's, not a crash of the trial)."""
     name = folder.name
     inputs = work / "inputs" / name
     inputs.mkdir(parents=True, exist_ok=True)
@@ -132,15 +134,19 @@ def run_trial(
         with gzip.open(folder / f"{name}.csv.gz", "rb") as src, csv.open("wb") as dst:
             shutil.copyfileobj(src, dst)
         shutil.copyfile(folder / "hoist.toml", hoist_path)
-        records = [make_variant(csv, variant)]
-        if parts > 1:
-            records = [p.path for p in split_record(records[0], parts)]
+        records = [p.path for p in split_record(csv, parts)] if parts > 1 else [csv]
     except Exception as exc:  # a record that cannot be read is a crash of its trial
         crashed = _outcome(name, key)
         crashed.reason = _one_line(exc)
         for written in [csv, *inputs.glob(f"{csv.stem}-*.csv")]:
             written.unlink(missing_ok=True)
         return [crashed]
+    try:  # each export as the logger wrote it (as eval_compensation.py's parts)
+        records = [make_variant(record, variant) for record in records]
+    except (KeyError, ValueError) as exc:
+        for written in [csv, *inputs.glob(f"{csv.stem}-*.csv")]:
+            written.unlink(missing_ok=True)
+        raise SystemExit(f"eval_discovery: {name}: variant {variant!r}: {exc}") from exc
     unpacked_s = time.perf_counter() - started  # counted in the first record's ingest
     try:
         for k, record in enumerate(records, start=1):

@@ -17,7 +17,9 @@ change keeps the file's delimiter, decimal separator and units.
 
 from __future__ import annotations
 
+import math
 import random
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -38,24 +40,39 @@ class LogTable:
     decimal_comma: bool
 
     def column(self, name: str) -> int:
-        """The index of column ``name``; KeyError naming the columns there are."""
+        """The index of column ``name`` (any case, as ingest reads it); KeyError naming
+        the columns there are."""
+        lowered = [n.lower() for n in self.names]
         try:
-            return self.names.index(name)
+            return lowered.index(name.lower())
         except ValueError:
             raise KeyError(f"no column {name!r} (columns: {', '.join(self.names)})") from None
 
     def key(self, name: str, default: str = "") -> str:
-        """The value of header line ``# name: value`` (``default`` without one)."""
+        """The value of header line ``# name: value`` (any case; ``default`` without one)."""
         for line in self.header:
             key, sep, value = line.lstrip("#").partition(":")
-            if sep and key.strip() == name:
+            if sep and key.strip().lower() == name.lower():
                 return value.strip()
         return default
+
+    def rate_hz(self) -> float:
+        """The header's nominal ``sample_rate_hz``; ValueError without one."""
+        text = self.key("sample_rate_hz").replace(",", ".")
+        try:
+            rate = float(text)
+        except ValueError:
+            raise ValueError(f"no usable '# sample_rate_hz:' header line ({text!r})") from None
+        if not rate > 0.0:
+            raise ValueError(f"sample_rate_hz {text!r} is not positive")
+        return rate
 
     def with_key(self, name: str, value: str) -> LogTable:
         """The same table with header line ``# name: value`` set."""
         lines = [
-            f"# {name}: {value}" if line.lstrip("#").partition(":")[0].strip() == name else line
+            f"# {name}: {value}"
+            if line.lstrip("#").partition(":")[0].strip().lower() == name.lower()
+            else line
             for line in self.header
         ]
         return replace(self, header=tuple(lines))
@@ -75,19 +92,19 @@ class LogTable:
 
 
 def read_log(csv: Path) -> LogTable:
-    """The CSV at ``csv`` as a :class:`LogTable`."""
+    """The CSV at ``csv`` as a :class:`LogTable` (delimiter ``,``, ``;`` or tab; with
+    ``;`` decimal commas, as ingest reads such a file)."""
     lines = csv.read_text().splitlines()
     first = next(i for i, line in enumerate(lines) if not line.startswith("#"))
     names_line = lines[first]
-    delimiter = ";" if names_line.count(";") > names_line.count(",") else ","
+    delimiter = max((",", ";", "\t"), key=names_line.count)
     rows = [line.split(delimiter) for line in lines[first + 1 :] if line.strip()]
-    probe = next((row[1] for row in rows if len(row) > 1 and row[1].strip()), "")
     return LogTable(
         tuple(lines[:first]),
         tuple(name.strip() for name in names_line.split(delimiter)),
         rows,
         delimiter,
-        delimiter == ";" and "," in probe,
+        delimiter == ";",
     )
 
 
@@ -101,11 +118,12 @@ def _write(table: LogTable, path: Path) -> Path:
 def _without(*names: str) -> Callable[[LogTable], LogTable]:
     def change(table: LogTable) -> LogTable:
         drop = {table.column(name) for name in names}
-        keep = [i for i in range(len(table.names)) if i not in drop]
+        width = len(table.names)
+        keep = [i for i in range(width) if i not in drop]
         return replace(
             table,
             names=tuple(table.names[i] for i in keep),
-            rows=[[row[i] for i in keep] for row in table.rows],
+            rows=[[row[i] for i in keep] if len(row) == width else row for row in table.rows],
         )
 
     return change
@@ -113,43 +131,62 @@ def _without(*names: str) -> Callable[[LogTable], LogTable]:
 
 def _emptied(name: str) -> Callable[[LogTable], LogTable]:
     def change(table: LogTable) -> LogTable:
-        k = table.column(name)
-        return replace(table, rows=[[*row[:k], "", *row[k + 1 :]] for row in table.rows])
+        k, width = table.column(name), len(table.names)
+        rows = [[*row[:k], "", *row[k + 1 :]] if len(row) == width else row for row in table.rows]
+        return replace(table, rows=rows)
 
     return change
 
 
 def _at_rate(rate_hz: float) -> Callable[[LogTable], LogTable]:
     def change(table: LogTable) -> LogTable:
-        logged = float(table.key("sample_rate_hz", "0").replace(",", ".") or 0.0)
-        every = max(1, round(logged / rate_hz)) if logged > 0 else 1
+        logged = table.rate_hz()
+        every = round(logged / rate_hz)
+        if every < 2 or not math.isclose(logged / every, rate_hz, rel_tol=0.01):
+            raise ValueError(f"a {logged:g} Hz record has no every-n-th rows at {rate_hz:g} Hz")
         out = replace(table, rows=table.rows[::every])
-        return out.with_key("sample_rate_hz", f"{logged / every:g}") if logged > 0 else out
+        return out.with_key("sample_rate_hz", f"{logged / every:g}")
 
     return change
 
 
 #: Pascals per unit of the contract's pressure units (``# units: p=...``).
 _PA = {"MPa": 1e6, "bar": 1e5, "kPa": 1e3, "Pa": 1.0}
+#: The contract's missing-value marker (as a number): kept as written.
+_MISSING = -9999.0
 
 
-def _pressure_unit_pa(table: LogTable) -> float:
-    units = dict(
-        part.strip().split("=", 1) for part in table.key("units").split(",") if "=" in part
-    )
-    return _PA[units.get("p", "MPa").strip()]
+def _pressure_units_pa(table: LogTable) -> dict[str, float]:
+    """Pascals per unit of each pressure column, as ingest reads the units line: items
+    split at ``,`` or ``;``, a column's own key (``p2=bar``) before ``p=``."""
+    given = {}
+    for item in re.split(r"[,;]", table.key("units")):
+        key, eq, unit = item.partition("=")
+        if eq:
+            given[key.strip().lower()] = unit.strip()
+    out = {}
+    for i in range(1, 5):
+        unit = given.get(f"p{i}") or given.get("p") or "MPa"
+        if unit not in _PA:
+            raise ValueError(f"pressure unit {unit!r} of p{i} is not one of {', '.join(_PA)}")
+        out[f"p{i}"] = _PA[unit]
+    return out
 
 
 def _pressure_step(step_pa: float) -> Callable[[LogTable], LogTable]:
     def change(table: LogTable) -> LogTable:
-        step = step_pa / _pressure_unit_pa(table)
-        columns = [table.column(f"p{i}") for i in range(1, 5)]
+        units = _pressure_units_pa(table)
+        columns = [(table.column(name), step_pa / pa) for name, pa in units.items()]
+        width = len(table.names)
         rows = []
         for row in table.rows:
             row = list(row)
-            for k in columns:
-                value = table.number(row[k]) if row[k].strip() else float("nan")
-                if value == value:  # not NaN: a missing value stays missing
+            for k, step in columns if len(row) == width else ():
+                try:
+                    value = table.number(row[k])
+                except ValueError:  # not a number: ingest quarantines it, kept
+                    continue
+                if math.isfinite(value) and value != _MISSING:  # missing stays missing
                     row[k] = table.field(round(value / step) * step, row[k])
             rows.append(row)
         return replace(table, rows=rows)
@@ -157,15 +194,29 @@ def _pressure_step(step_pa: float) -> Callable[[LogTable], LogTable]:
     return change
 
 
+def _middle(table: LogTable, minutes: float) -> tuple[int, int]:
+    """The rows [lo, hi) of ``minutes`` at the header's rate in the middle of the record;
+    ValueError where the record is not three times as long (the variant would not be
+    what its name says)."""
+    span = round(minutes * 60.0 * table.rate_hz())
+    if 3 * span > len(table.rows):
+        raise ValueError(
+            f"{len(table.rows)} rows: too short for {minutes:g} min in the middle of the record"
+        )
+    lo = (len(table.rows) - span) // 2
+    return lo, lo + span
+
+
 def _stuck(sensor: int, minutes: float) -> Callable[[LogTable], LogTable]:
     def change(table: LogTable) -> LogTable:
-        k = table.column(f"p{sensor}")
-        logged = float(table.key("sample_rate_hz", "50").replace(",", ".") or 50.0)
-        span = min(len(table.rows) // 3, round(minutes * 60.0 * logged))
-        lo = (len(table.rows) - span) // 2
-        held = table.rows[lo][k]
+        k, width = table.column(f"p{sensor}"), len(table.names)
+        lo, hi = _middle(table, minutes)
+        before = [row[k] for row in table.rows[: lo + 1] if len(row) == width and row[k].strip()]
+        if not before:
+            raise ValueError(f"p{sensor} logs no value before its frozen stretch")
+        held = before[-1]  # the last value the sensor gave
         rows = [
-            [*row[:k], held, *row[k + 1 :]] if lo <= n < lo + span else row
+            [*row[:k], held, *row[k + 1 :]] if lo <= n < hi and len(row) == width else row
             for n, row in enumerate(table.rows)
         ]
         return replace(table, rows=rows)
@@ -175,10 +226,8 @@ def _stuck(sensor: int, minutes: float) -> Callable[[LogTable], LogTable]:
 
 def _outage(minutes: float) -> Callable[[LogTable], LogTable]:
     def change(table: LogTable) -> LogTable:
-        logged = float(table.key("sample_rate_hz", "50").replace(",", ".") or 50.0)
-        span = min(len(table.rows) // 3, round(minutes * 60.0 * logged))
-        lo = (len(table.rows) - span) // 2
-        return replace(table, rows=table.rows[:lo] + table.rows[lo + span :])
+        lo, hi = _middle(table, minutes)
+        return replace(table, rows=table.rows[:lo] + table.rows[hi:])
 
     return change
 
@@ -219,7 +268,9 @@ VARIANTS: dict[str, tuple[str, Callable[[LogTable], LogTable]]] = {
 def make_variant(csv: Path, name: str) -> Path:
     """``csv`` as a logger of variant ``name`` (:data:`VARIANTS`) would have written it,
     beside it as ``<stem>-<name>.csv``; ``csv`` itself for ``name`` None or empty.
-    KeyError for an unknown name or a column the file does not have."""
+    KeyError for an unknown name or a column the file does not have; ValueError where
+    the variant cannot be made whole (no ``sample_rate_hz`` header for a rate or a span,
+    a record shorter than three times the span, a rate that is no every-n-th row)."""
     if not name:
         return csv
     if name not in VARIANTS:

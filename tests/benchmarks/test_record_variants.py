@@ -107,14 +107,14 @@ def test_pressures_on_a_ten_kilopascal_step_in_the_files_unit(
 
 
 def test_a_stuck_sensor_holds_one_value_over_the_middle(variants, tmp_path) -> None:
-    """At 1 Hz, 20 min is 1200 rows; of 3000 rows the middle 1000 (a third at most)."""
-    csv = _record(tmp_path / "r.csv", 3000, rate=1)
+    """At 1 Hz, 20 min is 1200 rows: of 3600 rows the middle 1200."""
+    csv = _record(tmp_path / "r.csv", 3600, rate=1)
     _, rows = _rows(variants.make_variant(csv, "stuck-p2"))
     _, whole = _rows(csv)
     held = [n for n, (row, was) in enumerate(zip(rows, whole, strict=True)) if row != was]
-    assert held == list(range(1001, 2000))  # row 1000 holds its own value
-    assert {rows[n][2] for n in range(1000, 2000)} == {whole[1000][2]}
-    assert all(rows[n][1] == whole[n][1] for n in range(3000))
+    assert held == list(range(1201, 2400))  # row 1200 holds its own value
+    assert {rows[n][2] for n in range(1200, 2400)} == {whole[1200][2]}
+    assert all(rows[n][1] == whole[n][1] for n in range(3600))
 
 
 def test_an_outage_takes_five_minutes_of_rows_out_of_the_middle(variants, tmp_path) -> None:
@@ -153,3 +153,57 @@ def test_an_unknown_variant_or_column_is_named(variants, tmp_path) -> None:
     without = variants.make_variant(csv, "no-x")
     with pytest.raises(KeyError, match="no column 'x1'"):
         variants.make_variant(without, "no-x")
+
+
+def test_no_x_in_a_semicolon_file_with_decimal_commas(variants, tmp_path) -> None:
+    csv = _record(tmp_path / "r.csv", 6, delimiter=";", unit="bar")
+    head, rows = _rows(variants.make_variant(csv, "no-x"), ";")
+    assert head[-1].split(";") == [n for n in NAMES if not n.startswith("x")]
+    assert rows[2][1] == "49,53"
+    assert rows[2][-1] == "21,7"
+
+
+def test_the_pressure_step_keeps_missing_values_and_reads_each_channels_unit(
+    variants, tmp_path
+) -> None:
+    """-9999, NaN and empty stay as written; ``p=MPa; p2=kPa`` (';' between items, a
+    channel's own unit before ``p``) steps p2 by 10 kPa in kPa."""
+    csv = _record(tmp_path / "r.csv", 4)
+    text = csv.read_text().replace("p=MPa, x=mm", "p=MPa; p2=kPa; x=mm")
+    lines = text.splitlines()
+    lines[6] = lines[6].replace("4.951,4.951", "-9999,NaN", 1)  # p1, p2 of the first row
+    fields = lines[7].split(",")
+    fields[2], fields[3] = "4952.4", ""  # p2 in kPa, p3 missing
+    lines[7] = ",".join(fields)
+    csv.write_text("\n".join(lines) + "\n")
+    _, rows = _rows(variants.make_variant(csv, "p-step-10kpa"))
+    assert rows[0][1:3] == ["-9999", "NaN"]
+    assert rows[1][2] == "4950.0"
+    assert rows[1][3] == ""
+    assert rows[1][1] == "4.950"
+
+
+def test_a_variant_that_cannot_be_made_whole_says_why(variants, tmp_path) -> None:
+    csv = _record(tmp_path / "r.csv", 100, rate=1)  # 100 s: no 20 min in its middle
+    with pytest.raises(ValueError, match="too short for 20 min"):
+        variants.make_variant(csv, "stuck-p2")
+    with pytest.raises(ValueError, match="no every-n-th rows at 10 Hz"):
+        variants.make_variant(csv, "10hz")
+    csv.write_text(csv.read_text().replace("# sample_rate_hz: 1\n", ""))
+    with pytest.raises(ValueError, match="sample_rate_hz"):
+        variants.make_variant(csv, "outage-5min")
+
+
+def test_a_frozen_sensor_holds_its_last_value_not_a_gap(variants, tmp_path) -> None:
+    """Where p2 was empty at the frozen stretch's start, it holds the last value it
+    gave before."""
+    csv = _record(tmp_path / "r.csv", 3600, rate=1)
+    lines = csv.read_text().splitlines()
+    head = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    fields = lines[head + 1 + 1200].split(",")
+    fields[2] = ""
+    lines[head + 1 + 1200] = ",".join(fields)
+    csv.write_text("\n".join(lines) + "\n")
+    _, rows = _rows(variants.make_variant(csv, "stuck-p2"))
+    _, whole = _rows(csv)
+    assert {rows[n][2] for n in range(1200, 2400)} == {whole[1199][2]}

@@ -639,7 +639,7 @@ def main() -> None:
     ap.add_argument(
         "--variant", choices=sorted(VARIANTS), default="",
         help="write every day as another logger would have: "
-        + "; ".join(f"{k}: {v[0]}" for k, v in VARIANTS.items()),
+        + "; ".join(f"{k}: {v[0]}" for k, v in VARIANTS.items()).replace("%", "%%"),
     )  # fmt: skip
     ap.add_argument(
         "--parts", type=int, default=1,

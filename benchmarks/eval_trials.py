@@ -138,14 +138,12 @@ def run_trial(
     except Exception as exc:  # a record that cannot be read is a crash of its trial
         crashed = _outcome(name, key)
         crashed.reason = _one_line(exc)
-        for written in [csv, *inputs.glob(f"{csv.stem}-*.csv")]:
-            written.unlink(missing_ok=True)
+        _remove_records(csv)
         return [crashed]
     try:  # each export as the logger wrote it (as eval_compensation.py's parts)
         records = [make_variant(record, variant) for record in records]
     except (KeyError, ValueError) as exc:
-        for written in [csv, *inputs.glob(f"{csv.stem}-*.csv")]:
-            written.unlink(missing_ok=True)
+        _remove_records(csv)
         raise SystemExit(f"eval_discovery: {name}: variant {variant!r}: {exc}") from exc
     unpacked_s = time.perf_counter() - started  # counted in the first record's ingest
     try:
@@ -154,10 +152,16 @@ def run_trial(
             stem = name if parts <= 1 else f"{name}-part{k}"
             outcomes.append(_discover_record(record, hoist_path, label, stem, key, work))
     finally:
-        for record in {csv, *records, *inputs.glob(f"{csv.stem}-*.csv")}:
-            record.unlink(missing_ok=True)  # 2 h at 50 Hz: ~40 MB each
+        _remove_records(csv)
     outcomes[0].ingest_s += unpacked_s
     return outcomes
+
+
+def _remove_records(csv: Path) -> None:
+    """The decompressed record and every part or variant written beside it
+    (``<stem>-*.csv``; 2 h at 50 Hz: ~40 MB each)."""
+    for written in [csv, *csv.parent.glob(f"{csv.stem}-*.csv")]:
+        written.unlink(missing_ok=True)
 
 
 def _outcome(label: str, key: dict[str, Any]) -> TrialOutcome:

@@ -13,6 +13,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from record_variants import delimiter_of, header_keys  # the sibling script
+
 __all__ = ["RecordPart", "split_record"]
 
 
@@ -20,7 +22,7 @@ __all__ = ["RecordPart", "split_record"]
 class RecordPart:
     """One part of a record: its CSV (the header lines of the whole file, then its rows),
     the logged timestamps of its first and last rows as the file writes them, and the
-    file's ``# key: value`` header lines (``timezone``, ...)."""
+    file's ``# key: value`` header lines (``timezone``, ...; keys in lower case)."""
 
     path: Path
     first_stamp: str
@@ -37,10 +39,8 @@ def split_record(csv: Path, parts: int) -> list[RecordPart]:
     rows = [line for line in lines[header:] if line.strip()]
     if len(rows) < max(parts, 1):
         raise ValueError(f"{csv.name}: {len(rows)} rows cannot be cut into {parts} parts")
-    names = lines[header - 1]
-    delimiter = ";" if names.count(";") > names.count(",") else ","
-    keys = dict(line.lstrip("#").split(":", 1) for line in lines[: header - 1] if ":" in line)
-    keys = {k.strip(): v.strip() for k, v in keys.items()}
+    delimiter = delimiter_of(lines[header - 1])
+    keys = header_keys(lines[: header - 1])
     if parts <= 1:
         stamps = (rows[0].split(delimiter, 1)[0], rows[-1].split(delimiter, 1)[0])
         return [RecordPart(csv, *stamps, keys)]

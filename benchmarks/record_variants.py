@@ -24,7 +24,23 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-__all__ = ["VARIANTS", "LogTable", "make_variant", "read_log"]
+__all__ = ["VARIANTS", "LogTable", "delimiter_of", "header_keys", "make_variant", "read_log"]
+
+
+def delimiter_of(names_line: str) -> str:
+    """The delimiter of a contract-1a file from its column-name line: ``,``, ``;`` or
+    tab, whichever it holds most of (contract 1a)."""
+    return max((",", ";", "\t"), key=names_line.count)
+
+
+def header_keys(header: list[str] | tuple[str, ...]) -> dict[str, str]:
+    """The ``# key: value`` header lines as {key in lower case: value}."""
+    out = {}
+    for line in header:
+        key, sep, value = line.lstrip("#").partition(":")
+        if sep:
+            out.setdefault(key.strip().lower(), value.strip())
+    return out
 
 
 @dataclass(frozen=True)
@@ -50,11 +66,7 @@ class LogTable:
 
     def key(self, name: str, default: str = "") -> str:
         """The value of header line ``# name: value`` (any case; ``default`` without one)."""
-        for line in self.header:
-            key, sep, value = line.lstrip("#").partition(":")
-            if sep and key.strip().lower() == name.lower():
-                return value.strip()
-        return default
+        return header_keys(self.header).get(name.lower(), default)
 
     def rate_hz(self) -> float:
         """The header's nominal ``sample_rate_hz``; ValueError without one."""
@@ -97,7 +109,7 @@ def read_log(csv: Path) -> LogTable:
     lines = csv.read_text().splitlines()
     first = next(i for i, line in enumerate(lines) if not line.startswith("#"))
     names_line = lines[first]
-    delimiter = max((",", ";", "\t"), key=names_line.count)
+    delimiter = delimiter_of(names_line)
     rows = [line.split(delimiter) for line in lines[first + 1 :] if line.strip()]
     return LogTable(
         tuple(lines[:first]),

@@ -174,8 +174,10 @@ def escaping_links(base: str | os.PathLike[str]) -> list[tuple[Path, Path]]:
     base = Path(base)
     real_base = base.resolve()
     found: list[tuple[Path, Path]] = []
-    folders = [base]
-    while folders:  # directory entries only (no stat per file): a lake has many files
+    folders = [os.fspath(base)]
+    # directory entries only (no stat per file) and strings, not paths: a lake has many
+    # files
+    while folders:
         with os.scandir(folders.pop()) as entries:
             for entry in entries:
                 if entry.is_symlink():
@@ -183,7 +185,7 @@ def escaping_links(base: str | os.PathLike[str]) -> list[tuple[Path, Path]]:
                     if not _inside(real_base, real):
                         found.append((Path(entry.path), real))
                 elif entry.is_dir(follow_symlinks=False):
-                    folders.append(Path(entry.path))
+                    folders.append(entry.path)
     return sorted(found)
 
 

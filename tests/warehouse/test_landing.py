@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
+from pathlib import Path
 
 import duckdb
 import polars as pl
@@ -380,6 +381,100 @@ def test_a_damaged_lake_file_is_left_out_of_the_views_not_every_writer(tmp_path,
                     start=dt.datetime(2026, 3, 2, tzinfo=dt.UTC),
                     end=dt.datetime(2026, 3, 3, tzinfo=dt.UTC)).collect()  # fmt: skip
     assert day.height == 5
+
+
+def _field_file(root: DataRoot, hoist: str, day: int) -> Path:
+    """A five-row field-sample file of hoist ``hoist`` on March ``day``."""
+    from schemas.tables import FIELD_SAMPLES
+    from warehouse.parquet_files import write_parquet_atomic
+
+    start = dt.datetime(2026, 3, day, tzinfo=dt.UTC)
+    frame = conform(
+        pl.DataFrame({"time_utc": [start + dt.timedelta(seconds=k) for k in range(5)],
+                      "p1_pa": [4e6] * 5, "source_sha256": ["0" * 64] * 5,
+                      "source_line": list(range(5))}),
+        FIELD_SAMPLES,
+    )  # fmt: skip
+    folder = root.partition_dir("field_samples", site="s", hoist=hoist, date=start.date())
+    folder.mkdir(parents=True, exist_ok=True)
+    write_parquet_atomic(frame, folder / "part-1.parquet", FIELD_SAMPLES)
+    return folder / "part-1.parquet"
+
+
+def _view_comments(root: DataRoot) -> dict[str, str | None]:
+    con = duckdb.connect(str(root.warehouse), read_only=True)
+    try:
+        rows = con.sql("SELECT view_name, comment FROM duckdb_views() WHERE NOT internal")
+        return dict(rows.fetchall())
+    finally:
+        con.close()
+
+
+def test_views_are_made_again_only_when_what_is_under_them_changed(tmp_path, caplog):
+    """Each stored view carries the fingerprint of the set in its comment; a writer that
+    finds them as it would make them leaves them (re-made, a glob view reads every
+    file's footer: 2.7 s a writer at 1,500 files a table). What changes them: a lake
+    table's first file (its view had no glob to read), a table's columns (a migration),
+    a file damaged from outside after the views were stored (left out, said)."""
+    import logging
+
+    root = DataRoot(tmp_path)
+    with open_writer(root):
+        pass
+    empty = _view_comments(root)
+    fingerprints = set(empty.values())
+    assert len(fingerprints) == 1
+    assert next(iter(fingerprints)).startswith("ropeload-views:")
+    assert {"lake_field_samples", "rope_tensions", "hoists"} <= set(empty)
+    oids = "SELECT view_name, view_oid FROM duckdb_views() WHERE NOT internal ORDER BY 1"
+    with open_writer(root) as con:
+        before = con.sql(oids).fetchall()
+        refresh_views(con, root)  # nothing under them changed: not made again
+        assert con.sql(oids).fetchall() == before
+    assert _view_comments(root) == empty
+    _field_file(root, "a", 2)  # the table's first file: the view reads the glob now
+    with open_writer(root) as con:
+        assert con.sql("SELECT count(*) FROM lake_field_samples").fetchall() == [(5,)]
+    first = _view_comments(root)
+    assert set(first.values()) != fingerprints
+    assert len(set(first.values())) == 1
+    _field_file(root, "a", 3)  # another file: read by the glob view as it stands
+    with open_writer(root) as con:
+        assert con.sql("SELECT count(*) FROM lake_field_samples").fetchall() == [(10,)]
+    assert _view_comments(root) == first
+    with open_writer(root) as con:  # a table's columns changed (as a migration would)
+        con.execute("ALTER TABLE runs ADD COLUMN note VARCHAR")
+    with open_writer(root):
+        pass
+    altered = _view_comments(root)
+    assert set(altered.values()) != set(first.values())
+    damaged = _field_file(root, "b", 2)
+    damaged.write_bytes(b"not parquet at all")
+    with caplog.at_level(logging.WARNING, logger="warehouse.views"), open_writer(root) as con:
+        rows = con.sql("SELECT hoist, count(*) FROM lake_field_samples GROUP BY 1 ORDER BY 1")
+        assert rows.fetchall() == [("a", 10)]
+    assert f"1 unreadable Parquet file(s) left out of the view: {damaged}" in caplog.text
+    assert _view_comments(root) != altered
+    damaged.unlink()  # removed: the view over the glob again
+    _field_file(root, "b", 2)
+    with open_writer(root) as con:
+        rows = con.sql("SELECT hoist, count(*) FROM lake_field_samples GROUP BY 1 ORDER BY 1")
+        assert rows.fetchall() == [("a", 10), ("b", 5)]
+    assert _view_comments(root) == altered
+
+
+def test_a_file_without_the_parquet_magic_bytes_is_unsound(tmp_path):
+    """The writers' cheap test of every lake file: the format's four bytes at both ends
+    (an empty file, junk, a copy cut short); a whole file passes."""
+    from warehouse.views import unsound_files
+
+    root = DataRoot(tmp_path)
+    whole = _field_file(root, "a", 2)
+    empty, junk, cut = (_field_file(root, h, 2) for h in ("b", "c", "d"))
+    empty.write_bytes(b"")
+    junk.write_text("not parquet")
+    cut.write_bytes(whole.read_bytes()[:-10])
+    assert unsound_files(root.table_dir("field_samples")) == sorted([empty, junk, cut])
 
 
 def _at(seconds: float) -> dt.datetime:

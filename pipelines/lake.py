@@ -7,6 +7,8 @@ to the partitions it needs before any file is opened.
 from __future__ import annotations
 
 import datetime as dt
+import os
+from pathlib import Path
 
 import polars as pl
 
@@ -43,16 +45,16 @@ def scan_lake(
     """
     schema = TABLES[table]
     root = data.partition_dir(table, site=site, hoist=hoist)
-    files = sorted(root.glob("date=*/*.parquet"))
-    if start is not None or end is not None:
-        first = as_utc(start).date().isoformat() if start is not None else ""
-        # the end is exclusive: a period ending at midnight reads nothing of the next day
-        last = (
-            (as_utc(end) - dt.timedelta(microseconds=1)).date().isoformat()
-            if end is not None
-            else "9999-12-31"
-        )
-        files = [f for f in files if first <= f.parent.name.removeprefix("date=") <= last]
+    first = as_utc(start).date().isoformat() if start is not None else ""
+    # the end is exclusive: a period ending at midnight reads nothing of the next day
+    last = (
+        (as_utc(end) - dt.timedelta(microseconds=1)).date().isoformat()
+        if end is not None
+        else "9999-12-31"
+    )
+    files = [
+        file for day in _date_folders(root, first, last) for file in sorted(day.glob("*.parquet"))
+    ]
     if not files:
         return pl.LazyFrame(schema=polars_schema(schema))
     escaped = escaping_paths(data.table_dir(table), files)
@@ -64,6 +66,24 @@ def scan_lake(
     if end is not None:
         frame = frame.filter(pl.col("time_utc") < as_utc(end))
     return frame.sort("time_utc") if sort else frame
+
+
+def _date_folders(root: Path, first: str, last: str) -> list[Path]:
+    """``root``'s ``date=YYYY-MM-DD`` folders from ``first`` to ``last`` (ISO days,
+    inclusive), in date order: the days' names are read, only their files listed (a
+    year of hourly files is ~9,000 a hoist, read for every block of a run)."""
+    try:
+        entries = list(os.scandir(root))
+    except FileNotFoundError:
+        return []
+    days = [
+        entry
+        for entry in entries
+        if entry.name.startswith("date=")
+        and first <= entry.name.removeprefix("date=") <= last
+        and entry.is_dir()
+    ]
+    return [Path(entry.path) for entry in sorted(days, key=lambda entry: entry.name)]
 
 
 def in_time_order(frame: pl.LazyFrame) -> pl.DataFrame:

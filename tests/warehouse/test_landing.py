@@ -355,21 +355,10 @@ def test_a_damaged_lake_file_is_left_out_of_the_views_not_every_writer(tmp_path,
     import logging
 
     from pipelines.lake import scan_lake
-    from schemas.tables import FIELD_SAMPLES
-    from warehouse.parquet_files import write_parquet_atomic
 
     root = DataRoot(tmp_path)
     for hoist, day in (("a", 2), ("a", 3), ("b", 2)):
-        start = dt.datetime(2026, 3, day, tzinfo=dt.UTC)
-        frame = conform(
-            pl.DataFrame({"time_utc": [start + dt.timedelta(seconds=k) for k in range(5)],
-                          "p1_pa": [4e6] * 5, "source_sha256": ["0" * 64] * 5,
-                          "source_line": list(range(5))}),
-            FIELD_SAMPLES,
-        )  # fmt: skip
-        folder = root.partition_dir("field_samples", site="s", hoist=hoist, date=start.date())
-        folder.mkdir(parents=True)
-        write_parquet_atomic(frame, folder / "part-1.parquet", FIELD_SAMPLES)
+        _field_file(root, hoist, day)
     damaged = root.partition_dir("field_samples", site="s", hoist="a", date=dt.date(2026, 3, 3))
     (damaged / "part-1.parquet").write_bytes(b"")
     with caplog.at_level(logging.WARNING, logger="warehouse.views"), open_writer(root) as con:

@@ -45,13 +45,9 @@ def scan_lake(
     """
     schema = TABLES[table]
     root = data.partition_dir(table, site=site, hoist=hoist)
-    first = as_utc(start).date().isoformat() if start is not None else ""
+    first = as_utc(start).date().isoformat() if start is not None else None
     # the end is exclusive: a period ending at midnight reads nothing of the next day
-    last = (
-        (as_utc(end) - dt.timedelta(microseconds=1)).date().isoformat()
-        if end is not None
-        else "9999-12-31"
-    )
+    last = None if end is None else (as_utc(end) - dt.timedelta(microseconds=1)).date().isoformat()
     files = [
         file for day in _date_folders(root, first, last) for file in sorted(day.glob("*.parquet"))
     ]
@@ -68,19 +64,20 @@ def scan_lake(
     return frame.sort("time_utc") if sort else frame
 
 
-def _date_folders(root: Path, first: str, last: str) -> list[Path]:
-    """``root``'s ``date=YYYY-MM-DD`` folders from ``first`` to ``last`` (ISO days,
-    inclusive), in date order: the days' names are read, only their files listed (a
-    year of hourly files is ~9,000 a hoist, read for every block of a run)."""
+def _date_folders(root: Path, first: str | None, last: str | None) -> list[Path]:
+    """``root``'s ``date=`` folders from ``first`` to ``last`` (ISO days, inclusive;
+    None: no bound), in name order: the days' names are read, only their files listed
+    (a year of hourly files is ~9,000 a hoist, read for every block of a run)."""
     try:
         entries = list(os.scandir(root))
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):
         return []
     days = [
         entry
         for entry in entries
         if entry.name.startswith("date=")
-        and first <= entry.name.removeprefix("date=") <= last
+        and (first is None or entry.name.removeprefix("date=") >= first)
+        and (last is None or entry.name.removeprefix("date=") <= last)
         and entry.is_dir()
     ]
     return [Path(entry.path) for entry in sorted(days, key=lambda entry: entry.name)]

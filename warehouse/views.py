@@ -21,10 +21,11 @@ marts (``models/marts``)
     ``sanity_checks``, ``friction_parameter_sets``, ``discovery_findings``) are tables
     made by migrations.
 
-:func:`refresh_views` (re)creates everything; :func:`warehouse.store.open_writer` calls
-it before publishing, so the views follow the data root and pick up the first files of
-a lake table. A reader whose data root moved since the last writer can call it with
-``temporary=True`` on its read-only connection: temporary views shadow the stored ones.
+:func:`refresh_views` (re)creates whatever changed under them;
+:func:`warehouse.store.open_writer` calls it before publishing, so the views follow the
+data root and pick up the first files of a lake table. A reader whose data root moved
+since the last writer can call it with ``temporary=True`` on its read-only connection:
+temporary views shadow the stored ones.
 """
 
 from __future__ import annotations
@@ -127,9 +128,11 @@ def readable_files(directory: Path) -> tuple[list[Path], list[Path]]:
 
 
 #: The comment every view :func:`refresh_views` stores carries the fingerprint of the
-#: whole set it made (``ropeload-views:<sha256>``): a writer whose views, models and tables
-#: are as they were skips re-creating them (see :func:`refresh_views`).
+#: whole set it made (``ropeload-views:<sha256>``) and how far its lake files were checked
+#: (``checked-from:<mtime_ns>``): a writer whose views, models and tables are as they were
+#: skips re-creating them (see :func:`refresh_views`).
 _FINGERPRINT_PREFIX = "ropeload-views:"
+_CHECKED = " checked-from:"
 
 #: A Parquet file starts and ends with these four bytes (its footer's length before the
 #: last four): a file without them is damaged for sure.
@@ -137,14 +140,18 @@ _PARQUET_MAGIC = b"PAR1"
 _PARTITION_LEVELS = ("site=", "hoist=", "date=")
 
 
-def unsound_files(directory: Path) -> list[Path]:
-    """The lake table's ``*.parquet`` files under ``directory`` that cannot be Parquet:
-    shorter than a footer or without the format's magic bytes at both ends. Reads eight
-    bytes a file, where opening its footer (:func:`readable_files`, DuckDB binding a
-    view) reads and parses the footer: the cheap test each writer makes of every file.
-    A file it passes may still be damaged inside (a footer cut short of its magic is
-    not): binding the view finds those."""
-    found = []
+def unsound_files(directory: Path, *, footers_from_ns: int | None = None) -> tuple[list[Path], int]:
+    """The lake table's ``*.parquet`` files under ``directory`` that are not sound
+    Parquet, and the newest file's modification time [ns since the epoch] (0: none).
+
+    Every file is tested for the format's magic bytes at both ends (eight bytes read; a
+    file shorter than a footer fails). The footer is read too (``pq.read_metadata``, as
+    binding a view over the file would) of the files modified at or after
+    ``footers_from_ns`` (every file's when None): a writer reads the footers of the
+    files new since the views were last checked, not of the whole lake. A file damaged
+    from outside with its time set back (``cp -p`` of a damaged copy) and its ends
+    whole is not found (DuckDB fails on it when a query reads it)."""
+    found, newest = [], 0
     for path in _lake_files(directory):
         try:
             fd = os.open(path, os.O_RDONLY)
@@ -152,7 +159,8 @@ def unsound_files(directory: Path) -> list[Path]:
             found.append(Path(path))
             continue
         try:
-            size = os.fstat(fd).st_size
+            status = os.fstat(fd)
+            size, newest = status.st_size, max(newest, status.st_mtime_ns)
             sound = (
                 size >= 12
                 and os.pread(fd, 4, 0) == _PARQUET_MAGIC
@@ -162,9 +170,14 @@ def unsound_files(directory: Path) -> list[Path]:
             sound = False
         finally:
             os.close(fd)
+        if sound and (footers_from_ns is None or status.st_mtime_ns >= footers_from_ns):
+            try:
+                pq.read_metadata(path)
+            except (OSError, pa.ArrowException):
+                sound = False
         if not sound:
             found.append(Path(path))
-    return sorted(found)
+    return sorted(found), newest
 
 
 def _lake_files(directory: Path) -> list[str]:
@@ -183,20 +196,26 @@ def _lake_files(directory: Path) -> list[str]:
     return found
 
 
-def _lake_definition(root: DataRoot, table: str, view: str) -> str:
-    """The ``SELECT`` of a lake view: over every file of the table, or over the readable
-    ones where some cannot be Parquet (:func:`unsound_files`; said in the log)."""
+def _lake_definition(
+    root: DataRoot, table: str, view: str, footers_from_ns: int | None
+) -> tuple[str, int]:
+    """The ``SELECT`` of a lake view -- over every file of the table, or over the
+    readable ones where some are not (:func:`unsound_files`, then every footer read;
+    said in the log) -- and the table's newest file's time [ns]."""
     directory = root.table_dir(table)
     if not directory.is_dir():
-        return raw_view_sql(root, table)
+        return raw_view_sql(root, table), 0
     escaped = escaping_links(directory)
     if escaped:  # the view's pattern would follow it (the writers refuse to)
         raise escape_error(f"lake table {table!r}", escaped)
-    if not unsound_files(directory):
-        return raw_view_sql(root, table)
+    unsound, newest = unsound_files(directory, footers_from_ns=footers_from_ns)
+    if not unsound:
+        return raw_view_sql(root, table), newest
     good, bad = readable_files(directory)
+    if not bad:  # its ends damaged, its footer whole: DuckDB reads it
+        return raw_view_sql(root, table), newest
     _warn_unreadable(view, bad)
-    return raw_view_sql(root, table, good)
+    return raw_view_sql(root, table, good), newest
 
 
 def _warn_unreadable(view: str, bad: list[Path]) -> None:
@@ -207,30 +226,35 @@ def _warn_unreadable(view: str, bad: list[Path]) -> None:
 
 
 def _fingerprint(con: duckdb.DuckDBPyConnection, definitions: dict[str, str]) -> str:
-    """sha256 of the views' definitions and of the tables under them (every column's
-    name and type: a migration that changes a table the models read makes the views
-    again)."""
+    """sha256 of the views' definitions, of the tables under them (every column's name,
+    type and place: a migration that changes a table the models read makes the views
+    again) and of DuckDB's version (which binds them)."""
     tables = con.execute(
-        "SELECT table_name, column_name, data_type FROM duckdb_columns() "
+        "SELECT table_name, column_index, column_name, data_type FROM duckdb_columns() "
         "WHERE database_name = current_database() AND NOT internal "
         "AND table_name NOT IN (SELECT view_name FROM duckdb_views() "
-        "WHERE database_name = current_database()) ORDER BY ALL"
+        "WHERE database_name = current_database()) ORDER BY table_name, column_index"
     ).fetchall()
-    digest = hashlib.sha256()
+    digest = hashlib.sha256(f"duckdb {duckdb.__version__}\0".encode())
     for name, body in definitions.items():
         digest.update(f"{name}\0{body}\0".encode())
     digest.update(repr(tables).encode())
     return _FINGERPRINT_PREFIX + digest.hexdigest()
 
 
-def _stored_with(con: duckdb.DuckDBPyConnection, fingerprint: str) -> set[str]:
-    """The stored views of the current database whose comment is ``fingerprint``."""
+def _stored_marks(con: duckdb.DuckDBPyConnection) -> dict[str, tuple[str, int]]:
+    """Each stored view's (fingerprint, checked-from time [ns]) from its comment (views
+    without one left out)."""
     rows = con.execute(
-        "SELECT view_name FROM duckdb_views() WHERE database_name = current_database() "
-        "AND NOT internal AND NOT temporary AND comment = ?",
-        [fingerprint],
+        "SELECT view_name, comment FROM duckdb_views() WHERE database_name = "
+        "current_database() AND NOT internal AND NOT temporary"
     ).fetchall()
-    return {name for (name,) in rows}
+    marks = {}
+    for name, comment in rows:
+        fingerprint, _, checked = (comment or "").partition(_CHECKED)
+        if fingerprint.startswith(_FINGERPRINT_PREFIX) and checked.isdigit():
+            marks[name] = (fingerprint, int(checked))
+    return marks
 
 
 def refresh_views(
@@ -244,30 +268,38 @@ def refresh_views(
 
     Stored views are made again only when something under them changed: each carries
     the fingerprint of the set (:func:`_fingerprint`: every view's definition, with the
-    lake views' data root and whether their table has files, and the tables' columns)
-    in its comment, and a writer that finds every view with the fingerprint it would
-    store leaves them. A view over a lake table's glob reads every file's footer when
-    it is created (``union_by_name``), and the models over it again: re-created twice
-    per writer, they cost 2.7 s a writer at 1,500 files a table (session 51), a
-    year of hourly files ten times that. The views read the lake at query time, so
-    files landed since are in them either way. Every refresh still tests each lake file
-    for the format's magic bytes (:func:`unsound_files`): a file damaged from outside is
-    left out (the view made over the readable files, said in the log), as when the view
-    is made.
+    lake views' data root and whether their table has files, the tables' columns and
+    DuckDB's version) in its comment, and a writer that finds every view with the
+    fingerprint it would store leaves them. A view over a lake table's glob reads every
+    file's footer when it is made (``union_by_name``), and the models over it again:
+    made twice per writer, they cost 2.7 s a writer at 1,500 files a table (session
+    51), a year of hourly files ten times that. The views read the lake at query time,
+    so files landed since are in them either way. A file damaged from outside is left
+    out (the view made over the readable files, said in the log), as when the view is
+    made: each refresh tests every lake file's magic bytes and reads the footers of the
+    files modified since the views' last check (:func:`unsound_files`; the comment
+    keeps that time).
     """
     kind = "TEMPORARY VIEW" if temporary else "VIEW"
-    definitions = {view: _lake_definition(root, table, view) for view, table in LAKE_VIEWS.items()}
+    stored = {} if temporary else _stored_marks(con)
+    kept = set(stored.values())
+    stored_fingerprint, checked = kept.pop() if len(kept) == 1 else (None, None)
+    definitions, newest = {}, checked or 0
+    for view, table in LAKE_VIEWS.items():
+        definitions[view], newest_here = _lake_definition(root, table, view, checked)
+        newest = max(newest, newest_here)
     models = {path.stem: path for path in model_files()}
     for name, path in models.items():
         definitions[name] = path.read_text(encoding="utf-8").strip().rstrip(";")
-    fingerprint = None
     if not temporary:
         fingerprint = _fingerprint(con, definitions)
         retired = con.execute(
             "SELECT count(*) FROM duckdb_views() WHERE database_name = current_database() "
             f"AND view_name IN ({', '.join(_quote(v) for v in RETIRED_VIEWS)})"
-        ).fetchone()[0]
-        if not retired and _stored_with(con, fingerprint) == set(definitions):
+        ).fetchall()[0][0]
+        if not retired and stored_fingerprint == fingerprint and set(stored) >= set(definitions):
+            if newest != checked:
+                _mark(con, definitions, fingerprint, newest)
             return list(definitions)
         for view in RETIRED_VIEWS:
             con.execute(f"DROP VIEW IF EXISTS {view}")
@@ -288,9 +320,16 @@ def refresh_views(
             con.execute(f"CREATE OR REPLACE {kind} {name} AS\n{definitions[name]}")
         except duckdb.Error as exc:
             raise RuntimeError(f"{path}: cannot create view {name}: {exc}") from exc
-    if fingerprint is not None:
+    if not temporary:
         # the fingerprint of what was made (a footer found damaged only now changes it)
-        fingerprint = _fingerprint(con, definitions)
-        for name in definitions:
-            con.execute(f"COMMENT ON VIEW {name} IS {_quote(fingerprint)}")
+        _mark(con, definitions, _fingerprint(con, definitions), newest)
     return list(definitions)
+
+
+def _mark(
+    con: duckdb.DuckDBPyConnection, views: dict[str, str], fingerprint: str, checked_ns: int
+) -> None:
+    """Store ``fingerprint`` and the lake files' check time in every view's comment."""
+    comment = _quote(f"{fingerprint}{_CHECKED}{checked_ns}")
+    for name in views:
+        con.execute(f"COMMENT ON VIEW {name} IS {comment}")

@@ -391,10 +391,12 @@ def _field_file(root: DataRoot, hoist: str, day: int) -> Path:
 
 
 def _view_comments(root: DataRoot) -> dict[str, str | None]:
+    """Each stored view's fingerprint (its comment, less the files' check time)."""
     con = duckdb.connect(str(root.warehouse), read_only=True)
     try:
         rows = con.sql("SELECT view_name, comment FROM duckdb_views() WHERE NOT internal")
-        return dict(rows.fetchall())
+        rows = rows.fetchall()
+        return {name: (comment or "").split(" checked-from:")[0] for name, comment in rows}
     finally:
         con.close()
 
@@ -446,6 +448,22 @@ def test_views_are_made_again_only_when_what_is_under_them_changed(tmp_path, cap
     assert _view_comments(root) != altered
     damaged.unlink()  # removed: the view over the glob again
     _field_file(root, "b", 2)
+    with open_writer(root):
+        pass
+    assert _view_comments(root) == altered
+    # damaged inside after the views were stored, its ends whole: the footer of a file
+    # changed since the last check is read
+    data = bytearray(damaged.read_bytes())
+    footer = int.from_bytes(data[-8:-4], "little")
+    data[-8 - footer : -8] = b"\xff" * footer
+    damaged.write_bytes(bytes(data))
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="warehouse.views"), open_writer(root) as con:
+        rows = con.sql("SELECT hoist, count(*) FROM lake_field_samples GROUP BY 1 ORDER BY 1")
+        assert rows.fetchall() == [("a", 10)]
+    assert caplog.text.count(f"left out of the view: {damaged}") == 2
+    damaged.unlink()
+    _field_file(root, "b", 2)
     with open_writer(root) as con:
         rows = con.sql("SELECT hoist, count(*) FROM lake_field_samples GROUP BY 1 ORDER BY 1")
         assert rows.fetchall() == [("a", 10), ("b", 5)]
@@ -463,7 +481,16 @@ def test_a_file_without_the_parquet_magic_bytes_is_unsound(tmp_path):
     empty.write_bytes(b"")
     junk.write_text("not parquet")
     cut.write_bytes(whole.read_bytes()[:-10])
-    assert unsound_files(root.table_dir("field_samples")) == sorted([empty, junk, cut])
+    assert unsound_files(root.table_dir("field_samples"))[0] == sorted([empty, junk, cut])
+    # a footer damaged, the ends whole: found where the footers are read
+    data = bytearray(whole.read_bytes())
+    footer = int.from_bytes(data[-8:-4], "little")
+    data[-8 - footer : -8] = b"\xff" * footer
+    whole.write_bytes(bytes(data))
+    newest = whole.stat().st_mtime_ns
+    assert unsound_files(root.table_dir("field_samples"))[0] == sorted([whole, empty, junk, cut])
+    later = unsound_files(root.table_dir("field_samples"), footers_from_ns=newest + 1)
+    assert later == (sorted([empty, junk, cut]), newest)
 
 
 def _at(seconds: float) -> dt.datetime:

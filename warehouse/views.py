@@ -138,6 +138,8 @@ _CHECKED = " checked-from:"
 #: last four): a file without them is damaged for sure.
 _PARQUET_MAGIC = b"PAR1"
 _PARTITION_LEVELS = ("site=", "hoist=", "date=")
+#: A ``footers_from_ns`` after every file's time: :func:`unsound_files` reads no footer.
+_NO_FOOTERS = 2**63
 
 
 def unsound_files(directory: Path, *, footers_from_ns: int | None = None) -> tuple[list[Path], int]:
@@ -285,8 +287,11 @@ def refresh_views(
     kept = set(stored.values())
     stored_fingerprint, checked = kept.pop() if len(kept) == 1 else (None, None)
     definitions, newest = {}, checked or 0
+    # with no check stored the views are made whatever the files: binding them reads
+    # every footer, so only the magic bytes are tested here
+    footers_from = checked if checked is not None else _NO_FOOTERS
     for view, table in LAKE_VIEWS.items():
-        definitions[view], newest_here = _lake_definition(root, table, view, checked)
+        definitions[view], newest_here = _lake_definition(root, table, view, footers_from)
         newest = max(newest, newest_here)
     models = {path.stem: path for path in model_files()}
     for name, path in models.items():

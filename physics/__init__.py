@@ -80,6 +80,11 @@ the conveyance's motion (not printed), its speed where the log lacks it
 white noise from differences (not printed; von Neumann et al. 1941, the MAD's 1.4826)
     :func:`physics.white_noise.difference_noise_sigma` -- its doctests,
     tests/discovery/test_planning.py
+the filters' designs (not printed; Savitzky and Golay 1964, Butterworth by the bilinear
+transform), as scipy.signal designs them, without its import
+    :func:`physics.filter_design.savgol_coeffs`, :func:`~physics.filter_design.savgol_filter`,
+    :func:`~physics.filter_design.butter_lowpass_sos`, :func:`~physics.filter_design.sosfilt_zi`
+    -- tests/physics/test_filter_design.py, tests/transforms/test_filtering.py
 
 Errata are corrected where the equation is written: eq 10 and eq 11
 (:mod:`physics.two_cylinder`), the name of eq 15 (:mod:`physics.lugre`), eq 17's

@@ -22,8 +22,8 @@ import itertools
 
 import numpy as np
 from numba import njit
-from scipy import signal
 
+from physics.filter_design import savgol_coeffs, savgol_filter
 from physics.trip_rule import RATE_RATIO, RATE_RUN
 from physics.white_noise import difference_noise_sigma
 
@@ -161,7 +161,7 @@ def _segment_derivative(
             d[bad] = np.nan
         return
     if part.size >= n_win:
-        d = signal.savgol_filter(part, n_win, polyorder, deriv=1, delta=dt_s, mode="interp")
+        d = savgol_filter(part, n_win, polyorder, deriv=1, delta=dt_s)
     elif part.size >= 2:
         d = np.gradient(part, dt_s)
     else:
@@ -204,28 +204,28 @@ def _correlate_antisymmetric(y, weights, out):  # pragma: no cover - numba
 def _savgol_derivative(
     y: np.ndarray, n_win: int, polyorder: int, dt_s: float, *, out: np.ndarray | None = None
 ) -> np.ndarray:
-    """``savgol_filter(y, n_win, polyorder, deriv=1, delta=dt_s, mode="interp")``, faster.
+    """:func:`physics.filter_design.savgol_filter` (``deriv=1``), faster.
 
-    The interior is the same filter (``savgol_coeffs``), whose first-derivative
-    coefficients are odd-symmetric, applied to the differences y[i + k] - y[i - k] by a
-    compiled loop (equal to scipy to ~1e-14 relative; scipy's least-squares coefficients
-    are odd only to ~1e-14, and a flat signal here gives exactly 0, not ~1e-14 y); the
-    ``n_win // 2`` samples at each end are scipy's own polynomial fits, taken from
-    ``savgol_filter`` on the first and last 2 ``n_win`` samples, which only see the first
-    and last window.
+    The interior is the same filter (:func:`~physics.filter_design.savgol_coeffs`), whose
+    first-derivative coefficients are odd-symmetric, applied to the differences
+    y[i + k] - y[i - k] by a compiled loop (equal to ``scipy.signal.savgol_filter`` to
+    ~1e-14 relative; the least-squares coefficients are odd only to ~1e-14, and a flat
+    signal here gives exactly 0, not ~1e-14 y); the ``n_win // 2`` samples at each end
+    are the polynomial fits of ``savgol_filter`` on the first and last 2 ``n_win``
+    samples, which only see the first and last window.
     """
     y = np.ascontiguousarray(y, dtype=np.float64)
     h = n_win // 2
     # correlation weights for y[i + k] and y[i - k], k = 1..h (savgol_coeffs is in
     # convolution order), made exactly odd
-    coeffs = signal.savgol_coeffs(n_win, polyorder, deriv=1, delta=dt_s)[::-1]
+    coeffs = savgol_coeffs(n_win, polyorder, deriv=1, delta=dt_s)[::-1]
     odd = 0.5 * (coeffs[h + 1 :] - coeffs[:h][::-1])
     if out is None:
         out = np.empty_like(y)
     _correlate_antisymmetric(y, np.ascontiguousarray(odd), out)
     span = 2 * n_win
-    head = signal.savgol_filter(y[:span], n_win, polyorder, deriv=1, delta=dt_s, mode="interp")
-    tail = signal.savgol_filter(y[-span:], n_win, polyorder, deriv=1, delta=dt_s, mode="interp")
+    head = savgol_filter(y[:span], n_win, polyorder, deriv=1, delta=dt_s)
+    tail = savgol_filter(y[-span:], n_win, polyorder, deriv=1, delta=dt_s)
     out[:h] = head[:h]
     out[-h:] = tail[-h:]
     return out

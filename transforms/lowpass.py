@@ -18,7 +18,8 @@ from typing import TypeVar
 import numpy as np
 import polars as pl
 from numba import njit
-from scipy import signal
+
+from physics.filter_design import butter_lowpass_sos, sosfilt_zi
 
 __all__ = ["lowpass", "lowpass_columns", "lowpass_work_size"]
 
@@ -47,7 +48,8 @@ def lowpass(
     r"""Zero-phase Butterworth low-pass, each segment filtered on its own.
 
     Forward-backward filtering (``scipy.signal.sosfiltfilt``) of an order-``order``
-    Butterworth section cascade: magnitude response
+    Butterworth section cascade (:func:`physics.filter_design.butter_lowpass_sos`):
+    magnitude response
 
     .. math:: |H(f)|^2 = \frac{1}{1 + (f/f_c)^{2N}}
 
@@ -67,7 +69,7 @@ def lowpass(
     sample_rate_hz, cutoff_hz : float
         Nominal sampling rate and -3 dB (one pass) cut-off [Hz].
     order : int
-        Butterworth order (per pass).
+        Butterworth order (per pass), even (:func:`physics.filter_design.butter_lowpass_sos`).
     out : numpy.ndarray, optional
         Float64 array of ``x``'s length to write into; may be ``x`` itself (filtered in
         place: each segment is read whole before it is written).
@@ -88,9 +90,9 @@ def lowpass(
     """
     x = np.asarray(x, dtype=np.float64)
     seg = np.zeros(x.size, dtype=np.int64) if segment_id is None else np.asarray(segment_id)
-    sos = signal.butter(order, cutoff_hz, btype="low", fs=sample_rate_hz, output="sos")
+    sos = butter_lowpass_sos(order, cutoff_hz, sample_rate_hz)
     default_pad = _lowpass_pad(sample_rate_hz, cutoff_hz, order)
-    zi = signal.sosfilt_zi(sos)
+    zi = sosfilt_zi(sos)
     if out is None:
         out = x.copy()
     elif out is not x:

@@ -116,7 +116,6 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 import scipy
-from scipy.optimize import OptimizeResult, differential_evolution, minimize
 
 from physics.oil import kinematic_viscosity
 from physics.sensor_branch import sensor_branch
@@ -560,6 +559,10 @@ def identify_rope_springs(
             presliding_elements=presliding_elements if stride == fine else 1,
             bounds=bounds,
         )
+
+    # imported here, not with the module: scipy.optimize adds ~0.5 s to every start of
+    # a run, which a record whose ropes are remembered (or a record at rest) never uses
+    from scipy.optimize import OptimizeResult, differential_evolution, minimize
 
     def mismatch(q: np.ndarray, stride: int) -> float:
         return float(mismatches(q[np.newaxis], stride)[0])

@@ -127,7 +127,8 @@ def butter_lowpass_sos(order: int, cutoff_hz: float, sample_rate_hz: float) -> n
     gain = warped**order * np.real(1.0 / np.prod(fs2 - analog))
     upper = poles[poles.imag > 0.0]
     upper = upper[np.argsort(-np.abs(1.0 - np.abs(upper)), kind="stable")]
-    sos = np.array([[1.0, 2.0, 1.0, 1.0, -2.0 * p.real, abs(p) ** 2] for p in upper])
+    # a2 as numpy.poly multiplies the pair out (p p*, not |p|^2): scipy's to the bit
+    sos = np.array([[1.0, 2.0, 1.0, 1.0, -2.0 * p.real, (p * p.conjugate()).real] for p in upper])
     sos[0, :3] *= gain
     return sos
 

@@ -51,7 +51,9 @@ def lowpass(
     Butterworth section cascade (:func:`physics.filter_design.butter_lowpass_sos`):
     magnitude response
 
-    .. math:: |H(f)|^2 = \frac{1}{1 + (f/f_c)^{2N}}
+    .. math:: |H(f)|^2 = \frac{1}{1 + (\tan(\pi f / f_s) / \tan(\pi f_c / f_s))^{2N}}
+
+    (the analog prototype's 1 / (1 + (f / f_c)^{2N}) through the bilinear transform)
 
     applied twice (squared), no phase lag. Each segment is padded by odd extension of
     three cut-off periods (scipy's default pad is shorter and leaves ~3 % edge error

@@ -38,15 +38,17 @@ def test_the_butterworth_response_is_maximally_flat_with_half_power_at_the_cutof
 
 @pytest.mark.parametrize("order", [2, 4, 6, 12])
 @pytest.mark.parametrize(
-    ("cutoff_hz", "fs_hz"), [(10.0, 100.0), (10.0, 50.0), (3.0, 10.0), (0.1, 100.0), (24.0, 50.0)]
+    ("cutoff_hz", "fs_hz"),
+    [(10.0, 100.0), (10.0, 50.0), (3.0, 10.0), (0.1, 100.0), (24.0, 50.0), (0.01, 100.0)],
 )
 def test_the_sections_and_their_initial_state_are_scipys(order, cutoff_hz, fs_hz):
-    """Coefficients to the last bit or two, the same section order; the step's initial
-    state to 1e-9 (its 2 x 2 solve is ill-conditioned where the poles crowd z = 1)."""
+    """To the bit, in the same section order: the pipeline's low-pass is what it was with
+    scipy.signal's design (the initial state's 2 x 2 solve is ill-conditioned where the
+    poles crowd z = 1, so an ulp in a coefficient would show there as ~1e-9)."""
     theirs = signal.butter(order, cutoff_hz, btype="low", fs=fs_hz, output="sos")
     ours = butter_lowpass_sos(order, cutoff_hz, fs_hz)
-    np.testing.assert_allclose(ours, theirs, rtol=1e-14, atol=1e-300)
-    np.testing.assert_allclose(sosfilt_zi(ours), signal.sosfilt_zi(theirs), rtol=1e-9)
+    np.testing.assert_array_equal(ours, theirs)
+    np.testing.assert_array_equal(sosfilt_zi(ours), signal.sosfilt_zi(theirs))
 
 
 def test_a_step_through_the_sections_from_their_initial_state_stays_at_its_level():
@@ -68,12 +70,12 @@ def test_a_cutoff_beyond_nyquist_is_refused():
         butter_lowpass_sos(4, 50.0, 100.0)
 
 
-@pytest.mark.parametrize("window", [3, 5, 11, 21, 51])
-@pytest.mark.parametrize("polyorder", [1, 2, 3])
+@pytest.mark.parametrize(
+    ("window", "polyorder"),
+    [(w, k) for w in (3, 5, 11, 21, 51, 101, 201) for k in (1, 2, 3) if k < w],
+)
 @pytest.mark.parametrize("deriv", [0, 1, 2])
 def test_savitzky_golay_is_scipys(window: int, polyorder: int, deriv: int):
-    if polyorder >= window:
-        pytest.skip("not a filter")
     delta = 0.02
     np.testing.assert_allclose(
         savgol_coeffs(window, polyorder, deriv, delta),

@@ -17,20 +17,28 @@ and per departure position and direction the RMS of each estimate's summed frict
 less the truth's, per piston, and the correlation of the gap ratio with the replay's
 summed error.
 
-Session 52 found with it (days 101 and 104, the replay's chain against the truth at
-the departures: RMS of the summed friction's error / per piston):
+Session 52 found with it (days 101 and 104):
 
-- day 104 (ringing): from the pithead down 2341 / 596 N, from the bottom up 1325 /
-  334 N; the compensation's estimate at the same windows 129 N summed from the
-  pithead, 188 N from the bottom (the truth's spread 2278 / 1375 N);
-- day 101: 2414 / 610 N from the pithead, 1597 / 401 N from the bottom;
-- the replay's seals are offset the same way at every departure of a kind (e.g. each
-  pithead piston ~450 N further negative than the truth's on day 104), so the per-trip
-  payload fit takes most of the sum; the gap ratio does not follow the replay's error
-  (correlation -0.27 and 0.0 on day 104, -0.40 and -0.17 on day 101), and the failed
-  departures are not those with the largest error. Starting each trip's replay from
-  the compensation's seals (the replay's state carried otherwise) is the experiment
-  this points to, not yet made.
+- the replay's seals are far from the truth's at the departures: the summed friction's
+  error RMS 2341 / 1325 N from the pithead / bottom of day 104 (596 / 334 N a piston),
+  2414 / 1597 N on day 101, where the compensation's estimate at the same windows is
+  129 / 188 N (231 / 210 N on day 101) off a spread of 1.4-3.8 kN: the compensation
+  knows the seals' state ten times better than the check's chain of replays;
+- but the departure's common-mode residual (measured less replayed, the first 12 s of
+  motion) is systematic by where and which way the trip leaves, whatever the seals:
+  from the pithead down +18.0 kPa (sd 10.5) on day 104 and +15.9 kPa (sd 4.0) on day
+  101, from the middle up -5.7 / -11.2 kPa, from the middle down -2.0 / +4.2 kPa, from
+  the bottom up -1.3 / -0.6 kPa. The record's pressure changes less than the replay's
+  where the tail rope below the conveyance is long, as if the replay counted some
+  4-12 % more of the tail rope's inertia (~190 kPa at a pithead departure, ~95 kPa at
+  the middle) than the record shows; the conveyance's own inertia (the bottom's
+  departures) replays to ~1 kPa.
+- That residual is what fails the trips (its correlation with the gap ratio +0.67 on
+  day 104, +0.89 on day 101); the seals' start only modulates it on day 101
+  (correlation with the replay's summed error +0.59) and not on the ringing day 104
+  (-0.07). So starting each trip from the compensation's seals would not remove it:
+  the next question is what the departure's dynamics leave out (the tail rope's
+  elasticity or loop, how the logged speed's knots carry the jerk at the pithead).
 
     uv run python benchmarks/diagnose_departure_seals.py mine_day104 [mine_day101 ...]
 """
@@ -47,6 +55,7 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+import pipelines.sanity as sanity_module
 import sims.replay as replay_module
 from warehouse.store import DataRoot, open_reader
 
@@ -61,14 +70,34 @@ def _utc(text: str) -> dt.datetime:
     return dt.datetime.fromisoformat(text.replace("Z", "+00:00"))
 
 
+#: The departure's stretch of each trip whose common-mode residual is averaged [s from
+#: the motion's start]: the acceleration of a trip of the validation shaft.
+DEPARTURE_S = 12.0
+
+
 class ReplaySeals:
-    """The replayed seals' friction just before each trip moves (the last pass's):
-    wraps ``sims.replay._simulate_trip`` while in use."""
+    """The replayed seals' friction just before each trip moves (the last pass's), and
+    each trip's mean common-mode residual (measured less replayed, over the sensors)
+    over its first :data:`DEPARTURE_S` of motion: wraps ``sims.replay._simulate_trip``
+    and the sanity check's ``replay_fitted`` while in use."""
 
     def __init__(self) -> None:
         self.at_departure: dict[int, np.ndarray] = {}
+        self.departure_residual_pa: dict[int, float] = {}
         self._lock = threading.Lock()
         self._original = replay_module._simulate_trip
+        self._fitted = sanity_module.replay_fitted
+
+    def _residuals(self, plan, *args, **kwargs):
+        result = self._fitted(plan, *args, **kwargs)
+        for tr, residual in zip(plan.trips, result.residuals(plan), strict=True):
+            moving = (tr.time_s >= tr.motion_start_s) & (
+                tr.time_s < tr.motion_start_s + DEPARTURE_S
+            )
+            common = np.nanmean(residual[moving], axis=1) if moving.any() else np.array([])
+            if common.size and np.isfinite(common).any():
+                self.departure_residual_pa[tr.trip_id] = float(np.nanmean(common))
+        return result
 
     def __enter__(self) -> ReplaySeals:
         def recorded(plan, tr, names, prm, start, ramp_end, payloads, state):
@@ -81,10 +110,12 @@ class ReplaySeals:
             return result
 
         replay_module._simulate_trip = recorded
+        sanity_module.replay_fitted = self._residuals
         return self
 
     def __exit__(self, *exc: object) -> None:
         replay_module._simulate_trip = self._original
+        sanity_module.replay_fitted = self._fitted
 
 
 def departures(name: str, work: Path) -> pl.DataFrame:
@@ -134,6 +165,7 @@ def departures(name: str, work: Path) -> pl.DataFrame:
                 "truth_n": [float(f) for f in window["friction_n"]],
                 "compensation_n": estimate,
                 "replay_n": seals.at_departure[trip["trip_id"]].tolist(),
+                "departure_kpa": seals.departure_residual_pa.get(trip["trip_id"], np.nan) / 1e3,
             }
         )
     return pl.DataFrame(rows)
@@ -145,13 +177,15 @@ def _summary(frame: pl.DataFrame) -> None:
         frame = frame.with_columns(
             pl.Series(f"{name}_error_sum", np.array(frame[name].to_list()).sum(1) - truth.sum(1))
         )
-    print(f"{'trip':>4} {'status':7} {'ratio':>5} {'dir':4} {'from':8} "
-          f"{'sum truth':>9} {'sum comp':>9} {'sum repl':>9}  [N]")  # fmt: skip
+    print(
+        f"{'trip':>4} {'status':7} {'ratio':>5} {'dir':4} {'from':8} "
+        f"{'sum truth':>9} {'sum comp':>9} {'sum repl':>9} [N] {'departure':>9} [kPa]"
+    )
     for row in frame.iter_rows(named=True):
         print(
             f"{row['trip_id']:4d} {row['status']:7} {row['ratio']:5.2f} {row['direction']:4} "
             f"{row['from']:8} {sum(row['truth_n']):9.0f} {sum(row['compensation_n']):9.0f} "
-            f"{sum(row['replay_n']):9.0f}"
+            f"{sum(row['replay_n']):9.0f}     {row['departure_kpa']:9.1f}"
         )
     for (place, way), part in frame.group_by("from", "direction", maintain_order=True):
         if part.height < 4:
@@ -164,12 +198,18 @@ def _summary(frame: pl.DataFrame) -> None:
         def rms(v: np.ndarray) -> float:
             return float(np.sqrt(np.mean(v**2)))
 
+        departure = part["departure_kpa"].to_numpy()
         print(
             f"from the {place} {way} ({part.height} trips): summed friction's error RMS: "
             f"replay {rms(replay_sum):.0f} N ({rms(r - t):.0f} N a piston), compensation "
             f"{rms(c.sum(1) - t.sum(1)):.0f} N ({rms(c - t):.0f} N a piston), the truth's "
             f"spread {rms(t.sum(1)):.0f} N; correlation of the gap ratio with |replay's "
-            f"error| {np.corrcoef(part['ratio'].to_numpy(), np.abs(replay_sum))[0, 1]:+.2f}"
+            f"error| {np.corrcoef(part['ratio'].to_numpy(), np.abs(replay_sum))[0, 1]:+.2f}; "
+            f"departure residual mean {np.nanmean(departure):+.1f} kPa (sd "
+            f"{np.nanstd(departure):.1f}), its correlation with the replay's summed error "
+            f"{np.corrcoef(departure, replay_sum)[0, 1]:+.2f}, with the truth's sum "
+            f"{np.corrcoef(departure, t.sum(1))[0, 1]:+.2f}, with the gap ratio "
+            f"{np.corrcoef(departure, part['ratio'].to_numpy())[0, 1]:+.2f}"
         )
 
 

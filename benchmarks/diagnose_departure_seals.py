@@ -36,9 +36,20 @@ Session 52 found with it (days 101 and 104):
 - That residual is what fails the trips (its correlation with the gap ratio +0.67 on
   day 104, +0.89 on day 101); the seals' start only modulates it on day 101
   (correlation with the replay's summed error +0.59) and not on the ringing day 104
-  (-0.07). So starting each trip from the compensation's seals would not remove it:
-  the next question is what the departure's dynamics leave out (the tail rope's
-  elasticity or loop, how the logged speed's knots carry the jerk at the pithead).
+  (-0.07). Its sign follows the replay's seal error, though: at the pithead the
+  replay's seals sit nearer their capacity on the side the falling load pushes them
+  (its sum ~1.8-2.4 kN more negative than the truth's), so they take up less of the
+  fall and its pressure falls more; from the middle up they sit nearer the other side.
+- Tried and not kept (a temporary patch of the replay, not in this script): every
+  chained trip started afresh from the compensation's seals (pressures and pistons set
+  so that each seal holds its estimate) at the start of its simulation, before its
+  loading ramp. The check got worse (day 101 96.9 -> 78.5 %, day 104 87.7 -> 84.6 %)
+  and the replay's seals at the departure were as far off as before (2548 N summed
+  RMS from the pithead of day 101): the replayed payload change at rest drives the
+  seals away from the truth's again, where the compensation follows them through the
+  logged x. The seals would have to be taken from the record after the loading ramp,
+  at the departure itself, or the replay's loading made to move the pistons as the
+  logged x do.
 
     uv run python benchmarks/diagnose_departure_seals.py mine_day104 [mine_day101 ...]
 """

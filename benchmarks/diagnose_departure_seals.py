@@ -9,47 +9,38 @@ the seals' friction just before the trip moves:
 
 - the truth's: ``friction_n`` of the last window of the stop the trip departs from;
 - the compensation's: the landed ``friction{i}_n`` averaged over that window;
-- the replay's: its simulated seals at the sample before the trip's motion starts, in
-  the sanity check's last pass (read by wrapping ``sims.replay._simulate_trip`` for the
-  script's run: the replay keeps only the scored pressures).
+- the replay's: its simulated seals averaged over the same window, in the sanity
+  check's last pass (read by wrapping ``sims.replay._simulate_trip`` for the script's
+  run: the replay keeps only the scored pressures).
 
 and per departure position and direction the RMS of each estimate's summed friction
 less the truth's, per piston, and the correlation of the gap ratio with the replay's
 summed error.
 
-Session 52 found with it (days 101 and 104):
+Session 52 found with it (days 104 and 101):
 
-- the replay's seals are far from the truth's at the departures: the summed friction's
-  error RMS 2341 / 1325 N from the pithead / bottom of day 104 (596 / 334 N a piston),
-  2414 / 1597 N on day 101, where the compensation's estimate at the same windows is
-  129 / 188 N (231 / 210 N on day 101) off a spread of 1.4-3.8 kN: the compensation
-  knows the seals' state ten times better than the check's chain of replays;
-- but the departure's common-mode residual (measured less replayed, the first 12 s of
-  motion) is systematic by where and which way the trip leaves, whatever the seals:
-  from the pithead down +18.0 kPa (sd 10.5) on day 104 and +15.9 kPa (sd 4.0) on day
-  101, from the middle up -5.7 / -11.2 kPa, from the middle down -2.0 / +4.2 kPa, from
-  the bottom up -1.3 / -0.6 kPa. The record's pressure changes less than the replay's
-  where the tail rope below the conveyance is long, as if the replay counted some
-  4-12 % more of the tail rope's inertia (~190 kPa at a pithead departure, ~95 kPa at
-  the middle) than the record shows; the conveyance's own inertia (the bottom's
-  departures) replays to ~1 kPa.
-- That residual is what fails the trips (its correlation with the gap ratio +0.67 on
-  day 104, +0.89 on day 101); the seals' start only modulates it on day 101
-  (correlation with the replay's summed error +0.59) and not on the ringing day 104
-  (-0.07). Its sign follows the replay's seal error, though: at the pithead the
-  replay's seals sit nearer their capacity on the side the falling load pushes them
-  (its sum ~1.8-2.4 kN more negative than the truth's), so they take up less of the
-  fall and its pressure falls more; from the middle up they sit nearer the other side.
+- the departure's common-mode residual (measured less replayed over the first 12 s of
+  motion) is systematic by where and which way the trip leaves: from the pithead down
+  +18.0 kPa (sd 10.5) on day 104 and +15.9 kPa (sd 4.0) on day 101, from the middle up
+  -5.7 / -11.2 kPa, from the middle down -2.0 / +4.2 kPa, from the bottom up -1.3 /
+  -0.6 kPa. It is what fails the trips (its correlation with the gap ratio +0.67 /
+  +0.89 from the pithead). The record's pressure changes less than the replay's where
+  the tail rope below the conveyance is long, as if the replay counted some 4-12 % more
+  of the tail rope's inertia (~190 kPa at a pithead departure, ~95 kPa at the middle);
+  the conveyance's own (the bottom's departures) replays to ~1 kPa.
+- It is not the seals' start: over the last window before each departure the replay's
+  seals are within 637 / 573 N summed (201 / 150 N a piston) of the truth's from the
+  pithead, 63-412 N elsewhere (the compensation's estimate 78-292 N), and the residual
+  does not follow that error (correlation -0.11 / -0.42 from the pithead). A first
+  version of this script read the replay's seals at the motion's start, where the
+  departure has already begun to slide them, and put them 2.4 kN off: that was the
+  departure, not the start.
 - Tried and not kept (a temporary patch of the replay, not in this script): every
   chained trip started afresh from the compensation's seals (pressures and pistons set
-  so that each seal holds its estimate) at the start of its simulation, before its
-  loading ramp. The check got worse (day 101 96.9 -> 78.5 %, day 104 87.7 -> 84.6 %)
-  and the replay's seals at the departure were as far off as before (2548 N summed
-  RMS from the pithead of day 101): the replayed payload change at rest drives the
-  seals away from the truth's again, where the compensation follows them through the
-  logged x. The seals would have to be taken from the record after the loading ramp,
-  at the departure itself, or the replay's loading made to move the pistons as the
-  logged x do.
+  so that each seal holds its estimate, a state that stays put at rest) before its
+  loading ramp: the check got worse, day 101 96.9 -> 78.5 %, day 104 87.7 -> 84.6 %.
+  What the departure's dynamics leave out is the open question (the tail rope's
+  elasticity or loop, how the logged speed's knots carry the jerk at the pithead).
 
     uv run python benchmarks/diagnose_departure_seals.py mine_day104 [mine_day101 ...]
 """
@@ -87,13 +78,14 @@ DEPARTURE_S = 12.0
 
 
 class ReplaySeals:
-    """The replayed seals' friction just before each trip moves (the last pass's), and
-    each trip's mean common-mode residual (measured less replayed, over the sensors)
-    over its first :data:`DEPARTURE_S` of motion: wraps ``sims.replay._simulate_trip``
-    and the sanity check's ``replay_fitted`` while in use."""
+    """The replayed seals' friction over each simulated trip (the last pass's: its
+    times in UTC seconds and the four seals), and each trip's mean common-mode residual
+    (measured less replayed, over the sensors) over its first :data:`DEPARTURE_S` of
+    motion: wraps ``sims.replay._simulate_trip`` and the sanity check's
+    ``replay_fitted`` while in use."""
 
     def __init__(self) -> None:
-        self.at_departure: dict[int, np.ndarray] = {}
+        self.series: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.departure_residual_pa: dict[int, float] = {}
         self._lock = threading.Lock()
         self._original = replay_module._simulate_trip
@@ -113,16 +105,26 @@ class ReplaySeals:
     def __enter__(self) -> ReplaySeals:
         def recorded(plan, tr, names, prm, start, ramp_end, payloads, state):
             result = self._original(plan, tr, names, prm, start, ramp_end, payloads, state)
-            t = start + result.frame["time_s"].to_numpy()
-            i = max(int(np.searchsorted(t, tr.motion_start_s)) - 1, 0)
-            seals = np.array([result.frame[f"friction{k}_n"][i] for k in ROPES])
+            t = plan.t_ref.timestamp() + start + result.frame["time_s"].to_numpy()
+            seals = result.frame.select(f"friction{k}_n" for k in ROPES).to_numpy()
             with self._lock:
-                self.at_departure[tr.trip_id] = seals
+                self.series[tr.trip_id] = (t, seals)
             return result
 
         replay_module._simulate_trip = recorded
         sanity_module.replay_fitted = self._residuals
         return self
+
+    def over(self, t0: dt.datetime, t1: dt.datetime) -> np.ndarray | None:
+        """The replayed seals' mean friction over [t0, t1), from whichever simulated trip
+        covers it (a stop's windows lie in the trip that arrives or the one that leaves);
+        None where none does."""
+        lo, hi = t0.timestamp(), t1.timestamp()
+        for t, seals in self.series.values():
+            inside = (t >= lo) & (t < hi)
+            if inside.sum() >= 2:
+                return seals[inside].mean(axis=0)
+        return None
 
     def __exit__(self, *exc: object) -> None:
         replay_module._simulate_trip = self._original
@@ -147,11 +149,7 @@ def departures(name: str, work: Path) -> pl.DataFrame:
     rows = []
     for trip in checks.iter_rows(named=True):
         moved = trip["time_start_utc"]
-        if (
-            trip["status"] == "skipped"
-            or moved is None
-            or trip["trip_id"] not in seals.at_departure
-        ):
+        if trip["status"] == "skipped" or moved is None:
             continue
         stops = [
             s
@@ -166,6 +164,9 @@ def departures(name: str, work: Path) -> pl.DataFrame:
             & (pl.col("time_utc") < _utc(window["t1_utc"]))
         )
         estimate = [float(inside[f"friction{i}_n"].mean()) for i in ROPES]
+        replayed = seals.over(_utc(window["t0_utc"]), _utc(window["t1_utc"]))
+        if replayed is None:
+            continue
         rows.append(
             {
                 "trip_id": trip["trip_id"],
@@ -175,7 +176,7 @@ def departures(name: str, work: Path) -> pl.DataFrame:
                 "from": stops[-1]["position"],
                 "truth_n": [float(f) for f in window["friction_n"]],
                 "compensation_n": estimate,
-                "replay_n": seals.at_departure[trip["trip_id"]].tolist(),
+                "replay_n": replayed.tolist(),
                 "departure_kpa": seals.departure_residual_pa.get(trip["trip_id"], np.nan) / 1e3,
             }
         )

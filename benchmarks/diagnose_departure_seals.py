@@ -39,8 +39,14 @@ Session 52 found with it (days 104 and 101):
   chained trip started afresh from the compensation's seals (pressures and pistons set
   so that each seal holds its estimate, a state that stays put at rest) before its
   loading ramp: the check got worse, day 101 96.9 -> 78.5 %, day 104 87.7 -> 84.6 %.
-  What the departure's dynamics leave out is the open question (the tail rope's
-  elasticity or loop, how the logged speed's knots carry the jerk at the pithead).
+  The seals' bristle stiffness halved / doubled in day 101's description (a
+  sensitivity, both the run and the check): 10.8 / 83.1 % pass against 96.9 % as
+  described, the pithead's departure residual +34.3 / +9.8 kPa against +15.9 kPa, the
+  middle's up -13.6 kPa when doubled: the description's stiffness replays best, and the
+  residual is not the presliding stiffness alone.
+  What the departure's dynamics leave out is the open question (the presliding curve's
+  shape, the tail rope's elasticity or loop, how the logged speed's knots carry the
+  jerk at the pithead).
 
     uv run python benchmarks/diagnose_departure_seals.py mine_day104 [mine_day101 ...]
 """

@@ -43,7 +43,10 @@ Session 52 found with it (days 104 and 101):
   sensitivity, both the run and the check): 10.8 / 83.1 % pass against 96.9 % as
   described, the pithead's departure residual +34.3 / +9.8 kPa against +15.9 kPa, the
   middle's up -13.6 kPa when doubled: the description's stiffness replays best, and the
-  residual is not the presliding stiffness alone.
+  residual is not the presliding stiffness alone. Driven by the winder profile instead
+  of the logged speed (``--motion winder`` of ``eval_sanity.py``), day 101 passes 6.2 %,
+  the residual +9.3 kPa from the pithead and -12.5 kPa from the middle up: not the
+  motion's drive alone either.
   What the departure's dynamics leave out is the open question (the presliding curve's
   shape, the tail rope's elasticity or loop, how the logged speed's knots carry the
   jerk at the pithead).

@@ -47,6 +47,16 @@ Session 52 found with it (days 104 and 101):
   of the logged speed (``--motion winder`` of ``eval_sanity.py``), day 101 passes 6.2 %,
   the residual +9.3 kPa from the pithead and -12.5 kPa from the middle up: not the
   motion's drive alone either.
+  The tail ropes' inertia (a diagnostic knob in a scratch copy of the device model, the
+  replay's ``m_in`` taking 92 % of the tail ropes' mass; not adopted: a factor read off
+  the validation days would be tuning): on day 101 every departure's residual shrinks,
+  +15.9 / -11.2 / +4.2 / -0.6 -> +4.5 / -2.5 / -1.4 / +1.3 kPa (pithead down, middle up,
+  middle down, bottom up), the gap ratio's median 1.90 -> 1.55, 96.9 -> 98.5 % pass; on
+  the ringing day 104 the pithead's halves (+18.0 -> +10.2 kPa) but the middle's
+  overshoot (-2.0 -> -12.3 down, -5.7 -> +4.6 up) and the pass rate stays 87.7 %. The
+  independent world's tail ropes load the attachments at a departure with less than a
+  rigid tail rope's inertia; what makes it so (the tail rope's elasticity, its loop)
+  is the model to find, not the factor.
   What the departure's dynamics leave out is the open question (the presliding curve's
   shape, the tail rope's elasticity or loop, how the logged speed's knots carry the
   jerk at the pithead).

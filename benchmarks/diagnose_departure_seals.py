@@ -56,10 +56,8 @@ Session 52 found with it (days 104 and 101):
   overshoot (-2.0 -> -12.3 down, -5.7 -> +4.6 up) and the pass rate stays 87.7 %. The
   independent world's tail ropes load the attachments at a departure with less than a
   rigid tail rope's inertia; what makes it so (the tail rope's elasticity, its loop)
-  is the model to find, not the factor.
-  What the departure's dynamics leave out is the open question (the presliding curve's
-  shape, the tail rope's elasticity or loop, how the logged speed's knots carry the
-  jerk at the pithead).
+  is the model to find, not the factor (or, on the ringing day, the presliding curve's
+  shape, which no stop shows).
 
     uv run python benchmarks/diagnose_departure_seals.py mine_day104 [mine_day101 ...]
 """
@@ -67,7 +65,6 @@ Session 52 found with it (days 104 and 101):
 from __future__ import annotations
 
 import datetime as dt
-import json
 import sys
 import tempfile
 import threading
@@ -78,18 +75,12 @@ import polars as pl
 
 import pipelines.sanity as sanity_module
 import sims.replay as replay_module
+from schemas.tables import ROPES
 from warehouse.store import DataRoot, open_reader
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from eval_compensation import DEFAULT_DAYS, validation_case
 from eval_sanity import check_day
-
-ROPES = range(1, 5)
-
-
-def _utc(text: str) -> dt.datetime:
-    return dt.datetime.fromisoformat(text.replace("Z", "+00:00"))
-
 
 #: The departure's stretch of each trip whose common-mode residual is averaged [s from
 #: the motion's start]: the acceleration of a trip of the validation shaft.
@@ -157,7 +148,6 @@ def departures(name: str, work: Path) -> pl.DataFrame:
     case = validation_case(gz, work)
     with ReplaySeals() as seals:
         day = check_day(case, work, 200, "auto")
-    truth = json.loads(gz.with_name(f"{name}.truth.json").read_text())
     data = DataRoot.resolve(work / f"{case.csv.stem}_data")
     with open_reader(data) as con:
         trips = con.sql("SELECT trip_id, time_start_utc FROM trip_summary").pl()
@@ -170,20 +160,14 @@ def departures(name: str, work: Path) -> pl.DataFrame:
         moved = trip["time_start_utc"]
         if trip["status"] == "skipped" or moved is None:
             continue
-        stops = [
-            s
-            for s in truth["stops"]
-            if s["windows"] and _utc(s["t1_utc"]) <= moved + dt.timedelta(seconds=5)
-        ]
-        if not stops:
+        # the truth's last window before the trip moves: the stop it departs from
+        before = [w for w in case.windows if w.t1 <= moved + dt.timedelta(seconds=5)]
+        if not before:
             continue
-        window = stops[-1]["windows"][-1]
-        inside = landed.filter(
-            (pl.col("time_utc") >= _utc(window["t0_utc"]))
-            & (pl.col("time_utc") < _utc(window["t1_utc"]))
-        )
+        window = max(before, key=lambda w: w.t1)
+        inside = landed.filter((pl.col("time_utc") >= window.t0) & (pl.col("time_utc") < window.t1))
         estimate = [float(inside[f"friction{i}_n"].mean()) for i in ROPES]
-        replayed = seals.over(_utc(window["t0_utc"]), _utc(window["t1_utc"]))
+        replayed = seals.over(window.t0, window.t1)
         if replayed is None:
             continue
         rows.append(
@@ -192,8 +176,8 @@ def departures(name: str, work: Path) -> pl.DataFrame:
                 "status": trip["status"],
                 "ratio": trip["ratio"],
                 "direction": trip["direction"],
-                "from": stops[-1]["position"],
-                "truth_n": [float(f) for f in window["friction_n"]],
+                "from": window.position,
+                "truth_n": list(window.true_friction_n),
                 "compensation_n": estimate,
                 "replay_n": replayed.tolist(),
                 "departure_kpa": seals.departure_residual_pa.get(trip["trip_id"], np.nan) / 1e3,
@@ -203,11 +187,6 @@ def departures(name: str, work: Path) -> pl.DataFrame:
 
 
 def _summary(frame: pl.DataFrame) -> None:
-    truth = np.array(frame["truth_n"].to_list())
-    for name in ("compensation_n", "replay_n"):
-        frame = frame.with_columns(
-            pl.Series(f"{name}_error_sum", np.array(frame[name].to_list()).sum(1) - truth.sum(1))
-        )
     print(
         f"{'trip':>4} {'status':7} {'ratio':>5} {'dir':4} {'from':8} "
         f"{'sum truth':>9} {'sum comp':>9} {'sum repl':>9} [N] {'departure':>9} [kPa]"

@@ -15,7 +15,8 @@ the seals' friction just before the trip moves:
 
 and per departure position and direction the RMS of each estimate's summed friction
 less the truth's, per piston, and the correlation of the gap ratio with the replay's
-summed error.
+summed error; and, per departure depth and direction, the course of the common-mode
+residual a second at a time from the motion's start beside the record's own change.
 
 Session 52 found with it (days 104 and 101):
 
@@ -59,6 +60,28 @@ Session 52 found with it (days 104 and 101):
   is the model to find, not the factor (or, on the ringing day, the presliding curve's
   shape, which no stop shows).
 
+Session 53 added the residual's course (a mean a second from the motion's start, per
+departure depth and direction, beside the record's own common-mode change). It is not a
+fraction of the tail ropes' inertia, which would be a step at the departure and another
+where the acceleration ends:
+
+- from the pithead down the residual grows through the acceleration, +4 kPa in the
+  first second to +24 / +32 kPa at 9 s (days 101 / 104): between 1 and 9 s the record's
+  common-mode pressure falls 23-24 % less than the replay's on both days (-68 against
+  -88 kPa on day 101, -90 against -118 kPa on day 104). Day 101's growth saturates (the
+  shape of v / (50 m + depth), the head ropes' relative payout rate), day 104's is near
+  linear (the shape of v). Where the acceleration ends it falls back to +10 / +11 kPa,
+  crosses zero ~24 s from the start and settles at -6 kPa through the run;
+- from the middle and from the bottom the record's and the replay's pressures fall or
+  rise alike through the acceleration (ratios 0.98-1.08); the residual is an offset set
+  in the departure's first second (day 101: -13.5 kPa up and +8.8 kPa down from the
+  middle, -2.9 kPa up from the bottom; day 104: within 5 kPa) that fades over the
+  acceleration.
+
+So what the independent world adds is a dynamic of the first tens of metres below the
+pithead, where the head ropes are shortest and the tail ropes longest, on both the
+ringing and the non-ringing day. No model of it is adopted.
+
     uv run python benchmarks/diagnose_departure_seals.py mine_day104 [mine_day101 ...]
 """
 
@@ -85,6 +108,9 @@ from eval_sanity import check_day
 #: The departure's stretch of each trip whose common-mode residual is averaged [s from
 #: the motion's start]: the acceleration of a trip of the validation shaft.
 DEPARTURE_S = 12.0
+#: The seconds from the motion's start over which :func:`_course` prints the residual's
+#: course, one mean a second.
+COURSE_S = np.arange(-2.0, 40.0)
 
 
 class ReplaySeals:
@@ -97,6 +123,10 @@ class ReplaySeals:
     def __init__(self) -> None:
         self.series: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.departure_residual_pa: dict[int, float] = {}
+        #: per trip: where it left [m], its direction, and over :data:`COURSE_S` the
+        #: common-mode residual and the record's common-mode change since 3-0.5 s before
+        #: the motion [Pa]
+        self.course: dict[int, tuple[float, str, np.ndarray, np.ndarray]] = {}
         self._lock = threading.Lock()
         self._original = replay_module._simulate_trip
         self._fitted = sanity_module.replay_fitted
@@ -110,6 +140,7 @@ class ReplaySeals:
             common = np.nanmean(residual[moving], axis=1) if moving.any() else np.array([])
             if common.size and np.isfinite(common).any():
                 self.departure_residual_pa[tr.trip_id] = float(np.nanmean(common))
+            self.course[tr.trip_id] = _trip_course(tr, residual)
         return result
 
     def __enter__(self) -> ReplaySeals:
@@ -139,6 +170,26 @@ class ReplaySeals:
     def __exit__(self, *exc: object) -> None:
         replay_module._simulate_trip = self._original
         sanity_module.replay_fitted = self._fitted
+
+
+def _trip_course(tr, residual: np.ndarray) -> tuple[float, str, np.ndarray, np.ndarray]:
+    """A trip's departure depth, direction and, a mean a second over :data:`COURSE_S`,
+    its common-mode residual and the record's common-mode change since just before it
+    moved."""
+    since = tr.time_s - tr.motion_start_s
+    common = np.nanmean(residual, axis=1)
+    measured = np.nanmean(tr.measured_pa, axis=1)
+    before = (since > -3.0) & (since < -0.5)
+    level = float(np.nanmean(measured[before])) if before.any() else np.nan
+
+    def per_second(values: np.ndarray) -> np.ndarray:
+        bins = np.floor(since).astype(int)
+        seconds = COURSE_S.astype(int)
+        return np.array([np.nanmean(values[bins == s]) if (bins == s).any() else np.nan
+                         for s in seconds])  # fmt: skip
+
+    depth, way = float(tr.start_depth_m), str(tr.direction)
+    return depth, way, per_second(common), per_second(measured - level)
 
 
 def departures(name: str, work: Path) -> pl.DataFrame:
@@ -183,7 +234,28 @@ def departures(name: str, work: Path) -> pl.DataFrame:
                 "departure_kpa": seals.departure_residual_pa.get(trip["trip_id"], np.nan) / 1e3,
             }
         )
+    _course(seals.course, {row["trip_id"] for row in rows})
     return pl.DataFrame(rows)
+
+
+def _course(course: dict[int, tuple[float, str, np.ndarray, np.ndarray]], trips: set[int]) -> None:
+    """Per departure depth and direction (the compared trips), the mean common-mode
+    residual and the record's mean common-mode change a second at a time from the
+    motion's start [kPa]."""
+    groups: dict[tuple[float, str], list[tuple[np.ndarray, np.ndarray]]] = {}
+    for trip_id, (depth, way, residual, change) in course.items():
+        if trip_id in trips:
+            groups.setdefault((round(depth, -1), way), []).append((residual, change))
+    print(f"seconds from the motion's start: {' '.join(f'{s:6.0f}' for s in COURSE_S)}")
+    for (depth, way), members in sorted(groups.items()):
+        if len(members) < 4:
+            continue
+        with np.errstate(all="ignore"):  # a second no trip reaches
+            residual = np.nanmean([m[0] for m in members], axis=0) / 1e3
+            change = np.nanmean([m[1] for m in members], axis=0) / 1e3
+        print(f"from {depth:3.0f} m {way:4} ({len(members)} trips)")
+        print(f"  residual [kPa]        {' '.join(f'{v:+6.1f}' for v in residual)}")
+        print(f"  record's change [kPa] {' '.join(f'{v:+6.0f}' for v in change)}")
 
 
 def _summary(frame: pl.DataFrame) -> None:

@@ -61,9 +61,9 @@ Session 52 found with it (days 104 and 101):
   shape, which no stop shows).
 
 Session 53 added the residual's course (a mean a second from the motion's start, per
-departure depth and direction, beside the record's own common-mode change). It is not a
-fraction of the tail ropes' inertia, which would be a step at the departure and another
-where the acceleration ends:
+departure depth and direction, beside the record's own common-mode change). Its zero is
+each trip's own (the replay fits each trip's payload to its mean residual), so it reads
+as the acceleration against the run:
 
 - from the pithead down the residual grows through the acceleration, +4 kPa in the
   first second to +24 / +32 kPa at 9 s (days 101 / 104): between 1 and 9 s the record's
@@ -78,10 +78,15 @@ where the acceleration ends:
   middle, -2.9 kPa up from the bottom; day 104: within 5 kPa) that fades over the
   acceleration.
 
-So what the independent world adds is a dynamic of the first tens of metres below the
-pithead, where the head ropes are shortest and the tail ropes longest, on both the
-ringing and the non-ringing day. No model of it is adopted. What it is not (session 53,
-day 101's description edited for the run and the check, a scratch experiment each):
+On day 101 the acceleration stands above the run by 12-17 % of the tail ropes' inertia
+at every departure (from the pithead down ~+20 against -5 kPa in the run, of 206 kPa;
+from the middle up -15 against +2, down +9 against -5 kPa, of 100 kPa), as session 52's
+knob found; but from the pithead it is a ramp over the first ~5 s, not the step a
+missing inertia makes, and on the ringing day 104 the middle shows none of it. So what
+the independent world adds is a dynamic of the departures, strongest below the pithead,
+where the head ropes are shortest and the tail ropes longest. No model of it is
+adopted. What it is not (session 53, day 101's description edited for the run and the
+check, a scratch experiment each):
 
 - the seals' model: one elasto-plastic element (``presliding_hysteresis`` with one
   element, the description's stiffness) in place of LuGre's bristle passes 20.0 % of

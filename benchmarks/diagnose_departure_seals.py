@@ -96,9 +96,17 @@ check, a scratch experiment each):
   pithead's residual +12.0 / +30.0 kPa (+15.9 as described), the middle's up -10.0 /
   -3.8 kPa (-11.2): no one modulus takes both away;
 - the ropes: the truth's piston positions at its 115 windows fit the rope model the
-  replay uses (x_i = X - T_i (depth + 50 m) / EA_i - offset_i) to 0.3 um, and the
-  replay's stiffness factors are within 0.2 % of those, its length offsets within
-  0.36 mm; the truth's seals never exceed Fs(p) on the bore area (at most 0.997 of it).
+  replay uses (x_i = X - T_i (depth + 50 m) / EA_i - offset_i) to 0.3 um (the same
+  ropes on days 101-104: factors 0.9619 / 1.0366 / 1.0085 / 0.9930 of their mean, the
+  mean 0.986 x the nominal EA); the factors the run identifies are within 0.1-0.35 % of
+  those on every day (errors of both signs, day to day), the length offsets within
+  0.36 mm. Replayed with the truth's ropes instead, day 101 still passes 96.9 % and the
+  pithead's residual stays +16.3 kPa, but the gap ratio's median falls 1.90 -> 1.80 and
+  the middle's residual up -11.2 -> -5.5 kPa: the truth's factors (normalised to mean 1)
+  do that alone (1.75, -5.8 kPa), its offsets or its mean EA alone do not (1.88 / 1.91).
+  The replay's seals, and so its common mode, follow the ropes' stretch differences
+  that finely; replayed with equal ropes day 101 passes 3.1 %. The truth's seals never
+  exceed Fs(p) on the bore area (at most 0.997 of it).
 
 The table of windows (the replay's summed friction less the truth's, per kind and depth)
 shows where the seals part: after a down trip on day 101 the replay's arrive at the

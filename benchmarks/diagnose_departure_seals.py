@@ -16,7 +16,8 @@ the seals' friction just before the trip moves:
 and per departure position and direction the RMS of each estimate's summed friction
 less the truth's, per piston, and the correlation of the gap ratio with the replay's
 summed error; and, per departure depth and direction, the course of the common-mode
-residual a second at a time from the motion's start beside the record's own change.
+residual a second at a time from the motion's start beside the record's own change,
+and each piston's displacement, replayed and logged, over the same seconds.
 
 Session 52 found with it (days 104 and 101):
 
@@ -112,6 +113,22 @@ check, a scratch experiment each):
   that finely; replayed with equal ropes day 101 passes 3.1 %. The truth's seals never
   exceed Fs(p) on the bore area (at most 0.997 of it).
 
+The pistons' course (each piston's displacement a second at a time from the motion's
+start, replayed and logged) shows where the pithead's departures part. From the
+pithead down the piston of the stiffest rope (2) slides ~0.35 mm with the departure in
+both (its seal breaking away within the first second), and so, less, does piston 3.
+Through the acceleration the ropes' stretch differences turn against that slide: the
+record's piston 2 then holds (day 101: +0.006 mm from 1 to 9 s; day 104: -0.016 mm),
+the replay's creeps on with the falling pressure (-0.018 / -0.049 mm), and so does its
+piston 3 (-0.032 / -0.058 mm against -0.010 / -0.032 mm). Pistons 1 and 4 move alike
+in both. The four pistons' sum from 1 to 9 s, replayed against logged: -0.128 against
+-0.097 mm on day 101, -0.168 against -0.112 mm on day 104, the ratio of the pressures'
+falls (oil compressibility). From the middle and the bottom the sliding piston keeps
+sliding in both, its stretch difference with it. Tried with it (scratch): the
+description's Stribeck speeds x 0.1 pass 21.5 % of day 101's trips. So after a
+breakaway, when its drive turns, the independent world's seal holds where LuGre's seal
+creeps.
+
 The table of windows (the replay's summed friction less the truth's, per kind and depth)
 shows where the seals part: after a down trip on day 101 the replay's arrive at the
 bottom +400 N (sd 33 N over 24 arrivals) above the truth's, on day 104 -31 N (sd 36 N);
@@ -134,6 +151,7 @@ import polars as pl
 
 import pipelines.sanity as sanity_module
 import sims.replay as replay_module
+from pipelines.lake import scan_lake
 from schemas.tables import ROPES
 from warehouse.store import DataRoot, open_reader
 
@@ -147,6 +165,9 @@ DEPARTURE_S = 12.0
 #: The seconds from the motion's start over which :func:`_course` prints the residual's
 #: course, one mean a second.
 COURSE_S = np.arange(-2.0, 40.0)
+#: The seconds from the motion's start over which :func:`_pistons_course` prints the
+#: pistons' displacements, one mean a second.
+PISTONS_S = np.arange(-1.0, 16.0)
 
 
 class ReplaySeals:
@@ -163,6 +184,10 @@ class ReplaySeals:
         #: common-mode residual and the record's common-mode change since 3-0.5 s before
         #: the motion [Pa]
         self.course: dict[int, tuple[float, str, np.ndarray, np.ndarray]] = {}
+        #: per simulated trip: the replayed pistons' positions (UTC seconds, [m]) and the
+        #: motion's start (UTC seconds), departure depth [m] and direction
+        self.pistons: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self.motion: dict[int, tuple[float, float, str]] = {}
         self._lock = threading.Lock()
         self._original = replay_module._simulate_trip
         self._fitted = sanity_module.replay_fitted
@@ -184,8 +209,15 @@ class ReplaySeals:
             result = self._original(plan, tr, names, prm, start, ramp_end, payloads, state)
             t = plan.t_ref.timestamp() + start + result.frame["time_s"].to_numpy()
             seals = result.frame.select(f"friction{k}_n" for k in ROPES).to_numpy()
+            pistons = result.frame.select(f"x{k}_m" for k in ROPES).to_numpy()
             with self._lock:
                 self.series[tr.trip_id] = (t, seals)
+                self.pistons[tr.trip_id] = (t, pistons)
+                self.motion[tr.trip_id] = (
+                    plan.t_ref.timestamp() + tr.motion_start_s,
+                    float(tr.start_depth_m),
+                    str(tr.direction),
+                )
             return result
 
         replay_module._simulate_trip = recorded
@@ -272,6 +304,14 @@ def departures(name: str, work: Path) -> pl.DataFrame:
         )
     _course(seals.course, {row["trip_id"] for row in rows})
     _at_windows(case.windows, seals)
+    with open_reader(data) as con:
+        site, hoist = con.sql("SELECT site, hoist FROM trip_summary LIMIT 1").fetchall()[0]
+    logged = (
+        scan_lake(data, "field_samples", site=site, hoist=hoist)
+        .select("time_utc", *(f"x{k}_m" for k in ROPES))
+        .collect()
+    )
+    _pistons_course(seals, logged, {row["trip_id"] for row in rows})
     return pl.DataFrame(rows)
 
 
@@ -289,6 +329,44 @@ def _at_windows(windows: list, seals: ReplaySeals) -> None:
             f"{kind} windows at {depth:3.0f} m ({len(errors)}): the replay's summed friction "
             f"less the truth's {np.mean(errors):+6.0f} N (sd {np.std(errors):4.0f} N)"
         )
+
+
+def _pistons_course(seals: ReplaySeals, logged: pl.DataFrame, trips: set[int]) -> None:
+    """Per departure depth and direction, each piston's mean displacement since 2-0.5 s
+    before the motion, a second at a time over :data:`PISTONS_S` from its start [mm]:
+    replayed (the check's last pass) and logged (the record's x)."""
+    t_log = logged["time_utc"].dt.epoch("us").to_numpy() / 1e6
+    x_log = logged.select(f"x{k}_m" for k in ROPES).to_numpy()
+    groups: dict[tuple[float, str], list[tuple[np.ndarray, np.ndarray]]] = {}
+    for trip_id, (t0, depth, way) in seals.motion.items():
+        t, x = seals.pistons[trip_id]
+        if trip_id not in trips or t0 - 2.0 < t[0] or t0 + PISTONS_S[-1] + 1.0 > t[-1]:
+            continue
+        near = (t_log > t0 - 2.0) & (t_log < t0 + PISTONS_S[-1] + 1.0)
+        tl, xl = t_log[near], x_log[near]
+        before_r, before_l = (t > t0 - 2.0) & (t < t0 - 0.5), (tl > t0 - 2.0) & (tl < t0 - 0.5)
+        if not before_r.any() or not before_l.any():
+            continue
+        replayed, recorded = [], []
+        for s in PISTONS_S:
+            r, lg = (t >= t0 + s) & (t < t0 + s + 1.0), (tl >= t0 + s) & (tl < t0 + s + 1.0)
+            replayed.append(x[r].mean(axis=0) - x[before_r].mean(axis=0))
+            recorded.append(np.nanmean(xl[lg], axis=0) - np.nanmean(xl[before_l], axis=0))
+        groups.setdefault((round(depth, -1), way), []).append(
+            (np.array(replayed) * 1e3, np.array(recorded) * 1e3)
+        )
+    print(
+        f"pistons [mm], seconds from the motion's start: {' '.join(f'{s:6.0f}' for s in PISTONS_S)}"
+    )
+    for (depth, way), members in sorted(groups.items()):
+        if len(members) < 4:
+            continue
+        replayed = np.mean([m[0] for m in members], axis=0)
+        recorded = np.nanmean([m[1] for m in members], axis=0)
+        print(f"from {depth:3.0f} m {way:4} ({len(members)} trips)")
+        for k in range(len(ROPES)):
+            print(f"  x{k + 1} replayed {' '.join(f'{v:+6.3f}' for v in replayed[:, k])}")
+            print(f"  x{k + 1} logged   {' '.join(f'{v:+6.3f}' for v in recorded[:, k])}")
 
 
 def _course(course: dict[int, tuple[float, str, np.ndarray, np.ndarray]], trips: set[int]) -> None:

@@ -122,12 +122,12 @@ record's piston 2 then holds (day 101: +0.006 mm from 1 to 9 s; day 104: -0.016 
 the replay's creeps on with the falling pressure (-0.018 / -0.049 mm), and so does its
 piston 3 (-0.032 / -0.058 mm against -0.010 / -0.032 mm). Pistons 1 and 4 move alike
 in both. The four pistons' sum from 1 to 9 s, replayed against logged: -0.128 against
--0.097 mm on day 101, -0.168 against -0.112 mm on day 104, the ratio of the pressures'
-falls (oil compressibility). From the middle and the bottom the sliding piston keeps
-sliding in both, its stretch difference with it. Tried with it (scratch): the
-description's Stribeck speeds x 0.1 pass 21.5 % of day 101's trips. So after a
-breakaway, when its drive turns, the independent world's seal holds where LuGre's seal
-creeps.
+-0.097 mm on day 101, -0.168 against -0.112 mm on day 104 (ratios 0.76 / 0.67, the
+pressures' falls' 0.77 / 0.76: oil compressibility). From the middle and the bottom
+the sliding piston keeps sliding in both, its stretch difference with it. Tried with
+it (scratch): the description's Stribeck speeds x 0.1 pass 21.5 % of day 101's trips.
+So after a breakaway, when its drive turns, the independent world's seal holds where
+LuGre's seal creeps.
 
 The table of windows (the replay's summed friction less the truth's, per kind and depth)
 shows where the seals part: after a down trip on day 101 the replay's arrive at the

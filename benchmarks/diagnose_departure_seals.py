@@ -250,14 +250,32 @@ def _trip_course(tr, residual: np.ndarray) -> tuple[float, str, np.ndarray, np.n
     before = (since > -3.0) & (since < -0.5)
     level = float(np.nanmean(measured[before])) if before.any() else np.nan
 
-    def per_second(values: np.ndarray) -> np.ndarray:
-        bins = np.floor(since).astype(int)
-        seconds = COURSE_S.astype(int)
-        return np.array([np.nanmean(values[bins == s]) if (bins == s).any() else np.nan
-                         for s in seconds])  # fmt: skip
-
     depth, way = float(tr.start_depth_m), str(tr.direction)
-    return depth, way, per_second(common), per_second(measured - level)
+    return (
+        depth,
+        way,
+        _per_second(since, common, COURSE_S),
+        _per_second(since, measured - level, COURSE_S),
+    )
+
+
+def _per_second(since: np.ndarray, values: np.ndarray, seconds: np.ndarray) -> np.ndarray:
+    """The mean of ``values`` (per sample, or per sample and column) over each second
+    ``[s, s + 1)`` of ``since`` for s in ``seconds``; NaN where no sample falls."""
+    means = []
+    for s in seconds:
+        inside = (since >= s) & (since < s + 1.0)
+        means.append(np.nanmean(values[inside], axis=0) if inside.any() else np.nan * values[0])
+    return np.array(means)
+
+
+def _by_departure(entries: list[tuple[float, str, object]]) -> list[tuple[float, str, list]]:
+    """``(depth, direction, item)`` grouped by the departure (depth to 10 m, direction),
+    in order, the groups of at least four trips."""
+    groups: dict[tuple[float, str], list] = {}
+    for depth, way, item in entries:
+        groups.setdefault((round(depth, -1), way), []).append(item)
+    return [(d, w, items) for (d, w), items in sorted(groups.items()) if len(items) >= 4]
 
 
 def departures(name: str, work: Path) -> pl.DataFrame:
@@ -272,6 +290,7 @@ def departures(name: str, work: Path) -> pl.DataFrame:
         trips = con.sql("SELECT trip_id, time_start_utc FROM trip_summary").pl()
         friction = ", ".join(f"friction{i}_n" for i in ROPES)
         landed = con.sql(f"SELECT time_utc, {friction} FROM rope_tensions").pl()
+        site, hoist = con.sql("SELECT site, hoist FROM trip_summary LIMIT 1").fetchall()[0]
     landed = landed.with_columns(pl.col("time_utc").dt.convert_time_zone("UTC"))
     checks = day["checks"].join(trips, on="trip_id", how="left")
     rows = []
@@ -304,8 +323,6 @@ def departures(name: str, work: Path) -> pl.DataFrame:
         )
     _course(seals.course, {row["trip_id"] for row in rows})
     _at_windows(case.windows, seals)
-    with open_reader(data) as con:
-        site, hoist = con.sql("SELECT site, hoist FROM trip_summary LIMIT 1").fetchall()[0]
     logged = (
         scan_lake(data, "field_samples", site=site, hoist=hoist)
         .select("time_utc", *(f"x{k}_m" for k in ROPES))
@@ -337,30 +354,26 @@ def _pistons_course(seals: ReplaySeals, logged: pl.DataFrame, trips: set[int]) -
     replayed (the check's last pass) and logged (the record's x)."""
     t_log = logged["time_utc"].dt.epoch("us").to_numpy() / 1e6
     x_log = logged.select(f"x{k}_m" for k in ROPES).to_numpy()
-    groups: dict[tuple[float, str], list[tuple[np.ndarray, np.ndarray]]] = {}
+    end_s = PISTONS_S[-1] + 1.0
+    entries = []
     for trip_id, (t0, depth, way) in seals.motion.items():
         t, x = seals.pistons[trip_id]
-        if trip_id not in trips or t0 - 2.0 < t[0] or t0 + PISTONS_S[-1] + 1.0 > t[-1]:
+        if trip_id not in trips or t0 - 2.0 < t[0] or t0 + end_s > t[-1]:
             continue
-        near = (t_log > t0 - 2.0) & (t_log < t0 + PISTONS_S[-1] + 1.0)
-        tl, xl = t_log[near], x_log[near]
-        before_r, before_l = (t > t0 - 2.0) & (t < t0 - 0.5), (tl > t0 - 2.0) & (tl < t0 - 0.5)
+        near = (t_log > t0 - 2.0) & (t_log < t0 + end_s)
+        since_r, since_l = t - t0, t_log[near] - t0
+        before_r = (since_r > -2.0) & (since_r < -0.5)
+        before_l = (since_l > -2.0) & (since_l < -0.5)
         if not before_r.any() or not before_l.any():
             continue
-        replayed, recorded = [], []
-        for s in PISTONS_S:
-            r, lg = (t >= t0 + s) & (t < t0 + s + 1.0), (tl >= t0 + s) & (tl < t0 + s + 1.0)
-            replayed.append(x[r].mean(axis=0) - x[before_r].mean(axis=0))
-            recorded.append(np.nanmean(xl[lg], axis=0) - np.nanmean(xl[before_l], axis=0))
-        groups.setdefault((round(depth, -1), way), []).append(
-            (np.array(replayed) * 1e3, np.array(recorded) * 1e3)
+        replayed = _per_second(since_r, x - x[before_r].mean(axis=0), PISTONS_S)
+        recorded = x_log[near] - np.nanmean(x_log[near][before_l], axis=0)
+        entries.append(
+            (depth, way, (replayed * 1e3, _per_second(since_l, recorded, PISTONS_S) * 1e3))
         )
-    print(
-        f"pistons [mm], seconds from the motion's start: {' '.join(f'{s:6.0f}' for s in PISTONS_S)}"
-    )
-    for (depth, way), members in sorted(groups.items()):
-        if len(members) < 4:
-            continue
+    seconds = " ".join(f"{s:6.0f}" for s in PISTONS_S)
+    print(f"pistons [mm], seconds from the motion's start: {seconds}")
+    for depth, way, members in _by_departure(entries):
         replayed = np.mean([m[0] for m in members], axis=0)
         recorded = np.nanmean([m[1] for m in members], axis=0)
         print(f"from {depth:3.0f} m {way:4} ({len(members)} trips)")
@@ -373,14 +386,13 @@ def _course(course: dict[int, tuple[float, str, np.ndarray, np.ndarray]], trips:
     """Per departure depth and direction (the compared trips), the mean common-mode
     residual and the record's mean common-mode change a second at a time from the
     motion's start [kPa]."""
-    groups: dict[tuple[float, str], list[tuple[np.ndarray, np.ndarray]]] = {}
-    for trip_id, (depth, way, residual, change) in course.items():
-        if trip_id in trips:
-            groups.setdefault((round(depth, -1), way), []).append((residual, change))
+    entries = [
+        (depth, way, (residual, change))
+        for trip_id, (depth, way, residual, change) in course.items()
+        if trip_id in trips
+    ]
     print(f"seconds from the motion's start: {' '.join(f'{s:6.0f}' for s in COURSE_S)}")
-    for (depth, way), members in sorted(groups.items()):
-        if len(members) < 4:
-            continue
+    for depth, way, members in _by_departure(entries):
         residual = np.nanmean([m[0] for m in members], axis=0) / 1e3
         change = np.nanmean([m[1] for m in members], axis=0) / 1e3
         print(f"from {depth:3.0f} m {way:4} ({len(members)} trips)")

@@ -40,6 +40,7 @@ a time, the record planned again after each effect added) and writes
 from __future__ import annotations
 
 import datetime as dt
+import functools
 import json
 import logging
 from concurrent.futures import ThreadPoolExecutor
@@ -51,7 +52,7 @@ import numpy as np
 import polars as pl
 
 from discovery import DiscoveryResult, Finding, discover_in_record
-from pipelines.identified_ropes import identified_ropes
+from pipelines.identified_ropes import identified_ropes, identified_ropes_under
 from pipelines.ingest.field_checks import within_limits
 from pipelines.lake import scan_lake
 from pipelines.provenance import hoist_run, new_run_id, utc_now
@@ -324,6 +325,7 @@ def discover_period(
             max_trips=max_trips,
             max_iterations=max_iterations,
             identified_ropes=ropes.result,
+            identify_ropes=functools.partial(identified_ropes_under, samples, data=data),
         )
         ropes.result()  # an identification that failed fails the discovery, as before
     logger.info(

@@ -17,20 +17,30 @@ a sanity check that reads its samples from where its run's record starts
 identifying them again. Where no run identified them (``ropeload discover`` on a record
 not yet run), only the whole record's ropes are searched, not the alternatives the
 compensation's band takes from its quarters (a third of the time).
+
+Once discovery adds an effect it plans the record again and asks for the ropes as that
+grown model reads them (:func:`identified_ropes_under`): the identification turns each
+sensor's pressure into its chamber's through the branch the description gives and the
+sensors' calibrations, so a branch or a sensor the model lacked had biased them
+(:mod:`discovery.record_rereading`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import polars as pl
 
 from schemas.hoist import HoistDescription
+from sims.effects import resolve_effects
 from transforms.compensation import CompensationSettings
 from transforms.compensation_record import identification_means
 from transforms.rope_identification import identify_from_means
 from transforms.stick_slip_band import RopeSprings
 from warehouse.store import DataRoot
 
-__all__ = ["identified_ropes"]
+__all__ = ["described_by_parameters", "identified_ropes", "identified_ropes_under"]
 
 
 def identified_ropes(
@@ -65,6 +75,88 @@ def identified_ropes(
     cache = None if data is None else data.under("cache", "rope_springs")
     springs = identify_from_means(means, hoist, cache_dir=cache, alternatives=False)
     return springs
+
+
+def identified_ropes_under(
+    samples: pl.DataFrame,
+    hoist: HoistDescription,
+    parameters: Mapping[str, Mapping[str, Any]],
+    *,
+    data: DataRoot | None = None,
+    settings: CompensationSettings | None = None,
+) -> RopeSprings | None:
+    """:func:`identified_ropes` with ``hoist``'s ``[model] effects`` and those effects'
+    ``parameters`` (``{effect: {parameter: value}}``, :mod:`sims.effects` names; a
+    discovery's fitted ones) written into its description
+    (:func:`described_by_parameters`)."""
+    return identified_ropes(
+        samples, described_by_parameters(hoist, parameters), data=data, settings=settings
+    )
+
+
+def described_by_parameters(
+    hoist: HoistDescription, parameters: Mapping[str, Mapping[str, Any]]
+) -> HoistDescription:
+    """``hoist`` with what the identification reads of its model's effects' ``parameters``
+    written into its description: the branch pipe's lengths and bore
+    (``pipe_laminar_loss``), its loss coefficients (``local_loss``), the oil's viscosity
+    points (``viscosity_temperature``) and the sensors' offsets and gains
+    (``sensor_offset``, ``sensor_gain``); the other effects' parameters (the seals', the
+    oil's modulus, the conveyance's, the tail ropes') do not enter it and are left as
+    described. Effects not in the model keep the description's values.
+
+    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
+    >>> h = load_hoist(EXAMPLE_HOIST)
+    >>> "pipe_laminar_loss" in h.model.effects
+    True
+    >>> described_by_parameters(h, {"pipe_laminar_loss": {"bore_m": 0.004}}).piping.bore_m
+    0.004
+    """
+    on = set(hoist.model.effects)
+    given = {k: dict(v) for k, v in parameters.items() if k in on}
+    prm = resolve_effects(hoist, sorted(on), given).parameters
+    update: dict[str, Any] = {}
+    piping: dict[str, Any] = {}
+    if "pipe_laminar_loss" in on:
+        lam = prm["pipe_laminar_loss"]
+        piping |= {
+            "length_chamber_to_sensor_m": float(lam["length_chamber_to_sensor_m"]),
+            "length_sensor_to_manifold_m": float(lam["length_sensor_to_manifold_m"]),
+            "bore_m": float(lam["bore_m"]),
+        }
+    if "local_loss" in on:
+        loc = prm["local_loss"]
+        piping |= {
+            "valve_loss_coefficient": float(loc["valve_loss_coefficient"]),
+            "fittings_loss_coefficient_chamber_to_sensor": float(loc["fittings_chamber_to_sensor"]),
+            "fittings_loss_coefficient_sensor_to_manifold": float(
+                loc["fittings_sensor_to_manifold"]
+            ),
+        }
+    if piping:
+        update["piping"] = hoist.piping.model_copy(update=piping)
+    if "viscosity_temperature" in on:
+        visc = prm["viscosity_temperature"]
+        update["oil"] = hoist.oil.model_copy(
+            update={
+                "kinematic_viscosity_40c_m2_s": float(visc["kinematic_viscosity_40c_m2_s"]),
+                "kinematic_viscosity_100c_m2_s": float(visc["kinematic_viscosity_100c_m2_s"]),
+            }
+        )
+    if {"sensor_offset", "sensor_gain"} & on:
+        offsets = prm["sensor_offset"]["offsets_pa"] if "sensor_offset" in on else None
+        gains = prm["sensor_gain"]["gains"] if "sensor_gain" in on else None
+        sensors = []
+        for sensor in hoist.sensors:
+            k = sensor.cylinder - 1
+            change: dict[str, float] = {}
+            if offsets is not None:
+                change["offset_pa"] = float(offsets[k])
+            if gains is not None:
+                change["gain"] = float(gains[k])
+            sensors.append(sensor.model_copy(update=change))
+        update["sensors"] = sensors
+    return hoist.model_copy(update=update) if update else hoist
 
 
 def _logged(samples: pl.DataFrame, column: str) -> bool:

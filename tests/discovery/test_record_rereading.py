@@ -18,13 +18,27 @@ from sims.replay import replay
 @pytest.mark.slow
 def test_the_record_is_planned_again_with_the_effect_added():
     """Sims data hiding the tail ropes' weight (0.85 MPa of gap): named, then the record
-    planned again with it at its fitted parameters (the ropes and motion read anew), and
+    planned again with it at its fitted parameters (the ropes and motion read anew, the
+    ropes identified with the grown model: ``identify_ropes``), and
     the next iteration starts from that plan's gap, which is the added effect's gap
     after; nothing else is missing (``none``)."""
     plan, info = hidden_case("tail_rope_weight")
     samples = info["day"].sensors
-    result = discover_in_record(samples, plan.hoist, max_iterations=2, bootstrap=50)
+    asked = []  # the ropes identified again with the grown model (none here: the spread)
+
+    def identify_ropes(hoist, parameters):
+        asked.append((hoist, parameters))
+
+    result = discover_in_record(
+        samples, plan.hoist, max_iterations=2, bootstrap=50, identify_ropes=identify_ropes
+    )
     first, second = result.findings
+    (grown, params), *more = asked
+    assert not more  # one plan made again, one identification
+    assert "tail_rope_weight" in grown.model.effects
+    assert params["tail_rope_weight"]["mass_per_length_kg_m"] == pytest.approx(
+        first.parameters["mass_per_length_kg_m"], rel=1e-5
+    )
     assert (first.iteration, first.effect) == (1, "tail_rope_weight")
     assert second.iteration == 2
     assert "tail_rope_weight" in result.plan.hoist.model.effects

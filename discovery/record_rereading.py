@@ -37,6 +37,11 @@ with the grown model and its fitted parameters (validation trial_001, a 7.77 m, 
 pipe hidden where the description says 1 m, 6 mm: replayed with that pipe the gap is
 13.6 kPa with the ropes read without it, 8.2 kPa with the ropes read with it; 13.2 and
 10.1 kPa without the pipe).
+
+On a new plan whose baseline is closer, the added effect's coordinates, fitted on the
+plan before, are refined with the ropes and motion read anew (Gauss-Newton steps,
+payloads refitted: :func:`discovery.refit.refine_added`); the finding then reports them
+and the gap they leave.
 """
 
 from __future__ import annotations
@@ -49,7 +54,9 @@ from typing import Any
 
 import polars as pl
 
+from discovery.library import EFFECT_LIBRARY
 from discovery.planning import plan_replay
+from discovery.refit import refine_added
 from discovery.results import AMBIGUOUS, DiscoveryResult, Params
 from discovery.rope_stiffness import Identified, IdentifiedFactors
 from discovery.selection import (
@@ -60,6 +67,7 @@ from discovery.selection import (
 )
 from schemas.effects import NO_EFFECT
 from schemas.hoist import HoistDescription
+from sims.effects import parameters_json
 
 __all__ = ["discover_in_record"]
 
@@ -121,6 +129,11 @@ def discover_in_record(
             base = fitted_baseline(again, model, params, passes=selector.get("passes", BASE_PASSES))
             gap = baseline_gap_pa(again, base)
             closer = gap < findings[-1].gap_after_pa
+            if closer:  # the added effect's coordinates refined with the ropes read anew
+                added = findings[-1].effect
+                base, gap, params = refine_added(
+                    again, selector.get("library") or EFFECT_LIBRARY, added, model, params, base
+                )
         except (RuntimeError, ValueError) as exc:
             notes.append(f"planning again with {', '.join(model)} failed, search ended: {exc}")
             break
@@ -141,7 +154,13 @@ def discover_in_record(
         if len(search.result_.findings) == found:
             break  # the search had ended (no candidate left)
         if closer:
-            findings[-1] = dataclasses.replace(findings[-1], gap_after_pa=gap)
+            findings[-1] = dataclasses.replace(
+                findings[-1],
+                gap_after_pa=gap,
+                parameters=parameters_json(
+                    params.get(findings[-1].effect, {}), significant_digits=6
+                ),
+            )
             notes.append(f"planned again with {', '.join(model)}")
         result = search.result_
         findings.append(dataclasses.replace(result.findings[-1], iteration=len(findings) + 1))

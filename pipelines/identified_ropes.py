@@ -100,10 +100,11 @@ def described_by_parameters(
     """``hoist`` with what the identification reads of its model's effects' ``parameters``
     written into its description: the branch pipe's lengths and bore
     (``pipe_laminar_loss``), its loss coefficients (``local_loss``), the oil's viscosity
-    points (``viscosity_temperature``) and the sensors' offsets and gains
+    points (``viscosity_temperature``) and bulk modulus (``oil_compressibility``: the
+    closed oil volume ties the pistons together) and the sensors' offsets and gains
     (``sensor_offset``, ``sensor_gain``); the other effects' parameters (the seals', the
-    oil's modulus, the conveyance's, the tail ropes') do not enter it and are left as
-    described. Effects not in the model keep the description's values.
+    conveyance's, the tail ropes') are left as described. Effects not in the model keep
+    the description's values.
 
     >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
     >>> h = load_hoist(EXAMPLE_HOIST)
@@ -135,14 +136,21 @@ def described_by_parameters(
         }
     if piping:
         update["piping"] = hoist.piping.model_copy(update=piping)
+    oil: dict[str, Any] = {}
     if "viscosity_temperature" in on:
         visc = prm["viscosity_temperature"]
-        update["oil"] = hoist.oil.model_copy(
-            update={
-                "kinematic_viscosity_40c_m2_s": float(visc["kinematic_viscosity_40c_m2_s"]),
-                "kinematic_viscosity_100c_m2_s": float(visc["kinematic_viscosity_100c_m2_s"]),
-            }
-        )
+        oil |= {
+            "kinematic_viscosity_40c_m2_s": float(visc["kinematic_viscosity_40c_m2_s"]),
+            "kinematic_viscosity_100c_m2_s": float(visc["kinematic_viscosity_100c_m2_s"]),
+        }
+    if "oil_compressibility" in on:
+        comp = prm["oil_compressibility"]
+        oil |= {
+            "bulk_modulus_pa": float(comp["bulk_modulus_pa"]),
+            "air_fraction": float(comp["air_fraction"]),
+        }
+    if oil:
+        update["oil"] = hoist.oil.model_copy(update=oil)
     if {"sensor_offset", "sensor_gain"} & on:
         offsets = prm["sensor_offset"]["offsets_pa"] if "sensor_offset" in on else None
         gains = prm["sensor_gain"]["gains"] if "sensor_gain" in on else None

@@ -20,8 +20,8 @@ def test_the_record_is_planned_again_with_the_effect_added():
     """Sims data hiding the tail ropes' weight (0.85 MPa of gap): named, then the record
     planned again with it at its fitted parameters (the ropes and motion read anew, the
     ropes identified with the grown model: ``identify_ropes``), and
-    the next iteration starts from that plan's gap, which is the added effect's gap
-    after; nothing else is missing (``none``)."""
+    the next iteration starts from that plan's gap, the effect's coordinates refined on
+    it, which is the added effect's gap after; nothing else is missing (``none``)."""
     plan, info = hidden_case("tail_rope_weight")
     samples = info["day"].sensors
     asked = []  # the ropes identified again with the grown model (none here: the spread)
@@ -36,16 +36,17 @@ def test_the_record_is_planned_again_with_the_effect_added():
     (grown, params), *more = asked
     assert not more  # one plan made again, one identification
     assert "tail_rope_weight" in grown.model.effects
-    assert params["tail_rope_weight"]["mass_per_length_kg_m"] == pytest.approx(
-        first.parameters["mass_per_length_kg_m"], rel=1e-5
-    )
     assert (first.iteration, first.effect) == (1, "tail_rope_weight")
     assert second.iteration == 2
     assert "tail_rope_weight" in result.plan.hoist.model.effects
-    fitted = result.plan.parameters["tail_rope_weight"]
-    assert fitted["mass_per_length_kg_m"] == pytest.approx(
-        first.parameters["mass_per_length_kg_m"], rel=1e-5
-    )
+    # planned again with the first plan's fit, which the ropes read without the tail
+    # ropes had biased; refined on the new plan, the finding's value is the world's
+    # (the description's 6.2 kg/m): measured 6.262 -> 6.195 kg/m
+    planned_with = result.plan.parameters["tail_rope_weight"]["mass_per_length_kg_m"]
+    assert params["tail_rope_weight"]["mass_per_length_kg_m"] == planned_with
+    refined = first.parameters["mass_per_length_kg_m"]
+    assert abs(refined - 6.2) < 0.5 * abs(planned_with - 6.2)
+    assert refined == pytest.approx(6.2, rel=0.005)
     assert second.gap_before_pa == first.gap_after_pa
     assert first.gap_after_pa < 0.05 * first.gap_before_pa
     # without the effect at the inputs fitted with it, the gap is the effect's own

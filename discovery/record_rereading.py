@@ -33,10 +33,11 @@ The ropes' stiffnesses and length offsets the compensation identified from the l
 (``identified_ropes``) were read with the model the hoist declares, whose branch losses
 turn the sensors' pressures into the chambers' (contract 1a): a branch the model lacks
 biases them. Given ``identify_ropes``, each new plan takes the ropes identified again
-with the grown model and its fitted parameters (validation trial_001, a 7.77 m, 4.88 mm
-pipe hidden where the description says 1 m, 6 mm: replayed with that pipe the gap is
-13.6 kPa with the ropes read without it, 8.2 kPa with the ropes read with it; 13.2 and
-10.1 kPa without the pipe).
+with the grown model and its fitted parameters (validation trial_001 hides a 7.77 m,
+4.88 mm pipe where the description says 1 m, 6 mm: the ropes read without it are
+0.9698 / 1.0285 / 1.0087 / 0.9931 of their mean, with it 0.9639 / 1.0340 / 1.0082 /
+0.9939; described with that pipe, its ropes read with it, the record replays to
+8.2 kPa, 13.1 kPa as described).
 
 On a new plan whose baseline is closer, the added effect's coordinates, fitted on the
 plan before, are refined with the ropes and motion read anew (Gauss-Newton steps,

@@ -162,8 +162,9 @@ def refine_added(
     (validation trial_005, an oil of 0.636 GPa hidden: fitted at 0.381 GPa the record
     replays to 20.0 kPa, at 0.636 GPa to 12.8 kPa; trial_000, tail ropes of 6.307 kg/m:
     fitted at 6.224 kg/m 18.3 kPa, at 6.307 kg/m 10.3 kPa)."""
-    term = library.fit(plan.hoist)[name]
-    eng = FitEngine(plan, library.fit(plan.hoist), base)
+    fitted = library.fit(plan.hoist)
+    term = fitted[name]
+    eng = FitEngine(plan, fitted, base)
     eng.rebase(base, model, params)
     lay = eng.layout
     gap = rms(lay.y - lay.flat(base.simulated))

@@ -131,24 +131,13 @@ def _pack_hydraulics(
         )
         nu = float(kinematic_viscosity_walther(oil.reference_temperature_c, a, b))
     par[MU] = nu * oil.density_kg_m3
-    # One branch pipe: the ``pipe_laminar_loss`` effect's lengths and bore (the
-    # description's unless a finding or a caller changes them) are the pipe's in every
-    # term it enters -- its laminar loss, the valve's and fittings' velocity head (on its
-    # bore, :func:`sims.device_model._line_loss`), the oil column's inertance and the
-    # oil the pipes hold -- so a pipe longer or narrower than described changes all of
-    # them together, as a real one does (issue 14: validation trial_001 hides a 7.77 m,
-    # 4.88 mm pipe where the description says 1 m, 6 mm; described so, the record
-    # replays to 8.2 kPa, 13.1 without the loss; described as a 6 mm pipe of the same
-    # laminar resistance, 11.5 kPa).
+    l1, l2 = piping.length_chamber_to_sensor_m, piping.length_sensor_to_manifold_m
+    par[INERT] = oil.density_kg_m3 * (l1 + l2) / piping.area_m2
+    par[INERT1] = oil.density_kg_m3 * l1 / piping.area_m2
+    par[VPIPES] = hoist.ropes_n * piping.area_m2 * (l1 + l2)
     lam = prm["pipe_laminar_loss"]
-    l1, l2 = lam["length_chamber_to_sensor_m"], lam["length_sensor_to_manifold_m"]
-    bore_ratio = lam["bore_m"] / piping.bore_m
-    pipe_area = piping.area_m2 * bore_ratio * bore_ratio
-    par[INERT] = oil.density_kg_m3 * (l1 + l2) / pipe_area
-    par[INERT1] = oil.density_kg_m3 * l1 / pipe_area
-    par[VPIPES] = hoist.ropes_n * pipe_area * (l1 + l2)
-    par[L1] = l1
-    par[L2] = l2
+    par[L1] = lam["length_chamber_to_sensor_m"]
+    par[L2] = lam["length_sensor_to_manifold_m"]
     par[DLOSS] = lam["bore_m"]
     loc = prm["local_loss"]
     par[K1] = loc["valve_loss_coefficient"] + loc["fittings_chamber_to_sensor"]

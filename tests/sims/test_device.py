@@ -109,34 +109,6 @@ def test_sensor_reads_low_while_oil_flows_out_high_while_in(hoist, payload):
     assert (at_rest["p_sensor1_pa"] - at_rest["p_chamber1_pa"]).abs().max() == 0.0
 
 
-def test_a_pipe_given_as_the_effects_parameters_is_the_pipe_described():
-    """One branch pipe: a pipe 5 m long and 4 mm in bore given as ``pipe_laminar_loss``'s
-    parameters simulates as the same pipe written into the description's ``[piping]``
-    (its laminar loss, the valve's velocity head on its bore, the oil column's inertance
-    and the oil it holds), and differently from the described 1 m, 6 mm pipe."""
-    described = load_hoist(EXAMPLE_HOIST)
-    fx = {"tail_rope_weight", "oil_compressibility", "pipe_laminar_loss", "local_loss"}
-    pipe = {"length_chamber_to_sensor_m": 3.0, "length_sensor_to_manifold_m": 2.0, "bore_m": 0.004}
-    narrow = described.model_copy(update={"piping": described.piping.model_copy(update=pipe)})
-    profile = hold(
-        depth_m=320.0, duration_s=8.0, payload_time_s=[1.0, 4.0], payload_kg=[0.0, 6000.0]
-    )
-    runs = [
-        simulate(narrow, profile, effects=fx),
-        simulate(described, profile, effects=fx, parameters={"pipe_laminar_loss": pipe}),
-        simulate(described, profile, effects=fx),
-    ]
-    assert all(r.status == "success" for r in runs)
-    frames = [r.frame for r in runs]
-    for i in range(1, 5):
-        col = f"p_sensor{i}_pa"
-        np.testing.assert_allclose(frames[1][col], frames[0][col], rtol=0, atol=1e-3)
-        drop = (frames[0][col] - frames[0][f"p_chamber{i}_pa"]).abs().max()
-        drop_described = (frames[2][col] - frames[2][f"p_chamber{i}_pa"]).abs().max()
-        # the narrow pipe's valve alone loses (6/4)^4 = 5 times the described one's
-        assert drop > 3.0 * drop_described
-
-
 def test_seal_friction_sensors_low_after_load_increase_high_after_decrease(hoist):
     fx = {"seal_friction", "tail_rope_weight", "oil_compressibility", "pipe_laminar_loss"}
     gap_up, last, _ = _loading(hoist, fx, [0.0, 6000.0])

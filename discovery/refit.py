@@ -158,10 +158,12 @@ def refine_added(
 
     The record planned again once an effect joined (:mod:`discovery.record_rereading`)
     reads the ropes and the motion with it: the effect's coordinates were fitted on the
-    plan before, whose ropes had taken part of it, and are refined on the new one
-    (validation trial_005, an oil of 0.636 GPa hidden: fitted at 0.381 GPa the record
-    replays to 20.0 kPa, at 0.636 GPa to 12.8 kPa; trial_000, tail ropes of 6.307 kg/m:
-    fitted at 6.224 kg/m 18.3 kPa, at 6.307 kg/m 10.3 kPa)."""
+    plan before, whose ropes had taken part of it, and are refined on the new one. On
+    the validation trials it moves the fit part of the way: trial_005 hides an oil of
+    0.636 GPa, fitted at 0.381 GPa (20.0 kPa), refined to 0.450 GPa (19.0 kPa), where
+    the hoist described with 0.636 GPa replays to 12.8 kPa; trial_000 hides tail ropes of
+    6.307 kg/m, fitted at 6.224 kg/m (18.3 kPa), refined to 6.272 kg/m (17.3 kPa), 10.3
+    kPa described with 6.307 kg/m. The ropes stay those read at the first fit."""
     fitted = library.fit(plan.hoist)
     term = fitted[name]
     eng = FitEngine(plan, fitted, base)

@@ -112,6 +112,14 @@ def described_by_parameters(
     True
     >>> described_by_parameters(h, {"pipe_laminar_loss": {"bore_m": 0.004}}).piping.bore_m
     0.004
+    >>> gain = {"sensor_gain": {"sensor": 3, "gain": 0.98}}
+    >>> grown = h.with_effects([*h.model.effects, "sensor_gain"])
+    >>> oil = {"oil_compressibility": {"bulk_modulus_pa": 6e8}}
+    >>> d = described_by_parameters(grown, {**oil, **gain})
+    >>> d.oil.bulk_modulus_pa, [s.gain for s in d.sensors], d.piping == h.piping
+    (600000000.0, [1.0, 1.0, 0.98, 1.0], True)
+    >>> described_by_parameters(h, gain) == h  # sensor_gain not in h's model
+    True
     """
     on = set(hoist.model.effects)
     given = {k: dict(v) for k, v in parameters.items() if k in on}

@@ -94,6 +94,43 @@ def identified_ropes_under(
     )
 
 
+#: (effect, description section, ((effect parameter, section field), ...)): what of the
+#: model's effects :func:`described_by_parameters` writes into the description.
+_DESCRIBED = (
+    (
+        "pipe_laminar_loss",
+        "piping",
+        (
+            ("length_chamber_to_sensor_m", "length_chamber_to_sensor_m"),
+            ("length_sensor_to_manifold_m", "length_sensor_to_manifold_m"),
+            ("bore_m", "bore_m"),
+        ),
+    ),
+    (
+        "local_loss",
+        "piping",
+        (
+            ("valve_loss_coefficient", "valve_loss_coefficient"),
+            ("fittings_chamber_to_sensor", "fittings_loss_coefficient_chamber_to_sensor"),
+            ("fittings_sensor_to_manifold", "fittings_loss_coefficient_sensor_to_manifold"),
+        ),
+    ),
+    (
+        "viscosity_temperature",
+        "oil",
+        (
+            ("kinematic_viscosity_40c_m2_s", "kinematic_viscosity_40c_m2_s"),
+            ("kinematic_viscosity_100c_m2_s", "kinematic_viscosity_100c_m2_s"),
+        ),
+    ),
+    (
+        "oil_compressibility",
+        "oil",
+        (("bulk_modulus_pa", "bulk_modulus_pa"), ("air_fraction", "air_fraction")),
+    ),
+)
+
+
 def described_by_parameters(
     hoist: HoistDescription, parameters: Mapping[str, Mapping[str, Any]]
 ) -> HoistDescription:
@@ -124,41 +161,16 @@ def described_by_parameters(
     on = set(hoist.model.effects)
     given = {k: dict(v) for k, v in parameters.items() if k in on}
     prm = resolve_effects(hoist, sorted(on), given).parameters
-    update: dict[str, Any] = {}
-    piping: dict[str, Any] = {}
-    if "pipe_laminar_loss" in on:
-        lam = prm["pipe_laminar_loss"]
-        piping |= {
-            "length_chamber_to_sensor_m": float(lam["length_chamber_to_sensor_m"]),
-            "length_sensor_to_manifold_m": float(lam["length_sensor_to_manifold_m"]),
-            "bore_m": float(lam["bore_m"]),
-        }
-    if "local_loss" in on:
-        loc = prm["local_loss"]
-        piping |= {
-            "valve_loss_coefficient": float(loc["valve_loss_coefficient"]),
-            "fittings_loss_coefficient_chamber_to_sensor": float(loc["fittings_chamber_to_sensor"]),
-            "fittings_loss_coefficient_sensor_to_manifold": float(
-                loc["fittings_sensor_to_manifold"]
-            ),
-        }
-    if piping:
-        update["piping"] = hoist.piping.model_copy(update=piping)
-    oil: dict[str, Any] = {}
-    if "viscosity_temperature" in on:
-        visc = prm["viscosity_temperature"]
-        oil |= {
-            "kinematic_viscosity_40c_m2_s": float(visc["kinematic_viscosity_40c_m2_s"]),
-            "kinematic_viscosity_100c_m2_s": float(visc["kinematic_viscosity_100c_m2_s"]),
-        }
-    if "oil_compressibility" in on:
-        comp = prm["oil_compressibility"]
-        oil |= {
-            "bulk_modulus_pa": float(comp["bulk_modulus_pa"]),
-            "air_fraction": float(comp["air_fraction"]),
-        }
-    if oil:
-        update["oil"] = hoist.oil.model_copy(update=oil)
+    sections: dict[str, dict[str, float]] = {}
+    for effect, section, fields in _DESCRIBED:
+        if effect in on:
+            sections.setdefault(section, {}).update(
+                {field: float(prm[effect][name]) for name, field in fields}
+            )
+    update: dict[str, Any] = {
+        section: getattr(hoist, section).model_copy(update=fields)
+        for section, fields in sections.items()
+    }
     if {"sensor_offset", "sensor_gain"} & on:
         offsets = prm["sensor_offset"]["offsets_pa"] if "sensor_offset" in on else None
         gains = prm["sensor_gain"]["gains"] if "sensor_gain" in on else None

@@ -21,8 +21,10 @@ compensation's band takes from its quarters (a third of the time).
 Once discovery adds an effect it plans the record again and asks for the ropes as that
 grown model reads them (:func:`identified_ropes_under`): the identification turns each
 sensor's pressure into its chamber's through the branch the description gives and the
-sensors' calibrations, so a branch or a sensor the model lacked had biased them
-(:mod:`discovery.record_rereading`).
+sensors' calibrations, and each rope's payout with depth through the drum's grooves, so
+a branch, a sensor or a worn groove the model lacked had biased them
+(:mod:`discovery.record_rereading`). Until session 55 a groove wear found was not
+written in: the ropes were read again with the description's grooves.
 """
 
 from __future__ import annotations
@@ -138,7 +140,9 @@ def described_by_parameters(
     written into its description: the branch pipe's lengths and bore
     (``pipe_laminar_loss``), its loss coefficients (``local_loss``), the oil's viscosity
     points (``viscosity_temperature``) and bulk modulus (``oil_compressibility``: the
-    closed oil volume ties the pistons together) and the sensors' offsets and gains
+    closed oil volume ties the pistons together), the drum's groove radius deviations
+    (``groove_wear``: each rope's payout grows with depth, which the identification
+    reads beside each rope's stiffness) and the sensors' offsets and gains
     (``sensor_offset``, ``sensor_gain``); the other effects' parameters (the seals', the
     conveyance's, the tail ropes') are left as described. Effects not in the model keep
     the description's values.
@@ -157,6 +161,10 @@ def described_by_parameters(
     (600000000.0, [1.0, 1.0, 0.98, 1.0], True)
     >>> described_by_parameters(h, gain) == h  # sensor_gain not in h's model
     True
+    >>> worn = h.with_effects([*h.model.effects, "groove_wear"])
+    >>> radii = {"groove_wear": {"groove_radius_deviation_m": [0.0, 2e-5, -3e-5, -1e-5]}}
+    >>> described_by_parameters(worn, radii).drum.groove_radius_deviation_m
+    [0.0, 2e-05, -3e-05, -1e-05]
     """
     on = set(hoist.model.effects)
     given = {k: dict(v) for k, v in parameters.items() if k in on}
@@ -171,6 +179,9 @@ def described_by_parameters(
         section: getattr(hoist, section).model_copy(update=fields)
         for section, fields in sections.items()
     }
+    if "groove_wear" in on:
+        radii = [float(r) for r in prm["groove_wear"]["groove_radius_deviation_m"]]
+        update["drum"] = hoist.drum.model_copy(update={"groove_radius_deviation_m": radii})
     if {"sensor_offset", "sensor_gain"} & on:
         offsets = prm["sensor_offset"]["offsets_pa"] if "sensor_offset" in on else None
         gains = prm["sensor_gain"]["gains"] if "sensor_gain" in on else None

@@ -14,8 +14,10 @@ x (``RopeSprings.mismatch_m``), is a second, independent measure of the same que
 For each trial this prints that residual with the description as given, with the answer's
 hidden effect written into it (:func:`pipelines.identified_ropes.identified_ropes_under`,
 where the identification reads that effect), and with the same effect the other way (a
-groove's radii negated, a pipe's resistance divided instead of multiplied, a sensor's
-offset or gain error the other way), and the identified stiffness factors. The answer's
+groove's radii negated, a pipe's resistance divided instead of multiplied at the
+described bore, the oil's bulk modulus as far above the description's as the world's is
+below, a sensor's offset or gain error the other way; a valve's is its described
+coefficient, as found), and the identified stiffness factors. The answer's
 parameters are read from ``answers.json`` (the key): this measures how far the logged x
 could tell a candidate's coordinates, and is not used by ropeload.
 

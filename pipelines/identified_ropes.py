@@ -23,8 +23,7 @@ grown model reads them (:func:`identified_ropes_under`): the identification turn
 sensor's pressure into its chamber's through the branch the description gives and the
 sensors' calibrations, and each rope's payout with depth through the drum's grooves, so
 a branch, a sensor or a worn groove the model lacked had biased them
-(:mod:`discovery.record_rereading`). Until session 55 a groove wear found was not
-written in: the ropes were read again with the description's grooves.
+(:mod:`discovery.record_rereading`).
 """
 
 from __future__ import annotations

@@ -10,15 +10,15 @@ from pipelines.identified_ropes import identified_ropes, identified_ropes_under
 
 @pytest.mark.slow
 def test_a_worn_groove_found_is_read_with_the_ropes():
-    """Sims data whose drum hides a groove 0.4 mm wide on rope 3 (its rope pays out
-    0.4 mm / 1.4 m of its depth more than the others, the pistons drifting apart on
-    every trip): read without it, no ropes within the identification's bounds fit the
-    logged x; read with the groove wear discovery adds, at the world's radii, the ropes
-    are the world's equal ropes (the example hoist states none; the logged x matched to
-    0.28 mm in RMS). With the groove the other way, nothing fits again.
-    Discovery plans a record again with ropes read this way
-    (:mod:`discovery.record_rereading`), so a groove found that were not written into
-    the description would leave them read as without it."""
+    """Sims data whose drum hides a groove of 0.4 mm more radius on rope 3 (that rope
+    pays out 0.29 mm more per metre of depth, 0.4 mm over the drum's 1.4 m, and the
+    pistons drift apart on every trip): read without it, no ropes within the
+    identification's bounds fit the logged x; read with the groove wear discovery adds,
+    at the world's radii, the ropes are the world's equal ropes (the example hoist
+    states none; the logged x matched to 0.28 mm in RMS). With the groove the other
+    way, nothing fits again. Discovery plans a record again with ropes read this way
+    (:mod:`discovery.record_rereading`): a groove found but not written into the
+    description would leave them read as without it."""
     plan, info = hidden_case("groove_wear", trips=4)
     samples = info["day"].sensors
     assert identified_ropes(samples, plan.hoist) is None

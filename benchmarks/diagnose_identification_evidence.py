@@ -36,7 +36,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from eval_trials import DEFAULT_TRIALS  # the sibling script
+from eval_trials import DEFAULT_TRIALS, ingest_record  # the sibling script
 
 #: Effects the identification reads (:data:`pipelines.identified_ropes._DESCRIBED`, the
 #: sensors and the drum).
@@ -84,20 +84,17 @@ def effect_parameters(hoist: Any, key: dict[str, Any], sign: float) -> dict[str,
 
 def _data_root(folder: Path, roots: Path | None, work: Path) -> Path:
     """The trial's data root: kept by an evaluation, else ingested into ``work``."""
-    from pipelines.ingest import ingest_paths
-    from pipelines.ingest.field_checks import hoist_lookup_from_files
-    from warehouse.store import DataRoot
-
     if roots is not None and (roots / folder.name).is_dir():
         return roots / folder.name
     csv = work / f"{folder.name}.csv"
     with gzip.open(folder / f"{folder.name}.csv.gz", "rb") as src, csv.open("wb") as dst:
         shutil.copyfileobj(src, dst)
-    data = DataRoot.resolve(work / folder.name)
-    hoists = hoist_lookup_from_files([str(folder / "hoist.toml")])
-    if not ingest_paths([csv], data=data, hoist_lookup=hoists).ok:
-        raise SystemExit(f"diagnose_identification_evidence: {folder.name}: ingest refused")
-    csv.unlink()
+    try:
+        data, _ = ingest_record(csv, folder / "hoist.toml", work / folder.name)
+    except RuntimeError as exc:
+        raise SystemExit(f"diagnose_identification_evidence: {folder.name}: {exc}") from exc
+    finally:
+        csv.unlink()
     return data.path
 
 

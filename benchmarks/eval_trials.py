@@ -174,28 +174,36 @@ def _outcome(label: str, key: dict[str, Any]) -> TrialOutcome:
     )
 
 
+def ingest_record(csv: Path, hoist_path: Path, root: Path) -> tuple[Any, int]:
+    """(data root, rows quarantined) of ``csv`` ingested into a data root at ``root``
+    with the hoist of ``hoist_path``; RuntimeError when the ingest refuses it."""
+    from pipelines.ingest import ingest_paths
+    from pipelines.ingest.field_checks import hoist_lookup_from_files
+    from warehouse.store import DataRoot
+
+    data = DataRoot.resolve(root)
+    hoists = hoist_lookup_from_files([str(hoist_path)])
+    ingested = ingest_paths([csv], data=data, hoist_lookup=hoists)
+    if not ingested.ok:
+        raise RuntimeError("ingest refused " + "; ".join(ingested.refusal_lines()))
+    return data, ingested.totals()["rows_quarantined"]
+
+
 def _discover_record(
     csv: Path, hoist_path: Path, label: str, stem: str, key: dict[str, Any], work: Path
 ) -> TrialOutcome:
     """One record ingested into ``work/data/<stem>`` and discovered, its report in
     ``work/reports/<stem>.json``."""
     from pipelines.discover import discover_period
-    from pipelines.ingest import ingest_paths
-    from pipelines.ingest.field_checks import hoist_lookup_from_files
-    from warehouse.store import DataRoot
 
     out = _outcome(label, key)
     json_path = work / "reports" / f"{stem}.json"
     started = time.perf_counter()
     try:
-        data = DataRoot.resolve(work / "data" / stem)
-        ingested = ingest_paths(
-            [csv], data=data, hoist_lookup=hoist_lookup_from_files([str(hoist_path)])
-        )
-        out.quarantined = ingested.totals()["rows_quarantined"]
-        out.ingest_s = time.perf_counter() - started
-        if not ingested.ok:
-            raise RuntimeError("ingest refused " + "; ".join(ingested.refusal_lines()))
+        try:
+            data, out.quarantined = ingest_record(csv, hoist_path, work / "data" / stem)
+        finally:
+            out.ingest_s = time.perf_counter() - started
         started, cpu = time.perf_counter(), time.process_time()
         try:
             discover_period(hoist_path=hoist_path, data=data, json_path=json_path)

@@ -414,8 +414,7 @@ class FitEngine:
         """Up to three damped Gauss-Newton steps of :meth:`start` from the scan's best."""
         lay = self.layout
         m = int(lay.trip.max()) + 1
-        nuis = np.zeros((lay.y.size, m))
-        nuis[np.arange(lay.y.size), lay.trip] = 1.0
+        nuis = lay.trip_columns(m)
         for _ in range(3):
             p_at = merge_parameters(params, term.name, term.parameters(self.hoist, best_theta))
             cols = self.fd(term, effects, p_at, best_s)

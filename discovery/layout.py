@@ -34,6 +34,13 @@ class EntryLayout:
     def flat(self, arrays: Iterable[np.ndarray]) -> np.ndarray:
         return np.concatenate([a[m] for a, m in zip(arrays, self.mask, strict=True)])
 
+    def trip_columns(self, trips: int) -> np.ndarray:
+        """(entries, ``trips``) indicator columns, 1 where an entry is of that trip: the
+        per-trip common-mode nuisance (each trip's payload) of the least squares."""
+        columns = np.zeros((self.y.size, trips))
+        columns[np.arange(self.y.size), self.trip] = 1.0
+        return columns
+
 
 def entry_layout(plan: ReplayPlan, base: ReplayResult) -> EntryLayout:
     masks, cols = [], {k: [] for k in ("trip", "sensor", "t", "ph", "dir", "d", "oil", "lvl")}

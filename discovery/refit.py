@@ -172,9 +172,7 @@ def refine_added(
     gap = rms(lay.y - lay.flat(base.simulated))
     if term.analytic:
         return base, gap, params
-    m = len(plan.trips)
-    nuis = np.zeros((lay.y.size, m))
-    nuis[np.arange(lay.y.size), lay.trip] = 1.0
+    nuis = lay.trip_columns(len(plan.trips))
     current = base
     for _ in range(steps):
         after, gap_after, new_params = _gauss_newton_step(

@@ -371,9 +371,7 @@ class EffectSelector:
         eng.rebase(base, model, params)
         lay = eng.layout
         m = len(plan.trips)
-        n_entries = lay.y.size
-        nuis = np.zeros((n_entries, m))
-        nuis[np.arange(n_entries), lay.trip] = 1.0
+        nuis = lay.trip_columns(m)
         s0 = lay.flat(base.simulated)
         weights = trip_weights(self.seed, m, self.bootstrap)
         opts = DecisionThresholds(

@@ -32,20 +32,35 @@ def sensor_branch(hoist: HoistDescription) -> np.ndarray:
     """The chamber-to-sensor branch as the kernels take it [-, m, m, kg/m3, -, -].
 
     ``[A_bore / A_pipe, bore, length chamber -> sensor, density, K valve + K fittings
-    (chamber -> sensor), relative roughness]`` (contract 1a).
+    (chamber -> sensor), relative roughness]`` (contract 1a), with the hoist's
+    ``[model] effects`` deciding which losses the branch has (contract 4): the part
+    along the pipe only with ``pipe_laminar_loss`` (else length 0), the valve and
+    fittings only with ``local_loss`` (else K = 0). A described valve is not a loss the
+    model includes unless ``local_loss`` is declared; the device simulation
+    (``sims.device_model._line_loss``) reads the same switches, so the compensation, the
+    ropes' identification and the replay describe one branch.
 
     >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
-    >>> sensor_branch(load_hoist(EXAMPLE_HOIST)).shape
+    >>> hoist = load_hoist(EXAMPLE_HOIST)
+    >>> sensor_branch(hoist).shape
     (6,)
+    >>> pipe_only = sensor_branch(hoist.with_effects(["pipe_laminar_loss"]))
+    >>> float(pipe_only[4]), float(pipe_only[2]) > 0
+    (0.0, True)
     """
     piping = hoist.piping
+    effects = set(hoist.model.effects)
+    along_pipe = "pipe_laminar_loss" in effects
+    local = "local_loss" in effects
     return np.array(
         [
             hoist.cylinders.bore_area_m2 / piping.area_m2,
             piping.bore_m,
-            piping.length_chamber_to_sensor_m,
+            piping.length_chamber_to_sensor_m if along_pipe else 0.0,
             hoist.oil.density_kg_m3,
-            piping.valve_loss_coefficient + piping.fittings_loss_coefficient_chamber_to_sensor,
+            piping.valve_loss_coefficient + piping.fittings_loss_coefficient_chamber_to_sensor
+            if local
+            else 0.0,
             piping.roughness_m / piping.bore_m,
         ],
         dtype=np.float64,

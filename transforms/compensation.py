@@ -43,9 +43,10 @@ For each cylinder i of a hoist, per sample:
    motion only the oil saw and the law's uncertainty) and the sensor noise.
 
 Which corrections apply follows the hoist's ``[model] effects``: ``seal_friction``,
-``presliding_hysteresis``, ``pipe_laminar_loss`` / ``local_loss`` (both are in the branch
-loss), ``viscosity_temperature`` (viscosity from the logged oil temperature instead of
-the reference temperature).
+``presliding_hysteresis``, ``pipe_laminar_loss`` / ``local_loss`` (the branch loss along
+the pipe / at the valve and fittings, each only when declared:
+:func:`physics.sensor_branch.sensor_branch`), ``viscosity_temperature`` (viscosity from
+the logged oil temperature instead of the reference temperature).
 
 The friction state is sequential over the whole record, so :func:`compensate` takes a
 collected frame of one hoist, sorted by time, and returns a ``ROPE_TENSIONS`` frame.

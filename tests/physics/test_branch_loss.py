@@ -91,6 +91,25 @@ def test_sensor_branch_sign_and_magnitude():
     assert -dp[0] == pytest.approx(expected, rel=1e-9)
 
 
+def test_sensor_branch_has_only_the_declared_losses():
+    """Contract 4: a hoist's ``[model] effects`` say which losses its branch has. The
+    described valve is no loss without ``local_loss`` and the pipe none without
+    ``pipe_laminar_loss`` (as in the device simulation): each part alone is its own
+    analytic term, Hagen-Poiseuille (eq 6) and K rho u|u| / 2 (eq 13)."""
+    v = np.array([0.005])
+    u = 0.005 * (0.1 / 0.01) ** 2
+    nu = float(kinematic_viscosity(40.0, HOIST.oil))
+    rho, d, length = 900.0, 0.01, 0.8
+    pipe_only = HOIST.with_effects(["pipe_laminar_loss"])
+    valve_only = HOIST.with_effects(["local_loss"])
+    neither = HOIST.with_effects(["seal_friction"])
+    poiseuille = 32 * nu * rho * length * u / d**2
+    assert -sensor_minus_chamber_pa(v, pipe_only)[0] == pytest.approx(poiseuille, rel=1e-9)
+    local = (9.0 + 0.5) * rho * u**2 / 2
+    assert -sensor_minus_chamber_pa(v, valve_only)[0] == pytest.approx(local, rel=1e-9)
+    assert sensor_minus_chamber_pa(v, neither)[0] == 0.0
+
+
 def test_sensor_branch_viscosity_temperature():
     cold, warm = sensor_minus_chamber_pa(np.array([0.002, 0.002]), HOIST, np.array([10.0, 60.0]))
     assert cold < warm < 0  # colder oil, larger (laminar) loss

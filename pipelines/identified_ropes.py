@@ -28,6 +28,7 @@ a branch, a sensor or a worn groove the model lacked had biased them
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -174,6 +175,10 @@ def described_by_parameters(
             sections.setdefault(section, {}).update(
                 {field: float(prm[effect][name]) for name, field in fields}
             )
+    if "piping" in sections:
+        sections["piping"]["manifold_volume_m3"] = _manifold_keeping_the_oil(
+            hoist, sections["piping"]
+        )
     update: dict[str, Any] = {
         section: getattr(hoist, section).model_copy(update=fields)
         for section, fields in sections.items()
@@ -195,6 +200,58 @@ def described_by_parameters(
             sensors.append(sensor.model_copy(update=change))
         update["sensors"] = sensors
     return hoist.model_copy(update=update) if update else hoist
+
+
+#: The least share of the described manifold volume :func:`_manifold_keeping_the_oil`
+#: leaves when a fitted pipe would hold more oil than the manifold gave up: the
+#: manifold is a real vessel, never empty.
+MANIFOLD_FLOOR_SHARE = 0.1
+
+
+def _manifold_keeping_the_oil(hoist: HoistDescription, piping: Mapping[str, float]) -> float:
+    """The manifold volume [m3] that keeps the description's oil in all
+    (:attr:`~schemas.hoist.HoistDescription.oil_volume_m3`) with the branch pipes of
+    ``piping`` (their lengths and bore as fitted).
+
+    The oil in the closed device is what a mine knows (it filled it), not how the oil
+    outside the chambers divides between pipes and manifold; the identification reads
+    that total through the closed-volume relation (sum A dx = V dp / beta, eq 5). A pipe
+    found longer or narrower therefore holds oil the description had counted in the
+    manifold, and does not add oil. (Growing the total with the fitted pipe made the
+    oil seem softer than it is: on an independent simulator's record with a pipe 7.8
+    times as long, the ropes read with it replayed 8.0 kPa from the pressures with the
+    total kept, 11.7 kPa with it grown by 1.9 L.) Floored at
+    :data:`MANIFOLD_FLOOR_SHARE` of the described manifold.
+
+    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
+    >>> h = load_hoist(EXAMPLE_HOIST)
+    >>> twice = {"length_chamber_to_sensor_m": 2 * h.piping.length_chamber_to_sensor_m,
+    ...          "length_sensor_to_manifold_m": 2 * h.piping.length_sensor_to_manifold_m}
+    >>> v = _manifold_keeping_the_oil(h, {"bore_m": h.piping.bore_m * 0.5, **twice})
+    >>> piped = h.piping.model_copy(update={**twice, "bore_m": h.piping.bore_m * 0.5,
+    ...                                     "manifold_volume_m3": v})
+    >>> round(h.model_copy(update={"piping": piped}).oil_volume_m3 / h.oil_volume_m3, 12)
+    1.0
+    """
+    described = hoist.piping
+
+    def pipes_m3(bore_m: float, l1_m: float, l2_m: float) -> float:
+        return hoist.ropes_n * 0.25 * math.pi * bore_m**2 * (l1_m + l2_m)
+
+    before = pipes_m3(
+        described.bore_m,
+        described.length_chamber_to_sensor_m,
+        described.length_sensor_to_manifold_m,
+    )
+    after = pipes_m3(
+        piping.get("bore_m", described.bore_m),
+        piping.get("length_chamber_to_sensor_m", described.length_chamber_to_sensor_m),
+        piping.get("length_sensor_to_manifold_m", described.length_sensor_to_manifold_m),
+    )
+    if after == before:
+        return described.manifold_volume_m3
+    kept = described.manifold_volume_m3 + before - after
+    return max(kept, MANIFOLD_FLOOR_SHARE * described.manifold_volume_m3)
 
 
 def _logged(samples: pl.DataFrame, column: str) -> bool:

@@ -2,10 +2,17 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from discovery.cases import EXTRA, hidden_case
-from pipelines.identified_ropes import identified_ropes, identified_ropes_under
+from pipelines.identified_ropes import (
+    described_by_parameters,
+    identified_ropes,
+    identified_ropes_under,
+)
+from schemas.hoist import EXAMPLE_HOIST, load_hoist
 
 
 @pytest.mark.slow
@@ -30,3 +37,38 @@ def test_a_worn_groove_found_is_read_with_the_ropes():
     radii = list(EXTRA["groove_wear"]["groove_radius_deviation_m"])
     other_way = {"groove_wear": {"groove_radius_deviation_m": [-r for r in radii]}}
     assert identified_ropes_under(samples, grown, other_way) is None
+
+
+def test_a_pipe_found_longer_holds_oil_the_manifold_gave_up():
+    """The oil in all is what a mine knows: a pipe written into the description
+    longer and narrower than described takes its oil from the manifold, so the closed
+    volume the ropes' identification reads (eq 5) is the described one; where the
+    manifold cannot give that much, a tenth of it stays."""
+    hoist = load_hoist(EXAMPLE_HOIST)
+    piping = hoist.piping
+    longer = {
+        "pipe_laminar_loss": {
+            "length_chamber_to_sensor_m": 1.5 * piping.length_chamber_to_sensor_m,
+            "length_sensor_to_manifold_m": 1.5 * piping.length_sensor_to_manifold_m,
+            "bore_m": 0.9 * piping.bore_m,
+        }
+    }
+    found = described_by_parameters(hoist, longer)
+    assert found.piping.length_chamber_to_sensor_m == pytest.approx(
+        1.5 * piping.length_chamber_to_sensor_m
+    )
+    assert found.oil_volume_m3 == pytest.approx(hoist.oil_volume_m3, rel=1e-12)
+    pipes_m3 = (
+        hoist.ropes_n
+        * math.pi
+        / 4
+        * (piping.length_chamber_to_sensor_m + piping.length_sensor_to_manifold_m)
+    )
+    grown_by = pipes_m3 * (1.5 * 0.9**2 - 1.0) * piping.bore_m**2
+    assert found.piping.manifold_volume_m3 == pytest.approx(
+        piping.manifold_volume_m3 - grown_by, rel=1e-12
+    )
+    much_longer = {"pipe_laminar_loss": {"length_sensor_to_manifold_m": 100.0}}
+    floored = described_by_parameters(hoist, much_longer)
+    assert floored.piping.manifold_volume_m3 == pytest.approx(0.1 * piping.manifold_volume_m3)
+    assert described_by_parameters(hoist, {}).piping == piping

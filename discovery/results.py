@@ -13,12 +13,33 @@ from typing import Any
 from schemas.effects import NO_EFFECT
 from sims.replay_plan import ReplayPlan, ReplayResult
 
-__all__ = ["AMBIGUOUS", "DiscoveryResult", "Finding", "Params", "merge_parameters"]
+__all__ = [
+    "AMBIGUOUS",
+    "DiscoveryResult",
+    "Finding",
+    "Params",
+    "RereadCandidate",
+    "merge_parameters",
+]
 
 #: What a finding says when two candidates cannot be told apart.
 AMBIGUOUS = "ambiguous"
 
 Params = dict[str, dict[str, Any]]
+
+
+@dataclass(frozen=True)
+class RereadCandidate:
+    """A winner refused on ropes read without it, though the ropes' identification reads
+    it (:data:`schemas.effects.READ_WITH_THE_ROPES`): its name, the model's parameters
+    with it at its linear fit, its fitted change in noise sigmas and its share of the
+    trip resamples. :func:`discovery.record_rereading.discover_in_record` tries it with
+    the record read again (not reported)."""
+
+    effect: str
+    parameters: Params
+    size_x_noise: float
+    share: float
 
 
 @dataclass(frozen=True)
@@ -51,6 +72,7 @@ class Finding:
     excitation: str = ""
     message: str = ""
     gap_without_effect_pa: float | None = None
+    reread: RereadCandidate | None = None
 
     def __post_init__(self) -> None:
         if self.gap_without_effect_pa is None:

@@ -9,7 +9,13 @@ from __future__ import annotations
 
 from typing import Literal, get_args
 
-__all__ = ["EFFECT_DESCRIPTIONS", "EFFECT_NAMES", "NO_EFFECT", "EffectName"]
+__all__ = [
+    "EFFECT_DESCRIPTIONS",
+    "EFFECT_NAMES",
+    "NO_EFFECT",
+    "READ_WITH_THE_ROPES",
+    "EffectName",
+]
 
 EffectName = Literal[
     "tail_rope_weight",
@@ -51,3 +57,20 @@ EFFECT_DESCRIPTIONS: dict[str, str] = {
 }
 
 assert set(EFFECT_DESCRIPTIONS) == set(EFFECT_NAMES)
+
+#: The effects whose parameters the ropes' identification reads off a hoist's
+#: description (``pipelines.identified_ropes.described_by_parameters``): the branch
+#: losses and the oil turn the sensors' pressures into the chambers' and tie the
+#: pistons together, the sensors' calibrations read the pressures, the grooves pay the
+#: ropes out. Ropes identified without such an effect have taken part of it.
+READ_WITH_THE_ROPES: frozenset[str] = frozenset(
+    {
+        "pipe_laminar_loss",
+        "local_loss",
+        "viscosity_temperature",
+        "oil_compressibility",
+        "groove_wear",
+        "sensor_offset",
+        "sensor_gain",
+    }
+)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ from discovery import discover_in_record
 from discovery.cases import hidden_case
 from discovery.selection import discover_effects, fitted_baseline
 from physics.tension import tail_rope_mass_kg
+from pipelines.identified_ropes import identified_ropes, identified_ropes_under
 from schemas.hoist import G_STANDARD
 from sims.replay import replay
 
@@ -104,3 +106,46 @@ def test_a_base_replayed_with_other_effects_is_refused():
     other = fitted_baseline(plan, fewer, {}, passes=1)
     with pytest.raises(ValueError, match="not the plan's replay"):
         discover_effects(plan, base=other)
+
+
+@pytest.mark.slow
+def test_a_winner_the_ropes_took_is_tried_with_the_record_read_again():
+    """Sims data whose drum hides a groove of 0.4 mm more radius on rope 3, the ropes
+    identified from the logged x (none fit without the groove). With the credit set
+    strict (95 % of the excess variance, never by size), the groove's linear fit on the
+    baseline (76 % of the excess) is refused; the ropes' identification reads a groove,
+    so the refused winner is tried with the record read again at its fitted radii: the
+    gap falls to near the noise and the groove is named at the world's (measured:
+    0.414 mm on rope 3, 0.039 mm on rope 2, the gap 190.7 -> 6.8 kPa). Without
+    ``identify_ropes`` the refusal stands, and says what it would try."""
+    plan, info = hidden_case("groove_wear", trips=4)
+    samples = info["day"].sensors
+    strict = {"explain_fraction": 0.95, "detectable_x_noise": 1e9, "bootstrap": 50}
+    ropes = identified_ropes(samples, plan.hoist)
+    refused = discover_in_record(
+        samples, plan.hoist, max_iterations=2, identified_ropes=ropes, **strict
+    ).findings
+    assert [f.effect for f in refused] == ["none"]
+    assert refused[0].reread is not None
+    assert refused[0].reread.effect == "groove_wear"
+    result = discover_in_record(
+        samples,
+        plan.hoist,
+        max_iterations=2,
+        identified_ropes=ropes,
+        identify_ropes=functools.partial(identified_ropes_under, samples),
+        **strict,
+    )
+    first, second = result.findings
+    assert first.effect == "groove_wear"
+    assert second.effect == "none"
+    radii = first.parameters["groove_radius_deviation_m"]
+    world = info["parameters"]["groove_wear"]["groove_radius_deviation_m"]
+    worn = int(np.argmax(world))  # rope 3: within 5 %; the others under a quarter of it
+    assert radii[worn] == pytest.approx(world[worn], rel=0.05)
+    assert max(abs(r) for i, r in enumerate(radii) if i != worn) < 0.25 * world[worn]
+    assert first.gap_before_pa == refused[0].gap_before_pa
+    assert first.gap_after_pa < 0.05 * first.gap_before_pa
+    assert first.gap_after_pa < 2.0 * first.noise_pa
+    assert "groove_wear" in result.plan.hoist.model.effects
+    assert any("read with the record again" in n for n in result.notes)

@@ -43,6 +43,19 @@ On a new plan whose baseline is closer, the added effect's coordinates, fitted o
 plan before, are refined with the ropes and motion read anew (Gauss-Newton steps,
 payloads refitted: :func:`discovery.refit.refine_added`); the finding then reports them
 and the gap they leave.
+
+A winner the first search refuses is judged on ropes read without it. When the ropes'
+identification reads it (:data:`schemas.effects.READ_WITH_THE_ROPES`) and it is
+decisive and stable (:func:`discovery.iteration._to_reread`), it is tried with the
+record read again (:func:`_tried_reread`): planned at its fitted step and at twice it
+while the gap shrinks (a signed term once the other way when its fitted way does not),
+refined, and credited by the rule any winner is (:func:`discovery.iteration.
+credited_shrink`) on that plan's gap against the first. Credited, it is the first
+finding and the search goes on from that plan; else the refusal stands with a note.
+(Validation trial_001, a pipe 2.2 x the noise: refused at 0.9 x the noise explained,
+read again 13.1 -> 7.1 kPa; trial_009, a groove 3.8 x: its fit pointed the wrong way,
+read again the other way 16.9 -> 12.0 kPa; on the three records with nothing hidden
+the winners tried left 9.8-27.9 kPa of 9.9-12.3, not credited.)
 """
 
 from __future__ import annotations

@@ -132,11 +132,12 @@ def discover_in_record(
     first = result = search.result_
     findings = list(result.findings)
     replays, notes = result.replays, list(result.notes)
+    replan = functools.partial(
+        _planned_with, samples, hoist, identified_ropes, identify_ropes, max_trips,
+        number_from, selector,
+    )  # fmt: skip
     refused = findings[-1].reread
     if refused is not None and identify_ropes is not None:
-        replan = functools.partial(
-            _planned_with, samples, hoist, identify_ropes, max_trips, number_from, selector
-        )
         tried = _tried_reread(search, findings[-1], refused, result, replan, selector)
         notes.append(tried.note)
         if tried.finding is not None:
@@ -155,7 +156,7 @@ def discover_in_record(
                         effects=model, parameters=params, max_iterations=1, **selector
                     ).fit(tried.plan, tried.base, columns_from=search)
                 except (RuntimeError, ValueError) as exc:
-                    notes.append(f"the search with {', '.join(model)} failed: {exc}")
+                    notes.append(f"the search with {', '.join(model)} failed, search ended: {exc}")
                     max_iterations = len(findings)
                 else:
                     result = search.result_
@@ -167,21 +168,8 @@ def discover_in_record(
     while len(findings) < max_iterations and _added(findings[-1].effect):
         model = list(result.effects_after)
         params = {k: dict(v) for k, v in result.parameters_after.items() if k in model}
-        grown = hoist.with_effects(sorted(model))
-        ropes: IdentifiedFactors = identified_ropes
-        if identify_ropes is not None:
-            ropes = functools.partial(identify_ropes, grown, params)
         try:
-            again = plan_replay(
-                samples,
-                grown,
-                max_trips=max_trips,
-                number_from=number_from,
-                parameters=params,
-                identified_ropes=ropes,
-            )
-            base = fitted_baseline(again, model, params, passes=selector.get("passes", BASE_PASSES))
-            gap = baseline_gap_pa(again, base)
+            again, base, gap = replan(model, params)
             closer = gap < findings[-1].gap_after_pa
             if closer:  # the added effect's coordinates refined with the ropes read anew
                 added = findings[-1].effect
@@ -260,7 +248,8 @@ class _Reread:
 def _planned_with(
     samples: pl.DataFrame,
     hoist: HoistDescription,
-    identify_ropes: Callable[[HoistDescription, Params], Identified],
+    identified_ropes: IdentifiedFactors,
+    identify_ropes: Callable[[HoistDescription, Params], Identified] | None,
     max_trips: int,
     number_from: dt.datetime | None,
     selector: dict[str, Any],
@@ -268,15 +257,19 @@ def _planned_with(
     params: Params,
 ) -> tuple[Any, Any, float]:
     """(plan, fitted baseline, gap [Pa]) of the record planned again with ``model`` and
-    its ``params``, the ropes identified with them."""
+    its ``params``, the ropes identified with them (``identify_ropes``; None: the ropes
+    ``identified_ropes`` as first read)."""
     grown = hoist.with_effects(sorted(model))
+    ropes: IdentifiedFactors = identified_ropes
+    if identify_ropes is not None:
+        ropes = functools.partial(identify_ropes, grown, params)
     again = plan_replay(
         samples,
         grown,
         max_trips=max_trips,
         number_from=number_from,
         parameters=params,
-        identified_ropes=functools.partial(identify_ropes, grown, params),
+        identified_ropes=ropes,
     )
     base = fitted_baseline(again, model, params, passes=selector.get("passes", BASE_PASSES))
     return again, base, baseline_gap_pa(again, base)
@@ -299,8 +292,8 @@ def _tried_reread(
     name = refused.effect
     model = [*result.effects_after, name]
     library = selector.get("library") or EFFECT_LIBRARY
-    term = library.fit(result.plan.hoist)[name]
     hoist = result.plan.hoist
+    term = library.fit(hoist)[name]
     start = term.coordinates(hoist, None)
     fitted = term.coordinates(hoist, refused.parameters)
     before = refusal.gap_before_pa
@@ -308,31 +301,38 @@ def _tried_reread(
     # way (a groove wear scanned along the differential signature): the other way then
     ways = [REREAD_STEPS] if term.start_scales else [REREAD_STEPS, (-1.0,)]
     best: tuple[Any, Any, float, Params] | None = None
-    try:
-        for multiples in ways:
-            for multiple in multiples:
-                theta = start + multiple * (fitted - start)
-                params = merge_parameters(refused.parameters, name, term.parameters(hoist, theta))
-                params = {k: v for k, v in params.items() if k in model}
+    failed: list[str] = []
+    for multiples in ways:
+        for multiple in multiples:
+            theta = start + multiple * (fitted - start)
+            params = merge_parameters(refused.parameters, name, term.parameters(hoist, theta))
+            params = {k: v for k, v in params.items() if k in model}
+            try:
                 plan, base, gap = replan(model, params)
-                if best is None or gap < best[2]:
-                    best = (plan, base, gap, params)
-                if not gap < before or best[2] < gap:
-                    break  # no shrink this way, or less than one step gave
-            if best is not None and best[2] < before:
+            except (RuntimeError, ValueError) as exc:  # no shrink this way
+                failed.append(f"at {multiple:g} x its step: {exc}")
                 break
-        plan, base, gap, params = best
-        if gap < before:
+            if best is None or gap < best[2]:
+                best = (plan, base, gap, params)
+            if not gap < before or best[2] < gap:
+                break  # no shrink this way, or less than one step gave
+        if best is not None and best[2] < before:
+            break
+    if best is None:
+        return _Reread(None, (), {}, None, None, f"{name} read with the record failed: {failed}")
+    plan, base, gap, params = best
+    if gap < before:
+        try:
             base, gap, params = refine_added(plan, library, name, model, params, base)
-    except (RuntimeError, ValueError) as exc:
-        return _Reread(None, (), {}, None, None, f"{name} read with the record failed: {exc}")
+        except (RuntimeError, ValueError) as exc:
+            failed.append(f"refining: {exc}")
     credited = credited_shrink(
         before, gap, refused.size_x_noise, refusal.noise_pa,
         explain_fraction=search.explain_fraction, detectable_x_noise=search.detectable_x_noise,
     )  # fmt: skip
     said = (
         f"{name}, refused on the ropes read without it, read with the record again: the gap "
-        f"{before:.0f} -> {gap:.0f} Pa"
+        f"{before:.0f} -> {gap:.0f} Pa" + (f" ({'; '.join(failed)})" if failed else "")
     )
     if not credited:
         return _Reread(None, (), {}, None, None, f"{said}, not what a winner is credited with")

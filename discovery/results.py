@@ -53,7 +53,9 @@ class Finding:
     (:func:`discovery.refit.gap_without`): ``gap_without_effect^2 - gap_after^2`` is the
     variance the effect itself accounts for, which the baseline's payloads partly took
     (their mean of the effect over each trip). Where nothing is added the three are the
-    same.
+    same. A winner added with the record read again (:mod:`discovery.record_rereading`)
+    has the first plan's gap there: the effect taken out with the ropes read without
+    it. ``reread``: a refused winner to try that way (not reported).
     """
 
     iteration: int

@@ -254,7 +254,12 @@ class EffectSelector:
         self._state = self._start(plan, base)
         before = getattr(columns_from, "_state", None)
         if before is not None and _same_entries(before.eng.layout, self._state.eng.layout):
-            lib, added = self._state.lib, set(before.model) - set(before.first.effects)
+            lib = self._state.lib
+            # effects added by that search, or since (a winner tried with the record read
+            # again, discovery.record_rereading): their columns were taken at the default
+            added = (set(before.model) - set(before.first.effects)) | (
+                set(self._state.model) - set(before.model)
+            )
             self._state.eng.cache.update(
                 (name, cols)
                 for name, cols in before.eng.cache.items()

@@ -101,7 +101,9 @@ def sensor_minus_chamber_pa(
         + K_{fittings,cs}\right) \frac{\rho u |u|}{2}, \qquad u = \frac{A_{bore}}{A_{pipe}} v
 
     so the sensor reads low while oil flows out, high while it flows in, and equal at
-    rest. Turbulent lambda by Colebrook (:data:`COLEBROOK`).
+    rest. Turbulent lambda by Colebrook (:data:`COLEBROOK`). Each part only where the
+    hoist's ``[model] effects`` declare it (:func:`sensor_branch`): the pipe's with
+    ``pipe_laminar_loss``, K with ``local_loss``.
 
     Parameters
     ----------

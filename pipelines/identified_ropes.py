@@ -28,13 +28,11 @@ a branch, a sensor or a worn groove the model lacked had biased them
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import Any
 
 import polars as pl
 
-from schemas.effects import READ_WITH_THE_ROPES
 from schemas.hoist import HoistDescription
 from sims.effects import resolve_effects
 from transforms.compensation import CompensationSettings
@@ -238,30 +236,12 @@ def _manifold_keeping_the_oil(hoist: HoistDescription, piping: Mapping[str, floa
     1.0
     """
     described = hoist.piping
-
-    def pipes_m3(bore_m: float, l1_m: float, l2_m: float) -> float:
-        return hoist.ropes_n * 0.25 * math.pi * bore_m**2 * (l1_m + l2_m)
-
-    before = pipes_m3(
-        described.bore_m,
-        described.length_chamber_to_sensor_m,
-        described.length_sensor_to_manifold_m,
-    )
-    after = pipes_m3(
-        piping.get("bore_m", described.bore_m),
-        piping.get("length_chamber_to_sensor_m", described.length_chamber_to_sensor_m),
-        piping.get("length_sensor_to_manifold_m", described.length_sensor_to_manifold_m),
-    )
-    if after == before:
+    fitted = described.model_copy(update=dict(piping))
+    if fitted.branch_volume_m3 == described.branch_volume_m3:
         return described.manifold_volume_m3
-    kept = described.manifold_volume_m3 + before - after
+    gave_up = hoist.ropes_n * (fitted.branch_volume_m3 - described.branch_volume_m3)
+    kept = described.manifold_volume_m3 - gave_up
     return max(kept, MANIFOLD_FLOOR_SHARE * described.manifold_volume_m3)
-
-
-# what the identification reads is what discovery tries with the record read again
-assert {e for e, _, _ in _DESCRIBED} | {"groove_wear", "sensor_offset", "sensor_gain"} == (
-    READ_WITH_THE_ROPES
-)
 
 
 def _logged(samples: pl.DataFrame, column: str) -> bool:

@@ -140,9 +140,7 @@ class HoistDescription(Section):
     @property
     def oil_volume_m3(self) -> float:
         """All oil in the closed connection device at mid-stroke: chambers, pipes, manifold."""
-        branch = self.piping.area_m2 * (
-            self.piping.length_chamber_to_sensor_m + self.piping.length_sensor_to_manifold_m
-        )
+        branch = self.piping.branch_volume_m3
         return self.ropes_n * (self.cylinders.chamber_volume_mid_m3 + branch) + (
             self.piping.manifold_volume_m3
         )

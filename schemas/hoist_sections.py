@@ -251,6 +251,11 @@ class Piping(Section):
     def area_m2(self) -> float:
         return math.pi * self.bore_m**2 / 4.0
 
+    @property
+    def branch_volume_m3(self) -> float:
+        """Oil in one branch pipe, chamber to manifold [m3]."""
+        return self.area_m2 * (self.length_chamber_to_sensor_m + self.length_sensor_to_manifold_m)
+
 
 class Oil(Section):
     """``[oil]``: hydraulic oil; viscosity at 40 and 100 degC feeds ASTM D341 (Walther)."""

@@ -8,10 +8,12 @@ import pytest
 
 from discovery.cases import EXTRA, hidden_case
 from pipelines.identified_ropes import (
+    _DESCRIBED,
     described_by_parameters,
     identified_ropes,
     identified_ropes_under,
 )
+from schemas.effects import READ_WITH_THE_ROPES
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 
 
@@ -72,3 +74,10 @@ def test_a_pipe_found_longer_holds_oil_the_manifold_gave_up():
     floored = described_by_parameters(hoist, much_longer)
     assert floored.piping.manifold_volume_m3 == pytest.approx(0.1 * piping.manifold_volume_m3)
     assert described_by_parameters(hoist, {}).piping == piping
+
+
+def test_what_the_identification_reads_is_what_discovery_reads_again():
+    """The effects :func:`described_by_parameters` writes into the description are the
+    ones discovery tries with the record read again (``READ_WITH_THE_ROPES``)."""
+    written = {effect for effect, _, _ in _DESCRIBED}
+    assert written | {"groove_wear", "sensor_offset", "sensor_gain"} == READ_WITH_THE_ROPES

@@ -134,7 +134,7 @@ def _pack_hydraulics(
     l1, l2 = piping.length_chamber_to_sensor_m, piping.length_sensor_to_manifold_m
     par[INERT] = oil.density_kg_m3 * (l1 + l2) / piping.area_m2
     par[INERT1] = oil.density_kg_m3 * l1 / piping.area_m2
-    par[VPIPES] = hoist.ropes_n * piping.area_m2 * (l1 + l2)
+    par[VPIPES] = hoist.ropes_n * piping.branch_volume_m3
     lam = prm["pipe_laminar_loss"]
     par[L1] = lam["length_chamber_to_sensor_m"]
     par[L2] = lam["length_sensor_to_manifold_m"]

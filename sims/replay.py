@@ -81,6 +81,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from physics.rope_spring import groove_payout_m
 from schemas.hoist import G_STANDARD, HoistDescription
 from sims.cores import usable_cores
 from sims.device import DeviceState, SimulationResult, simulate
@@ -154,16 +155,30 @@ def _simulate_trip(
         dt_s=plan.dt_s,
         jacobian_every=REPLAY_JACOBIAN_EVERY,
         initial_state=state,
-        pistons_m=block_pistons(plan, tr) if state is None else None,
+        pistons_m=block_pistons(plan, tr, names, prm) if state is None else None,
     )
 
 
-def block_pistons(plan: ReplayPlan, tr: ReplayTrip) -> np.ndarray | None:
+def block_pistons(
+    plan: ReplayPlan,
+    tr: ReplayTrip,
+    names: frozenset[str],
+    prm: Mapping[str, Mapping[str, Any]],
+) -> np.ndarray | None:
     """Where a block that starts with trip ``tr`` puts its pistons [m, the ropes'
     frame]: where the record logged them, shifted by the ropes' identified length
-    offsets (x_i + c_i: rope i pulls with k_i (s - x_i - c_i), so the ropes' imbalance,
-    and with it what each seal holds, is the record's); None (where equal tensions put
-    them) without the offsets or the logged positions.
+    offsets and, with ``groove_wear`` among the simulation's effects ``names``, by each
+    groove's payout at the trip's start depth (x_i + c_i + z dr_i / R: rope i pulls with
+    k_i (s - x_i - c_i - z dr_i / R), :func:`physics.rope_spring.groove_payout_m`, as
+    the compensation's identification reads it; ``prm`` the simulation's parameters), so
+    the ropes' imbalance, and with it what each seal holds, is the record's; None (where
+    equal tensions put them) without the offsets or the logged positions.
+
+    The groove's payout counts from the pithead, not from where a block starts: without
+    it a block that starts deep in the shaft (a record cut mid-day, the up trips' blocks)
+    started its grooves' ropes at the lengths of ropes without wear there, and a groove
+    wear re-planned with the ropes identified under it replayed validation trial_009's
+    second half at 35 kPa against 12.7 without it, both ways (session 57).
 
     Why: the seals hold the pistons wherever the history left them. Deep in the shaft
     the ropes are long and soft (their rate falls thirteen-fold from the pithead to the
@@ -178,6 +193,9 @@ def block_pistons(plan: ReplayPlan, tr: ReplayTrip) -> np.ndarray | None:
     if plan.rope_offsets_m is None or tr.x_start_m is None:
         return None
     x = np.asarray(tr.x_start_m, dtype=float) + np.asarray(plan.rope_offsets_m, dtype=float)
+    if "groove_wear" in names:
+        deviation = np.asarray(prm["groove_wear"]["groove_radius_deviation_m"], dtype=float)
+        x = x + groove_payout_m(tr.start_depth_m, deviation / plan.hoist.drum.radius_m)
     return x if np.all(np.isfinite(x)) else None
 
 

@@ -15,7 +15,9 @@ import sims.replay as replay_module
 from discovery.cases import scenario_hoist
 from discovery.planning import plan_replay
 from discovery.rope_stiffness import with_stiffness_factors
+from sims.device import simulate
 from sims.field_day import generate_field_day
+from sims.trips import hold
 
 
 @pytest.fixture(scope="module")
@@ -233,3 +235,30 @@ def test_an_older_jacobian_changes_a_hard_replay_by_a_hundredth_of_the_noise(
     swing = np.ptp(np.concatenate(fresh.simulated))
     assert swing > 1e6  # the trips load, accelerate and stop: pressures move by MPa
     assert np.sqrt(np.mean(diff**2)) < 50.0
+
+
+def test_a_block_deep_in_the_shaft_starts_its_pistons_where_logged_with_a_groove_wear(
+    two_blocks,
+):
+    """A block starts with its pistons where the record logged them (the ropes' length
+    offsets applied); a groove's payout counts from the pithead (z dr_i / R, as the
+    compensation's rope law reads it), so a block that starts at the bottom keeps its
+    logged positions with a groove wear in the model. Before session 57 the device took
+    the payout there off the logged positions: 600 m x 2e-5 / R ~ 8 mm per rope."""
+    plan = dataclasses.replace(two_blocks, rope_offsets_m=(0.0,) * 4)
+    logged = np.array([1.0e-3, -0.5e-3, 0.2e-3, -0.7e-3])
+    tr = dataclasses.replace(two_blocks.trips[1], x_start_m=logged)
+    assert tr.start_depth_m > 300.0  # the up trip starts at the bottom
+    grooves = {"groove_wear": {"groove_radius_deviation_m": [0.0, 2e-5, -2e-5, 1e-5]}}
+    for names in (
+        frozenset({"seal_friction", "oil_compressibility"}),
+        frozenset({"seal_friction", "oil_compressibility", "groove_wear"}),
+    ):
+        run = simulate(
+            plan.hoist, hold(depth_m=tr.start_depth_m, duration_s=0.5), effects=names,
+            parameters=grooves if "groove_wear" in names else None,
+            pistons_m=replay_module.block_pistons(plan, tr, names, grooves),
+        )  # fmt: skip
+        assert run.ok, run.message
+        first = np.array([float(run.frame[f"x{i}_m"][0]) for i in range(1, 5)])
+        np.testing.assert_allclose(first - first.mean(), logged - logged.mean(), atol=1e-9)

@@ -231,7 +231,8 @@ def run_iteration(fit: FitState, iteration: int) -> bool:
         )  # fmt: skip
     if refusal is not None:
         if refusal.effect == NO_EFFECT and trips >= MIN_TRIPS:
-            refusal = replace(refusal, reread=_to_reread(fit, bl, scores, share, ranking))
+            top = scores[ranking[0]["effect"]]
+            refusal = replace(refusal, reread=_to_reread(fit, bl, top, share, ranking))
         fit.findings.append(refusal)
         return False
     return _add(fit, bl, chosen, ranking, share, explained)
@@ -240,19 +241,19 @@ def run_iteration(fit: FitState, iteration: int) -> bool:
 def _to_reread(
     fit: FitState,
     bl: _Baseline,
-    scores: dict[str, dict[str, Any]],
+    score: dict[str, Any],
     share: dict[str, float],
     ranking: list[dict[str, Any]],
 ) -> RereadCandidate | None:
-    """The refused winner to try with the record read again: one the ropes'
-    identification reads (:data:`~schemas.effects.READ_WITH_THE_ROPES`), decisive
-    (:data:`DECISIVE_DBIC` over the model as it is) and stable (``stability`` of the
-    resamples) but not credited. The baseline's ropes were read without it and took
+    """The refused winner (``score`` its score) to try with the record read again: one
+    the ropes' identification reads (:data:`~schemas.effects.READ_WITH_THE_ROPES`),
+    decisive (:data:`DECISIVE_DBIC` over the model as it is) and stable (``stability`` of
+    the resamples) but not credited, or credited but refused by its re-simulation
+    (:func:`_add`), which ran on the same ropes. The baseline's ropes were read without it and took
     part of it, so the linear fit on them under-reads it (validation trial_001's pipe,
     2.2 x the noise: ranked first on 90 % of the resamples, explaining 0.9 x the noise
     of a 13.1 kPa gap; tried with the record read again, 7.1 kPa); None otherwise."""
     top = ranking[0]["effect"]
-    score = scores[top]
     if (
         top not in READ_WITH_THE_ROPES
         or score["dbic"] < DECISIVE_DBIC
@@ -363,7 +364,9 @@ def _add(
             f"{top} scored best but adding it did not shrink the gap by what a winner "
             f"is credited with ({bl.gap_before:.0f} -> {gap_after:.0f} Pa)"
         )
-        fit.findings.append(_no_addition(fit, bl, NO_EFFECT, 0.0, ranking, msg))
+        refusal = _no_addition(fit, bl, NO_EFFECT, 0.0, ranking, msg)
+        # its re-simulation ran on ropes read without it, too
+        fit.findings.append(replace(refusal, reread=_to_reread(fit, bl, best, share, ranking)))
         return False
     s_after = lay.flat(after.simulated)
     # what the effect itself accounts for: the same inputs, the effect left out

@@ -44,7 +44,8 @@ plan before, are refined with the ropes and motion read anew (Gauss-Newton steps
 payloads refitted: :func:`discovery.refit.refine_added`); the finding then reports them
 and the gap they leave.
 
-A winner the first search refuses is judged on ropes read without it. When the ropes'
+A winner the first search refuses, by its linear fit or by its re-simulation, is judged
+on ropes read without it. When the ropes'
 identification reads it (:data:`schemas.effects.READ_WITH_THE_ROPES`) and it is
 decisive and stable (:func:`discovery.iteration._to_reread`), it is tried with the
 record read again (:func:`_tried_reread`): planned at its fitted step and at twice it

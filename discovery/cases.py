@@ -45,7 +45,7 @@ not a defect of the discovery: its answer there is ``none``.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 from discovery.planning import plan_replay
@@ -123,9 +123,12 @@ def hidden_case(
     scenario: str | None = None,
     oil_temp_c: tuple[float, float] | None = None,
     max_speeds_m_s: tuple[float, ...] | None = None,
+    hidden_parameters: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> tuple[ReplayPlan, dict[str, Any]]:
     """Data with every model effect of the scenario's hoist plus ``hidden``; the model
     omits ``hidden`` (one name, several, or None for the null case).
+    ``hidden_parameters`` (``{effect: {parameter: value}}``) replace :data:`EXTRA`'s
+    for the hidden effects it names.
 
     ``scenario`` defaults to :data:`SCENARIO_FOR` of the (first) hidden effect;
     ``max_speeds_m_s`` (cycled over the trips) to :data:`MAX_SPEEDS_M_S` of the scenario
@@ -143,7 +146,7 @@ def hidden_case(
     for h in names:
         if h in EXTRA and h not in truth:
             truth.append(h)
-            params[h] = EXTRA[h]
+            params[h] = dict((hidden_parameters or {}).get(h, EXTRA[h]))
         elif h in model:
             model.remove(h)
         if h in COUPLED and COUPLED[h] in model:

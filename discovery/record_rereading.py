@@ -55,8 +55,12 @@ credited_shrink`) on that plan's gap against the first. Credited, it is the firs
 finding and the search goes on from that plan; else the refusal stands with a note.
 (Validation trial_001, a pipe 2.2 x the noise: refused at 0.9 x the noise explained,
 read again 13.1 -> 7.1 kPa; trial_009, a groove 3.8 x: its fit pointed the wrong way,
-read again the other way 16.9 -> 12.0 kPa; on the three records with nothing hidden
-the winners tried left 9.8-27.9 kPa of 9.9-12.3, not credited.)
+read again the other way 16.9 -> 14.0 kPa, and each half of it, cut at the middle
+(the second starting at the bottom), 14.8 -> 10.9 and 12.7 -> 9.2 kPa, the groove's linear
+fit credited and its re-simulation on ropes read without it refused (session 57; with
+the replay's blocks counting a groove's payout from where each started, the whole
+16.9 -> 12.0 kPa and both halves `none`); on the three records with nothing hidden the
+winners tried left 11.3-12.5 kPa of 9.9-12.3, not credited.)
 """
 
 from __future__ import annotations

@@ -137,6 +137,11 @@ def hidden_case(
     "parameters", "day", "scenario", "hidden"}``.
     """
     names = [] if hidden is None else [hidden] if isinstance(hidden, str) else list(hidden)
+    unused = set(hidden_parameters or {}) - {h for h in names if h in EXTRA}
+    if unused:
+        raise ValueError(
+            f"hidden_parameters: {', '.join(sorted(unused))} not a hidden extra effect"
+        )
     if scenario is None:
         scenario = next((SCENARIO_FOR[h] for h in names if h in SCENARIO_FOR), "plain")
     base = scenario_hoist(scenario)

@@ -85,6 +85,7 @@ from physics.rope_spring import groove_payout_m
 from schemas.hoist import G_STANDARD, HoistDescription
 from sims.cores import usable_cores
 from sims.device import DeviceState, SimulationResult, simulate
+from sims.effects import resolve_effects
 from sims.logged_motion import profile_from_knots
 from sims.replay_inputs import (
     payload_from_pressure,
@@ -155,7 +156,11 @@ def _simulate_trip(
         dt_s=plan.dt_s,
         jacobian_every=REPLAY_JACOBIAN_EVERY,
         initial_state=state,
-        pistons_m=block_pistons(plan, tr, names, prm) if state is None else None,
+        pistons_m=(
+            block_pistons(plan, tr, names, prm, float(profile.depth(profile.t0_s)))
+            if state is None
+            else None
+        ),
     )
 
 
@@ -164,13 +169,15 @@ def block_pistons(
     tr: ReplayTrip,
     names: frozenset[str],
     prm: Mapping[str, Mapping[str, Any]],
+    depth_m: float,
 ) -> np.ndarray | None:
-    """Where a block that starts with trip ``tr`` puts its pistons [m, the ropes'
-    frame]: where the record logged them, shifted by the ropes' identified length
-    offsets and, with ``groove_wear`` among the simulation's effects ``names``, by each
-    groove's payout at the trip's start depth (x_i + c_i + z dr_i / R: rope i pulls with
+    """Where a block that starts with trip ``tr`` at ``depth_m`` puts its pistons [m,
+    the ropes' frame]: where the record logged them, shifted by the ropes' identified
+    length offsets and, with ``groove_wear`` among the simulation's effects ``names``,
+    by each groove's payout there (x_i + c_i + z dr_i / R: rope i pulls with
     k_i (s - x_i - c_i - z dr_i / R), :func:`physics.rope_spring.groove_payout_m`, as
-    the compensation's identification reads it; ``prm`` the simulation's parameters), so
+    the compensation's identification reads it; the radii as the simulation resolves
+    them from ``prm`` and the description, :func:`sims.effects.resolve_effects`), so
     the ropes' imbalance, and with it what each seal holds, is the record's; None (where
     equal tensions put them) without the offsets or the logged positions.
 
@@ -194,8 +201,9 @@ def block_pistons(
         return None
     x = np.asarray(tr.x_start_m, dtype=float) + np.asarray(plan.rope_offsets_m, dtype=float)
     if "groove_wear" in names:
-        deviation = np.asarray(prm["groove_wear"]["groove_radius_deviation_m"], dtype=float)
-        x = x + groove_payout_m(tr.start_depth_m, deviation / plan.hoist.drum.radius_m)
+        resolved = resolve_effects(plan.hoist, names, prm).parameters["groove_wear"]
+        deviation = np.asarray(resolved["groove_radius_deviation_m"], dtype=float)
+        x = x + groove_payout_m(depth_m, deviation / plan.hoist.drum.radius_m)
     return x if np.all(np.isfinite(x)) else None
 
 

@@ -243,21 +243,30 @@ def test_a_block_deep_in_the_shaft_starts_its_pistons_where_logged_with_a_groove
     """A block starts with its pistons where the record logged them (the ropes' length
     offsets applied); a groove's payout counts from the pithead (z dr_i / R, as the
     compensation's rope law reads it), so a block that starts at the bottom keeps its
-    logged positions with a groove wear in the model. Before session 57 the device took
-    the payout there off the logged positions: 600 m x 2e-5 / R ~ 8 mm per rope."""
+    logged positions with a groove wear in the model: given as the simulation's
+    parameters, or described by the hoist's drum and not given (the radii the device
+    resolves). Before session 57 the device took the payout there off the logged
+    positions: 600 m x 2e-5 / R ~ 8 mm per rope."""
     plan = dataclasses.replace(two_blocks, rope_offsets_m=(0.0,) * 4)
     logged = np.array([1.0e-3, -0.5e-3, 0.2e-3, -0.7e-3])
     tr = dataclasses.replace(two_blocks.trips[1], x_start_m=logged)
     assert tr.start_depth_m > 300.0  # the up trip starts at the bottom
-    grooves = {"groove_wear": {"groove_radius_deviation_m": [0.0, 2e-5, -2e-5, 1e-5]}}
-    for names in (
-        frozenset({"seal_friction", "oil_compressibility"}),
-        frozenset({"seal_friction", "oil_compressibility", "groove_wear"}),
-    ):
+    radii = [0.0, 2e-5, -2e-5, 1e-5]
+    grooves = {"groove_wear": {"groove_radius_deviation_m": radii}}
+    worn = plan.hoist.model_copy(
+        update={"drum": plan.hoist.drum.model_copy(update={"groove_radius_deviation_m": radii})}
+    ).with_effects([*plan.hoist.model.effects, "groove_wear"])
+    fx = frozenset({"seal_friction", "oil_compressibility"})
+    cases = [
+        (plan, fx, {}),  # no groove
+        (plan, fx | {"groove_wear"}, grooves),  # the groove given
+        (dataclasses.replace(plan, hoist=worn), fx | {"groove_wear"}, {}),  # described
+    ]
+    for case, names, prm in cases:
+        pistons = replay_module.block_pistons(case, tr, names, prm, tr.start_depth_m)
         run = simulate(
-            plan.hoist, hold(depth_m=tr.start_depth_m, duration_s=0.5), effects=names,
-            parameters=grooves if "groove_wear" in names else None,
-            pistons_m=replay_module.block_pistons(plan, tr, names, grooves),
+            case.hoist, hold(depth_m=tr.start_depth_m, duration_s=0.5), effects=names,
+            parameters=prm, pistons_m=pistons,
         )  # fmt: skip
         assert run.ok, run.message
         first = np.array([float(run.frame[f"x{i}_m"][0]) for i in range(1, 5)])

@@ -126,9 +126,11 @@ class ReplayPlan:
     parameters: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     #: The head ropes' length offsets [m] identified with the stiffness factors the
     #: hoist carries (``RopeSprings.length_offsets_m``: rope i pulls with
-    #: k_i (s - x_i - c_i)), or None. With them a block starts with its pistons where
-    #: the record logged them (``ReplayTrip.x_start_m``), the seals holding what the ropes
-    #: leave them (:func:`sims.device.held_start`); without, where equal tensions put them.
+    #: k_i (s - x_i - c_i - z dr_i / R), the groove's payout only where the model has a
+    #: groove wear, :func:`sims.replay.block_pistons`), or None. With them a block starts
+    #: with its pistons where the record logged them (``ReplayTrip.x_start_m``), the seals
+    #: holding what the ropes leave them (:func:`sims.device.held_start`); without, where
+    #: equal tensions put them.
     rope_offsets_m: tuple[float, ...] | None = None
 
     @property

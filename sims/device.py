@@ -121,6 +121,7 @@ from typing import Any
 import numpy as np
 
 from physics.friction_law import friction_law_at
+from physics.rope_spring import groove_payout_m
 from physics.tension import tail_rope_length_m
 from schemas.hoist import G_STANDARD, HoistDescription
 from sims.device_params import (
@@ -305,7 +306,7 @@ def _static_start(
         oil_temp_c=float(oil_temp),
     )
     k0 = par[EA] / (par[LBASE] + u0)
-    offsets = u0 * groove / par[RDRUM]
+    offsets = groove_payout_m(u0, groove / par[RDRUM])
     # equal tensions weight0 / n: rope i stretches weight0 / (n k0 f_i); the pistons
     # take up the differences (mean zero)
     stretch = weight0 / (n * k0 * par[KF0 : KF0 + n])
@@ -350,7 +351,7 @@ def held_start(
     # rope i stretches by eta - x_i - o_i (o_i its groove offset at this depth), and the
     # given positions already hold the record's whole imbalance: the pistons go to
     # pistons_m - o (mean zero), so that rope i stretches by eta - pistons_m_i
-    offsets = depth_m * groove / par[RDRUM]
+    offsets = groove_payout_m(depth_m, groove / par[RDRUM])
     x = pistons_m - offsets
     x = x - x.mean()
     u = x + offsets  # each rope's stretch is eta - u_i

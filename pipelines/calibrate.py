@@ -50,6 +50,7 @@ from pipelines.calibrate_outputs import CalibrationResult, friction_toml, land_c
 from pipelines.provenance import utc_now
 from schemas.hoist import FrictionLaw
 from transforms.friction_fit import LinearFit, StribeckFit, fit_friction_law
+from transforms.friction_lines import law_relative_sigma
 from transforms.rig_friction import fit_pressure_levels, seal_friction_samples, steady_steps
 from warehouse.store import DataRoot
 
@@ -211,7 +212,13 @@ def calibrate_rig(
         parameter_set = f"{rig_id[:51]}-{digest}"  # a safe name: at most 64 characters
     run_id = f"calibrate-{parameter_set}"
     source = f"ropeload calibrate: rig {rig_id}, {len(inputs)} recording(s), run {run_id}"
-    toml = friction_toml(law, bore_m=rig.bore_m, parameter_set=parameter_set, source=source)
+    relative = law_relative_sigma(
+        lines["coulomb_n"], lines["static_n"], per_pressure["p_rodless_pa"].to_numpy()
+    )
+    toml = friction_toml(
+        law, bore_m=rig.bore_m, parameter_set=parameter_set, source=source,
+        relative_uncertainty=relative,
+    )  # fmt: skip
     result = CalibrationResult(
         rig_id=rig_id,
         parameter_set=parameter_set,
@@ -225,6 +232,7 @@ def calibrate_rig(
         steps=steps,
         inputs=inputs,
         notes=tuple(notes),
+        relative_uncertainty=relative,
     )
     land_calibration(data, result, samples, source=source, started=started)
     return result

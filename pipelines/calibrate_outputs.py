@@ -42,7 +42,9 @@ class CalibrationResult:
     eq-17 lines (keys :data:`LINE_NAMES`, SI per Pa, residuals per pressure), ``law``
     the :class:`~schemas.hoist.FrictionLaw` (SI), ``toml`` the ``[friction]`` section
     for a hoist description, ``steps`` the per-step steady means the fits used,
-    ``inputs`` the source sha256 of the rig samples read.
+    ``inputs`` the source sha256 of the rig samples read, ``relative_uncertainty`` the
+    law's relative standard uncertainty (:func:`transforms.friction_lines.law_relative_sigma`,
+    written into ``toml``).
     """
 
     rig_id: str
@@ -57,6 +59,7 @@ class CalibrationResult:
     steps: pl.DataFrame
     inputs: tuple[str, ...]
     notes: tuple[str, ...] = field(default_factory=tuple)
+    relative_uncertainty: float = float("nan")
 
 
 def _toml_string(text: str) -> str:
@@ -64,7 +67,13 @@ def _toml_string(text: str) -> str:
 
 
 def friction_toml(
-    law: FrictionLaw, *, bore_m: float, parameter_set: str, source: str, comment: str = ""
+    law: FrictionLaw,
+    *,
+    bore_m: float,
+    parameter_set: str,
+    source: str,
+    comment: str = "",
+    relative_uncertainty: float | None = None,
 ) -> str:
     """The ``[friction]`` section of a hoist description for ``law`` (contract 2).
 
@@ -72,6 +81,7 @@ def friction_toml(
     area) in MPa, speeds in mm/s, pressures in MPa: the layout of
     :class:`schemas.hoist.Friction`, whose :meth:`~schemas.hoist.Friction.law` inverts
     this conversion. ``comment`` lines go on top, prefixed with ``#``.
+    ``relative_uncertainty`` (the law's, 1 sigma) is written when given and finite.
     """
     area = math.pi * bore_m**2 / 4.0
     force, speed, pressure = 1e6 * area, 1e-3, 1e6  # N per MPa, m/s per mm/s, Pa per MPa
@@ -99,6 +109,12 @@ def friction_toml(
         f'bristle_damping = "{law.bristle_damping_n_s_m:.6g} N*s/m"',
         f"presliding_elements = {law.presliding_elements}",
     ]
+    if relative_uncertainty is not None and math.isfinite(relative_uncertainty):
+        lines += [
+            "# the law's relative standard uncertainty: the Coulomb and static lines'",
+            "# scatter about themselves and their standard error (the band's, 1 sigma)",
+            f"relative_uncertainty = {relative_uncertainty:.3g}",
+        ]
     return "\n".join(lines) + "\n"
 
 

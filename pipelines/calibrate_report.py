@@ -14,6 +14,7 @@ import polars as pl
 
 from pipelines.calibrate_outputs import LINE_NAMES, CalibrationResult
 from transforms.friction_fit import compare_with_eq17, fit_table1
+from transforms.friction_lines import law_relative_sigma
 
 __all__ = [
     "eq17_coefficient_verdict",
@@ -95,7 +96,14 @@ def format_calibration(result: CalibrationResult) -> str:
             f"   R2 {line.r_squared:.4f}"
         )
         out.append(f"      residuals by p [MPa]: {residuals}")
-    out += ["", "Hoist description snippet:", "", result.toml.rstrip()]
+    out += [
+        f"The law's relative standard uncertainty (Coulomb and static lines, the 95 % band's "
+        f"1 sigma): {100 * result.relative_uncertainty:.1f} %",
+        "",
+        "Hoist description snippet:",
+        "",
+        result.toml.rstrip(),
+    ]
     return "\n".join(out) + "\n"
 
 
@@ -215,6 +223,14 @@ def table1_report(table1: pl.DataFrame) -> str:
         )
         if row["coefficient"] == "slope":
             out.append(f"  {'':20s} {'':9s} {eq17_line_verdict(row)}")
+    relative = law_relative_sigma(fits["coulomb_friction"], fits["max_static_friction"], p)
+    out += [
+        "",
+        "The law's relative standard uncertainty (the OLS Coulomb and static lines' scatter "
+        "and standard error,",
+        f"the compensation's 95 % band's 1 sigma): {100 * relative:.1f} %, "
+        f"[friction] relative_uncertainty = {relative:.3g}",
+    ]
     out += ["", "Summary:", *(f"  {line}" for line in eq17_summary(compare))]
     out.append("Use the OLS lines (with their residuals), not eq 17, as the fit of Table 1.")
     return "\n".join(out) + "\n"

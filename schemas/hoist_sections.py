@@ -317,6 +317,12 @@ class Friction(Section):
     force. ``speed_unit`` applies to the Stribeck speed and to the viscous coefficient's
     denominator. Paper Table 1 gives no units; see NOTES.md for why ``MPa`` is the
     reading consistent with the paper's field result.
+
+    ``relative_uncertainty`` (optional) is the law's relative standard uncertainty (1
+    sigma) as the hoist's seals follow it, which the compensation's 95 % band takes
+    (:mod:`transforms.uncertainty`); ``ropeload calibrate`` writes the calibration's
+    (:func:`transforms.friction_lines.law_relative_sigma`). Not stated: 10 %
+    (``CompensationSettings.friction_relative_sigma``).
     """
 
     parameter_set: SafeName
@@ -331,6 +337,7 @@ class Friction(Section):
     bristle_stiffness_n_m: Stiffness = Field(alias="bristle_stiffness")
     bristle_damping_n_s_m: Damping = Field(alias="bristle_damping")
     presliding_elements: int = Field(4, ge=1, le=32)
+    relative_uncertainty: float | None = Field(None, gt=0.0, lt=0.5)
 
     def law(self, bore_area_m2: float) -> FrictionLaw:
         """Convert to SI for a cylinder of the given bore area [m2]."""

@@ -52,6 +52,7 @@ from transforms.stop_continuity import LOOK_AHEAD_S, continuity_state
 
 __all__ = [
     "CONTEXT_ROWS",
+    "DEFAULT_FRICTION_RELATIVE_SIGMA",
     "ROPE_STATE_BASE",
     "CompensationCarry",
     "CompensationContext",
@@ -76,6 +77,12 @@ __all__ = [
 ]
 
 _LOG = logging.getLogger(__name__)
+
+#: The friction law's relative standard uncertainty where neither the settings nor the
+#: hoist's description state one: a rig calibration carried to a hoist's seals, whose
+#: temperature and wear differ from the rig's (paper Table 1 alone scatters 3.8 % about
+#: its Coulomb line, :func:`transforms.friction_lines.law_relative_sigma`).
+DEFAULT_FRICTION_RELATIVE_SIGMA = 0.10
 
 #: Length of the rope kernel's state before its Maxwell-slip elements
 #: (:func:`transforms.compensation_kernels.rope_kernel`).
@@ -111,9 +118,13 @@ class CompensationSettings:
     displacement_deadband_m : float
         Half-width of the play operator on the estimated piston displacement [m]: the
         residual noise of the estimate, well inside the seal's presliding range.
-    friction_relative_sigma : float
-        Relative standard uncertainty of the hoist's calibrated friction law, for the
-        95 % band (:mod:`transforms.uncertainty`).
+    friction_relative_sigma : float or None
+        Relative standard uncertainty (1 sigma) of the hoist's calibrated friction law,
+        for the 95 % band (:mod:`transforms.uncertainty`). None (the default): what the
+        hoist's description states (``[friction] relative_uncertainty``, which
+        ``ropeload calibrate`` writes from its fit,
+        :func:`transforms.friction_lines.law_relative_sigma`), else
+        :data:`DEFAULT_FRICTION_RELATIVE_SIGMA`; :meth:`friction_sigma` resolves it.
     pressure_sigma_pa : float
         White noise of a raw pressure reading [Pa] (1 sigma), for the band.
     rope_springs : bool
@@ -159,7 +170,7 @@ class CompensationSettings:
     differential_cutoff_hz: float = 0.1
     differential_bridge_s: float = 120.0
     displacement_deadband_m: float = 5e-6
-    friction_relative_sigma: float = 0.10
+    friction_relative_sigma: float | None = None
     pressure_sigma_pa: float = 5e3
     rope_springs: bool = True
     rope_stiffness_sigma: float = 0.05
@@ -172,6 +183,9 @@ class CompensationSettings:
                 f"rope_stiffness_sigma {self.rope_stiffness_sigma}: a relative spread in "
                 "[0, 0.5) (0: the share-out without x)"
             )
+        sigma = self.friction_relative_sigma
+        if sigma is not None and not 0.0 <= sigma < 0.5:
+            raise ValueError(f"friction_relative_sigma {sigma}: a relative uncertainty in [0, 0.5)")
         step = self.band_member_step_s
         if step == 0:
             return
@@ -181,6 +195,23 @@ class CompensationSettings:
                 f"band_member_step_s {step} s: 0, or a whole fraction of the resume margin "
                 f"{resume_s:g} s (e.g. 0.1, 0.2, 0.25, 0.5)"
             )
+
+    def friction_sigma(self, hoist: HoistDescription) -> float:
+        """The friction law's relative standard uncertainty the band takes for ``hoist``:
+        :attr:`friction_relative_sigma` if given, else the description's
+        ``[friction] relative_uncertainty``, else :data:`DEFAULT_FRICTION_RELATIVE_SIGMA`.
+
+        >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
+        >>> hoist = load_hoist(EXAMPLE_HOIST)
+        >>> CompensationSettings().friction_sigma(hoist) == hoist.friction.relative_uncertainty
+        True
+        >>> CompensationSettings(friction_relative_sigma=0.2).friction_sigma(hoist)
+        0.2
+        """
+        if self.friction_relative_sigma is not None:
+            return self.friction_relative_sigma
+        stated = hoist.friction.relative_uncertainty
+        return DEFAULT_FRICTION_RELATIVE_SIGMA if stated is None else stated
 
 
 def rope_cols(template: str) -> list[str]:

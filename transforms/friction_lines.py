@@ -2,6 +2,10 @@
 
     :func:`fit_line` -- (weighted) least squares value = a + b p with standard errors.
     :func:`fit_table1` -- OLS lines for every column of paper Table 1.
+    :func:`law_relative_sigma` -- the law's relative standard uncertainty as a new
+    seal would follow it: the capacity lines' scatter about themselves and their own
+    standard error (what the compensation's 95 % band takes, ``[friction]
+    relative_uncertainty``).
     :func:`compare_with_eq17` -- OLS lines against the paper's printed eq 17: whether
     eq 17 is the OLS value to its printed digits, and whether it is statistically
     consistent with the data (per coefficient and as a whole line).
@@ -27,6 +31,7 @@ __all__ = [
     "compare_with_eq17",
     "fit_line",
     "fit_table1",
+    "law_relative_sigma",
 ]
 
 
@@ -146,6 +151,44 @@ def fit_line(
         cov_intercept_slope=float(cov[0, 1]),
         x_range=(float(x.min()), float(x.max())),
     )
+
+
+def law_relative_sigma(coulomb: LinearFit, static: LinearFit, x: np.ndarray) -> float:
+    r"""Relative standard uncertainty (1 sigma) of a friction law's capacity as a seal
+    other than the rig's follows it: the larger of the Coulomb and static lines'
+    (eq 17), each
+
+    .. math:: u_{rel} = s_{rel} \sqrt{1 + 2 / n},
+       \qquad s_{rel}^2 = \frac{1}{n - 2} \sum_k \left(\frac{r_k}{a + b x_k}\right)^2,
+
+    the prediction sigma of a new value (Montgomery and Runger, *Applied Statistics and
+    Probability for Engineers*, 11-5.2: the points' scatter about the line and the
+    line's own variance, which over the fitted points averages 2 / n of the scatter's,
+    the leverages of a two-parameter least-squares line summing to 2), with the scatter
+    taken relative to the line: friction scatters in proportion to its level (Table 1's
+    Coulomb residuals grow from 0.001 at 2 MPa to 0.02 at 11-12 MPa), and the band
+    applies the uncertainty as a share of each seal's friction. The compensation's 95 %
+    band takes it as ``CompensationSettings.friction_relative_sigma`` where the hoist's
+    ``[friction]`` states it (``relative_uncertainty``; :mod:`transforms.uncertainty`,
+    part 2). It is the calibration's statistical uncertainty: a seal that ages or runs
+    hotter than the rig's departs further, which the description can state instead.
+
+    ``x`` are the fit's abscissae (``r_k`` its residuals). Paper Table 1 (OLS): Coulomb
+    3.8 %, static 1.8 %.
+
+    >>> p = np.array([2.0, 4.0, 6.0, 8.0, 10.0])
+    >>> exact = fit_line(p, 0.1 + 0.02 * p)
+    >>> law_relative_sigma(exact, exact, p)
+    0.0
+    """
+    x = np.asarray(x, dtype=np.float64)
+    sigmas = []
+    for fit in (coulomb, static):
+        if x.shape != fit.residuals.shape:
+            raise ValueError("law_relative_sigma: one abscissa per fitted point")
+        scatter2 = float(np.sum((fit.residuals / fit(x)) ** 2)) / (fit.n - 2)
+        sigmas.append(float(np.sqrt(scatter2 * (1.0 + 2.0 / fit.n))))
+    return max(sigmas)
 
 
 def fit_table1(table1: pl.DataFrame) -> dict[str, LinearFit]:

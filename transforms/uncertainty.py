@@ -18,8 +18,12 @@ how much instead of guessing:
    logged x does not), so its friction range widens with the ringing, as it should:
    the seals may have relaxed.
 2. **The friction law.** Calibrated on a rig (eq 17 lines), the law holds to a
-   relative standard uncertainty (``CompensationSettings.friction_relative_sigma``,
-   10 % by default): 1.96 x that x |F_i|.
+   relative standard uncertainty: 1.96 x that x |F_i|. It is the hoist's stated one
+   (``[friction] relative_uncertainty``, which ``ropeload calibrate`` writes from its
+   lines' scatter, :func:`transforms.friction_lines.law_relative_sigma`; the example
+   hoist's, paper Table 1's, 3.8 %), else 10 %; ``CompensationSettings
+   .friction_relative_sigma`` overrides it
+   (:meth:`transforms.compensation_record.CompensationSettings.friction_sigma`).
 3. **The pressure sensor.** ``CompensationSettings.pressure_sigma_pa`` of white noise
    on the raw reading, reduced by the low-pass to sigma x sqrt(2 f_c / f_s): 1.96 x that x A.
 
@@ -45,10 +49,11 @@ bristles with the record's start, the ropes, the ringing): per source its member
 range either side of the estimate, the sources combined in quadrature (JCGM 100:2008,
 the GUM, eq 10: independent inputs; their one-at-a-time extremes for c_i U_i). The
 members move every seal alike: a sliding piston's friction by the capacity member's
-+-1.96 x 10 %, which is part 2 whole, but a sticking piston's, set by the ropes and its
-history, hardly at all, though its seal departs from the law as much. So each rope's
-band, and the load's, add the law's part 2 (for the load, the seals' in quadrature)
-less what the law's members already span, in quadrature (:func:`ensemble_band`).
++-1.96 x the law's uncertainty, which is part 2 whole, but a sticking piston's, set by
+the ropes and its history, hardly at all, though its seal departs from the law as
+much. So each rope's band, and the load's, add the law's part 2 (for the load, the
+seals' in quadrature) less what the law's members already span, in quadrature
+(:func:`ensemble_band`).
 Session 15, validation days 101-104: coverage 95 / 87 / 84 / 73 % with it, 95 / 81 /
 80 / 68 % without, at the same load half-width (the members span the load's part).
 Session 32: until then the band took the widest single member either side, as if one

@@ -27,6 +27,7 @@ from pipelines.calibrate_report import table1_report
 from pipelines.cli import main
 from schemas.hoist import Friction
 from sims.rig import default_friction_law, simulate_rig, small_friction_test_program, write_rig_mcap
+from transforms.friction_lines import law_relative_sigma
 from warehouse.store import DataRoot, open_reader
 
 TABLE1_CSV = Path("/work/shared/paper/table1_leuven_parameters.csv")
@@ -138,6 +139,14 @@ def test_toml_snippet_is_a_friction_section_with_units(rig):
     assert section["pressure_unit"] == "MPa"
     assert section["parameter_set"] == result.parameter_set
     friction = Friction.model_validate(section)
+    # the law's relative uncertainty (the band's): the Coulomb and static lines' scatter
+    # about themselves; the rig's seal follows its law but for the fits' noise
+    relative = law_relative_sigma(
+        result.lines["coulomb_n"], result.lines["static_n"], result.per_pressure["p_rodless_pa"]
+    )
+    assert friction.relative_uncertainty == pytest.approx(relative, rel=5e-3)  # 3 digits
+    assert result.relative_uncertainty == relative
+    assert 0.0 < relative < 0.05
     law = friction.law(math.pi * result.rig.bore_m**2 / 4)
     for name in LINE_NAMES:
         np.testing.assert_allclose(getattr(law, name), getattr(result.law, name), rtol=1e-5)

@@ -128,6 +128,14 @@ def test_negative_mass_is_refused():
     assert "bad.toml: conveyance.mass: must be positive, got -8200" in message
 
 
+def test_a_friction_uncertainty_out_of_range_is_named():
+    message = _error(_edit(r"^relative_uncertainty = .*$", "relative_uncertainty = 4.72"))
+    assert "bad.toml: friction.relative_uncertainty:" in message
+    assert "less than 0.5" in message
+    stated = load_hoist(EXAMPLE_HOIST).friction.relative_uncertainty
+    assert stated == 0.0378  # paper Table 1's Coulomb scatter (ropeload calibrate --table1)
+
+
 def test_with_effects_replaces_them_and_checks_the_names():
     hoist = load_hoist(EXAMPLE_HOIST)
     plain = hoist.with_effects(["seal_friction", "oil_compressibility"])

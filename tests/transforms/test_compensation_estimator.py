@@ -78,7 +78,14 @@ def _quantised(x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.round((x + rng.normal(0.0, 0.02e-3, x.size)) / 1e-4) * 1e-4
 
 
-def _one_piston_slides(dp: float, *, logged: bool, seed: int = 3) -> pl.DataFrame:
+def _one_piston_slides(
+    dp: float,
+    *,
+    logged: bool,
+    seed: int = 3,
+    hoist=HOIST,
+    settings: CompensationSettings | None = None,
+) -> pl.DataFrame:
     """Two payload changes at rest (+dp, then -2 dp); piston 1 takes both slides (a
     2 MPa change moves ~1.5 mm of oil: millimetres, as on the independent days)."""
     n = 6000
@@ -91,8 +98,8 @@ def _one_piston_slides(dp: float, *, logged: bool, seed: int = 3) -> pl.DataFram
     )
     return compensate(
         _frame(p, np.vstack([_quantised(r, rng) for r in x]) if logged else None),
-        HOIST,
-        settings=CompensationSettings(rope_springs=False),
+        hoist,
+        settings=settings or CompensationSettings(rope_springs=False),
     )
 
 
@@ -149,6 +156,38 @@ def test_the_band_is_ordered_and_holds_the_value():
     assert np.all(load <= hi)
     # the load band is at least as wide as the widest rope band's friction range
     assert np.all(hi - lo >= (out["tension1_hi_n"] - out["tension1_lo_n"]).to_numpy() - 1e-6)
+
+
+def test_the_band_takes_the_friction_laws_uncertainty_the_hoist_states():
+    """The band's friction law part is +-1.96 sigma |F| (transforms.uncertainty, part
+    2; the sensor's noise set to 0 here, its range part the same for any sigma), so two
+    stated uncertainties differ in each rope's half-width by 1.96 |F| (sigma_b -
+    sigma_a). The description's ``[friction] relative_uncertainty`` is what runs unless
+    the settings give one; none stated: 10 %."""
+
+    def stating(sigma):
+        friction = HOIST.friction.model_copy(update={"relative_uncertainty": sigma})
+        return HOIST.model_copy(update={"friction": friction})
+
+    def half_width(hoist, sigma=None):
+        settings = CompensationSettings(
+            rope_springs=False, friction_relative_sigma=sigma, pressure_sigma_pa=0.0
+        )
+        out = _one_piston_slides(0.3e6, logged=True, seed=9, hoist=hoist, settings=settings)
+        end = out.tail(500)  # at rest after the second slide
+        half = ((end["tension1_hi_n"] - end["tension1_lo_n"]) / 2).to_numpy()
+        return half, end["friction1_n"].to_numpy()
+
+    narrow, friction = half_width(stating(0.02))
+    wide, _ = half_width(stating(0.2))
+    assert np.median(np.abs(friction)) > 500.0  # a seal holding its static level
+    np.testing.assert_allclose(
+        wide - narrow, 1.96 * np.abs(friction) * (0.2 - 0.02), rtol=1e-4
+    )  # float32 columns
+    given, _ = half_width(stating(0.02), sigma=0.2)  # the settings' over the description's
+    np.testing.assert_array_equal(given, wide)
+    unstated, _ = half_width(stating(None))
+    np.testing.assert_array_equal(unstated, half_width(stating(0.1))[0])
 
 
 def test_a_sensor_off_the_others_at_rest_does_not_move_the_other_seals():

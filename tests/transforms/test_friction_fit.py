@@ -17,6 +17,7 @@ from transforms.friction_fit import (
     fit_stribeck,
     fit_table1,
 )
+from transforms.friction_lines import law_relative_sigma
 
 TABLE1 = Path("/work/shared/paper/table1_leuven_parameters.csv")
 
@@ -249,3 +250,24 @@ def test_fit_friction_law_recovers_slopes():
         assert ga + gb * 7e6 == pytest.approx(a + b * 7e6, rel=0.03)
     assert law.presliding_elements == 4
     assert lines["coulomb_n"].residuals.shape == (11,)
+
+
+def test_law_relative_sigma_is_the_relative_scatter_a_new_seal_would_show():
+    """Lines through 11 pressures (Table 1's) whose points scatter 5 % of the line: a
+    new value's relative sigma is sqrt(0.05^2 + the line's own relative variance),
+    about 0.05 sqrt(1 + 2/11) over the fitted range (the least-squares line's variance
+    averages 2 sigma^2 / n over its points); its RMS over 400 draws within 5 %.
+    The larger of the two lines counts."""
+    rng = np.random.default_rng(5)
+    p = np.arange(2.0, 13.0)
+    coulomb, static = 0.03 + 0.026 * p, 0.13 + 0.025 * p
+    found = []
+    for _ in range(400):
+        noisy_c = coulomb * (1.0 + rng.normal(0.0, 0.05, p.size))
+        noisy_s = static * (1.0 + rng.normal(0.0, 0.01, p.size))
+        found.append(law_relative_sigma(fit_line(p, noisy_c), fit_line(p, noisy_s), p))
+    assert np.sqrt(np.mean(np.square(found))) == pytest.approx(
+        0.05 * np.sqrt(1 + 2 / p.size), rel=0.05
+    )
+    with pytest.raises(ValueError, match="one abscissa per fitted point"):
+        law_relative_sigma(fit_line(p, coulomb), fit_line(p, static), p[:-1])

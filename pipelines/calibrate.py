@@ -215,6 +215,11 @@ def calibrate_rig(
     relative = law_relative_sigma(
         lines["coulomb_n"], lines["static_n"], per_pressure["p_rodless_pa"].to_numpy()
     )
+    if not 0.0 <= relative < 0.5:  # NaN too: a line not clearly positive
+        notes.append(
+            f"the law's relative uncertainty ({relative:.3g}) is not one a hoist description "
+            "takes ([0, 0.5)): not written; the compensation's band then takes 10 %"
+        )
     toml = friction_toml(
         law, bore_m=rig.bore_m, parameter_set=parameter_set, source=source,
         relative_uncertainty=relative,

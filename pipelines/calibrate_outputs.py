@@ -81,7 +81,8 @@ def friction_toml(
     area) in MPa, speeds in mm/s, pressures in MPa: the layout of
     :class:`schemas.hoist.Friction`, whose :meth:`~schemas.hoist.Friction.law` inverts
     this conversion. ``comment`` lines go on top, prefixed with ``#``.
-    ``relative_uncertainty`` (the law's, 1 sigma) is written when given and finite.
+    ``relative_uncertainty`` (the law's, 1 sigma) is written when given and in the
+    range a description takes, [0, 0.5).
     """
     area = math.pi * bore_m**2 / 4.0
     force, speed, pressure = 1e6 * area, 1e-3, 1e6  # N per MPa, m/s per mm/s, Pa per MPa
@@ -109,7 +110,7 @@ def friction_toml(
         f'bristle_damping = "{law.bristle_damping_n_s_m:.6g} N*s/m"',
         f"presliding_elements = {law.presliding_elements}",
     ]
-    if relative_uncertainty is not None and math.isfinite(relative_uncertainty):
+    if relative_uncertainty is not None and 0.0 <= relative_uncertainty < 0.5:
         lines += [
             "# the law's relative standard uncertainty: the Coulomb and static lines'",
             "# scatter about themselves and their standard error (the band's, 1 sigma)",
@@ -151,6 +152,9 @@ def land_calibration(
         name: float(np.sqrt(np.mean(lines[name].residuals ** 2))) for name in LINE_NAMES
     }
     residual_rms["stribeck_curve_n"] = float(np.sqrt(np.mean([f.rms**2 for f in result.fits])))
+    errors = line_standard_errors(lines)
+    if math.isfinite(result.relative_uncertainty):
+        errors["law_relative"] = result.relative_uncertainty
     row = pl.DataFrame(
         [
             {
@@ -162,9 +166,7 @@ def land_calibration(
                 **{f"{name}_per_pa": getattr(law, name)[1] for name in LINE_NAMES},
                 "residual_rms": [{"key": k, "value": v} for k, v in residual_rms.items()],
                 "inputs": list(inputs),
-                "standard_error": [
-                    {"key": k, "value": v} for k, v in line_standard_errors(lines).items()
-                ],
+                "standard_error": [{"key": k, "value": v} for k, v in errors.items()],
             }
         ]
     )

@@ -337,7 +337,7 @@ class Friction(Section):
     bristle_stiffness_n_m: Stiffness = Field(alias="bristle_stiffness")
     bristle_damping_n_s_m: Damping = Field(alias="bristle_damping")
     presliding_elements: int = Field(4, ge=1, le=32)
-    relative_uncertainty: float | None = Field(None, gt=0.0, lt=0.5)
+    relative_uncertainty: float | None = Field(None, ge=0.0, lt=0.5)
 
     def law(self, bore_area_m2: float) -> FrictionLaw:
         """Convert to SI for a cylinder of the given bore area [m2]."""

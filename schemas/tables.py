@@ -290,11 +290,13 @@ FRICTION_PARAMETER_SETS = _schema(
         pa.field("inputs", pa.list_(pa.string())),
         # migration 0008: each line's standard errors (1 sigma) and the covariance of its
         # intercept and slope, keyed by column (``static_n``, ``static_n_per_pa``,
-        # ``static_n_covariance``, ...)
+        # ``static_n_covariance``, ...) and the law's relative standard uncertainty
+        # (``law_relative``, transforms.friction_lines.law_relative_sigma; when finite)
         pa.field("standard_error", pa.map_(pa.string(), pa.float64())),
     ],
     "one row per friction parameter set; value(p) = intercept + slope * p[Pa]; "
-    "standard_error: each line's 1-sigma standard errors and intercept-slope covariance",
+    "standard_error: each line's 1-sigma standard errors and intercept-slope covariance, "
+    "and law_relative, the law's relative standard uncertainty",
 )
 
 #: One row per trip checked against the simulation.

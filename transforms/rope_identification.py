@@ -237,7 +237,9 @@ def identify_from_means(
     means = means.head(IDENTIFY_SAMPLES)
     if means.height < 2:
         return None
-    digest = hashlib.sha256(f"{_method_digest()}\n{hoist.model_dump_json()}".encode())
+    # the band's law uncertainty does not identify ropes: editing it keeps what is known
+    described = hoist.model_dump_json(exclude={"friction": {"relative_uncertainty"}})
+    digest = hashlib.sha256(f"{_method_digest()}\n{described}".encode())
     for column in means.columns:
         digest.update(means[column].to_numpy().tobytes())
     key = digest.hexdigest()

@@ -21,7 +21,7 @@ how much instead of guessing:
    relative standard uncertainty: 1.96 x that x |F_i|. It is the hoist's stated one
    (``[friction] relative_uncertainty``, which ``ropeload calibrate`` writes from its
    lines' scatter, :func:`transforms.friction_lines.law_relative_sigma`; the example
-   hoist's, paper Table 1's, 3.8 %), else 10 %; ``CompensationSettings
+   hoist's, paper Table 1's, 4.7 %), else 10 %; ``CompensationSettings
    .friction_relative_sigma`` overrides it
    (:meth:`transforms.compensation_record.CompensationSettings.friction_sigma`).
 3. **The pressure sensor.** ``CompensationSettings.pressure_sigma_pa`` of white noise

@@ -171,9 +171,10 @@ def test_lands_parameter_set_and_run_and_rerun_replaces(rig):
     assert row["coulomb_n_per_pa"] == pytest.approx(result.law.coulomb_n[1])
     assert row["viscous_n_s_m"] == pytest.approx(result.law.viscous_n_s_m[0])
     # every calibrated value with its uncertainty: the lines' standard errors (1 sigma)
-    # and intercept-slope covariances, as the fit gave them
+    # and intercept-slope covariances, as the fit gave them, and the law's relative one
     errors = dict(row["standard_error"])
-    assert len(errors) == 3 * len(result.lines) == 12
+    assert len(errors) == 3 * len(result.lines) + 1 == 13
+    assert errors["law_relative"] == result.relative_uncertainty
     for name, line in result.lines.items():
         assert errors[name] == pytest.approx(line.se_intercept)
         assert errors[f"{name}_per_pa"] == pytest.approx(line.se_slope)

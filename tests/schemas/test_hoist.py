@@ -132,8 +132,11 @@ def test_a_friction_uncertainty_out_of_range_is_named():
     message = _error(_edit(r"^relative_uncertainty = .*$", "relative_uncertainty = 4.72"))
     assert "bad.toml: friction.relative_uncertainty:" in message
     assert "less than 0.5" in message
+    message = _error(_edit(r"^relative_uncertainty = .*$", "relative_uncertainty = -0.05"))
+    assert "bad.toml: friction.relative_uncertainty:" in message
+    assert "greater than or equal to 0" in message
     stated = load_hoist(EXAMPLE_HOIST).friction.relative_uncertainty
-    assert stated == 0.0378  # paper Table 1's Coulomb scatter (ropeload calibrate --table1)
+    assert stated == 0.0472  # paper Table 1's Coulomb line (ropeload calibrate --table1)
 
 
 def test_with_effects_replaces_them_and_checks_the_names():

@@ -112,7 +112,7 @@ def test_a_piston_pushed_past_breakaway_ends_at_its_static_friction():
     assert 0.6 * _static_n(p_after) < level <= 1.05 * _static_n(p_after)
     # after the change back (pressure down by twice as much): it slid in, F1 < 0
     assert np.mean(f1[5000:]) < -0.6 * _static_n(2e6)
-    # its band there is narrow: the law's 10 % and the sensor, not the seal's range
+    # its band there is narrow: the law's uncertainty and the sensor, not the seal's range
     width = (out["tension1_hi_n"] - out["tension1_lo_n"]).to_numpy()[5000:]
     assert np.median(width) < 0.5 * 2 * _static_n(2e6)
 

@@ -32,6 +32,7 @@ from physics.friction_law import friction_law_at, law_array
 from physics.oil import effective_bulk_modulus_at
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 from transforms import rope_identification
+from transforms.compensation import CompensationSettings, compensate
 from transforms.rope_identification import SPLITS, identify_from_means, record_means
 from transforms.stick_slip import stick_slip, stick_slip_mismatch, stick_slip_state
 from transforms.stick_slip_band import (
@@ -893,3 +894,28 @@ def test_the_device_simulations_worn_groove_is_the_one_the_solution_holds():
     assert worn.stiffness_factors == pytest.approx((1.0,) * 4, abs=0.01)
     assert worn.mismatch_m < 0.1e-3
     assert identify_from_means(means, HOIST) is None
+
+
+def test_the_members_take_the_friction_laws_uncertainty_the_hoist_states(stiff_rope_day):
+    """On identified ropes the band is the spread of the stick-slip solution's members,
+    the law's capacity +-1.96 sigma among them (transforms.stick_slip_band.band_members):
+    a description stating 20 % gives a wider load band than one stating 2 %, at every
+    sample where the seals hold friction, and the settings' sigma over the description's
+    gives the same band to the last bit as a description stating it."""
+    samples, _ = stiff_rope_day
+    part = samples.head(len(samples) // 4)  # two trips: ropes identified, members run
+
+    def stating(sigma: float):
+        friction = HOIST.friction.model_copy(update={"relative_uncertainty": sigma})
+        return HOIST.model_copy(update={"friction": friction})
+
+    def band(hoist, sigma=None):
+        out = compensate(part, hoist, settings=CompensationSettings(friction_relative_sigma=sigma))
+        return (out["load_hi_n"] - out["load_lo_n"]).to_numpy()
+
+    narrow, wide = band(stating(0.02)), band(stating(0.2))
+    held = np.isfinite(narrow) & np.isfinite(wide)
+    assert held.mean() > 0.9
+    assert np.all(wide[held] >= narrow[held])
+    assert np.median(wide[held] - narrow[held]) > 100.0  # N, of a load band ~1 kN wide
+    np.testing.assert_array_equal(band(stating(0.02), sigma=0.2), wide)

@@ -9,6 +9,8 @@ words of :func:`eq17_coefficient_verdict`, :func:`eq17_line_verdict` and
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import polars as pl
 
@@ -96,9 +98,10 @@ def format_calibration(result: CalibrationResult) -> str:
             f"   R2 {line.r_squared:.4f}"
         )
         out.append(f"      residuals by p [MPa]: {residuals}")
+    relative = result.relative_uncertainty
     out += [
-        f"The law's relative standard uncertainty (Coulomb and static lines, the 95 % band's "
-        f"1 sigma): {100 * result.relative_uncertainty:.1f} %",
+        "The law's relative standard uncertainty (Coulomb and static lines, the 95 % band's "
+        "1 sigma): " + (f"{100 * relative:.1f} %" if math.isfinite(relative) else "not determined"),
         "",
         "Hoist description snippet:",
         "",

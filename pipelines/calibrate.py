@@ -46,7 +46,12 @@ from pipelines.calibrate_inputs import (
     rig_samples,
     select_rig,
 )
-from pipelines.calibrate_outputs import CalibrationResult, friction_toml, land_calibration
+from pipelines.calibrate_outputs import (
+    CalibrationResult,
+    friction_toml,
+    land_calibration,
+    written_uncertainty,
+)
 from pipelines.provenance import utc_now
 from schemas.hoist import FrictionLaw
 from transforms.friction_fit import LinearFit, StribeckFit, fit_friction_law
@@ -215,7 +220,7 @@ def calibrate_rig(
     relative = law_relative_sigma(
         lines["coulomb_n"], lines["static_n"], per_pressure["p_rodless_pa"].to_numpy()
     )
-    if not 0.0 <= relative < 0.5:  # NaN too: a line not clearly positive
+    if written_uncertainty(relative) is None:  # NaN too: a line not clearly positive
         notes.append(
             f"the law's relative uncertainty ({relative:.3g}) is not one a hoist description "
             "takes ([0, 0.5)): not written; the compensation's band then takes 10 %"

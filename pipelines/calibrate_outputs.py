@@ -27,6 +27,7 @@ __all__ = [
     "friction_toml",
     "land_calibration",
     "line_standard_errors",
+    "written_uncertainty",
 ]
 
 
@@ -66,6 +67,19 @@ def _toml_string(text: str) -> str:
     return json.dumps(text)  # a JSON string is a valid TOML basic string
 
 
+def written_uncertainty(value: float | None) -> float | None:
+    """``value`` as :func:`friction_toml` writes it (3 significant digits), or None where
+    a hoist description would refuse it (outside [0, 0.5), or NaN: not determined).
+
+    >>> written_uncertainty(0.047161), written_uncertainty(0.49996), written_uncertainty(None)
+    (0.0472, None, None)
+    """
+    if value is None or not math.isfinite(value):
+        return None
+    rounded = float(f"{value:.3g}")
+    return rounded if 0.0 <= rounded < 0.5 else None
+
+
 def friction_toml(
     law: FrictionLaw,
     *,
@@ -81,8 +95,8 @@ def friction_toml(
     area) in MPa, speeds in mm/s, pressures in MPa: the layout of
     :class:`schemas.hoist.Friction`, whose :meth:`~schemas.hoist.Friction.law` inverts
     this conversion. ``comment`` lines go on top, prefixed with ``#``.
-    ``relative_uncertainty`` (the law's, 1 sigma) is written when given and in the
-    range a description takes, [0, 0.5).
+    ``relative_uncertainty`` (the law's, 1 sigma) is written when a description would
+    take it (:func:`written_uncertainty`).
     """
     area = math.pi * bore_m**2 / 4.0
     force, speed, pressure = 1e6 * area, 1e-3, 1e6  # N per MPa, m/s per mm/s, Pa per MPa
@@ -110,11 +124,12 @@ def friction_toml(
         f'bristle_damping = "{law.bristle_damping_n_s_m:.6g} N*s/m"',
         f"presliding_elements = {law.presliding_elements}",
     ]
-    if relative_uncertainty is not None and 0.0 <= relative_uncertainty < 0.5:
+    written = written_uncertainty(relative_uncertainty)
+    if written is not None:
         lines += [
             "# the law's relative standard uncertainty: the Coulomb and static lines'",
             "# scatter about themselves and their standard error (the band's, 1 sigma)",
-            f"relative_uncertainty = {relative_uncertainty:.3g}",
+            f"relative_uncertainty = {written:g}",
         ]
     return "\n".join(lines) + "\n"
 

@@ -322,7 +322,8 @@ class Friction(Section):
     sigma) as the hoist's seals follow it, which the compensation's 95 % band takes
     (:mod:`transforms.uncertainty`); ``ropeload calibrate`` writes the calibration's
     (:func:`transforms.friction_lines.law_relative_sigma`). Not stated: 10 %
-    (``CompensationSettings.friction_relative_sigma``).
+    (``transforms.compensation_record.DEFAULT_FRICTION_RELATIVE_SIGMA``, unless the
+    compensation's settings give one: ``CompensationSettings.friction_sigma``).
     """
 
     parameter_set: SafeName

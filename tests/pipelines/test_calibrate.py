@@ -22,8 +22,8 @@ import pytest
 from physics.friction_law import friction_parameters
 from pipelines.calibrate import calibrate_rig
 from pipelines.calibrate_inputs import CalibrationError
-from pipelines.calibrate_outputs import LINE_NAMES
-from pipelines.calibrate_report import table1_report
+from pipelines.calibrate_outputs import LINE_NAMES, friction_toml
+from pipelines.calibrate_report import format_calibration, table1_report
 from pipelines.cli import main
 from schemas.hoist import Friction
 from sims.rig import default_friction_law, simulate_rig, small_friction_test_program, write_rig_mcap
@@ -153,6 +153,23 @@ def test_toml_snippet_is_a_friction_section_with_units(rig):
     # equivalent-pressure reading by hand: Fc intercept [MPa] = N / A_bore / 1e6
     area = math.pi * 0.1**2 / 4
     assert section["coulomb"][0] == pytest.approx(result.law.coulomb_n[0] / area / 1e6, rel=1e-5)
+
+
+def test_a_law_uncertainty_a_description_would_refuse_is_not_written(rig):
+    """Not determined (NaN: a line through zero) or rounding to 0.5 or more: no
+    ``relative_uncertainty`` key (the band then takes 10 %), and the report says it is
+    not determined; what is written loads back as written."""
+    _, _, _, result = rig
+    for value in (float("nan"), 0.49996, 0.7):
+        snippet = tomllib.loads(friction_toml(result.law, bore_m=0.1, parameter_set="s",
+                                              source="t", relative_uncertainty=value))  # fmt: skip
+        assert "relative_uncertainty" not in snippet["friction"]
+        Friction.model_validate(snippet["friction"])
+    written = tomllib.loads(friction_toml(result.law, bore_m=0.1, parameter_set="s",
+                                          source="t", relative_uncertainty=0.047161))  # fmt: skip
+    assert Friction.model_validate(written["friction"]).relative_uncertainty == 0.0472
+    unknown = dataclasses.replace(result, relative_uncertainty=float("nan"))
+    assert "1 sigma): not determined" in format_calibration(unknown)
 
 
 def test_lands_parameter_set_and_run_and_rerun_replaces(rig):

@@ -31,7 +31,7 @@ import pytest
 from physics.friction_law import friction_law_at, law_array
 from physics.oil import effective_bulk_modulus_at
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
-from transforms import rope_identification
+from transforms import compensation_block, rope_identification
 from transforms.compensation import CompensationSettings, compensate
 from transforms.rope_identification import SPLITS, identify_from_means, record_means
 from transforms.stick_slip import stick_slip, stick_slip_mismatch, stick_slip_state
@@ -731,6 +731,13 @@ def test_identified_ropes_are_remembered_in_the_data_root(stiff_rope_day, tmp_pa
     memory.clear()
     read = identify_from_means(means, HOIST, cache_dir=cache)
     assert read.stiffness_factors[1] == 1.5
+    # the band's law uncertainty does not identify ropes: a description stating another
+    # reads the same file
+    memory.clear()
+    friction = HOIST.friction.model_copy(update={"relative_uncertainty": 0.2})
+    restated = HOIST.model_copy(update={"friction": friction})
+    assert identify_from_means(means, restated, cache_dir=cache).stiffness_factors[1] == 1.5
+    memory.clear()
     assert read.alternatives == springs.alternatives
     assert read.parts == springs.parts == SPLITS
     # a replay's (whole record only): the remembered ropes, alternatives and all ...
@@ -896,14 +903,25 @@ def test_the_device_simulations_worn_groove_is_the_one_the_solution_holds():
     assert identify_from_means(means, HOIST) is None
 
 
-def test_the_members_take_the_friction_laws_uncertainty_the_hoist_states(stiff_rope_day):
+def test_the_members_take_the_friction_laws_uncertainty_the_hoist_states(
+    stiff_rope_day, monkeypatch
+):
     """On identified ropes the band is the spread of the stick-slip solution's members,
     the law's capacity +-1.96 sigma among them (transforms.stick_slip_band.band_members):
-    a description stating 20 % gives a wider load band than one stating 2 %, at every
-    sample where the seals hold friction, and the settings' sigma over the description's
-    gives the same band to the last bit as a description stating it."""
+    the members are made with the sigma the description states (on ropes identified
+    from the record), a description stating 20 % gives a wider load band than one
+    stating 2 %, at every sample where the seals hold friction, and the settings' sigma
+    over the description's gives the same band to the last bit as a description
+    stating it."""
     samples, _ = stiff_rope_day
     part = samples.head(len(samples) // 4)  # two trips: ropes identified, members run
+    made = []
+
+    def recording(springs, sigma, **kwargs):
+        made.append((np.isfinite(springs.mismatch_m), sigma))
+        return band_solutions(springs, sigma, **kwargs)
+
+    monkeypatch.setattr(compensation_block, "band_solutions", recording)
 
     def stating(sigma: float):
         friction = HOIST.friction.model_copy(update={"relative_uncertainty": sigma})
@@ -914,6 +932,7 @@ def test_the_members_take_the_friction_laws_uncertainty_the_hoist_states(stiff_r
         return (out["load_hi_n"] - out["load_lo_n"]).to_numpy()
 
     narrow, wide = band(stating(0.02)), band(stating(0.2))
+    assert made == [(True, 0.02), (True, 0.2)]  # identified ropes, the stated sigma
     held = np.isfinite(narrow) & np.isfinite(wide)
     assert held.mean() > 0.9
     assert np.all(wide[held] >= narrow[held])

@@ -14,7 +14,7 @@ import math
 import numpy as np
 import polars as pl
 
-from pipelines.calibrate_outputs import LINE_NAMES, CalibrationResult
+from pipelines.calibrate_outputs import LINE_NAMES, CalibrationResult, written_uncertainty
 from transforms.friction_fit import compare_with_eq17, fit_table1
 from transforms.friction_lines import law_relative_sigma
 
@@ -232,7 +232,7 @@ def table1_report(table1: pl.DataFrame) -> str:
         "The law's relative standard uncertainty (the OLS Coulomb and static lines' scatter "
         "and standard error,",
         f"the compensation's 95 % band's 1 sigma): {100 * relative:.1f} %, "
-        f"[friction] relative_uncertainty = {relative:.3g}",
+        f"[friction] relative_uncertainty = {written_uncertainty(relative)}",
     ]
     out += ["", "Summary:", *(f"  {line}" for line in eq17_summary(compare))]
     out.append("Use the OLS lines (with their residuals), not eq 17, as the fit of Table 1.")

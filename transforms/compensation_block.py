@@ -285,9 +285,7 @@ class BlockCompensation(BlockSetup):
                 sample_rate_hz=self.context.sample_rate_hz,
                 pressure_cutoff_hz=self.settings.pressure_cutoff_hz, half_width_pa=drift_w,
             )  # fmt: skip
-        members = band_solutions(
-            springs, self.settings.friction_sigma(self.hoist), ringing=ringing is not None
-        )
+        members = band_solutions(springs, self.law_sigma, ringing=ringing is not None)
         self.member_sources = band_groups(members)
         inputs = _SpringInputs(
             pressures, logged, depth, self.segment, nu, drift_p, drift_w, ringing
@@ -674,7 +672,7 @@ class BlockCompensation(BlockSetup):
             return ensemble_band(
                 out["tension"][core], seal,
                 [member[k][core] for member in self.member_friction], self.pressure_noise_n(),
-                seal_sigma_n=self.settings.friction_sigma(self.hoist) * np.abs(seal),
+                seal_sigma_n=self.law_sigma * np.abs(seal),
                 groups=self.member_sources, law_group=BAND_SOURCES.index("law"),
             )  # fmt: skip
         estimates, blind = self.motion_share.result()
@@ -689,7 +687,7 @@ class BlockCompensation(BlockSetup):
             static_law_n=tuple(law.static_n) if friction else (0.0, 0.0),
             bristle_stiffness_n_m=float(law.bristle_stiffness_n_m) if friction else 0.0,
             gaussian_sigma_n=(
-                self.settings.friction_sigma(self.hoist) if friction else 0.0,
+                self.law_sigma if friction else 0.0,
                 self.pressure_noise_n(),
             ),
             out=(estimates[k][core], blind[k][core]) if own else None,
@@ -751,7 +749,7 @@ class BlockCompensation(BlockSetup):
         core = slice(self.core_lo, self.core_hi)
         rows = self.frame.slice(self.core_lo, self.core_hi - self.core_lo)
         sigma_n = (
-            self.settings.friction_sigma(self.hoist) if self.mode != 0 else 0.0,
+            self.law_sigma if self.mode != 0 else 0.0,
             self.pressure_noise_n(),
         )
         pressures = [p[core] for p in pressures]

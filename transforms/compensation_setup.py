@@ -68,6 +68,7 @@ class BlockSetup:
     ) -> None:
         self.frame, self.hoist, self.context, self.n = frame, hoist, context, frame.height
         self.law = hoist.friction_law
+        self.law_sigma = settings.friction_sigma(hoist)  # the law's relative uncertainty
         if settings.displacement_deadband_m < 0:
             raise ValueError(
                 f"displacement_deadband_m must be >= 0, got {settings.displacement_deadband_m}"

@@ -150,7 +150,7 @@ def run_trial(
         for k, record in enumerate(records, start=1):
             label = name if parts <= 1 else f"{name} {k}/{parts}"
             stem = name if parts <= 1 else f"{name}-part{k}"
-            outcomes.append(_discover_record(record, hoist_path, label, stem, key, work))
+            outcomes.append(discover_record(record, hoist_path, label, stem, key, work))
     finally:
         _remove_records(csv)
     outcomes[0].ingest_s += unpacked_s
@@ -189,7 +189,7 @@ def ingest_record(csv: Path, hoist_path: Path, root: Path) -> tuple[Any, int]:
     return data, ingested.totals()["rows_quarantined"]
 
 
-def _discover_record(
+def discover_record(
     csv: Path, hoist_path: Path, label: str, stem: str, key: dict[str, Any], work: Path
 ) -> TrialOutcome:
     """One record ingested into ``work/data/<stem>`` and discovered, its report in

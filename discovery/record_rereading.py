@@ -53,6 +53,9 @@ while the gap shrinks (a signed term once the other way when its fitted way does
 refined, and credited by the rule any winner is (:func:`discovery.iteration.
 credited_shrink`) on that plan's gap against the first. Credited, it is the first
 finding and the search goes on from that plan; else the refusal stands with a note.
+A runner-up that is decisive and a contender on the resamples (at least
+:data:`discovery.iteration.CONTENDER_SHARE` of them) is tried the same way when the
+winner is not credited, or when the winner is not one the ropes read.
 (Validation trial_001, a pipe 2.2 x the noise: refused at 0.9 x the noise explained,
 read again 13.1 -> 7.1 kPa; trial_009, a groove 3.8 x: its fit pointed the wrong way,
 read again the other way 16.9 -> 14.0 kPa, and each half of it, cut at the middle
@@ -141,35 +144,37 @@ def discover_in_record(
         _planned_with, samples, hoist, identified_ropes, identify_ropes, max_trips,
         number_from, selector,
     )  # fmt: skip
-    refused = findings[-1].reread
-    if refused is not None and identify_ropes is not None:
+    tried = None
+    for refused in findings[-1].reread if identify_ropes is not None else ():
         tried = _tried_reread(search, findings[-1], refused, result, replan, selector)
         notes.append(tried.note)
         if tried.finding is not None:
-            findings[-1] = tried.finding
-            model, params = list(tried.model), tried.params
-            result = dataclasses.replace(
-                result,
-                plan=tried.plan,
-                effects_after=tuple(model),
-                parameters_after=params,
-                after=tried.base,
-            )
-            if len(findings) < max_iterations:
-                try:
-                    search = EffectSelector(
-                        effects=model, parameters=params, max_iterations=1, **selector
-                    ).fit(tried.plan, tried.base, columns_from=search)
-                except (RuntimeError, ValueError) as exc:
-                    notes.append(f"the search with {', '.join(model)} failed, search ended: {exc}")
-                    max_iterations = len(findings)
-                else:
-                    result = search.result_
-                    findings.append(
-                        dataclasses.replace(result.findings[-1], iteration=len(findings) + 1)
-                    )
-                    replays += result.replays
-                    notes += result.notes
+            break  # the first credited, in the ranking's order
+    if tried is not None and tried.finding is not None:
+        findings[-1] = tried.finding
+        model, params = list(tried.model), tried.params
+        result = dataclasses.replace(
+            result,
+            plan=tried.plan,
+            effects_after=tuple(model),
+            parameters_after=params,
+            after=tried.base,
+        )
+        if len(findings) < max_iterations:
+            try:
+                search = EffectSelector(
+                    effects=model, parameters=params, max_iterations=1, **selector
+                ).fit(tried.plan, tried.base, columns_from=search)
+            except (RuntimeError, ValueError) as exc:
+                notes.append(f"the search with {', '.join(model)} failed, search ended: {exc}")
+                max_iterations = len(findings)
+            else:
+                result = search.result_
+                findings.append(
+                    dataclasses.replace(result.findings[-1], iteration=len(findings) + 1)
+                )
+                replays += result.replays
+                notes += result.notes
     while len(findings) < max_iterations and _added(findings[-1].effect):
         model = list(result.effects_after)
         params = {k: dict(v) for k, v in result.parameters_after.items() if k in model}
@@ -350,6 +355,6 @@ def _tried_reread(
         gap_without_effect_pa=before,
         message=f"added {name} with the record read again ({before:.0f} -> {gap:.0f} Pa); "
         f"on the ropes read without it, {refusal.message}",
-        reread=None,
+        reread=(),
     )
     return _Reread(finding, tuple(model), params, plan, base, said)

@@ -55,7 +55,8 @@ class Finding:
     (their mean of the effect over each trip). Where nothing is added the three are the
     same. A winner added with the record read again (:mod:`discovery.record_rereading`)
     has the first plan's gap there: the effect taken out with the ropes read without
-    it. ``reread``: a refused winner to try that way (not reported).
+    it. ``reread``: the refused winner, and a contender beside it, to try that way in
+    turn (not reported).
     """
 
     iteration: int
@@ -74,7 +75,7 @@ class Finding:
     excitation: str = ""
     message: str = ""
     gap_without_effect_pa: float | None = None
-    reread: RereadCandidate | None = None
+    reread: tuple[RereadCandidate, ...] = ()
 
     def __post_init__(self) -> None:
         if self.gap_without_effect_pa is None:

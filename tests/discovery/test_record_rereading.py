@@ -126,8 +126,7 @@ def test_a_winner_the_ropes_took_is_tried_with_the_record_read_again():
         samples, plan.hoist, max_iterations=2, identified_ropes=ropes, **strict
     ).findings
     assert [f.effect for f in refused] == ["none"]
-    assert refused[0].reread is not None
-    assert refused[0].reread.effect == "groove_wear"
+    assert [r.effect for r in refused[0].reread] == ["groove_wear"]  # no contender
     result = discover_in_record(
         samples,
         plan.hoist,

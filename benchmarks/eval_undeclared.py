@@ -46,17 +46,19 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from eval_trials import DEFAULT_TRIALS, TrialOutcome, discover_record  # the sibling scripts
+from eval_trials import (  # the sibling scripts
+    DEFAULT_TRIALS,
+    SIZE_BANDS,
+    TrialOutcome,
+    _one_line,
+    _print_confusion,
+    discover_record,
+)
 
 DEFAULT_DAYS = DEFAULT_TRIALS.parent / "days"
-#: Size bands of the excess over the noise: (label, low, high, top-1 target or None),
-#: the targets those of issue 14 for the hidden effect's size.
-SIZE_BANDS = (
-    (">= 5x noise", 5.0, np.inf, 0.90),
-    ("2-5x noise", 2.0, 5.0, 0.70),
-    ("< 2x noise", -np.inf, 2.0, None),
-)
-_EFFECTS_LINE = re.compile(r"^effects\s*=\s*\[[^\]]*\]", re.MULTILINE | re.DOTALL)
+#: ``[model]`` and what follows it up to the next table header.
+_MODEL_TABLE = re.compile(r"^\[model\][ \t]*$(.*?)(?=^\[|\Z)", re.MULTILINE | re.DOTALL)
+_EFFECTS_KEY = re.compile(r"^effects\s*=\s*\[[^\]]*\]", re.MULTILINE)
 
 
 @dataclass(frozen=True)
@@ -69,7 +71,8 @@ class Record:
 
 
 def full_records(trials: Path, days: Path) -> list[Record]:
-    """The ``none`` trials of ``trials/answers.json`` and every field day in ``days``."""
+    """The ``none`` trials of ``trials/answers.json`` and every field day in ``days``
+    (those with both their record and their hoist TOML)."""
     records = []
     answers = trials / "answers.json"
     if answers.exists():
@@ -82,18 +85,29 @@ def full_records(trials: Path, days: Path) -> list[Record]:
     for gz in sorted(days.glob("*.csv.gz")):
         name = gz.name.removesuffix(".csv.gz")
         records.append(Record(name, gz, days / f"{name}.hoist.toml"))
-    return records
+    return [r for r in records if r.csv_gz.is_file() and r.toml.is_file()]
 
 
 def without_effect(toml_text: str, effect: str) -> str:
-    """``toml_text`` with ``effect`` taken out of ``[model] effects`` (KeyError if absent)."""
+    """``toml_text`` with ``effect`` taken out of ``[model] effects`` (KeyError if absent,
+    ValueError if the key cannot be rewritten in place)."""
     effects = list(tomllib.loads(toml_text)["model"]["effects"])
     if effect not in effects:
         raise KeyError(f"{effect} is not declared")
-    kept = ", ".join(f'"{e}"' for e in effects if e != effect)
-    text, count = _EFFECTS_LINE.subn(f"effects = [{kept}]", toml_text, count=1)
-    if count != 1 or tomllib.loads(text)["model"]["effects"] != [e for e in effects if e != effect]:
-        raise ValueError("the [model] effects line could not be rewritten")
+    kept = [e for e in effects if e != effect]
+    table = _MODEL_TABLE.search(toml_text)
+    body, count = (
+        _EFFECTS_KEY.subn(lambda _: "effects = [" + ", ".join(f'"{e}"' for e in kept) + "]",
+                          table.group(1), count=1)
+        if table is not None
+        else ("", 0)
+    )  # fmt: skip
+    if count != 1:
+        raise ValueError("the [model] effects key could not be rewritten")
+    assert table is not None
+    text = toml_text[: table.start(1)] + body + toml_text[table.end(1) :]
+    if tomllib.loads(text)["model"]["effects"] != kept:
+        raise ValueError("the [model] effects key could not be rewritten")
     return text
 
 
@@ -115,11 +129,15 @@ def excess_over_noise(o: TrialOutcome, described: TrialOutcome) -> float:
     described, over the record's noise (NaN when either crashed)."""
     before, floor = _gap(o), _gap(described)
     noise = float(o.report.get("noise_pa") or np.nan)
+    if not (np.isfinite(before) and np.isfinite(floor)):
+        return float("nan")
     return float(np.sqrt(max(before**2 - floor**2, 0.0)) / noise)
 
 
-def evaluate(records: list[Record], work: Path) -> None:
-    """Every case of every record under ``work``: one line each, then the summary."""
+def evaluate(records: list[Record], work: Path, *, keep: bool = False) -> None:
+    """Every case of every record under ``work``: one line each, then the summary. A
+    case's data root is removed once it is analysed unless ``keep``; a record that
+    cannot be unpacked or rewritten is one crashed case, and the run goes on."""
     print(
         f"{'record':14s} {'hidden effect':22s} {'answer':22s}{'gap0':>8s}{'gap1':>8s}"
         f"{'excess':>8s} {'disc s':>6s}  ranked first"
@@ -129,21 +147,27 @@ def evaluate(records: list[Record], work: Path) -> None:
         inputs = work / "inputs" / record.name
         inputs.mkdir(parents=True, exist_ok=True)
         csv = inputs / f"{record.name}.csv"
-        with gzip.open(record.csv_gz, "rb") as src, csv.open("wb") as dst:
-            shutil.copyfileobj(src, dst)
         described: TrialOutcome | None = None
         try:
+            with gzip.open(record.csv_gz, "rb") as src, csv.open("wb") as dst:
+                shutil.copyfileobj(src, dst)
             for hidden, text in cases(record):
                 stem = f"{record.name}-no-{hidden}" if hidden != "none" else record.name
                 toml = inputs / f"{stem}.toml"
                 toml.write_text(text)
                 key = {"hidden_effect": hidden, "rms_over_noise": np.nan, "effect_rms_pa": 0.0}
                 o = discover_record(csv, toml, record.name, stem, key, work)
+                if not keep:
+                    shutil.rmtree(work / "data" / stem, ignore_errors=True)
                 described = o if hidden == "none" else described
                 assert described is not None
                 excess = excess_over_noise(o, described) if hidden != "none" else 0.0
                 rows.append((o, excess, _gap(described)))
                 print(_line(o, excess), flush=True)
+        except Exception as exc:  # the record's cases end here; the run goes on
+            crashed = TrialOutcome(record.name, "(record)", np.nan, 0.0, reason=_one_line(exc))
+            rows.append((crashed, float("nan"), float("nan")))
+            print(_line(crashed, float("nan")), flush=True)
         finally:
             csv.unlink(missing_ok=True)
     summary(rows)
@@ -161,29 +185,34 @@ def _line(o: TrialOutcome, excess: float) -> str:
 
 def summary(rows: list[tuple[TrialOutcome, float, float]]) -> None:
     """Confusion, top-1 by size, false alarms, the gap after against the record's own."""
-    from eval_trials import _print_confusion  # the sibling script's matrix
-
     _print_confusion([o for o, _, _ in rows])
     hidden = [(o, x, f) for o, x, f in rows if o.hidden != "none"]
-    print("\ntop-1 accuracy by the hidden effect's excess over the record's gap as described")
+    print(
+        "\ntop-1 accuracy by the hidden effect's excess over the record's gap as described "
+        "(a proxy for its size: what the data show of it once the payloads took their part)"
+    )
     for label, lo, hi, target in SIZE_BANDS:
         band = [o for o, x, _ in hidden if lo <= x < hi]
         hits = sum(o.answer == o.hidden for o in band)
-        goal = f" (issue 14's target >= {target:.0%})" if target is not None else ""
+        goal = f" (issue 14's target for the size >= {target:.0%})" if target is not None else ""
         share = f"{hits}/{len(band)}" + (f" = {hits / len(band):.0%}" if band else "")
         print(f"  {label:12s} {share}{goal}")
+    unknown = [o for o, x, _ in hidden if not np.isfinite(x)]
+    if unknown:
+        print(f"  size unknown (a crash): {len(unknown)}, each a miss")
     described = [o for o, _, _ in rows if o.hidden == "none"]
     alarms = [o for o in described if o.answer not in ("none", "crash")]
     print(
         f"false alarms on the records as described: {len(alarms)}/{len(described)}"
         + (" (" + ", ".join(f"{o.name}: {o.answer}" for o in alarms) + ")" if alarms else "")
     )
-    named = [(o, f) for o, _, f in hidden if o.answer == o.hidden]
+    named = [(o, f) for o, _, f in hidden if o.answer == o.hidden and np.isfinite(f)]
     if named:
         ratios = [_gap(o, "gap_after_pa") / f for o, f in named]
         print(
-            "gap after the named effect over the record's gap as described: median "
-            f"{np.median(ratios):.2f}, worst {max(ratios):.2f} ({len(named)} named)"
+            "gap after the effects found (the hidden one named) over the record's gap as "
+            f"described: median {np.median(ratios):.2f}, worst {max(ratios):.2f} "
+            f"({len(named)} named)"
         )
     crashes = [o for o, _, _ in rows if o.answer == "crash"]
     print(f"crashes: {len(crashes)}/{len(rows)}")
@@ -214,7 +243,7 @@ def main() -> None:
     started = time.perf_counter()
     if args.keep is not None:
         args.keep.mkdir(parents=True, exist_ok=True)
-        evaluate(records, args.keep.absolute())
+        evaluate(records, args.keep.absolute(), keep=True)
     else:
         with tempfile.TemporaryDirectory(prefix="ropeload-undeclared-") as tmp:
             evaluate(records, Path(tmp))

@@ -53,9 +53,12 @@ while the gap shrinks (a signed term once the other way when its fitted way does
 refined, and credited by the rule any winner is (:func:`discovery.iteration.
 credited_shrink`) on that plan's gap against the first. Credited, it is the first
 finding and the search goes on from that plan; else the refusal stands with a note.
-A runner-up that is decisive and a contender on the resamples (at least
-:data:`discovery.iteration.CONTENDER_SHARE` of them) is tried the same way when the
-winner is not credited, or when the winner is not one the ropes read.
+A runner-up the ropes' identification reads, decisive and a contender on the
+resamples (at least :data:`discovery.iteration.CONTENDER_SHARE` of them), is tried the
+same way after a winner refused by its linear fit whose own re-read is not credited, or
+in its place when the winner is not one the ropes read (validation day 103 with its
+throttled valve taken out of the description: the valve, the runner-up to a groove
+wear, read again 15.2 -> 9.2 kPa).
 (Validation trial_001, a pipe 2.2 x the noise: refused at 0.9 x the noise explained,
 read again 13.1 -> 7.1 kPa; trial_009, a groove 3.8 x: its fit pointed the wrong way,
 read again the other way 16.9 -> 14.0 kPa, and each half of it, cut at the middle
@@ -145,7 +148,8 @@ def discover_in_record(
         number_from, selector,
     )  # fmt: skip
     tried = None
-    for refused in findings[-1].reread if identify_ropes is not None else ():
+    candidates = findings[-1].reread if identify_ropes is not None else ()
+    for refused in candidates:
         tried = _tried_reread(search, findings[-1], refused, result, replan, selector)
         notes.append(tried.note)
         if tried.finding is not None:
@@ -232,7 +236,7 @@ def _added(effect: str) -> bool:
     return effect not in (NO_EFFECT, AMBIGUOUS)
 
 
-#: The multiples of a refused winner's fitted step (its coordinates from the
+#: The multiples of a refused winner's (or a contender's) fitted step (its coordinates from the
 #: description's, :class:`~discovery.effect_terms.EffectTerm`) at which
 #: :func:`_tried_reread` reads the record again, the second while the first left a
 #: smaller gap than the refusal's: ropes read without the effect took part of it, so
@@ -293,9 +297,9 @@ def _tried_reread(
     replan: Callable[[list[str], Params], tuple[Any, Any, float]],
     selector: dict[str, Any],
 ) -> _Reread:
-    """The refused winner ``refused`` of the first search added with the record read
-    again (``replan``), at :data:`REREAD_STEPS` of its fitted step while the gap
-    shrinks (a signed term's, one without ``start_scales``, also the other way, once,
+    """The first search's refused winner, or the contender beside it, ``refused``, added
+    with the record read again (``replan``), at :data:`REREAD_STEPS` of its fitted step
+    while the gap shrinks (a signed term's, one without ``start_scales``, also the other way, once,
     when its fitted way does not shrink the gap), its coordinates then refined
     (:func:`~discovery.refit.refine_added`), and credited as any winner by how far the
     gap shrank from the first plan's (:func:`~discovery.iteration.credited_shrink`)."""
@@ -340,9 +344,10 @@ def _tried_reread(
         before, gap, refused.size_x_noise, refusal.noise_pa,
         explain_fraction=search.explain_fraction, detectable_x_noise=search.detectable_x_noise,
     )  # fmt: skip
+    judged = "refused" if refused.place == 0 else "the runner-up"
     said = (
-        f"{name}, refused on the ropes read without it, read with the record again: the gap "
-        f"{before:.0f} -> {gap:.0f} Pa" + (f" ({'; '.join(failed)})" if failed else "")
+        f"{name}, {judged} on the ropes read without it, read with the record again: the "
+        f"gap {before:.0f} -> {gap:.0f} Pa" + (f" ({'; '.join(failed)})" if failed else "")
     )
     if not credited:
         return _Reread(None, (), {}, None, None, f"{said}, not what a winner is credited with")
@@ -354,7 +359,8 @@ def _tried_reread(
         gap_after_pa=gap,
         gap_without_effect_pa=before,
         message=f"added {name} with the record read again ({before:.0f} -> {gap:.0f} Pa); "
-        f"on the ropes read without it, {refusal.message}",
+        + ("" if refused.place == 0 else f"the runner-up to {refusal.ranking[0]['effect']}; ")
+        + f"on the ropes read without it, {refusal.message}",
         reread=(),
     )
     return _Reread(finding, tuple(model), params, plan, base, said)

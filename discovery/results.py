@@ -30,16 +30,19 @@ Params = dict[str, dict[str, Any]]
 
 @dataclass(frozen=True)
 class RereadCandidate:
-    """A winner refused on ropes read without it, though the ropes' identification reads
-    it (:data:`schemas.effects.READ_WITH_THE_ROPES`): its name, the model's parameters
-    with it at its linear fit, its fitted change in noise sigmas and its share of the
-    trip resamples. :func:`discovery.record_rereading.discover_in_record` tries it with
-    the record read again (not reported)."""
+    """A candidate judged on ropes read without it, though the ropes' identification
+    reads it (:data:`schemas.effects.READ_WITH_THE_ROPES`): the refused winner or a
+    contender beside it (:func:`discovery.iteration._to_reread`). Its name, the model's
+    parameters with it at its linear fit, its fitted change in noise sigmas, its share of
+    the trip resamples and its place in the ranking (0 the winner, 1 the runner-up).
+    :func:`discovery.record_rereading.discover_in_record` tries it with the record read
+    again (not reported)."""
 
     effect: str
     parameters: Params
     size_x_noise: float
     share: float
+    place: int = 0
 
 
 @dataclass(frozen=True)

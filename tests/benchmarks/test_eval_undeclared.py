@@ -10,6 +10,7 @@ import tomllib
 from pathlib import Path
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
@@ -66,8 +67,13 @@ def test_records_that_hide_nothing_are_the_none_trials_and_the_days(undeclared, 
     key = {"trials": [{"trial": "trial_000", "hidden_effect": "seal_friction"},
                       {"trial": "trial_001", "hidden_effect": "none"}]}  # fmt: skip
     (trials / "answers.json").write_text(json.dumps(key))
+    for name in ("trial_000", "trial_001"):
+        (trials / name / f"{name}.csv.gz").write_bytes(b"")
+        (trials / name / "hoist.toml").write_text("")
     days.mkdir()
-    (days / "mine_day7.csv.gz").write_bytes(b"")
+    for name in ("mine_day7", "mine_day8"):
+        (days / f"{name}.csv.gz").write_bytes(b"")
+    (days / "mine_day7.hoist.toml").write_text("")  # day 8 has no description: left out
     names = [r.name for r in undeclared.full_records(trials, days)]
     assert names == ["trial_001", "mine_day7"]
 
@@ -81,3 +87,21 @@ def test_the_excess_is_what_the_effect_adds_to_the_records_own_gap(undeclared):
         13.162e3 / 5e3, rel=1e-4
     )
     assert undeclared.excess_over_noise(outcome(12e3), outcome(13e3)) == 0.0
+    crashed = SimpleNamespace(report={})
+    assert np.isnan(undeclared.excess_over_noise(outcome(18.5e3), crashed))
+    assert np.isnan(undeclared.excess_over_noise(crashed, outcome(13e3)))
+
+
+def test_only_the_model_tables_effects_key_is_rewritten(undeclared):
+    text = (
+        '[other]\neffects = ["kept"]\n\n[model]\n# a comment ]\neffects = ["a", "b"]\n'
+        "\n[after]\nx = 1\n"
+    )
+    rewritten = undeclared.without_effect(text, "a")
+    assert tomllib.loads(rewritten) == {
+        "other": {"effects": ["kept"]},
+        "model": {"effects": ["b"]},
+        "after": {"x": 1},
+    }
+    with pytest.raises(ValueError, match="could not be rewritten"):
+        undeclared.without_effect('model = {effects = ["a", "b"]}\n', "a")

@@ -61,6 +61,8 @@ def _tried(fitted, candidates: list[tuple[str, float, float, float]], *, winner_
     share = {name: s for name, _, s, _ in candidates}
     ranking = [{"effect": name, "score": dbic} for name, dbic, _, _ in candidates]
     tried = _to_reread(fit, bl, scores, share, ranking)
+    names = [row["effect"] for row in ranking]
+    assert [r.place for r in tried] == [names.index(r.effect) for r in tried]
     return [(r.effect, round(r.size_x_noise, 6), r.share) for r in tried]
 
 
@@ -94,4 +96,29 @@ def test_a_winner_the_ropes_do_not_read_leaves_the_contender(fitted):
 def test_a_winner_refused_by_its_re_simulation_is_tried_alone(fitted):
     candidates = [("groove_wear", 250.0, 0.64, 2.2), ("local_loss", 160.0, 0.36, 2.5)]
     assert [n for n, *_ in _tried(fitted, candidates, winner_only=True)] == ["groove_wear"]
-    assert _tried(fitted, [("groove_wear", 250.0, 0.5, 2.2)]) == []  # not stable
+
+
+@pytest.mark.parametrize(
+    "winner", [("groove_wear", 250.0, 0.5, 2.2), ("groove_wear", DECISIVE_DBIC - 1.0, 0.64, 2.2)]
+)
+def test_a_winner_the_ropes_read_that_is_not_stable_or_decisive_leaves_nothing(fitted, winner):
+    """Split resamples (50 / 36 %) or weak evidence: the winner is not tried, and the
+    contender is not tried in its place (a split between two is what ``_verdict`` calls
+    ambiguous when the winner is credited)."""
+    assert _tried(fitted, [winner, ("local_loss", 160.0, 0.36, 2.5)]) == []
+
+
+def test_the_winners_size_is_the_one_the_verdict_measured(fitted):
+    """The verdict stores the winner's fitted change (``size_x_noise``); it is what the
+    re-read's credit is judged by, not measured again; the runner-up's is measured."""
+    fit, bl = fitted
+    scores = {
+        "groove_wear": {**_score(fit, "groove_wear", 250.0, 2.2), "size_x_noise": 7.5},
+        "local_loss": _score(fit, "local_loss", 160.0, 2.5),
+    }
+    ranking = [{"effect": "groove_wear", "score": 250.0}, {"effect": "local_loss", "score": 160.0}]
+    tried = _to_reread(fit, bl, scores, {"groove_wear": 0.64, "local_loss": 0.36}, ranking)
+    assert [(r.effect, r.size_x_noise, r.place) for r in tried] == [
+        ("groove_wear", 7.5, 0),
+        ("local_loss", pytest.approx(2.5), 1),
+    ]

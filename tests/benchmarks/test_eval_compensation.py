@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import datetime as dt
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,25 +11,11 @@ import pytest
 
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "eval_compensation.py"
-
 
 @pytest.fixture(scope="module")
-def evaluation():
-    spec = importlib.util.spec_from_file_location("eval_compensation", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up
-    # its siblings (record_parts, record_variants), found as when the script runs:
-    # its folder on the path
-    sys.path.insert(0, str(SCRIPT.parent))
-    try:
-        spec.loader.exec_module(module)
+def evaluation(benchmark_script):
+    with benchmark_script("eval_compensation") as module:
         yield module
-    finally:
-        sys.modules.pop(spec.name, None)
-        sys.modules.pop("record_parts", None)
-        sys.modules.pop("record_variants", None)
-        sys.path.remove(str(SCRIPT.parent))
 
 
 def test_truth_ropes_recovers_the_constants_the_windows_obey(evaluation) -> None:

@@ -3,11 +3,8 @@ records (no discovery run)."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 import tomllib
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -15,22 +12,11 @@ import pytest
 
 from schemas.hoist import EXAMPLE_HOIST, load_hoist
 
-BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
-SCRIPT = BENCHMARKS / "eval_undeclared.py"
-
 
 @pytest.fixture(scope="module")
-def undeclared():
-    spec = importlib.util.spec_from_file_location("eval_undeclared", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.path.insert(0, str(BENCHMARKS))  # its sibling scripts
-    sys.modules[spec.name] = module  # its dataclasses look their module up
-    try:
-        spec.loader.exec_module(module)
+def undeclared(benchmark_script):
+    with benchmark_script("eval_undeclared") as module:
         yield module
-    finally:
-        sys.modules.pop(spec.name, None)
-        sys.path.remove(str(BENCHMARKS))
 
 
 def test_an_effect_taken_out_leaves_the_rest_of_the_description_as_it_was(undeclared, tmp_path):

@@ -3,28 +3,18 @@ hand-made contract-1a CSVs."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from collections import Counter
 from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "record_variants.py"
-
 NAMES = ["timestamp", "p1", "p2", "p3", "p4", "x1", "x2", "x3", "x4", "depth", "speed", "oil_temp"]
 
 
 @pytest.fixture(scope="module")
-def variants():
-    spec = importlib.util.spec_from_file_location("record_variants", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up
-    try:
-        spec.loader.exec_module(module)
+def variants(benchmark_script):
+    with benchmark_script("record_variants") as module:
         yield module
-    finally:
-        sys.modules.pop(spec.name, None)
 
 
 def _record(

@@ -236,8 +236,8 @@ def _added(effect: str) -> bool:
     return effect not in (NO_EFFECT, AMBIGUOUS)
 
 
-#: The multiples of a refused winner's (or a contender's) fitted step (its coordinates from the
-#: description's, :class:`~discovery.effect_terms.EffectTerm`) at which
+#: The multiples of a refused winner's (or a contender's) fitted step (its coordinates
+#: from the description's, :class:`~discovery.effect_terms.EffectTerm`) at which
 #: :func:`_tried_reread` reads the record again, the second while the first left a
 #: smaller gap than the refusal's: ropes read without the effect took part of it, so
 #: its linear fit on them falls short of it (validation trial_001: a pipe of 17.75
@@ -299,8 +299,8 @@ def _tried_reread(
 ) -> _Reread:
     """The first search's refused winner, or the contender beside it, ``refused``, added
     with the record read again (``replan``), at :data:`REREAD_STEPS` of its fitted step
-    while the gap shrinks (a signed term's, one without ``start_scales``, also the other way, once,
-    when its fitted way does not shrink the gap), its coordinates then refined
+    while the gap shrinks (a signed term's, one without ``start_scales``, also the other
+    way, once, when its fitted way does not shrink the gap), its coordinates then refined
     (:func:`~discovery.refit.refine_added`), and credited as any winner by how far the
     gap shrank from the first plan's (:func:`~discovery.iteration.credited_shrink`)."""
     name = refused.effect

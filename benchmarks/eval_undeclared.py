@@ -96,17 +96,12 @@ def without_effect(toml_text: str, effect: str) -> str:
         raise KeyError(f"{effect} is not declared")
     kept = [e for e in effects if e != effect]
     table = _MODEL_TABLE.search(toml_text)
-    body, count = (
-        _EFFECTS_KEY.subn(lambda _: "effects = [" + ", ".join(f'"{e}"' for e in kept) + "]",
-                          table.group(1), count=1)
-        if table is not None
-        else ("", 0)
-    )  # fmt: skip
-    if count != 1:
+    if table is None:
         raise ValueError("the [model] effects key could not be rewritten")
-    assert table is not None
+    listed = "effects = [" + ", ".join(f'"{e}"' for e in kept) + "]"
+    body, count = _EFFECTS_KEY.subn(lambda _: listed, table.group(1), count=1)
     text = toml_text[: table.start(1)] + body + toml_text[table.end(1) :]
-    if tomllib.loads(text)["model"]["effects"] != kept:
+    if count != 1 or tomllib.loads(text)["model"]["effects"] != kept:
         raise ValueError("the [model] effects key could not be rewritten")
     return text
 

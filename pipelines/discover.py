@@ -40,7 +40,6 @@ a time, the record planned again after each effect added) and writes
 from __future__ import annotations
 
 import datetime as dt
-import functools
 import json
 import logging
 from concurrent.futures import ThreadPoolExecutor
@@ -52,6 +51,7 @@ import numpy as np
 import polars as pl
 
 from discovery import DiscoveryResult, Finding, discover_in_record
+from discovery.results import Params
 from pipelines.identified_ropes import identified_ropes, identified_ropes_under
 from pipelines.ingest.field_checks import within_limits
 from pipelines.lake import scan_lake
@@ -60,6 +60,7 @@ from pipelines.run_period import check_period
 from schemas.effects import NO_EFFECT
 from schemas.hoist import HoistDescription, load_hoist
 from transforms.compensation_record import without_flatlined
+from transforms.stick_slip_band import RopeSprings
 from warehouse.landing import land_discovery_findings, land_run
 from warehouse.store import DataRoot, open_writer
 
@@ -318,6 +319,12 @@ def discover_period(
     # 27.8-28.5 s with them one after the other, session 27)
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="ropes") as pool:
         ropes = pool.submit(identified_ropes, samples, hoist, data=data)
+
+        def identify_under(grown: HoistDescription, parameters: Params) -> RopeSprings | None:
+            # a grown model's ropes: the first read's polished (transforms.rope_identification)
+            start = ropes.result()
+            return identified_ropes_under(samples, grown, parameters, data=data, start=start)
+
         result = discover_in_record(
             # a stuck sensor's stretch is not logged, as in the compensation
             without_flatlined(samples.sort("time_utc", maintain_order=True), hoist),
@@ -325,7 +332,7 @@ def discover_period(
             max_trips=max_trips,
             max_iterations=max_iterations,
             identified_ropes=ropes.result,
-            identify_ropes=functools.partial(identified_ropes_under, samples, data=data),
+            identify_ropes=identify_under,
         )
         ropes.result()  # an identification that failed fails the discovery, as before
     logger.info(

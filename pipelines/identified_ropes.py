@@ -50,6 +50,7 @@ def identified_ropes(
     *,
     data: DataRoot | None = None,
     settings: CompensationSettings | None = None,
+    start: RopeSprings | None = None,
 ) -> RopeSprings | None:
     """The head ropes' constants (each one's stiffness relative to the description's EA
     and its length offset) as the compensation identifies them from ``samples`` (landed
@@ -60,7 +61,9 @@ def identified_ropes(
     somewhere in ``samples`` and ``settings.rope_springs``.
 
     ``data``: the data root whose ``cache/rope_springs`` remembers identified ropes;
-    ``settings``: the compensation's (the seals' drift travel, where they drift).
+    ``settings``: the compensation's (the seals' drift travel, where they drift);
+    ``start``: the ropes the record gave under a nearby description, polished from
+    (:func:`transforms.rope_identification.identify_from_means`).
     """
     settings = settings or CompensationSettings()
     x_columns = [f"x{i}_m" for i in range(1, hoist.ropes_n + 1)]
@@ -74,8 +77,7 @@ def identified_ropes(
     record = samples.sort("time_utc")
     means = identification_means(record, record["time_utc"][0], hoist, settings)
     cache = None if data is None else data.under("cache", "rope_springs")
-    springs = identify_from_means(means, hoist, cache_dir=cache, alternatives=False)
-    return springs
+    return identify_from_means(means, hoist, cache_dir=cache, alternatives=False, start=start)
 
 
 def identified_ropes_under(
@@ -85,14 +87,15 @@ def identified_ropes_under(
     *,
     data: DataRoot | None = None,
     settings: CompensationSettings | None = None,
+    start: RopeSprings | None = None,
 ) -> RopeSprings | None:
     """:func:`identified_ropes` with ``hoist``'s ``[model] effects`` and those effects'
     ``parameters`` (``{effect: {parameter: value}}``, :mod:`sims.effects` names; a
     discovery's fitted ones) written into its description
-    (:func:`described_by_parameters`)."""
-    return identified_ropes(
-        samples, described_by_parameters(hoist, parameters), data=data, settings=settings
-    )
+    (:func:`described_by_parameters`); ``start``: the ropes the record gave before the
+    effects joined (the search polished from them)."""
+    described = described_by_parameters(hoist, parameters)
+    return identified_ropes(samples, described, data=data, settings=settings, start=start)
 
 
 #: (effect, description section, ((effect parameter, section field), ...)): what of the

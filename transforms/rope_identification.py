@@ -52,6 +52,18 @@ record is searched beside its parts, one search per core (:func:`_identify`): on
 validation trial_004 (2 h at 50 Hz) 6.0 s, against 8.7 s one after the other with each
 global search's members on both cores and the polish on one (session 27).
 
+Discovery reads the ropes again once an effect joins its model
+(:mod:`discovery.record_rereading`): the same record, a description that differs by the
+effect's parameters. Those ropes are the first read's moved within its basin, so the
+search is polished from them (``start``) and the global search left out: on validation
+trial_004 a re-read 10.7 -> 4.7 s, the discovery 54 -> 39 s. The polish ends where it
+stalls in the basin's valley, in which a rope's stiffness trades against its length
+offset (ropeload's simulated rope 2 4 % stiffer: 1.0295 from 1.02, the global search
+1.0378, the mismatch 1.5 % higher; ``tests/transforms/test_stick_slip.py``), so the
+re-read ropes differ from a global search's by about what the record's quarters do.
+Tried: a differential evolution of 20 generations with the start in its first
+population (1.0243 there, no faster: the polish is most of a search of a 1 h record).
+
 Where the seals drift (LuGre's single bristle, :mod:`transforms.seal_drift`), the model
 identified on drifts too, driven by each mean's played travel of the record's
 full-rate samples (``drift_travel_pa``, :func:`transforms.compensation_record.
@@ -214,6 +226,7 @@ def identify_from_means(
     *,
     cache_dir: Path | None = None,
     alternatives: bool = True,
+    start: RopeSprings | None = None,
 ) -> RopeSprings | None:
     """:func:`identify_rope_springs` on the first :data:`IDENTIFY_SAMPLES` of
     :func:`record_means` (:func:`transforms.compensation_record.identification_means`
@@ -233,6 +246,10 @@ def identify_from_means(
     ``alternatives=False`` (a replay, which needs only the whole record's ropes): the
     ropes remembered with their alternatives if there are any, else the whole record's
     alone, a third of the searches (remembered apart).
+
+    ``start``: ropes the same record gave under a nearby description, from which each
+    search is polished instead of searched globally (:func:`identify_rope_springs`;
+    remembered apart, under them too).
     """
     means = means.head(IDENTIFY_SAMPLES)
     if means.height < 2:
@@ -242,14 +259,17 @@ def identify_from_means(
     digest = hashlib.sha256(f"{_method_digest()}\n{described}".encode())
     for column in means.columns:
         digest.update(means[column].to_numpy().tobytes())
+    if start is not None:
+        polished_from = (start.stiffness_factors, start.length_offsets_m)
+        digest.update(f"\npolished from {polished_from}".encode())
     key = digest.hexdigest()
     if alternatives:
-        return _remembered(key, cache_dir, lambda: _identify(means, hoist))
+        return _remembered(key, cache_dir, lambda: _identify(means, hoist, start=start))
     known, springs, _ = _recalled(key, cache_dir)
     if known:
         return springs
     whole = hashlib.sha256(f"{key}\nwhole record only".encode()).hexdigest()
-    return _remembered(whole, cache_dir, lambda: _identify(means, hoist, parts=False))
+    return _remembered(whole, cache_dir, lambda: _identify(means, hoist, parts=False, start=start))
 
 
 def _remembered(
@@ -376,9 +396,14 @@ def _strides(hoist: HoistDescription) -> tuple[float, float]:
 
 
 def _identify(
-    means: pl.DataFrame, hoist: HoistDescription, *, parts: bool = True
+    means: pl.DataFrame,
+    hoist: HoistDescription,
+    *,
+    parts: bool = True,
+    start: RopeSprings | None = None,
 ) -> RopeSprings | None:
-    """:func:`identify_from_means` without the memory (``parts``: with the alternatives)."""
+    """:func:`identify_from_means` without the memory (``parts``: with the alternatives;
+    ``start``: each search polished from those ropes)."""
     pressures = []
     for i in ROPES:
         p = means[f"p{i}_pa"].to_numpy().astype(np.float64)
@@ -418,6 +443,7 @@ def _identify(
             threads=threads,
             coarse_s=coarse_s,
             polish_s=polish_s,
+            start=start,
         )
 
     if not parts:
@@ -459,6 +485,7 @@ def identify_rope_springs(
     drift_travel_pa: np.ndarray | None = None,
     presliding_elements: int = 1,
     threads: int | None = None,
+    start: RopeSprings | None = None,
 ) -> RopeSprings | None:
     """The ropes' constants that make the model's piston motion match the logged x.
 
@@ -484,6 +511,10 @@ def identify_rope_springs(
     threads : int, optional
         Threads the global search's members are split over (the result does not
         depend on it); default up to 2 cores from :data:`THREADED_MEANS` means, else 1.
+    start : RopeSprings, optional
+        The ropes as the same record read them under a nearby description (discovery's
+        model before an effect joined, :mod:`discovery.record_rereading`): the global
+        search is left out and the polish starts from them (module docstring).
 
     Returns
     -------
@@ -608,9 +639,14 @@ def identify_rope_springs(
             vectorized=True,
         )
 
-    with ThreadPoolExecutor(max_workers=threads) as pool:
-        searches = [search(seed) for seed in SEEDS]
-    q = min(searches, key=lambda result: result.fun).x * scale
+    if start is None or len(start.stiffness_factors) != m:
+        with ThreadPoolExecutor(max_workers=threads) as pool:
+            searches = [search(seed) for seed in SEEDS]
+        q = min(searches, key=lambda result: result.fun).x * scale
+    else:  # the basin the record's ropes were found in (rope 1 the gauge): polished
+        a0 = np.asarray(start.stiffness_factors[1:], dtype=float)
+        c0 = np.asarray(start.length_offsets_m[1:], dtype=float)
+        q = np.concatenate([a0, c0 - (a0 - 1.0) * stretch])
     found = OptimizeResult(x=q / scale, fun=mismatch(q, fine) * 1e6)
     polished = found
     for _ in range(RESTARTS):  # Nelder-Mead stalls on a piecewise objective: restart it

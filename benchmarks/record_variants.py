@@ -24,7 +24,16 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-__all__ = ["VARIANTS", "LogTable", "delimiter_of", "header_keys", "make_variant", "read_log"]
+__all__ = [
+    "VARIANTS",
+    "LogTable",
+    "delimiter_of",
+    "header_keys",
+    "make_variant",
+    "read_log",
+    "sensor_error",
+    "write_changed",
+]
 
 
 def delimiter_of(names_line: str) -> str:
@@ -259,6 +268,44 @@ def _repeated(share: float, shuffled: int, seed: int = 20261130) -> Callable[[Lo
         return replace(table, rows=rows)
 
     return change
+
+
+def sensor_error(
+    sensor: int, *, offset_pa: float = 0.0, gain: float = 1.0
+) -> Callable[[LogTable], tuple[LogTable, float]]:
+    """A change making pressure sensor ``sensor`` read ``gain`` x p + ``offset_pa``
+    (contract 4's ``sensor_offset`` / ``sensor_gain``: a transmitter's zero or span off),
+    written to the file's own resolution; with the RMS of what it changed over the four
+    sensors' readings [Pa] (as ``answers.json``'s ``effect_rms_pa`` measures a hidden
+    effect). Missing values stay missing."""
+
+    def change(table: LogTable) -> tuple[LogTable, float]:
+        pa = _pressure_units_pa(table)[f"p{sensor}"]
+        k, width = table.column(f"p{sensor}"), len(table.names)
+        rows, squares, counted = [], 0.0, 0
+        for row in table.rows:
+            if len(row) == width:
+                try:
+                    value = table.number(row[k])
+                except ValueError:  # not a number: ingest quarantines it, kept
+                    value = float("nan")
+                if math.isfinite(value) and value != _MISSING:
+                    changed = (gain - 1.0) * value + offset_pa / pa
+                    row = [*row[:k], table.field(value + changed, row[k]), *row[k + 1 :]]
+                    squares += (changed * pa) ** 2
+                    counted += 1
+            rows.append(row)
+        rms = math.sqrt(squares / max(counted, 1) / 4.0)  # over the four sensors
+        return replace(table, rows=rows), rms
+
+    return change
+
+
+def write_changed(csv: Path, name: str, change: Callable[[LogTable], tuple[LogTable, float]]):
+    """``csv`` with ``change`` (e.g. :func:`sensor_error`) made, beside it as
+    ``<stem>-<name>.csv``: (its path, the change's RMS [Pa])."""
+    table, rms = change(read_log(csv))
+    return _write(table, csv.with_name(f"{csv.stem}-{name}.csv")), rms
 
 
 #: Each variant's name, what a logger does to write it, and the change.

@@ -98,6 +98,7 @@ from discovery.selection import (
     baseline_gap_pa,
     fitted_baseline,
 )
+from discovery.sensor_rests import sensor_error_at_rest
 from schemas.effects import NO_EFFECT
 from schemas.hoist import HoistDescription
 from sims.effects import parameters_json
@@ -140,9 +141,12 @@ def discover_in_record(
         identified_ropes=identified_ropes,
     )
     search = EffectSelector(max_iterations=1, **selector).fit(plan)
+    search, told = _told_at_rest(search, samples, plan, selector)
     first = result = search.result_
     findings = list(result.findings)
-    replays, notes = result.replays, list(result.notes)
+    replays, notes = result.replays, list(result.notes) + ([told] if told else [])
+    if told and findings[-1].effect in SENSOR_PAIR:  # the rests told the pair apart
+        findings[-1] = dataclasses.replace(findings[-1], message=f"{told}; {findings[-1].message}")
     replan = functools.partial(
         _planned_with, samples, hoist, identified_ropes, identify_ropes, max_trips,
         number_from, selector,
@@ -234,6 +238,31 @@ def discover_in_record(
 
 def _added(effect: str) -> bool:
     return effect not in (NO_EFFECT, AMBIGUOUS)
+
+
+#: The candidates the record's rests tell apart (:mod:`discovery.sensor_rests`).
+SENSOR_PAIR = frozenset({"sensor_offset", "sensor_gain"})
+
+
+def _told_at_rest(
+    search: EffectSelector, samples: pl.DataFrame, plan: Any, selector: dict[str, Any]
+) -> tuple[EffectSelector, str]:
+    """A first search that answered ``ambiguous`` between a sensor's offset and its gain
+    searched again without the one the record's rests refute
+    (:func:`discovery.sensor_rests.sensor_error_at_rest`; its columns and baseline taken
+    over), with what the rests said; else ``search`` as it is (and what the rests said
+    where they were asked)."""
+    last = search.result_.findings[-1]
+    if last.effect != AMBIGUOUS or frozenset(last.ambiguous_between) != SENSOR_PAIR:
+        return search, ""
+    verdict = sensor_error_at_rest(samples, plan.hoist.ropes_n)
+    if verdict.effect is None:
+        return search, verdict.note()
+    refuted = next(iter(SENSOR_PAIR - {verdict.effect}))
+    names = selector.get("candidates") or search.library_.get_feature_names()
+    kept = [name for name in names if name != refuted]
+    told = EffectSelector(max_iterations=1, **{**selector, "candidates": kept})
+    return told.fit(plan, search.result_.before, columns_from=search), verdict.note()
 
 
 #: The multiples of a refused winner's (or a contender's) fitted step (its coordinates

@@ -19,7 +19,7 @@ effect), so what is found is the injected error.
 Prints a line per case, the confusion matrix, top-1 by size, the median variance
 removed ((gap_before^2 - gap_after^2) / effect_rms^2) and seconds per record.
 
-    uv run python benchmarks/eval_sensor_errors.py [--only trial_004,mine_day101] [--keep DIR]
+    uv run python benchmarks/eval_sensor_errors.py [--only NAMES] [--sizes 2.5,4] [--keep DIR]
 """
 
 from __future__ import annotations
@@ -69,16 +69,18 @@ class Case:
         return f"p{self.sensor}x{self.gain:.4f}"
 
 
-def cases(index: int, p_rms_pa: float) -> Iterator[Case]:
+def cases(
+    index: int, p_rms_pa: float, sizes: tuple[float, ...] = SIZES_X_NOISE
+) -> Iterator[Case]:
     """The two cases of the ``index``-th record, whose sensors read ``p_rms_pa`` RMS: an
     offset and a gain error on sensors ``index % 4 + 1`` and the next, of opposite
-    signs, sizes :data:`SIZES_X_NOISE` by turns (the gain's from the readings' RMS)."""
+    signs, ``sizes`` by turns (the gain's from the readings' RMS)."""
     sign = 1.0 if index % 2 == 0 else -1.0
     sensor = index % 4 + 1
-    size = SIZES_X_NOISE[index % 2]
+    size = sizes[index % len(sizes)]
     change = 2.0 * size * NOISE_PA  # on one sensor of four: the RMS over four is half
     yield Case("sensor_offset", sensor, sign * round(change, -3), 1.0, size)
-    size = SIZES_X_NOISE[(index + 1) % 2]
+    size = sizes[(index + 1) % len(sizes)]
     gain = 1.0 - sign * 2.0 * size * NOISE_PA / p_rms_pa
     yield Case("sensor_gain", sensor % 4 + 1, 0.0, round(gain, 4), size)
 
@@ -91,7 +93,11 @@ def _readings_rms_pa(csv: Path) -> float:
 
 
 def evaluate(
-    records: list[tuple[int, Record]], work: Path, *, keep: bool = False
+    records: list[tuple[int, Record]],
+    work: Path,
+    *,
+    keep: bool = False,
+    sizes: tuple[float, ...] = SIZES_X_NOISE,
 ) -> list[TrialOutcome]:
     """Every case of every (index in the full list, record) under ``work``: one line
     each; a case's data root is removed once analysed unless ``keep``; a record that
@@ -110,7 +116,7 @@ def evaluate(
                 shutil.copyfileobj(src, dst)
             read_log(csv)  # a record that does not read is its cases' crash
             p_rms = _readings_rms_pa(csv)
-            for case in cases(index, p_rms):
+            for case in cases(index, p_rms, sizes):
                 stem = f"{record.name}-{case.name}"
                 error = sensor_error(case.sensor, offset_pa=case.offset_pa, gain=case.gain)
                 changed, rms = write_changed(csv, case.name, error)
@@ -183,7 +189,12 @@ def main() -> None:
     ap.add_argument("--days", type=Path, default=DEFAULT_DAYS, help="the field days folder")
     ap.add_argument("--only", default=None, metavar="NAMES", help="e.g. trial_004,mine_day101")
     ap.add_argument("--keep", type=Path, default=None, metavar="DIR", help="work in DIR, keep it")
+    ap.add_argument(
+        "--sizes", default=",".join(map(str, SIZES_X_NOISE)), metavar="X,Y",
+        help="the errors' sizes in noise RMS, taken by turns (default 2.5,4.0)",
+    )  # fmt: skip
     args = ap.parse_args()
+    sizes = tuple(float(v) for v in args.sizes.split(",") if v.strip())
     records = list(enumerate(full_records(args.trials, args.days)))  # the index: the case
     if args.only:
         only = {n.strip() for n in args.only.split(",") if n.strip()}
@@ -194,10 +205,10 @@ def main() -> None:
     started = time.perf_counter()
     if args.keep is not None:
         args.keep.mkdir(parents=True, exist_ok=True)
-        outcomes = evaluate(records, args.keep.absolute(), keep=True)
+        outcomes = evaluate(records, args.keep.absolute(), keep=True, sizes=sizes)
     else:
         with tempfile.TemporaryDirectory(prefix="ropeload-sensor-errors-") as tmp:
-            outcomes = evaluate(records, Path(tmp))
+            outcomes = evaluate(records, Path(tmp), sizes=sizes)
     summary(outcomes)
     print(f"\nwall time {time.perf_counter() - started:.0f} s")
 

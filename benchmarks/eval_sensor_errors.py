@@ -69,9 +69,7 @@ class Case:
         return f"p{self.sensor}x{self.gain:.4f}"
 
 
-def cases(
-    index: int, p_rms_pa: float, sizes: tuple[float, ...] = SIZES_X_NOISE
-) -> Iterator[Case]:
+def cases(index: int, p_rms_pa: float, sizes: tuple[float, ...] = SIZES_X_NOISE) -> Iterator[Case]:
     """The two cases of the ``index``-th record, whose sensors read ``p_rms_pa`` RMS: an
     offset and a gain error on sensors ``index % 4 + 1`` and the next, of opposite
     signs, ``sizes`` by turns (the gain's from the readings' RMS)."""

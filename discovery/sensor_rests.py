@@ -18,7 +18,9 @@ ways: a constant per sensor (an offset: d_k = o_k) and a share of the pressure p
 (a gain: d_k = (g_k - 1) p). Both have one coordinate per sensor, so the Bayesian
 information criterion of each (Schwarz 1978, Ann. Stat. 6(2) 461-464; Gaussian residuals
 of unknown variance: n ln(RSS / n) + k ln n) differs by n ln(RSS_offset / RSS_gain);
-at :data:`DECISIVE_DBIC` the rests tell. Where the rests span too little of the pressure
+at :data:`DECISIVE_DBIC` the rests tell, if the better fit explains at least
+:data:`MIN_EXPLAINED` of the departures (rests whose readings agree to their noise show
+no sensor error). Where the rests span too little of the pressure
 (:data:`MIN_RANGE_SHARE`) or are too few (:data:`MIN_RESTS`) they tell nothing and the
 answer stays ``ambiguous``.
 """
@@ -32,12 +34,23 @@ import polars as pl
 
 from physics.trip_rule import STANDSTILL_SPEED_M_S
 
-__all__ = ["DECISIVE_DBIC", "MIN_RANGE_SHARE", "MIN_RESTS", "RestVerdict", "sensor_error_at_rest"]
+__all__ = [
+    "DECISIVE_DBIC",
+    "MIN_EXPLAINED",
+    "MIN_RANGE_SHARE",
+    "MIN_RESTS",
+    "RestVerdict",
+    "rest_means",
+    "sensor_error_at_rest",
+]
 
 #: The BIC margin [-] at which the rests decide (Kass & Raftery 1995: "very strong").
 DECISIVE_DBIC = 10.0
 #: Rests needed, and the span of their mean pressures as a share of its mean [-].
 MIN_RESTS, MIN_RANGE_SHARE = 6, 0.2
+#: Share of the departures' sum of squares the better fit must explain [-]: rests whose
+#: readings agree to their noise show no sensor error, however the two fits compare.
+MIN_EXPLAINED = 0.5
 #: Seconds left out at each end of a rest (the oil settling after a stop, the winder
 #: starting) and the shortest rest kept after that [s].
 SETTLE_S, SHORTEST_S = 3.0, 2.0
@@ -101,9 +114,21 @@ def rest_means(samples: pl.DataFrame, sensors: int) -> np.ndarray:
     return rests.select(columns).to_numpy().reshape(-1, sensors)
 
 
-def sensor_error_at_rest(samples: pl.DataFrame, sensors: int) -> RestVerdict:
-    """Offsets or gains: which the record's rests hold (module docstring)."""
+def sensor_error_at_rest(
+    samples: pl.DataFrame,
+    sensors: int,
+    *,
+    gains: np.ndarray | None = None,
+    offsets_pa: np.ndarray | None = None,
+) -> RestVerdict:
+    """Offsets or gains: which the record's rests hold (module docstring), beyond the
+    sensors' ``gains`` and ``offsets_pa`` the model already has (a reading is
+    ``gain x p + offset``; default 1 and 0)."""
     means = rest_means(samples, sensors)
+    if gains is not None or offsets_pa is not None:
+        gain = np.ones(sensors) if gains is None else np.asarray(gains, dtype=float)
+        offset = np.zeros(sensors) if offsets_pa is None else np.asarray(offsets_pa, dtype=float)
+        means = (means - offset) / gain
     n_rests = means.shape[0]
     nothing = RestVerdict(None, 0.0, n_rests, (0.0,) * sensors, (0.0,) * sensors)
     if n_rests < MIN_RESTS or sensors < 2:
@@ -121,9 +146,10 @@ def sensor_error_at_rest(samples: pl.DataFrame, sensors: int) -> RestVerdict:
     floor = 1e-30  # exact fits: the same tiny floor either way
     dbic = n * float(np.log(max(rss_offset, floor) / max(rss_gain, floor)))
     effect = None
-    if dbic >= DECISIVE_DBIC:
+    shown = min(rss_offset, rss_gain) <= (1.0 - MIN_EXPLAINED) * float(np.sum(departure**2))
+    if shown and dbic >= DECISIVE_DBIC:
         effect = "sensor_gain"
-    elif dbic <= -DECISIVE_DBIC:
+    elif shown and dbic <= -DECISIVE_DBIC:
         effect = "sensor_offset"
     return RestVerdict(
         effect, dbic, n_rests, tuple(float(v) for v in offsets), tuple(float(v) for v in shares)

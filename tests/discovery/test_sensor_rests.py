@@ -73,6 +73,12 @@ def test_rests_at_one_pressure_tell_nothing():
     assert "neither" in verdict.note()
 
 
+def test_readings_that_agree_at_rest_show_no_sensor_error():
+    """No error: the two fits differ only by the noise, and neither is named."""
+    verdict = sensor_error_at_rest(_record(LEVELS * 6, seed=3), 4)
+    assert verdict.effect is None
+
+
 def test_too_few_rests_or_no_speed_tell_nothing():
     assert sensor_error_at_rest(_record(LEVELS[:3], offset_pa=30e3), 4).effect is None
     no_speed = _record(LEVELS, offset_pa=30e3).drop("speed_m_s")
@@ -91,3 +97,12 @@ def test_a_rest_is_read_after_the_oil_settled_and_not_while_it_flows():
         pl.when(pl.int_range(pl.len()) == 150).then(None).otherwise(pl.col("p1_pa")).alias("p1_pa")
     )
     assert rest_means(holed, 4).shape == (len(LEVELS), 4)
+
+
+def test_what_the_model_already_calibrates_is_not_the_error():
+    """Sensor 2 reads 60 kPa high, which the model's sensor_offset holds, and sensor 4's
+    span is 0.8 % off, which it does not: the rests tell the gain beyond the offset."""
+    frame = _record(LEVELS, sensor=4, gain=1.008).with_columns(pl.col("p2_pa") + 60e3)
+    verdict = sensor_error_at_rest(frame, 4, offsets_pa=np.array([0.0, 60e3, 0.0, 0.0]))
+    assert verdict.effect == "sensor_gain"
+    assert verdict.gain_errors[3] == pytest.approx(0.008, abs=5e-4)

@@ -267,8 +267,9 @@ def _told_at_rest(
     undecided = last.effect == AMBIGUOUS and frozenset(last.ambiguous_between) == SENSOR_PAIR
     if not undecided and frozenset(ranked) != SENSOR_PAIR:
         return search, ""
-    model = search.result_.effects_before
-    gains, offsets = sensor_gain_offset(plan.hoist, model, search.result_.parameters_after)
+    model = search.result_.effects_before  # the calibration before anything was added
+    params = {k: v for k, v in search.result_.parameters_after.items() if k in model}
+    gains, offsets = sensor_gain_offset(plan.hoist, model, params)
     verdict = sensor_error_at_rest(samples, plan.hoist.ropes_n, gains=gains, offsets_pa=offsets)
     if verdict.effect is None or (not undecided and verdict.effect == ranked[0]):
         return search, verdict.note()

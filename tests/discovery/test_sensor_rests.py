@@ -106,3 +106,23 @@ def test_what_the_model_already_calibrates_is_not_the_error():
     verdict = sensor_error_at_rest(frame, 4, offsets_pa=np.array([0.0, 60e3, 0.0, 0.0]))
     assert verdict.effect == "sensor_gain"
     assert verdict.gain_errors[3] == pytest.approx(0.008, abs=5e-4)
+
+
+@pytest.mark.parametrize(
+    ("hidden", "other"), [("sensor_offset", "sensor_gain"), ("sensor_gain", "sensor_offset")]
+)
+def test_discovery_asks_the_rests_when_its_two_best_are_a_sensors_offset_and_gain(hidden, other):
+    """ropeload's own simulation (the wiring, not accuracy: discovery.record_rereading),
+    eight trips hiding a 20 kPa offset on sensor 2 or a 1 % span error on sensor 3: the
+    first search ranks the pair first and second and adds the hidden one; its rests,
+    with the model's calibration before anything was added, agree."""
+    from discovery import discover_in_record
+    from discovery.cases import hidden_case
+
+    plan, info = hidden_case(hidden, trips=8)
+    result = discover_in_record(info["day"].sensors, plan.hoist, max_iterations=1, bootstrap=50)
+    (finding,) = result.findings
+    assert [row["effect"] for row in finding.ranking[:2]] == [hidden, other]
+    assert finding.effect == hidden
+    (said,) = [note for note in result.notes if "rests tell" in note]
+    assert f"tell {hidden} " in said

@@ -35,14 +35,19 @@ from pathlib import Path
 
 import numpy as np
 from eval_trials import (  # the sibling scripts
-    DEFAULT_TRIALS,
     SIZE_BANDS,
     TrialOutcome,
     _one_line,
     _print_confusion,
     discover_record,
 )
-from eval_undeclared import DEFAULT_DAYS, Record, full_records
+from eval_undeclared import (
+    Record,
+    chosen,
+    full_records,
+    print_crashes_and_seconds,
+    record_arguments,
+)
 from record_variants import read_log, sensor_error, write_changed
 
 #: The validation README's sensor noise [Pa]: the size's unit.
@@ -171,35 +176,20 @@ def summary(outcomes: list[TrialOutcome]) -> None:
             "median share of the error's variance removed, (gap_before^2 - gap_after^2) / "
             f"effect_rms^2: {np.median(removed):.0%} over the {len(removed)} named"
         )
-    crashes = [o for o in outcomes if o.answer == "crash"]
-    print(f"crashes: {len(crashes)}/{len(outcomes)}")
-    seconds = [o.discover_s for o in outcomes if np.isfinite(o.discover_s)]
-    if seconds:
-        print(
-            "seconds per record (discover, wall): "
-            f"median {np.median(seconds):.1f}, max {max(seconds):.1f}"
-        )
+    print_crashes_and_seconds(outcomes)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--trials", type=Path, default=DEFAULT_TRIALS, help="the trials folder")
-    ap.add_argument("--days", type=Path, default=DEFAULT_DAYS, help="the field days folder")
-    ap.add_argument("--only", default=None, metavar="NAMES", help="e.g. trial_004,mine_day101")
-    ap.add_argument("--keep", type=Path, default=None, metavar="DIR", help="work in DIR, keep it")
+    record_arguments(ap)
     ap.add_argument(
         "--sizes", default=",".join(map(str, SIZES_X_NOISE)), metavar="X,Y",
         help="the errors' sizes in noise RMS, taken by turns (default 2.5,4.0)",
     )  # fmt: skip
     args = ap.parse_args()
     sizes = tuple(float(v) for v in args.sizes.split(",") if v.strip())
-    records = list(enumerate(full_records(args.trials, args.days)))  # the index: the case
-    if args.only:
-        only = {n.strip() for n in args.only.split(",") if n.strip()}
-        unknown = sorted(only - {r.name for _, r in records})
-        if unknown:
-            ap.error(f"no record hiding nothing is called {', '.join(unknown)}")
-        records = [(k, r) for k, r in records if r.name in only]
+    every = full_records(args.trials, args.days)
+    records = [(k, every[k]) for k in chosen(every, args.only, ap)]  # the place: the case
     started = time.perf_counter()
     if args.keep is not None:
         args.keep.mkdir(parents=True, exist_ok=True)

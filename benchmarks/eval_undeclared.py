@@ -209,11 +209,16 @@ def summary(rows: list[tuple[TrialOutcome, float, float]]) -> None:
             f"described: median {np.median(ratios):.2f}, worst {max(ratios):.2f} "
             f"({len(named)} named)"
         )
-    crashes = [o for o, _, _ in rows if o.answer == "crash"]
-    print(f"crashes: {len(crashes)}/{len(rows)}")
+    print_crashes_and_seconds([o for o, _, _ in rows])
+
+
+def print_crashes_and_seconds(outcomes: list[TrialOutcome]) -> None:
+    """The crashed cases with their reasons, and the discovery's seconds per record."""
+    crashes = [o for o in outcomes if o.answer == "crash"]
+    print(f"crashes: {len(crashes)}/{len(outcomes)}")
     for o in crashes:
         print(f"  {o.name} {o.hidden}: {o.reason}")
-    seconds = [o.discover_s for o, _, _ in rows if np.isfinite(o.discover_s)]
+    seconds = [o.discover_s for o in outcomes if np.isfinite(o.discover_s)]
     if seconds:
         print(
             "seconds per record (discover, wall): "
@@ -221,20 +226,32 @@ def summary(rows: list[tuple[TrialOutcome, float, float]]) -> None:
         )
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def record_arguments(ap: argparse.ArgumentParser) -> None:
+    """The options of a script over the records hiding nothing."""
     ap.add_argument("--trials", type=Path, default=DEFAULT_TRIALS, help="the trials folder")
     ap.add_argument("--days", type=Path, default=DEFAULT_DAYS, help="the field days folder")
     ap.add_argument("--only", default=None, metavar="NAMES", help="e.g. trial_004,mine_day103")
     ap.add_argument("--keep", type=Path, default=None, metavar="DIR", help="work in DIR, keep it")
+
+
+def chosen(records: list[Record], only: str | None, ap: argparse.ArgumentParser) -> list[int]:
+    """The places in ``records`` of those ``only`` names (comma-separated; every one
+    without it); ``ap.error`` for a name no record has."""
+    if not only:
+        return list(range(len(records)))
+    names = {n.strip() for n in only.split(",") if n.strip()}
+    unknown = sorted(names - {r.name for r in records})
+    if unknown:
+        ap.error(f"no record hiding nothing is called {', '.join(unknown)}")
+    return [k for k, r in enumerate(records) if r.name in names]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    record_arguments(ap)
     args = ap.parse_args()
     records = full_records(args.trials, args.days)
-    if args.only:
-        only = {n.strip() for n in args.only.split(",") if n.strip()}
-        unknown = sorted(only - {r.name for r in records})
-        if unknown:
-            ap.error(f"no record hiding nothing is called {', '.join(unknown)}")
-        records = [r for r in records if r.name in only]
+    records = [records[k] for k in chosen(records, args.only, ap)]
     started = time.perf_counter()
     if args.keep is not None:
         args.keep.mkdir(parents=True, exist_ok=True)

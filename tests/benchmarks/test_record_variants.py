@@ -6,6 +6,7 @@ from __future__ import annotations
 from collections import Counter
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 NAMES = ["timestamp", "p1", "p2", "p3", "p4", "x1", "x2", "x3", "x4", "depth", "speed", "oil_temp"]
@@ -197,3 +198,54 @@ def test_a_frozen_sensor_holds_its_last_value_not_a_gap(variants, tmp_path) -> N
     _, rows = _rows(variants.make_variant(csv, "stuck-p2"))
     _, whole = _rows(csv)
     assert {rows[n][2] for n in range(1200, 2400)} == {whole[1199][2]}
+
+
+@pytest.mark.parametrize(("delimiter", "unit"), [(",", "MPa"), (";", "bar")])
+def test_a_sensor_error_is_written_to_the_files_resolution_and_measured(
+    variants, tmp_path, delimiter, unit
+) -> None:
+    """Sensor 2 reads p + 25 kPa, sensor 3 1.004 p (the readings 4.951 + k/1000 MPa or
+    49.51 + k/100 bar, to 1 kPa / 0.01 bar); each change's RMS is over the four
+    sensors: half the one sensor's. A missing reading stays missing."""
+    csv = _record(tmp_path / "r.csv", 20, delimiter=delimiter, unit=unit)
+    lines = csv.read_text().splitlines()
+    row = lines[8].split(delimiter)
+    row[2] = ""  # p2 missing on that row
+    lines[8] = delimiter.join(row)
+    csv.write_text("\n".join(lines) + "\n")
+    to_pa = 1e6 if unit == "MPa" else 1e5
+    offset, rms = variants.write_changed(csv, "off", variants.sensor_error(2, offset_pa=25e3))
+    assert rms == pytest.approx(12.5e3)
+    _, rows = _rows(offset, delimiter)
+    _, whole = _rows(csv, delimiter)
+    for now, was in zip(rows, whole, strict=True):
+        assert now[:2] + now[3:] == was[:2] + was[3:]
+        if was[2]:
+            change = (float(now[2].replace(",", ".")) - float(was[2].replace(",", "."))) * to_pa
+            assert change == pytest.approx(25e3, abs=1.0)
+            assert ("," in now[2]) == (delimiter == ";")
+        else:
+            assert now[2] == ""
+    gain, rms = variants.write_changed(csv, "gain", variants.sensor_error(3, gain=1.004))
+    values = np.array([float(r[3].replace(",", ".")) * to_pa for r in _rows(csv, delimiter)[1]])
+    assert rms == pytest.approx(0.004 * np.sqrt(np.mean(values**2)) / 2, rel=1e-9)
+    step = 1e3  # the file's last decimal: 0.001 MPa, 0.01 bar
+    for now, was in zip(_rows(gain, delimiter)[1], _rows(csv, delimiter)[1], strict=True):
+        value = float(now[3].replace(",", ".")) * to_pa
+        expected = 1.004 * float(was[3].replace(",", ".")) * to_pa
+        assert abs(value - expected) <= step / 2 + 1e-6
+
+
+def test_the_sensor_error_cases_alternate_sensors_signs_and_sizes(benchmark_script) -> None:
+    """eval_sensor_errors: per record an offset and a gain on neighbouring sensors, of
+    the size given (RMS over four sensors: twice it on the one), signs by turns."""
+    with benchmark_script("eval_sensor_errors") as evaluation:
+        first = list(evaluation.cases(0, 5e6, (2.5, 4.0)))
+        second = list(evaluation.cases(1, 5e6, (2.5, 4.0)))
+    assert [(c.effect, c.sensor, c.offset_pa, c.size_x_noise) for c in first] == [
+        ("sensor_offset", 1, 25e3, 2.5),
+        ("sensor_gain", 2, 0.0, 4.0),
+    ]
+    assert first[1].gain == pytest.approx(1.0 - 2 * 4.0 * 5e3 / 5e6)
+    assert (second[0].sensor, second[0].offset_pa, second[0].size_x_noise) == (2, -40e3, 4.0)
+    assert second[1].gain == pytest.approx(1.0 + 2 * 2.5 * 5e3 / 5e6)

@@ -90,8 +90,7 @@ def cases(index: int, p_rms_pa: float, sizes: tuple[float, ...] = SIZES_X_NOISE)
 
 def _readings_rms_pa(csv: Path) -> float:
     """The RMS of the record's readings of sensor 1 [Pa] (a gain's change scales with it)."""
-    _, rms = write_changed(csv, "probe", sensor_error(1, gain=2.0))
-    csv.with_name(f"{csv.stem}-probe.csv").unlink()
+    _, rms = sensor_error(1, gain=2.0)(read_log(csv))
     return 2.0 * rms  # a gain of 2 changes p by p; over four sensors the RMS is half
 
 
@@ -104,7 +103,8 @@ def evaluate(
 ) -> list[TrialOutcome]:
     """Every case of every (index in the full list, record) under ``work``: one line
     each; a case's data root is removed once analysed unless ``keep``; a record that
-    cannot be unpacked or written is one crashed case, and the run goes on."""
+    cannot be unpacked or sized is one crashed line, a case that cannot be written its
+    crash, and the run goes on."""
     print(
         f"{'record':14s} {'case':14s} {'hidden effect':16s} {'size':>5s} {'answer':22s}"
         f"{'gap0':>8s}{'gap1':>8s} {'disc s':>6s}  parameters / ranked first"
@@ -117,30 +117,33 @@ def evaluate(
         try:
             with gzip.open(record.csv_gz, "rb") as src, csv.open("wb") as dst:
                 shutil.copyfileobj(src, dst)
-            read_log(csv)  # a record that does not read is its cases' crash
             p_rms = _readings_rms_pa(csv)
-            for case in cases(index, p_rms, sizes):
-                stem = f"{record.name}-{case.name}"
-                error = sensor_error(case.sensor, offset_pa=case.offset_pa, gain=case.gain)
-                changed, rms = write_changed(csv, case.name, error)
-                key = {
-                    "hidden_effect": case.effect,
-                    "rms_over_noise": rms / NOISE_PA,
-                    "effect_rms_pa": rms,
-                }
-                label = f"{record.name} {case.name}"
-                o = discover_record(changed, record.toml, label, stem, key, work)
-                changed.unlink(missing_ok=True)
-                if not keep:
-                    shutil.rmtree(work / "data" / stem, ignore_errors=True)
-                outcomes.append(o)
-                print(_line(o, record.name, case), flush=True)
+            if not p_rms > 0.0:
+                raise ValueError("sensor 1 logs no pressure: no gain error to size")
         except Exception as exc:  # the record's cases end here; the run goes on
             crashed = TrialOutcome(record.name, "(record)", np.nan, 0.0, reason=_one_line(exc))
             outcomes.append(crashed)
             print(f"{record.name:14s} crashed: {crashed.reason}", flush=True)
-        finally:
             csv.unlink(missing_ok=True)
+            continue
+        for case in cases(index, p_rms, sizes):
+            stem = f"{record.name}-{case.name}"
+            label = f"{record.name} {case.name}"
+            key = {"hidden_effect": case.effect, "rms_over_noise": np.nan, "effect_rms_pa": 0.0}
+            try:
+                error = sensor_error(case.sensor, offset_pa=case.offset_pa, gain=case.gain)
+                changed, rms = write_changed(csv, case.name, error)
+                key |= {"rms_over_noise": rms / NOISE_PA, "effect_rms_pa": rms}
+                o = discover_record(changed, record.toml, label, stem, key, work)
+            except Exception as exc:  # a case that could not be written: its crash
+                o = TrialOutcome(label, case.effect, np.nan, 0.0, reason=_one_line(exc))
+            finally:
+                csv.with_name(f"{csv.stem}-{case.name}.csv").unlink(missing_ok=True)
+                if not keep:
+                    shutil.rmtree(work / "data" / stem, ignore_errors=True)
+            outcomes.append(o)
+            print(_line(o, record.name, case), flush=True)
+        csv.unlink(missing_ok=True)
     return outcomes
 
 
@@ -188,6 +191,8 @@ def main() -> None:
     )  # fmt: skip
     args = ap.parse_args()
     sizes = tuple(float(v) for v in args.sizes.split(",") if v.strip())
+    if not sizes or not all(v > 0 for v in sizes):
+        ap.error(f"--sizes {args.sizes!r}: one or more positive sizes, comma-separated")
     every = full_records(args.trials, args.days)
     records = [(k, every[k]) for k in chosen(every, args.only, ap)]  # the place: the case
     started = time.perf_counter()

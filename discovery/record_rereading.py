@@ -149,11 +149,11 @@ def discover_in_record(
         identified_ropes=identified_ropes,
     )
     search = EffectSelector(max_iterations=1, **selector).fit(plan)
-    search, told = _told_at_rest(search, samples, plan, selector)
+    search, told, refuted = _told_at_rest(search, samples, plan, selector)
     first = result = search.result_
     findings = list(result.findings)
     replays, notes = result.replays, list(result.notes) + ([told] if told else [])
-    if told and findings[-1].effect in SENSOR_PAIR:  # the rests told the pair apart
+    if refuted and findings[-1].effect in SENSOR_PAIR:  # the rests told the pair apart
         findings[-1] = dataclasses.replace(findings[-1], message=f"{told}; {findings[-1].message}")
     replan = functools.partial(
         _planned_with, samples, hoist, identified_ropes, identify_ropes, max_trips,
@@ -161,6 +161,7 @@ def discover_in_record(
     )  # fmt: skip
     tried = None
     candidates = findings[-1].reread if identify_ropes is not None else ()
+    candidates = tuple(c for c in candidates if c.effect != refuted)  # not what rests refute
     for refused in candidates:
         tried = _tried_reread(search, findings[-1], refused, result, replan, selector)
         notes.append(tried.note)
@@ -254,30 +255,37 @@ SENSOR_PAIR = frozenset({"sensor_offset", "sensor_gain"})
 
 def _told_at_rest(
     search: EffectSelector, samples: pl.DataFrame, plan: Any, selector: dict[str, Any]
-) -> tuple[EffectSelector, str]:
+) -> tuple[EffectSelector, str, str]:
     """A first search whose two best candidates are a sensor's offset and its gain
-    (answered ``ambiguous`` between them, or either ranked first) searched again
-    without the one the record's rests refute, where that is the one it ranked first
-    or it could not tell them apart (:func:`discovery.sensor_rests.sensor_error_at_rest`,
-    beyond the sensors' calibration the model has; the columns and baseline taken over),
-    with what the rests said; else ``search`` as it is (and what the rests said where
-    they were asked)."""
+    (answered ``ambiguous`` between them, or either ranked first) asks the record's rests
+    (:func:`discovery.sensor_rests.sensor_error_at_rest`, beyond the sensors' calibration
+    the model has). (search, what the rests said, the candidate they refute or ""):
+    searched again without the refuted one where that is the one it ranked first or it
+    could not tell them apart (the columns and baseline taken over; a search that fails
+    leaves the first, with a note), else ``search`` as it is; ("" for what was said
+    where the rests were not asked)."""
     last = search.result_.findings[-1]
     ranked = [row["effect"] for row in last.ranking[:2]]
     undecided = last.effect == AMBIGUOUS and frozenset(last.ambiguous_between) == SENSOR_PAIR
     if not undecided and frozenset(ranked) != SENSOR_PAIR:
-        return search, ""
+        return search, "", ""
     model = search.result_.effects_before  # the calibration before anything was added
     params = {k: v for k, v in search.result_.parameters_after.items() if k in model}
     gains, offsets = sensor_gain_offset(plan.hoist, model, params)
     verdict = sensor_error_at_rest(samples, plan.hoist.ropes_n, gains=gains, offsets_pa=offsets)
-    if verdict.effect is None or (not undecided and verdict.effect == ranked[0]):
-        return search, verdict.note()
+    if verdict.effect is None:
+        return search, verdict.note(), ""
     refuted = next(iter(SENSOR_PAIR - {verdict.effect}))
+    if not undecided and verdict.effect == ranked[0]:
+        return search, verdict.note(), refuted
     names = selector.get("candidates") or search.library_.get_feature_names()
     kept = [name for name in names if name != refuted]
     told = EffectSelector(max_iterations=1, **{**selector, "candidates": kept})
-    return told.fit(plan, search.result_.before, columns_from=search), verdict.note()
+    try:
+        told.fit(plan, search.result_.before, columns_from=search)
+    except (RuntimeError, ValueError) as exc:
+        return search, f"{verdict.note()}; the search without {refuted} failed: {exc}", ""
+    return told, verdict.note(), refuted
 
 
 #: The multiples of a refused winner's (or a contender's) fitted step (its coordinates

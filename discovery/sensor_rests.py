@@ -9,7 +9,9 @@ answered ``ambiguous`` and named the excitation that separates them: the conveya
 rest, empty and loaded. The record holds that excitation: at rest no oil flows, so the
 four chambers' pressures are equal and the sensors' readings differ only by the sensors'
 errors (contract 1a), and its stops span empty and loaded, pithead and bottom (2.6-6.7
-MPa on the validation records).
+MPa on the validation records). A payload loaded at a stop moves oil for a few seconds,
+which a rest's mean takes in with its tens of seconds at rest; a seal's friction changes
+what a rope pulls, not the equal pressure of the connected oil.
 
 :func:`sensor_error_at_rest` takes each rest of the whole record (speed below the trip
 rule's standstill, trimmed at both ends so the oil has settled), one mean per rest, and
@@ -17,7 +19,8 @@ fits each sensor's departure from the others' mean, d_k = p_k - mean_{j != k} p_
 ways: a constant per sensor (an offset: d_k = o_k) and a share of the pressure per sensor
 (a gain: d_k = (g_k - 1) p). Both have one coordinate per sensor, so the Bayesian
 information criterion of each (Schwarz 1978, Ann. Stat. 6(2) 461-464; Gaussian residuals
-of unknown variance: n ln(RSS / n) + k ln n) differs by n ln(RSS_offset / RSS_gain);
+of unknown variance: n ln(RSS / n) + k ln n) differs by n ln(RSS_offset / RSS_gain),
+n the rests x (sensors - 1) (a rest's departures sum to zero);
 at :data:`DECISIVE_DBIC` the rests tell, if the better fit explains at least
 :data:`MIN_EXPLAINED` of the departures (rests whose readings agree to their noise show
 no sensor error). Where the rests span too little of the pressure
@@ -101,6 +104,7 @@ def rest_means(samples: pl.DataFrame, sensors: int) -> np.ndarray:
             (pl.col("t").max().over("run") - pl.col("t")).alias("until"),
         )
         .filter((pl.col("since") >= SETTLE_S) & (pl.col("until") >= SETTLE_S))
+        .with_columns(pl.col(columns).cast(pl.Float64).fill_nan(None))
         .drop_nulls(columns)
     )
     rests = (
@@ -142,7 +146,7 @@ def sensor_error_at_rest(
     shares = (departure * level[:, None]).sum(axis=0) / float(np.sum(level**2))
     rss_offset = float(np.sum((departure - offsets) ** 2))
     rss_gain = float(np.sum((departure - level[:, None] * shares) ** 2))
-    n = departure.size
+    n = n_rests * (sensors - 1)  # a rest's departures sum to zero: sensors - 1 of them free
     floor = 1e-30  # exact fits: the same tiny floor either way
     dbic = n * float(np.log(max(rss_offset, floor) / max(rss_gain, floor)))
     effect = None

@@ -25,7 +25,9 @@ at :data:`DECISIVE_DBIC` the rests tell, if the better fit explains at least
 :data:`MIN_EXPLAINED` of the departures (rests whose readings agree to their noise show
 no sensor error). Where the rests span too little of the pressure
 (:data:`MIN_RANGE_SHARE`) or are too few (:data:`MIN_RESTS`) they tell nothing and the
-answer stays ``ambiguous``.
+search's answer stands (:func:`discovery.record_rereading.discover_in_record` asks them
+whenever its first search ranks the two first and second: with sensor 2 written 20 kPa
+low, trial_010's trips ranked the gain first by 142 in BIC and refused it).
 """
 
 from __future__ import annotations

@@ -48,7 +48,7 @@ from eval_undeclared import (
     print_crashes_and_seconds,
     record_arguments,
 )
-from record_variants import read_log, sensor_error, write_changed
+from record_variants import pressure_rms_pa, read_log, sensor_error, write_changed
 
 #: The validation README's sensor noise [Pa]: the size's unit.
 NOISE_PA = 5e3
@@ -88,12 +88,6 @@ def cases(index: int, p_rms_pa: float, sizes: tuple[float, ...] = SIZES_X_NOISE)
     yield Case("sensor_gain", sensor % 4 + 1, 0.0, round(gain, 4), size)
 
 
-def _readings_rms_pa(csv: Path) -> float:
-    """The RMS of the record's readings of sensor 1 [Pa] (a gain's change scales with it)."""
-    _, rms = sensor_error(1, gain=2.0)(read_log(csv))
-    return 2.0 * rms  # a gain of 2 changes p by p; over four sensors the RMS is half
-
-
 def evaluate(
     records: list[tuple[int, Record]],
     work: Path,
@@ -117,7 +111,7 @@ def evaluate(
         try:
             with gzip.open(record.csv_gz, "rb") as src, csv.open("wb") as dst:
                 shutil.copyfileobj(src, dst)
-            p_rms = _readings_rms_pa(csv)
+            p_rms = pressure_rms_pa(read_log(csv), 1)  # a gain's change scales with it
             if not p_rms > 0.0:
                 raise ValueError("sensor 1 logs no pressure: no gain error to size")
         except Exception as exc:  # the record's cases end here; the run goes on

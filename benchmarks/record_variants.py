@@ -30,6 +30,7 @@ __all__ = [
     "delimiter_of",
     "header_keys",
     "make_variant",
+    "pressure_rms_pa",
     "read_log",
     "sensor_error",
     "write_changed",
@@ -270,6 +271,26 @@ def _repeated(share: float, shuffled: int, seed: int = 20261130) -> Callable[[Lo
     return change
 
 
+def _reading(table: LogTable, row: list[str], k: int) -> float:
+    """Field ``k`` of ``row`` as a number, NaN where it is missing, not a number or the
+    row is not whole (ingest quarantines those; they are kept as written)."""
+    if len(row) != len(table.names):
+        return float("nan")
+    try:
+        value = table.number(row[k])
+    except ValueError:
+        return float("nan")
+    return value if value != _MISSING else float("nan")
+
+
+def pressure_rms_pa(table: LogTable, sensor: int) -> float:
+    """The RMS of sensor ``sensor``'s logged readings [Pa] (0 where it logs none)."""
+    pa = _pressure_units_pa(table)[f"p{sensor}"]
+    k = table.column(f"p{sensor}")
+    values = [v for row in table.rows if math.isfinite(v := _reading(table, row, k))]
+    return pa * math.sqrt(sum(v * v for v in values) / len(values)) if values else 0.0
+
+
 def sensor_error(
     sensor: int, *, offset_pa: float = 0.0, gain: float = 1.0
 ) -> Callable[[LogTable], tuple[LogTable, float]]:
@@ -281,19 +302,15 @@ def sensor_error(
 
     def change(table: LogTable) -> tuple[LogTable, float]:
         pa = _pressure_units_pa(table)[f"p{sensor}"]
-        k, width = table.column(f"p{sensor}"), len(table.names)
+        k = table.column(f"p{sensor}")
         rows, squares, counted = [], 0.0, 0
         for row in table.rows:
-            if len(row) == width:
-                try:
-                    value = table.number(row[k])
-                except ValueError:  # not a number: ingest quarantines it, kept
-                    value = float("nan")
-                if math.isfinite(value) and value != _MISSING:
-                    changed = (gain - 1.0) * value + offset_pa / pa
-                    row = [*row[:k], table.field(value + changed, row[k]), *row[k + 1 :]]
-                    squares += (changed * pa) ** 2
-                    counted += 1
+            value = _reading(table, row, k)
+            if math.isfinite(value):
+                changed = (gain - 1.0) * value + offset_pa / pa
+                row = [*row[:k], table.field(value + changed, row[k]), *row[k + 1 :]]
+                squares += (changed * pa) ** 2
+                counted += 1
             rows.append(row)
         rms = math.sqrt(squares / max(counted, 1) / 4.0)  # over the four sensors
         return replace(table, rows=rows), rms

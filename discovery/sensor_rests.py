@@ -113,7 +113,7 @@ def rest_means(samples: pl.DataFrame, sensors: int) -> np.ndarray:
         frame.group_by("run", maintain_order=True)
         .agg(
             (pl.col("t").max() - pl.col("t").min()).alias("span"),
-            *(pl.col(c).cast(pl.Float64).mean() for c in columns),
+            *(pl.col(c).mean() for c in columns),
         )
         .filter(pl.col("span") >= SHORTEST_S)
     )

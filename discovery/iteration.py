@@ -45,8 +45,9 @@ NOTICEABLE_X_NOISE = 1.0
 #: description (``benchmarks/eval_undeclared.py``): groove wear won 64 % of the
 #: resamples, the valve 36 %; the ropes read without the valve took it, so its linear
 #: fit explained 0.7 x the noise of a 15.2 kPa gap. The record planned with the valve
-#: as described replays to 9.4 kPa; the valve tried with the record read again, at
-#: K = 1.7e4, to 9.2 kPa.
+#: as described replays to 9.4 kPa; the valve tried with the record read again, with
+#: the default K = 500 described, at K = 1.7e4, to 9.2 kPa (with the stated K = 2e4,
+#: at it: :data:`discovery.record_rereading.DESCRIBED_STEP`).
 CONTENDER_SHARE = 0.25
 #: The fewest compared trips a winner is named on: the stability test resamples trips
 #: (step 4 of :mod:`discovery.selection`), which one trip cannot (every resample is it:

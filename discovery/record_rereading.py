@@ -56,16 +56,20 @@ on ropes read without it. When the ropes'
 identification reads it (:data:`schemas.effects.READ_WITH_THE_ROPES`) and it is
 decisive and stable (:func:`discovery.iteration._to_reread`), it is tried with the
 record read again (:func:`_tried_reread`): planned at its fitted step and at twice it
-while the gap shrinks (a signed term once the other way when its fitted way does not),
-refined, and credited by the rule any winner is (:func:`discovery.iteration.
-credited_shrink`) on that plan's gap against the first. Credited, it is the first
-finding and the search goes on from that plan; else the refusal stands with a note.
+while the gap shrinks (a signed term once the other way when its fitted way does not; a
+term the description sizes at the description's own value when neither left a gap a
+winner is credited with), the best refined, and credited by the rule any winner is
+(:func:`discovery.iteration.credited_shrink`) on that plan's gap against the first.
+Credited, it is the first finding and the search goes on from that plan; else the
+refusal stands with a note.
 A runner-up the ropes' identification reads, decisive and a contender on the
 resamples (at least :data:`discovery.iteration.CONTENDER_SHARE` of them), is tried the
 same way after a winner refused by its linear fit whose own re-read is not credited, or
 in its place when the winner is not one the ropes read (validation day 103 with its
-throttled valve taken out of the description: the valve, the runner-up to a groove
-wear, read again 15.2 -> 9.2 kPa).
+throttled valve taken out of the description and its K written as a mine unaware of
+the throttling would, the default 500: the valve, the runner-up to a groove wear, read
+again 15.2 -> 9.2 kPa at K = 1.7e4; with the stated K = 2e4 kept, its fitted way left
+no gap a winner is credited with and the described value did, 15.2 -> 9.3 kPa).
 (Validation trial_001, a pipe 2.2 x the noise: refused at 0.9 x the noise explained,
 read again 13.1 -> 7.1 kPa; trial_009, a groove 3.8 x: its fit pointed the wrong way,
 read again the other way 16.9 -> 14.0 kPa, and each half of it, cut at the middle
@@ -84,6 +88,7 @@ import functools
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
 import polars as pl
 
 from discovery.iteration import credited_shrink
@@ -298,13 +303,15 @@ def _told_at_rest(
 REREAD_STEPS = (1.0, 2.0)
 
 #: The multiple of the fitted step that is the description's own value: a term the
-#: description already sizes (a valve's stated K, a pipe, the oil's bulk modulus; not
-#: one null there, a sensor's error or a groove) is read there once when its fitted way
-#: does not shrink the gap to what a winner is credited with. Its fit on ropes read
-#: without it can point away from the description's value, which the mine measured:
-#: validation day 103 states its throttled valve's K = 2e4 and, with ``local_loss``
-#: taken out of its model, fitted it below that on the ropes read without it; planned
-#: with the description whole the record replays 9.4 kPa against 15.2 kPa without it.
+#: description already sizes (one not null at its defaults,
+#: :meth:`~discovery.effect_terms.EffectTerm.null_at_default`: a valve's stated K, a
+#: pipe, the oil, a stated groove; a scaled loss only where its described size is not
+#: zero) is read there once when its fitted way leaves no gap a winner is credited with.
+#: Its fit on ropes read without it can point away from the description's value, which
+#: the mine measured: validation day 103 states its throttled valve's K = 2e4 and, with
+#: ``local_loss`` taken out of its model, fitted it below that on the ropes read without
+#: it; planned with the description whole the record replays 9.4 kPa against 15.2 kPa
+#: without it.
 DESCRIBED_STEP = (0.0,)
 
 
@@ -363,8 +370,9 @@ def _tried_reread(
     with the record read again (``replan``), at :data:`REREAD_STEPS` of its fitted step
     while the gap shrinks (a signed term's, one without ``start_scales``, also the other
     way, once, when its fitted way does not shrink the gap; a term the description sizes
-    also at the description's own value, :data:`DESCRIBED_STEP`, when neither shrinks it
-    to what a winner is credited with), the best of them its coordinates then refined
+    also at the description's own value, :data:`DESCRIBED_STEP`, when no way before it
+    left a gap, before refining, that a winner is credited with; no point twice), the
+    best of them its coordinates then refined
     (:func:`~discovery.refit.refine_added`), and credited as any winner by how far the
     gap shrank from the first plan's (:func:`~discovery.iteration.credited_shrink`)."""
     name = refused.effect
@@ -375,12 +383,6 @@ def _tried_reread(
     start = term.coordinates(hoist, None)
     fitted = term.coordinates(hoist, refused.parameters)
     before = refusal.gap_before_pa
-    # a signed term's fit on ropes that took more than all of it can point the wrong
-    # way (a groove wear scanned along the differential signature): the other way then;
-    # a term the description sizes, its described value then
-    ways = [(REREAD_STEPS, "first")]
-    ways += [] if term.start_scales else [((-1.0,), "unless shrunk")]
-    ways += [] if term.null_at_default(hoist) else [(DESCRIBED_STEP, "unless credited")]
 
     def credits(gap: float) -> bool:
         return credited_shrink(
@@ -389,13 +391,29 @@ def _tried_reread(
             detectable_x_noise=search.detectable_x_noise,
         )  # fmt: skip
 
-    best: tuple[Any, Any, float, Params] | None = None
+    # each way's multiples, and the best gap (before refining) that makes it needless:
+    # a signed term's fit on ropes that took more than all of it can point the wrong
+    # way (a groove wear scanned along the differential signature): the other way then,
+    # unless the fitted way shrank the gap; a term the description sizes (a scaled one
+    # only where the description's size is not zero) at its described value, unless a
+    # way before left a gap a winner is credited with
+    ways: list[tuple[tuple[float, ...], Callable[[float], bool] | None]] = [(REREAD_STEPS, None)]
+    if not term.start_scales:
+        ways.append(((-1.0,), lambda gap: gap < before))
+    sized = not term.null_at_default(hoist) and not (term.start_scales and not np.any(start))
+    if sized:
+        ways.append((DESCRIBED_STEP, credits))
+    best: tuple[Any, Any, float, Params, float] | None = None
     failed: list[str] = []
-    for multiples, when in ways:
-        if best is not None and (best[2] < before if when == "unless shrunk" else credits(best[2])):
+    tried: set[tuple[float, ...]] = set()
+    for multiples, needless in ways:
+        if best is not None and needless is not None and needless(best[2]):
             continue
         for multiple in multiples:
             theta = start + multiple * (fitted - start)
+            if tuple(theta) in tried:
+                continue  # the fitted step was none: every multiple is the description
+            tried.add(tuple(theta))
             params = merge_parameters(refused.parameters, name, term.parameters(hoist, theta))
             params = {k: v for k, v in params.items() if k in model}
             try:
@@ -404,12 +422,12 @@ def _tried_reread(
                 failed.append(f"at {multiple:g} x its step: {exc}")
                 break
             if best is None or gap < best[2]:
-                best = (plan, base, gap, params)
+                best = (plan, base, gap, params, multiple)
             if not gap < before or best[2] < gap:
                 break  # no shrink this way, or less than one step gave
     if best is None:
         return _Reread(None, (), {}, None, None, f"{name} read with the record failed: {failed}")
-    plan, base, gap, params = best
+    plan, base, gap, params, multiple = best
     if gap < before:
         try:
             base, gap, params = refine_added(plan, library, name, model, params, base)
@@ -418,8 +436,10 @@ def _tried_reread(
     credited = credits(gap)
     judged = "refused" if refused.place == 0 else "the runner-up"
     said = (
-        f"{name}, {judged} on the ropes read without it, read with the record again: the "
-        f"gap {before:.0f} -> {gap:.0f} Pa" + (f" ({'; '.join(failed)})" if failed else "")
+        f"{name}, {judged} on the ropes read without it, read with the record again "
+        + ("at the described value" if multiple == 0.0 else f"at {multiple:g} x its fitted step")
+        + f": the gap {before:.0f} -> {gap:.0f} Pa"
+        + (f" ({'; '.join(failed)})" if failed else "")
     )
     if not credited:
         return _Reread(None, (), {}, None, None, f"{said}, not what a winner is credited with")

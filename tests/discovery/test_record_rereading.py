@@ -194,19 +194,20 @@ def test_a_loss_its_fit_points_away_from_is_read_again_at_the_described_value(mo
     orifice's K (:data:`discovery.cases.ORIFICE_LOSS_COEFFICIENT`) but its model lacks
     ``local_loss``, as validation day 103 states its throttled valve's K = 2e4 with the
     effect taken out of the model. The valve's linear fit is refused (the credit set
-    strict) and read again with the record. Its fitted way made to point away from the
-    described K (the multiples of its step negated and stretched: the fit lands near
-    0.99 x the stated K, read at 1 + 275 x 0.01, some 4 x it; day 103's fit on ropes
-    read without the valve fell below its K), the record read there does not shrink the
-    gap, and the description's own value (:data:`DESCRIBED_STEP`) is tried: the valve
-    is named at the stated K (measured 10.3 -> 6.2 kPa, noise 5.0). Without that step
-    the refusal stands."""
+    strict); with no way to read the record again the refusal stands. Its fitted way
+    then made to point away from the described K (the multiple of its step that reads
+    the record at 4 x the stated K; day 103's fit on ropes read without the valve fell
+    below its K), the record read there leaves no gap a winner is credited with, and
+    the description's own value (:data:`DESCRIBED_STEP`) is tried: the valve is named
+    at the stated K (measured: 10.3 kPa, at 4 x the K 26.7, at the K 6.2; noise 5.0)."""
     from discovery import record_rereading
 
     plan, info = hidden_case("local_loss", trips=3)
     samples = info["day"].sensors
     strict = {"explain_fraction": 0.8, "detectable_x_noise": 1e9, "bootstrap": 50}
     ropes = identified_ropes(samples, plan.hoist)
+    stated = plan.hoist.piping.fittings_loss_coefficient_sensor_to_manifold
+    assert stated > 100.0  # the orifice, not the default fittings
 
     def discovered():
         return discover_in_record(
@@ -218,19 +219,23 @@ def test_a_loss_its_fit_points_away_from_is_read_again_at_the_described_value(mo
             **strict,
         )
 
-    monkeypatch.setattr(record_rereading, "REREAD_STEPS", (-275.0,))
+    monkeypatch.setattr(record_rereading, "REREAD_STEPS", ())
     monkeypatch.setattr(record_rereading, "DESCRIBED_STEP", ())
-    away = discovered()
-    assert away.findings[0].effect == "none"
-    assert "local_loss" in [r.effect for r in away.findings[0].reread]
-    assert any("not what a winner is credited with" in n for n in away.notes)
+    refused = discovered()
+    assert refused.findings[0].effect == "none"
+    (valve,) = [r for r in refused.findings[0].reread if r.effect == "local_loss"]
+    fit = valve.parameters["local_loss"]["fittings_sensor_to_manifold"] / stated
+    assert abs(fit - 1.0) > 0.02, f"the linear fit is the stated K ({fit:.4f} x)"
+    away = (4.0 - 1.0) / (fit - 1.0)  # the multiple of the step that reads 4 x the K
+    monkeypatch.setattr(record_rereading, "REREAD_STEPS", (away,))
     monkeypatch.setattr(record_rereading, "DESCRIBED_STEP", (0.0,))
     result = discovered()
     first = result.findings[0]
     assert first.effect == "local_loss", result.notes
-    stated = plan.hoist.piping.fittings_loss_coefficient_sensor_to_manifold
-    assert stated > 100.0  # the orifice, not the default fittings
+    said = [n for n in result.notes if n.startswith("local_loss, refused")]
+    assert said, result.notes
+    assert "at the described value" in said[0]  # 4 x the K left no credited gap
     assert first.parameters["fittings_sensor_to_manifold"] == pytest.approx(stated, rel=0.2)
-    assert first.gap_before_pa == away.findings[0].gap_before_pa
+    assert first.gap_before_pa == refused.findings[0].gap_before_pa
     assert first.gap_after_pa < 0.7 * first.gap_before_pa
     assert first.gap_after_pa < 1.5 * first.noise_pa

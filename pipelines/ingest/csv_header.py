@@ -186,7 +186,7 @@ def parse_header(path: Path, head: bytes) -> CsvHeader:
             rate = float(meta["sample_rate_hz"][1])
         except ValueError:
             notes.append(f"line {meta['sample_rate_hz'][0]}: sample_rate_hz not a number, ignored")
-    units = _units(path, meta["units"], columns)
+    units = _units(path, meta["units"], columns, notes)
     first_rows = _first_data_fields(head[pos:], separator)
     # with ";" between fields a comma in a number can only be its decimal separator
     # (contract 1a), wherever in the file it first appears
@@ -343,9 +343,29 @@ def _check_columns(path: Path, line: int, columns: tuple[str, ...], notes: list[
         notes.append(f"line {line}: unknown column(s) {', '.join(unknown)} ignored")
 
 
+#: The keys a ``units`` line may use besides a column's own name: each channel kind's
+#: (``p`` for p1..p4, ``x`` for x1..x4, ...).
+_UNIT_KEYS = frozenset(channel.unit_key for channel in CHANNELS.values())
+
+
 def _units(
-    path: Path, units_line: tuple[int, str], columns: tuple[str, ...]
+    path: Path, units_line: tuple[int, str], columns: tuple[str, ...], notes: list[str]
 ) -> dict[str, tuple[float, float]]:
+    """Each known column's (scale, offset) to SI from the ``units`` line. A key stated
+    twice with two units is refused (which one holds cannot be known, and a pressure in
+    bar read as MPa is 10 x off), as a header key stated twice is; alike twice, one
+    holds. A key that names no channel is noted, not silently dropped.
+
+    >>> notes = []
+    >>> _units(Path("f.csv"), (3, "p=bar, q=furlong"), ("timestamp", "p1"), notes)
+    {'p1': (100000.0, 0.0)}
+    >>> notes
+    ['line 3: units for q name no channel, ignored']
+    >>> _units(Path("f.csv"), (3, "p=MPa, p=bar"), ("timestamp", "p1"), [])
+    Traceback (most recent call last):
+    ...
+    pipelines.ingest.batch.RefusedFile: f.csv: line 3: units: 'p' stated twice ('MPa' and 'bar'); which one holds?
+    """
     line, text = units_line
     given: dict[str, str] = {}
     for item in re.split(r"[,;]", text):
@@ -354,7 +374,16 @@ def _units(
         key, eq, unit = item.partition("=")
         if not eq:
             raise RefusedFile(f"{path}: line {line}: units item {item.strip()!r} is not key=unit")
-        given[key.strip()] = unit.strip()
+        key, unit = key.strip().lower(), unit.strip()
+        if key in given and not _same(given[key], unit):
+            raise RefusedFile(
+                f"{path}: line {line}: units: {key!r} stated twice ({given[key]!r} and "
+                f"{unit!r}); which one holds?"
+            )
+        given.setdefault(key, unit)
+    stray = [k for k in given if k not in CHANNELS and k not in _UNIT_KEYS]
+    if stray:
+        notes.append(f"line {line}: units for {', '.join(stray)} name no channel, ignored")
     result: dict[str, tuple[float, float]] = {}
     for name in columns[1:]:
         channel = CHANNELS.get(name)

@@ -305,6 +305,22 @@ def case_hoist_stated_twice_with_two_values(corpus, tmp):
     )  # fmt: skip
 
 
+def case_a_unit_stated_twice_with_two_units(corpus, tmp):
+    # the units of two exports pasted into one line: the pressures' scale is not said
+    # (read as the last, bar for MPa, every pressure was 10 x off and landed)
+    header = {**corpus.HEADER, "units": "p=MPa, x=mm, depth=m, speed=m/s, oil_temp=degC, p=bar"}
+    path = corpus.csv_file(tmp / "units.csv", corpus.data_rows(3), header=header)
+    return path, Expect(
+        "refused", 0, 0, message="units: 'p' stated twice ('MPa' and 'bar'); which one holds?"
+    )
+
+
+def case_a_unit_for_no_channel_is_said(corpus, tmp):
+    header = {**corpus.HEADER, "units": "p=MPa, x=mm, depth=m, speed=m/s, oil_temp=degC, q=hPa"}
+    path = corpus.csv_file(tmp / "stray_unit.csv", corpus.data_rows(3), header=header)
+    return path, Expect("landed", 3, 3, message="units for q name no channel, ignored")
+
+
 def case_a_read_key_repeated_alike_and_a_free_key_twice(corpus, tmp):
     path = corpus.csv_file(tmp / "alike.csv", corpus.data_rows(4))
     lines = b"# timezone: UTC \n# sample_rate_hz: 100.0\n# note: one\n# note: two"

@@ -364,7 +364,7 @@ def _units(
     >>> _units(Path("f.csv"), (3, "p=MPa, p=bar"), ("timestamp", "p1"), [])
     Traceback (most recent call last):
     ...
-    pipelines.ingest.batch.RefusedFile: f.csv: line 3: units: 'p' stated twice ('MPa' and 'bar'); which one holds?
+    pipelines.ingest.batch.RefusedFile: f.csv: line 3: units: 'p' stated twice ...
     """
     line, text = units_line
     given: dict[str, str] = {}

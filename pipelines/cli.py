@@ -223,6 +223,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         with exits.terminate_on_signals():
             return handler(args)
     except _known_errors() as exc:
+        if exits.received_signal() is not None:  # a library's words for the signal
+            return _interrupted(command, exits.received_signal())
         message = " ".join(str(exc).split()) or type(exc).__name__
         if exits.memory_exhausted(exc, limit):  # DuckDB's own out-of-memory error
             message = exits.out_of_memory(command, limit)
@@ -238,10 +240,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         os.close(devnull)
         return 128 + signal.SIGPIPE
     except KeyboardInterrupt as exc:
-        signum = getattr(exc, "signum", signal.SIGINT)
-        sys.stderr.write(f"ropeload {command}: interrupted ({signal.Signals(signum).name})\n")
-        return 128 + signum
+        return _interrupted(command, getattr(exc, "signum", signal.SIGINT))
     except (MemoryError, ImportError, OSError, SystemError, RuntimeError) as exc:
+        if exits.received_signal() is not None:  # DuckDB's RuntimeError('Query interrupted')
+            return _interrupted(command, exits.received_signal())
         if exits.memory_exhausted(exc, limit):
             message = exits.out_of_memory(command, limit)
         elif isinstance(exc, OSError) and exc.errno in _USER_ERRNOS:
@@ -250,6 +252,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
     sys.stderr.write(f"ropeload {command}: {message}\n")
     return 1
+
+
+def _interrupted(command: str, signum: int) -> int:
+    """The one line and the shell's status (128 + the signal) of an interrupted command."""
+    sys.stderr.write(f"ropeload {command}: interrupted ({signal.Signals(signum).name})\n")
+    return 128 + signum
 
 
 if __name__ == "__main__":

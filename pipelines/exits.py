@@ -27,6 +27,7 @@ __all__ = [
     "memory_exhausted",
     "memory_limit",
     "out_of_memory",
+    "received_signal",
     "terminate_on_signals",
 ]
 
@@ -148,8 +149,22 @@ def memory_exhausted(exc: BaseException, limit: MemoryLimit | None) -> bool:
 # ---------------------------------------------------------------------------- signals
 
 
+#: The signals :func:`terminate_on_signals` turned into :class:`Terminated` since it was
+#: entered: a library may wrap that exception in its own (DuckDB, inside an insert that
+#: reads a Python frame, raises ``RuntimeError('Query interrupted')`` or an
+#: ``InvalidInputException``), and the command must still end as interrupted.
+_received: list[int] = []
+
+
 def _raise_terminated(signum: int, frame: FrameType | None) -> None:
+    _received.append(signum)
     raise Terminated(signum)
+
+
+def received_signal() -> int | None:
+    """The last signal :func:`terminate_on_signals` raised :class:`Terminated` for, or
+    None: whatever exception a library made of it, the command was interrupted."""
+    return _received[-1] if _received else None
 
 
 @contextlib.contextmanager
@@ -165,6 +180,7 @@ def terminate_on_signals() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    _received.clear()
     saved = {s: signal.signal(s, _raise_terminated) for s in (signal.SIGTERM, signal.SIGHUP)}
     try:
         yield

@@ -759,3 +759,43 @@ def test_a_reversed_backfill_range_is_a_usage_error(tmp_path, capsys):
     assert main(argv) == 2
     err = _one_line(capsys.readouterr().err, "backfill")
     assert "--to 2026-03-01 is before --from 2026-03-05" in err
+
+
+@pytest.mark.parametrize("delay_s", [0.02, 0.1, 0.3])
+def test_a_signal_duckdb_wraps_in_its_own_error_still_ends_the_command_as_interrupted(
+    delay_s, tmp_path, capsys, monkeypatch, small_csv
+):
+    """SIGTERM while DuckDB inserts a Python frame: DuckDB turns the signal's exception
+    into ``RuntimeError('Query interrupted')`` or an ``InvalidInputException`` ("reading
+    the Python object ... failed") depending on where it lands (a probe of an ingest
+    killed while writing its manifest printed that RuntimeError's traceback). Either
+    way the command ends as interrupted: one line, status 143."""
+    import threading
+
+    import duckdb
+    import numpy as np
+    import polars as pl
+
+    from pipelines import cli_parser
+
+    frame = pl.DataFrame({"a": np.arange(3_000_000), "b": np.linspace(0.0, 1.0, 3_000_000)})
+
+    timer = threading.Timer(delay_s, os.kill, (os.getpid(), signal.SIGTERM))
+
+    def inserting(args):  # the command's work: real inserts into a real DuckDB file
+        con = duckdb.connect(str(tmp_path / "w.duckdb"))
+        con.execute("CREATE TABLE t (a BIGINT, b DOUBLE)")
+        con.register("frame", frame)
+        timer.start()
+        for _ in range(10_000):
+            con.execute("INSERT INTO t SELECT * FROM frame")
+        return 0
+
+    monkeypatch.setattr(cli_parser, "cmd_ingest", inserting)
+    try:
+        status = main(["ingest", "--data", str(tmp_path / "data"), str(small_csv)])
+    finally:
+        timer.cancel()  # a handler that ended early must not leave the signal to pytest
+        timer.join()
+    err = capsys.readouterr().err
+    assert (status, err) == (143, "ropeload ingest: interrupted (SIGTERM)\n")

@@ -11,7 +11,10 @@ Identity and dedup
     (Parquet row-group statistics prune the rest). A row equal in every value column to
     the landed one (null equals null) is an exact duplicate and is not landed again; a
     row with other values for a landed time is returned as a conflict for quarantine
-    (``REASON_CONFLICT``). ``source_sha256``/``source_line`` are lineage, not values.
+    (``REASON_CONFLICT``). ``source_sha256``/``source_line`` are lineage, not values,
+    but an equal row landed from the same file (``source_sha256``: an ingest of it
+    killed after its parts and before its manifest row) is counted as landed by that
+    file, not as a duplicate, so that the manifest says what the file put in the lake.
 
 Atomic parts, no multi-file step
     A part is written to a hidden temporary file in the partition directory
@@ -147,7 +150,7 @@ class LakeTable:
         landed = (
             pl.scan_parquet(overlapping, hive_partitioning=False)
             .filter(pl.col("time_utc").is_between(low, high))
-            .select("time_utc", *self.values)
+            .select("time_utc", *self.values, pl.col("source_sha256").alias("_landed_sha"))
             .collect()
         )
         if landed.height == 0:
@@ -156,8 +159,17 @@ class LakeTable:
         if matched.height == 0:
             return part
         same = pl.all_horizontal(pl.col(c).eq_missing(pl.col(f"{c}__landed")) for c in self.values)
-        flags = matched.select("_row", same.alias("_same"))
-        result.duplicate += int(flags["_same"].sum())
+        # the same rows of the same file: landed by an attempt at this file that ended
+        # (killed) before its manifest row was written; they are this file's, not
+        # duplicates of another's (the manifest then counts what the file landed)
+        own = (
+            pl.col("_landed_sha") == pl.col("source_sha256")
+            if "source_sha256" in part.columns
+            else pl.lit(False)
+        )
+        flags = matched.select("_row", same.alias("_same"), (same & own).alias("_own"))
+        result.landed += int(flags["_own"].sum())
+        result.duplicate += int((flags["_same"] & ~flags["_own"]).sum())
         result.conflicts.extend(flags.filter(~pl.col("_same"))["_row"].to_list())
         return part.join(flags.select("_row"), on="_row", how="anti", maintain_order="left")
 

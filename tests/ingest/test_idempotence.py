@@ -367,3 +367,35 @@ def test_capitalised_channel_names_land_as_the_contracts(corpus, tmp_path, root)
         return frame.drop("source_sha256")
 
     assert landed(root).equals(landed(other))
+
+
+def test_a_file_whose_ingest_was_killed_before_its_manifest_row_counts_its_rows_as_landed(
+    corpus, tmp_path, root
+):
+    """An ingest killed after its Parquet parts and before its manifest row (a probe:
+    SIGTERM ~2 s into a 124 MB file) left the file's rows in the lake, and the re-run
+    called them all duplicates: the manifest said the file put nothing in the lake. The
+    state is made here as the kill leaves it: the lake's parts written, the warehouse
+    (published only when an ingest ends, ``open_writer``) without the file's manifest
+    and quarantine rows. Ingested again, the file's own rows are landed by it and
+    nothing lands twice."""
+    from warehouse.store import open_writer
+
+    rows = corpus.data_rows(40)
+    rows[3][1] = "oops"
+    path = corpus.csv_file(tmp_path / "day.csv", rows)
+    first = ingest_paths([path], data=root).files[0]
+    lake = _lake_checksum(root)
+    with open_writer(root) as con:
+        for table in ("manifest", "quarantine"):
+            con.execute(f"DELETE FROM {table} WHERE source_sha256 = ?", [first.sha256])
+    again = ingest_paths([path], data=root).files[0]
+    counts = (again.rows_read, again.rows_landed, again.rows_duplicate, again.rows_quarantined)
+    assert (again.status, counts) == ("landed", (40, 39, 0, 1))
+    assert _lake_checksum(root) == lake
+    with open_reader(root) as con:
+        (quarantined,) = con.execute(
+            "SELECT count(*) FROM quarantine WHERE source_sha256 = ?", [first.sha256]
+        ).fetchone()
+        (manifest,) = con.execute("SELECT rows_landed FROM manifest").fetchone()
+    assert (quarantined, manifest) == (1, 39)

@@ -66,11 +66,21 @@ def cmd_ingest(args: argparse.Namespace) -> int:
         from pipelines.flows import ingest_flow
 
         try:
-            report = ingest_flow(paths=[str(p) for p in args.paths], data=args.data, hoists=hoists)
+            report = ingest_flow(
+                paths=[str(p) for p in args.paths],
+                data=args.data,
+                hoists=hoists,
+                complete=args.complete,
+            )
         except FilesRefused as exc:
             report = exc.report
     else:
-        report = ingest_paths(args.paths, data=DataRoot.resolve(args.data), hoist_lookup=lookup)
+        report = ingest_paths(
+            args.paths,
+            data=DataRoot.resolve(args.data),
+            hoist_lookup=lookup,
+            complete=args.complete,
+        )
     sys.stdout.write(f"{report}\n")
     sys.stdout.flush()
     for line in report.refusal_lines():

@@ -332,6 +332,13 @@ def build_parser() -> argparse.ArgumentParser:
         "winder's max_speed are quarantined; without one only depth above the pithead is "
         "(oil outside -60..200 degC is either way)",
     )
+    ingest.add_argument(
+        "--complete",
+        action="store_true",
+        help="the CSV files are finished exports: a last line without a line end is their "
+        "last row (by default it is held back, the file 'partial', until the file grows); "
+        "a file left partial earlier is read on from where it stopped",
+    )
     _prefect_option(ingest)
     ingest.set_defaults(handler=cmd_ingest)
 

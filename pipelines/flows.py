@@ -104,16 +104,20 @@ class PartitionsFailed(RuntimeError):
 
 @flow(name="ingest", persist_result=False)
 def ingest_flow(
-    paths: list[str], data: str | None = None, hoists: list[str] | None = None
+    paths: list[str],
+    data: str | None = None,
+    hoists: list[str] | None = None,
+    complete: bool = False,
 ) -> IngestReport:
     """``ropeload ingest``: files and folders into the lake (``hoists``: description files
-    for the depth-in-shaft check).
+    for the depth-in-shaft check; ``complete``: the CSVs are finished exports,
+    :func:`~pipelines.ingest.ingest_paths`).
 
     A refused file fails the flow run: :class:`~pipelines.ingest.FilesRefused` is raised
     after every file was tried, its message one line per refused file, ``.report`` the
     whole report (the other files landed).
     """
-    report = ingest_task(paths, DataRoot.resolve(data), hoists)
+    report = ingest_task(paths, DataRoot.resolve(data), hoists, complete)
     if not report.ok:
         raise FilesRefused(report)
     return report

@@ -130,8 +130,12 @@ def task_runner(*, max_workers: int = 2, dask: str | None = None) -> Any:
 
 
 @task(name="ingest-files", **TRANSIENT_OPTIONS)
-def ingest_task(paths: list[str], data: DataRoot, hoists: list[str] | None = None) -> IngestReport:
-    return ingest_paths(paths, data=data, hoist_lookup=hoist_lookup_from_files(hoists or []))
+def ingest_task(
+    paths: list[str], data: DataRoot, hoists: list[str] | None = None, complete: bool = False
+) -> IngestReport:
+    return ingest_paths(
+        paths, data=data, hoist_lookup=hoist_lookup_from_files(hoists or []), complete=complete
+    )
 
 
 @task(name="run-period", **TRANSIENT_OPTIONS)

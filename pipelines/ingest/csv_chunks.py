@@ -1,7 +1,9 @@
 """A CSV field log read in byte chunks that end at a newline (:func:`iter_chunks`).
 
 Memory stays bounded by ``batch_bytes`` however large the file; a last line without a
-newline is held back and said in :class:`ChunkProgress` (the file may still be growing).
+newline is held back and said in :class:`ChunkProgress` (the file may still be growing),
+unless the file is said to be complete (a finished export whose last row has no line
+end: ``ropeload ingest --complete``), when it is read as the last row.
 """
 
 from __future__ import annotations
@@ -28,9 +30,19 @@ class ChunkProgress:
 
 
 def iter_chunks(
-    path: Path, offset: int, line: int, batch_bytes: int, progress: ChunkProgress
+    path: Path,
+    offset: int,
+    line: int,
+    batch_bytes: int,
+    progress: ChunkProgress,
+    *,
+    complete: bool = False,
 ) -> Iterator[tuple[bytes, int, int]]:
     """``(chunk, first line number, lines in it)``; each chunk ends with a newline.
+
+    ``complete``: the file is finished, so a last line without a newline is its last
+    row: yielded as a chunk of its own with the newline added (``bytes_consumed`` then
+    counts the file's bytes, not the added one), not held back.
 
     A chunk is ``batch_bytes`` plus the rest of the line it ends in: a small probe at
     the nominal end finds that newline, then one ``read`` of exactly that length gives
@@ -59,10 +71,13 @@ def iter_chunks(
             progress.bytes_consumed += len(chunk)
             if carry:
                 break
-        if carry:
+        if carry and complete:
+            yield carry + b"\n", line, 1
+            progress.bytes_consumed += len(carry)
+        elif carry:
             progress.partial = (
                 f"line {line} is cut off ({len(carry)} bytes without a newline at the end): "
-                "held back until the file grows"
+                "held back until the file grows (a finished export: ingest --complete)"
             )
 
 

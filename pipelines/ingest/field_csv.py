@@ -76,8 +76,12 @@ def open_csv(
     start_line: int | None = None,
     batch_bytes: int = DEFAULT_BATCH_BYTES,
     start_clock: ClockState | None = None,
+    complete: bool = False,
 ) -> Reading:
     """Open a CSV field log; batches are produced lazily as ``Reading.batches`` is iterated.
+
+    ``complete``: the file is a finished export, its last line a row even without a line
+    end (:func:`.csv_chunks.iter_chunks`).
 
     ``start_offset``/``start_line`` (both or neither) resume after an already ingested
     prefix; they must point at the start of a line past the header. ``start_clock`` is
@@ -116,7 +120,8 @@ def open_csv(
     parser = _BatchParser(header, limits, progress.ambiguity, clock, repeated)
 
     def batches() -> Iterator[Batch]:
-        for chunk, first_line, n_lines in iter_chunks(path, offset, line, batch_bytes, progress):
+        chunks = iter_chunks(path, offset, line, batch_bytes, progress, complete=complete)
+        for chunk, first_line, n_lines in chunks:
             yield parser.parse(chunk, first_line, n_lines)
             reading.bytes_consumed = progress.bytes_consumed
         reading.bytes_consumed = progress.bytes_consumed

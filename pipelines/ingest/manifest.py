@@ -21,6 +21,7 @@ new file of a backfill keeps reading while it is hashed.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import hashlib
 from dataclasses import dataclass
@@ -87,6 +88,45 @@ def find_earlier(con: duckdb.DuckDBPyConnection, sha256: str) -> Earlier | None:
 def forget(con: duckdb.DuckDBPyConnection, sha256: str) -> None:
     """Delete the manifest row of ``sha256`` (a refusal about to be replaced)."""
     con.execute("DELETE FROM manifest WHERE source_sha256 = ?", [sha256])
+
+
+def partial_resume(con: duckdb.DuckDBPyConnection, sha256: str) -> Resume | None:
+    """Where the ``partial`` CSV row of ``sha256`` stopped: the same bytes read on, now
+    that the file is said to be finished (``ingest --complete``); None if there is none."""
+    rows = con.execute(
+        "SELECT source_sha256, size_bytes, bytes_consumed, clock_latest_utc, clock_step_line, "
+        "clock_step_s FROM manifest WHERE source_sha256 = ? AND format = 'csv' "
+        "AND status = 'partial' AND bytes_consumed IS NOT NULL",
+        [sha256],
+    ).fetchall()
+    return Resume(*rows[0]) if rows else None
+
+
+def with_earlier_counts(con: duckdb.DuckDBPyConnection, result: FileResult) -> FileResult:
+    """``result`` (the rest of a file read on from its ``partial`` row) with that row's
+    accounting added: the manifest's one row of the content counts the whole file."""
+    (row,) = con.execute(
+        "SELECT rows_read, rows_landed, rows_quarantined, rows_duplicate, "
+        "quarantined_by_reason, time_start_utc, time_end_utc FROM manifest "
+        "WHERE source_sha256 = ?",
+        [result.sha256],
+    ).fetchall()
+    read, landed, quarantined, duplicate, reasons, start, end = row
+    merged = dict(reasons or {})
+    for reason, count in result.quarantined_by_reason.items():
+        merged[reason] = merged.get(reason, 0) + count
+    times = [t for t in (start, result.time_start_utc) if t is not None]
+    ends = [t for t in (end, result.time_end_utc) if t is not None]
+    return dataclasses.replace(
+        result,
+        rows_read=read + result.rows_read,
+        rows_landed=landed + result.rows_landed,
+        rows_quarantined=quarantined + result.rows_quarantined,
+        rows_duplicate=duplicate + result.rows_duplicate,
+        quarantined_by_reason=merged,
+        time_start_utc=min(times) if times else None,
+        time_end_utc=max(ends) if ends else None,
+    )
 
 
 def size_seen(con: duckdb.DuckDBPyConnection, size: int) -> bool:

@@ -25,7 +25,9 @@ published every ``commit_every`` files):
    error.
 
 Crash in the middle: the lake may hold part of a file whose manifest row was never
-published. Re-ingesting it lands nothing twice: those rows are exact duplicates now.
+published. Re-ingesting it lands nothing twice, and the rows the crashed attempt left
+are counted as landed by the file (:mod:`.landing`: the same rows of the same
+``source_sha256``), not as duplicates.
 """
 
 from __future__ import annotations
@@ -54,10 +56,12 @@ from pipelines.ingest.manifest import (
     file_digests,
     find_earlier,
     forget,
+    partial_resume,
     record,
     record_alias,
     resume_candidates,
     size_seen,
+    with_earlier_counts,
 )
 from pipelines.ingest.quarantine import insert_quarantine
 from pipelines.ingest.report import FileResult, IngestReport
@@ -79,8 +83,14 @@ def ingest_paths(
     hoist_lookup: HoistLookup | None = None,
     batch_bytes: int = DEFAULT_BATCH_BYTES,
     commit_every: int = 20,
+    complete: bool = False,
 ) -> IngestReport:
     """Ingest files and folders (CSV, TDMS, MCAP in any mix) into ``data``.
+
+    ``complete``: the CSV files are finished exports: a last line without a line end is
+    their last row, not a line still being written (held back, the file ``partial``
+    until it grows). A file an earlier ingest left ``partial`` that has not grown since
+    is then read on from where it stopped.
 
     ``hoist_lookup(site, hoist)`` may return the hoist description of a field log, used
     for the depth-in-shaft check (:func:`.field_checks.hoist_lookup_from_files`); a file
@@ -94,7 +104,9 @@ def ingest_paths(
         with open_writer(data) as con:
             lakes: dict[str, LakeTable] = {}
             for path in files[start : start + max(commit_every, 1)]:
-                result, earlier = _ingest_file(path, con, data, lakes, hoist_lookup, batch_bytes)
+                result, earlier = _ingest_file(
+                    path, con, data, lakes, hoist_lookup, batch_bytes, complete
+                )
                 if result.status != "skipped" and result.sha256:
                     _record(con, result, earlier)
                 elif earlier is not None and earlier.path != str(path):
@@ -123,7 +135,8 @@ def _log_file(result: FileResult) -> None:
 def _record(con: duckdb.DuckDBPyConnection, result: FileResult, earlier: Earlier | None) -> None:
     """The manifest row of ``result``, replacing an earlier refusal of the same content."""
     if earlier is not None:
-        if earlier.status != "refused":
+        finished = earlier.status == "partial" and earlier.format == result.format
+        if earlier.status != "refused" and not finished:
             # the same bytes were landed as another format (one row per content): keep
             # that row; this file's outcome is in the report only
             note = (
@@ -132,6 +145,8 @@ def _record(con: duckdb.DuckDBPyConnection, result: FileResult, earlier: Earlier
             )
             result.message = "; ".join(m for m in (result.message, note) if m)
             return
+        if finished:  # read on from its partial row: one row counts the whole file
+            result = with_earlier_counts(con, result)
         forget(con, result.sha256)
     record(con, result)
 
@@ -143,6 +158,7 @@ def _ingest_file(
     lakes: dict[str, LakeTable],
     hoist_lookup: HoistLookup | None,
     batch_bytes: int,
+    complete: bool = False,
 ) -> tuple[FileResult, Earlier | None]:
     """The outcome of one file, and the manifest row of its content if there was one."""
     if not path.is_file():
@@ -174,19 +190,26 @@ def _ingest_file(
             # certainly new content (no manifest row of this size) and no earlier
             # partial version to resume from: read the header and the first batch
             # while the file is hashed
-            started = _start_csv(path, hoist_lookup, batch_bytes)
+            started = _start_csv(path, hoist_lookup, batch_bytes, complete)
         sha256, prefixes = digests.result()
     result = FileResult(path, sha256, fmt, "landed", size_bytes=size)
     earlier = find_earlier(con, sha256)
-    if earlier is not None and earlier.status != "refused" and earlier.format == fmt:
+    resume = None
+    if complete and earlier is not None and earlier.status == "partial" and fmt == "csv":
+        resume = partial_resume(con, sha256)  # the same bytes, now said to be finished
+    if (
+        earlier is not None
+        and earlier.status != "refused"
+        and earlier.format == fmt
+        and resume is None
+    ):
         if started is not None:
             started.close()
         result.status = "skipped"
         same = "this name" if earlier.path == str(path) else earlier.path
         result.message = f"already ingested ({earlier.status}) as {same}; nothing to do"
         return result, earlier
-    resume = None
-    for candidate in reversed(candidates):  # the longest prefix first
+    for candidate in reversed(candidates if resume is None else []):  # the longest first
         if prefixes.get(candidate.size_bytes) == candidate.sha256:
             resume = candidate
             break
@@ -194,7 +217,7 @@ def _ingest_file(
         if started is not None:
             reading = started.reading_or_raise()
         else:
-            reading = _open(path, fmt, hoist_lookup, batch_bytes, resume, notes)
+            reading = _open(path, fmt, hoist_lookup, batch_bytes, resume, notes, complete)
         result.site, result.hoist = reading.site, reading.hoist
         _land_all(reading, result, con, data, lakes)
     except RefusedFile as exc:
@@ -282,9 +305,13 @@ class _Started:
                 close()
 
 
-def _start_csv(path: Path, hoist_lookup: HoistLookup | None, batch_bytes: int) -> _Started:
+def _start_csv(
+    path: Path, hoist_lookup: HoistLookup | None, batch_bytes: int, complete: bool = False
+) -> _Started:
     try:
-        reading = open_csv(path, hoist_lookup=hoist_lookup, batch_bytes=batch_bytes)
+        reading = open_csv(
+            path, hoist_lookup=hoist_lookup, batch_bytes=batch_bytes, complete=complete
+        )
         return _Started(reading, next(reading.batches, None))
     except (Exception, PanicException) as exc:  # judged inside the file's guard
         return _Started(refusal=exc)
@@ -297,6 +324,7 @@ def _open(
     batch_bytes: int,
     resume,
     notes: list[str],
+    complete: bool = False,
 ) -> Reading:
     if fmt == "csv":
         if resume is not None:
@@ -313,8 +341,9 @@ def _open(
                 start_line=line,
                 batch_bytes=batch_bytes,
                 start_clock=resume.clock,
+                complete=complete,
             )
-        return open_csv(path, hoist_lookup=hoist_lookup, batch_bytes=batch_bytes)
+        return open_csv(path, hoist_lookup=hoist_lookup, batch_bytes=batch_bytes, complete=complete)
     if fmt == "tdms":
         from pipelines.ingest.field_tdms import open_tdms
 

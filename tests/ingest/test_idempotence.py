@@ -399,3 +399,33 @@ def test_a_file_whose_ingest_was_killed_before_its_manifest_row_counts_its_rows_
         ).fetchone()
         (manifest,) = con.execute("SELECT rows_landed FROM manifest").fetchone()
     assert (quarantined, manifest) == (1, 39)
+
+
+def test_a_finished_export_without_a_last_line_end_lands_its_last_row_when_said_complete(
+    corpus, tmp_path, root
+):
+    """A last line without a line end may be a row still being written: held back, the
+    file ``partial``, until it grows. A finished export that simply ends without one
+    would never land that row; ``complete`` says the file is finished: the row lands,
+    whether the file is new or was left partial before (then read on from where it
+    stopped, the manifest's one row counting the whole file)."""
+    path = corpus.csv_file(tmp_path / "export.csv", corpus.data_rows(10))
+    path.write_bytes(path.read_bytes().rstrip(b"\r\n"))
+    held = ingest_paths([path], data=root).files[0]
+    assert (held.status, held.rows_read, held.rows_landed) == ("partial", 9, 9)
+    assert "held back until the file grows" in held.message
+    assert "--complete" in held.message
+    finished = ingest_paths([path], data=root, complete=True).files[0]
+    assert (finished.status, finished.rows_read, finished.rows_landed) == ("landed", 1, 1)
+    assert _lake_checksum(root)[0] == 10
+    with open_reader(root) as con:
+        rows = con.execute(
+            "SELECT status, rows_read, rows_landed, bytes_consumed, size_bytes FROM manifest"
+        ).fetchall()
+    assert rows == [("landed", 10, 10, path.stat().st_size, path.stat().st_size)]
+    again = ingest_paths([path], data=root, complete=True).files[0]
+    assert again.status == "skipped"
+    fresh = DataRoot.resolve(tmp_path / "fresh")
+    new = ingest_paths([path], data=fresh, complete=True).files[0]
+    assert (new.status, new.rows_read, new.rows_landed) == ("landed", 10, 10)
+    assert _lake_checksum(fresh) == _lake_checksum(root)

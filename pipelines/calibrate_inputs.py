@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import datetime as dt
 import json
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,6 +19,7 @@ import numpy as np
 import polars as pl
 
 from physics.tension import annulus_area_m2, bore_area_m2
+from pipelines.ingest.rig_mcap import rig_geometry_problem
 from pipelines.lake import lake_partitions, scan_lake
 from schemas.names import name_problem
 from warehouse.store import DataRoot
@@ -109,13 +109,7 @@ def read_rig_info(path: str | Path) -> RigInfo:
     except (KeyError, TypeError, ValueError) as exc:
         raise CalibrationError(f"{path}: /rig/info is missing or has a bad field ({exc})") from None
     # the force balance divides by the bore area and needs a positive annulus
-    problem = None
-    if not (math.isfinite(bore_mm) and bore_mm > 0):
-        problem = f"bore_mm {bore_mm!r}: not a positive finite number"
-    elif not (math.isfinite(rod_mm) and 0 <= rod_mm < bore_mm):
-        problem = f"rod_mm {rod_mm!r}: not at least 0 and below bore_mm {bore_mm!r}"
-    elif not (math.isfinite(mass_kg) and mass_kg >= 0):
-        problem = f"moving_mass_kg {mass_kg!r}: not a non-negative finite number"
+    problem = rig_geometry_problem(bore_mm, rod_mm, mass_kg)
     if problem is not None:
         raise CalibrationError(f"{path}: topic /rig/info: {problem}")
     return info

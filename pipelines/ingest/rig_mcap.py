@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+import math
 from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
@@ -246,7 +247,7 @@ def _typed(value: Any, dtype: pl.DataType) -> Any:
 
 def _reading(path: Path, collected: _Collected, partial: str | None) -> Reading:
     decoded = {t: _decode(t, collected.times[t], collected.payloads[t]) for t in KNOWN_TOPICS}
-    rig_id = _rig_id(path, decoded["/rig/info"][0])
+    rig_id = _rig_id(path, *decoded["/rig/info"])
     pressure, rejected_p = decoded["/rig/pressure"]
     aligned = _aligned(_screened_pressure(pressure), decoded).with_columns(
         pl.lit(rig_id).alias("rig_id")
@@ -272,6 +273,11 @@ def _reading(path: Path, collected: _Collected, partial: str | None) -> Reading:
             *(decoded[t][1] for t in KNOWN_TOPICS if t != "/rig/pressure"),
         ]
     )
+    notes = _notes(collected, rejected)
+    info = decoded["/rig/info"][0].row(0, named=True)
+    problem = rig_geometry_problem(info["bore_mm"], info["rod_mm"], info["moving_mass_kg"])
+    if problem is not None:
+        notes.append(f"topic /rig/info: {problem}: ropeload calibrate will refuse this recording")
     names = [f.name for f in RIG_SAMPLES if f.name != "source_sha256"]
     good = aligned.filter(pl.col("_reason").is_null()).select(*names, "_row")
     return Reading(
@@ -279,15 +285,37 @@ def _reading(path: Path, collected: _Collected, partial: str | None) -> Reading:
         site="rig",
         hoist=rig_id,
         batches=iter([Batch(samples=good, rejected=rejected, raw_of=raw_of)]),
-        notes=_notes(collected, rejected),
+        notes=notes,
         partial=partial,
     )
 
 
-def _rig_id(path: Path, info: pl.DataFrame) -> str:
-    """The rig id of the first valid ``/rig/info`` message (refused when none or unsafe)."""
+def rig_geometry_problem(bore_mm: float, rod_mm: float, moving_mass_kg: float) -> str | None:
+    """What makes a rig's ``/rig/info`` geometry unusable for the friction fit (the force
+    balance divides by the bore's area and needs a positive annulus), or None. Ingest
+    says it (the samples land, they are measurements); ``ropeload calibrate`` refuses
+    such a recording (:func:`pipelines.calibrate_inputs.read_rig_info`).
+
+    >>> rig_geometry_problem(100.0, 60.0, 25.0) is None
+    True
+    >>> rig_geometry_problem(100.0, 120.0, 25.0)
+    'rod_mm 120.0: not at least 0 and below bore_mm 100.0'
+    """
+    if not (math.isfinite(bore_mm) and bore_mm > 0):
+        return f"bore_mm {bore_mm!r}: not a positive finite number"
+    if not (math.isfinite(rod_mm) and 0 <= rod_mm < bore_mm):
+        return f"rod_mm {rod_mm!r}: not at least 0 and below bore_mm {bore_mm!r}"
+    if not (math.isfinite(moving_mass_kg) and moving_mass_kg >= 0):
+        return f"moving_mass_kg {moving_mass_kg!r}: not a non-negative finite number"
+    return None
+
+
+def _rig_id(path: Path, info: pl.DataFrame, rejected: pl.DataFrame) -> str:
+    """The rig id of the first valid ``/rig/info`` message (refused when none or unsafe;
+    the first invalid one's reason said)."""
     if info.height == 0:
-        raise RefusedFile(f"{path}: topic /rig/info: no valid message, so no rig_id")
+        why = f" ({rejected['reason'][0]})" if rejected.height else ""
+        raise RefusedFile(f"{path}: topic /rig/info: no valid message, so no rig_id{why}")
     try:  # the rig id becomes a lake folder (hoist=<rig_id>): a safe name only
         return safe_name(info["rig_id"][0], key="rig_id", source=f"{path}: topic /rig/info")
     except UnsafeNameError as exc:

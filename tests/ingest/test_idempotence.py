@@ -235,6 +235,22 @@ def test_unknown_topic_is_ignored_and_named(corpus, tmp_path, root):
     assert file.rows_landed == 2000
 
 
+def test_a_rig_geometry_calibrate_refuses_is_said_by_ingest(corpus, tmp_path, root):
+    """The samples of a recording whose ``/rig/info`` gives a rod wider than the bore
+    land (they are measurements), and ingest says what ``ropeload calibrate`` will
+    refuse; a ``/rig/info`` without its bore refuses the file, naming the field."""
+    path = corpus.mcap_file(tmp_path / "rod.mcap", info={"rod_mm": 200})
+    (file,) = ingest_paths([path], data=root).files
+    assert (file.status, file.rows_landed) == ("landed", 2000)
+    assert "topic /rig/info: rod_mm 200.0: not at least 0 and below bore_mm 100.0" in file.message
+    assert "calibrate will refuse" in file.message
+    path = corpus.mcap_file(tmp_path / "nobore.mcap", info={"bore_mm": None})
+    (file,) = ingest_paths([path], data=root).files
+    assert file.status == "refused"
+    assert "topic /rig/info: no valid message, so no rig_id" in file.message
+    assert "missing or invalid bore_mm" in file.message
+
+
 def test_non_jsonschema_topic_refuses_the_file(corpus, tmp_path, root):
     path = corpus.mcap_file(tmp_path / "proto.mcap", bad_encoding_topic="/rig/displacement")
     (file,) = ingest_paths([path], data=root).files

@@ -185,9 +185,11 @@ def mcap_file(
     nan_displacements: int = 0,
     truncate_fraction: float | None = None,
     chunk_size: int = 16 * 1024,
+    info: dict | None = None,
 ) -> Path:
     """A contract-3 rig recording: info, pressure 1 kHz, displacement 500 Hz, temp 1 Hz,
-    steps every 0.5 s. Options make it defective."""
+    steps every 0.5 s. Options make it defective (``info``: ``/rig/info`` fields changed,
+    a value None leaves the field out)."""
     with path.open("wb") as handle:
         writer = Writer(handle, chunk_size=chunk_size)
         writer.start(profile="", library="ropeload-tests")
@@ -210,18 +212,16 @@ def mcap_file(
             data = json.dumps(payload).encode()
             writer.add_message(ids[topic], log_time=t_ns, data=data, publish_time=t_ns)
 
-        put(
-            "/rig/info",
-            start_ns,
-            {
-                "rig_id": rig_id,
-                "bore_mm": 100,
-                "rod_mm": 60,
-                "stroke_mm": 400,
-                "moving_mass_kg": 12.5,
-                "oil": "L-HM46",
-            },
-        )
+        described = {
+            "rig_id": rig_id,
+            "bore_mm": 100,
+            "rod_mm": 60,
+            "stroke_mm": 400,
+            "moving_mass_kg": 12.5,
+            "oil": "L-HM46",
+            **(info or {}),
+        }
+        put("/rig/info", start_ns, {k: v for k, v in described.items() if v is not None})
         n = int(seconds * 1000)
         for i in range(n):
             t = start_ns + i * 1_000_000

@@ -10,6 +10,7 @@ import argparse
 import datetime as dt
 import math
 from pathlib import Path
+from typing import NoReturn
 
 from pipelines.cli_commands import (
     cmd_backfill,
@@ -302,12 +303,22 @@ def _add_paper_command(commands) -> None:
     paper.set_defaults(handler=cmd_paper)
 
 
+class _OneLineParser(argparse.ArgumentParser):
+    """A usage error is one line on stderr, ``ropeload <command>: <reason> (see
+    --help)``, status 2: argparse prints the whole usage block before it."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: {message} (see --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _OneLineParser(
         prog="ropeload",
         description="Rope tensions and hoist loads from hydraulic rope-attachment pressures.",
     )
-    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    commands = parser.add_subparsers(
+        dest="command", required=True, metavar="COMMAND", parser_class=_OneLineParser
+    )
 
     demo = commands.add_parser(
         "demo", help="the whole job on built-in synthetic data, nothing to configure"

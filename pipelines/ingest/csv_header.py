@@ -140,12 +140,21 @@ def _same_clock(zone: str, other: str) -> bool:
     return all(t.astimezone(a).utcoffset() == t.astimezone(b).utcoffset() for t in instants)
 
 
+#: The magic bytes of compressed files a CSV export may come as, and their names.
+_COMPRESSED = {b"\x1f\x8b": "gzip", b"PK": "zip", b"BZ": "bzip2", b"\xfd7": "xz"}
+
+
 def read_header(path: Path) -> CsvHeader:
     """Parse the header of ``path``; raise :class:`RefusedFile` naming file and line."""
     with path.open("rb") as handle:
         head = handle.read(_HEADER_LIMIT)
     if not head:
         raise RefusedFile(f"{path}: empty file (0 bytes)")
+    if head[:2] in _COMPRESSED:
+        raise RefusedFile(
+            f"{path}: compressed ({_COMPRESSED[head[:2]]}), not a text log: decompress it "
+            "first and ingest the CSV"
+        )
     return parse_header(path, head)
 
 

@@ -162,7 +162,8 @@ def _ingest_file(
 ) -> tuple[FileResult, Earlier | None]:
     """The outcome of one file, and the manifest row of its content if there was one."""
     if not path.is_file():
-        return FileResult(path, "", "unknown", "refused", message=f"{path}: no such file"), None
+        what = "not a regular file" if path.exists() else "no such file"
+        return FileResult(path, "", "unknown", "refused", message=f"{path}: {what}"), None
     undecodable = _undecodable_name(path)
     if undecodable is not None:
         # not recorded (no sha256): the manifest holds paths as UTF-8 text

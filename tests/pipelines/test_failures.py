@@ -9,6 +9,7 @@ Real commands, real processes, real signals.
 
 from __future__ import annotations
 
+import gzip
 import itertools
 import os
 import resource
@@ -799,3 +800,37 @@ def test_a_signal_duckdb_wraps_in_its_own_error_still_ends_the_command_as_interr
         timer.join()
     err = capsys.readouterr().err
     assert (status, err) == (143, "ropeload ingest: interrupted (SIGTERM)\n")
+
+
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["run", "--hoist"], "ropeload run: argument --hoist: expected one argument (see --help)"),
+        (["frobnicate"], "ropeload: argument COMMAND: invalid choice: 'frobnicate'"),
+    ],
+)
+def test_a_usage_error_is_one_line(argv, said, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2
+    assert err.count("\n") == 1 and err.startswith(said), err
+
+
+def test_inputs_that_are_no_log_say_what_they_are(tmp_path, capsys):
+    """A device is not a missing file; a compressed export says to decompress it; a data
+    root the system will not make (under /proc) says it is the data root."""
+    gz = tmp_path / "day.csv.gz"
+    with gzip.open(gz, "wb") as handle:
+        handle.write(b"# site: s\n# hoist: h\n# units: p=MPa\ntimestamp,p1,p2,p3,p4\n")
+    assert main(["ingest", "--data", str(tmp_path / "data"), "/dev/null", str(gz)]) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert err == [
+        "ropeload ingest: /dev/null: not a regular file",
+        f"ropeload ingest: {gz}: compressed (gzip), not a text log: decompress it first and "
+        "ingest the CSV",
+    ]
+    if Path("/proc/self").is_dir():
+        assert main(["ingest", "--data", "/proc/ropeload-x", str(gz)]) == 1
+        (line,) = capsys.readouterr().err.splitlines()
+        assert line.startswith("ropeload ingest: data root /proc/ropeload-x (--data) cannot be")

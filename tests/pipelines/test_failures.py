@@ -814,7 +814,8 @@ def test_a_usage_error_is_one_line(argv, said, capsys):
         main(argv)
     err = capsys.readouterr().err
     assert exit_info.value.code == 2
-    assert err.count("\n") == 1 and err.startswith(said), err
+    assert err.count("\n") == 1, err
+    assert err.startswith(said), err
 
 
 def test_inputs_that_are_no_log_say_what_they_are(tmp_path, capsys):

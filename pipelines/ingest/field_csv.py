@@ -461,9 +461,6 @@ class _BatchParser:
             if typed:
                 casts.append(source.alias(channel.column))
                 continue
-            # blanks around a number (" 4.8 ": an export padding its columns) are not
-            # part of it
-            source = source.str.strip_chars(" \t")
             if self.header.decimal_comma:
                 source = source.str.replace(",", ".", literal=True)
             casts.append(source.cast(pl.Float64, strict=False).alias(channel.column))

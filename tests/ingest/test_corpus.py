@@ -305,14 +305,6 @@ def case_hoist_stated_twice_with_two_values(corpus, tmp):
     )  # fmt: skip
 
 
-def case_numbers_padded_with_blanks(corpus, tmp):
-    # an export padding its columns: " 4.8 " is the number 4.8, not unparsable
-    rows = corpus.data_rows(5)
-    for row in rows:
-        row[1:] = [f" {v} " for v in row[1:]]
-    return corpus.csv_file(tmp / "padded.csv", rows), Expect("landed", 5, 5)
-
-
 def case_a_unit_stated_twice_with_two_units(corpus, tmp):
     # the units of two exports pasted into one line: the pressures' scale is not said
     # (read as the last, bar for MPa, every pressure was 10 x off and landed)

@@ -124,11 +124,20 @@ def _data_root_problem(args: argparse.Namespace) -> str | None:
     if writes and not os.access(existing, os.W_OK | os.X_OK):
         why = _why_not_writable(existing)
         return f"{what} cannot be created: {existing} is not writable ({why})"
-    if writes:  # made now (the command would), so that a path the system refuses says so
-        try:  # (/proc/x: writable by its bits, no folder can be made there)
-            path.mkdir(parents=True, exist_ok=True)
+    if writes:  # tried, and undone: a path the system refuses says so now (/proc/x:
+        # writable by its bits, no folder can be made there), and a command that then
+        # fails leaves no empty data root behind
+        made = []
+        try:
+            for folder in reversed([path, *path.parents]):
+                if not os.path.lexists(folder):
+                    folder.mkdir()
+                    made.append(folder)
         except OSError as exc:
             return f"{what} cannot be created: {exc.strerror or type(exc).__name__}"
+        finally:
+            for folder in reversed(made):
+                folder.rmdir()
     return None
 
 

@@ -175,12 +175,12 @@ def terminate_on_signals() -> Iterator[None]:
     ``atexit`` (Prefect's temporary server then outlives the command). Outside the
     main thread this does nothing.
     """
+    _received.clear()  # an earlier command of this process was another
     import threading
 
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    _received.clear()
     saved = {s: signal.signal(s, _raise_terminated) for s in (signal.SIGTERM, signal.SIGHUP)}
     try:
         yield

@@ -141,7 +141,13 @@ def _same_clock(zone: str, other: str) -> bool:
 
 
 #: The magic bytes of compressed files a CSV export may come as, and their names.
-_COMPRESSED = {b"\x1f\x8b": "gzip", b"PK": "zip", b"BZ": "bzip2", b"\xfd7": "xz"}
+_COMPRESSED = {
+    b"\x1f\x8b": "gzip",
+    b"PK\x03\x04": "zip",
+    b"BZh": "bzip2",
+    b"\xfd7zXZ\x00": "xz",
+    b"(\xb5/\xfd": "zstd",
+}
 
 
 def read_header(path: Path) -> CsvHeader:
@@ -150,10 +156,10 @@ def read_header(path: Path) -> CsvHeader:
         head = handle.read(_HEADER_LIMIT)
     if not head:
         raise RefusedFile(f"{path}: empty file (0 bytes)")
-    if head[:2] in _COMPRESSED:
+    kind = next((k for magic, k in _COMPRESSED.items() if head.startswith(magic)), None)
+    if kind is not None:
         raise RefusedFile(
-            f"{path}: compressed ({_COMPRESSED[head[:2]]}), not a text log: decompress it "
-            "first and ingest the CSV"
+            f"{path}: compressed ({kind}), not a text log: decompress it first and ingest the CSV"
         )
     return parse_header(path, head)
 
@@ -384,7 +390,7 @@ def _units(
         if not eq:
             raise RefusedFile(f"{path}: line {line}: units item {item.strip()!r} is not key=unit")
         key, unit = key.strip().lower(), unit.strip()
-        if key in given and not _same(given[key], unit):
+        if key in given and given[key] != unit:  # exactly: mPa is not MPa
             raise RefusedFile(
                 f"{path}: line {line}: units: {key!r} stated twice ({given[key]!r} and "
                 f"{unit!r}); which one holds?"

@@ -147,10 +147,13 @@ class LakeTable:
         ]
         if not overlapping:
             return part
+        lines = "source_line" in self.schema.names and "source_line" in part.columns
+        lineage = [pl.col("source_sha256").alias("_landed_sha")]
+        lineage += [pl.col("source_line").alias("_landed_line")] if lines else []
         landed = (
             pl.scan_parquet(overlapping, hive_partitioning=False)
             .filter(pl.col("time_utc").is_between(low, high))
-            .select("time_utc", *self.values, pl.col("source_sha256").alias("_landed_sha"))
+            .select("time_utc", *self.values, *lineage)
             .collect()
         )
         if landed.height == 0:
@@ -159,14 +162,17 @@ class LakeTable:
         if matched.height == 0:
             return part
         same = pl.all_horizontal(pl.col(c).eq_missing(pl.col(f"{c}__landed")) for c in self.values)
-        # the same rows of the same file: landed by an attempt at this file that ended
-        # (killed) before its manifest row was written; they are this file's, not
-        # duplicates of another's (the manifest then counts what the file landed)
+        # the same rows of the same file at the same line: landed by an attempt at this
+        # file that ended (killed) before its manifest row was written; they are this
+        # file's, not duplicates of another's (the manifest then counts what the file
+        # landed). A row repeating an earlier line of the file is a duplicate still.
         own = (
             pl.col("_landed_sha") == pl.col("source_sha256")
             if "source_sha256" in part.columns
             else pl.lit(False)
         )
+        if lines:
+            own = own & pl.col("_landed_line").eq_missing(pl.col("source_line"))
         flags = matched.select("_row", same.alias("_same"), (same & own).alias("_own"))
         result.landed += int(flags["_own"].sum())
         result.duplicate += int((flags["_same"] & ~flags["_own"]).sum())

@@ -46,6 +46,7 @@ import duckdb
 import polars as pl
 from polars.exceptions import PanicException
 
+from pipelines.exits import received_signal
 from pipelines.ingest.batch import Batch, Reading, RefusedFile
 from pipelines.ingest.csv_scan import warm_up_in_background
 from pipelines.ingest.field_checks import REASON_CONFLICT, ForeignHoistError, HoistLookup
@@ -228,13 +229,16 @@ def _ingest_file(
     except (OSError, duckdb.Error):
         raise  # the data root's own trouble (disk, warehouse): not this file's
     except (Exception, PanicException) as exc:  # a reader's parse error the checks did
+        if received_signal() is not None:  # a signal a library wrapped: the command's end
+            raise
         # not foresee (a bug too; a panic in polars' Rust is a BaseException, caught by
         # name so that a cancellation's signal still ends the run): this file's
         logger.debug("reading %s failed", path, exc_info=True)
         first = (str(exc).splitlines() or [""])[0][:200]
         what = f"{path}: unreadable ({type(exc).__name__}: {first})"
         # refused, so that the next ingest tries it again (what landed before the error
-        # stays landed and counted, and is then an exact duplicate)
+        # stays landed and counted, and is then counted as this file's when it is
+        # read again: :mod:`.landing`)
         result.status = "refused"
         result.message = what + (
             f"; stopped after {result.rows_read} rows" if result.rows_read else ""
@@ -329,16 +333,28 @@ def _open(
 ) -> Reading:
     if fmt == "csv":
         if resume is not None:
+            start = resume.bytes_consumed
             with path.open("rb") as handle:
-                line = 1 + _count_newlines(handle, resume.bytes_consumed)
+                line = 1 + _count_newlines(handle, start)
+                handle.seek(max(start - 1, 0))
+                if start > 0 and handle.read(1) != b"\n":
+                    # the earlier version ended without a line end and its last line was
+                    # read as a row (ingest --complete): what follows up to the next line
+                    # end continues that row, landed already
+                    tail = _through_line_end(handle)
+                    notes.append(
+                        f"bytes {start}-{start + tail} continue line {line}, which an "
+                        "ingest --complete read as the file's last row: not read again"
+                    )
+                    start, line = start + tail, line + 1
             notes.append(
-                f"resumed at byte {resume.bytes_consumed} (line {line}) after the earlier "
+                f"resumed at byte {start} (line {line}) after the earlier "
                 f"version {resume.sha256[:12]}"
             )
             return open_csv(
                 path,
                 hoist_lookup=hoist_lookup,
-                start_offset=resume.bytes_consumed,
+                start_offset=start,
                 start_line=line,
                 batch_bytes=batch_bytes,
                 start_clock=resume.clock,
@@ -352,6 +368,17 @@ def _open(
     from pipelines.ingest.rig_mcap import open_mcap
 
     return open_mcap(path)
+
+
+def _through_line_end(handle) -> int:
+    """Bytes from the handle's position through the next newline (to the end if none)."""
+    count = 0
+    while block := handle.read(1 << 16):
+        found = block.find(b"\n")
+        if found >= 0:
+            return count + found + 1
+        count += len(block)
+    return count
 
 
 def _count_newlines(handle, limit: int) -> int:

@@ -445,3 +445,40 @@ def test_a_finished_export_without_a_last_line_end_lands_its_last_row_when_said_
     new = ingest_paths([path], data=fresh, complete=True).files[0]
     assert (new.status, new.rows_read, new.rows_landed) == ("landed", 10, 10)
     assert _lake_checksum(fresh) == _lake_checksum(root)
+
+
+def test_a_row_a_file_repeats_is_its_duplicate_across_batches(corpus, tmp_path, root):
+    """Every row written twice, read in small batches: a repeat landed by an earlier
+    batch of the same file is a duplicate, not a row the file landed again (the killed
+    attempt's rows are the same file's at the same line, a repeat is at another)."""
+    rows = corpus.data_rows(100)
+    path = corpus.csv_file(tmp_path / "twice.csv", [r for row in rows for r in (row, row)])
+    (file,) = ingest_paths([path], data=root, batch_bytes=1024).files
+    counts = (file.rows_read, file.rows_landed, file.rows_duplicate, file.rows_quarantined)
+    assert counts == (200, 100, 100, 0)
+    assert _lake_checksum(root)[0] == 100
+
+
+def test_a_complete_file_that_grows_after_all_skips_the_rest_of_its_last_row(
+    corpus, tmp_path, root
+):
+    """Said complete, a file's last line without a line end landed as a row; if the
+    logger then writes the rest of that line and more rows, the rest is not read as a
+    row of its own (it would be a fragment, quarantined), the rows after it land."""
+    rows = corpus.data_rows(12)
+    path = corpus.csv_file(tmp_path / "log.csv", rows)
+    text = path.read_bytes()
+    cut = text.rindex(b"\n", 0, len(text) - 1)  # the start of the last line
+    last = text[cut + 1 :]  # the last line, its line end included
+    cut_at = cut + 1 + len(last) // 2
+    path.write_bytes(text[:cut_at])
+    first = ingest_paths([path], data=root, complete=True).files[0]
+    assert (first.status, first.rows_read, first.rows_quarantined) == ("landed", 12, 1)
+    more = corpus.csv_file(tmp_path / "more.csv", corpus.data_rows(15)[12:])
+    added = more.read_bytes().split(b"\n", maxsplit=0)[0]
+    header_end = added.index(b"\ntimestamp")
+    body = added[added.index(b"\n", header_end + 1) + 1 :]
+    path.write_bytes(text[:cut_at] + text[cut_at:] + body)
+    grown = ingest_paths([path], data=root).files[0]
+    assert (grown.rows_read, grown.rows_landed, grown.rows_quarantined) == (3, 3, 0)
+    assert "which an ingest --complete read as the file's last row" in grown.message

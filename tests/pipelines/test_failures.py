@@ -835,3 +835,12 @@ def test_inputs_that_are_no_log_say_what_they_are(tmp_path, capsys):
         assert main(["ingest", "--data", "/proc/ropeload-x", str(gz)]) == 1
         (line,) = capsys.readouterr().err.splitlines()
         assert line.startswith("ropeload ingest: data root /proc/ropeload-x (--data) cannot be")
+
+
+def test_a_command_that_fails_leaves_no_empty_data_root_behind(tmp_path, capsys):
+    """The data root's check tries to make it (so that one the system refuses says so)
+    and undoes that: a run refused for its hoist file leaves no folder."""
+    data = tmp_path / "new" / "root"
+    assert main(["run", "--data", str(data), "--hoist", str(tmp_path / "none.toml")]) == 1
+    assert "none.toml" in capsys.readouterr().err
+    assert not (tmp_path / "new").exists()

@@ -193,7 +193,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     from warehouse.lock import INVOCATION_ENV, lock_timeout_s
 
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # said by the command, as every other usage error is
+        sys.stderr.write(
+            f"ropeload {args.command}: unrecognized arguments: {' '.join(extra)} (see --help)\n"
+        )
+        return 2
     if getattr(args, "prefect", False):
         _quiet_user_errors_in_flow_logs()
     configure_logging(getattr(args, "log_level", None))  # stderr; stdout: the result

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import polars as pl
 
+from pipelines.ingest.field_checks import depth_misfit
 from pipelines.lake import as_utc, scan_lake
 from pipelines.provenance import hoist_run, new_run_id, utc_now
 from pipelines.run_blocks import (
@@ -39,6 +40,7 @@ from warehouse.store import DataRoot, open_writer
 __all__ = [
     "LEAD_IN",
     "CheckedRun",
+    "DescriptionMisfitError",
     "NoSamplesError",
     "RunResult",
     "check_period",
@@ -68,6 +70,11 @@ def check_period(start: dt.datetime | None, end: dt.datetime | None) -> None:
             f"the period is empty: --to {end:%Y-%m-%d %H:%M:%S} UTC is not after "
             f"--from {start:%Y-%m-%d %H:%M:%S} UTC"
         )
+
+
+class DescriptionMisfitError(ValueError):
+    """The hoist description does not fit the landed record (its shaft and the logged
+    depth): a user error, one line (:func:`pipelines.ingest.field_checks.depth_misfit`)."""
 
 
 class NoSamplesError(LookupError):
@@ -179,6 +186,12 @@ def run_period(
     extent = period_extent(samples.scan(scan_start, end), start, end)
     if extent is None:
         raise NoSamplesError(_no_samples_message(data, samples.site, samples.hoist, start, end))
+    misfit = depth_misfit(samples.scan(scan_start, end), hoist)
+    if misfit is not None:
+        raise DescriptionMisfitError(
+            f"{hoist_path}: {misfit}: is it this hoist's description? (the run would read "
+            "those depths as not logged)"
+        )
     run_id = new_run_id(command)
     logger.info(
         "run %s: %s/%s %s .. %s UTC, %d samples (and %d of lead-in), blocks of %s",

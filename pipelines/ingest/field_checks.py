@@ -61,6 +61,7 @@ __all__ = [
     "FieldLimits",
     "ForeignHoistError",
     "HoistLookup",
+    "depth_misfit",
     "field_limits",
     "hoist_lookup_from_files",
     "physical_reason",
@@ -235,6 +236,49 @@ def unknown_beyond_limits(columns: Sequence[str], limits: FieldLimits) -> list[p
         pl.when(outside).then(None).otherwise(pl.col(c)).alias(c)
         for c, outside in _beyond_limits(columns, limits).items()
     ]
+
+
+#: A record whose landed depth lies outside the described shaft for more than this share
+#: of its samples (and :data:`DEPTH_MISFIT_MIN_SAMPLES`) is not this description's: a
+#: logger's glitch is a sample or a few, while a shaft described too short puts every
+#: visit to the deep positions outside it (a probe's 400 m shaft for a 620 m one: 18 %).
+DEPTH_MISFIT_SHARE = 0.01
+DEPTH_MISFIT_MIN_SAMPLES = 100
+
+
+def depth_misfit(samples: pl.LazyFrame, hoist: HoistDescription) -> str | None:
+    """Why the landed depth of ``samples`` does not fit the ``hoist``'s shaft, or None.
+
+    A run reads a depth outside the shaft as not logged (:func:`within_limits`); where
+    that is most of a stop's samples, the trips end where the depth leaves the shaft,
+    the stops lose their positions and the payloads come out wrong with nothing said (a
+    probe: 4.9 t for 2.2 t). So the run is refused instead, naming the key.
+
+    >>> from schemas.hoist import EXAMPLE_HOIST, load_hoist
+    >>> hoist = load_hoist(EXAMPLE_HOIST)  # a shaft of 620 m
+    >>> depth_misfit(pl.LazyFrame({"depth_m": [10.0] * 800 + [900.0] * 200}), hoist)
+    'shaft.depth 620 m: 200 of 1000 landed samples have a depth outside it (down to 900.0 m)'
+    >>> depth_misfit(pl.LazyFrame({"depth_m": [10.0] * 999 + [900.0]}), hoist) is None
+    True
+    """
+    if "depth_m" not in samples.collect_schema().names():
+        return None
+    low, high = field_limits(hoist).depth_m
+    depth = pl.col("depth_m")
+    outside = (depth < low) | (depth > high)
+    rows, beyond, deepest = (
+        samples.select(
+            pl.len(), outside.sum().alias("beyond"), depth.filter(outside).max().alias("deepest")
+        )
+        .collect()
+        .row(0)
+    )
+    if beyond <= max(DEPTH_MISFIT_MIN_SAMPLES, DEPTH_MISFIT_SHARE * rows):
+        return None
+    return (
+        f"shaft.depth {hoist.shaft.depth_m:g} m: {beyond} of {rows} landed samples have a "
+        f"depth outside it (down to {deepest:.1f} m)"
+    )
 
 
 def within_limits(samples: pl.LazyFrame, hoist: HoistDescription) -> pl.LazyFrame:

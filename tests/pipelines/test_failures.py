@@ -847,3 +847,31 @@ def test_a_command_that_fails_leaves_no_empty_data_root_behind(tmp_path, capsys)
     assert main(["run", "--data", str(data), "--hoist", str(tmp_path / "none.toml")]) == 1
     assert "none.toml" in capsys.readouterr().err
     assert not (tmp_path / "new").exists()
+
+
+def test_a_description_whose_shaft_the_record_leaves_is_refused_naming_the_key(
+    tmp_path, capsys, small_csv
+):
+    """A description of a shaft shorter than the record's depth: the run would read the
+    deeper samples as not logged, end the trips where they leave it and reconcile the
+    stops' payloads wrong with nothing said (a probe: 4.9 t for the truth's 2.2 t). It is
+    refused, one line naming the description and its key; the right one runs."""
+    data = tmp_path / "data"
+    log = small_csv(tmp_path / "day.csv", rows=400)  # the depth 0-199.5 m; 179 beyond 110 m
+    assert main(["ingest", "--data", str(data), str(log)]) == 0
+    text = HOIST.read_text()
+    shorter = (
+        ('depth = "620 m"', 'depth = "100 m"'),
+        ('middle = "320 m"', 'middle = "50 m"'),
+        ('bottom = "600 m"', 'bottom = "90 m"'),
+    )
+    for old, new in shorter:
+        assert old in text
+        text = text.replace(old, new)
+    short = tmp_path / "short.toml"
+    short.write_text(text)
+    capsys.readouterr()
+    assert main(["run", "--data", str(data), "--hoist", str(short), "--no-sanity"]) == 1
+    err = _one_line(capsys.readouterr().err, "run")
+    assert f"{short}: shaft.depth 100 m: 179 of 400 landed samples have a depth outside" in err
+    assert main(["run", "--data", str(data), "--hoist", str(HOIST), "--no-sanity"]) == 0

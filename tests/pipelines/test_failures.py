@@ -874,4 +874,7 @@ def test_a_description_whose_shaft_the_record_leaves_is_refused_naming_the_key(
     assert main(["run", "--data", str(data), "--hoist", str(short), "--no-sanity"]) == 1
     err = _one_line(capsys.readouterr().err, "run")
     assert f"{short}: shaft.depth 100 m: 179 of 400 landed samples have a depth outside" in err
+    json = tmp_path / "found.json"
+    assert main(["discover", "--data", str(data), "--hoist", str(short), "--json", str(json)]) == 1
+    assert "shaft.depth 100 m: 179 of 400" in _one_line(capsys.readouterr().err, "discover")
     assert main(["run", "--data", str(data), "--hoist", str(HOIST), "--no-sanity"]) == 0

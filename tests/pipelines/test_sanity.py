@@ -126,6 +126,18 @@ def _seconds(day, seconds: float) -> dt.datetime:
     return day.sensors["time_utc"].min() + dt.timedelta(seconds=seconds)
 
 
+def test_a_record_ending_in_a_trips_acceleration_does_not_judge_that_departure(ten_hz):
+    """Cut 8 s after trip 2 starts moving, only its acceleration is in the record: the
+    replay's weakest part, with no run to dilute it; the trip is skipped, saying so.
+    Cut in its run (the test below), it is judged."""
+    hoist, day = ten_hz
+    cut = day.sensors.filter(pl.col("time_utc") < _seconds(day, 318.0))
+    checks = sanity_check(cut, hoist, run_id="r", settle_s=20.0)
+    assert checks["trip_id"].to_list() == [0, 1, 2]
+    assert checks["status"].to_list() == ["skipped", "passed", "skipped"], checks["message"]
+    assert "before its acceleration ended" in checks["message"][2]
+
+
 def test_a_10_hz_record_ending_mid_trip_checks_the_cut_trip(ten_hz):
     hoist, day = ten_hz
     cut = day.sensors.filter(pl.col("time_utc") < _seconds(day, 350.0))  # trip 2 moving

@@ -53,10 +53,10 @@ import polars as pl
 from discovery import DiscoveryResult, Finding, discover_in_record
 from discovery.results import Params
 from pipelines.identified_ropes import identified_ropes, identified_ropes_under
-from pipelines.ingest.field_checks import depth_misfit, within_limits
+from pipelines.ingest.field_checks import within_limits
 from pipelines.lake import scan_lake
 from pipelines.provenance import hoist_run, new_run_id, utc_now
-from pipelines.run_period import DescriptionMisfitError, check_period
+from pipelines.run_period import check_period, refuse_misfit
 from schemas.effects import NO_EFFECT
 from schemas.hoist import HoistDescription, load_hoist
 from transforms.compensation_record import without_flatlined
@@ -292,9 +292,7 @@ def discover_period(
     hoist = load_hoist(hoist_path)
     site, name = hoist.hoist.site, hoist.hoist.name
     landed = scan_lake(data, "field_samples", site=site, hoist=name, start=start, end=end)
-    misfit = depth_misfit(landed, hoist)
-    if misfit is not None:  # as a run refuses it (pipelines.run_period)
-        raise DescriptionMisfitError(f"{hoist_path}: {misfit}: is it this hoist's description?")
+    refuse_misfit(landed, hoist, hoist_path)  # as a run does
     # values beyond the description's limits as not logged, as a run reads them
     samples = within_limits(landed, hoist).collect()
     if samples.height == 0:

@@ -45,6 +45,7 @@ __all__ = [
     "RunResult",
     "check_period",
     "record_start",
+    "refuse_misfit",
     "run_checked",
     "run_period",
 ]
@@ -75,6 +76,18 @@ def check_period(start: dt.datetime | None, end: dt.datetime | None) -> None:
 class DescriptionMisfitError(ValueError):
     """The hoist description does not fit the landed record (its shaft and the logged
     depth): a user error, one line (:func:`pipelines.ingest.field_checks.depth_misfit`)."""
+
+
+def refuse_misfit(samples: pl.LazyFrame, hoist: HoistDescription, hoist_path: str | Path) -> None:
+    """Raise :class:`DescriptionMisfitError` where the landed ``samples`` leave the shaft
+    the description at ``hoist_path`` gives (:func:`depth_misfit`); a run and a
+    discovery would read those depths as not logged."""
+    misfit = depth_misfit(samples, hoist)
+    if misfit is not None:
+        raise DescriptionMisfitError(
+            f"{hoist_path}: {misfit}: is it this hoist's description? (a run would read "
+            "those depths as not logged)"
+        )
 
 
 class NoSamplesError(LookupError):
@@ -186,12 +199,7 @@ def run_period(
     extent = period_extent(samples.scan(scan_start, end), start, end)
     if extent is None:
         raise NoSamplesError(_no_samples_message(data, samples.site, samples.hoist, start, end))
-    misfit = depth_misfit(samples.scan(scan_start, end), hoist)
-    if misfit is not None:
-        raise DescriptionMisfitError(
-            f"{hoist_path}: {misfit}: is it this hoist's description? (the run would read "
-            "those depths as not logged)"
-        )
+    refuse_misfit(samples.scan(scan_start, end), hoist, hoist_path)
     run_id = new_run_id(command)
     logger.info(
         "run %s: %s/%s %s .. %s UTC, %d samples (and %d of lead-in), blocks of %s",

@@ -90,12 +90,17 @@ def forget(con: duckdb.DuckDBPyConnection, sha256: str) -> None:
     con.execute("DELETE FROM manifest WHERE source_sha256 = ?", [sha256])
 
 
+#: The manifest's columns of a :class:`Resume`, in its fields' order.
+_RESUME_COLUMNS = (
+    "source_sha256, size_bytes, bytes_consumed, clock_latest_utc, clock_step_line, clock_step_s"
+)
+
+
 def partial_resume(con: duckdb.DuckDBPyConnection, sha256: str) -> Resume | None:
     """Where the ``partial`` CSV row of ``sha256`` stopped: the same bytes read on, now
     that the file is said to be finished (``ingest --complete``); None if there is none."""
     rows = con.execute(
-        "SELECT source_sha256, size_bytes, bytes_consumed, clock_latest_utc, clock_step_line, "
-        "clock_step_s FROM manifest WHERE source_sha256 = ? AND format = 'csv' "
+        f"SELECT {_RESUME_COLUMNS} FROM manifest WHERE source_sha256 = ? AND format = 'csv' "
         "AND status = 'partial' AND bytes_consumed IS NOT NULL",
         [sha256],
     ).fetchall()
@@ -141,8 +146,7 @@ def resume_candidates(
     """CSV manifest rows that a file of ``max_size`` bytes could extend: the partial ones,
     and the landed ones of the same ``path`` (module docstring)."""
     rows = con.execute(
-        "SELECT source_sha256, size_bytes, bytes_consumed, clock_latest_utc, clock_step_line, "
-        "clock_step_s FROM manifest "
+        f"SELECT {_RESUME_COLUMNS} FROM manifest "
         "WHERE format = 'csv' AND bytes_consumed IS NOT NULL AND size_bytes < ? AND ("
         "(status = 'partial' AND bytes_consumed < size_bytes) OR "
         "(status = 'landed' AND bytes_consumed = size_bytes AND source_path = ?)) "

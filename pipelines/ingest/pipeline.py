@@ -211,10 +211,11 @@ def _ingest_file(
         same = "this name" if earlier.path == str(path) else earlier.path
         result.message = f"already ingested ({earlier.status}) as {same}; nothing to do"
         return result, earlier
-    for candidate in reversed(candidates if resume is None else []):  # the longest first
-        if prefixes.get(candidate.size_bytes) == candidate.sha256:
-            resume = candidate
-            break
+    if resume is None:  # an earlier, shorter version this file extends
+        for candidate in reversed(candidates):  # the longest prefix first
+            if prefixes.get(candidate.size_bytes) == candidate.sha256:
+                resume = candidate
+                break
     try:
         if started is not None:
             reading = started.reading_or_raise()
@@ -229,10 +230,10 @@ def _ingest_file(
     except (OSError, duckdb.Error):
         raise  # the data root's own trouble (disk, warehouse): not this file's
     except (Exception, PanicException) as exc:  # a reader's parse error the checks did
-        if received_signal() is not None:  # a signal a library wrapped: the command's end
-            raise
         # not foresee (a bug too; a panic in polars' Rust is a BaseException, caught by
         # name so that a cancellation's signal still ends the run): this file's
+        if received_signal() is not None:  # a signal a library wrapped: the command's end
+            raise
         logger.debug("reading %s failed", path, exc_info=True)
         first = (str(exc).splitlines() or [""])[0][:200]
         what = f"{path}: unreadable ({type(exc).__name__}: {first})"

@@ -284,6 +284,7 @@ def _planned_trips(
             )
             restart = restart or after_gap
             next_ramp = timing[k + 1]["r0"] if k + 1 < len(motions) else trailing_ramp
+            next_ramp = min(next_ramp, tm["ramp_before_gap"])
             win_end = window_end(tm["t_e"], next_ramp, settle_s, rec.end_t)
             ran_into_gap = bool(np.isin(motions[k][1], gap_starts))
             if ran_into_gap:  # compared up to the gap

@@ -267,6 +267,7 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
     before = _gap_starts(t, motions[k - 1][1] if k > 0 else 0, a_i)
     after = _gap_starts(t, b_i, motions[k + 1][0] if k + 1 < len(motions) else t.size - 1)
     gap_before = False
+    ramp_before_gap = np.inf
     if before.size and before[-1] + 1 < a_i:
         lo = float(t[motions[k - 1][1]]) if k > 0 else -np.inf
         resumed = float(t[before[-1] + 1])
@@ -284,6 +285,10 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
         pre, _ = _around_gaps(t, rec.depth, float(t[b_i]), after, hi, shaft)
         d1 = pre if np.isfinite(pre) else d1
         next_start = min(next_start, float(t[after[0]]))
+        # and a payload change logged before the gap belongs to no trip's loading ramp
+        # when the next trip's history restarts after it (gap_before): the window ends
+        # before it, as before the record's end (trailing_ramp_start)
+        ramp_before_gap = _load_change(rec, t_e + 2.0, float(t[after[0]]))
     # a motion that runs into (or out of) a logger gap the trip rule did not bridge is
     # cut there as by the record's end (start): the standstill beyond the gap is not its
     if b_i + 1 < t.size and t[b_i + 1] - t[b_i] > TRIP_BRIDGE_S:
@@ -333,6 +338,7 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
         "p_post": p_post,
         "levels_depth": levels_depth,
         "gap_before": gap_before,
+        "ramp_before_gap": ramp_before_gap,
         "d0": d0,
         "d1": d1,
         "cut": cut,
@@ -347,22 +353,24 @@ def trailing_ramp_start(rec: RecordArrays, timing: list[dict[str, Any]], notes: 
     not hold) starts as the pressure shows it; inf without one. The last trip's window
     ends :data:`RAMP_LEAD_S` before it (:func:`window_end`), as before any other ramp."""
     if timing and not timing[-1]["cut"]:
-        r0, _, p_a, p_b = loading_ramp(
-            rec.t,
-            rec.pc,
-            rec.pcs,
-            timing[-1]["t_e"] + 2.0,
-            rec.end_t,
-            rec.ramp_threshold,
-            fallback=False,
-        )
-        if np.isfinite(r0) and abs(p_b - p_a) > rec.ramp_threshold:
+        r0 = _load_change(rec, timing[-1]["t_e"] + 2.0, rec.end_t)
+        if np.isfinite(r0):
             notes.append(
                 f"the payload changes after the last stop (from {r0:.0f} s): "
                 "the last trip's window ends there"
             )
             return r0
     return np.inf
+
+
+def _load_change(rec: RecordArrays, lo: float, hi: float) -> float:
+    """Where a payload change in the standstill ``[lo, hi]`` starts as the pressure
+    shows it (:func:`~discovery.segmentation.loading_ramp` without its fallback); inf
+    without one."""
+    r0, _, p_a, p_b = loading_ramp(
+        rec.t, rec.pc, rec.pcs, lo, hi, rec.ramp_threshold, fallback=False
+    )
+    return r0 if np.isfinite(r0) and abs(p_b - p_a) > rec.ramp_threshold else np.inf
 
 
 def window_end(t_stop: float, next_ramp: float, settle_s: float, end_t: float) -> float:

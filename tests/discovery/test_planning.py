@@ -12,7 +12,7 @@ import pytest
 
 from discovery.cases import hidden_case
 from discovery.planning import plan_replay
-from discovery.record import RAMP_LEAD_S
+from discovery.record import RAMP_LEAD_S, shortest_round_trip_s
 from discovery.replay_choices import choose_motion
 from discovery.segmentation import CUT_WORDS, estimate_noise_sigma
 from sims.replay import replay_fitted
@@ -350,6 +350,39 @@ def test_a_payload_change_after_the_last_stop_ends_its_window(null_case):
     before = info["day"].sensors.filter(pl.col("time_utc") < loading - dt.timedelta(seconds=1))
     plain = plan_replay(before, plan.hoist, settle_s=60.0)
     assert not any("payload changes" in note for note in plain.notes)
+    without = _rms(replay_fitted(plain, passes=3).residuals(plain)[1])
+    assert with_loading == pytest.approx(without, rel=0.03)
+
+
+def test_a_payload_change_before_a_logger_gap_ends_the_window_before_it(null_case):
+    """The next trip's loading is logged, then the logger stops at rest for longer than
+    a round trip, so the next trip's history restarts after the gap and its loading
+    ramp is read there: the loading before the gap belongs to no trip's ramp. The trip
+    before it is compared only up to that loading, as when the record ends there (was:
+    its window ran over the unsimulated payload change; on validation day 104 with a
+    10 min gap at rest such a trip failed the sanity check at 90 x the noise)."""
+    plan, info = null_case
+    truth = info["day"].info["trips"]
+    loading = _at(plan, truth[2]["start_s"])  # trip 2 loads for 5 s, moves at +10 s
+    gap_from = loading + dt.timedelta(seconds=8)
+    sensors = info["day"].sensors
+    later = pl.col("time_utc") >= gap_from
+    shifted = sensors.with_columns(
+        pl.when(later)
+        .then(pl.col("time_utc") + dt.timedelta(seconds=shortest_round_trip_s(plan.hoist) + 60))
+        .otherwise(pl.col("time_utc"))
+    )
+    gap_plan = plan_replay(shifted, plan.hoist, settle_s=60.0)  # 60 s reach past the loading
+    assert len(gap_plan.trips) == 3
+    before, after = gap_plan.trips[1], gap_plan.trips[2]
+    assert after.first_in_block
+    assert not after.valid.any()
+    assert _at(gap_plan, before.window_end_s) <= loading
+    assert _at(gap_plan, before.window_end_s) > loading - dt.timedelta(seconds=RAMP_LEAD_S + 1.0)
+    with_loading = _rms(replay_fitted(gap_plan, passes=3).residuals(gap_plan)[1])
+    # the same standstill, the record ending before the loading: the same gap
+    plain_samples = sensors.filter(pl.col("time_utc") < loading - dt.timedelta(seconds=1))
+    plain = plan_replay(plain_samples, plan.hoist, settle_s=60.0)
     without = _rms(replay_fitted(plain, passes=3).residuals(plain)[1])
     assert with_loading == pytest.approx(without, rel=0.03)
 

@@ -310,8 +310,8 @@ def check_sanity(
             one_line(exc),
             exc_info=logger.isEnabledFor(logging.DEBUG),
         )
-        frame = _empty_checks()
         step = StepOutcome("sanity_check", "failed", one_line(exc))
+        frame = _unchecked_trips(data, run_id, site=site, hoist=name, why=step.message)
     land_sanity_checks(data, frame, site=site, hoist=name, run_id=run_id, step=step)
     logger.info("sanity check of %s: %s", run_id, step.line())
     return SanityOutcome(frame, step)
@@ -339,6 +339,38 @@ def _empty_checks() -> pl.DataFrame:
     from schemas.tables import SANITY_CHECKS, conform
 
     return conform(pl.DataFrame(), SANITY_CHECKS).clear()
+
+
+#: The message of each trip's row when the sanity check itself could not run, before
+#: its reason (the step's message in ``run_steps``).
+NOT_RUN_WORDS = "the sanity check could not run"
+
+
+def _unchecked_trips(
+    data: DataRoot, run_id: str, *, site: str, hoist: str, why: str
+) -> pl.DataFrame:
+    """``SANITY_CHECKS`` rows of a check that could not run: each trip the run landed
+    ``skipped`` with ``why``, so that an audit of the run's trips finds a row for each,
+    as it does for a trip the check skipped (none where the warehouse cannot be read:
+    the step's row still says why)."""
+    from schemas.tables import SANITY_CHECKS, conform
+
+    try:
+        con = open_reader(data)
+        try:
+            trips = con.execute(
+                "SELECT trip_id FROM trip_summary WHERE run_id = ? ORDER BY trip_id", [run_id]
+            ).fetchall()
+        finally:
+            con.close()
+    except Exception:  # the landing below says what is wrong with the warehouse
+        return _empty_checks()
+    rows = [
+        {"run_id": run_id, "site": site, "hoist": hoist, "trip_id": trip_id,
+         "message": f"{NOT_RUN_WORDS}: {why}", "status": "skipped"}
+        for (trip_id,) in trips
+    ]  # fmt: skip
+    return conform(pl.DataFrame(rows), SANITY_CHECKS) if rows else _empty_checks()
 
 
 def land_sanity_checks(

@@ -317,6 +317,25 @@ def test_a_failed_sanity_check_is_a_finding_and_its_day_is_not_recomputed(midnig
     assert outcome.step.message == "ValueError: threshold must exceed 1 (the noise alone gives 1)"
     landed = steps_of(data, [day3["run_id"]]).filter(pl.col("step") == "sanity_check")
     assert landed.select("status", "message").rows() == [("failed", outcome.step.message)]
+    # each of the run's trips has its row, skipped with the reason: an audit of the
+    # trips finds one for each (was: none)
+    con = open_reader(data)
+    try:
+        trips = con.sql(
+            "SELECT trip_id FROM trip_summary WHERE run_id = ? ORDER BY trip_id",
+            params=[day3["run_id"]],
+        ).fetchall()
+        checks = con.sql(
+            "SELECT trip_id, status, passed, rms_gap_pa, message FROM sanity_checks "
+            "WHERE run_id = ? ORDER BY trip_id",
+            params=[day3["run_id"]],
+        ).fetchall()
+    finally:
+        con.close()
+    assert trips
+    reason = f"the sanity check could not run: {outcome.step.message}"
+    assert checks == [(t, "skipped", None, None, reason) for (t,) in trips]
+    assert outcome.checks.height == len(trips)
     night = nightly(sources, data=data)
     assert night.ok, str(night)
     # 2026-03-03 stays done; 2026-03-02 gets its check, not a new run

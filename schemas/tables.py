@@ -315,7 +315,7 @@ SANITY_CHECKS = _schema(
     "one row per trip the check replays: RMS of measured minus simulated sensor pressure; "
     "status passed, failed or skipped (passed and rms_gap_pa null, the reason in message: "
     "a warm-up that starts a replay history, a trip cut at the record's start, one that "
-    "could not be simulated)",
+    "could not be simulated; every trip of the run when the check itself could not run)",
 )
 
 #: One row per discrepancy report (contract section 5), the JSON kept whole.

@@ -66,6 +66,7 @@ truth is the record's own (only what was logged changed). ``--without-x`` is
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime as dt
 import gzip
 import json
@@ -80,7 +81,7 @@ from zoneinfo import ZoneInfo
 import numpy as np
 import polars as pl
 from record_parts import split_record  # the sibling scripts
-from record_variants import VARIANTS, make_variant
+from record_variants import PAUSES, VARIANTS, make_variant, pause_row, read_log
 
 from physics.rope_spring import head_rope_stiffness_n_m
 from pipelines.identified_ropes import identified_ropes
@@ -358,7 +359,17 @@ def as_variant(case: DayCase, variant: str) -> DayCase:
     if not variant:
         return case
     csv = make_variant(case.csv, variant)
-    return DayCase(f"{case.name} [{variant}]", csv, case.hoist_path, case.windows)
+    windows = case.windows
+    if variant in PAUSES:  # the truth's windows after the pause are logged that much later
+        table = read_log(case.csv)
+        zone = ZoneInfo(table.key("timezone", "UTC"))
+        resumed = table.rows[pause_row(table)][table.column("timestamp")]
+        at, later = _logged_utc(resumed, zone), dt.timedelta(seconds=PAUSES[variant])
+        windows = [
+            dataclasses.replace(w, t0=w.t0 + later, t1=w.t1 + later) if w.t0 >= at else w
+            for w in windows
+        ]
+    return DayCase(f"{case.name} [{variant}]", csv, case.hoist_path, windows)
 
 
 def _logged_utc(text: str, zone: ZoneInfo) -> dt.datetime:

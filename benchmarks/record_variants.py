@@ -17,6 +17,7 @@ change keeps the file's delimiter, decimal separator and units.
 
 from __future__ import annotations
 
+import datetime as dt
 import math
 import random
 import re
@@ -25,11 +26,13 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 __all__ = [
+    "PAUSES",
     "VARIANTS",
     "LogTable",
     "delimiter_of",
     "header_keys",
     "make_variant",
+    "pause_row",
     "pressure_rms_pa",
     "read_log",
     "sensor_error",
@@ -254,6 +257,51 @@ def _outage(minutes: float) -> Callable[[LogTable], LogTable]:
     return change
 
 
+#: Seconds of standstill either side of the row a paused logger stops at (:func:`pause_row`).
+PAUSE_REST_S = 5.0
+
+
+def pause_row(table: LogTable) -> int:
+    """The row a logger paused at a standstill mid-record resumes with (:data:`PAUSES`):
+    the first from the middle of the record on with :data:`PAUSE_REST_S` of logged speed
+    0 either side. ValueError without one (no ``speed`` column, no such standstill)."""
+    k, width = table.column("speed"), len(table.names)
+    rest = round(PAUSE_REST_S * table.rate_hz())
+    still = [
+        len(row) == width and row[k].strip() != "" and table.number(row[k]) == 0.0
+        for row in table.rows
+    ]
+    run = 0  # standstill rows ending at n
+    for n in range(len(still)):
+        run = run + 1 if still[n] else 0
+        lo = n + 1 - 2 * rest  # a standstill of 2 x rest rows ending at n: resume at lo + rest
+        if run >= 2 * rest and lo + rest >= len(table.rows) // 2:
+            return lo + rest
+    raise ValueError(f"no standstill of {2 * PAUSE_REST_S:g} s after the record's middle")
+
+
+def _shifted(stamp: str, seconds: float) -> str:
+    """A timestamp field ``seconds`` later, written as it was (separator, decimals, any
+    offset)."""
+    text = stamp.strip()
+    when = dt.datetime.fromisoformat(text) + dt.timedelta(seconds=seconds)
+    decimals = len(re.split(r"[+\-Z]", text.partition(".")[2])[0]) if "." in text else 0
+    spec = {0: "seconds", 3: "milliseconds", 6: "microseconds"}.get(decimals, "milliseconds")
+    return when.isoformat(sep="T" if "T" in text else " ", timespec=spec)
+
+
+def _paused(minutes: float) -> Callable[[LogTable], LogTable]:
+    def change(table: LogTable) -> LogTable:
+        k, start = table.column("timestamp"), pause_row(table)
+        rows = table.rows[:start] + [
+            [*row[:k], _shifted(row[k], 60.0 * minutes), *row[k + 1 :]]
+            for row in table.rows[start:]
+        ]
+        return replace(table, rows=rows)
+
+    return change
+
+
 def _repeated(share: float, shuffled: int, seed: int = 20261130) -> Callable[[LogTable], LogTable]:
     def change(table: LogTable) -> LogTable:
         rng = random.Random(seed)
@@ -334,11 +382,19 @@ VARIANTS: dict[str, tuple[str, Callable[[LogTable], LogTable]]] = {
     "p-step-10kpa": ("pressures on a 10 kPa step (a coarse analogue input)", _pressure_step(1e4)),
     "stuck-p2": ("sensor 2 frozen at its last value for 20 min mid-record", _stuck(2, 20.0)),
     "outage-5min": ("a 5 min logger outage mid-record (its rows missing)", _outage(5.0)),
+    "pause-10min": (
+        "the logger paused 10 min at a standstill mid-record (the later rows 10 min on; "
+        "the truth's windows after it too)",
+        _paused(10.0),
+    ),
     "repeated-rows": (
         "2 % of rows written twice and 100 rows out of order (a logger's retries)",
         _repeated(0.02, 100),
     ),
 }  # fmt: skip
+#: The variants that pause the logger, and for how long [s]: the truth's windows after
+#: :func:`pause_row` move on by as much (``eval_compensation.as_variant``).
+PAUSES = {"pause-10min": 600.0}
 
 
 def make_variant(csv: Path, name: str) -> Path:

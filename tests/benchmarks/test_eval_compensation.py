@@ -134,6 +134,30 @@ def test_a_variant_of_a_day_keeps_its_truth_and_its_own_file(evaluation, tmp_pat
     assert evaluation.as_variant(case, "") is case
 
 
+def test_a_paused_variant_moves_the_truth_after_the_pause(evaluation, tmp_path) -> None:
+    """``as_variant(case, "pause-10min")``: the truth's windows from the row the logger
+    resumes with on (its local time in the file's zone) are 600 s later, the earlier
+    ones as they were."""
+    names = ["timestamp", "p1", "p2", "p3", "p4", "depth", "speed"]
+    lines = ["# timezone: Asia/Shanghai", "# sample_rate_hz: 1", ",".join(names)]
+    for k in range(100):
+        speed = "0.000" if 60 <= k < 80 else "1.000"
+        lines.append(f"2026-02-10 14:{k // 60:02d}:{k % 60:02d}.000,4.9,4.9,4.9,4.9,0,{speed}")
+    csv = tmp_path / "day.csv"
+    csv.write_text("\n".join(lines) + "\n")
+    # 14:01:05 local (UTC+8) is 06:01:05 UTC: the row the logger resumes with
+    at = dt.datetime(2026, 2, 10, 6, 1, 5, tzinfo=dt.UTC)
+    windows = [
+        evaluation.Window("arrival", "p", at - dt.timedelta(seconds=s), at, 1.0, (0.25,) * 4)
+        for s in (1, 0)
+    ]
+    out = evaluation.as_variant(evaluation.DayCase("day", csv, tmp_path / "h.toml", windows),
+                                "pause-10min")  # fmt: skip
+    assert out.windows[0] == windows[0]
+    later = dt.timedelta(seconds=600)
+    assert (out.windows[1].t0, out.windows[1].t1) == (at + later, at + later)
+
+
 def test_report_day_prints_the_margin_to_the_worse_than_raw_limit(evaluation, capsys) -> None:
     """Three windows: |after| - |before| = -1.5, +0.15 and +0.05 pp. None is worse than
     raw by more than 0.2 pp, but the largest excess, +0.15 pp, is printed with the one

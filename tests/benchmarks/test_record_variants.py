@@ -115,6 +115,35 @@ def test_an_outage_takes_five_minutes_of_rows_out_of_the_middle(variants, tmp_pa
     assert rows == whole[:450] + whole[750:]
 
 
+def _with_standstill(csv: Path, still: range) -> Path:
+    """``csv`` with its speed 0 over the data rows ``still`` (1.000 elsewhere)."""
+    header, rows = _rows(csv)
+    k = NAMES.index("speed")
+    for n in still:
+        rows[n][k] = "0.000"
+    csv.write_text("\n".join(header + [",".join(r) for r in rows]) + "\n")
+    return csv
+
+
+def test_a_pause_shifts_the_rows_after_a_standstill_past_the_middle(variants, tmp_path) -> None:
+    """``pause-10min``: the logger stops in the first standstill past the record's middle
+    with 5 s of rest either side (rows 60-79 at 1 Hz: it resumes at row 65) and the rows
+    after it are logged 600 s later, everything else as it was; a standstill before the
+    middle does not count, and a record without one says so."""
+    csv = _with_standstill(_record(tmp_path / "r.csv", 100, rate=1), range(60, 80))
+    csv = _with_standstill(csv, range(10, 30))  # before the middle: not where it pauses
+    _, whole = _rows(csv)
+    _, rows = _rows(variants.make_variant(csv, "pause-10min"))
+    assert rows[:65] == whole[:65]
+    assert [r[1:] for r in rows[65:]] == [r[1:] for r in whole[65:]]
+    assert (whole[64][0], rows[64][0]) == ("2026-02-10 06:01:04.000", "2026-02-10 06:01:04.000")
+    assert (whole[65][0], rows[65][0]) == ("2026-02-10 06:01:05.000", "2026-02-10 06:11:05.000")
+    assert rows[-1][0] == "2026-02-10 06:11:39.000"
+    plain = _record(tmp_path / "moving.csv", 100, rate=1)
+    with pytest.raises(ValueError, match="no standstill of 10 s after the record's middle"):
+        variants.make_variant(plain, "pause-10min")
+
+
 def test_repeated_rows_are_exact_duplicates_and_a_block_out_of_order(variants, tmp_path) -> None:
     """Every row is there; the extra ones are exact copies (ingest counts them as
     duplicates); the order differs only inside one block of 100."""

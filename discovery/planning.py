@@ -292,6 +292,13 @@ def _planned_trips(
             trip = _planned_trip(
                 rec, hoist, k, tm, (b, restart), win_end, score_rate_hz, logged, notes
             )
+            if np.isfinite(tm["gap_after"]):
+                # a logger gap in the standstill after it: compared up to the gap (what is
+                # logged after it may stand elsewhere or carry another payload); the
+                # simulation still settles over the whole window, as the next trip's
+                # history continues from where it settled
+                before_gap = (trip.time_s < tm["gap_after"])[:, None]
+                trip = dataclasses.replace(trip, valid=trip.valid & before_gap)
             if k == warm_up or after_gap:
                 # the trip before the block (or the first after a logger gap): simulated
                 # from rest to load the seals' state (which pistons stick with what

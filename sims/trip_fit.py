@@ -130,7 +130,9 @@ def _search_grid(
     the logged depth farthest from ``anchor`` and the shaft's end beyond it."""
     shaft = hoist.shaft.depth_m
     # direction of travel, and the logged depth farthest from the known end
-    far = float(d[np.argmax(np.abs(d - anchor))])
+    # (clipped to the shaft: an encoder reading -1 mm at the pithead had made every
+    # candidate above it, and the trip was refused as outside the shaft)
+    far = float(np.clip(d[np.argmax(np.abs(d - anchor))], 0.0, shaft))
     if abs(far - anchor) < 0.1:
         raise ValueError("no net motion in the trip's recorded part")
     sign = 1.0 if far > anchor else -1.0  # + : the unknown end lies deeper than `anchor`

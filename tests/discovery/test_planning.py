@@ -230,6 +230,108 @@ def test_a_trip_s_stop_before_two_gaps_is_where_it_stopped(four_trips):
     assert _rms(result.residuals(gap_plan)[1]) < 2.0 * gap_plan.noise_sigma_pa
 
 
+def _cut(sensors: pl.DataFrame, plan, lo: float, hi: float) -> pl.DataFrame:
+    """``sensors`` without the rows from ``lo`` to ``hi`` [s after the plan's t_ref]."""
+    return sensors.filter(~pl.col("time_utc").is_between(_at(plan, lo), _at(plan, hi)))
+
+
+def _shift(sensors: pl.DataFrame, plan, start: float, by: float) -> pl.DataFrame:
+    """``sensors`` with every row from ``start`` [s after the plan's t_ref] on ``by`` s later."""
+    later = pl.col("time_utc") >= _at(plan, start)
+    moved = pl.col("time_utc") + dt.timedelta(seconds=by)
+    return sensors.with_columns(pl.when(later).then(moved).otherwise(pl.col("time_utc")))
+
+
+def test_a_trip_s_window_ends_at_a_gap_across_which_the_conveyance_moved(four_trips):
+    """Trip 1 stops at the pithead at 242.8 s; the logger stops 7 s later and resumes
+    15 s on with the conveyance at the bottom (trip 2 unseen). Trip 1's window ends at
+    the gap, not in the standstill logged at 600 m (a probe: 275 x the noise with the
+    sanity check's 45 s of settling): it is compared up to the gap, and the trip after
+    the gap starts a new history."""
+    plan, info = four_trips
+    gapped = _shift(_cut(info["day"].sensors, plan, 250.0, 395.0), plan, 395.0, -130.0)
+    gap_plan = plan_replay(gapped, plan.hoist, settle_s=45.0)
+    first, second = gap_plan.trips[1], gap_plan.trips[2]
+    assert (first.start_depth_m, first.end_depth_m) == pytest.approx((600.0, 0.0), abs=0.1)
+    compared = first.time_s[first.valid.any(axis=1)]
+    assert compared.size
+    assert _at(gap_plan, float(compared.max())) < _at(plan, 250.0)
+    assert second.first_in_block
+    assert not second.valid.any()
+    result = replay_fitted(gap_plan, passes=3)
+    assert _rms(result.residuals(gap_plan)[1]) < 1.5 * gap_plan.noise_sigma_pa
+
+
+@pytest.mark.parametrize("into_s", [1.6, 1.4])
+def test_a_loading_a_gap_or_the_record_s_end_cuts_early_ends_the_window_before_it(
+    four_trips, into_s
+):
+    """Trip 2's loading (285.2 s once 15 s of rest before it are taken out) is cut
+    1.4 or 1.6 s in, by a logger stop that hides a round trip (1.6 s) or by the record's
+    end (1.4 s): too little of it for the level after (a 3 s median) to pass the ramp
+    threshold. Trip 1's window still ends before it (a probe: 4.1 x and 3.8 x the noise
+    over the loading's start) and its standstill replays as without the loading."""
+    plan, info = four_trips
+    short = _shift(_cut(info["day"].sensors, plan, 250.0, 265.0), plan, 265.0, -15.0)
+    loading = info["day"].info["trips"][2]["start_s"] - 15.0
+    cut_at = loading + into_s
+    if into_s > 1.5:  # a gap: the rest of the record 120 s on
+        gapped = _shift(short, plan, cut_at, 120.0)
+    else:
+        gapped = short.filter(pl.col("time_utc") < _at(plan, cut_at))
+    gap_plan = plan_replay(gapped, plan.hoist, settle_s=45.0)
+    before = gap_plan.trips[1]
+    assert _at(gap_plan, before.window_end_s) <= _at(plan, loading + 0.1)
+    result = replay_fitted(gap_plan, passes=3)
+    assert _rms(result.residuals(gap_plan)[1]) < 2.0 * gap_plan.noise_sigma_pa
+
+
+def test_a_record_resuming_as_a_trip_leaves_the_pithead_loads_the_seals(four_trips):
+    """The logger stops for 30 s just as trip 2 leaves the pithead (nothing lost, the
+    rows after it 30 s on): the trip, cut at its start, is completed from the pithead
+    and loads the seals for trip 3, which is compared. Before, an encoder reading of
+    -1 mm at the pithead put every candidate start above the shaft and the trip was
+    skipped as outside it, its history restarting with trip 3 uncompared."""
+    plan, info = four_trips
+    gapped = _shift(info["day"].sensors, plan, 310.0, 30.0)
+    gap_plan = plan_replay(gapped, plan.hoist, settle_s=20.0)
+    assert [tr.trip_id for tr in gap_plan.trips] == [0, 1, 2, 3]
+    assert gap_plan.skipped == ()
+    resumed, after = gap_plan.trips[2], gap_plan.trips[3]
+    assert resumed.cut == "start"
+    assert resumed.start_depth_m == pytest.approx(0.0, abs=0.1)
+    assert resumed.first_in_block
+    assert not resumed.valid.any()
+    assert after.valid.any()
+    result = replay_fitted(gap_plan, passes=3)
+    assert result.ok, result.message
+    # a history restarted from rest: within the sanity check's 3 x (1.5 x here)
+    assert _rms(result.residuals(gap_plan)[3]) < 2.0 * gap_plan.noise_sigma_pa
+
+
+def test_two_short_gaps_around_another_level_restart_the_history(four_trips):
+    """Trip 0 stops at the bottom; two 15 s logger stops, each shorter than a round
+    trip, hide trips 1 and 2 around 5 s logged at the pithead; the conveyance is at the
+    bottom again when trip 3 leaves. The depth before the first gap and after the
+    last agree, but the stretch between them says it moved: trip 3 starts a new history
+    as a warm-up (was: chained on as if the seals had stood still)."""
+    plan, info = four_trips
+    sensors = info["day"].sensors
+    kept = [
+        sensors.filter(pl.col("time_utc") < _at(plan, 100.0)),
+        _shift(_cut(_cut(sensors, plan, 0.0, 250.0), plan, 255.0, 1e4), plan, 0.0, -135.0),
+        _shift(_cut(sensors, plan, 0.0, 400.0), plan, 0.0, -265.0),
+    ]
+    gapped = pl.concat(kept)
+    assert gapped["time_utc"].is_sorted()
+    gap_plan = plan_replay(gapped, plan.hoist, settle_s=20.0)
+    assert len(gap_plan.trips) == 2
+    last = gap_plan.trips[1]
+    assert (last.start_depth_m, last.end_depth_m) == pytest.approx((600.0, 0.0), abs=0.1)
+    assert last.first_in_block
+    assert not last.valid.any()
+
+
 # ------------------------------------------------- records that cut a trip, and their ends
 
 

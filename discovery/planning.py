@@ -277,6 +277,7 @@ def _planned_trips(
                 into_gap
                 or tm["gap_before"]
                 or tm["cut"] == "start"  # the record starts, or resumes, while it moves
+                or tm["standstill_unseen"]  # ... or just before it moves
                 or (
                     bool(np.isfinite(end_depth))
                     and not abs(tm["d0"] - end_depth) <= CONTINUATION_DEPTH_TOLERANCE_M

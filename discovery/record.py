@@ -313,6 +313,7 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
     if a_i > 0 and t[a_i] - t[a_i - 1] > TRIP_BRIDGE_S:
         d0 = float("nan")
     cut, skip = "", ""
+    unseen = False  # too little of the standstill before it logged to see its loading
     if not (np.isfinite(d0) and np.isfinite(d1)):
         # the record starts or ends while the conveyance moves (or the encoder depth
         # is missing at a stop): the winder profile fitted to the logged depth
@@ -331,6 +332,11 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
     else:
         s_lo = max(prev_end + 2.0, float(t[0]))
         r0, r1, p_pre, p_post = loading_ramp(t, pc, pcs, s_lo, t_m - 0.3, rec.ramp_threshold)
+        # the record (or its resumption after a gap that ends the history) holds less
+        # of the standstill before the motion than it takes to see a loading whole:
+        # the trip only loads the seals' state for the next one
+        if (k == 0 or gap_before) and t_m - s_lo < STANDSTILL_SEEN_S:
+            unseen = True
     # the depth the levels are read at: the tail rope hanging below it weighs in them
     levels_depth = d0
     if not np.isfinite(p_post):
@@ -356,6 +362,7 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
         "levels_depth": levels_depth,
         "gap_before": gap_before,
         "gap_after": gap_after,
+        "standstill_unseen": unseen,
         "ramp_before_gap": ramp_before_gap,
         "d0": d0,
         "d1": d1,
@@ -381,6 +388,15 @@ def trailing_ramp_start(rec: RecordArrays, timing: list[dict[str, Any]], notes: 
     return np.inf
 
 
+#: The least standstill [s] a record (or its resumption after a gap ending the history)
+#: must hold before its first motion for that trip to be compared: the two plateaus
+#: :func:`~discovery.segmentation.loading_ramp` reads either side of a loading (2 s and
+#: 3 s), and as long again for the ramp between them. A record that starts less than
+#: this before the motion may start within or just after a loading it does not show,
+#: whose seals the replay's start from rest does not hold (a probe on a loading of 5 s
+#: that ends 5 s before the motion: 3.1-4.7 x the noise on that trip for records
+#: starting 6 s down to 1 s before the motion; 1.5-1.6 x from 11 s, the loading seen).
+STANDSTILL_SEEN_S = 10.0
 #: The last stretch of a standstill [s] whose common-mode pressure tells a payload change
 #: the record's end or a logger gap cuts (:func:`_load_change`).
 CUT_CHANGE_S = 0.5

@@ -309,6 +309,28 @@ def test_a_record_resuming_as_a_trip_leaves_the_pithead_loads_the_seals(four_tri
     assert _rms(result.residuals(gap_plan)[3]) < 2.0 * gap_plan.noise_sigma_pa
 
 
+@pytest.mark.parametrize(("starts_s", "compared"), [(299.0, True), (304.8, False), (309.0, False)])
+def test_a_record_starting_just_before_a_motion_compares_it_only_with_its_loading_seen(
+    four_trips, starts_s, compared
+):
+    """Trip 2 loads from 300.2 s to 305.1 s and moves at 310 s. A record starting at
+    299 s shows the loading (its first trip compared, as discovery compares a record's
+    first trip); one starting within it (304.8 s) or after it (309 s) holds less than
+    ``STANDSTILL_SEEN_S`` of the standstill: the trip only loads the seals' state
+    (a probe: 4.7 x and 3.1 x the noise when compared), and the next is compared."""
+    plan, info = four_trips
+    late = info["day"].sensors.filter(pl.col("time_utc") >= _at(plan, starts_s))
+    late_plan = plan_replay(late, plan.hoist, settle_s=20.0)
+    first, second = late_plan.trips[:2]
+    assert first.trip_id == 0
+    assert bool(first.valid.any()) is compared
+    assert second.valid.any()
+    result = replay_fitted(late_plan, passes=3)
+    assert _rms(result.residuals(late_plan)[1]) < 1.5 * late_plan.noise_sigma_pa
+    if compared:
+        assert _rms(result.residuals(late_plan)[0]) < 2.0 * late_plan.noise_sigma_pa
+
+
 def test_two_short_gaps_around_another_level_restart_the_history(four_trips):
     """Trip 0 stops at the bottom; two 15 s logger stops, each shorter than a round
     trip, hide trips 1 and 2 around 5 s logged at the pithead; the conveyance is at the

@@ -247,7 +247,10 @@ def _planned_trips(
     bridges (:data:`physics.trip_rule.TRIP_BRIDGE_S`) ends the window of a trip that ran
     into it, and a trip that does not start where the one before it ended (by more than the
     simulation's continuation tolerance) starts a new history, as a warm-up not compared:
-    what happened in the gap is not logged."""
+    what happened in the gap is not logged. A trip is compared only up to a logger gap in
+    the standstill after it, and a record (or its resumption after such a gap) holding
+    less than :data:`~discovery.record.STANDSTILL_SEEN_S` before its first motion makes
+    that trip a warm-up too (:func:`~discovery.record.trip_timing`)."""
     settle_s, score_rate_hz = rates
     motions = rec.motions
     trips: list[ReplayTrip] = []

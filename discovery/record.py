@@ -280,7 +280,7 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
     if before.size and before[-1] + 1 < a_i:
         lo = float(t[motions[k - 1][1]]) if k > 0 else -np.inf
         resumed = float(t[before[-1] + 1])
-        pre, post = _around_gaps(t, rec.depth, lo, before, float(t[a_i]), shaft)
+        _, post = _around_gaps(t, rec.depth, lo, before, float(t[a_i]), shaft)
         # a gap that could hide a round trip, or gaps around which the conveyance
         # stood at different levels (it moved in them), end the known history
         gap_before = bool(
@@ -391,12 +391,14 @@ def trailing_ramp_start(rec: RecordArrays, timing: list[dict[str, Any]], notes: 
 #: The least standstill [s] a record (or its resumption after a gap ending the history)
 #: must hold before its first motion for that trip to be compared: the two plateaus
 #: :func:`~discovery.segmentation.loading_ramp` reads either side of a loading (2 s and
-#: 3 s), and as long again for the ramp between them. A record that starts less than
-#: this before the motion may start within or just after a loading it does not show,
-#: whose seals the replay's start from rest does not hold (a probe on a loading of 5 s
-#: that ends 5 s before the motion: 3.1-4.7 x the noise on that trip for records
-#: starting 6 s down to 1 s before the motion; 1.5-1.6 x from 11 s, the loading seen).
-STANDSTILL_SEEN_S = 10.0
+#: 3 s) and 3 s of ramp between them. A record that starts less than this before the
+#: motion may start within or just after a loading it does not show, whose seals the
+#: replay's start from rest does not hold (a probe on a loading of 5 s that ends 5 s
+#: before the motion: 3.1-4.7 x the noise on that trip for records starting 6 s down to
+#: 1 s before the motion; 1.5-1.6 x from 11 s, the loading seen). A choice, not a
+#: measured bound: a record starting on a longer standstill may still start just after
+#: a loading (the seals' state there is then the start from rest's).
+STANDSTILL_SEEN_S = 8.0
 #: The last stretch of a standstill [s] whose common-mode pressure tells a payload change
 #: the record's end or a logger gap cuts (:func:`_load_change`).
 CUT_CHANGE_S = 0.5

@@ -316,7 +316,7 @@ def test_a_record_starting_just_before_a_motion_compares_it_only_with_its_loadin
     """Trip 2 loads from 300.2 s to 305.1 s and moves at 310 s. A record starting at
     299 s shows the loading (its first trip compared, as discovery compares a record's
     first trip); one starting within it (304.8 s) or after it (309 s) holds less than
-    ``STANDSTILL_SEEN_S`` of the standstill: the trip only loads the seals' state
+    ``STANDSTILL_SEEN_S`` (8 s) of the standstill: the trip only loads the seals' state
     (a probe: 4.7 x and 3.1 x the noise when compared), and the next is compared."""
     plan, info = four_trips
     late = info["day"].sensors.filter(pl.col("time_utc") >= _at(plan, starts_s))

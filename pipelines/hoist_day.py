@@ -325,14 +325,19 @@ def _of_landed_trips(data: DataRoot, checks: pl.DataFrame, run_id: str) -> pl.Da
     2). Trips of a run that has none landed any more are none of its checks."""
     if not checks.height:
         return checks
+    return checks.filter(pl.col("trip_id").is_in(_landed_trip_ids(data, run_id)))
+
+
+def _landed_trip_ids(data: DataRoot, run_id: str) -> list[int]:
+    """The ``trip_id`` of each ``trip_summary`` row the run holds, in order."""
     con = open_reader(data)
     try:
         landed = con.execute(
-            "SELECT trip_id FROM trip_summary WHERE run_id = ?", [run_id]
+            "SELECT trip_id FROM trip_summary WHERE run_id = ? ORDER BY trip_id", [run_id]
         ).fetchall()
     finally:
         con.close()
-    return checks.filter(pl.col("trip_id").is_in([t for (t,) in landed]))
+    return [trip_id for (trip_id,) in landed]
 
 
 def _empty_checks() -> pl.DataFrame:
@@ -356,19 +361,13 @@ def _unchecked_trips(
     from schemas.tables import SANITY_CHECKS, conform
 
     try:
-        con = open_reader(data)
-        try:
-            trips = con.execute(
-                "SELECT trip_id FROM trip_summary WHERE run_id = ? ORDER BY trip_id", [run_id]
-            ).fetchall()
-        finally:
-            con.close()
+        trips = _landed_trip_ids(data, run_id)
     except Exception:  # the landing below says what is wrong with the warehouse
         return _empty_checks()
     rows = [
         {"run_id": run_id, "site": site, "hoist": hoist, "trip_id": trip_id,
          "message": f"{NOT_RUN_WORDS}: {why}", "status": "skipped"}
-        for (trip_id,) in trips
+        for trip_id in trips
     ]  # fmt: skip
     return conform(pl.DataFrame(rows), SANITY_CHECKS) if rows else _empty_checks()
 

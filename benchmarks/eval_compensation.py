@@ -365,8 +365,11 @@ def as_variant(case: DayCase, variant: str) -> DayCase:
         zone = ZoneInfo(table.key("timezone", "UTC"))
         resumed = table.rows[pause_row(table)][table.column("timestamp")]
         at, later = _logged_utc(resumed, zone), dt.timedelta(seconds=PAUSES[variant])
+        # a window the pause falls in spans it: its rows before and after (none in it)
         windows = [
-            dataclasses.replace(w, t0=w.t0 + later, t1=w.t1 + later) if w.t0 >= at else w
+            dataclasses.replace(w, t0=w.t0 + later if w.t0 >= at else w.t0, t1=w.t1 + later)
+            if w.t1 > at
+            else w
             for w in windows
         ]
     return DayCase(f"{case.name} [{variant}]", csv, case.hoist_path, windows)

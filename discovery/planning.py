@@ -248,9 +248,10 @@ def _planned_trips(
     into it, and a trip that does not start where the one before it ended (by more than the
     simulation's continuation tolerance) starts a new history, as a warm-up not compared:
     what happened in the gap is not logged. A trip is compared only up to a logger gap in
-    the standstill after it, and a record (or its resumption after such a gap) holding
-    less than :data:`~discovery.record.STANDSTILL_SEEN_S` before its first motion makes
-    that trip a warm-up too (:func:`~discovery.record.trip_timing`)."""
+    the standstill after it that could hide a round trip or across which the depth
+    changed, and a record holding less than :data:`~discovery.record.STANDSTILL_SEEN_S`
+    before its first motion makes that trip a warm-up too
+    (:func:`~discovery.record.trip_timing`)."""
     settle_s, score_rate_hz = rates
     motions = rec.motions
     trips: list[ReplayTrip] = []
@@ -297,11 +298,10 @@ def _planned_trips(
                 rec, hoist, k, tm, (b, restart), win_end, score_rate_hz, logged, notes
             )
             if np.isfinite(tm["gap_after"]):
-                # a logger gap in the standstill after it: compared up to the gap (what is
-                # logged after it may stand elsewhere or carry another payload); the
-                # simulation still settles over the whole window, as the next trip's
-                # history continues from where it settled
-                before_gap = (trip.time_s < tm["gap_after"])[:, None]
+                # a logger gap in the standstill after it that ends what is known of it:
+                # compared up to the gap; the simulation still settles over the whole
+                # window, as the next trip's history continues from where it settled
+                before_gap = (trip.time_s <= tm["gap_after"])[:, None]
                 trip = dataclasses.replace(trip, valid=trip.valid & before_gap)
             if k == warm_up or after_gap:
                 # the trip before the block (or the first after a logger gap): simulated

@@ -137,7 +137,8 @@ def test_a_variant_of_a_day_keeps_its_truth_and_its_own_file(evaluation, tmp_pat
 def test_a_paused_variant_moves_the_truth_after_the_pause(evaluation, tmp_path) -> None:
     """``as_variant(case, "pause-10min")``: the truth's windows from the row the logger
     resumes with on (its local time in the file's zone) are 600 s later, the earlier
-    ones as they were."""
+    ones as they were, and one the pause falls in ends 600 s later (a review: the
+    windows holding the pause had kept their rows before it only)."""
     names = ["timestamp", "p1", "p2", "p3", "p4", "depth", "speed"]
     lines = ["# timezone: Asia/Shanghai", "# sample_rate_hz: 1", ",".join(names)]
     for k in range(100):
@@ -147,15 +148,16 @@ def test_a_paused_variant_moves_the_truth_after_the_pause(evaluation, tmp_path) 
     csv.write_text("\n".join(lines) + "\n")
     # 14:01:05 local (UTC+8) is 06:01:05 UTC: the row the logger resumes with
     at = dt.datetime(2026, 2, 10, 6, 1, 5, tzinfo=dt.UTC)
-    windows = [
-        evaluation.Window("arrival", "p", at - dt.timedelta(seconds=s), at, 1.0, (0.25,) * 4)
-        for s in (1, 0)
-    ]
+    second = dt.timedelta(seconds=1)
+    spans = [(at - second, at), (at, at + second), (at - second, at + second)]
+    windows = [evaluation.Window("arrival", "p", a, b, 1.0, (0.25,) * 4) for a, b in spans]
     out = evaluation.as_variant(evaluation.DayCase("day", csv, tmp_path / "h.toml", windows),
                                 "pause-10min")  # fmt: skip
-    assert out.windows[0] == windows[0]
     later = dt.timedelta(seconds=600)
-    assert (out.windows[1].t0, out.windows[1].t1) == (at + later, at + later)
+    assert out.windows[0] == windows[0]  # ends where the logger resumes: before the pause
+    assert (out.windows[1].t0, out.windows[1].t1) == (at + later, at + second + later)
+    # one the pause falls in spans it: its rows before the pause and after it
+    assert (out.windows[2].t0, out.windows[2].t1) == (at - second, at + second + later)
 
 
 def test_report_day_prints_the_margin_to_the_worse_than_raw_limit(evaluation, capsys) -> None:

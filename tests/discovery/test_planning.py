@@ -12,7 +12,13 @@ import pytest
 
 from discovery.cases import hidden_case
 from discovery.planning import plan_replay
-from discovery.record import RAMP_LEAD_S, shortest_round_trip_s
+from discovery.record import (
+    RAMP_LEAD_S,
+    read_record,
+    shortest_round_trip_s,
+    trailing_ramp_start,
+    trip_timing,
+)
 from discovery.replay_choices import choose_motion
 from discovery.segmentation import CUT_WORDS, estimate_noise_sigma
 from sims.replay import replay_fitted
@@ -284,6 +290,29 @@ def test_a_loading_a_gap_or_the_record_s_end_cuts_early_ends_the_window_before_i
     assert _at(gap_plan, before.window_end_s) <= _at(plan, loading + 0.1)
     result = replay_fitted(gap_plan, passes=3)
     assert _rms(result.residuals(gap_plan)[1]) < 2.0 * gap_plan.noise_sigma_pa
+
+
+def test_the_settling_after_a_stop_is_no_payload_change_where_the_record_ends(four_trips):
+    """The common-mode pressure settles 25 kPa over the seconds after trip 1 stops
+    (e-folding 4 s, as the ringing validation hoist's settles by 20-25 kPa over 10 s),
+    with no payload change before trip 2's loading. A record ending anywhere in that
+    standstill shows no payload change after its last stop, so the last trip's window is
+    not cut short (a review: the early-cut loading's reading took such settling for a
+    loading at 147 of ~1800 cut positions on validation day 104)."""
+    plan, info = four_trips
+    stop = plan.trips[1].motion_end_s
+    loading = info["day"].info["trips"][2]["start_s"]
+    since = (pl.col("time_utc") - _at(plan, 0.0)).dt.total_microseconds() / 1e6
+    settling = (
+        pl.when((since > stop) & (since < loading))
+        .then(25e3 * ((stop - since) / 4.0).exp())
+        .otherwise(0.0)
+    )
+    settled = info["day"].sensors.with_columns(pl.col(f"p{i}_pa") + settling for i in range(1, 5))
+    for end in np.arange(stop + 3.0, loading - 1.0, 1.0):
+        rec = read_record(settled.filter(pl.col("time_utc") < _at(plan, end)), plan.hoist)
+        timing = [trip_timing(rec, plan.hoist, k) for k in range(len(rec.motions))]
+        assert trailing_ramp_start(rec, timing, []) == np.inf, f"record ending at {end:.0f} s"
 
 
 def test_a_record_resuming_as_a_trip_leaves_the_pithead_loads_the_seals(four_trips):

@@ -251,6 +251,20 @@ def _moved(
     return bool(known) and max(known) - min(known) > STANDSTILL_DEPTH_M
 
 
+def _ends_history(
+    rec: RecordArrays, hoist: HoistDescription, lo: float, gaps: np.ndarray, hi: float
+) -> bool:
+    """Whether the logger ``gaps`` of the standstill between times ``lo`` and ``hi``
+    end what is known of the seals' history: one could hide a round trip
+    (:func:`shortest_round_trip_s`), or the conveyance stood at different levels around
+    them (:func:`_moved`)."""
+    t = rec.t
+    return bool(
+        np.max(t[gaps + 1] - t[gaps]) >= shortest_round_trip_s(hoist)
+        or _moved(t, rec.depth, lo, gaps, hi, hoist.shaft.depth_m)
+    )
+
+
 def _gap_starts(t: np.ndarray, lo: int, hi: int) -> np.ndarray:
     """Indices j in [lo, hi) after which the logger stopped for more than
     :data:`~physics.trip_rule.TRIP_BRIDGE_S` (t[j + 1] - t[j])."""
@@ -281,12 +295,7 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
         lo = float(t[motions[k - 1][1]]) if k > 0 else -np.inf
         resumed = float(t[before[-1] + 1])
         _, post = _around_gaps(t, rec.depth, lo, before, float(t[a_i]), shaft)
-        # a gap that could hide a round trip, or gaps around which the conveyance
-        # stood at different levels (it moved in them), end the known history
-        gap_before = bool(
-            np.max(t[before + 1] - t[before]) >= shortest_round_trip_s(hoist)
-            or _moved(t, rec.depth, lo, before, float(t[a_i]), shaft)
-        )
+        gap_before = _ends_history(rec, hoist, lo, before, float(t[a_i]))
         d0 = post if np.isfinite(post) else d0  # where it stood when it left
         if gap_before:
             # it moved, or may have, in the gap: only what is logged after it is this
@@ -299,13 +308,10 @@ def trip_timing(rec: RecordArrays, hoist: HoistDescription, k: int) -> dict[str,
         pre, _ = _around_gaps(t, rec.depth, float(t[b_i]), after, hi, shaft)
         d1 = pre if np.isfinite(pre) else d1
         next_start = min(next_start, float(t[after[0]]))
-        # a gap that could hide a round trip, or across which the conveyance stood at
-        # another level: the trip is compared up to it (what is logged after it may
-        # stand elsewhere or carry another payload; a shorter gap at the same level is
-        # the same standstill, compared across)
-        if np.max(t[after + 1] - t[after]) >= shortest_round_trip_s(hoist) or _moved(
-            t, rec.depth, float(t[b_i]), after, hi, shaft
-        ):
+        # the trip is compared up to a gap that ends the known history (what is logged
+        # after it may stand elsewhere or carry another payload; a shorter gap at the
+        # same level is the same standstill, compared across)
+        if _ends_history(rec, hoist, float(t[b_i]), after, hi):
             gap_after = float(t[after[0]])
         # and its window ends before a payload change logged before the gap, which the
         # next trip's loading ramp does not hold where its history restarts after the

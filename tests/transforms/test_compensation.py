@@ -9,7 +9,7 @@ import numpy as np
 import polars as pl
 import pytest
 
-from schemas.hoist import EXAMPLE_HOIST, load_hoist
+from schemas.hoist import EXAMPLE_HOIST, load_hoist, parse_hoist
 from schemas.tables import ROPE_TENSIONS
 from transforms.compensation import CompensationSettings, compensate, logger_rate_hz
 
@@ -212,6 +212,43 @@ def test_nothing_is_invented_across_a_long_gap():
     """Beyond the bridge (default 120 s) a restart: an unlogged move is not guessed."""
     out = compensate(_gapped_move(600.0), HOIST)
     assert np.all(np.abs(out["friction1_n"].to_numpy()) < 1.0)
+
+
+def _paused_rest(pauses: int, seed: int, *, paused: bool) -> pl.DataFrame:
+    """A 1 MPa rise (the seals take friction), then 10 s at rest ``pauses + 1`` times,
+    with 4 kPa of sensor noise; ``paused``: the logger stopped 600 s between them."""
+    rng = np.random.default_rng(seed)
+    ramp = 5e6 + 1e6 * np.arange(400) / 400
+    p = np.r_[np.full(300, 5e6), ramp, np.full(1000 * (pauses + 1), ramp[-1])]
+    frame = _frame(p[None, :] + 4e3 * rng.normal(size=(4, p.size)), np.zeros(p.size))
+    t = np.arange(p.size) / RATE
+    if paused:
+        for k in range(1, pauses + 1):
+            t[700 + 1000 * k :] += 600.0
+    start = dt.datetime(2026, 3, 2, tzinfo=dt.UTC)
+    return frame.with_columns(
+        pl.Series("time_utc", [start + dt.timedelta(seconds=float(s)) for s in t])
+    )
+
+
+def test_a_logger_pause_at_rest_leaves_the_seals_as_they_were():
+    """LuGre seals at rest drift only as far as the oil's played travel moves them: a
+    logger paused at rest (the same state either side) must not add travel at its
+    edges. Over 8 pauses of 10 min on 3 noise draws, the seals' summed friction drifts
+    at most 2x as far as in the same samples logged without the pauses (the filters'
+    edges carry 0.6 of a sample's noise, :func:`transforms.lowpass.edge_levels`; with
+    scipy's odd extension about the edge sample, 3-5x: 124-194 N against 29-44 N)."""
+    lugre = parse_hoist(EXAMPLE_HOIST.read_text().replace('    "presliding_hysteresis",\n', ""))
+    assert "presliding_hysteresis" not in lugre.model.effects
+    drift = {True: 0.0, False: 0.0}
+    for seed in range(3):
+        for paused in (True, False):
+            out = compensate(_paused_rest(8, seed, paused=paused), lugre)
+            summed = sum(out[f"friction{i}_n"].to_numpy() for i in range(1, 5))
+            assert summed[900:1700].mean() > 4000.0  # the rise left the seals loaded
+            means = [summed[700 + 1000 * k + 200 : 700 + 1000 * (k + 1)].mean() for k in range(9)]
+            drift[paused] += abs(means[-1] - means[0])
+    assert drift[True] < 2.0 * drift[False]
 
 
 def test_positions_and_phases_are_labelled():

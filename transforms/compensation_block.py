@@ -293,15 +293,21 @@ class BlockCompensation(BlockSetup):
         x = tuple(np.full(n, np.nan) for _ in ROPES)
         friction = tuple(np.full(n, np.nan) for _ in ROPES)
 
+        # only on ropes identified from the record's x: with their prior the runs are
+        # as far off as the stops (transforms.stop_continuity), whose shifts relax with
+        # the estimate's drifting seals
+        continuity = self.settings.stop_continuity and np.isfinite(springs.mismatch_m)
+        relaxation = np.zeros((len(ROPES), n)) if continuity and drift_p is not None else None
+
         def run(lo: int, hi: int, state: np.ndarray) -> None:
-            self.solve_springs(inputs, members[0], lo, hi, state, (x, friction), self.dt_nominal)
+            self.solve_springs(
+                inputs, members[0], lo, hi, state, (x, friction), self.dt_nominal,
+                relaxation=relaxation,
+            )  # fmt: skip
 
         # the stop continuity looks this far past the stage: a departure within BACK_S
         # of it, the next trip's steady run after it (transforms.stop_continuity)
         self.spring_hi = self.stage_hi
-        # only on ropes identified from the record's x: with their prior the runs are
-        # as far off as the stops (transforms.stop_continuity)
-        continuity = self.settings.stop_continuity and np.isfinite(springs.mismatch_m)
         if continuity and self.stage_hi > self.stage_lo:
             reach = self.time_s[self.stage_hi - 1] + LOOK_AHEAD_S
             self.spring_hi = int(np.searchsorted(self.time_s, reach, side="right"))
@@ -347,7 +353,7 @@ class BlockCompensation(BlockSetup):
             self.member_sources += (BAND_SOURCES.index("stiffness"),)
         self.spring_friction = friction
         if continuity:  # ropes identified from the record's x: its runs hold the load
-            self.stop_continuity(x, [friction, *self.member_friction], depth, pressures)
+            self.stop_continuity(x, [friction, *self.member_friction], depth, pressures, relaxation)
         return x, tuple(np.zeros(n) for _ in ROPES)
 
     def stop_continuity(
@@ -356,11 +362,13 @@ class BlockCompensation(BlockSetup):
         frictions: list[tuple[np.ndarray, ...]],
         depth: np.ndarray,
         pressures: tuple[np.ndarray, ...],
+        relaxation: np.ndarray | None = None,
     ) -> None:
         """The seals' friction of every solution at each arrival set by the load's
         continuity from the trip's steady run, and before each departure by that to the
         next trip's (:mod:`transforms.stop_continuity`), in place, over the first stage;
-        its state carried at the hand-over."""
+        its state carried at the hand-over. ``relaxation``: the estimate's drift
+        exponents (:func:`transforms.stick_slip.stick_slip`'s ``relaxation_out``)."""
         accel, _ = self.kinematics_job.result()
         speed = np.where(np.isnan(self.speed), 0.0, self.speed)
         phase, _, _ = trip_label_codes(self.time_s, speed, accel, self.segment, depth, self.hoist)
@@ -371,6 +379,7 @@ class BlockCompensation(BlockSetup):
             self.time_s, phase, depth, mean_horizontal(list(pressures)) * area * len(ROPES),
             x, factors / factors.sum(), self.presliding_range_m, self.dt_nominal,
             self.presliding_range_m * float(self.law.bristle_stiffness_n_m) or np.inf,
+            relaxation,
         )  # fmt: skip
 
         def run(lo: int, hi: int, state: np.ndarray) -> None:
@@ -400,10 +409,11 @@ class BlockCompensation(BlockSetup):
         out: tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]],
         dt_s: float | np.ndarray,
         travel: np.ndarray | None = None,
+        relaxation: np.ndarray | None = None,
     ) -> None:
         """:func:`~transforms.stick_slip.stick_slip` of one solution over [lo, hi) of
         ``inputs`` (samples, or means with the drift's ``travel`` given, the member's
-        ringing in it)."""
+        ringing in it); ``relaxation`` (pistons x samples) takes its seals' drift exponents."""
         capacity_scale, sigma0_scale, ropes, start, ringing_factor, _ = member
         nu = inputs.nu
         drift_p = None if inputs.drift_p is None or travel is not None else inputs.drift_p[lo:hi]
@@ -424,6 +434,7 @@ class BlockCompensation(BlockSetup):
             drift_ringing_pa=ringing,
             presliding_elements=self.weights.shape[0],
             out=(tuple(v[lo:hi] for v in out[0]), tuple(f[lo:hi] for f in out[1])),
+            relaxation_out=None if relaxation is None else relaxation[:, lo:hi],
         )  # fmt: skip
 
     def member_means(

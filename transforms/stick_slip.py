@@ -175,6 +175,7 @@ COMPARE_EVERY = 256
 #: arrays, so that the solution and the mismatch's loop call one compiled kernel (with
 #: ``None`` there numba compiled the kernel twice, ~12 s more on a cold cache).
 _NOT_COMPARED = np.zeros(0)
+_NOT_RELAXED = np.zeros((0, 0))  # the kernel's relaxation not written
 
 
 def stick_slip_state(pistons: int, elements: int = 1) -> np.ndarray:
@@ -243,6 +244,7 @@ def stick_slip(
     drift_ringing_pa: np.ndarray | None = None,
     presliding_elements: int = 1,
     out: tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]] | None = None,
+    relaxation_out: np.ndarray | None = None,
 ) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
     """Each piston's displacement [m] and seal friction [N] (module docstring).
 
@@ -313,6 +315,13 @@ def stick_slip(
         (:func:`physics.maxwell_slip.maxwell_slip_virgin`).
     out : (tuple of ndarray, tuple of ndarray), optional
         Contiguous float64 arrays the displacements and frictions are written into.
+    relaxation_out : ndarray, optional
+        A float64 array of shape (pistons, samples) written with each seal's drift at
+        each sample as the exponent it relaxes by there, sigma_0 s / g (its drift path
+        s over its capacity's presliding range, :func:`physics.lugre.lugre_drift`: the
+        friction, and any error of it, is multiplied by exp(-that)); 0 where it does not
+        drift (:func:`transforms.stop_continuity.apply_stop_continuity` lets its shifts
+        relax by it).
 
     Returns
     -------
@@ -338,6 +347,10 @@ def stick_slip(
     if out is None:
         out = (tuple(np.empty(n) for _ in range(m)), tuple(np.empty(n) for _ in range(m)))
     x_out, f_out = out
+    if relaxation_out is None:
+        relaxation_out = _NOT_RELAXED
+    elif relaxation_out.shape != (m, n):
+        raise ValueError(f"relaxation_out has shape {relaxation_out.shape}, not {(m, n)}")
     head, tail = _kernel_inputs(
         p_sensor, x_logged, depth_m, segment_id, hoist,
         dt_s=dt_s, nu_m2_s=nu_m2_s, branch=branch, capacity_scale=capacity_scale,
@@ -357,6 +370,7 @@ def stick_slip(
             *tail,
             x_out,
             f_out,
+            relaxation_out,
             stick_slip_state(m, presliding_elements) if state is None else state,
             np.inf,
             _NOT_COMPARED,
@@ -562,13 +576,14 @@ def _mismatch_kernel(
                 logged[i] += 1.0
     squares = np.zeros(m)
     counts = np.zeros(m)
+    unwritten = np.zeros((0, 0))  # the seals' relaxation, not written
     for k in range(stiffness.shape[0]):
         squares[:] = 0.0
         counts[:] = 0.0
         whole = _kernel(
             p_sensor, x_logged, depth, segment, dt, nu, with_loss, branch, const, law, groove,
             stiffness[k], offsets[k], scale, start, drift_mode, drift, half_width, rings,
-            ringing, element_k, element_w, x_out, f_out, np.zeros(state_size),
+            ringing, element_k, element_w, x_out, f_out, unwritten, np.zeros(state_size),
             bounds[k], logged, squares, counts,
         )  # fmt: skip
         if not whole:  # stopped beyond its bound: a lower bound of the mismatch
@@ -665,7 +680,7 @@ def _centred_stretch(s, ka, x, off, p_now, area, capacity, skip):  # pragma: no 
 def _kernel(
     p_sensor, x_logged, depth, segment, steps, nu, with_loss, branch, const, law, groove, a, c,
     scale, start, drift_mode, drift_p, drift_w, rings, ringing, element_k, element_w, x_out,
-    f_out, state, bound, logged, squares, counts,
+    f_out, relax_out, state, bound, logged, squares, counts,
 ):  # pragma: no cover - numba  # fmt: skip
     """Per sample: the seals' drift, the oil's Newton solve for s, each piston's seal step
     (module docstring).
@@ -679,7 +694,9 @@ def _kernel(
     With ``squares`` not empty (:func:`_mismatch_kernel`; :func:`stick_slip` passes
     empty ones, :data:`_NOT_COMPARED`) it sums each piston's squared x less the logged
     x and returns False where, every :data:`COMPARE_EVERY` samples, they already exceed
-    ``bound`` (:func:`_beyond`): stopped, the state not kept. Else True.
+    ``bound`` (:func:`_beyond`): stopped, the state not kept. Else True. With
+    ``relax_out`` not empty (its shape (m, n)) it writes each seal's drift exponent of
+    each sample there (:func:`stick_slip`'s ``relaxation_out``).
     """
     m = len(p_sensor)
     n = depth.shape[0]
@@ -739,7 +756,11 @@ def _kernel(
     per_sample = nu.shape[0] > 1
     per_step = steps.shape[0] > 1
     compare = squares.shape[0] > 0  # the mismatch's sums (_mismatch_kernel), and its bound
+    relaxes = relax_out.shape[1] > 0
     for t in range(n):
+        if relaxes:
+            for i in range(m):
+                relax_out[i, t] = 0.0
         if compare and t > 0:
             _compare(x_out, x_logged, t - 1, squares, counts)
             if t % COMPARE_EVERY == 0 and _beyond(bound, squares, logged):
@@ -872,6 +893,8 @@ def _kernel(
                 for i in range(m):
                     if cap[i] > 0.0:
                         z[i] = lugre_drift(z[i], path * compliance[i], sigma0, cap[i])
+                        if relaxes:
+                            relax_out[i, t] = sigma0 * path * compliance[i] / cap[i]
         dp = p_mean - p_last
         steady = known == m
         for i in range(m):

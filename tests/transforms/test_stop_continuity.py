@@ -9,6 +9,7 @@ give the same in two parts as in one.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -452,3 +453,57 @@ def test_the_departures_swing_does_not_end_the_arrivals_update_early() -> None:
     _run(case, [estimate])
     at_rest = slice(case["arrival"], departure)
     np.testing.assert_allclose(_load(case, estimate)[at_rest], case["load"][at_rest] + 150.0)
+
+
+def _relaxing(
+    case: dict, per_s: tuple[float, ...], lo: int, hi: int | None = None
+) -> ContinuityInputs:
+    """The case's inputs with each seal drifting at ``per_s`` (its drift exponent a
+    second, LuGre's sigma_0 s / g) over samples [lo, hi)."""
+    relaxation = np.zeros((4, case["t"].size))
+    for i, rate in enumerate(per_s):
+        relaxation[i, lo:hi] = rate / RATE
+    return dataclasses.replace(_inputs(case), relaxation=relaxation)
+
+
+def test_a_seal_shaken_loose_keeps_of_the_arrivals_shift_what_its_drift_leaves() -> None:
+    """LuGre's drift relaxes a seal's friction, and any error of it, by exp(-R): a seal
+    that drifts over the rest window (R_w) takes exp(-R_w) of its share of the shift
+    there, and it relaxes on with the drift after the window; one that does not drift
+    takes all of it, as without the drift (test above). Two parts give what one gives."""
+    case = _trip()
+    per_s = (0.0, 0.02, 0.05, 0.1)
+    inputs = _relaxing(case, per_s, case["arrival"])
+    arrival = case["arrival"]
+    window = rest_window(case["t"], case["phase"], case["p"], arrival)
+    assert case["t"][window.stop - 1] - case["t"][window.start] == pytest.approx(10.0, abs=0.05)
+    for parts in ((), (arrival + 300,), (arrival + 900, arrival + 1200)):
+        estimate = tuple(f.copy() for f in case["f"])
+        state = continuity_state(1)
+        for lo, hi in itertools.pairwise([0, *parts, case["t"].size]):
+            apply_stop_continuity(inputs, [estimate], lo, hi, state, HOIST)
+        for i, rate in enumerate(per_s):
+            shift = estimate[i] - case["f"][i]
+            gain = np.exp(-rate * (window.stop - window.start) / RATE)  # the window's drift
+            np.testing.assert_allclose(shift[arrival : window.stop], -900.0 * FRACTIONS[i] * gain)
+            after = np.arange(case["t"].size - window.stop) + 1  # samples of drift since
+            np.testing.assert_allclose(
+                shift[window.stop :], -900.0 * FRACTIONS[i] * gain * np.exp(-rate * after / RATE)
+            )
+            np.testing.assert_allclose(shift[:arrival], 0.0, atol=1e-9)
+
+
+def test_a_seal_shaken_loose_before_the_departure_keeps_what_its_drift_leaves() -> None:
+    """The departure's shift (the run down's, after the payload change) likewise: exp of
+    minus each seal's drift over the departure's rest window, the stop's last SPAN_S
+    before its last second at rest."""
+    case = _round_trip()
+    per_s = (0.0, 0.03, 0.0, 0.2)
+    inputs = _relaxing(case, per_s, case["change"], case["departure"])
+    estimate = tuple(f.copy() for f in case["f"])
+    apply_stop_continuity(inputs, [estimate], 0, case["t"].size, continuity_state(1), HOIST)
+    after = slice(case["change"] + int(1.5 * RATE), case["departure"])
+    for i, rate in enumerate(per_s):
+        gain = np.exp(-rate * SPAN_S)
+        # the solution held 600 N too little summed after the change
+        np.testing.assert_allclose((estimate[i] - case["f"][i])[after], 600.0 * FRACTIONS[i] * gain)

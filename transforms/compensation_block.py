@@ -297,7 +297,7 @@ class BlockCompensation(BlockSetup):
         # as far off as the stops (transforms.stop_continuity), whose shifts relax with
         # the estimate's drifting seals
         continuity = self.settings.stop_continuity and np.isfinite(springs.mismatch_m)
-        relaxation = np.zeros((len(ROPES), n)) if continuity and drift_p is not None else None
+        relaxation = np.zeros((n, len(ROPES))) if continuity and drift_p is not None else None
 
         def run(lo: int, hi: int, state: np.ndarray) -> None:
             self.solve_springs(
@@ -413,7 +413,7 @@ class BlockCompensation(BlockSetup):
     ) -> None:
         """:func:`~transforms.stick_slip.stick_slip` of one solution over [lo, hi) of
         ``inputs`` (samples, or means with the drift's ``travel`` given, the member's
-        ringing in it); ``relaxation`` (pistons x samples) takes its seals' drift exponents."""
+        ringing in it); ``relaxation`` (samples x pistons) takes its seals' drift exponents."""
         capacity_scale, sigma0_scale, ropes, start, ringing_factor, _ = member
         nu = inputs.nu
         drift_p = None if inputs.drift_p is None or travel is not None else inputs.drift_p[lo:hi]
@@ -434,7 +434,7 @@ class BlockCompensation(BlockSetup):
             drift_ringing_pa=ringing,
             presliding_elements=self.weights.shape[0],
             out=(tuple(v[lo:hi] for v in out[0]), tuple(f[lo:hi] for f in out[1])),
-            relaxation_out=None if relaxation is None else relaxation[:, lo:hi],
+            relaxation_out=None if relaxation is None else relaxation[lo:hi],
         )  # fmt: skip
 
     def member_means(

@@ -316,7 +316,8 @@ def stick_slip(
     out : (tuple of ndarray, tuple of ndarray), optional
         Contiguous float64 arrays the displacements and frictions are written into.
     relaxation_out : ndarray, optional
-        A float64 array of shape (pistons, samples) written with each seal's drift at
+        A C-contiguous float64 array of shape (samples, pistons) written with each
+        seal's drift at
         each sample as the exponent it relaxes by there, sigma_0 s / g (its drift path
         s over its capacity's presliding range, :func:`physics.lugre.lugre_drift`: the
         friction, and any error of it, is multiplied by exp(-that)); 0 where it does not
@@ -349,8 +350,10 @@ def stick_slip(
     x_out, f_out = out
     if relaxation_out is None:
         relaxation_out = _NOT_RELAXED
-    elif relaxation_out.shape != (m, n):
-        raise ValueError(f"relaxation_out has shape {relaxation_out.shape}, not {(m, n)}")
+    elif relaxation_out.shape != (n, m) or not relaxation_out.flags.c_contiguous:
+        raise ValueError(
+            f"relaxation_out: a C-contiguous array of {(n, m)}, not of {relaxation_out.shape}"
+        )
     head, tail = _kernel_inputs(
         p_sensor, x_logged, depth_m, segment_id, hoist,
         dt_s=dt_s, nu_m2_s=nu_m2_s, branch=branch, capacity_scale=capacity_scale,
@@ -695,8 +698,9 @@ def _kernel(
     empty ones, :data:`_NOT_COMPARED`) it sums each piston's squared x less the logged
     x and returns False where, every :data:`COMPARE_EVERY` samples, they already exceed
     ``bound`` (:func:`_beyond`): stopped, the state not kept. Else True. With
-    ``relax_out`` not empty (its shape (m, n)) it writes each seal's drift exponent of
-    each sample there (:func:`stick_slip`'s ``relaxation_out``).
+    ``relax_out`` not empty (its shape (n, m)) it writes each seal's drift exponent of
+    each sample there (:func:`stick_slip`'s ``relaxation_out``; C-contiguous, as the
+    empty one, so that one compiled kernel serves both).
     """
     m = len(p_sensor)
     n = depth.shape[0]
@@ -756,11 +760,11 @@ def _kernel(
     per_sample = nu.shape[0] > 1
     per_step = steps.shape[0] > 1
     compare = squares.shape[0] > 0  # the mismatch's sums (_mismatch_kernel), and its bound
-    relaxes = relax_out.shape[1] > 0
+    relaxes = relax_out.shape[0] > 0
     for t in range(n):
         if relaxes:
             for i in range(m):
-                relax_out[i, t] = 0.0
+                relax_out[t, i] = 0.0
         if compare and t > 0:
             _compare(x_out, x_logged, t - 1, squares, counts)
             if t % COMPARE_EVERY == 0 and _beyond(bound, squares, logged):
@@ -894,7 +898,7 @@ def _kernel(
                     if cap[i] > 0.0:
                         z[i] = lugre_drift(z[i], path * compliance[i], sigma0, cap[i])
                         if relaxes:
-                            relax_out[i, t] = sigma0 * path * compliance[i] / cap[i]
+                            relax_out[t, i] = sigma0 * path * compliance[i] / cap[i]
         dp = p_mean - p_last
         steady = known == m
         for i in range(m):

@@ -210,7 +210,7 @@ class ContinuityInputs:
     common shift (:math:`a_i / \\sum a`); ``presliding_m`` one seal's presliding range
     F_s / sigma_0 [m]; ``dt_s`` the logger's nominal step [s]; ``capacity_n`` one
     seal's static friction F_s [N] (:func:`_update`: inf, no bound); ``relaxation``
-    the estimate's drift exponent of each seal at each sample, shape (4, samples)
+    the estimate's drift exponent of each seal at each sample, shape (samples, 4)
     (:func:`transforms.stick_slip.stick_slip`'s ``relaxation_out``; None: no drift),
     by which the shifts relax (:func:`drift_gains`)."""
 
@@ -564,13 +564,13 @@ def drift_gains(inputs: ContinuityInputs, lo: int, hi: int) -> np.ndarray:
     >>> import numpy as np
     >>> inputs = ContinuityInputs(np.arange(3.0), np.zeros(3, int), np.zeros(3),
     ...     np.zeros(3), (np.zeros(3),) * 4, np.full(4, 0.25), 1e-5, 1.0,
-    ...     relaxation=np.array([[0.0, 0.5, 0.5], [0.0] * 3, [0.0] * 3, [0.0, 2.0, 0.0]]))
+    ...     relaxation=np.array([[0.0, 0.5, 0.5], [0.0] * 3, [0.0] * 3, [0.0, 2.0, 0.0]]).T)
     >>> drift_gains(inputs, 1, 3).round(3).tolist()
     [0.368, 1.0, 1.0, 0.135]
     """
     if inputs.relaxation is None or hi <= lo:
         return np.ones(_PISTONS)
-    exponents = np.nansum(inputs.relaxation[:, lo:hi], axis=1)
+    exponents = np.nansum(inputs.relaxation[lo:hi], axis=0)
     return np.exp(-exponents)
 
 
@@ -640,7 +640,7 @@ def _apply(
         pistons[2, i] = travel[-1] if travel.size else pistons[2, i]
         weight = np.clip(1.0 - travel / reach, 0.0, 1.0) if reach > 0 else np.ones(b - a)
         if inputs.relaxation is not None:  # the seal's drift since the window relaxes it
-            drift = np.where(fading, np.nan_to_num(inputs.relaxation[i][a:b]), 0.0)
+            drift = np.where(fading, np.nan_to_num(inputs.relaxation[a:b, i]), 0.0)
             exponent = pistons[3, i] + np.cumsum(drift)
             pistons[3, i] = exponent[-1] if exponent.size else pistons[3, i]
             weight = weight * np.exp(-exponent)

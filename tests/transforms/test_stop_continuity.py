@@ -460,9 +460,9 @@ def _relaxing(
 ) -> ContinuityInputs:
     """The case's inputs with each seal drifting at ``per_s`` (its drift exponent a
     second, LuGre's sigma_0 s / g) over samples [lo, hi)."""
-    relaxation = np.zeros((4, case["t"].size))
+    relaxation = np.zeros((case["t"].size, 4))
     for i, rate in enumerate(per_s):
-        relaxation[i, lo:hi] = rate / RATE
+        relaxation[lo:hi, i] = rate / RATE
     return dataclasses.replace(_inputs(case), relaxation=relaxation)
 
 

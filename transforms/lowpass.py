@@ -61,7 +61,8 @@ def lowpass(
     on a sine at a fifth of the cut-off), point-symmetric about the segment's level at
     its edge (:func:`edge_levels`: a least-squares parabola over one cut-off period) rather
     than about its edge sample as scipy's: odd extension about a sample returns that
-    sample, its whole noise, at the edge, where a logger gap or a record's end then
+    sample, its whole noise, at the edge (the parabola's end: 0.6-0.95 of it, fewer the
+    more samples a cut-off period holds), where a logger gap or a record's end then
     reads as a step (a 10 min pause at rest stepped the compensation's four seals by
     ~70 N each on validation day 101). NaN samples inside a segment are bridged
     linearly for the filter and returned as NaN. Segments too short for the
@@ -141,11 +142,15 @@ def edge_levels(x: np.ndarray, samples: int) -> tuple[float, float]:
     least-squares parabola through its first (last) ``samples`` samples (all of them if
     fewer), the pivots of :func:`lowpass`'s odd extension.
 
-    Over one cut-off period (:func:`edge_samples`) the parabola's end carries 0.6 of a
-    sample's white noise where the sample itself carries all of it, and it follows
-    what the filter passes about as closely as the sample does (a sine at a fifth of the
-    cut-off: 1.0 % edge error, scipy's odd extension 1.1 %; at two fifths 7 % and 5 %);
-    a straight stretch is kept exactly, so the odd extension still continues a ramp.
+    The parabola's end over k samples carries sqrt(3 (3k^2 - 3k + 2) / (k (k + 1) (k + 2)))
+    of a sample's white noise where the sample itself carries all of it: 0.61 over 20
+    samples (one cut-off period, :func:`edge_samples`, of 5 Hz at 100 Hz), 0.72 over 13
+    (the drift's ~4 Hz at 50 Hz, :func:`transforms.seal_drift.drift_pressure`), 0.79
+    over 10, 0.94 over 5 (the pressures' 10 Hz at 50 Hz: about the sample's own). It
+    follows what the filter passes about as closely as the sample does (a sine at a
+    fifth of the cut-off: 1.0 % edge error, scipy's odd extension 1.1 %; at two fifths
+    7 % and 5 %); a straight stretch, or a parabola, is kept exactly, so the odd
+    extension still continues a ramp.
 
     >>> [round(v, 9) + 0.0 for v in edge_levels(np.array([0.0, 1, 2, 3, 4, 4, 4, 4]), 4)]
     [0.0, 4.0]

@@ -614,9 +614,11 @@ def _apply(
     scale: np.ndarray | None = None,
 ) -> int:
     """Add the active shift over [a, b) (times ``scale`` there, if given) and return
-    where it stopped (b, or a payload change's sample): whole up to the rest window's
-    end, then each piston's fading with its travel beyond its ringing at rest
-    (``pistons``: x at rest, the ringing's reach and the travel so far, carried); ended
+    where it stopped (b, or a payload change's sample): as set (:func:`drift_gains`) up
+    to the rest window's end, then each piston's fading with its travel beyond its
+    ringing at rest
+    (``pistons``: x at rest, the ringing's reach, the travel so far and the seal's drift
+    exponent since the window, carried; that drift relaxes it too, exp(-R)); ended
     (``state[6]`` = 0) where
     the raw load's 2 s centred mean leaves its value at rest by :data:`PAYLOAD_SHARE`
     (a payload change: its transient takes every seal through its presliding range,

@@ -236,7 +236,7 @@ def test_a_logger_pause_at_rest_leaves_the_seals_as_they_were():
     logger paused at rest (the same state either side) must not add travel at its
     edges. Over 8 pauses of 10 min on 3 noise draws, the seals' summed friction drifts
     at most 2x as far as in the same samples logged without the pauses (the filters'
-    edges carry 0.6 of a sample's noise, :func:`transforms.lowpass.edge_levels`; with
+    edges carry 0.6-0.95 of a sample's noise, :func:`transforms.lowpass.edge_levels`; with
     scipy's odd extension about the edge sample, 3-5x: 124-194 N against 29-44 N)."""
     lugre = parse_hoist(EXAMPLE_HOIST.read_text().replace('    "presliding_hysteresis",\n', ""))
     assert "presliding_hysteresis" not in lugre.model.effects

@@ -9,7 +9,7 @@ import polars as pl
 import pytest
 
 from transforms.filtering import despike_median3, segment_ids, with_segment_id
-from transforms.lowpass import lowpass, lowpass_columns
+from transforms.lowpass import edge_levels, lowpass, lowpass_columns
 
 FS_HZ = 100.0
 
@@ -127,33 +127,50 @@ def test_despike_median3_respects_segments_and_nan():
     assert cleaned[6] == 50.0  # next to a NaN: kept
 
 
+def _polyfit_level(y: np.ndarray, samples: int) -> float:
+    """The value at y[-1] of numpy's least-squares parabola through y's last ``samples``
+    samples (the end sample where fewer than four)."""
+    k = min(samples, y.size)
+    if k < 4:
+        return float(y[-1])
+    return float(np.polyval(np.polyfit(np.arange(k), y[-k:], 2), k - 1))
+
+
 def _odd_extended_sosfiltfilt(sos, x: np.ndarray, pad: int, samples: int) -> np.ndarray:
-    """scipy's sosfiltfilt of ``x`` odd-extended by ``pad`` about its edges' levels: the
-    value at each end of a least-squares parabola (numpy's polyfit) through the
-    ``samples`` samples there (the end sample where fewer than four)."""
+    """scipy's sosfiltfilt of ``x`` odd-extended by ``pad`` about its edges' levels (those
+    :func:`edge_levels` gives, checked against numpy's polyfit on their own below)."""
     from scipy import signal
 
-    def level(y: np.ndarray) -> float:  # at y[-1]
-        k = min(samples, y.size)
-        if k < 4:
-            return float(y[-1])
-        return float(np.polyval(np.polyfit(np.arange(k), y[-k:], 2), k - 1))
-
-    first, last = level(x[::-1]), level(x)
+    first, last = edge_levels(x, samples)
     ext = np.concatenate([2 * first - x[pad:0:-1], x, 2 * last - x[-2 : -pad - 2 : -1]])
     return signal.sosfiltfilt(sos, ext, padtype=None)[pad : pad + x.size]
 
 
+@pytest.mark.parametrize("samples", [2, 3, 4, 5, 10, 20, 50])
+def test_edge_levels_are_a_least_squares_parabolas_ends(samples: int):
+    """Each edge's level is numpy's polyfit parabola there, through the first (last)
+    ``samples`` samples, or the end sample where fewer than four; a parabola is kept."""
+    rng = np.random.default_rng(samples)
+    x = np.cumsum(rng.normal(size=40)) + 5e6
+    first, last = edge_levels(x, samples)
+    assert first == pytest.approx(_polyfit_level(x[::-1], samples), rel=1e-13, abs=0)
+    assert last == pytest.approx(_polyfit_level(x, samples), rel=1e-13, abs=0)
+    j = np.arange(40.0)
+    bowl = 3.0 + 0.5 * j - 0.02 * j**2
+    if samples >= 4:
+        assert edge_levels(bowl, samples) == pytest.approx((bowl[0], bowl[-1]), abs=1e-9)
+
+
 def test_lowpass_equals_scipy_sosfiltfilt_per_segment():
     """The numba forward-backward pass is scipy's sosfiltfilt of the segment odd-extended
-    about its edges' levels (to rounding: the levels' arithmetic differs): long and short
-    segments, a segment shorter than the pad, bridged NaN samples."""
+    about its edges' levels, bit for bit: long and short segments, a segment shorter than
+    the pad, bridged NaN samples (one in an edge's stretch)."""
     from scipy import signal
 
     rng = np.random.default_rng(3)
     lengths = [5000, 40, 11, 13, 200, 3000]
     x = np.concatenate([np.cumsum(rng.normal(size=k)) + 5e6 for k in lengths])
-    x[[100, 101, 5100, 8000]] = np.nan
+    x[[3, 100, 101, 5002, 5100, 8000]] = np.nan  # 3 and 5002 in an edge level's stretch
     seg = np.repeat(np.arange(len(lengths)), lengths)
     got = lowpass(x, seg, sample_rate_hz=100.0, cutoff_hz=10.0)
     in_place = x.copy()
@@ -175,7 +192,7 @@ def test_lowpass_equals_scipy_sosfiltfilt_per_segment():
             filled[bad] = np.interp(idx[bad], idx[~bad], part[~bad])
             want = _odd_extended_sosfiltfilt(sos, filled, min(30, k - 1), 10)
             want[bad] = np.nan
-            np.testing.assert_allclose(got[start : start + k], want, rtol=1e-13, atol=0)
+            np.testing.assert_array_equal(got[start : start + k], want)
         start += k
 
 
@@ -203,36 +220,43 @@ def test_lowpass_equals_scipy_sosfiltfilt_for_any_order(order: int):
     """Order 4 (two sections) has its own register-state kernel; other orders take the
     general one. Both are scipy's sosfiltfilt of scipy's own design (the sections come
     from physics.filter_design, which designs them as scipy.signal does) on the odd
-    extension about the edges' levels."""
+    extension about the edges' levels, bit for bit."""
     from scipy import signal
 
     x = np.cumsum(np.random.default_rng(order).normal(size=3000)) + 5e6
     got = lowpass(x, None, sample_rate_hz=100.0, cutoff_hz=10.0, order=order)
     sos = signal.butter(order, 10.0, btype="low", fs=100.0, output="sos")
-    np.testing.assert_allclose(got, _odd_extended_sosfiltfilt(sos, x, 30, 10), rtol=1e-13, atol=0)
+    np.testing.assert_array_equal(got, _odd_extended_sosfiltfilt(sos, x, 30, 10))
 
 
-def test_lowpass_edges_carry_less_noise_than_a_sample():
+@pytest.mark.parametrize(
+    ("rate_hz", "cutoff_hz", "edge_share"), [(100.0, 5.0, 0.61), (50.0, 4.0, 0.72)]
+)
+def test_lowpass_edges_carry_less_noise_than_a_sample(
+    rate_hz: float, cutoff_hz: float, edge_share: float
+):
     """White noise about a known level: at a segment's edges the low-pass is off by about
-    0.6 of the noise (its edge levels, a parabola over one cut-off period), where scipy's
-    odd extension about the edge sample returns that sample, all of it; inside the
-    segment both by about the filter's own share (0.27 seen). A logger gap must not turn
-    one sample's noise into a step."""
+    the share of the noise its edge levels carry (a parabola's end over one cut-off
+    period: 20 samples, 0.61; 13, the drift's low-pass at 50 Hz, 0.72), where scipy's odd
+    extension about the edge sample returns that sample, all of it; inside the segment
+    both by about the filter's own share. A logger gap must not turn one sample's noise
+    into a step."""
     from scipy import signal
 
     rng = np.random.default_rng(11)
     segments, length = 400, 200
     x = 2.5e6 + 4e3 * rng.normal(size=(segments, length))  # 4 kPa of noise at 2.5 MPa
     seg = np.repeat(np.arange(segments), length)
-    y = lowpass(x.ravel(), seg, sample_rate_hz=100.0, cutoff_hz=5.0).reshape(segments, length)
-    sos = signal.butter(4, 5.0, btype="low", fs=100.0, output="sos")
-    scipys = signal.sosfiltfilt(sos, x, axis=1, padlen=60)
-    assert np.std(np.r_[y[:, 0], y[:, -1]] - 2.5e6) < 0.7 * 4e3
+    y = lowpass(x.ravel(), seg, sample_rate_hz=rate_hz, cutoff_hz=cutoff_hz)
+    y = y.reshape(segments, length)
+    sos = signal.butter(4, cutoff_hz, btype="low", fs=rate_hz, output="sos")
+    scipys = signal.sosfiltfilt(sos, x, axis=1, padlen=int(3 * rate_hz / cutoff_hz))
+    edges = np.std(np.r_[y[:, 0], y[:, -1]] - 2.5e6) / 4e3
+    assert edges == pytest.approx(edge_share, abs=0.08)
     assert np.std(np.r_[scipys[:, 0], scipys[:, -1]] - 2.5e6) > 0.9 * 4e3
-    assert np.std(y[:, length // 2] - 2.5e6) < 0.35 * 4e3
-    assert np.std(scipys[:, length // 2] - 2.5e6) == pytest.approx(
-        np.std(y[:, length // 2] - 2.5e6), rel=1e-3
-    )
+    inside = np.std(y[:, length // 2] - 2.5e6)
+    assert inside < 0.5 * 4e3
+    assert np.std(scipys[:, length // 2] - 2.5e6) == pytest.approx(inside, rel=1e-3)
 
 
 def test_an_odd_order_low_pass_is_refused():

@@ -507,3 +507,25 @@ def test_a_seal_shaken_loose_before_the_departure_keeps_what_its_drift_leaves() 
         gain = np.exp(-rate * SPAN_S)
         # the solution held 600 N too little summed after the change
         np.testing.assert_allclose((estimate[i] - case["f"][i])[after], 600.0 * FRACTIONS[i] * gain)
+
+
+def test_each_arrival_starts_its_seals_drift_afresh() -> None:
+    """Two trips: the seals drift through the first stop only. The second arrival's
+    shift is whole: the drift the first arrival's share relaxed by is not carried."""
+    first, second = _trip(), _trip()
+    shift_s = first["t"][-1] + 1.0 / RATE
+    case = {
+        key: np.concatenate([first[key], second[key] + (shift_s if key == "t" else 0.0)])
+        for key in ("t", "phase", "depth", "p")
+    }
+    n1 = first["t"].size
+    case["f"] = [np.concatenate([a, b]) for a, b in zip(first["f"], second["f"], strict=True)]
+    case["x"] = tuple(np.zeros(case["t"].size) for _ in range(4))
+    per_s = (0.1, 0.1, 0.1, 0.1)
+    inputs = _relaxing(case, per_s, first["arrival"], n1)
+    estimate = tuple(f.copy() for f in case["f"])
+    apply_stop_continuity(inputs, [estimate], 0, case["t"].size, continuity_state(1), HOIST)
+    arrival = n1 + second["arrival"]
+    for i in range(4):
+        shift = (estimate[i] - case["f"][i])[arrival:]
+        np.testing.assert_allclose(shift, -900.0 * FRACTIONS[i], rtol=1e-9)

@@ -4,6 +4,8 @@
     ``scipy.signal.sosfiltfilt``) on each segment, in a numba kernel.
     :func:`lowpass_work_size` -- the work array it needs (callers reuse one).
     :func:`lowpass_columns` -- the same on frame columns.
+    :func:`edge_levels` -- each segment's level at its edges, the odd extension's pivots,
+    fitted over :func:`edge_samples` (one cut-off period).
 
 Every segment is filtered on its own, so nothing is smeared across a logger gap
 (:func:`transforms.filtering.segment_ids`).
@@ -22,7 +24,7 @@ from numba import njit
 
 from physics.filter_design import butter_lowpass_sos, sosfilt_zi
 
-__all__ = ["lowpass", "lowpass_columns", "lowpass_work_size"]
+__all__ = ["edge_levels", "edge_samples", "lowpass", "lowpass_columns", "lowpass_work_size"]
 
 Frame = TypeVar("Frame", pl.DataFrame, pl.LazyFrame)
 

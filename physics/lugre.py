@@ -4,7 +4,8 @@ Functions (numba scalar kernels, then the vectorised one)
     :func:`lugre_z_rate` -- dz/dt, eq 15 first line (the ODE form, for integrators).
     :func:`lugre_force_at` -- F = sigma0 z + sigma1 dz/dt + Kv v, eq 15 second line.
     :func:`lugre_z_step` -- exact exponential solution of the first line over a step.
-    :func:`lugre_drift` -- the first line's drift term alone along a travelled path.
+    :func:`lugre_drift` -- the first line's drift term alone along a travelled path
+    (:func:`lugre_drift_exponent`, its exponent sigma_0 s / g).
     :func:`lugre_force` -- the second line over a step, from z before/after it.
     :func:`lugre_friction` -- the two over a sampled velocity record.
 
@@ -34,6 +35,7 @@ from physics.friction_law import stribeck_g
 
 __all__ = [
     "lugre_drift",
+    "lugre_drift_exponent",
     "lugre_force",
     "lugre_force_at",
     "lugre_friction",
@@ -153,7 +155,21 @@ def lugre_drift(force_n: float, path_m: float, sigma0: float, g: float) -> float
     >>> lugre_drift(1000.0, 0.0, 4e7, 1000.0)
     1000.0
     """
-    return force_n * math.exp(-sigma0 * path_m / g)
+    return force_n * math.exp(-lugre_drift_exponent(path_m, sigma0, g))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def lugre_drift_exponent(path_m: float, sigma0: float, g: float) -> float:
+    r"""The exponent :math:`R = \sigma_0 s / g` by which LuGre's drift along a path s
+    relaxes the bristles' force, :math:`F' = F e^{-R}` (:func:`lugre_drift`): the path in
+    presliding lengths g / sigma_0. Any error of the force relaxes by the same factor
+    (the drift is linear in F at a fixed g), which
+    :func:`transforms.stop_continuity.drift_gains` uses.
+
+    >>> lugre_drift_exponent(25e-6, 4e7, 1000.0)   # one presliding length
+    1.0
+    """
+    return sigma0 * path_m / g
 
 
 @njit(cache=True, nogil=True)

@@ -117,6 +117,7 @@ def lowpass(
     starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]])) if x.size else []
     bounds = [*list(starts), x.size]
     longest = max((b - a for a, b in itertools.pairwise(bounds)), default=0)
+    fitted = edge_samples(sample_rate_hz, cutoff_hz)  # each edge level's stretch
     size = longest + 2 * default_pad
     # the forward pass, reused per segment
     work = np.empty(size) if work is None or work.size < size else work[:size]
@@ -125,7 +126,7 @@ def lowpass(
         if b - a < 3 * order or bad.all():
             continue
         kernel = _sosfiltfilt_two_kernel if sos.shape[0] == 2 else _sosfiltfilt_kernel
-        first, last = edge_levels(part, edge_samples(sample_rate_hz, cutoff_hz))
+        first, last = edge_levels(part, fitted)
         pad = min(default_pad, b - a - 1)
         kernel(sos, zi, np.ascontiguousarray(part), pad, first, last, work, out[a:b])
         if bad.any():

@@ -147,7 +147,7 @@ import numpy as np
 from numba import njit
 
 from physics.friction_law import friction_law_at, law_array, stribeck_g
-from physics.lugre import lugre_drift
+from physics.lugre import lugre_drift, lugre_drift_exponent
 from physics.maxwell_slip import maxwell_slip_elements, maxwell_slip_step, maxwell_slip_virgin
 from physics.oil import ATMOSPHERIC_PRESSURE_PA, effective_bulk_modulus_at
 from physics.rope_spring import (
@@ -898,7 +898,9 @@ def _kernel(
                     if cap[i] > 0.0:
                         z[i] = lugre_drift(z[i], path * compliance[i], sigma0, cap[i])
                         if relaxes:
-                            relax_out[t, i] = sigma0 * path * compliance[i] / cap[i]
+                            relax_out[t, i] = lugre_drift_exponent(
+                                path * compliance[i], sigma0, cap[i]
+                            )
         dp = p_mean - p_last
         steady = known == m
         for i in range(m):

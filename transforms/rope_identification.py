@@ -96,6 +96,13 @@ the viscosity per mean where it follows the oil's temperature (day 103: the rope
 barely nearer, rope error 1.86 -> 1.78 %, but the quarters' new spread left the band
 at 76 % of the windows, was 91 %); a common capacity factor of the seals beside the
 ropes (the misfit's minimum at 1.00-1.07 of the law, no gain on all days); the
+bristle stiffness beside them (day 101, x 2 / x 3: the mismatch 46.2 -> 82.3 / 114.8 um,
+the ropes farther from the truth's; session 65); the model's x read through the
+logger's 0.1 mm step with its ~0.02 mm noise (its expected reading against the logged
+means: 85.3 -> 85.8 um with the identified constants, 167 um with the truth's either
+way: the misfit is not the quantiser's; the truth's constants leave piston 1 +0.25 mm
+and pistons 2-3 -0.11 mm off on average, the oil shared among the pistons unlike the
+world's; session 65, ``benchmarks/HISTORY.md``); the
 objective on x differenced over 10-600 s (the truth's constants still fit worse); the
 polish on the sensors' samples (day 102 worst 0.67 -> 1.25 %: the model at 0.02 s
 steps fits x 0.13-0.26 mm and its step matters, through the drift's shares and the

@@ -510,6 +510,10 @@ def replay_fitted(
     Gauss-Newton step on the common-mode residual over the ramp (the seal friction and
     the rope bounce delay the pressure behind the load, so the ramp seen in the pressure
     is not the load's) and re-simulates. When a pass simulates nothing, it is the result.
+    A trip with no scored sample (a block's warm-up) has no residual to fit: from the
+    second pass it leaves the scored trip after it that trip's fitted payload less the
+    loading its stop's levels show (:meth:`_FittedPasses._warm_up_tie`), not the payload
+    its own levels at rest imply, which hold what the seals held there.
 
     A trip's inputs in a pass are its own answer in the pass before (and the state its
     block's previous trip left in this pass), so the passes run as a pipeline
@@ -581,15 +585,55 @@ class _FittedPasses:
         row = self.rows[j - 1][k]
         assert row is not None  # set before its event, freed only after this read
         tr = self.plan.trips[k]
-        r = np.where(tr.valid, tr.measured_pa - row[0], np.nan)
-        dp = float(np.nanmean(r)) if np.isfinite(r).any() else 0.0
+        dp = self._offset(j - 1, k)
         pay, _, ramps = self.inputs[j]
         pay[k] = np.maximum(self.inputs[j - 1][0][k] + dp * self.scale, 0.0)
+        warm_up = self._warm_up_tie(k)
+        if warm_up is not None:  # the scored trip after it is fitted: the payload it
+            # leaves is that trip's less the change its stop's levels show
+            self.done[j - 1][k + 1].wait()
+            if self.stop.is_set():
+                raise _Abandoned(f"replay pass {j + 1} of trip {k} given up")
+            fitted = self.inputs[j - 1][0][k + 1] + self._offset(j - 1, k + 1) * self.scale
+            pay[k] = np.maximum(np.maximum(fitted, 0.0) - warm_up, 0.0)  # as trip k + 1's
         ramps[k] = _refine_ramp(tr, row[1], self.inputs[j - 1][2][k], dp)
         if np.isfinite(row[0]).any():
             self.finite[j - 1] = True
         if self.finite[j - 1]:  # not this pass's result: let its rows go
             self.rows[j - 1][k] = None
+
+    def _offset(self, j: int, k: int) -> float:
+        """Pass j's mean common-mode residual of trip k over its scored samples [Pa] (0
+        where it has none)."""
+        row = self.rows[j][k]
+        assert row is not None  # read before the next pass lets it go
+        tr = self.plan.trips[k]
+        r = np.where(tr.valid, tr.measured_pa - row[0], np.nan)
+        return float(np.nanmean(r)) if np.isfinite(r).any() else 0.0
+
+    def _warm_up_tie(self, k: int) -> float | None:
+        """For a trip that only loads the seals' state (no scored sample: a block's
+        warm-up) followed in its block by a scored trip: the payload change [kg] that the
+        scored trip's stop shows in its levels at rest (after less before its loading,
+        at one depth: the tail rope cancels); None otherwise.
+
+        Such a trip's payload is no fit's: read from its own levels at rest
+        (:func:`sims.replay_inputs.static_payloads_kg`), it holds whatever the seals held
+        there (up to ~4 x F_s, some 800 kg on the validation hoist), and the scored trip
+        after it starts from it: its fitted payload then differs by a loading the record
+        does not show, which the replay plays at the window's start (validation trial_001
+        with a 5 min outage: a block's second trip 137 kPa off at its window's start, a
+        stop at the middle without a loading, 36.5 kPa RMS over the trip). Tied to the
+        fitted payload after it, from the second pass on, the warm-up leaves the payload
+        the record shows."""
+        trips = self.plan.trips
+        if k + 1 >= len(trips) or trips[k + 1].first_in_block:
+            return None
+        warm, scored = trips[k], trips[k + 1]
+        if warm.valid.any() or not scored.valid.any():
+            return None
+        change = (scored.p_after_pa - scored.p_before_pa) * self.scale
+        return float(change) if np.isfinite(change) else None
 
     def after(self, j: int, k: int, row: _Row) -> None:
         self.rows[j][k] = row

@@ -36,6 +36,7 @@ from physics.conveyance import conveyance_speed
 from physics.trip_rule import STANDSTILL_SPEED_M_S, TRIP_BRIDGE_S, segment_ids
 from schemas.hoist import HoistDescription
 from sims.logged_motion import knot_spacing_s
+from sims.replay_plan import loading_threshold_pa
 
 __all__ = [
     "RAMP_LEAD_S",
@@ -163,12 +164,7 @@ def read_record(samples: pl.DataFrame, hoist: HoistDescription) -> RecordArrays:
     known = np.isfinite(pc)
     pc_filled = np.interp(t, t[known], pc[known]) if known.any() else np.zeros_like(pc)
     pcs = ndimage.uniform_filter1d(pc_filled, size=max(3, int(rate) | 1))
-    # a load change at a stop counts from 10 x the noise (20 kPa at least): the pressure
-    # settles for seconds after a stop (ringing ropes shake the seals loose), and a lower
-    # threshold (2 x, tried) took that settling for a load change 2 s after 16 of 66
-    # stops on a validation day whose ropes ring; smaller changes go unseen (the seals
-    # hold them until the next trip moves)
-    ramp_threshold = max(10.0 * sigma, 2e4) if np.isfinite(sigma) else 2e4
+    ramp_threshold = loading_threshold_pa(sigma)
     stops = _stop_depths(t, depth, motions, hoist.shaft.depth_m)
     return RecordArrays(
         t_ref, t, p, depth, speed, temp, motions, quiet, sigma, pc, pc_filled, pcs, stops,

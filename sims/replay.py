@@ -93,7 +93,7 @@ from sims.replay_inputs import (
     replay_profile,
     sensor_gain_offset,
 )
-from sims.replay_plan import ReplayPlan, ReplayResult, ReplayTrip
+from sims.replay_plan import ReplayPlan, ReplayResult, ReplayTrip, loading_threshold_pa
 
 __all__ = [
     "CLOSER_SHARE",
@@ -510,10 +510,10 @@ def replay_fitted(
     Gauss-Newton step on the common-mode residual over the ramp (the seal friction and
     the rope bounce delay the pressure behind the load, so the ramp seen in the pressure
     is not the load's) and re-simulates. When a pass simulates nothing, it is the result.
-    A trip with no scored sample (a block's warm-up) has no residual to fit: from the
-    second pass it leaves the scored trip after it that trip's fitted payload less the
-    loading its stop's levels show (:meth:`_FittedPasses._warm_up_tie`), not the payload
-    its own levels at rest imply, which hold what the seals held there.
+    A trip with no scored sample (a block's warm-up) has no residual to fit: where the
+    scored trip after it stopped without a loading, it carries that trip's fitted
+    payload from the second pass on (:meth:`_FittedPasses._warm_up_tie`), not the
+    payload its own levels at rest imply, which hold what the seals held there.
 
     A trip's inputs in a pass are its own answer in the pass before (and the state its
     block's previous trip left in this pass), so the passes run as a pipeline
@@ -588,14 +588,13 @@ class _FittedPasses:
         dp = self._offset(j - 1, k)
         pay, _, ramps = self.inputs[j]
         pay[k] = np.maximum(self.inputs[j - 1][0][k] + dp * self.scale, 0.0)
-        warm_up = self._warm_up_tie(k)
-        if warm_up is not None:  # the scored trip after it is fitted: the payload it
-            # leaves is that trip's less the change its stop's levels show
+        if self._warm_up_tie(k):  # the scored trip after it, no loading between: its
+            # fitted payload, as before(j, k + 1) will set it
             self.done[j - 1][k + 1].wait()
             if self.stop.is_set():
                 raise _Abandoned(f"replay pass {j + 1} of trip {k} given up")
             fitted = self.inputs[j - 1][0][k + 1] + self._offset(j - 1, k + 1) * self.scale
-            pay[k] = np.maximum(np.maximum(fitted, 0.0) - warm_up, 0.0)  # as trip k + 1's
+            pay[k] = np.maximum(fitted, 0.0)
         ramps[k] = _refine_ramp(tr, row[1], self.inputs[j - 1][2][k], dp)
         if np.isfinite(row[0]).any():
             self.finite[j - 1] = True
@@ -611,29 +610,32 @@ class _FittedPasses:
         r = np.where(tr.valid, tr.measured_pa - row[0], np.nan)
         return float(np.nanmean(r)) if np.isfinite(r).any() else 0.0
 
-    def _warm_up_tie(self, k: int) -> float | None:
-        """For a trip that only loads the seals' state (no scored sample: a block's
-        warm-up) followed in its block by a scored trip: the payload change [kg] that the
-        scored trip's stop shows in its levels at rest (after less before its loading,
-        at one depth: the tail rope cancels); None otherwise.
+    def _warm_up_tie(self, k: int) -> bool:
+        """Whether trip k only loads the seals' state (no scored sample: a block's
+        warm-up) and the scored trip after it in its block stopped without a loading
+        (its levels at rest before and after within :func:`sims.replay_plan.
+        loading_threshold_pa` of each other): the payload is the same on both sides of
+        that stop, so the warm-up's is the scored trip's fitted one.
 
-        Such a trip's payload is no fit's: read from its own levels at rest
+        A warm-up's own payload is no fit's: read from its levels at rest
         (:func:`sims.replay_inputs.static_payloads_kg`), it holds whatever the seals held
         there (up to ~4 x F_s, some 800 kg on the validation hoist), and the scored trip
         after it starts from it: its fitted payload then differs by a loading the record
-        does not show, which the replay plays at the window's start (validation trial_001
-        with a 5 min outage: a block's second trip 137 kPa off at its window's start, a
-        stop at the middle without a loading, 36.5 kPa RMS over the trip). Tied to the
-        fitted payload after it, from the second pass on, the warm-up leaves the payload
-        the record shows."""
+        does not show, which the replay plays at its window's start (validation
+        trial_001 with a 5 min outage: a block's second trip, stopped at the middle
+        without a loading, 137 kPa off at its window's start and 36.5 kPa RMS over the
+        trip, 9.6 kPa tied). Where the stop shows a loading, its level change is no
+        better a measure of it than the warm-up's levels (the seals take part of a
+        loading at rest too: tied across such stops, validation trial_004's gap went
+        9.8 -> 10.8 kPa), and the warm-up keeps its own."""
         trips = self.plan.trips
         if k + 1 >= len(trips) or trips[k + 1].first_in_block:
-            return None
+            return False
         warm, scored = trips[k], trips[k + 1]
         if warm.valid.any() or not scored.valid.any():
-            return None
-        change = (scored.p_after_pa - scored.p_before_pa) * self.scale
-        return float(change) if np.isfinite(change) else None
+            return False
+        change = abs(scored.p_after_pa - scored.p_before_pa)
+        return bool(change <= loading_threshold_pa(self.plan.noise_sigma_pa))
 
     def after(self, j: int, k: int, row: _Row) -> None:
         self.rows[j][k] = row

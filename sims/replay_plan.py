@@ -18,7 +18,29 @@ import polars as pl
 
 from schemas.hoist import HoistDescription
 
-__all__ = ["ReplayPlan", "ReplayResult", "ReplayTrip", "SkippedTrip", "replay_frame"]
+__all__ = [
+    "ReplayPlan",
+    "ReplayResult",
+    "ReplayTrip",
+    "SkippedTrip",
+    "loading_threshold_pa",
+    "replay_frame",
+]
+
+
+def loading_threshold_pa(noise_sigma_pa: float) -> float:
+    """The common-mode level change at a stop that counts as a load change [Pa]: 10 x
+    the pressure noise, 20 kPa at least (20 kPa without a noise estimate).
+
+    The pressure settles for seconds after a stop (ringing ropes shake the seals loose),
+    and a lower threshold (2 x, tried) took that settling for a load change 2 s after 16
+    of 66 stops on a validation day whose ropes ring; smaller changes go unseen (the
+    seals hold them until the next trip moves).
+
+    >>> loading_threshold_pa(5e3), loading_threshold_pa(1e3), loading_threshold_pa(float("nan"))
+    (50000.0, 20000.0, 20000.0)
+    """
+    return max(10.0 * noise_sigma_pa, 2e4) if np.isfinite(noise_sigma_pa) else 2e4
 
 
 @dataclass(frozen=True)

@@ -573,13 +573,19 @@ class _FittedPasses:
         self.finite = [False] * passes  # the pass simulated something (read by the next)
         self.stop = threading.Event()
         self.errors: list[BaseException] = []
+        self.ties = [self._warm_up_tie(k) for k in range(count)]  # read by every pass
+
+    def _wait(self, j: int, k: int, for_trip: int) -> None:
+        """Until pass j's trip ``for_trip`` is done (none for j < 0); _Abandoned for pass
+        j + 1's trip k when a task of the fit raised."""
+        if j >= 0:
+            self.done[j][for_trip].wait()
+        if self.stop.is_set():
+            raise _Abandoned(f"replay pass {j + 2} of trip {k} given up")
 
     def before(self, j: int, k: int) -> None:
         """Pass j's payload and ramp of trip k from pass j-1's answer for it."""
-        if j:
-            self.done[j - 1][k].wait()
-        if self.stop.is_set():
-            raise _Abandoned(f"replay pass {j + 1} of trip {k} given up")
+        self._wait(j - 1, k, k)
         if not j:
             return
         row = self.rows[j - 1][k]
@@ -588,11 +594,9 @@ class _FittedPasses:
         dp = self._offset(j - 1, k)
         pay, _, ramps = self.inputs[j]
         pay[k] = np.maximum(self.inputs[j - 1][0][k] + dp * self.scale, 0.0)
-        if self._warm_up_tie(k):  # the scored trip after it, no loading between: its
-            # fitted payload, as before(j, k + 1) will set it
-            self.done[j - 1][k + 1].wait()
-            if self.stop.is_set():
-                raise _Abandoned(f"replay pass {j + 1} of trip {k} given up")
+        if self.ties[k]:  # the scored trip after it, no loading between: its fitted
+            # payload, as before(j, k + 1) will set it
+            self._wait(j - 1, k, k + 1)
             fitted = self.inputs[j - 1][0][k + 1] + self._offset(j - 1, k + 1) * self.scale
             pay[k] = np.maximum(fitted, 0.0)
         ramps[k] = _refine_ramp(tr, row[1], self.inputs[j - 1][2][k], dp)

@@ -1,7 +1,7 @@
 """The alarm rules' checks: each family of rules evaluated on the prepared samples.
 
-:func:`rope_alarms` (imbalance, slack and tight rope), :func:`load_alarms` (overload
-and the reconciliation residual at rest) and :func:`sensor_alarms` (flat line, stuck,
+:func:`rope_alarms` (imbalance, slack and tight rope), :func:`load_alarms` (overload,
+underload and the reconciliation residual at rest) and :func:`sensor_alarms` (flat line, stuck,
 out of range, dropout, disagreement at rest) return the event rows of their rules;
 :func:`transforms.alarms.evaluate_alarms` prepares the samples and calls them. The
 thresholds are :mod:`transforms.alarm_rules`'s, the debounce :mod:`transforms.alarm_events`'.
@@ -105,18 +105,30 @@ def rope_alarms(
 def load_alarms(
     ctx: EventContext, frame: pl.DataFrame, thresholds: RuleThresholds, common: dict[str, float]
 ) -> list[dict[str, object]]:
-    """Overload (static-equivalent load) and reconciliation-residual (at rest) events."""
+    """Overload and underload (static-equivalent load) and reconciliation-residual (at
+    rest) events."""
     t_s = ctx.t_s
     static = column(frame, "_static_load_n")
-    overload_threshold = column(frame, "_rated_load_n") * (
-        1.0 + thresholds.overload_tolerance_fraction
+    tol = thresholds.overload_tolerance_fraction
+    overload_threshold = column(frame, "_rated_load_n") * (1.0 + tol)
+    s, e = threshold_events(
+        t_s, static, overload_threshold, above=True, **_band_of_margin(common, tol, above=True)
     )
-    s, e = threshold_events(t_s, static, overload_threshold, above=True, **common)
     rows = event_rows(
         ctx, "overload", None, s, e, peak_of=static, peak_max=True,
         threshold=overload_threshold,
         message="static-equivalent load above (conveyance + rated payload + tail rope) g "
-        f"+ {thresholds.overload_tolerance_fraction:.0%}",
+        f"+ {tol:.0%}",
+    )  # fmt: skip
+    underload_threshold = column(frame, "_empty_load_n") * (1.0 - tol)
+    s, e = threshold_events(
+        t_s, static, underload_threshold, above=False, **_band_of_margin(common, tol, above=False)
+    )
+    rows += event_rows(
+        ctx, "underload", None, s, e, peak_of=static, peak_max=False,
+        threshold=underload_threshold,
+        message=f"static-equivalent load below the empty conveyance with its tail rope - {tol:.0%}"
+        ": resting on something, or the description's masses or the sensors off",
     )  # fmt: skip
     speed = column(frame, "speed_m_s")
     expected = column(frame, "_expected_n")
@@ -130,6 +142,23 @@ def load_alarms(
         threshold=tol,
         message=f"load at standstill differs from the expected load by more than {tol:.0%}",
     )  # fmt: skip
+
+
+def _band_of_margin(common: dict[str, float], tol: float, *, above: bool) -> dict[str, float]:
+    """The debounce settings ``common`` for a load rule whose threshold is (1 +- ``tol``)
+    x a reference load: its hysteresis band the ``hysteresis_fraction`` of the margin
+    (tol x the reference), not of the threshold (session 66). A band of 5 % of the
+    threshold held an overload alarm through a trip at 98 % of the rated load, and an
+    underload at the empty load itself, 3 % above its threshold, until a payload came on.
+
+    Below an empty load of 100 kN the band is 5 % of its 3 kN margin:
+
+    >>> band = _band_of_margin({"hysteresis_fraction": 0.05}, 0.03, above=False)
+    >>> round(band["hysteresis_fraction"] * 0.97 * 100e3, 6)
+    150.0
+    """
+    scale = tol / (1.0 + tol) if above else tol / (1.0 - tol)
+    return {**common, "hysteresis_fraction": common["hysteresis_fraction"] * scale}
 
 
 def dropout_gap_s(dropout_duration_s: float, sample_step_s: float) -> float:

@@ -3,7 +3,7 @@
 Contents
 --------
 Rules (:data:`ALARM_RULES`: name -> citation, unit)
-    ``rope_imbalance``, ``slack_rope``, ``tight_rope``, ``overload``,
+    ``rope_imbalance``, ``slack_rope``, ``tight_rope``, ``overload``, ``underload``,
     ``reconciliation_residual``, ``sensor_flatline``, ``sensor_stuck``,
     ``sensor_out_of_range``, ``sensor_dropout``, ``sensor_disagreement``.
 Entry point
@@ -33,6 +33,17 @@ Reading of the regulations (paraphrased; check the current text before relying o
 - **Overload** -- project rule against the rated payload: the static-equivalent load
   (acceleration removed) exceeds (m_conveyance + m_rated_payload + m_tail(z)) g by more
   than ``reconciliation_tolerance_fraction`` (the load measurement's uncertainty).
+- **Underload** -- project rule, the overload's mirror: the static-equivalent load falls
+  below the empty conveyance with its hanging tail rope, (m_conveyance + m_tail(z)) g,
+  by more than ``reconciliation_tolerance_fraction``. The head ropes then carry less
+  than the conveyance weighs: it rests on something (the keps or loading chairs, a skip
+  caught in the shaft), which unloads all four ropes together, so the per-rope slack
+  rule (60 % of the empty share) only sees it once it is nearly complete; or the
+  description's masses or the sensors are off (a trip reconciled to a negative
+  payload). Before it (session 66) a description's conveyance too heavy for its record
+  reconciled its trips to negative payloads and raised no alarm (an earlier adversarial
+  probe, ``CHANGELOG.md``). Its hysteresis band, as the overload's, is a fraction of the
+  tolerance's margin (:func:`transforms.alarm_checks._band_of_margin`).
 - **Reconciliation residual** -- project rule: at standstill (|speed| < 0.05 m/s) the
   measured load differs from the expected load for the trip's payload by more than
   ``reconciliation_tolerance_fraction``.
@@ -114,6 +125,9 @@ ALARM_RULES: dict[str, AlarmRule] = {
             "tight_rope", f"{_QUEBEC}: above max static load + 10 % breaking strength", "N", True
         ),
         AlarmRule("overload", "ropeload: static-equivalent load above rated load", "N", False),
+        AlarmRule(
+            "underload", "ropeload: static-equivalent load below the empty conveyance", "N", False
+        ),
         AlarmRule(
             "reconciliation_residual",
             "ropeload: load at standstill differs from expected beyond tolerance",

@@ -127,6 +127,7 @@ def _alarm_frame(
         lazy = lazy.with_columns(pl.col("_payload_kg").fill_null(float(payload_kg)))
     tail_n = tail_rope_weight_expr(hoist)
     rated_n = (hoist.conveyance.mass_kg + hoist.conveyance.rated_payload_kg) * G_STANDARD
+    empty_n = hoist.conveyance.mass_kg * G_STANDARD
     accel = pl.col("acceleration_up_m_s2").fill_null(0.0)
     return (
         lazy.sort("time_utc")
@@ -134,6 +135,7 @@ def _alarm_frame(
             # the tail ropes accelerate with the conveyance (reconciliation docstring)
             _static_load_n=pl.col("load_n") * G_STANDARD / (G_STANDARD + accel),
             _rated_load_n=tail_n + rated_n,
+            _empty_load_n=tail_n + empty_n,
             _expected_n=expected_load_expr(hoist, payload_kg=pl.col("_payload_kg")),
         )
         .collect()
@@ -168,7 +170,7 @@ def alarm_margin_s(hoist: HoistDescription, merge_gap_s: float = 2.0) -> float:
 
 #: Rules whose peak is the smallest value (the others: the largest; rope imbalance: the
 #: largest magnitude, its sign kept; durations are recomputed).
-_PEAK_MIN = {"slack_rope"}
+_PEAK_MIN = {"slack_rope", "underload"}
 _PEAK_DURATION = {"sensor_flatline", "sensor_stuck", "sensor_dropout"}
 
 

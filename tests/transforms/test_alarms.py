@@ -574,3 +574,68 @@ def test_a_slow_loggers_own_step_is_not_a_dropout(hoist):
     fast = fast.filter((times < 300.0) | (times >= 301.2))
     found = _events(evaluate_alarms(fast, hoist, run_id="r"), "sensor_dropout")
     _assert_events(found, [(None, 300.0, 301.2)], tol_s=0.02)
+
+
+def test_a_conveyance_resting_on_the_keps_is_an_underload_the_slack_rule_misses(hoist):
+    frame, segments = synthetic_day(hoist, [3000.0, 3000.0], seed=7)
+    unload = [s for s in segments if s[0] == "unload"][1]
+    # after its payload left at the pithead, the conveyance sits on the keps for 6 s: its
+    # four ropes carry 70 % of it and its tail rope, each still ~2.3x the slack threshold
+    keps = (unload[2] + 12.0, unload[2] + 18.0)
+    frame = finish(
+        frame.with_columns(
+            pl.when(_at(frame, *keps))
+            .then(pl.col(f"tension{i}_n") * 0.7)
+            .otherwise(pl.col(f"tension{i}_n"))
+            for i in range(1, 5)
+        ),
+        hoist,
+    )
+    alarms = evaluate_alarms(frame, hoist, run_id="r")
+    _assert_events(_events(alarms, "underload"), [(None, *keps)])
+    assert set(alarms["rule"]) == {"underload"}  # not a slack rope, nor an imbalance
+    row = alarms.row(0, named=True)
+    empty_at_pithead_n = (8200 + 2 * 6.2 * 620) * G_STANDARD  # conveyance + tail rope
+    assert row["threshold"] == pytest.approx(0.97 * empty_at_pithead_n)
+    assert row["peak_value"] == pytest.approx(0.7 * empty_at_pithead_n, rel=0.01)
+    assert row["peak_value"] > 4 * rule_thresholds(hoist).slack_n
+
+
+def test_a_conveyance_described_a_tonne_too_heavy_is_an_underload_while_empty(hoist):
+    """The record's conveyance 8.2 t, its description's 9.2 t: every trip reconciles to
+    about -1 t; the load of the empty conveyance (down trips, the stops between unload
+    and load) is below the described empty load, the loaded one (3 t) is not."""
+    frame, segments = synthetic_day(hoist, [3000.0, 3000.0], seed=8)
+    frame = finish(frame, hoist)
+    heavy = hoist.model_copy(
+        update={"conveyance": hoist.conveyance.model_copy(update={"mass_kg": 9200.0})}
+    )
+    assert evaluate_alarms(frame, hoist, run_id="r").height == 0
+    found = _events(evaluate_alarms(frame, heavy, run_id="r"), "underload")
+    assert found
+    for kind, _, start, end, _ in segments:
+        covered = sum(max(0.0, min(e, end) - max(s, start)) for _, s, e in found)
+        if kind == "up":  # loaded: 12.2 t against 9.2 t described
+            assert covered == 0.0
+        if kind == "down":  # empty all the way: 8.2 t against 9.2 t
+            assert covered >= 0.95 * (end - start) - 1.0
+
+
+def test_an_overload_ends_when_the_load_is_back_below_its_threshold_near_the_rated(hoist):
+    """A trip at 99.7 % of the rated load (5.95 t of 6 t) with 5 s at 6 % above it: one
+    overload of those 5 s. A hysteresis band of 5 % of the threshold (before session 66)
+    held the alarm until the payload left, the load never falling below 97.9 % of it."""
+    frame, segments = synthetic_day(hoist, [5950.0], seed=9)
+    up = next(s for s in segments if s[0] == "up")
+    spike = (up[2] + 30.0, up[2] + 35.0)
+    frame = finish(
+        frame.with_columns(
+            pl.when(_at(frame, *spike))
+            .then(pl.col(f"tension{i}_n") * 1.06)
+            .otherwise(pl.col(f"tension{i}_n"))
+            for i in range(1, 5)
+        ),
+        hoist,
+    )
+    alarms = evaluate_alarms(frame, hoist, run_id="r")
+    _assert_events(_events(alarms, "overload"), [(None, *spike)])

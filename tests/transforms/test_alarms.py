@@ -153,6 +153,16 @@ def _at(frame: pl.DataFrame, start_s: float, end_s: float) -> pl.Expr:
     return (t >= start_s) & (t < end_s)
 
 
+def _load_scaled(frame: pl.DataFrame, window: tuple[float, float], factor: float) -> pl.DataFrame:
+    """The four ropes' tensions x ``factor`` over ``window`` [s]: the load, shared alike."""
+    return frame.with_columns(
+        pl.when(_at(frame, *window))
+        .then(pl.col(f"tension{i}_n") * factor)
+        .otherwise(pl.col(f"tension{i}_n"))
+        for i in range(1, 5)
+    )
+
+
 def _seconds(value: dt.datetime) -> float:
     return (value - T0).total_seconds()
 
@@ -582,15 +592,7 @@ def test_a_conveyance_resting_on_the_keps_is_an_underload_the_slack_rule_misses(
     # after its payload left at the pithead, the conveyance sits on the keps for 6 s: its
     # four ropes carry 70 % of it and its tail rope, each still ~2.3x the slack threshold
     keps = (unload[2] + 12.0, unload[2] + 18.0)
-    frame = finish(
-        frame.with_columns(
-            pl.when(_at(frame, *keps))
-            .then(pl.col(f"tension{i}_n") * 0.7)
-            .otherwise(pl.col(f"tension{i}_n"))
-            for i in range(1, 5)
-        ),
-        hoist,
-    )
+    frame = finish(_load_scaled(frame, keps, 0.7), hoist)
     alarms = evaluate_alarms(frame, hoist, run_id="r")
     _assert_events(_events(alarms, "underload"), [(None, *keps)])
     assert set(alarms["rule"]) == {"underload"}  # not a slack rope, nor an imbalance
@@ -628,14 +630,6 @@ def test_an_overload_ends_when_the_load_is_back_below_its_threshold_near_the_rat
     frame, segments = synthetic_day(hoist, [5950.0], seed=9)
     up = next(s for s in segments if s[0] == "up")
     spike = (up[2] + 30.0, up[2] + 35.0)
-    frame = finish(
-        frame.with_columns(
-            pl.when(_at(frame, *spike))
-            .then(pl.col(f"tension{i}_n") * 1.06)
-            .otherwise(pl.col(f"tension{i}_n"))
-            for i in range(1, 5)
-        ),
-        hoist,
-    )
+    frame = finish(_load_scaled(frame, spike, 1.06), hoist)
     alarms = evaluate_alarms(frame, hoist, run_id="r")
     _assert_events(_events(alarms, "overload"), [(None, *spike)])
